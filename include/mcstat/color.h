@@ -1,0 +1,27 @@
+// Colour management through OpenColorIO. When $OCIO is unset the project's own small config is used
+// (scene-linear Rec.709 primaries, an sRGB display with a "Standard" view): OCIO 2.1 on Debian 12 has
+// no built-in configs. When $OCIO is set, that config is honoured.
+#pragma once
+
+#include <array>
+#include <string>
+
+namespace mcstat {
+
+/// Name of the scene-linear colour space every statistics file stores in (with the built-in config).
+inline constexpr const char* kSceneLinear = "lin_rec709";
+
+/// Luma coefficients of the active config (Config::getDefaultLumaCoefs). Never fails: a broken
+/// $OCIO config falls back to the built-in one, and `warning` (if non-null) says so.
+std::array<double, 3> lumaCoefficients(std::string* warning = nullptr);
+
+/// Text of the built-in config (for docs and tests).
+const char* builtinOcioConfig();
+
+/// Converts interleaved RGB scene-linear pixels in place to display-encoded values through the
+/// active config's display/view transform (default display and view when empty).
+/// Returns false with `err` set when the config or the transform cannot be built.
+bool applyDisplayTransform(float* rgb, long npixels, std::string& err,
+                           const std::string& display = "", const std::string& view = "");
+
+}  // namespace mcstat
