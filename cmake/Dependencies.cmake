@@ -14,7 +14,11 @@ foreach(_tgt OpenImageIO::OpenImageIO OpenImageIO::OpenImageIO_Util)
     endif()
   endif()
 endforeach()
-find_package(OpenColorIO CONFIG REQUIRED)
+# Debian 12 installs OpenColorIOConfig.cmake directly in /usr/share/cmake, from where it computes a
+# wrong prefix ("/include"); its pkg-config file is right.
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(OpenColorIO REQUIRED IMPORTED_TARGET OpenColorIO)
+add_library(OpenColorIO::OpenColorIO ALIAS PkgConfig::OpenColorIO)
 find_package(embree 3 CONFIG REQUIRED)
 find_package(fmt CONFIG REQUIRED)
 find_package(nlohmann_json CONFIG REQUIRED)

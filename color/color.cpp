@@ -1,0 +1,79 @@
+// Colour management through OpenColorIO (see include/mcstat/color.h).
+#include "mcstat/color.h"
+
+#include <OpenColorIO/OpenColorIO.h>
+
+#include <cstdlib>
+#include <mutex>
+#include <sstream>
+
+namespace OCIO = OCIO_NAMESPACE;
+
+namespace mcstat {
+namespace detail {
+extern const char* const kBuiltinOcioConfig;  // generated from color/config.ocio
+}
+
+namespace {
+
+struct ActiveConfig {
+    OCIO::ConstConfigRcPtr config;
+    std::string warning;  // non-empty when $OCIO was set but could not be used
+};
+
+// The config is loaded once per process: OCIO configs are immutable and thread-safe to share.
+const ActiveConfig& activeConfig() {
+    static const ActiveConfig active = [] {
+        ActiveConfig a;
+        const char* env = std::getenv("OCIO");
+        if (env && *env) {
+            try {
+                a.config = OCIO::Config::CreateFromEnv();
+                return a;
+            } catch (const std::exception& e) {
+                a.warning = std::string("$OCIO=") + env + " unusable (" + e.what() +
+                            "); using mcstat's built-in config";
+            }
+        }
+        std::istringstream in(detail::kBuiltinOcioConfig);
+        a.config = OCIO::Config::CreateFromStream(in);  // our own text: a failure is a build bug
+        return a;
+    }();
+    return active;
+}
+
+}  // namespace
+
+const char* builtinOcioConfig() { return detail::kBuiltinOcioConfig; }
+
+std::array<double, 3> lumaCoefficients(std::string* warning) {
+    const ActiveConfig& a = activeConfig();
+    if (warning) *warning = a.warning;
+    std::array<double, 3> luma{};
+    a.config->getDefaultLumaCoefs(luma.data());
+    return luma;
+}
+
+bool applyDisplayTransform(float* rgb, long npixels, std::string& err, const std::string& display,
+                           const std::string& view) {
+    try {
+        const ActiveConfig& a = activeConfig();
+        const OCIO::ConstConfigRcPtr& cfg = a.config;
+        std::string disp = display.empty() ? cfg->getDefaultDisplay() : display;
+        std::string vw = view.empty() ? cfg->getDefaultView(disp.c_str()) : view;
+        auto t = OCIO::DisplayViewTransform::Create();
+        t->setSrc(OCIO::ROLE_SCENE_LINEAR);
+        t->setDisplay(disp.c_str());
+        t->setView(vw.c_str());
+        OCIO::ConstProcessorRcPtr proc = cfg->getProcessor(t);
+        OCIO::ConstCPUProcessorRcPtr cpu = proc->getDefaultCPUProcessor();
+        OCIO::PackedImageDesc desc(rgb, npixels, 1, 3);
+        cpu->apply(desc);
+        return true;
+    } catch (const std::exception& e) {
+        err = std::string("OCIO display transform failed: ") + e.what();
+        return false;
+    }
+}
+
+}  // namespace mcstat

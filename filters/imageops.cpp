@@ -1,0 +1,173 @@
+// OIIO adapters over the pure estimators and metrics (see include/mcstat/imageops.h).
+#include "mcstat/imageops.h"
+
+#include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/imagebufalgo_util.h>
+
+#include "mcstat/color.h"
+
+namespace mcstat {
+
+using OIIO::ImageBuf;
+using OIIO::ImageSpec;
+using OIIO::ROI;
+using OIIO::TypeDesc;
+
+namespace {
+
+std::vector<std::string> outputChannels(EstimatorMode mode, bool diagnostics) {
+    std::vector<std::string> names = {"R", "G", "B"};
+    if (!diagnostics) return names;
+    if (mode == EstimatorMode::Luminance) {
+        names.insert(names.end(), {"gini", "kept", "excluded"});
+    } else {
+        names.insert(names.end(),
+                     {"gini.R", "gini.G", "gini.B", "kept.R", "kept.G", "kept.B", "excluded"});
+    }
+    return names;
+}
+
+ROI dataWindow(const StatsHeader& h) {
+    return ROI(h.originX, h.originX + h.width, h.originY, h.originY + h.height);
+}
+
+}  // namespace
+
+bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
+              const EstimatorParams& params, bool diagnostics, ROI roi, int nthreads) {
+    const StatsHeader& h = src.header;
+    const ROI full = dataWindow(h);
+    if (!roi.defined()) roi = full;
+    roi = OIIO::roi_intersection(roi, full);
+    if (src.bufferMean.size() != src.pixelCount() * size_t(h.M) * 3 ||
+        src.bufferCount.size() != src.pixelCount() * size_t(h.M)) {
+        dst.errorfmt("estimate {}: statistics image has inconsistent buffer arrays", est.name);
+        return false;
+    }
+    const std::vector<std::string> names = outputChannels(params.mode, diagnostics);
+    ImageSpec spec(roi.width(), roi.height(), int(names.size()), TypeDesc::FLOAT);
+    spec.x = roi.xbegin;
+    spec.y = roi.ybegin;
+    spec.full_x = full.xbegin;
+    spec.full_y = full.ybegin;
+    spec.full_width = full.width();
+    spec.full_height = full.height();
+    spec.channelnames = names;
+    spec.attribute("mcstat:estimator", est.name);
+    spec.attribute("oiio:ColorSpace", h.colorSpace);
+    dst.reset(spec, OIIO::InitializePixels::No);
+
+    // Written straight into the local float buffer: ImageBuf::setpixel converts per call.
+    float* const base = static_cast<float*>(dst.localpixels());
+    const size_t nch = names.size();
+    OIIO::ImageBufAlgo::parallel_image(roi, nthreads, [&](ROI r) {
+        EstimatorScratch scratch;
+        PixelEstimate e;
+        for (int y = r.ybegin; y < r.yend; ++y)
+            for (int x = r.xbegin; x < r.xend; ++x) {
+                const size_t p = size_t(y - h.originY) * size_t(h.width) + size_t(x - h.originX);
+                PixelBuffers buf{&src.bufferMean[p * size_t(h.M) * 3],
+                                 &src.bufferCount[p * size_t(h.M)], h.M};
+                est.fn(buf, params, e, scratch);
+                float* px = base + (size_t(y - roi.ybegin) * size_t(roi.width()) +
+                                    size_t(x - roi.xbegin)) * nch;
+                px[0] = e.rgb[0];
+                px[1] = e.rgb[1];
+                px[2] = e.rgb[2];
+                if (diagnostics) {
+                    if (params.mode == EstimatorMode::Luminance) {
+                        px[3] = e.gini[0];
+                        px[4] = float(e.kept[0]);
+                        px[5] = float(e.excluded);
+                    } else {
+                        for (int c = 0; c < 3; ++c) {
+                            px[3 + c] = e.gini[c];
+                            px[6 + c] = float(e.kept[c]);
+                        }
+                        px[9] = float(e.excluded);
+                    }
+                }
+            }
+    });
+    return true;
+}
+
+ImageBuf estimate(const StatsImage& src, const EstimatorInfo& est, const EstimatorParams& params,
+                  bool diagnostics, ROI roi, int nthreads) {
+    ImageBuf dst;
+    estimate(dst, src, est, params, diagnostics, roi, nthreads);
+    return dst;
+}
+
+ImageBuf beautyImage(const StatsImage& src) {
+    const StatsHeader& h = src.header;
+    ImageSpec spec(h.width, h.height, 3, TypeDesc::FLOAT);
+    spec.x = spec.full_x = h.originX;
+    spec.y = spec.full_y = h.originY;
+    spec.attribute("oiio:ColorSpace", h.colorSpace);
+    ImageBuf dst(spec);
+    if (src.beauty.size() == src.pixelCount() * 3)
+        dst.set_pixels(dst.roi(), TypeDesc::FLOAT, src.beauty.data());
+    else
+        dst.errorfmt("statistics image has no beauty part");
+    return dst;
+}
+
+bool displayTransform(ImageBuf& dst, const ImageBuf& src, ROI roi, int nthreads) {
+    if (!roi.defined()) roi = src.roi();
+    if (src.nchannels() < 3) {
+        dst.errorfmt("display transform needs R, G, B channels; the image has {}", src.nchannels());
+        return false;
+    }
+    ImageSpec spec(roi.width(), roi.height(), 3, TypeDesc::FLOAT);
+    spec.x = roi.xbegin;
+    spec.y = roi.ybegin;
+    ImageBuf out(spec);
+    if (!OIIO::ImageBufAlgo::copy(out, src, TypeDesc::FLOAT, ROI(roi.xbegin, roi.xend, roi.ybegin,
+                                                                  roi.yend, 0, 1, 0, 3),
+                                  nthreads)) {
+        dst.errorfmt("{}", out.geterror());
+        return false;
+    }
+    std::string err;
+    auto* pixels = static_cast<float*>(out.localpixels());
+    if (!applyDisplayTransform(pixels, long(roi.npixels()), err)) {
+        dst.errorfmt("{}", err);
+        return false;
+    }
+    dst = std::move(out);
+    return true;
+}
+
+ImageBuf displayTransform(const ImageBuf& src, ROI roi, int nthreads) {
+    ImageBuf dst;
+    displayTransform(dst, src, roi, nthreads);
+    return dst;
+}
+
+bool diffImages(const ImageBuf& img, const ImageBuf& ref, const DiffOptions& opt, DiffMetrics& out,
+                std::string& err) {
+    const ROI a = img.roi(), b = ref.roi();
+    if (a.width() != b.width() || a.height() != b.height()) {
+        err = OIIO::Strutil::fmt::format("image is {}x{} but the reference is {}x{}", a.width(),
+                                         a.height(), b.width(), b.height());
+        return false;
+    }
+    if (img.nchannels() < 3 || ref.nchannels() < 3) {
+        err = "both images need R, G, B channels";
+        return false;
+    }
+    const int w = a.width(), h = a.height();
+    std::vector<float> lin(size_t(w) * h * 3), rlin(lin.size());
+    img.get_pixels(ROI(a.xbegin, a.xend, a.ybegin, a.yend, 0, 1, 0, 3), TypeDesc::FLOAT, lin.data());
+    ref.get_pixels(ROI(b.xbegin, b.xend, b.ybegin, b.yend, 0, 1, 0, 3), TypeDesc::FLOAT,
+                   rlin.data());
+    std::vector<float> disp = lin, rdisp = rlin;
+    if (!applyDisplayTransform(disp.data(), long(w) * h, err) ||
+        !applyDisplayTransform(rdisp.data(), long(w) * h, err))
+        return false;
+    out = compareImages(lin.data(), rlin.data(), disp.data(), rdisp.data(), w, h, opt);
+    return true;
+}
+
+}  // namespace mcstat

@@ -1,0 +1,118 @@
+// Image-comparison metrics (see include/mcstat/metrics.h and docs/metrics.md).
+#include "mcstat/metrics.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <vector>
+
+namespace mcstat {
+
+namespace {
+
+constexpr int kRadius = 5;  // 11x11 window
+constexpr double kSigma = 1.5;
+
+double clamp01(double v) { return std::clamp(v, 0.0, 1.0); }
+
+}  // namespace
+
+double ssimChannel(const float* a, const float* b, size_t stride, int width, int height,
+                   const bool* mask) {
+    // Separable Gaussian sums of a, b, a^2, b^2, ab, and of the weights (for border renormalisation).
+    double g[2 * kRadius + 1];
+    for (int i = -kRadius; i <= kRadius; ++i) g[i + kRadius] = std::exp(-0.5 * i * i / (kSigma * kSigma));
+    const size_t n = size_t(width) * size_t(height);
+    const int kFields = 6;  // w, a, b, aa, bb, ab
+    std::vector<double> rows(n * kFields, 0.0), full(n * kFields, 0.0);
+    auto val = [&](const float* img, size_t p) { return clamp01(double(img[p * stride])); };
+    auto ok = [&](size_t p) { return mask == nullptr || mask[p]; };
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            double* acc = &rows[(size_t(y) * width + x) * kFields];
+            for (int d = -kRadius; d <= kRadius; ++d) {
+                const int xx = x + d;
+                if (xx < 0 || xx >= width) continue;
+                const size_t p = size_t(y) * width + xx;
+                if (!ok(p)) continue;
+                const double w = g[d + kRadius], va = val(a, p), vb = val(b, p);
+                acc[0] += w;
+                acc[1] += w * va;
+                acc[2] += w * vb;
+                acc[3] += w * va * va;
+                acc[4] += w * vb * vb;
+                acc[5] += w * va * vb;
+            }
+        }
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            double* acc = &full[(size_t(y) * width + x) * kFields];
+            for (int d = -kRadius; d <= kRadius; ++d) {
+                const int yy = y + d;
+                if (yy < 0 || yy >= height) continue;
+                const double* r = &rows[(size_t(yy) * width + x) * kFields];
+                for (int f = 0; f < kFields; ++f) acc[f] += g[d + kRadius] * r[f];
+            }
+        }
+    const double C1 = 0.01 * 0.01, C2 = 0.03 * 0.03;  // (K L)^2 with dynamic range L = 1
+    double sum = 0.0;
+    long count = 0;
+    for (size_t p = 0; p < n; ++p) {
+        if (!ok(p)) continue;
+        const double* f = &full[p * kFields];
+        if (!(f[0] > 0.0)) continue;
+        const double ma = f[1] / f[0], mb = f[2] / f[0];
+        const double va = std::max(0.0, f[3] / f[0] - ma * ma);
+        const double vb = std::max(0.0, f[4] / f[0] - mb * mb);
+        const double cov = f[5] / f[0] - ma * mb;
+        sum += ((2 * ma * mb + C1) * (2 * cov + C2)) / ((ma * ma + mb * mb + C1) * (va + vb + C2));
+        ++count;
+    }
+    return count ? sum / double(count) : 1.0;
+}
+
+DiffMetrics compareImages(const float* lin, const float* ref, const float* disp,
+                          const float* refDisp, int width, int height, const DiffOptions& opt) {
+    DiffMetrics m;
+    const size_t n = size_t(width) * size_t(height);
+    std::unique_ptr<bool[]> mask(new bool[n]);
+    double rel = 0.0, se = 0.0;
+    for (size_t p = 0; p < n; ++p) {
+        bool ok = true;
+        for (int c = 0; c < 3; ++c)
+            ok = ok && std::isfinite(lin[3 * p + c]) && std::isfinite(ref[3 * p + c]) &&
+                 std::isfinite(disp[3 * p + c]) && std::isfinite(refDisp[3 * p + c]);
+        mask[p] = ok;
+        if (!ok) {
+            ++m.nonFinite;
+            continue;
+        }
+        ++m.pixels;
+        double y = 0.0, yr = 0.0;
+        for (int c = 0; c < 3; ++c) {
+            const double x = lin[3 * p + c], r = ref[3 * p + c];
+            rel += (x - r) * (x - r) / (r * r + opt.relmseEpsilon);
+            const double d = clamp01(disp[3 * p + c]) - clamp01(refDisp[3 * p + c]);
+            se += d * d;
+            y += opt.luma[c] * x;
+            yr += opt.luma[c] * r;
+        }
+        if (y > opt.fireflyRatio * yr && y - yr > opt.fireflyFloor) ++m.fireflies;
+    }
+    if (m.pixels == 0) {
+        m.relMSE = std::numeric_limits<double>::quiet_NaN();
+        m.psnr = std::numeric_limits<double>::quiet_NaN();
+        m.ssim = std::numeric_limits<double>::quiet_NaN();
+        return m;
+    }
+    m.relMSE = rel / double(3 * m.pixels);
+    const double mse = se / double(3 * m.pixels);
+    m.psnr = mse > 0.0 ? 10.0 * std::log10(1.0 / mse) : std::numeric_limits<double>::infinity();
+    double s = 0.0;
+    for (int c = 0; c < 3; ++c) s += ssimChannel(disp + c, refDisp + c, 3, width, height, mask.get());
+    m.ssim = s / 3.0;
+    return m;
+}
+
+}  // namespace mcstat

@@ -1,0 +1,40 @@
+// OpenImageIO-facing image operations over statistics files, in OIIO's two forms:
+//   ImageBuf op(const Src&, ..., ROI roi = {}, int nthreads = 0)
+//   bool     op(ImageBuf& dst, const Src&, ..., ROI roi = {}, int nthreads = 0)
+// Errors are recorded on the returned / destination ImageBuf (has_error(), geterror()); nothing throws.
+#pragma once
+
+#include <OpenImageIO/imagebuf.h>
+
+#include "mcstat/estimators.h"
+#include "mcstat/metrics.h"
+#include "mcstat/registry.h"
+#include "mcstat/stats_file.h"
+
+namespace mcstat {
+
+/// Runs estimator `est` on every pixel of `src` within `roi` (default: the whole data window).
+/// The result has channels R, G, B and, when `diagnostics` is set, the Gini coefficient, the number
+/// of buffers kept and the number excluded for NaN/Inf: "gini", "kept", "excluded" in luminance
+/// mode; "gini.R/G/B", "kept.R/G/B", "excluded" per channel.
+bool estimate(OIIO::ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
+              const EstimatorParams& params, bool diagnostics = false, OIIO::ROI roi = {},
+              int nthreads = 0);
+OIIO::ImageBuf estimate(const StatsImage& src, const EstimatorInfo& est,
+                        const EstimatorParams& params, bool diagnostics = false,
+                        OIIO::ROI roi = {}, int nthreads = 0);
+
+/// The beauty part (plain mean) of a statistics file as an RGB float image.
+OIIO::ImageBuf beautyImage(const StatsImage& src);
+
+/// Display-encodes the R, G, B channels of `src` through the active OCIO config's default display
+/// and view (float result, unclamped).
+bool displayTransform(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, OIIO::ROI roi = {},
+                      int nthreads = 0);
+OIIO::ImageBuf displayTransform(const OIIO::ImageBuf& src, OIIO::ROI roi = {}, int nthreads = 0);
+
+/// Compares the RGB of `img` with `ref` (same size): see metrics.h. False with `err` on mismatch.
+bool diffImages(const OIIO::ImageBuf& img, const OIIO::ImageBuf& ref, const DiffOptions& opt,
+                DiffMetrics& out, std::string& err);
+
+}  // namespace mcstat

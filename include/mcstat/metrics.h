@@ -1,0 +1,43 @@
+// Image-comparison metrics of `mcstat --diff`: pure functions over interleaved RGB float arrays.
+// docs/metrics.md defines each one; in short:
+// - relMSE: mean over pixels and channels of (x - r)^2 / (r^2 + eps), on scene-linear values.
+// - PSNR and SSIM: on display-encoded values (the caller applies the OCIO display transform),
+//   clamped to [0, 1]. SSIM (Wang et al. 2004): 11x11 Gaussian window, sigma 1.5, K1 = 0.01,
+//   K2 = 0.03, per channel, averaged; the window is renormalised at image borders.
+// - firefly pixel: Y > ratio * Y_ref and Y - Y_ref > floor, Y the luminance of scene-linear values
+//   (luma coefficients from the OCIO config); defaults ratio 2, floor 1.0 (display white).
+// Pixels where either image is not finite are left out of every metric and counted.
+#pragma once
+
+#include <array>
+#include <cstddef>
+
+namespace mcstat {
+
+struct DiffOptions {
+    std::array<double, 3> luma{0.0, 0.0, 0.0};
+    double relmseEpsilon = 0.01;
+    double fireflyRatio = 2.0;
+    double fireflyFloor = 1.0;
+};
+
+struct DiffMetrics {
+    double relMSE = 0.0;
+    double psnr = 0.0;  ///< dB; +inf for identical display images
+    double ssim = 1.0;
+    long fireflies = 0;
+    long nonFinite = 0;  ///< pixels left out because a value was NaN or Inf
+    long pixels = 0;     ///< pixels compared
+};
+
+/// `lin`/`ref` are scene-linear RGB, `disp`/`refDisp` the same images display-encoded; all
+/// width*height*3 floats.
+DiffMetrics compareImages(const float* lin, const float* ref, const float* disp,
+                          const float* refDisp, int width, int height, const DiffOptions& opt);
+
+/// SSIM of two single-channel images (stride = floats between consecutive pixels); pixels where
+/// mask is false are left out of the average (mask may be null).
+double ssimChannel(const float* a, const float* b, size_t stride, int width, int height,
+                   const bool* mask);
+
+}  // namespace mcstat

@@ -1,0 +1,347 @@
+// Command table, argument loop and the commands that compute (estimators, --diff, --merge, stack
+// operations). Reading, writing and --info live in io.cpp.
+#include "cli.h"
+
+#include <OpenImageIO/imageio.h>
+#include <OpenImageIO/strutil.h>
+#include <OpenImageIO/timer.h>
+
+#include <cstdio>
+#include <cstdlib>
+
+#include "mcstat/color.h"
+#include "mcstat/imageops.h"
+#include "mcstat/registry.h"
+
+namespace mcstat::cli {
+
+namespace {
+
+using OIIO::Strutil::fmt::format;
+
+bool needStack(State& st, size_t n, const std::string& cmd, std::string& err) {
+    if (st.stack.size() >= n) return true;
+    err = format("{} needs {} image{} on the stack, there {} {}", cmd, n, n > 1 ? "s" : "",
+                 st.stack.size() == 1 ? "is" : "are", st.stack.size());
+    return false;
+}
+
+bool parseInt(const std::string& s, long lo, long hi, long& out) {
+    char* end = nullptr;
+    errno = 0;
+    const long v = std::strtol(s.c_str(), &end, 10);
+    if (s.empty() || *end != '\0' || errno != 0 || v < lo || v > hi) return false;
+    out = v;
+    return true;
+}
+
+bool parseDouble(const std::string& s, double& out) {
+    char* end = nullptr;
+    errno = 0;
+    const double v = std::strtod(s.c_str(), &end);
+    if (s.empty() || *end != '\0' || errno != 0 || !std::isfinite(v)) return false;
+    out = v;
+    return true;
+}
+
+bool flagValue(const Modifiers& mods, const std::string& key, bool& out, std::string& err) {
+    auto it = mods.find(key);
+    if (it == mods.end()) return true;
+    if (it->second == "1" || it->second == "true" || it->second == "on") {
+        out = true;
+    } else if (it->second == "0" || it->second == "false" || it->second == "off") {
+        out = false;
+    } else {
+        err = format("modifier {} must be 0 or 1, not '{}'", key, it->second);
+        return false;
+    }
+    return true;
+}
+
+// ---- estimator commands, one per registry entry -------------------------------------------------
+
+bool cmdEstimate(State& st, const std::string& cmd, const std::vector<std::string>&,
+                 const Modifiers& mods, std::string& err) {
+    const EstimatorInfo* est = findEstimator(cmd.substr(2));
+    if (!needStack(st, 1, cmd, err)) return false;
+    Item& top = st.stack.back();
+    if (!top.isStats()) {
+        err = format("{}: {} is an image, not a statistics file (.{})", cmd, top.name,
+                     kStatsExtension);
+        return false;
+    }
+    Modifiers estMods = mods;
+    bool diag = false;
+    if (!flagValue(mods, "diag", diag, err)) return false;
+    estMods.erase("diag");
+    EstimatorParams params;
+    std::string warning;
+    params.luma = lumaCoefficients(&warning);
+    if (!warning.empty()) std::fprintf(stderr, "mcstat: warning: %s\n", warning.c_str());
+    if (!parseEstimatorParams(*est, estMods, params, err)) return false;
+    if (!loadStats(st, top, err)) return false;
+    auto img = std::make_shared<OIIO::ImageBuf>();
+    if (!estimate(*img, *top.stats, *est, params, diag, {}, st.nthreads)) {
+        err = format("{}: {}", cmd, img->geterror());
+        return false;
+    }
+    for (const auto& [k, v] : estMods) img->specmod().attribute("mcstat:" + k, v);
+    Item out;
+    out.name = format("{}({})", est->name, top.name);
+    out.image = img;
+    top = std::move(out);
+    return true;
+}
+
+// ---- comparison and merging -----------------------------------------------------------------------
+
+bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& args,
+             const Modifiers& mods, std::string& err) {
+    if (!needStack(st, 1, cmd, err)) return false;
+    const Item& top = st.stack.back();
+    if (top.isStats()) {
+        err = format("{}: {} is a statistics file; apply an estimator first (e.g. --mean)", cmd,
+                     top.name);
+        return false;
+    }
+    DiffOptions opt;
+    opt.luma = lumaCoefficients();
+    for (const auto& [k, v] : mods) {
+        double d = 0.0;
+        if (!parseDouble(v, d) || d < 0.0) {
+            err = format("{}: modifier {} must be a non-negative number, not '{}'", cmd, k, v);
+            return false;
+        }
+        if (k == "ratio") opt.fireflyRatio = d;
+        else if (k == "floor") opt.fireflyFloor = d;
+        else if (k == "eps") opt.relmseEpsilon = d;
+    }
+    OIIO::ImageBuf ref;
+    if (!readImage(args[0], ref, err)) return false;
+    DiffMetrics m;
+    if (!diffImages(*top.image, ref, opt, m, err)) {
+        err = format("{}: {} vs {}: {}", cmd, top.name, args[0], err);
+        return false;
+    }
+    std::printf("%-28s relMSE %.6g  SSIM %.5f  PSNR %.3f dB  fireflies %ld / %ld", top.name.c_str(),
+                m.relMSE, m.ssim, m.psnr, m.fireflies, m.pixels);
+    if (m.nonFinite) std::printf("  non-finite %ld", m.nonFinite);
+    std::printf("\n");
+    std::fflush(stdout);
+    return true;
+}
+
+bool cmdMerge(State& st, const std::string& cmd, const std::vector<std::string>&,
+              const Modifiers&, std::string& err) {
+    if (!needStack(st, 2, cmd, err)) return false;
+    Item& a = st.stack[st.stack.size() - 2];
+    Item& b = st.stack.back();
+    if (!a.isStats() || !b.isStats()) {
+        err = format("{} merges two statistics files; {} is an image", cmd,
+                     a.isStats() ? b.name : a.name);
+        return false;
+    }
+    if (!loadStats(st, a, err) || !loadStats(st, b, err)) return false;
+    auto merged = std::make_shared<StatsImage>();
+    if (!mergeStats(*a.stats, *b.stats, *merged, err)) {
+        err = format("{} {} + {}: {}", cmd, a.name, b.name, err);
+        return false;
+    }
+    Item out;
+    out.name = format("merge({}, {})", a.name, b.name);
+    out.header = merged->header;
+    out.stats = merged;
+    st.stack.pop_back();
+    st.stack.back() = std::move(out);
+    return true;
+}
+
+// ---- stack and global options -------------------------------------------------------------------
+
+bool cmdDup(State& st, const std::string& cmd, const std::vector<std::string>&, const Modifiers&,
+            std::string& err) {
+    if (!needStack(st, 1, cmd, err)) return false;
+    st.stack.push_back(st.stack.back());  // shares pixels; every command replaces, never mutates
+    return true;
+}
+
+bool cmdPop(State& st, const std::string& cmd, const std::vector<std::string>&, const Modifiers&,
+            std::string& err) {
+    if (!needStack(st, 1, cmd, err)) return false;
+    st.stack.pop_back();
+    return true;
+}
+
+bool cmdSwap(State& st, const std::string& cmd, const std::vector<std::string>&, const Modifiers&,
+             std::string& err) {
+    if (!needStack(st, 2, cmd, err)) return false;
+    std::swap(st.stack[st.stack.size() - 1], st.stack[st.stack.size() - 2]);
+    return true;
+}
+
+bool cmdThreads(State& st, const std::string& cmd, const std::vector<std::string>& args,
+                const Modifiers&, std::string& err) {
+    long n = 0;
+    if (!parseInt(args[0], 0, 4096, n)) {
+        err = format("{}: expected a thread count 0..4096 (0 = all cores), not '{}'", cmd, args[0]);
+        return false;
+    }
+    st.nthreads = int(n);
+    OIIO::attribute("threads", int(n));
+    return true;
+}
+
+bool cmdVerbose(State& st, const std::string&, const std::vector<std::string>&, const Modifiers&,
+                std::string&) {
+    st.verbose = true;
+    return true;
+}
+
+bool cmdHelp(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
+             std::string&);
+
+std::vector<Command> buildTable() {
+    std::vector<Command> t = {
+        {"--help", 0, "", "Print this help and exit", {}, &cmdHelp},
+        {"-v", 0, "", "Verbose: report each command and its time on stderr", {}, &cmdVerbose},
+        {"--threads", 1, "N", "Threads for every later command (0 = all cores)", {}, &cmdThreads},
+        {"--info", 0, "",
+         "Describe the top of the stack (a statistics file: size, M, spp, parts, counts)", {},
+         &cmdInfo},
+        {"-o", 1, "FILE",
+         "Write the top image: EXR/TIFF as scene-linear float; PNG/JPEG through the OCIO display "
+         "view; a statistics file as ." + std::string(kStatsExtension),
+         {}, &cmdOutput},
+    };
+    for (const EstimatorInfo& e : estimatorRegistry()) {
+        Command c{"--" + e.name, 0, "", e.help, {"diag"}, &cmdEstimate, e.name};
+        for (const EstimatorParamInfo& p : e.params) c.modifiers.push_back(p.name);
+        t.push_back(c);
+    }
+    t.push_back({"--diff", 1, "REF",
+                 "Print relMSE, SSIM, PSNR and the firefly-pixel count of the top image against REF",
+                 {"ratio", "floor", "eps"}, &cmdDiff});
+    t.push_back({"--merge", 0, "",
+                 "Merge the top two statistics files (renders of one image with different seeds)",
+                 {}, &cmdMerge});
+    t.push_back({"--dup", 0, "", "Duplicate the top of the stack", {}, &cmdDup});
+    t.push_back({"--pop", 0, "", "Remove the top of the stack", {}, &cmdPop});
+    t.push_back({"--swap", 0, "", "Exchange the top two stack entries", {}, &cmdSwap});
+    return t;
+}
+
+const std::vector<Command>& table() {
+    static const std::vector<Command> t = buildTable();
+    return t;
+}
+
+std::string modifierHelp(const Command& c) {
+    std::string s;
+    if (const EstimatorInfo* e = c.estimator.empty() ? nullptr : findEstimator(c.estimator)) {
+        for (const EstimatorParamInfo& p : e->params)
+            s += format("\n        :{}={} ({})", p.name, p.defaultValue, p.help);
+        s += "\n        :diag=0 (1 appends channels gini, kept, excluded)";
+    } else if (c.name == "--diff") {
+        s += "\n        :ratio=2 :floor=1 (firefly: Y > ratio*Yref and Y - Yref > floor)"
+             "\n        :eps=0.01 (relMSE denominator r^2 + eps)";
+    }
+    return s;
+}
+
+bool cmdHelp(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
+             std::string&) {
+    std::printf(
+        "mcstat %s: robust images from Monte Carlo statistics files (.%s)\n"
+        "Usage: mcstat [FILE | COMMAND[:mod=value...] [ARGS]]...\n"
+        "Arguments run left to right. A FILE pushes a statistics file or an image on the stack;\n"
+        "commands replace the top of the stack; -o writes it.\n"
+        "Example: mcstat scene.%s --gmon -o gmon.exr -o gmon.png --diff ref.exr\n\n"
+        "Commands:\n",
+        MCSTAT_VERSION, kStatsExtension, kStatsExtension);
+    for (const Command& c : table()) {
+        std::string head = c.name + (c.argHelp.empty() ? "" : " " + c.argHelp);
+        std::printf("  %-16s %s%s\n", head.c_str(), c.help.c_str(), modifierHelp(c).c_str());
+    }
+    std::exit(0);
+}
+
+/// Splits "--gmon:mode=channel:diag=1" into "--gmon" and {mode: channel, diag: 1}.
+bool splitModifiers(const std::string& arg, std::string& name, Modifiers& mods,
+                    std::string& err) {
+    std::vector<std::string> parts = OIIO::Strutil::splits(arg, ":");
+    name = parts[0];
+    for (size_t i = 1; i < parts.size(); ++i) {
+        const size_t eq = parts[i].find('=');
+        if (eq == std::string::npos || eq == 0) {
+            err = format("{}: modifier '{}' is not name=value", name, parts[i]);
+            return false;
+        }
+        mods[parts[i].substr(0, eq)] = parts[i].substr(eq + 1);
+    }
+    return true;
+}
+
+}  // namespace
+
+int run(int argc, const char* const* argv) {
+    State st;
+    std::string err;
+    if (argc < 2) {
+        std::fprintf(stderr, "mcstat: no arguments; try 'mcstat --help'\n");
+        return 2;
+    }
+    for (int i = 1; i < argc; ++i) {
+        const std::string arg = argv[i];
+        OIIO::Timer timer;
+        bool ok = true;
+        if (arg.size() > 1 && arg[0] == '-') {
+            std::string name;
+            Modifiers mods;
+            if (!splitModifiers(arg, name, mods, err)) {
+                std::fprintf(stderr, "mcstat: %s\n", err.c_str());
+                return 1;
+            }
+            const Command* cmd = nullptr;
+            for (const Command& c : table())
+                if (c.name == name) cmd = &c;
+            if (!cmd) {
+                std::fprintf(stderr, "mcstat: unknown command '%s' (see mcstat --help)\n",
+                             name.c_str());
+                return 1;
+            }
+            for (const auto& kv : mods) {
+                bool known = false;
+                for (const std::string& m : cmd->modifiers) known = known || m == kv.first;
+                if (!known) {
+                    std::string accepted = cmd->modifiers.empty()
+                                               ? std::string("it takes none")
+                                               : "accepted: " + OIIO::Strutil::join(cmd->modifiers, ", ");
+                    std::fprintf(stderr, "mcstat: %s has no modifier '%s' (%s)\n", name.c_str(),
+                                 kv.first.c_str(), accepted.c_str());
+                    return 1;
+                }
+            }
+            if (i + cmd->nargs > argc - 1) {
+                std::fprintf(stderr, "mcstat: %s needs %d argument%s (%s)\n", name.c_str(),
+                             cmd->nargs, cmd->nargs > 1 ? "s" : "", cmd->argHelp.c_str());
+                return 1;
+            }
+            std::vector<std::string> args(argv + i + 1, argv + i + 1 + cmd->nargs);
+            i += cmd->nargs;
+            ok = cmd->run(st, name, args, mods, err);
+            if (ok && st.verbose)
+                std::fprintf(stderr, "mcstat: %s done in %.3f s\n", arg.c_str(), timer());
+        } else {
+            ok = pushFile(st, arg, err);
+            if (ok && st.verbose)
+                std::fprintf(stderr, "mcstat: read %s in %.3f s\n", arg.c_str(), timer());
+        }
+        if (!ok) {
+            std::fprintf(stderr, "mcstat: %s\n", err.c_str());
+            return 1;
+        }
+    }
+    return 0;
+}
+
+}  // namespace mcstat::cli

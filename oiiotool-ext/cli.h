@@ -1,0 +1,60 @@
+// The `mcstat` command line: oiiotool's conventions. Arguments are read left to right; file names
+// push images (or statistics files) on a stack, commands operate on the top, `-o FILE` writes it.
+// Commands take ":name=value" modifiers, e.g. `--gmon:mode=channel:diag=1`.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <OpenImageIO/imagebuf.h>
+
+#include "mcstat/stats_file.h"
+
+namespace mcstat::cli {
+
+/// One stack entry: a statistics file (loaded lazily: pushing reads and checks only its headers) or
+/// an ordinary image.
+struct Item {
+    std::string name;  ///< what messages call it: the file name or "op(input)"
+    std::string path;  ///< source file of a statistics item ("" when computed)
+    StatsHeader header;
+    std::shared_ptr<StatsImage> stats;  ///< null until needed (statistics items)
+    std::shared_ptr<OIIO::ImageBuf> image;  ///< set for image items
+    bool isStats() const { return image == nullptr; }
+};
+
+using Modifiers = std::map<std::string, std::string>;
+
+struct State {
+    std::vector<Item> stack;
+    int nthreads = 0;  ///< 0: all cores
+    bool verbose = false;
+};
+
+struct Command {
+    std::string name;  ///< with dashes, e.g. "--gmon"
+    int nargs = 0;
+    std::string argHelp;       ///< e.g. "FILE"
+    std::string help;          ///< one line
+    std::vector<std::string> modifiers;  ///< accepted modifier names (documented in help)
+    bool (*run)(State&, const std::string& cmd, const std::vector<std::string>& args,
+                const Modifiers& mods, std::string& err) = nullptr;
+    std::string estimator;     ///< for commands generated from the estimator registry
+};
+
+/// Runs a whole command line; returns the process exit code. Errors print one line to stderr.
+int run(int argc, const char* const* argv);
+
+// Commands implemented in io.cpp.
+bool pushFile(State& st, const std::string& path, std::string& err);
+bool loadStats(State& st, Item& item, std::string& err);
+bool cmdOutput(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
+               std::string&);
+bool cmdInfo(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
+             std::string&);
+/// Reads a file as an image: a statistics file gives its beauty (the plain mean).
+bool readImage(const std::string& path, OIIO::ImageBuf& out, std::string& err);
+
+}  // namespace mcstat::cli

@@ -1,0 +1,179 @@
+// Reading inputs, writing outputs and --info for the `mcstat` command line.
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/strutil.h>
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "cli.h"
+#include "mcstat/imageops.h"
+
+namespace mcstat::cli {
+
+namespace {
+
+using OIIO::Strutil::fmt::format;
+
+std::string lowerExtension(const std::string& path) {
+    std::string ext = OIIO::Filesystem::extension(path, false);
+    return OIIO::Strutil::lower(ext);
+}
+
+bool isStatsPath(const std::string& path) { return lowerExtension(path) == kStatsExtension; }
+
+/// Formats written for the eye: the pixels go through the OCIO display view first.
+bool isDisplayFormat(const std::string& ext) {
+    static const char* kDisplay[] = {"png", "jpg", "jpeg", "bmp", "tga", "gif", "webp", "ppm"};
+    for (const char* d : kDisplay)
+        if (ext == d) return true;
+    return false;
+}
+
+/// Writes `img` as `path` through a temporary name in the same directory, renamed on success, so a
+/// failed write never leaves a partial file under the target name.
+bool writeImageAtomically(const OIIO::ImageBuf& img, const std::string& path, OIIO::TypeDesc type,
+                          std::string& err) {
+    const std::string ext = lowerExtension(path);
+    std::string dir = OIIO::Filesystem::parent_path(path);
+    const std::string tmp = (dir.empty() ? std::string() : dir + "/") + "." +
+                            OIIO::Filesystem::filename(path) + format(".tmp-{}", getpid());
+    if (!img.write(tmp, type, ext)) {
+        err = format("{}: {}", path, img.geterror());
+        std::remove(tmp.c_str());
+        return false;
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+        err = format("{}: cannot rename the temporary file into place", path);
+        std::remove(tmp.c_str());
+        return false;
+    }
+    return true;
+}
+
+}  // namespace
+
+bool pushFile(State& st, const std::string& path, std::string& err) {
+    Item item;
+    item.name = path;
+    if (isStatsPath(path)) {
+        item.path = path;
+        if (!readStatsHeader(path, item.header, err)) return false;
+    } else {
+        item.image = std::make_shared<OIIO::ImageBuf>();
+        if (!readImage(path, *item.image, err)) return false;
+    }
+    st.stack.push_back(std::move(item));
+    return true;
+}
+
+bool loadStats(State&, Item& item, std::string& err) {
+    if (item.stats) return true;
+    auto img = std::make_shared<StatsImage>();
+    if (!readStatsFile(item.path, *img, err)) return false;
+    item.stats = img;
+    item.header = img->header;
+    return true;
+}
+
+bool readImage(const std::string& path, OIIO::ImageBuf& out, std::string& err) {
+    if (isStatsPath(path)) {
+        StatsImage stats;
+        if (!readStatsFile(path, stats, err)) return false;
+        out = beautyImage(stats);
+        return true;
+    }
+    if (!OIIO::Filesystem::exists(path)) {
+        err = format("{}: no such file", path);
+        return false;
+    }
+    OIIO::ImageBuf in(path);
+    if (!in.read(0, 0, true, OIIO::TypeDesc::FLOAT)) {
+        err = format("{}: {}", path, OIIO::Strutil::replace(in.geterror(), "\n", " "));
+        return false;
+    }
+    out = std::move(in);
+    return true;
+}
+
+bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>& args,
+               const Modifiers&, std::string& err) {
+    if (st.stack.empty()) {
+        err = format("{} {}: nothing on the stack to write", cmd, args[0]);
+        return false;
+    }
+    Item& top = st.stack.back();
+    const std::string& path = args[0];
+    const std::string ext = lowerExtension(path);
+    if (top.isStats()) {
+        if (ext != kStatsExtension) {
+            err = format("{} {}: {} is a statistics file; write it as .{} or apply an estimator "
+                         "first (e.g. --gmon)",
+                         cmd, path, top.name, kStatsExtension);
+            return false;
+        }
+        if (!loadStats(st, top, err)) return false;
+        return writeStatsFile(path, *top.stats, err);
+    }
+    if (ext == kStatsExtension) {
+        err = format("{} {}: {} is an image, not a statistics file", cmd, path, top.name);
+        return false;
+    }
+    if (isDisplayFormat(ext)) {
+        OIIO::ImageBuf disp;
+        if (!displayTransform(disp, *top.image, {}, st.nthreads)) {
+            err = format("{} {}: {}", cmd, path, disp.geterror());
+            return false;
+        }
+        return writeImageAtomically(disp, path, OIIO::TypeDesc::UINT8, err);
+    }
+    return writeImageAtomically(*top.image, path, OIIO::TypeDesc::FLOAT, err);
+}
+
+bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&, const Modifiers&,
+             std::string& err) {
+    if (st.stack.empty()) {
+        err = format("{}: nothing on the stack to describe", cmd);
+        return false;
+    }
+    Item& top = st.stack.back();
+    if (!top.isStats()) {
+        const OIIO::ImageSpec& s = top.image->spec();
+        std::printf("%s: %d x %d, %d channels (%s), %s\n", top.name.c_str(), s.width, s.height,
+                    s.nchannels, OIIO::Strutil::join(s.channelnames, ",").c_str(),
+                    s.format.c_str());
+        return true;
+    }
+    const StatsHeader& h = top.header;
+    std::printf("%s: mcstat statistics file, format %d\n", top.name.c_str(), h.formatVersion);
+    std::printf("  size %d x %d (origin %d,%d), M = %d sub-buffers, spp = %lld, assignment %s\n",
+                h.width, h.height, h.originX, h.originY, h.M, (long long)h.spp,
+                h.assignment.c_str());
+    std::printf("  renderer \"%s\", colour space %s, seeds %s\n", h.renderer.c_str(),
+                h.colorSpace.c_str(), h.seeds.empty() ? "(none)" : h.seeds.c_str());
+    std::printf("  parts: beauty (R,G,B)  buffers (%d x b###.R,G,B,count)  moments (count, mean.RGB, "
+                "variance.RGB)  features (N, P, Albedo, Z, A)\n",
+                h.M);
+    if (!st.verbose) return true;
+    if (!loadStats(st, top, err)) return false;
+    const StatsImage& s = *top.stats;
+    double nmin = INFINITY, nmax = 0.0, ntotal = 0.0;
+    long emptyBuffers = 0, nonFinite = 0;
+    for (size_t p = 0; p < s.pixelCount(); ++p) {
+        nmin = std::min(nmin, double(s.count[p]));
+        nmax = std::max(nmax, double(s.count[p]));
+        ntotal += s.count[p];
+    }
+    for (size_t i = 0; i < s.bufferCount.size(); ++i) emptyBuffers += s.bufferCount[i] == 0.f;
+    for (float v : s.bufferMean) nonFinite += !std::isfinite(v);
+    std::printf("  samples per pixel: min %.0f, max %.0f, mean %.2f\n", nmin, nmax,
+                ntotal / double(std::max<size_t>(1, s.pixelCount())));
+    std::printf("  empty sub-buffers: %ld of %zu; non-finite sub-buffer values: %ld\n",
+                emptyBuffers, s.bufferCount.size(), nonFinite);
+    return true;
+}
+
+}  // namespace mcstat::cli
