@@ -202,16 +202,16 @@ bool cmdHelp(State&, const std::string&, const std::vector<std::string>&, const 
 
 std::vector<Command> buildTable() {
     std::vector<Command> t = {
-        {"--help", 0, "", "Print this help and exit", {}, &cmdHelp},
-        {"-v", 0, "", "Verbose: report each command and its time on stderr", {}, &cmdVerbose},
-        {"--threads", 1, "N", "Threads for every later command (0 = all cores)", {}, &cmdThreads},
+        {"--help", 0, "", "Print this help and exit", {}, &cmdHelp, ""},
+        {"-v", 0, "", "Verbose: report each command and its time on stderr", {}, &cmdVerbose, ""},
+        {"--threads", 1, "N", "Threads for every later command (0 = all cores)", {}, &cmdThreads, ""},
         {"--info", 0, "",
          "Describe the top of the stack (a statistics file: size, M, spp, parts, counts)", {},
-         &cmdInfo},
+         &cmdInfo, ""},
         {"-o", 1, "FILE",
          "Write the top image: EXR/TIFF as scene-linear float; PNG/JPEG through the OCIO display "
          "view; a statistics file as ." + std::string(kStatsExtension),
-         {}, &cmdOutput},
+         {}, &cmdOutput, ""},
     };
     for (const EstimatorInfo& e : estimatorRegistry()) {
         Command c{"--" + e.name, 0, "", e.help, {"diag"}, &cmdEstimate, e.name};
@@ -220,13 +220,13 @@ std::vector<Command> buildTable() {
     }
     t.push_back({"--diff", 1, "REF",
                  "Print relMSE, SSIM, PSNR and the firefly-pixel count of the top image against REF",
-                 {"ratio", "floor", "eps"}, &cmdDiff});
+                 {"ratio", "floor", "eps"}, &cmdDiff, ""});
     t.push_back({"--merge", 0, "",
                  "Merge the top two statistics files (renders of one image with different seeds)",
-                 {}, &cmdMerge});
-    t.push_back({"--dup", 0, "", "Duplicate the top of the stack", {}, &cmdDup});
-    t.push_back({"--pop", 0, "", "Remove the top of the stack", {}, &cmdPop});
-    t.push_back({"--swap", 0, "", "Exchange the top two stack entries", {}, &cmdSwap});
+                 {}, &cmdMerge, ""});
+    t.push_back({"--dup", 0, "", "Duplicate the top of the stack", {}, &cmdDup, ""});
+    t.push_back({"--pop", 0, "", "Remove the top of the stack", {}, &cmdPop, ""});
+    t.push_back({"--swap", 0, "", "Exchange the top two stack entries", {}, &cmdSwap, ""});
     return t;
 }
 

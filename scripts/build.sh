@@ -1,0 +1,10 @@
+#!/usr/bin/env bash
+# scripts/build.sh DIR [cmake options...]: configures DIR (quick when cached) and builds it
+# incrementally, Release unless an option says otherwise.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+dir=$1; shift
+mkdir -p "$dir"
+cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=Release "$@" >"$dir/configure.log" 2>&1 ||
+  { cat "$dir/configure.log" >&2; exit 1; }
+cmake --build "$dir" -j"$(nproc)"

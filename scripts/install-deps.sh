@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages mcstat builds against, only those missing. Idempotent and quiet
+# when everything is present. Needs root (or sudo) only when something must be installed.
+set -euo pipefail
+
+packages=(
+  cmake g++ make pkg-config time
+  libopenimageio-dev openimageio-tools   # images, threading, argument parsing; oiiotool for checks
+  libopenexr-dev openexr                 # the statistics file; exrheader for checks
+  libopencolorio-dev                     # display transforms and luma coefficients
+  libembree-dev libtbb-dev               # the fixture renderer's ray tracing
+  libfmt-dev nlohmann-json3-dev          # formatting, scene files
+  libgtest-dev libbenchmark-dev          # tests and benchmarks
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+[ ${#missing[@]} -eq 0 ] && exit 0
+
+echo "install-deps: installing ${missing[*]}"
+sudo=""
+if [ "$(id -u)" -ne 0 ]; then
+  command -v sudo >/dev/null || { echo "install-deps: need root to install: ${missing[*]}" >&2; exit 1; }
+  sudo="sudo"
+fi
+export DEBIAN_FRONTEND=noninteractive
+$sudo apt-get update -q
+$sudo apt-get install -y -q "${missing[@]}"

@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Installs what is missing, builds with warnings as errors, runs the whole test suite, then builds
+# an AddressSanitizer + UndefinedBehaviorSanitizer configuration and runs the suite under it.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+scripts/install-deps.sh
+scripts/build.sh build -DMCSTAT_WERROR=ON
+ctest --test-dir build --output-on-failure -j2
+
+scripts/build.sh build-asan -DMCSTAT_WERROR=ON -DMCSTAT_SANITIZE=ON -DMCSTAT_BUILD_BENCHMARKS=OFF \
+  -DCMAKE_BUILD_TYPE=RelWithDebInfo
+ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+  ctest --test-dir build-asan --output-on-failure -j2 -LE slow

@@ -1,0 +1,267 @@
+// `mcstat` end to end: the binary is run on statistics files made here, and its outputs are checked
+// against the estimators called directly.
+#include <gtest/gtest.h>
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imagebuf.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "mcstat/color.h"
+#include "mcstat/registry.h"
+#include "mcstat/stats_file.h"
+
+using namespace mcstat;
+
+namespace {
+
+struct Result {
+    int code = 0;
+    std::string out, err;
+};
+
+std::string slurp(const std::string& path) {
+    std::ifstream f(path, std::ios::binary);
+    std::stringstream s;
+    s << f.rdbuf();
+    return s.str();
+}
+
+class Cli : public ::testing::Test {
+protected:
+    std::string dir;
+    void SetUp() override {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        dir = std::string(MCSTAT_BINARY_DIR) + "/tests/cli/tmp-" + info->name();
+        OIIO::Filesystem::remove_all(dir);
+        OIIO::Filesystem::create_directory(dir);
+    }
+    std::string path(const std::string& name) const { return dir + "/" + name; }
+    Result mcstat(const std::string& args) const {
+        const std::string o = path("stdout.txt"), e = path("stderr.txt");
+        const std::string cmd = std::string(MCSTAT_EXE) + " " + args + " >" + o + " 2>" + e;
+        Result r;
+        const int status = std::system(cmd.c_str());
+        r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+        r.out = slurp(o);
+        r.err = slurp(e);
+        return r;
+    }
+};
+
+/// 16x12 grey image, M = 5 buffers of 4 samples each; pixel (5, 5) has one firefly buffer.
+StatsImage makeStats(int M = 5, float firefly = 500.f) {
+    StatsImage s;
+    s.header.width = 16;
+    s.header.height = 12;
+    s.header.M = M;
+    s.header.spp = 4 * M;
+    s.header.renderer = "test_cli";
+    s.header.seeds = "7";
+    std::string err;
+    EXPECT_TRUE(s.allocate(err)) << err;
+    for (size_t p = 0; p < s.pixelCount(); ++p) {
+        double sum[3] = {0, 0, 0}, n = 0;
+        for (int j = 0; j < M; ++j) {
+            for (int c = 0; c < 3; ++c) {
+                float v = 0.18f + 0.01f * float(j) + 0.02f * float(c);
+                if (p == 5 * 16 + 5 && j == 2) v = firefly;
+                s.bufferMean[(p * M + j) * 3 + c] = v;
+                sum[c] += 4.0 * v;
+            }
+            s.bufferCount[p * M + j] = 4.f;
+            n += 4;
+        }
+        s.count[p] = float(n);
+        for (int c = 0; c < 3; ++c) {
+            s.mean[p * 3 + c] = s.beauty[p * 3 + c] = float(sum[c] / n);
+            s.variance[p * 3 + c] = 0.01f;
+        }
+        s.coverage[p] = 1.f;
+    }
+    return s;
+}
+
+std::vector<float> readRGB(const std::string& file, int* nch = nullptr) {
+    OIIO::ImageBuf b(file);
+    EXPECT_TRUE(b.read(0, 0, true, OIIO::TypeDesc::FLOAT)) << b.geterror();
+    if (nch) *nch = b.nchannels();
+    std::vector<float> px(size_t(b.spec().width) * b.spec().height * 3);
+    b.get_pixels(OIIO::ROI(0, b.spec().width, 0, b.spec().height, 0, 1, 0, 3), OIIO::TypeDesc::FLOAT,
+                 px.data());
+    return px;
+}
+
+/// The estimator applied directly, for comparison with the binary's output.
+std::vector<float> direct(const StatsImage& s, const std::string& name, EstimatorMode mode) {
+    const EstimatorInfo* e = findEstimator(name);
+    EstimatorParams p;
+    p.mode = mode;
+    p.luma = lumaCoefficients();
+    EstimatorScratch scratch;
+    PixelEstimate est;
+    std::vector<float> out;
+    for (size_t px = 0; px < s.pixelCount(); ++px) {
+        e->fn({&s.bufferMean[px * s.header.M * 3], &s.bufferCount[px * s.header.M], s.header.M}, p,
+              est, scratch);
+        out.insert(out.end(), est.rgb.begin(), est.rgb.end());
+    }
+    return out;
+}
+
+}  // namespace
+
+TEST_F(Cli, EveryEstimatorMatchesTheLibrary) {
+    std::string err;
+    StatsImage s = makeStats();
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), s, err)) << err;
+    for (const EstimatorInfo& e : estimatorRegistry()) {
+        for (auto mode : {EstimatorMode::Luminance, EstimatorMode::PerChannel}) {
+            const bool hasMode = !e.params.empty();
+            if (!hasMode && mode == EstimatorMode::PerChannel) continue;
+            const std::string mod = hasMode ? (mode == EstimatorMode::PerChannel ? ":mode=channel"
+                                                                                 : ":mode=lum")
+                                            : "";
+            Result r = mcstat(path("f.mcstat") + " --" + e.name + mod + " -o " + path("o.exr"));
+            ASSERT_EQ(r.code, 0) << r.err;
+            EXPECT_EQ(readRGB(path("o.exr")), direct(s, e.name, mode)) << e.name << mod;
+        }
+    }
+}
+
+TEST_F(Cli, GMoNRemovesTheFireflyTheMeanKeeps) {
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(), err)) << err;
+    ASSERT_TRUE(writeStatsFile(path("clean.mcstat"), makeStats(5, 0.2f), err)) << err;
+    Result ref = mcstat(path("clean.mcstat") + " --mean -o " + path("ref.exr"));
+    ASSERT_EQ(ref.code, 0) << ref.err;
+    Result r = mcstat(path("f.mcstat") + " --dup --mean --diff " + path("ref.exr") +
+                      " --pop --gmon --diff " + path("ref.exr"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    // the mean keeps the firefly pixel (500/5 = 100 over a 0.2 background): one firefly pixel
+    EXPECT_NE(r.out.find("mean(" + path("f.mcstat") + ")"), std::string::npos) << r.out;
+    const size_t second = r.out.find('\n');
+    ASSERT_NE(second, std::string::npos);
+    EXPECT_NE(r.out.substr(0, second).find("fireflies 1 / 192"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.substr(second).find("fireflies 0 / 192"), std::string::npos) << r.out;
+}
+
+TEST_F(Cli, PngGoesThroughTheDisplayView) {
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(), err)) << err;
+    Result r = mcstat(path("f.mcstat") + " --mean -o " + path("m.png"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    OIIO::ImageBuf png(path("m.png"));
+    ASSERT_TRUE(png.read());
+    EXPECT_EQ(png.spec().format, OIIO::TypeDesc::UINT8);
+    float v[3];
+    png.getpixel(0, 0, v, 3);
+    // pixel (0,0) R = mean of 0.18..0.22 = 0.2 linear -> sRGB 0.4845
+    const double srgb = 1.055 * std::pow(0.2, 1 / 2.4) - 0.055;
+    EXPECT_NEAR(v[0], srgb, 1.0 / 255.0);
+}
+
+TEST_F(Cli, DiagnosticsAndParameters) {
+    std::string err;
+    StatsImage s = makeStats();
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), s, err)) << err;
+    Result r = mcstat(path("f.mcstat") + " --gmon:diag=1 -o " + path("d.exr"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    OIIO::ImageBuf d(path("d.exr"));
+    ASSERT_TRUE(d.read());
+    EXPECT_EQ(d.spec().channelnames,
+              (std::vector<std::string>{"R", "G", "B", "gini", "kept", "excluded"}));
+    EXPECT_GT(d.getchannel(5, 5, 0, 3), 0.5f);  // the firefly pixel is very unequal
+    EXPECT_LT(d.getchannel(5, 5, 0, 4), 5.f);   // and loses buffers
+    EXPECT_EQ(d.getchannel(0, 0, 0, 4), 5.f);   // smooth pixels keep all five
+    // threshold 1: G-MoN_b never leaves the mean
+    r = mcstat(path("f.mcstat") + " --gmonb:threshold=1 -o " + path("b.exr") + " --pop " +
+               path("f.mcstat") + " --mean -o " + path("m.exr"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(readRGB(path("b.exr")), readRGB(path("m.exr")));
+}
+
+TEST_F(Cli, ThreadCountDoesNotChangeOutput) {
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(9), err)) << err;
+    ASSERT_EQ(mcstat("--threads 1 " + path("f.mcstat") + " --gmon -o " + path("1.exr")).code, 0);
+    ASSERT_EQ(mcstat("--threads 3 " + path("f.mcstat") + " --gmon -o " + path("3.exr")).code, 0);
+    EXPECT_EQ(slurp(path("1.exr")), slurp(path("3.exr")));
+}
+
+TEST_F(Cli, InfoAndHelp) {
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(7), err)) << err;
+    Result r = mcstat(path("f.mcstat") + " -v --info");
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("16 x 12"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("M = 7"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("min 28, max 28"), std::string::npos) << r.out;
+    Result h = mcstat("--help");
+    ASSERT_EQ(h.code, 0);
+    for (const EstimatorInfo& e : estimatorRegistry())
+        EXPECT_NE(h.out.find("--" + e.name + " "), std::string::npos) << e.name;
+    for (const char* c : {"--diff REF", "-o FILE", "--info", "--threads N", "--merge", "-v "})
+        EXPECT_NE(h.out.find(c), std::string::npos) << c;
+}
+
+TEST_F(Cli, MergeAddsCounts) {
+    std::string err;
+    StatsImage a = makeStats(), b = makeStats();
+    b.header.seeds = "8";
+    ASSERT_TRUE(writeStatsFile(path("a.mcstat"), a, err)) << err;
+    ASSERT_TRUE(writeStatsFile(path("b.mcstat"), b, err)) << err;
+    Result r = mcstat(path("a.mcstat") + " " + path("b.mcstat") + " --merge -o " + path("m.mcstat"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    StatsImage m;
+    ASSERT_TRUE(readStatsFile(path("m.mcstat"), m, err)) << err;
+    EXPECT_EQ(m.count[0], 40.f);
+    EXPECT_EQ(m.bufferCount[3], 8.f);
+    EXPECT_EQ(m.header.spp, 40);
+    // merging a file with itself counts the same samples twice: refused
+    r = mcstat(path("a.mcstat") + " " + path("a.mcstat") + " --merge -o " + path("x.mcstat"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_FALSE(OIIO::Filesystem::exists(path("x.mcstat")));
+}
+
+TEST_F(Cli, ErrorsAreOneLineAndNonZero) {
+    std::string err;
+    StatsImage s = makeStats();
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), s, err)) << err;
+    const std::string good = slurp(path("f.mcstat"));
+    {
+        std::ofstream t(path("cut.mcstat"), std::ios::binary);
+        t << good.substr(0, good.size() / 2);
+    }
+    struct Case {
+        std::string args, needle;
+    } cases[] = {
+        {path("missing.mcstat") + " --gmon -o " + path("o.exr"), "missing.mcstat"},
+        {path("cut.mcstat") + " --gmon -o " + path("o.exr"), "cut.mcstat"},
+        {path("f.mcstat") + " --frobnicate", "unknown command '--frobnicate'"},
+        {path("f.mcstat") + " --gmon:bogus=1", "no modifier 'bogus'"},
+        {path("f.mcstat") + " --gmon:mode=hsv", "mode must be"},
+        {path("f.mcstat") + " --gmonb:threshold=2", "threshold"},
+        {path("f.mcstat") + " --mean --gmon", "is an image, not a statistics file"},
+        {path("f.mcstat") + " -o " + path("f.exr"), "apply an estimator first"},
+        {"--gmon", "needs 1 image"},
+        {"--threads many", "thread count"},
+        {path("f.mcstat") + " --mean -o", "needs 1 argument"},
+        {path("f.mcstat") + " --mean -o " + path("nodir/o.exr"), "nodir/o.exr"},
+        {path("f.mcstat") + " --mean --diff " + path("missing.exr"), "missing.exr"},
+    };
+    for (const Case& c : cases) {
+        Result r = mcstat(c.args);
+        EXPECT_NE(r.code, 0) << c.args;
+        EXPECT_NE(r.err.find(c.needle), std::string::npos) << c.args << " -> " << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+        EXPECT_TRUE(r.out.empty()) << r.out;
+    }
+    EXPECT_FALSE(OIIO::Filesystem::exists(path("o.exr")));
+    EXPECT_FALSE(OIIO::Filesystem::exists(path("f.exr")));
+}
