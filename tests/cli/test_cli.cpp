@@ -174,11 +174,15 @@ TEST_F(Cli, DiagnosticsAndParameters) {
     ASSERT_EQ(r.code, 0) << r.err;
     OIIO::ImageBuf d(path("d.exr"));
     ASSERT_TRUE(d.read());
-    EXPECT_EQ(d.spec().channelnames,
-              (std::vector<std::string>{"R", "G", "B", "gini", "kept", "excluded"}));
-    EXPECT_GT(d.getchannel(5, 5, 0, 3), 0.5f);  // the firefly pixel is very unequal
-    EXPECT_LT(d.getchannel(5, 5, 0, 4), 5.f);   // and loses buffers
-    EXPECT_EQ(d.getchannel(0, 0, 0, 4), 5.f);   // smooth pixels keep all five
+    // EXR stores channels alphabetically after R, G, B: look them up by name
+    const int gini = d.spec().channelindex("gini"), kept = d.spec().channelindex("kept");
+    const int excluded = d.spec().channelindex("excluded");
+    ASSERT_EQ(d.nchannels(), 6);
+    ASSERT_TRUE(gini >= 3 && kept >= 3 && excluded >= 3);
+    EXPECT_GT(d.getchannel(5, 5, 0, gini), 0.5f);  // the firefly pixel is very unequal
+    EXPECT_LT(d.getchannel(5, 5, 0, kept), 5.f);   // and loses buffers
+    EXPECT_EQ(d.getchannel(0, 0, 0, kept), 5.f);   // smooth pixels keep all five
+    EXPECT_EQ(d.getchannel(0, 0, 0, excluded), 0.f);
     // threshold 1: G-MoN_b never leaves the mean
     r = mcstat(path("f.mcstat") + " --gmonb:threshold=1 -o " + path("b.exr") + " --pop " +
                path("f.mcstat") + " --mean -o " + path("m.exr"));
@@ -191,7 +195,8 @@ TEST_F(Cli, ThreadCountDoesNotChangeOutput) {
     ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(9), err)) << err;
     ASSERT_EQ(mcstat("--threads 1 " + path("f.mcstat") + " --gmon -o " + path("1.exr")).code, 0);
     ASSERT_EQ(mcstat("--threads 3 " + path("f.mcstat") + " --gmon -o " + path("3.exr")).code, 0);
-    EXPECT_EQ(slurp(path("1.exr")), slurp(path("3.exr")));
+    // pixels, not bytes: OIIO stamps the EXR header with the time of writing
+    EXPECT_EQ(readRGB(path("1.exr")), readRGB(path("3.exr")));
 }
 
 TEST_F(Cli, InfoAndHelp) {
