@@ -1,0 +1,75 @@
+// Internal: OpenEXR streams over a POSIX file descriptor.
+// FdIStream lets the header check (Core API) and the pixel read (C++ API) use one open file, so the
+// file that was validated is the file that is read. FdOStream records write errors that OpenEXR
+// would otherwise swallow (it writes the offset table in a destructor).
+#pragma once
+
+#include <OpenEXR/ImfIO.h>
+
+#include <cstdint>
+#include <string>
+
+namespace mcstat::detail {
+
+/// Owns a file descriptor; closes it on destruction.
+class Fd {
+  public:
+    Fd() = default;
+    explicit Fd(int fd) : fd_(fd) {}
+    Fd(const Fd&) = delete;
+    Fd& operator=(const Fd&) = delete;
+    Fd(Fd&& o) noexcept : fd_(o.fd_) { o.fd_ = -1; }
+    Fd& operator=(Fd&& o) noexcept {
+        if (this != &o) {
+            reset();
+            fd_ = o.fd_;
+            o.fd_ = -1;
+        }
+        return *this;
+    }
+    ~Fd() { reset(); }
+    int get() const { return fd_; }
+    void reset();
+    /// Closes now and reports close()'s error as errno-style text ("" on success).
+    std::string close();
+
+  private:
+    int fd_ = -1;
+};
+
+/// Reads `fd` with pread, within [0, size); throws Iex::InputExc past the end of file.
+class FdIStream : public Imf::IStream {
+  public:
+    FdIStream(int fd, const std::string& name, uint64_t size);
+    bool read(char c[], int n) override;
+    uint64_t tellg() override { return pos_; }
+    void seekg(uint64_t pos) override { pos_ = pos; }
+    uint64_t size() const { return size_; }
+    int fd() const { return fd_; }
+
+  private:
+    int fd_;
+    uint64_t pos_ = 0;
+    uint64_t size_;
+};
+
+/// Writes with pwrite; throws Iex::ErrnoExc on failure and remembers the first error.
+class FdOStream : public Imf::OStream {
+  public:
+    FdOStream(int fd, const std::string& name);
+    void write(const char c[], int n) override;
+    uint64_t tellp() override { return pos_; }
+    void seekp(uint64_t pos) override { pos_ = pos; }
+    /// First write error ("" if none).
+    const std::string& error() const { return error_; }
+
+  private:
+    int fd_;
+    uint64_t pos_ = 0;
+    std::string error_;
+};
+
+/// Reads `n` bytes at `offset`; returns the number read (short at end of file), -1 on error.
+int64_t preadFull(int fd, void* buf, uint64_t n, uint64_t offset);
+
+}  // namespace mcstat::detail

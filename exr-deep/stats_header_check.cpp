@@ -1,0 +1,381 @@
+#include "stats_header_check.h"
+
+#include <OpenEXR/openexr.h>
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cstring>
+#include <limits>
+#include <map>
+
+#include "fd_stream.h"
+#include "stats_layout.h"
+
+namespace mcstat::detail {
+
+namespace {
+
+struct CoreIo {
+    int fd;
+    int64_t size;
+    std::string firstError;
+};
+
+int64_t coreRead(exr_const_context_t, void* user, void* buffer, uint64_t sz, uint64_t offset,
+                 exr_stream_error_func_ptr_t) {
+    return preadFull(static_cast<CoreIo*>(user)->fd, buffer, sz, offset);
+}
+
+int64_t coreSize(exr_const_context_t, void* user) { return static_cast<CoreIo*>(user)->size; }
+
+void coreError(exr_const_context_t ctxt, exr_result_t code, const char* msg) {
+    void* user = nullptr;
+    if (ctxt == nullptr || exr_get_user_data(ctxt, &user) != EXR_ERR_SUCCESS || user == nullptr)
+        return;
+    auto* io = static_cast<CoreIo*>(user);
+    if (io->firstError.empty())
+        io->firstError = msg != nullptr ? msg : exr_get_default_error_message(code);
+}
+
+/// exr_context_t closed on scope exit.
+struct CoreContext {
+    exr_context_t ctxt = nullptr;
+    ~CoreContext() {
+        if (ctxt != nullptr) exr_finish(&ctxt);
+    }
+};
+
+const char* storageName(exr_storage_t s) {
+    switch (s) {
+        case EXR_STORAGE_SCANLINE:
+            return "a scanline image";
+        case EXR_STORAGE_TILED:
+            return "a tiled image";
+        case EXR_STORAGE_DEEP_SCANLINE:
+            return "a deep scanline image";
+        case EXR_STORAGE_DEEP_TILED:
+            return "a deep tiled image";
+        default:
+            return "of unknown storage";
+    }
+}
+
+const char* pixelTypeName(exr_pixel_type_t t) {
+    switch (t) {
+        case EXR_PIXEL_UINT:
+            return "UINT";
+        case EXR_PIXEL_HALF:
+            return "HALF";
+        case EXR_PIXEL_FLOAT:
+            return "FLOAT";
+        default:
+            return "unknown";
+    }
+}
+
+std::string windowText(const exr_attr_box2i_t& b) {
+    return fmt::format("({},{})-({},{})", b.min.x, b.min.y, b.max.x, b.max.y);
+}
+
+bool sameBox(const exr_attr_box2i_t& a, const exr_attr_box2i_t& b) {
+    return a.min.x == b.min.x && a.min.y == b.min.y && a.max.x == b.max.x && a.max.y == b.max.y;
+}
+
+/// Whether `name` has the form bNNN.count.
+bool isBufferCountChannel(const char* name) {
+    return std::strlen(name) == 10 && name[0] == 'b' && std::isdigit((unsigned char)name[1]) &&
+           std::isdigit((unsigned char)name[2]) && std::isdigit((unsigned char)name[3]) &&
+           std::strcmp(name + 4, ".count") == 0;
+}
+
+class Checker {
+  public:
+    Checker(exr_const_context_t ctxt, std::string path) : c_(ctxt), path_(std::move(path)) {}
+
+    bool fail(const std::string& problem) {
+        err = path_ + ": " + oneLine(problem);
+        return false;
+    }
+
+    std::string partName(int part) const {
+        const char* name = nullptr;
+        if (exr_get_name(c_, part, &name) != EXR_ERR_SUCCESS || name == nullptr) return {};
+        return name;
+    }
+
+    /// Looks up attribute `name` of `part`; nullptr if absent.
+    const exr_attribute_t* attr(int part, const char* name) const {
+        const exr_attribute_t* a = nullptr;
+        if (exr_get_attribute_by_name(c_, part, name, &a) != EXR_ERR_SUCCESS) return nullptr;
+        return a;
+    }
+
+    bool intAttr(int part, const char* name, int32_t& out) {
+        const exr_attribute_t* a = attr(part, name);
+        if (a == nullptr)
+            return fail(fmt::format("part '{}': missing attribute '{}' (int)",
+                                    layout::kPartNames[part], name));
+        if (a->type != EXR_ATTR_INT)
+            return fail(fmt::format("part '{}': attribute '{}' has type {}, expected int",
+                                    layout::kPartNames[part], name, a->type_name));
+        out = a->i;
+        return true;
+    }
+
+    bool stringAttr(int part, const char* name, std::string& out) {
+        const exr_attribute_t* a = attr(part, name);
+        if (a == nullptr)
+            return fail(fmt::format("part '{}': missing attribute '{}' (string)",
+                                    layout::kPartNames[part], name));
+        if (a->type != EXR_ATTR_STRING || a->string == nullptr)
+            return fail(fmt::format("part '{}': attribute '{}' has type {}, expected string",
+                                    layout::kPartNames[part], name, a->type_name));
+        out.assign(a->string->str != nullptr ? a->string->str : "", size_t(a->string->length));
+        return true;
+    }
+
+    bool run(const ReadLimits& limits, StatsHeader& hdr);
+
+    std::string err;
+
+  private:
+    bool checkVersionFirst();
+    bool checkParts();
+    bool checkAttributes(StatsHeader& hdr);
+    bool checkChannels(int part, int M);
+
+    exr_const_context_t c_;
+    std::string path_;
+    int nparts_ = 0;
+};
+
+// A newer writer may change anything after the version, so the version is looked at first.
+bool Checker::checkVersionFirst() {
+    for (int part = 0; part < nparts_; ++part) {
+        const exr_attribute_t* a = attr(part, layout::kAttrFormatVersion);
+        if (a != nullptr && a->type == EXR_ATTR_INT && a->i > kStatsFormatVersion)
+            return fail(fmt::format("written by a newer mcstat (format {}); this reader knows {}",
+                                    a->i, kStatsFormatVersion));
+    }
+    return true;
+}
+
+bool Checker::checkParts() {
+    const int n = nparts_;
+    std::string found;
+    for (int part = 0; part < n && part < 8; ++part)
+        found += (part ? ", '" : "'") + partName(part) + "'";
+    if (n > 8) found += ", ...";
+    for (int part = 0; part < n && part < layout::kPartCount; ++part) {
+        const std::string name = partName(part);
+        if (name != layout::kPartNames[part]) {
+            // A part of another name at this place: either misnamed or something missing before it.
+            return fail(fmt::format("part {} is named '{}', expected '{}' (parts found: {})", part,
+                                    name, layout::kPartNames[part], found));
+        }
+    }
+    if (n < layout::kPartCount)
+        return fail(
+            fmt::format("missing part '{}' (parts found: {}; expected beauty, buffers, "
+                        "moments, features)",
+                        layout::kPartNames[n], found));
+    if (n > layout::kPartCount)
+        return fail(
+            fmt::format("extra part '{}' at index {} (format 1 has exactly the 4 parts "
+                        "beauty, buffers, moments, features)",
+                        partName(layout::kPartCount), layout::kPartCount));
+    exr_attr_box2i_t dw0{}, disp0{};
+    for (int part = 0; part < n; ++part) {
+        exr_storage_t storage = EXR_STORAGE_LAST_TYPE;
+        if (exr_get_storage(c_, part, &storage) != EXR_ERR_SUCCESS ||
+            storage != EXR_STORAGE_SCANLINE)
+            return fail(fmt::format("part '{}' is {}, expected a flat scanline image",
+                                    layout::kPartNames[part], storageName(storage)));
+        exr_attr_box2i_t dw{}, disp{};
+        if (exr_get_data_window(c_, part, &dw) != EXR_ERR_SUCCESS ||
+            exr_get_display_window(c_, part, &disp) != EXR_ERR_SUCCESS)
+            return fail(
+                fmt::format("part '{}' has no data or display window", layout::kPartNames[part]));
+        if (part == 0) {
+            dw0 = dw;
+            disp0 = disp;
+        } else if (!sameBox(dw, dw0)) {
+            return fail(fmt::format(
+                "dimension mismatch: part '{}' has data window {}, part '{}' has {}",
+                layout::kPartNames[part], windowText(dw), layout::kPartNames[0], windowText(dw0)));
+        } else if (!sameBox(disp, disp0)) {
+            return fail(
+                fmt::format("dimension mismatch: part '{}' has display window {}, part '{}' has {}",
+                            layout::kPartNames[part], windowText(disp), layout::kPartNames[0],
+                            windowText(disp0)));
+        }
+    }
+    return true;
+}
+
+bool Checker::checkAttributes(StatsHeader& hdr) {
+    StatsHeader h0;
+    for (int part = 0; part < layout::kPartCount; ++part) {
+        int32_t version = 0, M = 0, spp = 0;
+        StatsHeader h;
+        if (!intAttr(part, layout::kAttrFormatVersion, version) ||
+            !intAttr(part, layout::kAttrM, M) || !intAttr(part, layout::kAttrSpp, spp) ||
+            !stringAttr(part, layout::kAttrAssignment, h.assignment) ||
+            !stringAttr(part, layout::kAttrRenderer, h.renderer) ||
+            !stringAttr(part, layout::kAttrColorSpace, h.colorSpace) ||
+            !stringAttr(part, layout::kAttrSeeds, h.seeds))
+            return false;
+        h.formatVersion = version;
+        h.M = M;
+        h.spp = spp;
+        if (part == 0) {
+            h0 = h;
+            continue;
+        }
+        const char* pn = layout::kPartNames[part];
+        if (h.M != h0.M)
+            return fail(fmt::format("M mismatch: part '{}' has {} = {}, part 'beauty' has {}", pn,
+                                    layout::kAttrM, h.M, h0.M));
+        const auto differs = [&](const char* attrName, const std::string& v,
+                                 const std::string& v0) {
+            return fail(fmt::format("part '{}' has {} = '{}', part 'beauty' has '{}'", pn, attrName,
+                                    v, v0));
+        };
+        if (h.formatVersion != h0.formatVersion)
+            return differs(layout::kAttrFormatVersion, std::to_string(h.formatVersion),
+                           std::to_string(h0.formatVersion));
+        if (h.spp != h0.spp)
+            return differs(layout::kAttrSpp, std::to_string(h.spp), std::to_string(h0.spp));
+        if (h.assignment != h0.assignment)
+            return differs(layout::kAttrAssignment, h.assignment, h0.assignment);
+        if (h.renderer != h0.renderer)
+            return differs(layout::kAttrRenderer, h.renderer, h0.renderer);
+        if (h.colorSpace != h0.colorSpace)
+            return differs(layout::kAttrColorSpace, h.colorSpace, h0.colorSpace);
+        if (h.seeds != h0.seeds) return differs(layout::kAttrSeeds, h.seeds, h0.seeds);
+    }
+    if (h0.formatVersion != kStatsFormatVersion)
+        return fail(fmt::format("unsupported {} {} (this reader knows {})",
+                                layout::kAttrFormatVersion, h0.formatVersion, kStatsFormatVersion));
+    if (h0.spp < 0) return fail(fmt::format("negative {} {}", layout::kAttrSpp, h0.spp));
+    if (h0.assignment != layout::kAssignmentRoundRobin)
+        return fail(fmt::format("unknown {} '{}' (format 1 knows '{}')", layout::kAttrAssignment,
+                                h0.assignment, layout::kAssignmentRoundRobin));
+    hdr = h0;
+    return true;
+}
+
+bool Checker::checkChannels(int part, int M) {
+    const char* pn = layout::kPartNames[part];
+    const exr_attr_chlist_t* chlist = nullptr;
+    if (exr_get_channels(c_, part, &chlist) != EXR_ERR_SUCCESS || chlist == nullptr)
+        return fail(fmt::format("part '{}' has no channel list", pn));
+    std::map<std::string, const exr_attr_chlist_entry_t*> inFile;
+    int groups = 0;
+    for (int i = 0; i < chlist->num_channels; ++i) {
+        const exr_attr_chlist_entry_t& e = chlist->entries[i];
+        const std::string name(e.name.str != nullptr ? e.name.str : "", size_t(e.name.length));
+        inFile[name] = &e;
+        if (isBufferCountChannel(name.c_str())) ++groups;
+    }
+    if (part == layout::kBuffers && groups != M)
+        return fail(fmt::format("part '{}' has {} buffer channel groups (bNNN.count) but {} = {}",
+                                pn, groups, layout::kAttrM, M));
+    const std::vector<layout::ChannelPlace> expected = layout::partChannels(part, M);
+    for (const layout::ChannelPlace& c : expected) {
+        const auto it = inFile.find(c.name);
+        if (it == inFile.end())
+            return fail(fmt::format("part '{}': missing channel '{}'", pn, c.name));
+        const exr_attr_chlist_entry_t& e = *it->second;
+        if (e.pixel_type != EXR_PIXEL_FLOAT)
+            return fail(fmt::format("part '{}': channel '{}' has wrong type {} (expected FLOAT)",
+                                    pn, c.name, pixelTypeName(e.pixel_type)));
+        if (e.x_sampling != 1 || e.y_sampling != 1)
+            return fail(fmt::format("part '{}': channel '{}' has sampling {}x{} (expected 1x1)", pn,
+                                    c.name, e.x_sampling, e.y_sampling));
+        inFile.erase(it);
+    }
+    if (!inFile.empty())
+        return fail(fmt::format("part '{}': unexpected channel '{}'", pn, inFile.begin()->first));
+    return true;
+}
+
+bool Checker::run(const ReadLimits& limits, StatsHeader& hdr) {
+    if (exr_get_count(c_, &nparts_) != EXR_ERR_SUCCESS) return fail("cannot count the parts");
+    if (!checkVersionFirst() || !checkParts() || !checkAttributes(hdr)) return false;
+
+    const int maxM = std::min(limits.maxBuffers, kMaxBuffers);
+    if (hdr.M < 1 || hdr.M > maxM)
+        return fail(fmt::format("{} = {} out of range 1..{}", layout::kAttrM, hdr.M, maxM));
+
+    exr_attr_box2i_t dw{};
+    exr_get_data_window(c_, 0, &dw);
+    const int64_t w = int64_t(dw.max.x) - dw.min.x + 1, h = int64_t(dw.max.y) - dw.min.y + 1;
+    if (w <= 0 || h <= 0 || w > std::numeric_limits<int>::max() ||
+        h > std::numeric_limits<int>::max())
+        return fail(fmt::format("invalid data window {}", windowText(dw)));
+    const int64_t pixels = w * h;  // both < 2^31
+    if (pixels > limits.maxPixels)
+        return fail(fmt::format("image size {}x{} ({} pixels) exceeds the limit of {} pixels", w, h,
+                                pixels, limits.maxPixels));
+    const int64_t bytesPerPixel = int64_t(layout::floatsPerPixel(hdr.M) * sizeof(float));
+    if (pixels > limits.maxBytes / bytesPerPixel)
+        return fail(
+            fmt::format("image {}x{} with M = {} needs {} bytes, exceeding the limit of {} "
+                        "bytes",
+                        w, h, hdr.M, double(pixels) * double(bytesPerPixel), limits.maxBytes));
+    for (int part = 0; part < layout::kPartCount; ++part)
+        if (!checkChannels(part, hdr.M)) return false;
+
+    hdr.width = int(w);
+    hdr.height = int(h);
+    hdr.originX = dw.min.x;
+    hdr.originY = dw.min.y;
+    return true;
+}
+
+}  // namespace
+
+bool checkStatsHeaders(int fd, uint64_t size, const std::string& path, const ReadLimits& limits,
+                       StatsHeader& hdr, std::string& err) {
+    static constexpr unsigned char kMagic[4] = {0x76, 0x2f, 0x31, 0x01};
+    unsigned char magic[4] = {};
+    if (size == 0) {
+        err = path + ": not an OpenEXR file (empty file)";
+        return false;
+    }
+    const int64_t got = preadFull(fd, magic, 4, 0);
+    if (got < 0) {
+        err = fmt::format("{}: cannot read ({})", path, std::strerror(errno));
+        return false;
+    }
+    if (got < 4 || std::memcmp(magic, kMagic, 4) != 0) {
+        err = path + ": not an OpenEXR file";
+        return false;
+    }
+
+    CoreIo io{fd, int64_t(size), {}};
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = &coreError;
+    init.user_data = &io;
+    init.read_fn = &coreRead;
+    init.size_fn = &coreSize;
+    init.flags = EXR_CONTEXT_FLAG_DISABLE_CHUNK_RECONSTRUCTION;
+    CoreContext ctx;
+    const exr_result_t rv = exr_start_read(&ctx.ctxt, path.c_str(), &init);
+    if (rv != EXR_ERR_SUCCESS) {
+        const std::string what =
+            io.firstError.empty() ? exr_get_default_error_message(rv) : io.firstError;
+        err = fmt::format("{}: truncated or corrupt (header: {})", path, oneLine(what));
+        return false;
+    }
+    Checker checker(ctx.ctxt, path);
+    if (!checker.run(limits, hdr)) {
+        err = checker.err;
+        return false;
+    }
+    return true;
+}
+
+}  // namespace mcstat::detail

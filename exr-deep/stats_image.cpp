@@ -1,0 +1,148 @@
+// StatsImage::allocate and validateStats: the in-memory invariants of a statistics image.
+#include <fmt/format.h>
+
+#include <cmath>
+#include <limits>
+#include <new>
+
+#include "mcstat/stats_file.h"
+#include "stats_layout.h"
+
+namespace mcstat {
+
+namespace {
+
+/// Largest count a float32 holds exactly with every smaller integer (FORMAT.md, "Counts").
+constexpr double kMaxCount = 16777216.0;  // 2^24
+
+bool checkHeader(const StatsHeader& h, std::string& problem) {
+    if (h.formatVersion != kStatsFormatVersion) {
+        problem = fmt::format("format version {} (this library writes and holds {})",
+                              h.formatVersion, kStatsFormatVersion);
+        return false;
+    }
+    if (h.width <= 0 || h.height <= 0) {
+        problem = fmt::format("empty or negative size {}x{}", h.width, h.height);
+        return false;
+    }
+    if (h.M < 1 || h.M > kMaxBuffers) {
+        problem = fmt::format("M = {} out of range 1..{}", h.M, kMaxBuffers);
+        return false;
+    }
+    if (h.spp < 0) {
+        problem = fmt::format("negative spp {}", h.spp);
+        return false;
+    }
+    if (h.assignment != layout::kAssignmentRoundRobin) {
+        problem = fmt::format("unknown sample assignment '{}' (format 1 knows '{}')", h.assignment,
+                              layout::kAssignmentRoundRobin);
+        return false;
+    }
+    // OpenEXR's dataWindow.max must stay representable.
+    if (int64_t(h.originX) + h.width - 1 > std::numeric_limits<int>::max() ||
+        int64_t(h.originY) + h.height - 1 > std::numeric_limits<int>::max()) {
+        problem = "data window exceeds the int range";
+        return false;
+    }
+    return true;
+}
+
+/// Why `v` is not a valid sample count, or nullptr.
+const char* countProblem(float v) {
+    if (!std::isfinite(v)) return std::isnan(v) ? "is NaN" : "is infinite";
+    if (v < 0.f) return "is negative";
+    if (v != std::floor(v)) return "is not an integer";
+    if (double(v) > kMaxCount) return "exceeds 2^24";
+    return nullptr;
+}
+
+}  // namespace
+
+bool StatsImage::allocate(std::string& err) {
+    std::string problem;
+    if (!checkHeader(header, problem)) {
+        err = "cannot allocate statistics image: " + problem;
+        return false;
+    }
+    const size_t maxFloats = std::numeric_limits<size_t>::max() / sizeof(float);
+    const size_t pixels = size_t(header.width) * size_t(header.height);  // < 2^62
+    const size_t perPixel = layout::floatsPerPixel(header.M);
+    if (pixels > maxFloats / perPixel) {
+        err = fmt::format("cannot allocate statistics image: {}x{} pixels with M = {} overflows",
+                          header.width, header.height, header.M);
+        return false;
+    }
+    const size_t m = size_t(header.M);
+    try {
+        StatsImage t;
+        t.header = header;
+        t.beauty.assign(pixels * 3, 0.f);
+        t.bufferMean.assign(pixels * m * 3, 0.f);
+        t.bufferCount.assign(pixels * m, 0.f);
+        t.count.assign(pixels, 0.f);
+        t.mean.assign(pixels * 3, 0.f);
+        t.variance.assign(pixels * 3, 0.f);
+        t.normal.assign(pixels * 3, 0.f);
+        t.position.assign(pixels * 3, 0.f);
+        t.albedo.assign(pixels * 3, 0.f);
+        t.depth.assign(pixels, std::numeric_limits<float>::infinity());
+        t.coverage.assign(pixels, 0.f);
+        *this = std::move(t);
+    } catch (const std::exception& e) {  // bad_alloc, length_error
+        err = fmt::format("cannot allocate statistics image {}x{} with M = {}: {}", header.width,
+                          header.height, header.M, e.what());
+        return false;
+    }
+    return true;
+}
+
+bool validateStats(const StatsImage& img, const std::string& what, std::string& err) {
+    const StatsHeader& h = img.header;
+    std::string problem;
+    if (!checkHeader(h, problem)) {
+        err = what + ": " + problem;
+        return false;
+    }
+    const size_t pixels = img.pixelCount();
+    const size_t m = size_t(h.M);
+    for (int part = 0; part < layout::kPartCount; ++part) {
+        for (const layout::ChannelPlace& c : layout::partChannels(part, h.M)) {
+            if (c.offset != 0) continue;  // one check per array
+            const std::vector<float>& a = layout::arrayOf(img, c.array);
+            if (pixels > a.max_size() / c.stride || a.size() != pixels * c.stride) {
+                err = fmt::format(
+                    "{}: array for channel '{}' of part '{}' holds {} floats, expected {}", what,
+                    c.name, layout::kPartNames[part], a.size(), pixels * c.stride);
+                return false;
+            }
+        }
+    }
+    for (size_t p = 0; p < pixels; ++p) {
+        const auto where = [&] {
+            return fmt::format("pixel ({}, {})", h.originX + int64_t(p % size_t(h.width)),
+                               h.originY + int64_t(p / size_t(h.width)));
+        };
+        double sum = 0.0;
+        for (size_t j = 0; j < m; ++j) {
+            const float c = img.bufferCount[p * m + j];
+            if (const char* why = countProblem(c)) {
+                err = fmt::format("{}: {}: buffer {} count {} ({})", what, where(), j, why, c);
+                return false;
+            }
+            sum += double(c);
+        }
+        const float n = img.count[p];
+        if (const char* why = countProblem(n)) {
+            err = fmt::format("{}: {}: moments count {} ({})", what, where(), why, n);
+            return false;
+        }
+        if (sum != double(n)) {
+            err = fmt::format("{}: {}: buffer counts sum to {} but the moments count is {}", what,
+                              where(), sum, n);
+            return false;
+        }
+    }
+    return true;
+}
+
+}  // namespace mcstat

@@ -1,0 +1,90 @@
+#include "stats_layout.h"
+
+#include <fmt/format.h>
+
+namespace mcstat::layout {
+
+std::string bufferChannel(int j, const char* component) {
+    return fmt::format("b{:03d}.{}", j, component);
+}
+
+std::vector<ChannelPlace> partChannels(int part, int M) {
+    const size_t m = size_t(M);
+    switch (part) {
+        case kBeauty:
+            return {
+                {"R", Array::Beauty, 0, 3}, {"G", Array::Beauty, 1, 3}, {"B", Array::Beauty, 2, 3}};
+        case kBuffers: {
+            std::vector<ChannelPlace> ch;
+            ch.reserve(4 * m);
+            for (size_t j = 0; j < m; ++j) {
+                ch.push_back({bufferChannel(int(j), "R"), Array::BufferMean, j * 3 + 0, 3 * m});
+                ch.push_back({bufferChannel(int(j), "G"), Array::BufferMean, j * 3 + 1, 3 * m});
+                ch.push_back({bufferChannel(int(j), "B"), Array::BufferMean, j * 3 + 2, 3 * m});
+                ch.push_back({bufferChannel(int(j), "count"), Array::BufferCount, j, m});
+            }
+            return ch;
+        }
+        case kMoments:
+            return {{"count", Array::Count, 0, 1},         {"mean.R", Array::Mean, 0, 3},
+                    {"mean.G", Array::Mean, 1, 3},         {"mean.B", Array::Mean, 2, 3},
+                    {"variance.R", Array::Variance, 0, 3}, {"variance.G", Array::Variance, 1, 3},
+                    {"variance.B", Array::Variance, 2, 3}};
+        case kFeatures:
+            return {{"N.X", Array::Normal, 0, 3},      {"N.Y", Array::Normal, 1, 3},
+                    {"N.Z", Array::Normal, 2, 3},      {"P.X", Array::Position, 0, 3},
+                    {"P.Y", Array::Position, 1, 3},    {"P.Z", Array::Position, 2, 3},
+                    {"Albedo.R", Array::Albedo, 0, 3}, {"Albedo.G", Array::Albedo, 1, 3},
+                    {"Albedo.B", Array::Albedo, 2, 3}, {"Z", Array::Depth, 0, 1},
+                    {"A", Array::Coverage, 0, 1}};
+        default:
+            return {};
+    }
+}
+
+size_t floatsPerPixel(int M) { return 3 + 4 * size_t(M) + 7 + 11; }
+
+namespace {
+template <class Img>
+auto& arrayOfImpl(Img& img, Array a) {
+    switch (a) {
+        case Array::Beauty:
+            return img.beauty;
+        case Array::BufferMean:
+            return img.bufferMean;
+        case Array::BufferCount:
+            return img.bufferCount;
+        case Array::Count:
+            return img.count;
+        case Array::Mean:
+            return img.mean;
+        case Array::Variance:
+            return img.variance;
+        case Array::Normal:
+            return img.normal;
+        case Array::Position:
+            return img.position;
+        case Array::Albedo:
+            return img.albedo;
+        case Array::Depth:
+            return img.depth;
+        case Array::Coverage:
+            break;
+    }
+    return img.coverage;
+}
+}  // namespace
+
+std::vector<float>& arrayOf(StatsImage& img, Array a) { return arrayOfImpl(img, a); }
+const std::vector<float>& arrayOf(const StatsImage& img, Array a) { return arrayOfImpl(img, a); }
+
+}  // namespace mcstat::layout
+
+namespace mcstat::detail {
+std::string oneLine(std::string s) {
+    for (char& c : s)
+        if (c == '\n' || c == '\r') c = ' ';
+    while (!s.empty() && s.back() == ' ') s.pop_back();
+    return s;
+}
+}  // namespace mcstat::detail

@@ -1,0 +1,147 @@
+// mergeStats: two renders of the same image combined as if one render had taken all samples
+// (FORMAT.md "Merge"). Everything is computed in double from the stored float32 values and rounded
+// once when stored.
+#include <fmt/format.h>
+
+#include <cmath>
+#include <limits>
+#include <set>
+
+#include "mcstat/stats_file.h"
+#include "stats_layout.h"
+
+namespace mcstat {
+
+namespace {
+
+std::vector<std::string> splitSeeds(const std::string& s) {
+    std::vector<std::string> out;
+    size_t start = 0;
+    while (start <= s.size()) {
+        size_t end = s.find(',', start);
+        if (end == std::string::npos) end = s.size();
+        std::string item = s.substr(start, end - start);
+        const size_t b = item.find_first_not_of(" \t");
+        const size_t e = item.find_last_not_of(" \t");
+        if (b != std::string::npos) out.push_back(item.substr(b, e - b + 1));
+        start = end + 1;
+    }
+    return out;
+}
+
+/// Count-weighted mean of two means; 0 when both weights are 0.
+double weighted(double wa, double ma, double wb, double mb) {
+    const double w = wa + wb;
+    if (w == 0.0) return 0.0;
+    if (wa == 0.0) return mb;  // also keeps a non-finite value of the empty side out
+    if (wb == 0.0) return ma;
+    return (wa * ma + wb * mb) / w;
+}
+
+/// Number of hits recovered from coverage A and count n, kept in [0, n] (also for a NaN A).
+double hitsOf(float A, double n) { return std::fmax(0.0, std::fmin(n, std::round(double(A) * n))); }
+
+bool checkCompatible(const StatsHeader& a, const StatsHeader& b, std::string& err) {
+    const auto fail = [&](const std::string& what) {
+        err = "cannot merge: " + what;
+        return false;
+    };
+    if (a.width != b.width || a.height != b.height)
+        return fail(
+            fmt::format("sizes differ ({}x{} vs {}x{})", a.width, a.height, b.width, b.height));
+    if (a.originX != b.originX || a.originY != b.originY)
+        return fail(fmt::format("data window origins differ (({},{}) vs ({},{}))", a.originX,
+                                a.originY, b.originX, b.originY));
+    if (a.M != b.M) return fail(fmt::format("M differs ({} vs {})", a.M, b.M));
+    if (a.assignment != b.assignment)
+        return fail(fmt::format("assignments differ ('{}' vs '{}')", a.assignment, b.assignment));
+    if (a.colorSpace != b.colorSpace)
+        return fail(fmt::format("colour spaces differ ('{}' vs '{}')", a.colorSpace, b.colorSpace));
+    if (!a.seeds.empty() && !b.seeds.empty()) {
+        const std::vector<std::string> sa = splitSeeds(a.seeds);
+        const std::set<std::string> setA(sa.begin(), sa.end());
+        for (const std::string& s : splitSeeds(b.seeds))
+            if (setA.count(s))
+                return fail(
+                    fmt::format("seed {} is in both inputs (the same samples would be "
+                                "counted twice)",
+                                s));
+    }
+    if (a.spp > std::numeric_limits<int>::max() - b.spp) return fail("spp overflows");
+    return true;
+}
+
+}  // namespace
+
+bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::string& err) {
+    if (!validateStats(a, "first merge input", err) ||
+        !validateStats(b, "second merge input", err) || !checkCompatible(a.header, b.header, err))
+        return false;
+
+    StatsImage r;
+    r.header = a.header;
+    r.header.spp = a.header.spp + b.header.spp;
+    if (a.header.seeds.empty() || b.header.seeds.empty())
+        r.header.seeds = a.header.seeds + b.header.seeds;
+    else
+        r.header.seeds = a.header.seeds + "," + b.header.seeds;
+    if (a.header.renderer != b.header.renderer)
+        r.header.renderer = a.header.renderer + " + " + b.header.renderer;
+    if (!r.allocate(err)) return false;
+
+    const size_t pixels = r.pixelCount();
+    const size_t m = size_t(r.header.M);
+    for (size_t p = 0; p < pixels; ++p) {
+        // Sub-buffers: count-weighted means, counts add.
+        for (size_t j = 0; j < m; ++j) {
+            const size_t k = p * m + j;
+            const double na = a.bufferCount[k], nb = b.bufferCount[k];
+            for (size_t c = 0; c < 3; ++c)
+                r.bufferMean[k * 3 + c] =
+                    float(weighted(na, a.bufferMean[k * 3 + c], nb, b.bufferMean[k * 3 + c]));
+            r.bufferCount[k] = float(na + nb);
+        }
+        // Moments: Chan et al.'s parallel combination; M2 recovered as variance * (n - 1).
+        const double na = a.count[p], nb = b.count[p], n = na + nb;
+        r.count[p] = float(n);
+        for (size_t c = 0; c < 3; ++c) {
+            const size_t i = p * 3 + c;
+            double mean = 0.0, var = 0.0;
+            if (na == 0.0) {
+                mean = b.mean[i];
+                var = b.variance[i];
+            } else if (nb == 0.0) {
+                mean = a.mean[i];
+                var = a.variance[i];
+            } else {
+                const double ma = a.mean[i], mb = b.mean[i];
+                const double m2a = na > 1.0 ? double(a.variance[i]) * (na - 1.0) : 0.0;
+                const double m2b = nb > 1.0 ? double(b.variance[i]) * (nb - 1.0) : 0.0;
+                const double delta = mb - ma;
+                mean = ma + delta * (nb / n);
+                const double m2 = m2a + m2b + delta * delta * (na * nb / n);
+                var = n > 1.0 ? m2 / (n - 1.0) : 0.0;
+            }
+            if (n == 0.0) mean = var = 0.0;
+            r.mean[i] = float(mean);
+            r.variance[i] = float(var);
+            r.beauty[i] = float(mean);
+        }
+        // Features: N, P, Z weighted by hit counts, Albedo by sample counts, A recomputed.
+        const double ha = hitsOf(a.coverage[p], na);
+        const double hb = hitsOf(b.coverage[p], nb);
+        for (size_t c = 0; c < 3; ++c) {
+            const size_t i = p * 3 + c;
+            r.normal[i] = float(weighted(ha, a.normal[i], hb, b.normal[i]));
+            r.position[i] = float(weighted(ha, a.position[i], hb, b.position[i]));
+            r.albedo[i] = float(weighted(na, a.albedo[i], nb, b.albedo[i]));
+        }
+        r.depth[p] = ha + hb == 0.0 ? std::numeric_limits<float>::infinity()
+                                    : float(weighted(ha, a.depth[p], hb, b.depth[p]));
+        r.coverage[p] = n == 0.0 ? 0.f : float((ha + hb) / n);
+    }
+    out = std::move(r);
+    return true;
+}
+
+}  // namespace mcstat

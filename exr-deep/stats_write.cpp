@@ -1,0 +1,132 @@
+// writeStatsFile: validate, write the four parts to a temporary file in the target's directory,
+// rename it onto the target. On failure the temporary file is removed and the target is untouched.
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfIntAttribute.h>
+#include <OpenEXR/ImfMultiPartOutputFile.h>
+#include <OpenEXR/ImfOutputPart.h>
+#include <OpenEXR/ImfPartType.h>
+#include <OpenEXR/ImfStandardAttributes.h>
+#include <OpenEXR/ImfStringAttribute.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstring>
+#include <random>
+
+#include "fd_stream.h"
+#include "mcstat/stats_file.h"
+#include "stats_layout.h"
+
+namespace mcstat {
+
+namespace {
+
+Imath::Box2i dataWindowOf(const StatsHeader& h) {
+    return Imath::Box2i(Imath::V2i(h.originX, h.originY),
+                        Imath::V2i(h.originX + h.width - 1, h.originY + h.height - 1));
+}
+
+std::vector<Imf::Header> makeHeaders(const StatsHeader& h) {
+    const Imath::Box2i window = dataWindowOf(h);
+    std::vector<Imf::Header> headers;
+    for (int part = 0; part < layout::kPartCount; ++part) {
+        Imf::Header hdr(window, window, 1.f, Imath::V2f(0.f, 0.f), 1.f, Imf::INCREASING_Y,
+                        Imf::ZIP_COMPRESSION);
+        hdr.zipCompressionLevel() = 4;  // fixed, so equal images give equal bytes
+        hdr.setName(layout::kPartNames[part]);
+        hdr.setType(Imf::SCANLINEIMAGE);
+        hdr.insert(layout::kAttrPartVersion, Imf::IntAttribute(1));
+        hdr.insert(layout::kAttrFormatVersion, Imf::IntAttribute(h.formatVersion));
+        hdr.insert(layout::kAttrM, Imf::IntAttribute(h.M));
+        hdr.insert(layout::kAttrSpp, Imf::IntAttribute(int(h.spp)));
+        hdr.insert(layout::kAttrAssignment, Imf::StringAttribute(h.assignment));
+        hdr.insert(layout::kAttrRenderer, Imf::StringAttribute(h.renderer));
+        hdr.insert(layout::kAttrColorSpace, Imf::StringAttribute(h.colorSpace));
+        hdr.insert(layout::kAttrSeeds, Imf::StringAttribute(h.seeds));
+        if (part == layout::kBeauty) Imf::addChromaticities(hdr, Imf::Chromaticities());  // Rec.709
+        for (const layout::ChannelPlace& c : layout::partChannels(part, h.M))
+            hdr.channels().insert(c.name, Imf::Channel(Imf::FLOAT));
+        headers.push_back(std::move(hdr));
+    }
+    return headers;
+}
+
+std::string tempNameFor(const std::string& path) {
+    const size_t slash = path.rfind('/');
+    const std::string dir = slash == std::string::npos ? std::string() : path.substr(0, slash + 1);
+    const std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
+    std::random_device rd;
+    return fmt::format("{}.{}.tmp-{}-{:08x}", dir, name, long(::getpid()), rd());
+}
+
+std::string dirOf(const std::string& path) {
+    const size_t slash = path.rfind('/');
+    if (slash == std::string::npos) return ".";
+    return slash == 0 ? "/" : path.substr(0, slash);
+}
+
+/// Writes every part to `os`; throws on failure.
+void writeParts(Imf::OStream& os, const StatsImage& img) {
+    const StatsHeader& h = img.header;
+    const std::vector<Imf::Header> headers = makeHeaders(h);
+    const Imath::Box2i window = dataWindowOf(h);
+    Imf::MultiPartOutputFile out(os, headers.data(), int(headers.size()));
+    for (int part = 0; part < layout::kPartCount; ++part) {
+        Imf::FrameBuffer fb;
+        for (const layout::ChannelPlace& c : layout::partChannels(part, h.M)) {
+            const float* base = layout::arrayOf(img, c.array).data() + c.offset;
+            const size_t xStride = c.stride * sizeof(float);
+            fb.insert(c.name, Imf::Slice::Make(Imf::FLOAT, base, window, xStride,
+                                               xStride * size_t(h.width)));
+        }
+        Imf::OutputPart op(out, part);
+        op.setFrameBuffer(fb);
+        op.writePixels(h.height);
+    }
+}
+
+}  // namespace
+
+bool writeStatsFile(const std::string& path, const StatsImage& img, std::string& err) {
+    if (!validateStats(img, path, err)) return false;
+    if (img.header.spp > std::numeric_limits<int>::max()) {
+        err = fmt::format("{}: spp {} does not fit the int attribute {}", path, img.header.spp,
+                          layout::kAttrSpp);
+        return false;
+    }
+    const std::string tmp = tempNameFor(path);
+    detail::Fd fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666));
+    if (fd.get() < 0) {
+        err = fmt::format("{}: cannot create temporary file {} ({})", path, tmp,
+                          std::strerror(errno));
+        return false;
+    }
+    std::string problem;
+    try {
+        detail::FdOStream os(fd.get(), tmp);
+        writeParts(os, img);  // the offset table is written when `out` is destroyed
+        problem = os.error();
+    } catch (const std::exception& e) {
+        problem = e.what();
+    }
+    if (problem.empty() && ::fsync(fd.get()) != 0) problem = std::strerror(errno);
+    if (const std::string closeErr = fd.close(); problem.empty()) problem = closeErr;
+    if (problem.empty() && std::rename(tmp.c_str(), path.c_str()) != 0)
+        problem = fmt::format("cannot rename {} onto it ({})", tmp, std::strerror(errno));
+    if (!problem.empty()) {
+        ::unlink(tmp.c_str());
+        err = fmt::format("{}: cannot write ({})", path, problem);
+        return false;
+    }
+    // Make the rename durable; a failure here does not undo the write.
+    detail::Fd dir(::open(dirOf(path).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
+    if (dir.get() >= 0) (void)::fsync(dir.get());
+    return true;
+}
+
+}  // namespace mcstat

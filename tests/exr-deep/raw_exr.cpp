@@ -1,0 +1,156 @@
+#include "raw_exr.h"
+
+#include <Imath/half.h>
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfDeepFrameBuffer.h>
+#include <OpenEXR/ImfDeepScanLineOutputPart.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfIntAttribute.h>
+#include <OpenEXR/ImfMultiPartOutputFile.h>
+#include <OpenEXR/ImfOutputPart.h>
+#include <OpenEXR/ImfPartType.h>
+#include <OpenEXR/ImfStandardAttributes.h>
+#include <OpenEXR/ImfStringAttribute.h>
+#include <OpenEXR/ImfTiledOutputPart.h>
+
+#include <cstdio>
+
+namespace mcstat::test {
+
+namespace {
+
+Imf::Header baseHeader(const StatsHeader& h, const char* name) {
+    const Imath::Box2i w(Imath::V2i(h.originX, h.originY),
+                         Imath::V2i(h.originX + h.width - 1, h.originY + h.height - 1));
+    Imf::Header hdr(w, w, 1.f, Imath::V2f(0, 0), 1.f, Imf::INCREASING_Y, Imf::ZIP_COMPRESSION);
+    hdr.setName(name);
+    hdr.setType(Imf::SCANLINEIMAGE);
+    hdr.insert("version", Imf::IntAttribute(1));
+    hdr.insert("mcstat:formatVersion", Imf::IntAttribute(h.formatVersion));
+    hdr.insert("mcstat:M", Imf::IntAttribute(h.M));
+    hdr.insert("mcstat:spp", Imf::IntAttribute(int(h.spp)));
+    hdr.insert("mcstat:assignment", Imf::StringAttribute(h.assignment));
+    hdr.insert("mcstat:renderer", Imf::StringAttribute(h.renderer));
+    hdr.insert("mcstat:colorSpace", Imf::StringAttribute(h.colorSpace));
+    hdr.insert("mcstat:seeds", Imf::StringAttribute(h.seeds));
+    return hdr;
+}
+
+/// Adds channel `name` holding element `offset` of each `stride`-float pixel of `src`.
+void addChannel(RawPart& part, const std::string& name, const std::vector<float>& src,
+                size_t offset, size_t stride) {
+    part.header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+    std::vector<float>& v = part.values[name];
+    const size_t n = src.size() / stride;
+    v.resize(n);
+    for (size_t p = 0; p < n; ++p) v[p] = src[p * stride + offset];
+}
+
+}  // namespace
+
+std::vector<RawPart> rawPartsFrom(const StatsImage& img) {
+    const StatsHeader& h = img.header;
+    const size_t m = size_t(h.M);
+    std::vector<RawPart> parts(4);
+    parts[0].header = baseHeader(h, "beauty");
+    Imf::addChromaticities(parts[0].header, Imf::Chromaticities());
+    const char* rgb[3] = {"R", "G", "B"};
+    const char* xyz[3] = {"X", "Y", "Z"};
+    for (size_t c = 0; c < 3; ++c) addChannel(parts[0], rgb[c], img.beauty, c, 3);
+
+    parts[1].header = baseHeader(h, "buffers");
+    for (size_t j = 0; j < m; ++j) {
+        char prefix[32];
+        std::snprintf(prefix, sizeof prefix, "b%03zu.", j);
+        for (size_t c = 0; c < 3; ++c)
+            addChannel(parts[1], std::string(prefix) + rgb[c], img.bufferMean, j * 3 + c, 3 * m);
+        addChannel(parts[1], std::string(prefix) + "count", img.bufferCount, j, m);
+    }
+
+    parts[2].header = baseHeader(h, "moments");
+    addChannel(parts[2], "count", img.count, 0, 1);
+    for (size_t c = 0; c < 3; ++c) {
+        addChannel(parts[2], std::string("mean.") + rgb[c], img.mean, c, 3);
+        addChannel(parts[2], std::string("variance.") + rgb[c], img.variance, c, 3);
+    }
+
+    parts[3].header = baseHeader(h, "features");
+    for (size_t c = 0; c < 3; ++c) {
+        addChannel(parts[3], std::string("N.") + xyz[c], img.normal, c, 3);
+        addChannel(parts[3], std::string("P.") + xyz[c], img.position, c, 3);
+        addChannel(parts[3], std::string("Albedo.") + rgb[c], img.albedo, c, 3);
+    }
+    addChannel(parts[3], "Z", img.depth, 0, 1);
+    addChannel(parts[3], "A", img.coverage, 0, 1);
+    return parts;
+}
+
+void setIntOnAll(std::vector<RawPart>& parts, const char* name, int v) {
+    for (RawPart& p : parts) p.header.insert(name, Imf::IntAttribute(v));
+}
+
+void writeRaw(const std::string& path, const std::vector<RawPart>& parts) {
+    std::vector<Imf::Header> headers;
+    for (const RawPart& p : parts) headers.push_back(p.header);
+    Imf::MultiPartOutputFile out(path.c_str(), headers.data(), int(headers.size()));
+    for (size_t i = 0; i < parts.size(); ++i) {
+        const Imf::Header& h = parts[i].header;
+        const Imath::Box2i dw = h.dataWindow();
+        const size_t w = size_t(dw.max.x - dw.min.x + 1), ht = size_t(dw.max.y - dw.min.y + 1);
+        const size_t n = w * ht;
+        // Storage for every channel in its declared type (kept alive until written).
+        std::vector<std::vector<float>> floats;
+        std::vector<std::vector<half>> halves;
+        std::vector<std::vector<unsigned>> uints;
+        Imf::FrameBuffer fb;
+        for (auto it = h.channels().begin(); it != h.channels().end(); ++it) {
+            std::vector<float> v(n, 0.f);
+            const auto found = parts[i].values.find(it.name());
+            if (found != parts[i].values.end())
+                for (size_t k = 0; k < n && k < found->second.size(); ++k) v[k] = found->second[k];
+            const Imf::PixelType t = it.channel().type;
+            char* base = nullptr;
+            size_t elem = 0;
+            if (t == Imf::FLOAT) {
+                floats.push_back(std::move(v));
+                base = reinterpret_cast<char*>(floats.back().data());
+                elem = sizeof(float);
+            } else if (t == Imf::HALF) {
+                halves.emplace_back(v.begin(), v.end());
+                base = reinterpret_cast<char*>(halves.back().data());
+                elem = sizeof(half);
+            } else {
+                uints.emplace_back(v.begin(), v.end());
+                base = reinterpret_cast<char*>(uints.back().data());
+                elem = sizeof(unsigned);
+            }
+            fb.insert(it.name(), Imf::Slice::Make(t, base, dw, elem, elem * w));
+        }
+        if (h.type() == Imf::SCANLINEIMAGE) {
+            Imf::OutputPart op(out, int(i));
+            op.setFrameBuffer(fb);
+            op.writePixels(int(ht));
+        } else if (h.type() == Imf::TILEDIMAGE) {
+            Imf::TiledOutputPart op(out, int(i));
+            op.setFrameBuffer(fb);
+            op.writeTiles(0, op.numXTiles() - 1, 0, op.numYTiles() - 1);
+        } else {  // deep scanline, zero samples everywhere
+            std::vector<unsigned> counts(n, 0);
+            std::vector<float*> pointers(n, nullptr);
+            Imf::DeepFrameBuffer dfb;
+            dfb.insertSampleCountSlice(Imf::Slice::Make(Imf::UINT, counts.data(), dw,
+                                                        sizeof(unsigned), sizeof(unsigned) * w));
+            for (auto it = h.channels().begin(); it != h.channels().end(); ++it)
+                dfb.insert(it.name(),
+                           Imf::DeepSlice(Imf::FLOAT,
+                                          reinterpret_cast<char*>(pointers.data()) -
+                                              (dw.min.x + dw.min.y * ptrdiff_t(w)) * sizeof(float*),
+                                          sizeof(float*), sizeof(float*) * w, sizeof(float)));
+            Imf::DeepScanLineOutputPart op(out, int(i));
+            op.setFrameBuffer(dfb);
+            op.writePixels(int(ht));
+        }
+    }
+}
+
+}  // namespace mcstat::test

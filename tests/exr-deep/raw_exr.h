@@ -1,0 +1,32 @@
+// Test helper: writes arbitrary (also invalid) statistics files directly with the OpenEXR C++ API,
+// from a layout written out independently of the library's, so a slip in the library's layout
+// table shows up as a failing test.
+#pragma once
+
+#include <OpenEXR/ImfHeader.h>
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "mcstat/stats_file.h"
+
+namespace mcstat::test {
+
+struct RawPart {
+    Imf::Header header;  ///< name, type, channels, windows, attributes
+    /// Values per channel, row-major over the part's data window; missing channels are zero.
+    std::map<std::string, std::vector<float>> values;
+};
+
+/// The four valid parts of `img`, as FORMAT.md describes them.
+std::vector<RawPart> rawPartsFrom(const StatsImage& img);
+
+/// Writes the parts as a multi-part file (scanline, tiled or deep scanline by header type; deep
+/// parts get zero samples per pixel). Throws on OpenEXR errors.
+void writeRaw(const std::string& path, const std::vector<RawPart>& parts);
+
+/// Sets int attribute `name` = v on every part.
+void setIntOnAll(std::vector<RawPart>& parts, const char* name, int v);
+
+}  // namespace mcstat::test

@@ -1,0 +1,120 @@
+// The writer replaces the target atomically: on failure there is no new file, an old target keeps
+// its content and no temporary file is left behind.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "mcstat/stats_file.h"
+#include "sample_accumulator.h"
+#include "test_support.h"
+
+namespace mcstat::test {
+namespace {
+
+StatsImage smallImage() {
+    return renderImage(4, 4, 2, 3, [](int, int) { return 4; });
+}
+
+TEST(AtomicWrite, NonexistentDirectoryGivesErrorAndNoFile) {
+    ScratchDir dir;
+    const std::string path = dir.file("no/such/dir/x.mcstat");
+    std::string err;
+    EXPECT_FALSE(writeStatsFile(path, smallImage(), err));
+    EXPECT_EQ(err.rfind(path + ": ", 0), 0u) << err;
+    EXPECT_TRUE(contains(err, "No such file or directory")) << err;
+    EXPECT_TRUE(dir.entries().empty());
+}
+
+TEST(AtomicWrite, InvalidImageKeepsOldContentAndLeavesNoTempFile) {
+    ScratchDir dir;
+    const std::string path = dir.file("keep.mcstat");
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path, smallImage(), err)) << err;
+    const auto before = readBytes(path);
+
+    StatsImage bad = renderImage(6, 6, 3, 4, [](int, int) { return 5; });
+    bad.count[7] += 1.f;  // counts no longer sum
+    EXPECT_FALSE(writeStatsFile(path, bad, err));
+    EXPECT_EQ(err.rfind(path + ": ", 0), 0u) << err;
+    EXPECT_TRUE(contains(err, "buffer counts sum to")) << err;
+
+    StatsImage wrongSize = smallImage();
+    wrongSize.albedo.resize(3);
+    EXPECT_FALSE(writeStatsFile(path, wrongSize, err));
+    EXPECT_TRUE(contains(err, "Albedo")) << err;
+
+    EXPECT_EQ(readBytes(path), before);
+    EXPECT_EQ(dir.entries(), std::vector<std::string>{"keep.mcstat"});
+}
+
+TEST(AtomicWrite, FailedRenameRemovesTheCompleteTempFile) {
+    // The target is a directory: the whole file gets written, then rename() fails (EISDIR).
+    ScratchDir dir;
+    const std::string path = dir.file("sub");
+    std::filesystem::create_directory(path);
+    writeBytes(path + "/inside", {1, 2, 3});
+    std::string err;
+    EXPECT_FALSE(writeStatsFile(path, smallImage(), err));
+    EXPECT_EQ(err.rfind(path + ": cannot write (cannot rename ", 0), 0u) << err;
+    EXPECT_TRUE(contains(err, "Is a directory")) << err;
+    EXPECT_EQ(dir.entries(), std::vector<std::string>{"sub"});
+    EXPECT_EQ(readBytes(path + "/inside"), (std::vector<unsigned char>{1, 2, 3}));
+}
+
+TEST(AtomicWrite, ParentIsAFile) {
+    ScratchDir dir;
+    writeBytes(dir.file("plain"), {7});
+    const std::string path = dir.file("plain/x.mcstat");
+    std::string err;
+    EXPECT_FALSE(writeStatsFile(path, smallImage(), err));
+    EXPECT_EQ(err.rfind(path + ": cannot create temporary file ", 0), 0u) << err;
+    EXPECT_TRUE(contains(err, "Not a directory")) << err;
+    EXPECT_EQ(dir.entries(), std::vector<std::string>{"plain"});
+}
+
+TEST(AtomicWrite, UnwritableDirectoryKeepsOldContent) {
+    if (::geteuid() == 0) GTEST_SKIP() << "root ignores directory permissions";
+    ScratchDir dir;
+    const std::string path = dir.file("ro.mcstat");
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path, smallImage(), err)) << err;
+    const auto before = readBytes(path);
+    ASSERT_EQ(::chmod(dir.path().c_str(), 0555), 0);
+    const bool ok = writeStatsFile(path, renderImage(2, 2, 1, 9, [](int, int) { return 1; }), err);
+    ::chmod(dir.path().c_str(), 0755);
+    EXPECT_FALSE(ok);
+    EXPECT_TRUE(contains(err, "Permission denied")) << err;
+    EXPECT_EQ(readBytes(path), before);
+    EXPECT_EQ(dir.entries(), std::vector<std::string>{"ro.mcstat"});
+}
+
+TEST(AtomicWrite, DiskFullRemovesTempFileAndKeepsTarget) {
+    // A full disk, simulated: with RLIMIT_FSIZE, writes past the limit fail (EFBIG) the way they
+    // fail with ENOSPC on a full disk.
+    ScratchDir dir;
+    const std::string path = dir.file("full.mcstat");
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path, smallImage(), err)) << err;
+    const auto before = readBytes(path);
+    const StatsImage big = renderImage(64, 64, 8, 5, [](int, int) { return 8; });
+    // Lower only the soft limit (raised back below); ignore SIGXFSZ so write() fails with EFBIG.
+    struct rlimit saved {};
+    ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &saved), 0);
+    struct rlimit small = saved;
+    small.rlim_cur = 4096;
+    void (*oldHandler)(int) = ::signal(SIGXFSZ, SIG_IGN);
+    ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &small), 0);
+    const bool ok = writeStatsFile(path, big, err);
+    ::setrlimit(RLIMIT_FSIZE, &saved);
+    ::signal(SIGXFSZ, oldHandler);
+    EXPECT_FALSE(ok);
+    EXPECT_EQ(err.rfind(path + ": cannot write (", 0), 0u) << err;
+    EXPECT_TRUE(contains(err, "too large")) << err;  // strerror(EFBIG): "File too large"
+    EXPECT_EQ(readBytes(path), before);
+    EXPECT_EQ(dir.entries(), std::vector<std::string>{"full.mcstat"});
+}
+
+}  // namespace
+}  // namespace mcstat::test
