@@ -1,0 +1,98 @@
+#include "film.h"
+
+#include <algorithm>
+#include <limits>
+
+namespace mcstat::render {
+
+PixelAccumulator::PixelAccumulator(int M)
+    : M_(M), bufSum_(size_t(M) * 3, 0.0), bufCount_(size_t(M), 0) {}
+
+void PixelAccumulator::reset() {
+    std::fill(bufSum_.begin(), bufSum_.end(), 0.0);
+    std::fill(bufCount_.begin(), bufCount_.end(), 0);
+    n_ = 0;
+    hits_ = 0;
+    for (int c = 0; c < 3; ++c) mean_[c] = m2_[c] = sum_[c] = 0;
+    normalSum_ = positionSum_ = albedoSum_ = Vec3();
+    depthSum_ = 0;
+}
+
+bool PixelAccumulator::add(int64_t index, const PathSample& s) {
+    if (!isFinite(s.L)) return false;
+    const size_t j = size_t(index % M_);
+    ++bufCount_[j];
+    ++n_;
+    for (int c = 0; c < 3; ++c) {
+        const double x = s.L[c];
+        bufSum_[j * 3 + size_t(c)] += x;
+        sum_[c] += x;
+        // Welford: numerically stable even when the mean dwarfs the spread.
+        const double delta = x - mean_[c];
+        mean_[c] += delta / double(n_);
+        m2_[c] += delta * (x - mean_[c]);
+    }
+    if (s.hit) {
+        ++hits_;
+        normalSum_ += s.normal;
+        positionSum_ += s.position;
+        albedoSum_ += s.albedo;
+        depthSum_ += s.depth;
+    }
+    return true;
+}
+
+void PixelAccumulator::store(StatsImage& img, size_t p) const {
+    const size_t M = size_t(M_);
+    for (size_t j = 0; j < M; ++j) {
+        const int64_t cnt = bufCount_[j];
+        img.bufferCount[p * M + j] = float(cnt);
+        for (size_t c = 0; c < 3; ++c)
+            img.bufferMean[(p * M + j) * 3 + c] =
+                cnt > 0 ? float(bufSum_[j * 3 + c] / double(cnt)) : 0.0f;
+    }
+    img.count[p] = float(n_);
+    for (size_t c = 0; c < 3; ++c) {
+        img.beauty[p * 3 + c] = n_ > 0 ? float(sum_[c] / double(n_)) : 0.0f;
+        img.mean[p * 3 + c] = float(mean_[c]);
+        img.variance[p * 3 + c] = n_ > 1 ? float(m2_[c] / double(n_ - 1)) : 0.0f;
+    }
+    const double invHits = hits_ > 0 ? 1.0 / double(hits_) : 0.0;
+    const double invN = n_ > 0 ? 1.0 / double(n_) : 0.0;
+    for (size_t c = 0; c < 3; ++c) {
+        const int ci = int(c);
+        img.normal[p * 3 + c] = float(normalSum_[ci] * invHits);
+        img.position[p * 3 + c] = float(positionSum_[ci] * invHits);
+        img.albedo[p * 3 + c] = float(albedoSum_[ci] * invN);
+    }
+    img.depth[p] = hits_ > 0 ? float(depthSum_ * invHits) : std::numeric_limits<float>::infinity();
+    img.coverage[p] = float(double(hits_) * invN);
+}
+
+bool MeanAccumulator::add(const Vec3& L) {
+    if (!isFinite(L)) return false;
+    for (int c = 0; c < 3; ++c) sum[c] += L[c];
+    ++n;
+    return true;
+}
+
+void MeanAccumulator::store(float* rgb) const {
+    for (int c = 0; c < 3; ++c) rgb[c] = n > 0 ? float(sum[c] / double(n)) : 0.0f;
+}
+
+void allocateStats(StatsImage& img) {
+    const size_t P = img.pixelCount(), M = size_t(img.header.M);
+    img.beauty.assign(P * 3, 0.0f);
+    img.bufferMean.assign(P * M * 3, 0.0f);
+    img.bufferCount.assign(P * M, 0.0f);
+    img.count.assign(P, 0.0f);
+    img.mean.assign(P * 3, 0.0f);
+    img.variance.assign(P * 3, 0.0f);
+    img.normal.assign(P * 3, 0.0f);
+    img.position.assign(P * 3, 0.0f);
+    img.albedo.assign(P * 3, 0.0f);
+    img.depth.assign(P, std::numeric_limits<float>::infinity());
+    img.coverage.assign(P, 0.0f);
+}
+
+}  // namespace mcstat::render

@@ -1,0 +1,199 @@
+// mcstat-render: renders a built-in or JSON scene into an mcstat statistics file, or (with
+// --reference) into a plain mean-only EXR for high-spp reference images.
+#include <OpenImageIO/argparse.h>
+#include <OpenImageIO/imageio.h>
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+#include "mcstat/render/render.h"
+#include "mcstat/render/scene.h"
+#include "mcstat/stats_file.h"
+
+namespace {
+
+using namespace mcstat::render;
+
+int fail(const std::string& msg) {
+    fmt::print(stderr, "mcstat-render: {}\n", msg);
+    return 1;
+}
+
+/// Strict integer parsing: the whole text must be a number in [lo, hi].
+bool parseInt(const std::string& text, const char* what, long long lo, long long hi, long long& out,
+              std::string& err) {
+    errno = 0;
+    char* end = nullptr;
+    const long long v = std::strtoll(text.c_str(), &end, 10);
+    if (text.empty() || *end != '\0' || errno == ERANGE) {
+        err = fmt::format("{}: expected an integer, got '{}'", what, text);
+        return false;
+    }
+    if (v < lo || v > hi) {
+        err = fmt::format("{}: must be between {} and {} (got {})", what, lo, hi, v);
+        return false;
+    }
+    out = v;
+    return true;
+}
+
+bool parseSeed(const std::string& text, uint64_t& out, std::string& err) {
+    errno = 0;
+    char* end = nullptr;
+    const unsigned long long v = std::strtoull(text.c_str(), &end, 10);
+    if (text.empty() || text[0] == '-' || *end != '\0' || errno == ERANGE) {
+        err = fmt::format("--seed: expected a non-negative 64-bit integer, got '{}'", text);
+        return false;
+    }
+    out = v;
+    return true;
+}
+
+/// Writes a float RGB EXR through OIIO: to a temporary name in the same directory, renamed when
+/// complete, so a crash never leaves a truncated reference behind.
+bool writeReferenceExr(const std::string& path, int width, int height,
+                       const std::vector<float>& rgb, uint64_t seed, int64_t spp,
+                       std::string& err) {
+    namespace fs = std::filesystem;
+    const fs::path target(path);
+    // OIIO picks the writer by extension, so the temporary keeps ".exr" at the end.
+    const fs::path tmp =
+        target.parent_path() / fmt::format(".{}.tmp{}.exr", target.filename().string(), getpid());
+    auto out = OIIO::ImageOutput::create("openexr");
+    if (!out) {
+        err = path + ": cannot create an OpenEXR writer: " + OIIO::geterror();
+        return false;
+    }
+    OIIO::ImageSpec spec(width, height, 3, OIIO::TypeDesc::FLOAT);
+    spec.attribute("compression", "zip");
+    spec.attribute("Software", kRendererName);
+    spec.attribute("mcstat:seeds", std::to_string(seed));
+    spec.attribute("mcstat:spp", std::to_string(spp));
+    spec.attribute("oiio:ColorSpace", "lin_rec709");
+    if (!out->open(tmp.string(), spec) || !out->write_image(OIIO::TypeDesc::FLOAT, rgb.data()) ||
+        !out->close()) {
+        err = path + ": " + out->geterror();
+        std::error_code ec;
+        fs::remove(tmp, ec);
+        return false;
+    }
+    std::error_code ec;
+    fs::rename(tmp, target, ec);
+    if (ec) {
+        err = path + ": cannot rename the temporary file: " + ec.message();
+        fs::remove(tmp, ec);
+        return false;
+    }
+    return true;
+}
+
+}  // namespace
+
+int main(int argc, const char** argv) {
+    std::string sceneName = "default", outPath, sppText = "64", mText = "8", seedText = "1",
+                threadsText = "0", resW, resH;
+    bool reference = false, quiet = false;
+
+    std::string names;
+    for (const auto& n : builtinSceneNames()) names += (names.empty() ? "" : ", ") + n;
+
+    OIIO::ArgParse ap;
+    ap.intro(
+          "mcstat-render -- the mcstat fixture path tracer (Embree; NEE + MIS, Russian roulette)")
+        .usage("mcstat-render [options] -o OUT")
+        .exit_on_error(false)
+        .add_help(false)
+        .print_defaults(false);
+    bool help = false;
+    ap.arg("--help").help("print this help and exit").action([&](OIIO::cspan<const char*>) {
+        help = true;
+    });
+    ap.arg("--scene NAME|FILE")
+        .help("built-in scene (" + names +
+              ") or a JSON scene file (render-fixture/SCENES.md); "
+              "default: default")
+        .action([&](OIIO::cspan<const char*> a) { sceneName = a[1]; });
+    ap.arg("--spp N")
+        .help("samples per pixel, >= 1 (default 64)")
+        .action([&](OIIO::cspan<const char*> a) { sppText = a[1]; });
+    ap.arg("--M M")
+        .help(
+            "sub-buffers, 1..999; sample i goes to buffer i mod M; spp < M leaves buffers "
+            "empty (default 8; ignored with --reference)")
+        .action([&](OIIO::cspan<const char*> a) { mText = a[1]; });
+    ap.arg("--seed S")
+        .help(
+            "seed, a non-negative 64-bit integer; the same seed gives bit-identical output "
+            "(default 1)")
+        .action([&](OIIO::cspan<const char*> a) { seedText = a[1]; });
+    ap.arg("--threads N")
+        .help("worker threads, 0 = all cores (default 0); the output does not depend on it")
+        .action([&](OIIO::cspan<const char*> a) { threadsText = a[1]; });
+    ap.arg("--res W H")
+        .help("override the scene's image size (pixels)")
+        .action([&](OIIO::cspan<const char*> a) { resW = a[1], resH = a[2]; });
+    ap.arg("--reference")
+        .help(
+            "write a plain RGB float EXR of the mean only (no sub-buffers: for high-spp "
+            "reference images)")
+        .action([&](OIIO::cspan<const char*>) { reference = true; });
+    ap.arg("--quiet")
+        .help("no progress line (it is shown only when stderr is a terminal anyway)")
+        .action([&](OIIO::cspan<const char*>) { quiet = true; });
+    ap.arg("-o OUT")
+        .help("output: a statistics file (.mcstat), or an .exr with --reference")
+        .action([&](OIIO::cspan<const char*> a) { outPath = a[1]; });
+
+    if (ap.parse_args(argc, argv) < 0) return fail(ap.geterror());
+    if (help) {
+        ap.print_help();
+        return 0;
+    }
+    if (outPath.empty()) return fail("no output given (-o OUT); see --help");
+
+    RenderOptions opt;
+    std::string err;
+    long long v = 0;
+    if (!parseInt(sppText, "--spp", 1, (1LL << 40), v, err)) return fail(err);
+    opt.spp = v;
+    if (!parseInt(mText, "--M", 1, mcstat::kMaxBuffers, v, err)) return fail(err);
+    opt.M = int(v);
+    if (!parseInt(threadsText, "--threads", 0, 4096, v, err)) return fail(err);
+    opt.threads = int(v);
+    if (!parseSeed(seedText, opt.seed, err)) return fail(err);
+    opt.progress = !quiet && isatty(STDERR_FILENO);
+
+    Scene scene;
+    if (!loadScene(sceneName, scene, err)) return fail(err);
+    if (!resW.empty()) {
+        long long w = 0, h = 0;
+        if (!parseInt(resW, "--res width", 1, 16384, w, err) ||
+            !parseInt(resH, "--res height", 1, 16384, h, err))
+            return fail(err);
+        scene.width = int(w), scene.height = int(h);
+    }
+
+    RenderStats stats;
+    if (reference) {
+        std::vector<float> rgb;
+        if (!renderReference(scene, opt, rgb, err, &stats)) return fail(err);
+        if (!writeReferenceExr(outPath, scene.width, scene.height, rgb, opt.seed, opt.spp, err))
+            return fail(err);
+    } else {
+        mcstat::StatsImage img;
+        if (!render(scene, opt, img, err, &stats)) return fail(err);
+        if (!mcstat::writeStatsFile(outPath, img, err)) return fail(err);
+    }
+    if (stats.nonFiniteSamples > 0)
+        fmt::print(stderr,
+                   "mcstat-render: warning: {} samples with NaN/Inf radiance were dropped\n",
+                   stats.nonFiniteSamples);
+    if (!quiet && isatty(STDERR_FILENO))
+        fmt::print(stderr, "mcstat-render: {} ({}x{}, {} spp) in {:.2f} s -> {}\n", scene.source,
+                   scene.width, scene.height, opt.spp, stats.seconds, outPath);
+    return 0;
+}

@@ -1,0 +1,562 @@
+// Tests of the fixture renderer: furnace correctness (NEE + MIS + roulette, sphere and quad
+// emitters), determinism across thread counts, the accumulation invariants of the statistics
+// (round-robin buffers, Welford moments, features), fireflies in the default scene, scene errors.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include "film.h"
+#include "mcstat/render/render.h"
+#include "mcstat/render/scene.h"
+#include "rng.h"
+
+namespace {
+
+using mcstat::kMaxBuffers;
+using mcstat::StatsImage;
+using namespace mcstat::render;
+// mcstat::render is both this namespace and its entry point.
+using mcstat::render::render;
+
+Scene mustLoad(const std::string& name) {
+    Scene s;
+    std::string err;
+    EXPECT_TRUE(loadScene(name, s, err)) << err;
+    return s;
+}
+
+StatsImage mustRender(const Scene& scene, const RenderOptions& opt, RenderStats* stats = nullptr) {
+    StatsImage img;
+    std::string err;
+    EXPECT_TRUE(render(scene, opt, img, err, stats)) << err;
+    return img;
+}
+
+RenderOptions options(int64_t spp, int M, uint64_t seed = 1, int threads = 0) {
+    RenderOptions o;
+    o.spp = spp;
+    o.M = M;
+    o.seed = seed;
+    o.threads = threads;
+    return o;
+}
+
+bool sameBits(const std::vector<float>& a, const std::vector<float>& b) {
+    return a.size() == b.size() &&
+           (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0);
+}
+
+void expectIdentical(const StatsImage& a, const StatsImage& b) {
+    EXPECT_TRUE(sameBits(a.beauty, b.beauty));
+    EXPECT_TRUE(sameBits(a.bufferMean, b.bufferMean));
+    EXPECT_TRUE(sameBits(a.bufferCount, b.bufferCount));
+    EXPECT_TRUE(sameBits(a.count, b.count));
+    EXPECT_TRUE(sameBits(a.mean, b.mean));
+    EXPECT_TRUE(sameBits(a.variance, b.variance));
+    EXPECT_TRUE(sameBits(a.normal, b.normal));
+    EXPECT_TRUE(sameBits(a.position, b.position));
+    EXPECT_TRUE(sameBits(a.albedo, b.albedo));
+    EXPECT_TRUE(sameBits(a.depth, b.depth));
+    EXPECT_TRUE(sameBits(a.coverage, b.coverage));
+}
+
+/// Checks that every pixel's radiance is `expected`, overall and per pixel, within a tolerance
+/// derived from the measured variance (standard errors), not a fixed fudge.
+void expectFurnace(const StatsImage& img, double expected) {
+    const size_t P = img.pixelCount();
+    for (int c = 0; c < 3; ++c) {
+        double sumMean = 0, sumVarOverN = 0, sumVar = 0;
+        for (size_t p = 0; p < P; ++p) {
+            const double v = img.variance[p * 3 + size_t(c)];
+            ASSERT_GT(v, 0.0) << "a furnace estimate is noisy; zero variance means no sampling";
+            sumMean += img.mean[p * 3 + size_t(c)];
+            sumVarOverN += v / img.count[p];
+            sumVar += v;
+        }
+        // Pixels are independent, so the image mean's variance is sum(var_p / n_p) / P^2.
+        const double imageMean = sumMean / double(P);
+        const double imageSe = std::sqrt(sumVarOverN) / double(P);
+        EXPECT_NEAR(imageMean, expected, 4 * imageSe) << "channel " << c;
+        // The tolerance must be tight enough to catch a real error (e.g. MIS double counting,
+        // which over-counts direct light by a large fraction of Le).
+        EXPECT_LT(4 * imageSe, 0.01 * expected);
+
+        // Per pixel: the samples are a mixture with rare large values (paths that survive
+        // Russian roulette), so a pixel's own variance estimate from few samples is unreliable
+        // when few survivors happened to land in it. The pixels of a furnace are (nearly)
+        // identically distributed, so the image's average variance bounds the pixel's from below.
+        const double pooledVar = sumVar / double(P);
+        double worstZ = 0;
+        for (size_t p = 0; p < P; ++p) {
+            const double se = std::sqrt(
+                std::max(double(img.variance[p * 3 + size_t(c)]), pooledVar) / img.count[p]);
+            const double z = (img.mean[p * 3 + size_t(c)] - expected) / se;
+            worstZ = std::max(worstZ, std::abs(z));
+            // 6 standard errors: ~2e-9 false alarms per pixel if Gaussian.
+            EXPECT_LT(std::abs(z), 6.0)
+                << "pixel " << p << " channel " << c << " mean " << img.mean[p * 3 + size_t(c)];
+        }
+        ::testing::Test::RecordProperty("worstZ" + std::to_string(c), std::to_string(worstZ));
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Furnace: a closed emissive diffuse enclosure has radiance Le / (1 - rho) everywhere.
+
+TEST(RenderFurnace, SphereMatchesAnalyticRadiance) {
+    for (double rho : {0.5, 0.8}) {
+        SCOPED_TRACE("rho = " + std::to_string(rho));
+        Scene s = mustLoad("furnace");
+        ASSERT_EQ(s.materials.size(), 1u);
+        s.materials[0].albedo = Vec3(rho);
+        RenderStats stats;
+        const StatsImage img = mustRender(s, options(512, 4), &stats);
+        EXPECT_EQ(stats.nonFiniteSamples, 0);
+        expectFurnace(img, 1.0 / (1.0 - rho));
+    }
+}
+
+TEST(RenderFurnace, SphereFeatures) {
+    const StatsImage img = mustRender(mustLoad("furnace"), options(8, 2));
+    for (size_t p = 0; p < img.pixelCount(); ++p) {
+        // The camera sits at the centre of the unit sphere: every first hit is at distance 1.
+        EXPECT_NEAR(img.depth[p], 1.0, 1e-5);
+        EXPECT_EQ(img.coverage[p], 1.0f);
+        EXPECT_EQ(img.albedo[p * 3], 0.5f);
+        const Vec3 pos(img.position[p * 3], img.position[p * 3 + 1], img.position[p * 3 + 2]);
+        const Vec3 nrm(img.normal[p * 3], img.normal[p * 3 + 1], img.normal[p * 3 + 2]);
+        // Averaged over a pixel's footprint the point lies just inside the sphere; the outward
+        // normal of a centred unit sphere equals the position.
+        EXPECT_NEAR(length(pos), 1.0, 5e-3);
+        EXPECT_LT(length(pos - nrm), 1e-5);
+        EXPECT_LT(pos.z, 0.0);  // in front of a camera looking down -z
+    }
+}
+
+// A cube of six quads facing inward, each emitting Le and reflecting with albedo rho.
+std::string cubeScene(bool inward, double rho) {
+    // Quads with e1 x e2 pointing out of the cube [-1,1]^3 (as the "box" shape builds them);
+    // swapping the edges turns them inward.
+    const char* faces[6][3] = {
+        {"[-1,-1,-1]", "[0,0,2]", "[0,2,0]"}, {"[1,-1,-1]", "[0,2,0]", "[0,0,2]"},
+        {"[-1,-1,-1]", "[2,0,0]", "[0,0,2]"}, {"[-1,1,-1]", "[0,0,2]", "[2,0,0]"},
+        {"[-1,-1,-1]", "[0,2,0]", "[2,0,0]"}, {"[-1,-1,1]", "[2,0,0]", "[0,2,0]"}};
+    std::string shapes;
+    for (auto& f : faces) {
+        if (!shapes.empty()) shapes += ",";
+        shapes += std::string(R"({"type":"quad","material":"m","emission":[1,1,1],"corner":)") +
+                  f[0] + R"(,"edge1":)" + (inward ? f[2] : f[1]) + R"(,"edge2":)" +
+                  (inward ? f[1] : f[2]) + "}";
+    }
+    return R"({"image":{"width":12,"height":12},
+               "camera":{"position":[0.1,-0.2,0.3],"lookAt":[0.5,0.2,-1],"fov":100},
+               "integrator":{"maxDepth":1000},
+               "materials":{"m":{"type":"diffuse","albedo":[)" +
+           std::to_string(rho) + "," + std::to_string(rho) + "," + std::to_string(rho) +
+           R"(]}},"shapes":[)" + shapes + "]}";
+}
+
+TEST(RenderFurnace, InwardQuadCubeMatchesAnalyticRadiance) {
+    Scene s;
+    std::string err;
+    ASSERT_TRUE(parseScene(cubeScene(true, 0.6), "cube.json", s, err)) << err;
+    expectFurnace(mustRender(s, options(512, 4)), 1.0 / (1.0 - 0.6));
+}
+
+TEST(RenderFurnace, QuadsEmitOnTheirNormalSideOnly) {
+    Scene s;
+    std::string err;
+    ASSERT_TRUE(parseScene(cubeScene(false, 0.6), "cube.json", s, err)) << err;
+    const StatsImage img = mustRender(s, options(16, 4));
+    for (float v : img.mean) EXPECT_EQ(v, 0.0f);
+    for (float v : img.coverage) EXPECT_EQ(v, 1.0f);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Determinism
+
+TEST(RenderDeterminism, BitIdenticalForAnyThreadCount) {
+    const Scene s = mustLoad("tiny");
+    const StatsImage one = mustRender(s, options(24, 4, 7, 1));
+    for (int threads : {2, 3}) {
+        SCOPED_TRACE("threads = " + std::to_string(threads));
+        expectIdentical(one, mustRender(s, options(24, 4, 7, threads)));
+    }
+    std::vector<float> ref1, ref3;
+    std::string err;
+    ASSERT_TRUE(renderReference(s, options(24, 4, 7, 1), ref1, err)) << err;
+    ASSERT_TRUE(renderReference(s, options(24, 4, 7, 3), ref3, err)) << err;
+    EXPECT_TRUE(sameBits(ref1, ref3));
+    // The reference takes the very same samples: it equals the statistics' beauty bit for bit.
+    EXPECT_TRUE(sameBits(ref1, one.beauty));
+}
+
+TEST(RenderDeterminism, SeedsSelectTheImage) {
+    const Scene s = mustLoad("tiny");
+    const StatsImage a = mustRender(s, options(8, 2, 1));
+    expectIdentical(a, mustRender(s, options(8, 2, 1)));
+    const StatsImage b = mustRender(s, options(8, 2, 2));
+    size_t differ = 0;
+    for (size_t i = 0; i < a.beauty.size(); ++i) differ += a.beauty[i] != b.beauty[i];
+    // Pixels that only see the constant background agree; most others must not.
+    EXPECT_GT(differ, a.beauty.size() / 2);
+    EXPECT_EQ(a.header.seeds, "1");
+    EXPECT_EQ(b.header.seeds, "2");
+}
+
+TEST(RenderDeterminism, WrittenFilesAreByteIdentical) {
+    namespace fs = std::filesystem;
+    const fs::path dir =
+        fs::temp_directory_path() /
+        ("mcstat_render_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
+    fs::create_directories(dir);
+    const Scene s = mustLoad("tiny");
+    std::string err;
+    std::vector<std::string> bytes;
+    for (int threads : {1, 2}) {
+        const std::string path = (dir / ("t" + std::to_string(threads) + ".mcstat")).string();
+        ASSERT_TRUE(mcstat::writeStatsFile(path, mustRender(s, options(16, 4, 3, threads)), err))
+            << err;
+        std::ifstream in(path, std::ios::binary);
+        bytes.emplace_back(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    }
+    EXPECT_FALSE(bytes[0].empty());
+    EXPECT_TRUE(bytes[0] == bytes[1]);
+    fs::remove_all(dir);
+}
+
+TEST(RenderDeterminism, RenderPassesValidationAndRoundTrips) {
+    namespace fs = std::filesystem;
+    const StatsImage img = mustRender(mustLoad("tiny"), options(7, 3, 9));
+    std::string err;
+    EXPECT_TRUE(mcstat::validateStats(img, "tiny", err)) << err;
+    const fs::path path = fs::temp_directory_path() / "mcstat_render_roundtrip.mcstat";
+    ASSERT_TRUE(mcstat::writeStatsFile(path.string(), img, err)) << err;
+    StatsImage back;
+    ASSERT_TRUE(mcstat::readStatsFile(path.string(), back, err)) << err;
+    EXPECT_EQ(back.header.M, 3);
+    EXPECT_EQ(back.header.spp, 7);
+    EXPECT_EQ(back.header.seeds, "9");
+    EXPECT_EQ(back.header.renderer, kRendererName);
+    expectIdentical(img, back);
+    fs::remove(path);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Accumulation invariants
+
+TEST(RenderAccumulation, HeaderDescribesTheRender) {
+    const StatsImage img = mustRender(mustLoad("tiny"), options(5, 3, 42));
+    EXPECT_EQ(img.header.width, 24);
+    EXPECT_EQ(img.header.height, 16);
+    EXPECT_EQ(img.header.M, 3);
+    EXPECT_EQ(img.header.spp, 5);
+    EXPECT_EQ(img.header.seeds, "42");
+    EXPECT_EQ(img.header.renderer, "mcstat-render 0.1");
+    EXPECT_EQ(img.header.colorSpace, "lin_rec709");
+    EXPECT_EQ(img.header.assignment, "roundrobin");
+    const size_t P = 24 * 16;
+    EXPECT_EQ(img.bufferMean.size(), P * 3 * 3);
+    EXPECT_EQ(img.bufferCount.size(), P * 3);
+    EXPECT_EQ(img.count.size(), P);
+    EXPECT_EQ(img.depth.size(), P);
+}
+
+TEST(RenderAccumulation, RoundRobinCounts) {
+    RenderStats stats;
+    const StatsImage img = mustRender(mustLoad("tiny"), options(10, 4), &stats);
+    ASSERT_EQ(stats.nonFiniteSamples, 0);
+    for (size_t p = 0; p < img.pixelCount(); ++p) {
+        EXPECT_EQ(img.count[p], 10.0f);
+        const float* c = &img.bufferCount[p * 4];
+        EXPECT_EQ(c[0], 3.0f);
+        EXPECT_EQ(c[1], 3.0f);
+        EXPECT_EQ(c[2], 2.0f);
+        EXPECT_EQ(c[3], 2.0f);
+    }
+}
+
+TEST(RenderAccumulation, FewerSamplesThanBuffersLeavesEmptyBuffers) {
+    const StatsImage img = mustRender(mustLoad("tiny"), options(3, 5));
+    for (size_t p = 0; p < img.pixelCount(); ++p) {
+        for (size_t j = 0; j < 5; ++j) {
+            EXPECT_EQ(img.bufferCount[p * 5 + j], j < 3 ? 1.0f : 0.0f);
+            if (j >= 3) {
+                for (size_t c = 0; c < 3; ++c) EXPECT_EQ(img.bufferMean[(p * 5 + j) * 3 + c], 0.0f);
+            }
+        }
+        for (float v : {img.variance[p * 3], img.variance[p * 3 + 1], img.variance[p * 3 + 2]})
+            EXPECT_TRUE(std::isfinite(v));
+    }
+}
+
+TEST(RenderAccumulation, SingleBufferEqualsBeauty) {
+    const StatsImage img = mustRender(mustLoad("tiny"), options(12, 1));
+    EXPECT_TRUE(sameBits(img.bufferMean, img.beauty));
+    for (size_t p = 0; p < img.pixelCount(); ++p) EXPECT_EQ(img.bufferCount[p], 12.0f);
+}
+
+TEST(RenderAccumulation, BufferMeansReproduceMomentsMean) {
+    const int M = 6;
+    const StatsImage img = mustRender(mustLoad("tiny"), options(20, M));
+    size_t nonZero = 0;
+    for (size_t p = 0; p < img.pixelCount(); ++p) {
+        for (size_t c = 0; c < 3; ++c) {
+            double sum = 0, n = 0, scale = 0;
+            for (size_t j = 0; j < size_t(M); ++j) {
+                const double cnt = img.bufferCount[p * M + j];
+                const double bm = img.bufferMean[(p * M + j) * 3 + c];
+                sum += cnt * bm;
+                n += cnt;
+                scale = std::max(scale, std::abs(bm));
+            }
+            EXPECT_EQ(n, img.count[p]);
+            const double mean = img.mean[p * 3 + c];
+            // Each stored value carries one float rounding: 2 ulps of the largest term suffice.
+            EXPECT_NEAR(sum / n, mean, 2 * std::numeric_limits<float>::epsilon() * scale + 1e-30)
+                << "pixel " << p;
+            EXPECT_NEAR(img.beauty[p * 3 + c], mean,
+                        2 * std::numeric_limits<float>::epsilon() * std::abs(mean));
+            EXPECT_GE(img.variance[p * 3 + c], 0.0f);
+            nonZero += img.variance[p * 3 + c] > 0;
+        }
+    }
+    EXPECT_GT(nonZero, img.pixelCount());  // the scene is noisy, most variances are positive
+}
+
+TEST(RenderAccumulation, VarianceMatchesTheSamples) {
+    // With M == spp every buffer holds exactly one sample, so the buffer means are the samples
+    // themselves and the Welford variance can be checked against a two-pass computation.
+    const int n = 16;
+    const StatsImage img = mustRender(mustLoad("tiny"), options(n, n));
+    for (size_t p = 0; p < img.pixelCount(); ++p) {
+        for (size_t c = 0; c < 3; ++c) {
+            double mean = 0;
+            for (size_t j = 0; j < size_t(n); ++j) mean += img.bufferMean[(p * n + j) * 3 + c];
+            mean /= n;
+            double ss = 0;
+            for (size_t j = 0; j < size_t(n); ++j) {
+                const double d = img.bufferMean[(p * n + j) * 3 + c] - mean;
+                ss += d * d;
+            }
+            const double var = ss / (n - 1);
+            EXPECT_NEAR(img.variance[p * 3 + c], var, 1e-5 * var + 1e-12) << "pixel " << p;
+        }
+    }
+}
+
+TEST(RenderAccumulation, FeaturesAreConsistent) {
+    const Scene s = mustLoad("tiny");
+    const StatsImage img = mustRender(s, options(16, 4));
+    size_t missed = 0, covered = 0;
+    for (size_t p = 0; p < img.pixelCount(); ++p) {
+        const float cov = img.coverage[p];
+        EXPECT_GE(cov, 0.0f);
+        EXPECT_LE(cov, 1.0f);
+        for (size_t c = 0; c < 3; ++c) {
+            EXPECT_GE(img.albedo[p * 3 + c], 0.0f);
+            EXPECT_LE(img.albedo[p * 3 + c], 1.0f);
+        }
+        if (cov == 0) {
+            ++missed;
+            EXPECT_TRUE(std::isinf(img.depth[p]));
+            EXPECT_EQ(img.normal[p * 3], 0.0f);
+            EXPECT_EQ(img.albedo[p * 3], 0.0f);
+        } else {
+            EXPECT_TRUE(std::isfinite(img.depth[p]));
+            EXPECT_GT(img.depth[p], 0.0f);
+        }
+        if (cov == 1) {
+            ++covered;
+            // Everything lies inside the box [-1,1] x [0,2] x [-1,1].
+            EXPECT_LE(std::abs(img.position[p * 3]), 1.0f + 1e-4f);
+            EXPECT_GE(img.position[p * 3 + 1], -1e-4f);
+            EXPECT_LE(img.position[p * 3 + 1], 2.0f + 1e-4f);
+        }
+    }
+    // The tiny scene's open front shows the background around the box.
+    EXPECT_GT(missed, 0u);
+    EXPECT_GT(covered, img.pixelCount() / 2);
+}
+
+TEST(RenderAccumulation, NonFiniteSamplesAreDropped) {
+    PixelAccumulator acc(2);
+    acc.reset();
+    PathSample good;
+    good.L = Vec3(1, 2, 3);
+    PathSample bad = good;
+    bad.L.y = std::numeric_limits<double>::quiet_NaN();
+    PathSample inf = good;
+    inf.L.x = std::numeric_limits<double>::infinity();
+    EXPECT_TRUE(acc.add(0, good));
+    EXPECT_FALSE(acc.add(1, bad));
+    EXPECT_FALSE(acc.add(2, inf));
+    good.L = Vec3(3, 4, 5);
+    EXPECT_TRUE(acc.add(3, good));
+    StatsImage img;
+    img.header.width = 1, img.header.height = 1, img.header.M = 2;
+    allocateStats(img);
+    acc.store(img, 0);
+    EXPECT_EQ(img.count[0], 2.0f);
+    EXPECT_EQ(img.bufferCount[0], 1.0f);  // sample 0
+    EXPECT_EQ(img.bufferCount[1], 1.0f);  // sample 3 (1 was dropped)
+    EXPECT_EQ(img.mean[0], 2.0f);
+    EXPECT_EQ(img.mean[1], 3.0f);
+    EXPECT_EQ(img.variance[0], 2.0f);
+    EXPECT_EQ(img.bufferMean[3], 3.0f);
+}
+
+TEST(RenderAccumulation, SampleGeneratorsAreIndependent) {
+    // Neighbouring pixels and samples must not share sequences.
+    std::vector<uint32_t> firsts;
+    for (uint64_t px = 0; px < 64; ++px)
+        for (uint64_t s = 0; s < 64; ++s) firsts.push_back(sampleRng(1, px, s).next());
+    std::sort(firsts.begin(), firsts.end());
+    EXPECT_EQ(std::unique(firsts.begin(), firsts.end()), firsts.end());
+    Pcg32 a = sampleRng(5, 3, 2), b = sampleRng(5, 3, 2);
+    for (int i = 0; i < 10; ++i) EXPECT_EQ(a.next(), b.next());
+}
+
+// ---------------------------------------------------------------------------------------------
+// The default scene produces fireflies (the whole point of the fixture)
+
+TEST(RenderDefaultScene, CausticsProduceOutlierBuffers) {
+    Scene s = mustLoad("default");
+    s.width = 80;
+    s.height = 60;
+    const int M = 8;
+    const StatsImage img = mustRender(s, options(64, M));
+    size_t outliers = 0;
+    for (size_t p = 0; p < img.pixelCount(); ++p) {
+        std::vector<double> lum(M);
+        for (size_t j = 0; j < size_t(M); ++j) {
+            const float* c = &img.bufferMean[(p * M + j) * 3];
+            lum[j] = luminance(Vec3(c[0], c[1], c[2]));
+        }
+        std::nth_element(lum.begin(), lum.begin() + M / 2, lum.end());
+        const double median = lum[M / 2];
+        const double mx = *std::max_element(lum.begin(), lum.end());
+        if (median > 0 && mx > 20 * median) ++outliers;
+    }
+    // Seed 1 gives 14 such pixels (seeds 2-5: 18-24); a scene without caustics gives none.
+    EXPECT_GE(outliers, 5u) << "the default scene should show fireflies at low spp";
+}
+
+// ---------------------------------------------------------------------------------------------
+// Scene and option errors: one line naming the file and the problem
+
+std::string parseError(const std::string& json) {
+    Scene s;
+    std::string err;
+    EXPECT_FALSE(parseScene(json, "bad.json", s, err));
+    EXPECT_EQ(err.find('\n'), std::string::npos) << err;
+    EXPECT_EQ(err.rfind("bad.json: ", 0), 0u) << err;
+    return err;
+}
+
+const char* kMinimal = R"({"image":{"width":4,"height":4},
+  "camera":{"position":[0,0,0],"lookAt":[0,0,-1]},
+  "materials":{"m":{"type":"diffuse"}},
+  "shapes":[{"type":"sphere","material":"m","center":[0,0,-3],"radius":1}]})";
+
+TEST(RenderScene, MinimalSceneParsesWithDefaults) {
+    Scene s;
+    std::string err;
+    ASSERT_TRUE(parseScene(kMinimal, "ok.json", s, err)) << err;
+    EXPECT_EQ(s.camera.fovDeg, 40);
+    EXPECT_EQ(s.maxDepth, 64);
+    EXPECT_EQ(s.materials[0].albedo.x, 0.8);
+    EXPECT_TRUE(isBlack(s.background));
+    EXPECT_EQ(s.source, "ok.json");
+}
+
+TEST(RenderScene, MalformedJsonNamesTheLine) {
+    const std::string err = parseError("{\n  \"image\": {\"width\": 4,,}\n}");
+    EXPECT_NE(err.find("line 2"), std::string::npos) << err;
+}
+
+TEST(RenderScene, UnknownMaterialIsNamed) {
+    std::string j = kMinimal;
+    j.replace(j.find(R"("material":"m")"), 14, R"("material":"gold")");
+    const std::string err = parseError(j);
+    EXPECT_NE(err.find("unknown material \"gold\""), std::string::npos) << err;
+    EXPECT_NE(err.find("shapes[0]"), std::string::npos) << err;
+}
+
+TEST(RenderScene, MissingCameraIsNamed) {
+    std::string j = kMinimal;
+    const size_t a = j.find(R"("camera")"), b = j.find(R"("materials")");
+    j.erase(a, b - a);
+    EXPECT_NE(parseError(j).find("missing \"camera\""), std::string::npos);
+}
+
+TEST(RenderScene, UnknownKeysAndWrongTypesAreNamed) {
+    std::string j = kMinimal;
+    j.replace(j.find(R"("radius":1)"), 10, R"("radius":"1")");
+    EXPECT_NE(parseError(j).find("shapes[0].radius: expected a number, got string"),
+              std::string::npos);
+    j = kMinimal;
+    j.replace(j.find(R"("radius":1)"), 10, R"("radius":1,"radiuss":2)");
+    EXPECT_NE(parseError(j).find("unknown key \"radiuss\""), std::string::npos);
+    j = kMinimal;
+    j.replace(j.find(R"("type":"diffuse")"), 16, R"("type":"plastic")");
+    EXPECT_NE(parseError(j).find("unknown material type \"plastic\""), std::string::npos);
+    j = kMinimal;
+    j.replace(j.find(R"("radius":1)"), 10, R"("radius":-1)");
+    EXPECT_NE(parseError(j).find("must be positive"), std::string::npos);
+}
+
+TEST(RenderScene, FileErrorsNameTheFile) {
+    namespace fs = std::filesystem;
+    const fs::path path = fs::temp_directory_path() / "mcstat_render_bad_scene.json";
+    {
+        std::ofstream out(path);
+        out << "{ \"image\": [1, 2 }\n";
+    }
+    Scene s;
+    std::string err;
+    EXPECT_FALSE(loadScene(path.string(), s, err));
+    EXPECT_EQ(err.rfind(path.string() + ": invalid JSON", 0), 0u) << err;
+    fs::remove(path);
+    EXPECT_FALSE(loadScene(path.string(), s, err));
+    EXPECT_NE(err.find(path.string()), std::string::npos) << err;
+    EXPECT_FALSE(loadScene("no-such-builtin", s, err));
+    EXPECT_NE(err.find("no-such-builtin"), std::string::npos) << err;
+}
+
+TEST(RenderScene, BuiltinScenesLoad) {
+    const auto names = builtinSceneNames();
+    for (const char* n : {"default", "furnace", "tiny"})
+        EXPECT_NE(std::find(names.begin(), names.end(), n), names.end()) << n;
+    for (const auto& n : names) {
+        Scene s;
+        std::string err;
+        EXPECT_TRUE(loadScene(n, s, err)) << err;
+        EXPECT_EQ(s.source, "builtin:" + n);
+    }
+}
+
+TEST(RenderOptionsTest, InvalidOptionsAreRejected) {
+    const Scene s = mustLoad("tiny");
+    StatsImage img;
+    std::string err;
+    EXPECT_FALSE(render(s, options(0, 4), img, err));
+    EXPECT_NE(err.find("spp"), std::string::npos);
+    EXPECT_FALSE(render(s, options(4, 0), img, err));
+    EXPECT_NE(err.find("M"), std::string::npos);
+    EXPECT_FALSE(render(s, options(4, kMaxBuffers + 1), img, err));
+    EXPECT_FALSE(render(s, options(4, 4, 1, -1), img, err));
+    EXPECT_NE(err.find("threads"), std::string::npos);
+}
+
+}  // namespace
