@@ -1,6 +1,8 @@
-// Median of means, Gini coefficient, G-MoN and G-MoN_b over one pixel's sub-buffers.
+// Median of means, Gini coefficient, G-MoN and G-MoN_b over one pixel's sub-buffers, and Jung's
+// trimmed mean TMPE (thesis eq. 5.1, ../shared/papers/jung2016-thesis-robust-pixel-estimation.txt).
 // Paper: ../shared/papers/buisine2021-gmon-median-of-means.txt (equations cited inline).
-// The shared rules (valid buffers, weights, negatives, empty pixels) are in include/mcstat/estimators.h.
+// The shared rules (valid buffers, weights, negatives, empty pixels) are in
+// include/mcstat/estimators.h.
 #include "mcstat/estimators.h"
 
 #include <algorithm>
@@ -37,11 +39,17 @@ int gmonTrim(double G, int M) {
     return std::clamp(c, 0, (M - 1) / 2);
 }
 
-namespace {
+int tmpeTrim(double alpha, int M) {
+    if (M < 2 || !(alpha > 0.0)) return 0;
+    // Jung eq. 5.1 sums ranks 1 + alpha*m .. m - alpha*m: alpha*m means are dropped per side. alpha
+    // is meant to be i/m; floor(alpha*M + 1e-9) maps any alpha to an integer count, and the 1e-9
+    // keeps alpha = i/M (rounded in binary) from becoming i - 1.
+    const double c = std::floor(std::min(alpha, 1.0) * double(M) + 1e-9);
+    return std::clamp(int(c), 0, (M - 1) / 2);
+}
 
-/// Fills s.order with the valid buffers (count > 0, every channel finite) and returns their number.
-int collectValid(const PixelBuffers& px, EstimatorScratch& s, int& excluded) {
-    s.order.clear();
+int collectValidBuffers(const PixelBuffers& px, std::vector<int>& order, int& excluded) {
+    order.clear();
     excluded = 0;
     for (int j = 0; j < px.M; ++j) {
         const float n = px.count[j];
@@ -52,9 +60,15 @@ int collectValid(const PixelBuffers& px, EstimatorScratch& s, int& excluded) {
             continue;
         }
         if (n == 0.f) continue;  // empty buffer (spp < M): no information, not an error
-        s.order.push_back(j);
+        order.push_back(j);
     }
-    return int(s.order.size());
+    return int(order.size());
+}
+
+namespace {
+
+int collectValid(const PixelBuffers& px, EstimatorScratch& s, int& excluded) {
+    return collectValidBuffers(px, s.order, excluded);
 }
 
 /// Sorts s.order ascending by s.key[j] (ties by buffer index, so results never depend on the sort).
@@ -78,15 +92,21 @@ void weightedAverage(const PixelBuffers& px, const EstimatorScratch& s, int lo, 
 }
 
 /// Which trimming policy an estimator applies once G is known.
-enum class Policy { Mean, MoN, GMoN, GMoNb };
+enum class Policy { Mean, MoN, GMoN, GMoNb, TMPE };
 
 int trimFor(Policy policy, double G, int Mv, const EstimatorParams& p) {
     const int cMax = (Mv - 1) / 2;  // the median (odd) or the two middle means (even)
     switch (policy) {
-        case Policy::Mean: return 0;
-        case Policy::MoN: return cMax;                                  // eq. 2
-        case Policy::GMoN: return gmonTrim(G, Mv);                      // eq. 6
-        case Policy::GMoNb: return G <= p.giniThreshold ? 0 : cMax;     // eq. 5
+        case Policy::Mean:
+            return 0;
+        case Policy::MoN:
+            return cMax;  // eq. 2
+        case Policy::GMoN:
+            return gmonTrim(G, Mv);  // eq. 6
+        case Policy::GMoNb:
+            return G <= p.giniThreshold ? 0 : cMax;  // eq. 5
+        case Policy::TMPE:
+            return tmpeTrim(p.alpha, Mv);  // Jung eq. 5.1
     }
     return 0;
 }
@@ -156,6 +176,10 @@ void estimateGMoN(const PixelBuffers& px, const EstimatorParams& p, PixelEstimat
 void estimateGMoNb(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
                    EstimatorScratch& s) {
     reduce(px, p, out, s, Policy::GMoNb);
+}
+void estimateTMPE(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
+                  EstimatorScratch& s) {
+    reduce(px, p, out, s, Policy::TMPE);
 }
 
 }  // namespace mcstat

@@ -69,8 +69,9 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
                 PixelBuffers buf{&src.bufferMean[p * size_t(h.M) * 3],
                                  &src.bufferCount[p * size_t(h.M)], h.M};
                 est.fn(buf, params, e, scratch);
-                float* px = base + (size_t(y - roi.ybegin) * size_t(roi.width()) +
-                                    size_t(x - roi.xbegin)) * nch;
+                float* px =
+                    base +
+                    (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
                 px[0] = e.rgb[0];
                 px[1] = e.rgb[1];
                 px[2] = e.rgb[2];
@@ -123,8 +124,8 @@ bool displayTransform(ImageBuf& dst, const ImageBuf& src, ROI roi, int nthreads)
     spec.x = roi.xbegin;
     spec.y = roi.ybegin;
     ImageBuf out(spec);
-    if (!OIIO::ImageBufAlgo::copy(out, src, TypeDesc::FLOAT, ROI(roi.xbegin, roi.xend, roi.ybegin,
-                                                                  roi.yend, 0, 1, 0, 3),
+    if (!OIIO::ImageBufAlgo::copy(out, src, TypeDesc::FLOAT,
+                                  ROI(roi.xbegin, roi.xend, roi.ybegin, roi.yend, 0, 1, 0, 3),
                                   nthreads)) {
         dst.errorfmt("{}", out.geterror());
         return false;
@@ -159,7 +160,8 @@ bool diffImages(const ImageBuf& img, const ImageBuf& ref, const DiffOptions& opt
     }
     const int w = a.width(), h = a.height();
     std::vector<float> lin(size_t(w) * h * 3), rlin(lin.size());
-    img.get_pixels(ROI(a.xbegin, a.xend, a.ybegin, a.yend, 0, 1, 0, 3), TypeDesc::FLOAT, lin.data());
+    img.get_pixels(ROI(a.xbegin, a.xend, a.ybegin, a.yend, 0, 1, 0, 3), TypeDesc::FLOAT,
+                   lin.data());
     ref.get_pixels(ROI(b.xbegin, b.xend, b.ybegin, b.yend, 0, 1, 0, 3), TypeDesc::FLOAT,
                    rlin.data());
     std::vector<float> disp = lin, rdisp = rlin;

@@ -20,9 +20,11 @@ double clamp01(double v) { return std::clamp(v, 0.0, 1.0); }
 
 double ssimChannel(const float* a, const float* b, size_t stride, int width, int height,
                    const bool* mask) {
-    // Separable Gaussian sums of a, b, a^2, b^2, ab, and of the weights (for border renormalisation).
+    // Separable Gaussian sums of a, b, a^2, b^2, ab, and of the weights (for border
+    // renormalisation).
     double g[2 * kRadius + 1];
-    for (int i = -kRadius; i <= kRadius; ++i) g[i + kRadius] = std::exp(-0.5 * i * i / (kSigma * kSigma));
+    for (int i = -kRadius; i <= kRadius; ++i)
+        g[i + kRadius] = std::exp(-0.5 * i * i / (kSigma * kSigma));
     const size_t n = size_t(width) * size_t(height);
     const int kFields = 6;  // w, a, b, aa, bb, ab
     std::vector<double> rows(n * kFields, 0.0), full(n * kFields, 0.0);
@@ -110,7 +112,8 @@ DiffMetrics compareImages(const float* lin, const float* ref, const float* disp,
     const double mse = se / double(3 * m.pixels);
     m.psnr = mse > 0.0 ? 10.0 * std::log10(1.0 / mse) : std::numeric_limits<double>::infinity();
     double s = 0.0;
-    for (int c = 0; c < 3; ++c) s += ssimChannel(disp + c, refDisp + c, 3, width, height, mask.get());
+    for (int c = 0; c < 3; ++c)
+        s += ssimChannel(disp + c, refDisp + c, 3, width, height, mask.get());
     m.ssim = s / 3.0;
     return m;
 }

@@ -93,7 +93,8 @@ bool cmdEstimate(State& st, const std::string& cmd, const std::vector<std::strin
     return true;
 }
 
-// ---- comparison and merging -----------------------------------------------------------------------
+// ---- comparison and merging
+// -----------------------------------------------------------------------
 
 bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& args,
              const Modifiers& mods, std::string& err) {
@@ -112,9 +113,12 @@ bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& 
             err = format("{}: modifier {} must be a non-negative number, not '{}'", cmd, k, v);
             return false;
         }
-        if (k == "ratio") opt.fireflyRatio = d;
-        else if (k == "floor") opt.fireflyFloor = d;
-        else if (k == "eps") opt.relmseEpsilon = d;
+        if (k == "ratio")
+            opt.fireflyRatio = d;
+        else if (k == "floor")
+            opt.fireflyFloor = d;
+        else if (k == "eps")
+            opt.relmseEpsilon = d;
     }
     OIIO::ImageBuf ref;
     if (!readImage(args[0], ref, err)) return false;
@@ -131,8 +135,8 @@ bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& 
     return true;
 }
 
-bool cmdMerge(State& st, const std::string& cmd, const std::vector<std::string>&,
-              const Modifiers&, std::string& err) {
+bool cmdMerge(State& st, const std::string& cmd, const std::vector<std::string>&, const Modifiers&,
+              std::string& err) {
     if (!needStack(st, 2, cmd, err)) return false;
     Item& a = st.stack[st.stack.size() - 2];
     Item& b = st.stack.back();
@@ -204,26 +208,61 @@ std::vector<Command> buildTable() {
     std::vector<Command> t = {
         {"--help", 0, "", "Print this help and exit", {}, &cmdHelp, ""},
         {"-v", 0, "", "Verbose: report each command and its time on stderr", {}, &cmdVerbose, ""},
-        {"--threads", 1, "N", "Threads for every later command (0 = all cores)", {}, &cmdThreads, ""},
-        {"--info", 0, "",
-         "Describe the top of the stack (a statistics file: size, M, spp, parts, counts)", {},
-         &cmdInfo, ""},
-        {"-o", 1, "FILE",
+        {"--threads",
+         1,
+         "N",
+         "Threads for every later command (0 = all cores)",
+         {},
+         &cmdThreads,
+         ""},
+        {"--info",
+         0,
+         "",
+         "Describe the top of the stack (a statistics file: size, M, spp, parts, counts)",
+         {},
+         &cmdInfo,
+         ""},
+        {"-o",
+         1,
+         "FILE",
          "Write the top image: EXR/TIFF as scene-linear float; PNG/JPEG through the OCIO display "
-         "view; a statistics file as ." + std::string(kStatsExtension),
-         {}, &cmdOutput, ""},
+         "view; a statistics file as ." +
+             std::string(kStatsExtension),
+         {},
+         &cmdOutput,
+         ""},
     };
     for (const EstimatorInfo& e : estimatorRegistry()) {
         Command c{"--" + e.name, 0, "", e.help, {"diag"}, &cmdEstimate, e.name};
         for (const EstimatorParamInfo& p : e.params) c.modifiers.push_back(p.name);
         t.push_back(c);
     }
-    t.push_back({"--diff", 1, "REF",
-                 "Print relMSE, SSIM, PSNR and the firefly-pixel count of the top image against REF",
-                 {"ratio", "floor", "eps"}, &cmdDiff, ""});
-    t.push_back({"--merge", 0, "",
+    t.push_back(
+        {"--diff",
+         1,
+         "REF",
+         "Print relMSE, SSIM, PSNR and the firefly-pixel count of the top image against REF",
+         {"ratio", "floor", "eps"},
+         &cmdDiff,
+         ""});
+    t.push_back({"--merge",
+                 0,
+                 "",
                  "Merge the top two statistics files (renders of one image with different seeds)",
-                 {}, &cmdMerge, ""});
+                 {},
+                 &cmdMerge,
+                 ""});
+    t.push_back({"--plan",
+                 0,
+                 "",
+                 "Jung's error-rate planner: buffers M, windows and spp for fewer than one "
+                 "overestimated pixel (docs/planner.md); needs no input"
+                 "\n        :np=1 :width=1920 :height=1080 :json=0 :maxm=21 :maxk=15 :m=3,5,7"
+                 "\n        :p=0.001 :certainty=0.99 (minimum spp to include a sample of "
+                 "probability p)",
+                 {"np", "width", "height", "json", "maxm", "maxk", "m", "p", "certainty"},
+                 &cmdPlan,
+                 ""});
     t.push_back({"--dup", 0, "", "Duplicate the top of the stack", {}, &cmdDup, ""});
     t.push_back({"--pop", 0, "", "Remove the top of the stack", {}, &cmdPop, ""});
     t.push_back({"--swap", 0, "", "Exchange the top two stack entries", {}, &cmdSwap, ""});
@@ -266,8 +305,7 @@ bool cmdHelp(State&, const std::string&, const std::vector<std::string>&, const 
 }
 
 /// Splits "--gmon:mode=channel:diag=1" into "--gmon" and {mode: channel, diag: 1}.
-bool splitModifiers(const std::string& arg, std::string& name, Modifiers& mods,
-                    std::string& err) {
+bool splitModifiers(const std::string& arg, std::string& name, Modifiers& mods, std::string& err) {
     std::vector<std::string> parts = OIIO::Strutil::splits(arg, ":");
     name = parts[0];
     for (size_t i = 1; i < parts.size(); ++i) {
@@ -313,9 +351,10 @@ int run(int argc, const char* const* argv) {
                 bool known = false;
                 for (const std::string& m : cmd->modifiers) known = known || m == kv.first;
                 if (!known) {
-                    std::string accepted = cmd->modifiers.empty()
-                                               ? std::string("it takes none")
-                                               : "accepted: " + OIIO::Strutil::join(cmd->modifiers, ", ");
+                    std::string accepted =
+                        cmd->modifiers.empty()
+                            ? std::string("it takes none")
+                            : "accepted: " + OIIO::Strutil::join(cmd->modifiers, ", ");
                     std::fprintf(stderr, "mcstat: %s has no modifier '%s' (%s)\n", name.c_str(),
                                  kv.first.c_str(), accepted.c_str());
                     return 1;

@@ -3,12 +3,12 @@
 // Commands take ":name=value" modifiers, e.g. `--gmon:mode=channel:diag=1`.
 #pragma once
 
+#include <OpenImageIO/imagebuf.h>
+
 #include <map>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <OpenImageIO/imagebuf.h>
 
 #include "mcstat/stats_file.h"
 
@@ -20,7 +20,7 @@ struct Item {
     std::string name;  ///< what messages call it: the file name or "op(input)"
     std::string path;  ///< source file of a statistics item ("" when computed)
     StatsHeader header;
-    std::shared_ptr<StatsImage> stats;  ///< null until needed (statistics items)
+    std::shared_ptr<StatsImage> stats;      ///< null until needed (statistics items)
     std::shared_ptr<OIIO::ImageBuf> image;  ///< set for image items
     bool isStats() const { return image == nullptr; }
 };
@@ -36,12 +36,12 @@ struct State {
 struct Command {
     std::string name;  ///< with dashes, e.g. "--gmon"
     int nargs = 0;
-    std::string argHelp;       ///< e.g. "FILE"
-    std::string help;          ///< one line
+    std::string argHelp;                 ///< e.g. "FILE"
+    std::string help;                    ///< one line
     std::vector<std::string> modifiers;  ///< accepted modifier names (documented in help)
     bool (*run)(State&, const std::string& cmd, const std::vector<std::string>& args,
                 const Modifiers& mods, std::string& err) = nullptr;
-    std::string estimator;     ///< for commands generated from the estimator registry
+    std::string estimator;  ///< for commands generated from the estimator registry
 };
 
 /// Runs a whole command line; returns the process exit code. Errors print one line to stderr.
@@ -56,5 +56,9 @@ bool cmdInfo(State&, const std::string&, const std::vector<std::string>&, const 
              std::string&);
 /// Reads a file as an image: a statistics file gives its beauty (the plain mean).
 bool readImage(const std::string& path, OIIO::ImageBuf& out, std::string& err);
+
+// Implemented in plan.cpp: Jung's error-rate planner (docs/planner.md); needs nothing on the stack.
+bool cmdPlan(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
+             std::string&);
 
 }  // namespace mcstat::cli

@@ -2,7 +2,6 @@
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/strutil.h>
-
 #include <unistd.h>
 
 #include <algorithm>
@@ -110,9 +109,10 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
     const std::string ext = lowerExtension(path);
     if (top.isStats()) {
         if (ext != kStatsExtension) {
-            err = format("{} {}: {} is a statistics file; write it as .{} or apply an estimator "
-                         "first (e.g. --gmon)",
-                         cmd, path, top.name, kStatsExtension);
+            err = format(
+                "{} {}: {} is a statistics file; write it as .{} or apply an estimator "
+                "first (e.g. --gmon)",
+                cmd, path, top.name, kStatsExtension);
             return false;
         }
         if (!loadStats(st, top, err)) return false;
@@ -154,9 +154,10 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
                 h.assignment.c_str());
     std::printf("  renderer \"%s\", colour space %s, seeds %s\n", h.renderer.c_str(),
                 h.colorSpace.c_str(), h.seeds.empty() ? "(none)" : h.seeds.c_str());
-    std::printf("  parts: beauty (R,G,B)  buffers (%d x b###.R,G,B,count)  moments (count, mean.RGB, "
-                "variance.RGB)  features (N, P, Albedo, Z, A)\n",
-                h.M);
+    std::printf(
+        "  parts: beauty (R,G,B)  buffers (%d x b###.R,G,B,count)  moments (count, mean.RGB, "
+        "variance.RGB)  features (N, P, Albedo, Z, A)\n",
+        h.M);
     if (!st.verbose) return true;
     if (!loadStats(st, top, err)) return false;
     const StatsImage& s = *top.stats;

@@ -1,6 +1,6 @@
 // Colour management through OpenColorIO. When $OCIO is unset the project's own small config is used
-// (scene-linear Rec.709 primaries, an sRGB display with a "Standard" view): OCIO 2.1 on Debian 12 has
-// no built-in configs. When $OCIO is set, that config is honoured.
+// (scene-linear Rec.709 primaries, an sRGB display with a "Standard" view): OCIO 2.1 on Debian 12
+// has no built-in configs. When $OCIO is set, that config is honoured.
 #pragma once
 
 #include <array>
@@ -8,7 +8,8 @@
 
 namespace mcstat {
 
-/// Name of the scene-linear colour space every statistics file stores in (with the built-in config).
+/// Name of the scene-linear colour space every statistics file stores in (with the built-in
+/// config).
 inline constexpr const char* kSceneLinear = "lin_rec709";
 
 /// Luma coefficients of the active config (Config::getDefaultLumaCoefs). Never fails: a broken

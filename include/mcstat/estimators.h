@@ -9,10 +9,11 @@
 //   (spp < M) are left out silently; buffers holding NaN or +-Inf are left out and counted in
 //   PixelEstimate::excluded. Every formula below runs over the valid buffers only (M_v of them).
 // - No valid buffer: the estimate is 0 (black), kept = 0.
-// - Counts are weights: wherever a formula averages buffer means, it uses sum(n_j * theta_j) / sum(n_j),
+// - Counts are weights: wherever a formula averages buffer means, it uses sum(n_j * theta_j) /
+// sum(n_j),
 //   which is exactly the mean of the samples in those buffers and equals the paper's unweighted
-//   average when counts are equal. Ranks, the median and the Gini coefficient use the means unweighted,
-//   as in the paper.
+//   average when counts are equal. Ranks, the median and the Gini coefficient use the means
+//   unweighted, as in the paper.
 // - Negative means: ranking and averaging take them as they are. The Gini coefficient (eq. 4) is
 //   defined for non-negative values, so when the smallest mean is negative it is computed on the
 //   means shifted by -min (the smallest becomes 0). Its result is clamped to [0, 1].
@@ -29,8 +30,8 @@ namespace mcstat {
 /// How an estimator treats colour.
 enum class EstimatorMode {
     PerChannel,  ///< R, G and B ranked and reduced independently (each channel has its own G and c)
-    Luminance,   ///< buffers ranked by luminance; the chosen buffers' RGB are returned (hue never mixes
-                 ///< across channels of different buffers); G is computed on luminance
+    Luminance,   ///< buffers ranked by luminance; the chosen buffers' RGB are returned (hue never
+                ///< mixes across channels of different buffers); G is computed on luminance
 };
 
 struct EstimatorParams {
@@ -39,6 +40,15 @@ struct EstimatorParams {
     std::array<double, 3> luma{0.0, 0.0, 0.0};
     /// G-MoN_b threshold (eq. 5): mean when G <= threshold, MoN otherwise.
     double giniThreshold = 0.25;
+    /// TMPE breakdown point alpha in [0, 0.5] (Jung eq. 5.1): floor(alpha * M_v + 1e-9) means are
+    /// trimmed from each side, capped at floor((M_v - 1) / 2). 0 is the mean, 0.5 the median.
+    double alpha = 0.25;
+    /// Myriad scale gamma (Jung eq. 4.7) and meridian scale delta (eq. 4.8), both > 0. With
+    /// scaleRelative they are factors of the pixel's input range (max - min of the valid values the
+    /// estimator ranks): the thesis used 0.05 x range (section 4.2). Otherwise absolute values.
+    double gamma = 0.05;
+    double delta = 0.05;
+    bool scaleRelative = true;
 };
 
 /// One pixel's sub-buffers: M means (RGB interleaved) and M counts.
@@ -61,9 +71,11 @@ struct EstimatorScratch {
     std::vector<int> order;
     std::vector<double> key;
     std::vector<double> sorted;
+    std::vector<double> weight;  ///< per distinct value (jung_estimators.cpp)
 };
 
-// ---- building blocks (exposed for tests and for later estimators) --------------------------------
+// ---- building blocks (exposed for tests and for later estimators)
+// --------------------------------
 
 /// Gini coefficient of `values` already sorted ascending (eq. 4), computed in double, with the
 /// negative-value and zero-sum rules above. n == 0 or 1 gives 0.
@@ -74,7 +86,12 @@ double giniSorted(const double* values, size_t n);
 /// means (even M) remain — the paper's c = k would divide by zero for even M.
 int gmonTrim(double G, int M);
 
-// ---- the estimators ------------------------------------------------------------------------------
+/// Fills `order` with the indices of the valid buffers (count > 0, count and every channel finite),
+/// in index order, and sets `excluded` to the number of NaN/Inf buffers. Returns M_v.
+int collectValidBuffers(const PixelBuffers& px, std::vector<int>& order, int& excluded);
+
+// ---- the estimators
+// ------------------------------------------------------------------------------
 
 /// Plain mean of all samples: sum(n_j theta_j) / sum(n_j) over the valid buffers (eq. 1).
 void estimateMean(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
@@ -88,5 +105,21 @@ void estimateGMoN(const PixelBuffers& px, const EstimatorParams& p, PixelEstimat
 /// G-MoN_b (eq. 5): the mean when G <= p.giniThreshold, else MoN.
 void estimateGMoNb(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
                    EstimatorScratch& s);
+
+// ---- Jung 2016 thesis, chapters 4 and 5 ---------------------------------------------------------
+// ../shared/papers/jung2016-thesis-robust-pixel-estimation.txt; myriad, meridian: jung_estimators.h
+// The median pixel estimate MPE(m) (eq. 4.6, 5.2) *is* estimateMoN, including the even-M rule: eq.
+// 5.2 with even m trims floor((m-1)/2) = m/2 - 1 per side and averages the two middle means. The
+// registry lists it a second time as `median`.
+
+/// Number of means TMPE trims from each side (eq. 5.1): c = floor(alpha * M + 1e-9) (the 1e-9
+/// absorbs the rounding of alpha = i/M), clamped to [0, floor((M - 1) / 2)]. alpha = 0 gives 0 (the
+/// mean), alpha >= floor((M-1)/2)/M (e.g. 0.5) gives the cap: MPE (eq. 5.2).
+int tmpeTrim(double alpha, int M);
+
+/// Trimmed mean pixel estimate TMPE(alpha) (eq. 5.1): rank the valid means, drop tmpeTrim(alpha,
+/// M_v) from each side, count-weighted average of the rest (same ranking/weighting as G-MoN).
+void estimateTMPE(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
+                  EstimatorScratch& s);
 
 }  // namespace mcstat

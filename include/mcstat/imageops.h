@@ -1,7 +1,8 @@
 // OpenImageIO-facing image operations over statistics files, in OIIO's two forms:
 //   ImageBuf op(const Src&, ..., ROI roi = {}, int nthreads = 0)
 //   bool     op(ImageBuf& dst, const Src&, ..., ROI roi = {}, int nthreads = 0)
-// Errors are recorded on the returned / destination ImageBuf (has_error(), geterror()); nothing throws.
+// Errors are recorded on the returned / destination ImageBuf (has_error(), geterror()); nothing
+// throws.
 #pragma once
 
 #include <OpenImageIO/imagebuf.h>
@@ -21,8 +22,8 @@ bool estimate(OIIO::ImageBuf& dst, const StatsImage& src, const EstimatorInfo& e
               const EstimatorParams& params, bool diagnostics = false, OIIO::ROI roi = {},
               int nthreads = 0);
 OIIO::ImageBuf estimate(const StatsImage& src, const EstimatorInfo& est,
-                        const EstimatorParams& params, bool diagnostics = false,
-                        OIIO::ROI roi = {}, int nthreads = 0);
+                        const EstimatorParams& params, bool diagnostics = false, OIIO::ROI roi = {},
+                        int nthreads = 0);
 
 /// The beauty part (plain mean) of a statistics file as an RGB float image.
 OIIO::ImageBuf beautyImage(const StatsImage& src);

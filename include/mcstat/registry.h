@@ -1,6 +1,6 @@
-// The one registry of estimators. The `mcstat` commands, the (future) OIIO plugin and the benchmarks
-// all enumerate it, so a new estimator is written once: add a function to estimators.h and an entry
-// to filters/registry.cpp.
+// The one registry of estimators. The `mcstat` commands, the (future) OIIO plugin and the
+// benchmarks all enumerate it, so a new estimator is written once: add a function to estimators.h
+// and an entry to filters/registry.cpp.
 #pragma once
 
 #include <map>
@@ -22,9 +22,9 @@ struct EstimatorParamInfo {
 };
 
 struct EstimatorInfo {
-    std::string name;     ///< command name without dashes, e.g. "gmon"
-    std::string title;    ///< e.g. "G-MoN"
-    std::string help;     ///< one line for --help
+    std::string name;   ///< command name without dashes, e.g. "gmon"
+    std::string title;  ///< e.g. "G-MoN"
+    std::string help;   ///< one line for --help
     EstimatorFn fn = nullptr;
     std::vector<EstimatorParamInfo> params;
 };

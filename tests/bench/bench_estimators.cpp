@@ -53,8 +53,8 @@ const bool registered = [] {
     for (const EstimatorInfo& e : estimatorRegistry()) {
         for (auto mode : {EstimatorMode::Luminance, EstimatorMode::PerChannel}) {
             if (e.params.empty() && mode == EstimatorMode::PerChannel) continue;
-            const std::string name = "estimate/" + e.name +
-                                     (mode == EstimatorMode::Luminance ? "/lum" : "/channel");
+            const std::string name =
+                "estimate/" + e.name + (mode == EstimatorMode::Luminance ? "/lum" : "/channel");
             benchmark::RegisterBenchmark(name.c_str(), BM_Estimator, &e, mode)
                 ->Arg(5)
                 ->Arg(21)

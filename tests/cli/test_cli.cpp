@@ -1,9 +1,8 @@
 // `mcstat` end to end: the binary is run on statistics files made here, and its outputs are checked
 // against the estimators called directly.
-#include <gtest/gtest.h>
-
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebuf.h>
+#include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
@@ -12,6 +11,7 @@
 #include <sstream>
 #include <string>
 
+#include "cli_support.h"
 #include "mcstat/color.h"
 #include "mcstat/registry.h"
 #include "mcstat/stats_file.h"
@@ -20,20 +20,11 @@ using namespace mcstat;
 
 namespace {
 
-struct Result {
-    int code = 0;
-    std::string out, err;
-};
-
-std::string slurp(const std::string& path) {
-    std::ifstream f(path, std::ios::binary);
-    std::stringstream s;
-    s << f.rdbuf();
-    return s.str();
-}
+using mcstat::testing::Result;
+using mcstat::testing::slurp;
 
 class Cli : public ::testing::Test {
-protected:
+  protected:
     std::string dir;
     void SetUp() override {
         const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
@@ -42,16 +33,7 @@ protected:
         OIIO::Filesystem::create_directory(dir);
     }
     std::string path(const std::string& name) const { return dir + "/" + name; }
-    Result mcstat(const std::string& args) const {
-        const std::string o = path("stdout.txt"), e = path("stderr.txt");
-        const std::string cmd = std::string(MCSTAT_EXE) + " " + args + " >" + o + " 2>" + e;
-        Result r;
-        const int status = std::system(cmd.c_str());
-        r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-        r.out = slurp(o);
-        r.err = slurp(e);
-        return r;
-    }
+    Result mcstat(const std::string& args) const { return mcstat::testing::runMcstat(args, dir); }
 };
 
 /// 16x12 grey image, M = 5 buffers of 4 samples each; pixel (5, 5) has one firefly buffer.
@@ -92,8 +74,8 @@ std::vector<float> readRGB(const std::string& file, int* nch = nullptr) {
     EXPECT_TRUE(b.read(0, 0, true, OIIO::TypeDesc::FLOAT)) << b.geterror();
     if (nch) *nch = b.nchannels();
     std::vector<float> px(size_t(b.spec().width) * b.spec().height * 3);
-    b.get_pixels(OIIO::ROI(0, b.spec().width, 0, b.spec().height, 0, 1, 0, 3), OIIO::TypeDesc::FLOAT,
-                 px.data());
+    b.get_pixels(OIIO::ROI(0, b.spec().width, 0, b.spec().height, 0, 1, 0, 3),
+                 OIIO::TypeDesc::FLOAT, px.data());
     return px;
 }
 
@@ -124,9 +106,8 @@ TEST_F(Cli, EveryEstimatorMatchesTheLibrary) {
         for (auto mode : {EstimatorMode::Luminance, EstimatorMode::PerChannel}) {
             const bool hasMode = !e.params.empty();
             if (!hasMode && mode == EstimatorMode::PerChannel) continue;
-            const std::string mod = hasMode ? (mode == EstimatorMode::PerChannel ? ":mode=channel"
-                                                                                 : ":mode=lum")
-                                            : "";
+            const std::string mod =
+                hasMode ? (mode == EstimatorMode::PerChannel ? ":mode=channel" : ":mode=lum") : "";
             Result r = mcstat(path("f.mcstat") + " --" + e.name + mod + " -o " + path("o.exr"));
             ASSERT_EQ(r.code, 0) << r.err;
             EXPECT_EQ(readRGB(path("o.exr")), direct(s, e.name, mode)) << e.name << mod;
@@ -221,7 +202,8 @@ TEST_F(Cli, MergeAddsCounts) {
     b.header.seeds = "8";
     ASSERT_TRUE(writeStatsFile(path("a.mcstat"), a, err)) << err;
     ASSERT_TRUE(writeStatsFile(path("b.mcstat"), b, err)) << err;
-    Result r = mcstat(path("a.mcstat") + " " + path("b.mcstat") + " --merge -o " + path("m.mcstat"));
+    Result r =
+        mcstat(path("a.mcstat") + " " + path("b.mcstat") + " --merge -o " + path("m.mcstat"));
     ASSERT_EQ(r.code, 0) << r.err;
     StatsImage m;
     ASSERT_TRUE(readStatsFile(path("m.mcstat"), m, err)) << err;

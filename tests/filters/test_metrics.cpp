@@ -42,7 +42,8 @@ TEST(Metrics, OneFireflyHandComputed) {
 }
 
 TEST(Metrics, FireflyNeedsBothRatioAndFloor) {
-    std::vector<float> ref = {0.1f, 0.1f, 0.1f, 5.f, 5.f, 5.f}, img = {0.5f, 0.5f, 0.5f, 7.f, 7.f, 7.f};
+    std::vector<float> ref = {0.1f, 0.1f, 0.1f, 5.f, 5.f, 5.f},
+                       img = {0.5f, 0.5f, 0.5f, 7.f, 7.f, 7.f};
     // pixel 0: 5x brighter but only 0.4 above; pixel 1: 2 above but only 1.4x
     DiffMetrics m = compareImages(img.data(), ref.data(), img.data(), ref.data(), 2, 1, options());
     EXPECT_EQ(m.fireflies, 0);

@@ -1,0 +1,42 @@
+// Running the `mcstat` binary from tests: one process, stdout and stderr captured in files named
+// after the running test, so tests run in parallel (ctest -j) never share them.
+#pragma once
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace mcstat::testing {
+
+struct Result {
+    int code = 0;
+    std::string out, err;
+};
+
+inline std::string slurp(const std::string& path) {
+    std::ifstream f(path, std::ios::binary);
+    std::stringstream s;
+    s << f.rdbuf();
+    return s.str();
+}
+
+/// Runs `mcstat ARGS` with its output captured in DIR (default: the build's tests/cli folder).
+inline Result runMcstat(const std::string& args,
+                        const std::string& dir = std::string(MCSTAT_BINARY_DIR) + "/tests/cli") {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    const std::string stem = dir + "/" + info->test_suite_name() + "." + info->name();
+    const std::string o = stem + ".stdout", e = stem + ".stderr";
+    const std::string cmd = std::string(MCSTAT_EXE) + " " + args + " >" + o + " 2>" + e;
+    Result r;
+    const int status = std::system(cmd.c_str());
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    r.out = slurp(o);
+    r.err = slurp(e);
+    return r;
+}
+
+}  // namespace mcstat::testing
