@@ -80,19 +80,5 @@ void MeanAccumulator::store(float* rgb) const {
     for (int c = 0; c < 3; ++c) rgb[c] = n > 0 ? float(sum[c] / double(n)) : 0.0f;
 }
 
-void allocateStats(StatsImage& img) {
-    const size_t P = img.pixelCount(), M = size_t(img.header.M);
-    img.beauty.assign(P * 3, 0.0f);
-    img.bufferMean.assign(P * M * 3, 0.0f);
-    img.bufferCount.assign(P * M, 0.0f);
-    img.count.assign(P, 0.0f);
-    img.mean.assign(P * 3, 0.0f);
-    img.variance.assign(P * 3, 0.0f);
-    img.normal.assign(P * 3, 0.0f);
-    img.position.assign(P * 3, 0.0f);
-    img.albedo.assign(P * 3, 0.0f);
-    img.depth.assign(P, std::numeric_limits<float>::infinity());
-    img.coverage.assign(P, 0.0f);
-}
 
 }  // namespace mcstat::render

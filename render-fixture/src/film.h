@@ -41,9 +41,5 @@ struct MeanAccumulator {
     void store(float* rgb) const;
 };
 
-/// Sizes every array of img for its header (width, height, M) and fills them with their empty
-/// values. Done here rather than with StatsImage::allocate so that rendering in memory needs
-/// nothing from the file library.
-void allocateStats(StatsImage& img);
 
 }  // namespace mcstat::render

@@ -114,7 +114,7 @@ bool render(const Scene& scene, const RenderOptions& opt, StatsImage& out, std::
     h.renderer = kRendererName;
     h.colorSpace = "lin_rec709";
     h.seeds = std::to_string(opt.seed);
-    allocateStats(img);
+    if (!img.allocate(err)) return false;
 
     std::atomic<int64_t> dropped{0};
     const double seconds = forEachRow(scene.height, opt, [&](int y) {

@@ -10,29 +10,13 @@
 
 #include "mcstat/jung_estimators.h"
 #include "mcstat/registry.h"
+#include "pixel_support.h"
 
 using namespace mcstat;
 
 namespace {
 
-const std::array<double, 3> kLuma{0.2126, 0.7152, 0.0722};
-const float kNaN = std::numeric_limits<float>::quiet_NaN();
-const float kInf = std::numeric_limits<float>::infinity();
-
-struct Pixel {
-    std::vector<float> mean, count;
-    Pixel(std::vector<std::array<float, 3>> rgb, std::vector<float> n) : count(std::move(n)) {
-        for (auto& c : rgb) mean.insert(mean.end(), c.begin(), c.end());
-    }
-    PixelBuffers view() const { return {mean.data(), count.data(), int(count.size())}; }
-};
-
-Pixel grey(std::vector<float> v, std::vector<float> n = {}) {
-    if (n.empty()) n.assign(v.size(), 1.f);
-    std::vector<std::array<float, 3>> rgb;
-    for (float x : v) rgb.push_back({x, x, x});
-    return Pixel(rgb, n);
-}
+using namespace mcstat::testing;
 
 struct Opts {
     EstimatorMode mode = EstimatorMode::PerChannel;

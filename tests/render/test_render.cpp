@@ -405,7 +405,8 @@ TEST(RenderAccumulation, NonFiniteSamplesAreDropped) {
     EXPECT_TRUE(acc.add(3, good));
     StatsImage img;
     img.header.width = 1, img.header.height = 1, img.header.M = 2;
-    allocateStats(img);
+    std::string err;
+    ASSERT_TRUE(img.allocate(err)) << err;
     acc.store(img, 0);
     EXPECT_EQ(img.count[0], 2.0f);
     EXPECT_EQ(img.bufferCount[0], 1.0f);  // sample 0

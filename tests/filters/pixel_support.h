@@ -1,0 +1,35 @@
+// Test pixels: a pixel's sub-buffers built from RGB means and counts, shared by the estimator
+// tests.
+#pragma once
+
+#include <array>
+#include <limits>
+#include <utility>
+#include <vector>
+
+#include "mcstat/estimators.h"
+
+namespace mcstat::testing {
+
+inline const std::array<double, 3> kLuma{0.2126, 0.7152, 0.0722};
+inline const float kNaN = std::numeric_limits<float>::quiet_NaN();
+inline const float kInf = std::numeric_limits<float>::infinity();
+
+/// A pixel built from per-buffer RGB means and counts.
+struct Pixel {
+    std::vector<float> mean, count;
+    Pixel(std::vector<std::array<float, 3>> rgb, std::vector<float> n) : count(std::move(n)) {
+        for (auto& c : rgb) mean.insert(mean.end(), c.begin(), c.end());
+    }
+    PixelBuffers view() const { return {mean.data(), count.data(), int(count.size())}; }
+};
+
+/// Grey buffers: the same value on R, G, B; counts 1 unless given.
+inline Pixel grey(std::vector<float> v, std::vector<float> n = {}) {
+    if (n.empty()) n.assign(v.size(), 1.f);
+    std::vector<std::array<float, 3>> rgb;
+    for (float x : v) rgb.push_back({x, x, x});
+    return Pixel(rgb, n);
+}
+
+}  // namespace mcstat::testing
