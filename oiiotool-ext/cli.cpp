@@ -281,7 +281,7 @@ std::string modifierHelp(const Command& c) {
             s += format("\n        :{}={} ({})", p.name, p.defaultValue, p.help);
         s += "\n        :diag=0 (1 appends channels gini, kept, excluded)";
     } else if (c.name == "--diff") {
-        s += "\n        :ratio=2 :floor=1 (firefly: Y > ratio*Yref and Y - Yref > floor)"
+        s += "\n        :ratio=2 :floor=0.1 (firefly: Y > ratio*Yref and Y - Yref > floor)"
              "\n        :eps=0.01 (relMSE denominator r^2 + eps)";
     }
     return s;

@@ -34,7 +34,7 @@ fi
 echo
 "$mcstat" "$stats" --info
 echo
-echo "Against the reference ($REF_SPP spp). Firefly pixel: luminance > 2x the reference and > 1.0 above it."
+echo "Against the reference ($REF_SPP spp). Firefly pixel: luminance > 2x the reference and > 0.1 (a tenth of display white) above it."
 args=()
 for est in mean mon gmonb gmon; do
   args+=(--dup "--$est" -o "$OUT/$est.exr" -o "$OUT/$est.png" --diff "$ref" --pop)

@@ -5,7 +5,7 @@
 //   clamped to [0, 1]. SSIM (Wang et al. 2004): 11x11 Gaussian window, sigma 1.5, K1 = 0.01,
 //   K2 = 0.03, per channel, averaged; the window is renormalised at image borders.
 // - firefly pixel: Y > ratio * Y_ref and Y - Y_ref > floor, Y the luminance of scene-linear values
-//   (luma coefficients from the OCIO config); defaults ratio 2, floor 1.0 (display white).
+//   (luma coefficients from the OCIO config); defaults ratio 2, floor 0.1 (a tenth of display white).
 // Pixels where either image is not finite are left out of every metric and counted.
 #pragma once
 
@@ -18,7 +18,7 @@ struct DiffOptions {
     std::array<double, 3> luma{0.0, 0.0, 0.0};
     double relmseEpsilon = 0.01;
     double fireflyRatio = 2.0;
-    double fireflyFloor = 1.0;
+    double fireflyFloor = 0.1;
 };
 
 struct DiffMetrics {

@@ -42,13 +42,13 @@ TEST(Metrics, OneFireflyHandComputed) {
 }
 
 TEST(Metrics, FireflyNeedsBothRatioAndFloor) {
-    std::vector<float> ref = {0.1f, 0.1f, 0.1f, 5.f, 5.f, 5.f},
-                       img = {0.5f, 0.5f, 0.5f, 7.f, 7.f, 7.f};
-    // pixel 0: 5x brighter but only 0.4 above; pixel 1: 2 above but only 1.4x
+    std::vector<float> ref = {0.01f, 0.01f, 0.01f, 5.f, 5.f, 5.f},
+                       img = {0.05f, 0.05f, 0.05f, 7.f, 7.f, 7.f};
+    // pixel 0: 5x brighter but only 0.04 above; pixel 1: 2 above but only 1.4x
     DiffMetrics m = compareImages(img.data(), ref.data(), img.data(), ref.data(), 2, 1, options());
     EXPECT_EQ(m.fireflies, 0);
     DiffOptions o = options();
-    o.fireflyFloor = 0.3;
+    o.fireflyFloor = 0.03;
     EXPECT_EQ(compareImages(img.data(), ref.data(), img.data(), ref.data(), 2, 1, o).fireflies, 1);
 }
 
