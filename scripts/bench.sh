@@ -12,16 +12,13 @@ out=out/bench; mkdir -p "$out"
 
 echo "== Estimator throughput, 256x256 pixels, single thread =="
 build/tests/bench/bench_estimators --benchmark_format=csv 2>/dev/null >"$out/estimators.csv"
+printf "%-18s %6s %12s %16s\n" "estimator" "M" "Mpixel/s" "time / mean's"
 awk -F, 'NR > 1 {
-    gsub(/"/, "", $1); n = split($1, a, "/"); key = a[2] "/" a[3]; M = a[4];
-    ips = $(NF - 4) + 0;  # items_per_second column
-    rate[key, M] = ips; if (!(key in seen)) { seen[key] = 1; order[++k] = key } Ms[M] = 1 }
-  END {
-    printf "%-18s %6s %12s %14s\n", "estimator", "M", "Mpixel/s", "time vs mean";
-    for (i = 1; i <= k; ++i) for (M in Ms) if ((order[i], M) in rate)
-      printf "%-18s %6d %12.2f %14.2f\n", order[i], M, rate[order[i], M] / 1e6,
-             rate["mean/", M] / rate[order[i], M];
-  }' "$out/estimators.csv" | sort -k1,1 -k2,2n
+    gsub(/"/, "", $1); split($1, a, "/");   # estimate/NAME/MODE/M
+    key = a[2] "/" a[3]; rate[key "@" a[4]] = $7; keys[key "@" a[4]] = 1 }
+  END { for (k in keys) { split(k, b, "@");
+          printf "%-18s %6d %12.2f %16.2f\n", b[1], b[2], rate[k] / 1e6, rate["mean/lum@" b[2]] / rate[k] } }' \
+  "$out/estimators.csv" | sort -k1,1 -k2,2n
 
 echo
 file=$out/bench-640x480-M21.mcstat
@@ -42,13 +39,13 @@ measure() {  # measure NAME CMD...: median wall seconds and max peak RSS over RE
   local mmax; mmax=$(printf '%s\n' "${mems[@]}" | sort -n | tail -1)
   echo "$name $tmed $mmax"
 }
-ref=$(measure "oiiotool" oiiotool -a "$file" -o "$out/read.null")
+ref=$(measure "oiiotool" oiiotool -a --stats "$file")
 gmon=$(measure "mcstat" build/oiiotool-ext/mcstat "$file" --gmon -o "$out/gmon.exr")
 mean=$(measure "mcstat-mean" build/oiiotool-ext/mcstat "$file" --mean -o "$out/mean.exr")
-printf '%s\n%s\n%s\n' "$ref" "$gmon" "$mean" | awk -v pixels=$((640 * 480)) '
+printf "%-40s %10s %9s %14s\n" "command" "wall" "ratio" "peak RSS"
+printf '%s\n%s\n%s\n' "$ref" "$gmon" "$mean" | awk '
   NR == 1 { base = $2 }
-  { label = $1 == "oiiotool" ? "oiiotool -a FILE -o x.null (read only)" :
-            $1 == "mcstat" ? "mcstat FILE --gmon -o out.exr" : "mcstat FILE --mean -o out.exr";
-    rows[NR] = sprintf("%-40s %8.3f s %8.2fx %10.1f MiB", label, $2, $2 / base, $3 / 1024) }
-  END { printf "%-40s %10s %9s %14s\n", "command", "wall", "ratio", "peak RSS";
-        for (i = 1; i <= NR; ++i) print rows[i] }'
+  { if ($1 == "oiiotool") label = "oiiotool -a --stats FILE (reads all parts)"
+    else if ($1 == "mcstat") label = "mcstat FILE --gmon -o out.exr"
+    else label = "mcstat FILE --mean -o out.exr"
+    printf "%-40s %8.3f s %8.2fx %10.1f MiB\n", label, $2, $2 / base, $3 / 1024 }'

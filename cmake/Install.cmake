@@ -1,0 +1,54 @@
+# `cmake --install`: the mcstat and mcstat-render executables, the OpenImageIO plugin, the static
+# libraries with their public headers, an exported CMake package (find_package(mcstat CONFIG)
+# giving mcstat::filters, mcstat::exrdeep, mcstat::color, mcstat::imageops) and mcstat.pc.
+include(GNUInstallDirs)
+include(CMakePackageConfigHelpers)
+
+set(MCSTAT_INSTALL_CMAKEDIR "${CMAKE_INSTALL_LIBDIR}/cmake/mcstat"
+    CACHE STRING "Where the CMake package files go (relative to the prefix)")
+set(MCSTAT_INSTALL_PLUGINDIR "${CMAKE_INSTALL_LIBDIR}/OpenImageIO-plugins"
+    CACHE STRING "Where mcstat.imageio.so goes; point OIIO_LIBRARY_PATH at it")
+
+set(_mcstat_libs mcstat_filters mcstat_exrdeep mcstat_color mcstat_imageops)
+foreach(_lib IN LISTS _mcstat_libs)
+  string(REPLACE "mcstat_" "" _export_name "${_lib}")
+  set_target_properties(${_lib} PROPERTIES EXPORT_NAME ${_export_name})
+endforeach()
+
+install(TARGETS ${_mcstat_libs}
+  EXPORT mcstatTargets
+  ARCHIVE DESTINATION "${CMAKE_INSTALL_LIBDIR}" COMPONENT dev)
+install(DIRECTORY "${PROJECT_SOURCE_DIR}/include/mcstat"
+  DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}" COMPONENT dev
+  FILES_MATCHING PATTERN "*.h")
+install(TARGETS mcstat mcstat-render RUNTIME DESTINATION "${CMAKE_INSTALL_BINDIR}" COMPONENT bin)
+if(TARGET mcstat_oiio_plugin)
+  install(TARGETS mcstat_oiio_plugin
+    LIBRARY DESTINATION "${MCSTAT_INSTALL_PLUGINDIR}" COMPONENT plugin)
+endif()
+
+install(EXPORT mcstatTargets
+  NAMESPACE mcstat::
+  FILE mcstatTargets.cmake
+  DESTINATION "${MCSTAT_INSTALL_CMAKEDIR}" COMPONENT dev)
+configure_package_config_file("${CMAKE_CURRENT_LIST_DIR}/mcstatConfig.cmake.in"
+  "${PROJECT_BINARY_DIR}/mcstatConfig.cmake"
+  INSTALL_DESTINATION "${MCSTAT_INSTALL_CMAKEDIR}"
+  PATH_VARS MCSTAT_INSTALL_PLUGINDIR)
+write_basic_package_version_file("${PROJECT_BINARY_DIR}/mcstatConfigVersion.cmake"
+  VERSION "${PROJECT_VERSION}"
+  COMPATIBILITY SameMinorVersion)
+install(FILES "${PROJECT_BINARY_DIR}/mcstatConfig.cmake" "${PROJECT_BINARY_DIR}/mcstatConfigVersion.cmake"
+  DESTINATION "${MCSTAT_INSTALL_CMAKEDIR}" COMPONENT dev)
+
+# pkg-config: the .pc file is written at install time so that `cmake --install --prefix P` gives P.
+configure_file("${CMAKE_CURRENT_LIST_DIR}/mcstat.pc.in" "${PROJECT_BINARY_DIR}/mcstat.pc.in.configured"
+  @ONLY)
+install(CODE "
+  set(_prefix \"\${CMAKE_INSTALL_PREFIX}\")
+  file(READ \"${PROJECT_BINARY_DIR}/mcstat.pc.in.configured\" _pc)
+  string(REPLACE \"%MCSTAT_PC_PREFIX%\" \"\${_prefix}\" _pc \"\${_pc}\")
+  file(WRITE \"${PROJECT_BINARY_DIR}/mcstat.pc\" \"\${_pc}\")
+" COMPONENT dev)
+install(FILES "${PROJECT_BINARY_DIR}/mcstat.pc"
+  DESTINATION "${CMAKE_INSTALL_LIBDIR}/pkgconfig" COMPONENT dev)

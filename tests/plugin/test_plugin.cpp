@@ -1,0 +1,486 @@
+// The OIIO plugin end to end: Debian's own oiiotool, iinfo and idiff, with OIIO_LIBRARY_PATH
+// pointing at the built mcstat.imageio.so, against the `mcstat` command line and the library called
+// directly. Plus the ImageInput interface in process (errors, channel subsets, subimage bounds).
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imageio.h>
+#include <OpenImageIO/strutil.h>
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "mcstat/color.h"
+#include "mcstat/imageops.h"
+#include "mcstat/registry.h"
+#include "mcstat/stats_file.h"
+
+namespace {
+
+using OIIO::Strutil::contains;
+
+struct Result {
+    int code = 0;
+    std::string out, err;
+};
+
+std::string slurp(const std::string& path) {
+    std::ifstream f(path, std::ios::binary);
+    std::stringstream s;
+    s << f.rdbuf();
+    return s.str();
+}
+
+std::string quote(const std::string& s) { return "'" + s + "'"; }
+
+/// One image read back as float: its channel names and pixels.
+struct Pixels {
+    std::vector<std::string> channels;
+    std::vector<float> data;
+    int width = 0, height = 0;
+    std::string subimageName;
+};
+
+class Plugin : public ::testing::Test {
+  protected:
+    std::string dir;
+    std::string stats;  ///< the statistics file rendered for this test
+    std::string stem;
+
+    void SetUp() override {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        dir = std::string(MCSTAT_BINARY_DIR) + "/tests/plugin/tmp-" + info->name();
+        OIIO::Filesystem::remove_all(dir);
+        ASSERT_TRUE(OIIO::Filesystem::create_directory(dir));
+        stem = dir + "/run";
+        stats = path("f.mcstat");
+        const Result r = run(std::string(MCSTAT_RENDER_EXE) +
+                             " --scene tiny --spp 16 --M 5 --quiet -o " + quote(stats));
+        ASSERT_EQ(r.code, 0) << r.err;
+    }
+    std::string path(const std::string& name) const { return dir + "/" + name; }
+
+    /// Runs a shell command with stdout and stderr captured. `plugin` puts the built plugin on
+    /// OIIO_LIBRARY_PATH; otherwise the variable is removed so OIIO falls back to its EXR reader.
+    Result run(const std::string& cmd, bool plugin = true) const {
+        const std::string o = stem + ".stdout", e = stem + ".stderr";
+        std::string env = plugin ? std::string("env OIIO_LIBRARY_PATH=") + MCSTAT_PLUGIN_DIR + " "
+                                 : std::string("env -u OIIO_LIBRARY_PATH ");
+        env += MCSTAT_TOOL_ENV;
+        const std::string full = env + " " + cmd + " >" + o + " 2>" + e;
+        Result r;
+        const int status = std::system(full.c_str());
+        r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+        r.out = slurp(o);
+        r.err = slurp(e);
+        return r;
+    }
+    Result mcstat(const std::string& args) const {
+        return run(std::string(MCSTAT_EXE) + " " + args, false);
+    }
+
+    /// Reads subimage `sub` of an EXR written by a tool (OIIO's own reader, no plugin needed).
+    static Pixels readExr(const std::string& file, int sub = 0) {
+        Pixels p;
+        OIIO::ImageBuf b(file, sub, 0);
+        EXPECT_TRUE(b.read(sub, 0, true, OIIO::TypeDesc::FLOAT)) << file << ": " << b.geterror();
+        const OIIO::ImageSpec& s = b.spec();
+        p.channels = s.channelnames;
+        p.width = s.width;
+        p.height = s.height;
+        p.subimageName = s.get_string_attribute("oiio:subimagename");
+        p.data.resize(size_t(s.width) * s.height * s.nchannels);
+        if (!p.data.empty()) b.get_pixels(b.roi(), OIIO::TypeDesc::FLOAT, p.data.data());
+        return p;
+    }
+    static int subimageCount(const std::string& file) {
+        auto in = OIIO::ImageInput::open(file);
+        if (!in) return -1;
+        int n = 0;
+        while (in->seek_subimage(n, 0)) ++n;
+        return n;
+    }
+    mcstat::StatsImage loadStats() const {
+        mcstat::StatsImage s;
+        std::string err;
+        EXPECT_TRUE(mcstat::readStatsFile(stats, s, err)) << err;
+        return s;
+    }
+    /// The library's own answer, as `mcstat` computes it.
+    Pixels library(const std::string& est, const std::map<std::string, std::string>& kv = {},
+                   bool diag = false) const {
+        const mcstat::EstimatorInfo* info = mcstat::findEstimator(est);
+        EXPECT_NE(info, nullptr);
+        mcstat::EstimatorParams params;
+        params.luma = mcstat::lumaCoefficients();
+        std::string err;
+        EXPECT_TRUE(mcstat::parseEstimatorParams(*info, kv, params, err)) << err;
+        OIIO::ImageBuf b = mcstat::estimate(loadStats(), *info, params, diag);
+        Pixels p;
+        p.channels = b.spec().channelnames;
+        p.width = b.spec().width;
+        p.height = b.spec().height;
+        p.data.resize(size_t(p.width) * p.height * p.channels.size());
+        b.get_pixels(b.roi(), OIIO::TypeDesc::FLOAT, p.data.data());
+        return p;
+    }
+};
+
+/// Bitwise equality of pixel data (NaN-safe, -0 distinct from +0), with the first difference named.
+::testing::AssertionResult samePixels(const Pixels& a, const Pixels& b) {
+    if (a.channels != b.channels)
+        return ::testing::AssertionFailure() << "channels " << OIIO::Strutil::join(a.channels, ",")
+                                             << " vs " << OIIO::Strutil::join(b.channels, ",");
+    if (a.width != b.width || a.height != b.height || a.data.size() != b.data.size())
+        return ::testing::AssertionFailure() << "sizes differ";
+    for (size_t i = 0; i < a.data.size(); ++i)
+        if (std::memcmp(&a.data[i], &b.data[i], sizeof(float)) != 0)
+            return ::testing::AssertionFailure()
+                   << "value " << i << " (pixel " << i / a.channels.size() << ", channel "
+                   << a.channels[i % a.channels.size()] << "): " << a.data[i] << " vs "
+                   << b.data[i];
+    return ::testing::AssertionSuccess();
+}
+
+/// Value of channel `name` of pixel p; NaN (and a test failure) when the channel is missing.
+float value(const Pixels& img, size_t p, const std::string& name) {
+    for (size_t c = 0; c < img.channels.size(); ++c)
+        if (img.channels[c] == name) return img.data[p * img.channels.size() + c];
+    ADD_FAILURE() << "no channel " << name << " in " << OIIO::Strutil::join(img.channels, ",");
+    return NAN;
+}
+
+size_t countDifferent(const Pixels& a, const Pixels& b) {
+    size_t n = 0;
+    for (size_t i = 0; i < std::min(a.data.size(), b.data.size()); ++i)
+        n += std::memcmp(&a.data[i], &b.data[i], sizeof(float)) != 0;
+    return n;
+}
+
+// ---- pixels -------------------------------------------------------------------------------------
+
+TEST_F(Plugin, DefaultIsGmonBitIdenticalToMcstatWithAnyThreadCount) {
+    ASSERT_EQ(mcstat("--threads 1 " + quote(stats) + " --gmon -o " + quote(path("b.exr"))).code, 0);
+    const Pixels b = readExr(path("b.exr"));
+    ASSERT_TRUE(samePixels(b, library("gmon")));
+    for (const char* threads : {"1", "3", "0"}) {
+        SCOPED_TRACE(std::string("oiiotool --threads ") + threads);
+        const std::string a = path(std::string("a") + threads + ".exr");
+        const Result r = run(std::string("oiiotool --threads ") + threads + " " + quote(stats) +
+                             " -o " + quote(a));
+        ASSERT_EQ(r.code, 0) << r.err;
+        const Pixels pa = readExr(a);
+        EXPECT_EQ(pa.subimageName, "gmon");
+        EXPECT_TRUE(samePixels(pa, b));
+    }
+    // The robust image is not just the mean: the tiny scene at 16 spp has fireflies G-MoN trims.
+    EXPECT_GT(countDifferent(readExr(path("a1.exr")), library("mean")), 10u);
+}
+
+TEST_F(Plugin, AllSubimagesHoldWhatTheFileHolds) {
+    const std::string a = path("all.exr");
+    const Result r = run("oiiotool " + quote(stats) + " -o " + quote(a));
+    ASSERT_EQ(r.code, 0) << r.err;
+    ASSERT_EQ(subimageCount(a), 4);
+    const mcstat::StatsImage s = loadStats();
+    const size_t npix = s.pixelCount();
+
+    const Pixels mean = readExr(a, 1);
+    EXPECT_EQ(mean.subimageName, "mean");
+    EXPECT_EQ(mean.channels, (std::vector<std::string>{"R", "G", "B"}));
+    ASSERT_EQ(mean.data.size(), s.beauty.size());
+    EXPECT_EQ(std::memcmp(mean.data.data(), s.beauty.data(), s.beauty.size() * sizeof(float)), 0);
+
+    // Diagnostics: the estimator's own diag channels, plus the sample count. (OpenEXR stores
+    // channels sorted by name, so they are looked up by name.)
+    const Pixels diag = readExr(a, 2);
+    EXPECT_EQ(diag.subimageName, "diagnostics");
+    ASSERT_EQ(diag.channels.size(), 4u);
+    const Pixels lib = library("gmon", {}, true);
+    ASSERT_EQ(lib.channels, (std::vector<std::string>{"R", "G", "B", "gini", "kept", "excluded"}));
+    bool someTrimmed = false;
+    for (size_t p = 0; p < npix; ++p) {
+        for (int c = 3; c < 6; ++c)
+            ASSERT_EQ(value(diag, p, lib.channels[size_t(c)]), lib.data[p * 6 + size_t(c)]) << p;
+        ASSERT_EQ(value(diag, p, "count"), s.count[p]) << p;
+        const float kept = value(diag, p, "kept");
+        ASSERT_GE(kept, 1.f) << p;  // at least one buffer kept
+        ASSERT_LE(kept, 5.f) << p;
+        someTrimmed = someTrimmed || kept < 5.f;
+    }
+    EXPECT_TRUE(someTrimmed);
+
+    const Pixels feat = readExr(a, 3);
+    EXPECT_EQ(feat.subimageName, "features");
+    ASSERT_EQ(feat.channels.size(), 11u);
+    const char* xyz[] = {"X", "Y", "Z"};
+    const char* rgb[] = {"R", "G", "B"};
+    for (size_t p = 0; p < npix; ++p) {
+        for (size_t c = 0; c < 3; ++c) {
+            ASSERT_EQ(value(feat, p, std::string("N.") + xyz[c]), s.normal[p * 3 + c]);
+            ASSERT_EQ(value(feat, p, std::string("P.") + xyz[c]), s.position[p * 3 + c]);
+            ASSERT_EQ(value(feat, p, std::string("Albedo.") + rgb[c]), s.albedo[p * 3 + c]);
+        }
+        ASSERT_EQ(value(feat, p, "Z"), s.depth[p]);
+        ASSERT_EQ(value(feat, p, "A"), s.coverage[p]);
+    }
+}
+
+TEST_F(Plugin, EstimatorAndParametersThroughIconfig) {
+    ASSERT_EQ(mcstat(quote(stats) + " --mon:mode=channel -o " + quote(path("d.exr"))).code, 0);
+    const Result r = run("oiiotool --iconfig mcstat:estimator mon --iconfig mcstat:mode channel " +
+                         quote(stats) + " -o " + quote(path("c.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    const Pixels c = readExr(path("c.exr"));
+    EXPECT_EQ(c.subimageName, "mon");
+    EXPECT_TRUE(samePixels(c, readExr(path("d.exr"))));
+    EXPECT_GT(countDifferent(c, library("mon")), 0u);  // mode=channel took effect
+    EXPECT_GT(countDifferent(c, library("gmon")), 0u);
+
+    // A number: oiiotool stores "0.3" as a float attribute; the plugin reads it back as 0.3.
+    ASSERT_EQ(mcstat(quote(stats) + " --gmonb:threshold=0.3 -o " + quote(path("y.exr"))).code, 0);
+    const Result r2 =
+        run("oiiotool --iconfig mcstat:estimator gmonb --iconfig mcstat:threshold 0.3 " +
+            quote(stats) + " -o " + quote(path("x.exr")));
+    ASSERT_EQ(r2.code, 0) << r2.err;
+    EXPECT_TRUE(samePixels(readExr(path("x.exr")), readExr(path("y.exr"))));
+}
+
+TEST_F(Plugin, EstimatorAndParametersThroughTheFileName) {
+    ASSERT_EQ(mcstat(quote(stats) + " --mon:mode=channel -o " + quote(path("d.exr"))).code, 0);
+    Result r = run("oiiotool " + quote(stats + "?estimator=mon&mode=channel") + " -o " +
+                   quote(path("e.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(samePixels(readExr(path("e.exr")), readExr(path("d.exr"))));
+
+    ASSERT_EQ(mcstat(quote(stats) + " --tmpe:alpha=0.1 -o " + quote(path("t1.exr"))).code, 0);
+    r = run("oiiotool " + quote(stats + "?estimator=tmpe&alpha=0.1") + " -o " +
+            quote(path("t2.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(samePixels(readExr(path("t2.exr")), readExr(path("t1.exr"))));
+    // iconvert has no --iconfig: the file-name form is its way in.
+    r = run("iconvert " + quote(stats + "?estimator=tmpe&alpha=0.1") + " " + quote(path("t3.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(samePixels(readExr(path("t3.exr")), readExr(path("t1.exr"))));
+}
+
+TEST_F(Plugin, UnknownParameterOrEstimatorIsNamed) {
+    Result r = run("oiiotool --iconfig mcstat:m 3 " + quote(stats) + " -o " + quote(path("x.exr")));
+    EXPECT_NE(r.code, 0);
+    EXPECT_TRUE(contains(r.err, "has no parameter 'm'")) << r.err;
+    EXPECT_TRUE(contains(r.err, "accepted: mode")) << r.err;
+    EXPECT_FALSE(OIIO::Filesystem::exists(path("x.exr")));
+
+    r = run("iinfo " + quote(stats + "?estimator=foo"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_TRUE(contains(r.err, "unknown estimator 'foo'")) << r.err;
+    EXPECT_TRUE(contains(r.err, "mean, mon, gmon, gmonb")) << r.err;
+
+    r = run("iinfo " + quote(stats + "?estimator=gmonb&threshold=2"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_TRUE(contains(r.err, "threshold must be a number in [0, 1], not '2'")) << r.err;
+}
+
+TEST_F(Plugin, IdiffComparesTwoEstimators) {
+    // The same estimator twice: identical.
+    Result r = run("idiff " + quote(stats) + " " + quote(stats + "?estimator=gmon"));
+    EXPECT_EQ(r.code, 0) << r.out << r.err;
+    EXPECT_TRUE(contains(r.out, "PASS")) << r.out;
+
+    // MoN against the mean: idiff's maximum error is the library's.
+    const Pixels mon = library("mon"), mean = library("mean");
+    double maxErr = 0.0;
+    for (size_t i = 0; i < mon.data.size(); ++i)
+        maxErr = std::max(maxErr, std::abs(double(mon.data[i]) - double(mean.data[i])));
+    ASSERT_GT(maxErr, 0.1);
+    r = run("idiff " + quote(stats + "?estimator=mon") + " " + quote(stats + "?estimator=mean"));
+    EXPECT_EQ(r.code, 2) << r.out << r.err;  // idiff: 2 = FAILURE
+    EXPECT_TRUE(contains(r.out, "FAILURE")) << r.out;
+    const size_t at = r.out.find("Max error");
+    ASSERT_NE(at, std::string::npos) << r.out;
+    const double reported = std::atof(r.out.c_str() + r.out.find('=', at) + 1);
+    EXPECT_NEAR(reported, maxErr, 1e-5 * maxErr) << r.out;
+
+    // A generous threshold turns the same comparison into a pass.
+    r = run("idiff -fail 1000 -warn 1000 " + quote(stats + "?estimator=mon") + " " +
+            quote(stats + "?estimator=mean"));
+    EXPECT_EQ(r.code, 0) << r.out << r.err;
+}
+
+TEST_F(Plugin, IinfoListsSubimagesAndMetadata) {
+    const Result r = run("iinfo -v -a " + quote(stats));
+    ASSERT_EQ(r.code, 0) << r.err;
+    for (const char* s :
+         {"float mcstat", "4 subimages", "channel list: R, G, B",
+          "channel list: gini, kept, excluded, count",
+          "channel list: N.X, N.Y, N.Z, P.X, P.Y, P.Z, Albedo.R, Albedo.G, Albedo.B, Z, A",
+          "oiio:subimagename: \"gmon\"", "oiio:subimagename: \"mean\"",
+          "oiio:subimagename: \"diagnostics\"", "oiio:subimagename: \"features\"",
+          "mcstat:estimator: \"gmon\"", "mcstat:mode: \"lum\"", "mcstat:M: 5", "mcstat:spp: 16",
+          "mcstat:formatVersion: 1", "mcstat:assignment: \"roundrobin\"",
+          "mcstat:colorSpace: \"lin_rec709\"", "mcstat:renderer: \"mcstat-render", "mcstat:seeds:"})
+        EXPECT_TRUE(contains(r.out, s)) << "missing '" << s << "' in\n" << r.out;
+
+    const Result t = run("iinfo -v " + quote(stats + "?estimator=tmpe&alpha=0.1"));
+    ASSERT_EQ(t.code, 0) << t.err;
+    EXPECT_TRUE(contains(t.out, "mcstat:estimator: \"tmpe\"")) << t.out;
+    EXPECT_TRUE(contains(t.out, "mcstat:alpha: \"0.1\"")) << t.out;
+}
+
+TEST_F(Plugin, CorruptFileIsAnErrorNamingTheFile) {
+    const std::string bytes = slurp(stats);
+    // Cut short: the OpenEXR headers survive, the pixel data does not.
+    const std::string cut = path("cut.mcstat");
+    std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+    // Garbage with the right extension.
+    const std::string junk = path("junk.mcstat");
+    std::ofstream(junk, std::ios::binary) << "this is not an image";
+
+    Result r = run("oiiotool " + quote(cut) + " -o " + quote(path("x.exr")));
+    EXPECT_NE(r.code, 0);
+    EXPECT_TRUE(contains(r.err, "cut.mcstat")) << r.err;
+    EXPECT_FALSE(OIIO::Filesystem::exists(path("x.exr")));
+    // oiiotool reads with a configuration without its image cache: the plugin's message comes
+    // through whole.
+    r = run("oiiotool --iconfig mcstat:estimator gmon " + quote(cut) + " -o " +
+            quote(path("x.exr")));
+    EXPECT_NE(r.code, 0);
+    EXPECT_TRUE(contains(r.err, "cut.mcstat: truncated or corrupt")) << r.err;
+    r = run("idiff " + quote(cut) + " " + quote(stats));
+    EXPECT_NE(r.code, 0);
+    EXPECT_TRUE(contains(r.err, "cut.mcstat: truncated or corrupt")) << r.err;
+
+    r = run("oiiotool " + quote(junk) + " -o " + quote(path("x.exr")));
+    EXPECT_NE(r.code, 0);
+    EXPECT_TRUE(contains(r.err, "junk.mcstat: not an OpenEXR file")) << r.err;
+
+    // A valid OpenEXR file that fails mcstat's validation (a newer format version), made by
+    // OIIO's own EXR reader and writer.
+    r = run("oiiotool -a " + quote(stats) + " --attrib:type=int mcstat:formatVersion 2 -o " +
+                quote(path("v2.exr")),
+            false);
+    ASSERT_EQ(r.code, 0) << r.err;
+    ASSERT_TRUE(OIIO::Filesystem::rename(path("v2.exr"), path("v2.mcstat")));
+    r = run("oiiotool " + quote(path("v2.mcstat")) + " -o " + quote(path("x.exr")));
+    EXPECT_NE(r.code, 0);
+    EXPECT_TRUE(contains(r.err, "v2.mcstat")) << r.err;
+    r = run("idiff " + quote(path("v2.mcstat")) + " " + quote(stats));
+    EXPECT_NE(r.code, 0);
+    EXPECT_TRUE(contains(r.err, "written by a newer mcstat (format 2)")) << r.err;
+}
+
+TEST_F(Plugin, WithoutThePluginOpenExrShowsTheRawParts) {
+    const Result r = run("oiiotool --info -v -a " + quote(stats), false);
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(contains(r.out, "float openexr")) << r.out;
+    EXPECT_FALSE(contains(r.out, "float mcstat")) << r.out;
+    EXPECT_TRUE(contains(r.out, "4 subimages")) << r.out;
+    for (const char* part : {"beauty", "buffers", "moments", "features"})
+        EXPECT_TRUE(contains(r.out, std::string("oiio:subimagename: \"") + part + "\""))
+            << part << "\n"
+            << r.out;
+    EXPECT_TRUE(contains(r.out, "b004.count")) << r.out;  // M = 5 buffers
+}
+
+// ---- the ImageInput interface in process --------------------------------------------------------
+
+class PluginApi : public Plugin {
+  protected:
+    void SetUp() override {
+        Plugin::SetUp();
+        OIIO::attribute("plugin_searchpath", std::string(MCSTAT_PLUGIN_DIR));
+    }
+    /// The mcstat reader itself (create without open: OIIO picks it by extension and valid_file).
+    std::unique_ptr<OIIO::ImageInput> reader(const std::string& file) {
+        auto in = OIIO::ImageInput::create(file, false);
+        EXPECT_TRUE(in) << OIIO::geterror();
+        if (in) {
+            EXPECT_STREQ(in->format_name(), "mcstat");
+        }
+        return in;
+    }
+};
+
+TEST_F(PluginApi, ReadsChannelSubsetsAndRejectsBadRequests) {
+    auto in = reader(stats);
+    ASSERT_TRUE(in);
+    EXPECT_TRUE(in->valid_file(stats));
+    EXPECT_TRUE(in->valid_file(stats + "?estimator=mon"));
+    EXPECT_FALSE(in->valid_file(path("missing.mcstat")));
+    OIIO::ImageSpec spec;
+    ASSERT_TRUE(in->open(stats, spec)) << in->geterror();
+    EXPECT_EQ(spec.nchannels, 3);
+    EXPECT_EQ(spec.format, OIIO::TypeDesc::FLOAT);
+
+    // Channels Z and A of the features, two rows, against the file.
+    ASSERT_TRUE(in->seek_subimage(3, 0));
+    EXPECT_EQ(in->current_subimage(), 3);
+    const OIIO::ImageSpec fs = in->spec();
+    std::vector<float> za(size_t(fs.width) * 2 * 2);
+    ASSERT_TRUE(
+        in->read_scanlines(3, 0, fs.y + 1, fs.y + 3, 0, 9, 11, OIIO::TypeDesc::FLOAT, za.data()))
+        << in->geterror();
+    const mcstat::StatsImage s = loadStats();
+    for (int y = 0; y < 2; ++y)
+        for (int x = 0; x < fs.width; ++x) {
+            const size_t p = size_t(y + 1) * size_t(fs.width) + size_t(x);
+            const size_t q = (size_t(y) * size_t(fs.width) + size_t(x)) * 2;
+            ASSERT_EQ(za[q], s.depth[p]);
+            ASSERT_EQ(za[q + 1], s.coverage[p]);
+        }
+
+    EXPECT_FALSE(in->seek_subimage(4, 0));
+    EXPECT_FALSE(in->seek_subimage(0, 1));
+    std::vector<float> row(size_t(spec.width) * 3);
+    EXPECT_FALSE(in->read_native_scanline(0, 0, spec.y + spec.height, 0, row.data()));
+    EXPECT_TRUE(in->has_error());
+    EXPECT_TRUE(contains(in->geterror(), "outside subimage 0"));
+    EXPECT_FALSE(in->read_native_scanline(7, 0, spec.y, 0, row.data()));
+    EXPECT_TRUE(contains(in->geterror(), "no subimage 7"));
+    EXPECT_TRUE(in->close());
+    EXPECT_FALSE(in->seek_subimage(0, 0));  // closed
+}
+
+TEST_F(PluginApi, OpenReportsErrorsWithoutThrowing) {
+    const std::string bytes = slurp(stats);
+    const std::string cut = path("cut.mcstat");
+    std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() - 100);
+    auto in = reader(cut);
+    ASSERT_TRUE(in);
+    OIIO::ImageSpec spec;
+    EXPECT_FALSE(in->open(cut, spec));
+    EXPECT_TRUE(in->has_error());
+    const std::string err = in->geterror();
+    EXPECT_TRUE(contains(err, "cut.mcstat: truncated or corrupt")) << err;
+
+    // Parameters from the configuration; a bad one names itself.
+    auto in2 = reader(stats);
+    ASSERT_TRUE(in2);
+    OIIO::ImageSpec config;
+    config.attribute("mcstat:estimator", "myriad");
+    config.attribute("mcstat:gamma", -1.0f);
+    EXPECT_FALSE(in2->open(stats, spec, config));
+    EXPECT_TRUE(contains(in2->geterror(), "gamma must be a finite number > 0, not '-1'"));
+    config.attribute("mcstat:gamma", 0.1f);
+    config.attribute("mcstat:scale", "abs");
+    ASSERT_TRUE(in2->open(stats, spec, config)) << in2->geterror();
+    EXPECT_EQ(spec.get_string_attribute("mcstat:estimator"), "myriad");
+    EXPECT_EQ(spec.get_string_attribute("mcstat:gamma"), "0.1");
+    EXPECT_EQ(spec.get_string_attribute("mcstat:scale"), "abs");
+    EXPECT_EQ(spec.get_string_attribute("oiio:subimagename"), "myriad");
+    // The file name wins over the configuration.
+    ASSERT_TRUE(in2->open(stats + "?estimator=mon", spec, config) == false);
+    EXPECT_TRUE(contains(in2->geterror(), "estimator 'mon' has no parameter 'gamma'"));
+}
+
+}  // namespace
