@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
 # scripts/build.sh DIR [cmake options...]: configures DIR (quick when cached) and builds it
-# incrementally, Release unless an option says otherwise.
+# incrementally, Release unless an option says otherwise. $MCSTAT_TARGETS (space-separated) limits
+# the build to those targets.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 dir=$1; shift
 mkdir -p "$dir"
 cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=Release "$@" >"$dir/configure.log" 2>&1 ||
   { cat "$dir/configure.log" >&2; exit 1; }
-cmake --build "$dir" -j"$(nproc)"
+targets=()
+for t in ${MCSTAT_TARGETS:-}; do targets+=(--target "$t"); done
+cmake --build "$dir" -j"$(nproc)" "${targets[@]}"

@@ -11,7 +11,7 @@ REF_SPP=${MCSTAT_DEMO_REF_SPP:-65536} # reference: mean only, independent seed
 OUT=out/demo
 
 scripts/install-deps.sh
-scripts/build.sh build
+MCSTAT_TARGETS="mcstat mcstat-render" scripts/build.sh build
 render=build/render-fixture/mcstat-render
 mcstat=build/oiiotool-ext/mcstat
 mkdir -p "$OUT"
