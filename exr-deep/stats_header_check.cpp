@@ -114,11 +114,10 @@ class Checker {
     bool intAttr(int part, const char* name, int32_t& out) {
         const exr_attribute_t* a = attr(part, name);
         if (a == nullptr)
-            return fail(fmt::format("part '{}': missing attribute '{}' (int)",
-                                    layout::kPartNames[part], name));
+            return fail(fmt::format("part '{}': missing attribute '{}' (int)", names_[part], name));
         if (a->type != EXR_ATTR_INT)
             return fail(fmt::format("part '{}': attribute '{}' has type {}, expected int",
-                                    layout::kPartNames[part], name, a->type_name));
+                                    names_[part], name, a->type_name));
         out = a->i;
         return true;
     }
@@ -126,11 +125,11 @@ class Checker {
     bool stringAttr(int part, const char* name, std::string& out) {
         const exr_attribute_t* a = attr(part, name);
         if (a == nullptr)
-            return fail(fmt::format("part '{}': missing attribute '{}' (string)",
-                                    layout::kPartNames[part], name));
+            return fail(
+                fmt::format("part '{}': missing attribute '{}' (string)", names_[part], name));
         if (a->type != EXR_ATTR_STRING || a->string == nullptr)
             return fail(fmt::format("part '{}': attribute '{}' has type {}, expected string",
-                                    layout::kPartNames[part], name, a->type_name));
+                                    names_[part], name, a->type_name));
         out.assign(a->string->str != nullptr ? a->string->str : "", size_t(a->string->length));
         return true;
     }
@@ -140,6 +139,9 @@ class Checker {
     std::string err;
 
   private:
+    /// Whether part 0 declares adaptive M (version >= 2 and mcstat:adaptiveM = 1): decides the
+    /// expected part names before the attributes are checked in full.
+    bool declaresAdaptive() const;
     bool checkVersionFirst();
     bool checkParts();
     bool checkAttributes(StatsHeader& hdr);
@@ -148,7 +150,17 @@ class Checker {
     exr_const_context_t c_;
     std::string path_;
     int nparts_ = 0;
+    bool adaptive_ = false;
+    const char* const* names_ = layout::kPartNames;
 };
+
+bool Checker::declaresAdaptive() const {
+    if (nparts_ < 1) return false;
+    const exr_attribute_t* v = attr(0, layout::kAttrFormatVersion);
+    const exr_attribute_t* a = attr(0, layout::kAttrAdaptiveM);
+    return v != nullptr && v->type == EXR_ATTR_INT && v->i >= kStatsFormatVersionAdaptive &&
+           a != nullptr && a->type == EXR_ATTR_INT && a->i == 1;
+}
 
 // A newer writer may change anything after the version, so the version is looked at first.
 bool Checker::checkVersionFirst() {
@@ -169,46 +181,44 @@ bool Checker::checkParts() {
     if (n > 8) found += ", ...";
     for (int part = 0; part < n && part < layout::kPartCount; ++part) {
         const std::string name = partName(part);
-        if (name != layout::kPartNames[part]) {
+        if (name != names_[part]) {
             // A part of another name at this place: either misnamed or something missing before it.
             return fail(fmt::format("part {} is named '{}', expected '{}' (parts found: {})", part,
-                                    name, layout::kPartNames[part], found));
+                                    name, names_[part], found));
         }
     }
+    const std::string expected =
+        fmt::format("{}, {}, {}, {}", names_[0], names_[1], names_[2], names_[3]);
     if (n < layout::kPartCount)
-        return fail(
-            fmt::format("missing part '{}' (parts found: {}; expected beauty, buffers, "
-                        "moments, features)",
-                        layout::kPartNames[n], found));
+        return fail(fmt::format("missing part '{}' (parts found: {}; expected {})", names_[n],
+                                found, expected));
     if (n > layout::kPartCount)
-        return fail(
-            fmt::format("extra part '{}' at index {} (format 1 has exactly the 4 parts "
-                        "beauty, buffers, moments, features)",
-                        partName(layout::kPartCount), layout::kPartCount));
+        return fail(fmt::format("extra part '{}' at index {} (the file has exactly the 4 parts {})",
+                                partName(layout::kPartCount), layout::kPartCount, expected));
     exr_attr_box2i_t dw0{}, disp0{};
     for (int part = 0; part < n; ++part) {
         exr_storage_t storage = EXR_STORAGE_LAST_TYPE;
-        if (exr_get_storage(c_, part, &storage) != EXR_ERR_SUCCESS ||
-            storage != EXR_STORAGE_SCANLINE)
-            return fail(fmt::format("part '{}' is {}, expected a flat scanline image",
-                                    layout::kPartNames[part], storageName(storage)));
+        const bool deep = adaptive_ && part == layout::kBuffers;
+        const exr_storage_t want = deep ? EXR_STORAGE_DEEP_SCANLINE : EXR_STORAGE_SCANLINE;
+        if (exr_get_storage(c_, part, &storage) != EXR_ERR_SUCCESS || storage != want)
+            return fail(fmt::format("part '{}' is {}, expected {}", names_[part],
+                                    storageName(storage),
+                                    deep ? "a deep scanline image" : "a flat scanline image"));
         exr_attr_box2i_t dw{}, disp{};
         if (exr_get_data_window(c_, part, &dw) != EXR_ERR_SUCCESS ||
             exr_get_display_window(c_, part, &disp) != EXR_ERR_SUCCESS)
-            return fail(
-                fmt::format("part '{}' has no data or display window", layout::kPartNames[part]));
+            return fail(fmt::format("part '{}' has no data or display window", names_[part]));
         if (part == 0) {
             dw0 = dw;
             disp0 = disp;
         } else if (!sameBox(dw, dw0)) {
-            return fail(fmt::format(
-                "dimension mismatch: part '{}' has data window {}, part '{}' has {}",
-                layout::kPartNames[part], windowText(dw), layout::kPartNames[0], windowText(dw0)));
+            return fail(
+                fmt::format("dimension mismatch: part '{}' has data window {}, part '{}' has {}",
+                            names_[part], windowText(dw), names_[0], windowText(dw0)));
         } else if (!sameBox(disp, disp0)) {
             return fail(
                 fmt::format("dimension mismatch: part '{}' has display window {}, part '{}' has {}",
-                            layout::kPartNames[part], windowText(disp), layout::kPartNames[0],
-                            windowText(disp0)));
+                            names_[part], windowText(disp), names_[0], windowText(disp0)));
         }
     }
     return true;
@@ -217,9 +227,18 @@ bool Checker::checkParts() {
 bool Checker::checkAttributes(StatsHeader& hdr) {
     StatsHeader h0;
     for (int part = 0; part < layout::kPartCount; ++part) {
-        int32_t version = 0, M = 0, spp = 0;
+        int32_t version = 0, M = 0, spp = 0, adaptive = 0;
         StatsHeader h;
-        if (!intAttr(part, layout::kAttrFormatVersion, version) ||
+        if (!intAttr(part, layout::kAttrFormatVersion, version)) return false;
+        // Version 2 on: every part says whether M is adaptive (version 1 has no such attribute).
+        if (version >= kStatsFormatVersionAdaptive &&
+            !intAttr(part, layout::kAttrAdaptiveM, adaptive))
+            return false;
+        if (adaptive != 0 && adaptive != 1)
+            return fail(fmt::format("part '{}': {} = {}, expected 0 or 1", names_[part],
+                                    layout::kAttrAdaptiveM, adaptive));
+        h.adaptiveM = adaptive == 1;
+        if (!intAttr(part, layout::kAttrM, M) || !intAttr(part, layout::kAttrSpp, spp) ||
             !intAttr(part, layout::kAttrM, M) || !intAttr(part, layout::kAttrSpp, spp) ||
             !stringAttr(part, layout::kAttrAssignment, h.assignment) ||
             !stringAttr(part, layout::kAttrRenderer, h.renderer) ||
@@ -233,7 +252,7 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
             h0 = h;
             continue;
         }
-        const char* pn = layout::kPartNames[part];
+        const char* pn = names_[part];
         if (h.M != h0.M)
             return fail(fmt::format("M mismatch: part '{}' has {} = {}, part 'beauty' has {}", pn,
                                     layout::kAttrM, h.M, h0.M));
@@ -245,6 +264,9 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
         if (h.formatVersion != h0.formatVersion)
             return differs(layout::kAttrFormatVersion, std::to_string(h.formatVersion),
                            std::to_string(h0.formatVersion));
+        if (h.adaptiveM != h0.adaptiveM)
+            return differs(layout::kAttrAdaptiveM, h.adaptiveM ? "1" : "0",
+                           h0.adaptiveM ? "1" : "0");
         if (h.spp != h0.spp)
             return differs(layout::kAttrSpp, std::to_string(h.spp), std::to_string(h0.spp));
         if (h.assignment != h0.assignment)
@@ -255,19 +277,21 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
             return differs(layout::kAttrColorSpace, h.colorSpace, h0.colorSpace);
         if (h.seeds != h0.seeds) return differs(layout::kAttrSeeds, h.seeds, h0.seeds);
     }
-    if (h0.formatVersion != kStatsFormatVersion)
-        return fail(fmt::format("unsupported {} {} (this reader knows {})",
+    if (h0.formatVersion < 1 || h0.formatVersion > kStatsFormatVersion)
+        return fail(fmt::format("unsupported {} {} (this reader knows 1..{})",
                                 layout::kAttrFormatVersion, h0.formatVersion, kStatsFormatVersion));
+    if (h0.adaptiveM != adaptive_)  // part 0 decided the part names; cannot differ, but be sure
+        return fail(fmt::format("{} disagrees with the parts", layout::kAttrAdaptiveM));
     if (h0.spp < 0) return fail(fmt::format("negative {} {}", layout::kAttrSpp, h0.spp));
     if (h0.assignment != layout::kAssignmentRoundRobin)
-        return fail(fmt::format("unknown {} '{}' (format 1 knows '{}')", layout::kAttrAssignment,
+        return fail(fmt::format("unknown {} '{}' (this reader knows '{}')", layout::kAttrAssignment,
                                 h0.assignment, layout::kAssignmentRoundRobin));
     hdr = h0;
     return true;
 }
 
 bool Checker::checkChannels(int part, int M) {
-    const char* pn = layout::kPartNames[part];
+    const char* pn = names_[part];
     const exr_attr_chlist_t* chlist = nullptr;
     if (exr_get_channels(c_, part, &chlist) != EXR_ERR_SUCCESS || chlist == nullptr)
         return fail(fmt::format("part '{}' has no channel list", pn));
@@ -278,6 +302,26 @@ bool Checker::checkChannels(int part, int M) {
         const std::string name(e.name.str != nullptr ? e.name.str : "", size_t(e.name.length));
         inFile[name] = &e;
         if (isBufferCountChannel(name.c_str())) ++groups;
+    }
+    if (adaptive_ && part == layout::kBuffers) {
+        for (const char* name : layout::kDeepChannels) {
+            const auto it = inFile.find(name);
+            if (it == inFile.end())
+                return fail(fmt::format("part '{}': missing channel '{}'", pn, name));
+            const exr_attr_chlist_entry_t& e = *it->second;
+            if (e.pixel_type != EXR_PIXEL_FLOAT)
+                return fail(
+                    fmt::format("part '{}': channel '{}' has wrong type {} (expected FLOAT)", pn,
+                                name, pixelTypeName(e.pixel_type)));
+            if (e.x_sampling != 1 || e.y_sampling != 1)
+                return fail(fmt::format("part '{}': channel '{}' has sampling {}x{} (expected 1x1)",
+                                        pn, name, e.x_sampling, e.y_sampling));
+            inFile.erase(it);
+        }
+        if (!inFile.empty())
+            return fail(
+                fmt::format("part '{}': unexpected channel '{}'", pn, inFile.begin()->first));
+        return true;
     }
     if (part == layout::kBuffers && groups != M)
         return fail(fmt::format("part '{}' has {} buffer channel groups (bNNN.count) but {} = {}",
@@ -303,7 +347,10 @@ bool Checker::checkChannels(int part, int M) {
 
 bool Checker::run(const ReadLimits& limits, StatsHeader& hdr) {
     if (exr_get_count(c_, &nparts_) != EXR_ERR_SUCCESS) return fail("cannot count the parts");
-    if (!checkVersionFirst() || !checkParts() || !checkAttributes(hdr)) return false;
+    if (!checkVersionFirst()) return false;
+    adaptive_ = declaresAdaptive();
+    names_ = layout::partNames(adaptive_);
+    if (!checkParts() || !checkAttributes(hdr)) return false;
 
     const int maxM = std::min(limits.maxBuffers, kMaxBuffers);
     if (hdr.M < 1 || hdr.M > maxM)
@@ -319,12 +366,16 @@ bool Checker::run(const ReadLimits& limits, StatsHeader& hdr) {
     if (pixels > limits.maxPixels)
         return fail(fmt::format("image size {}x{} ({} pixels) exceeds the limit of {} pixels", w, h,
                                 pixels, limits.maxPixels));
-    const int64_t bytesPerPixel = int64_t(layout::floatsPerPixel(hdr.M) * sizeof(float));
+    // Adaptive M: the least a pixel needs (one buffer and its offset); the sample counts are
+    // checked against the limits once read, before the buffers are allocated.
+    const int64_t bytesPerPixel =
+        hdr.adaptiveM ? int64_t(layout::floatsPerPixel(1) * sizeof(float) + sizeof(uint64_t))
+                      : int64_t(layout::floatsPerPixel(hdr.M) * sizeof(float));
     if (pixels > limits.maxBytes / bytesPerPixel)
-        return fail(
-            fmt::format("image {}x{} with M = {} needs {} bytes, exceeding the limit of {} "
-                        "bytes",
-                        w, h, hdr.M, double(pixels) * double(bytesPerPixel), limits.maxBytes));
+        return fail(fmt::format(
+            "image {}x{} with {} = {} needs {}{} bytes, exceeding the limit of {} bytes", w, h,
+            hdr.adaptiveM ? "adaptive M, M_max" : "M", hdr.M, hdr.adaptiveM ? "at least " : "",
+            double(pixels) * double(bytesPerPixel), limits.maxBytes));
     for (int part = 0; part < layout::kPartCount; ++part)
         if (!checkChannels(part, hdr.M)) return false;
 

@@ -16,9 +16,14 @@ namespace {
 constexpr double kMaxCount = 16777216.0;  // 2^24
 
 bool checkHeader(const StatsHeader& h, std::string& problem) {
-    if (h.formatVersion != kStatsFormatVersion) {
-        problem = fmt::format("format version {} (this library writes and holds {})",
+    if (h.formatVersion < 1 || h.formatVersion > kStatsFormatVersion) {
+        problem = fmt::format("format version {} (this library writes and holds 1..{})",
                               h.formatVersion, kStatsFormatVersion);
+        return false;
+    }
+    if (h.adaptiveM && h.formatVersion < kStatsFormatVersionAdaptive) {
+        problem = fmt::format("adaptive M needs format version {} (header has {})",
+                              kStatsFormatVersionAdaptive, h.formatVersion);
         return false;
     }
     if (h.width <= 0 || h.height <= 0) {
@@ -58,27 +63,28 @@ const char* countProblem(float v) {
 
 }  // namespace
 
-bool StatsImage::allocate(std::string& err) {
-    std::string problem;
-    if (!checkHeader(header, problem)) {
-        err = "cannot allocate statistics image: " + problem;
-        return false;
-    }
-    const size_t maxFloats = std::numeric_limits<size_t>::max() / sizeof(float);
+namespace {
+
+/// Allocates the arrays of `img` (header set) for `buffers` sub-buffers in total; `offsets` moves
+/// into img.bufferOffset. On failure `img` is untouched.
+bool allocateArrays(StatsImage& img, size_t buffers, std::vector<uint64_t>&& offsets,
+                    std::string& err) {
+    const StatsHeader& header = img.header;
     const size_t pixels = size_t(header.width) * size_t(header.height);  // < 2^62
-    const size_t perPixel = layout::floatsPerPixel(header.M);
-    if (pixels > maxFloats / perPixel) {
-        err = fmt::format("cannot allocate statistics image: {}x{} pixels with M = {} overflows",
-                          header.width, header.height, header.M);
+    const size_t maxFloats = std::numeric_limits<size_t>::max() / sizeof(float);
+    const size_t perPixel = layout::floatsPerPixel(0);
+    if (pixels > maxFloats / perPixel || buffers > (maxFloats - pixels * perPixel) / 4) {
+        err =
+            fmt::format("cannot allocate statistics image: {}x{} pixels with {} buffers overflows",
+                        header.width, header.height, buffers);
         return false;
     }
-    const size_t m = size_t(header.M);
     try {
         StatsImage t;
         t.header = header;
         t.beauty.assign(pixels * 3, 0.f);
-        t.bufferMean.assign(pixels * m * 3, 0.f);
-        t.bufferCount.assign(pixels * m, 0.f);
+        t.bufferMean.assign(buffers * 3, 0.f);
+        t.bufferCount.assign(buffers, 0.f);
         t.count.assign(pixels, 0.f);
         t.mean.assign(pixels * 3, 0.f);
         t.variance.assign(pixels * 3, 0.f);
@@ -87,10 +93,120 @@ bool StatsImage::allocate(std::string& err) {
         t.albedo.assign(pixels * 3, 0.f);
         t.depth.assign(pixels, std::numeric_limits<float>::infinity());
         t.coverage.assign(pixels, 0.f);
-        *this = std::move(t);
+        t.bufferOffset = std::move(offsets);
+        img = std::move(t);
     } catch (const std::exception& e) {  // bad_alloc, length_error
         err = fmt::format("cannot allocate statistics image {}x{} with M = {}: {}", header.width,
                           header.height, header.M, e.what());
+        return false;
+    }
+    return true;
+}
+
+}  // namespace
+
+bool StatsImage::allocate(std::string& err) {
+    std::string problem;
+    if (!checkHeader(header, problem)) {
+        err = "cannot allocate statistics image: " + problem;
+        return false;
+    }
+    if (header.adaptiveM) {
+        err = "cannot allocate statistics image: adaptive M needs allocateAdaptive";
+        return false;
+    }
+    const size_t pixels = size_t(header.width) * size_t(header.height);  // < 2^62
+    if (pixels > std::numeric_limits<size_t>::max() / size_t(kMaxBuffers)) {
+        err = fmt::format("cannot allocate statistics image: {}x{} pixels with M = {} overflows",
+                          header.width, header.height, header.M);
+        return false;
+    }
+    return allocateArrays(*this, pixels * size_t(header.M), {}, err);
+}
+
+bool StatsImage::allocateAdaptive(const std::vector<uint32_t>& buffersPerPixel, std::string& err) {
+    StatsHeader h = header;
+    h.adaptiveM = true;
+    std::string problem;
+    if (!checkHeader(h, problem)) {
+        err = "cannot allocate statistics image: " + problem;
+        return false;
+    }
+    const size_t pixels = size_t(h.width) * size_t(h.height);
+    if (buffersPerPixel.size() != pixels) {
+        err = fmt::format("cannot allocate statistics image: {} buffer counts given for {} pixels",
+                          buffersPerPixel.size(), pixels);
+        return false;
+    }
+    std::vector<uint64_t> offsets;
+    try {
+        offsets.resize(pixels + 1);
+    } catch (const std::exception& e) {
+        err =
+            fmt::format("cannot allocate statistics image {}x{}: {}", h.width, h.height, e.what());
+        return false;
+    }
+    uint64_t total = 0;
+    for (size_t p = 0; p < pixels; ++p) {
+        const uint32_t m = buffersPerPixel[p];
+        if (m < 1 || m > uint32_t(h.M)) {
+            err = fmt::format(
+                "cannot allocate statistics image: pixel ({}, {}) has {} buffers, outside 1..{}",
+                h.originX + int64_t(p % size_t(h.width)), h.originY + int64_t(p / size_t(h.width)),
+                m, h.M);
+            return false;
+        }
+        offsets[p] = total;
+        total += m;  // <= pixels * 999, no overflow
+    }
+    offsets[pixels] = total;
+    StatsImage t;
+    t.header = h;
+    if (!allocateArrays(t, size_t(total), std::move(offsets), err)) return false;
+    *this = std::move(t);
+    return true;
+}
+
+bool StatsImage::checkBufferLayout(std::string& why) const {
+    const StatsHeader& h = header;
+    if (h.width <= 0 || h.height <= 0 || h.M < 1 || h.M > kMaxBuffers) {
+        why = fmt::format("invalid size {}x{} or M = {}", h.width, h.height, h.M);
+        return false;
+    }
+    const size_t pixels = pixelCount();
+    size_t buffers = 0;
+    if (!h.adaptiveM) {
+        if (!bufferOffset.empty()) {
+            why = fmt::format("fixed M but {} buffer offsets", bufferOffset.size());
+            return false;
+        }
+        if (pixels > std::numeric_limits<size_t>::max() / size_t(kMaxBuffers)) {
+            why = "size overflows";
+            return false;
+        }
+        buffers = pixels * size_t(h.M);
+    } else {
+        if (bufferOffset.size() != pixels + 1 || bufferOffset[0] != 0) {
+            why = fmt::format("adaptive M needs {} buffer offsets starting at 0, has {}",
+                              pixels + 1, bufferOffset.size());
+            return false;
+        }
+        for (size_t p = 0; p < pixels; ++p) {
+            const uint64_t a = bufferOffset[p], b = bufferOffset[p + 1];
+            if (b <= a || b - a > uint64_t(h.M)) {
+                why = fmt::format("pixel ({}, {}) has {} sub-buffers, outside 1..{}",
+                                  h.originX + int64_t(p % size_t(h.width)),
+                                  h.originY + int64_t(p / size_t(h.width)),
+                                  b >= a ? int64_t(b - a) : -int64_t(a - b), h.M);
+                return false;
+            }
+        }
+        buffers = size_t(bufferOffset[pixels]);
+    }
+    if (bufferCount.size() != buffers || buffers > bufferMean.max_size() / 3 ||
+        bufferMean.size() != buffers * 3) {
+        why = fmt::format("sub-buffer arrays hold {} means and {} counts, expected {} buffers",
+                          bufferMean.size(), bufferCount.size(), buffers);
         return false;
     }
     return true;
@@ -104,9 +220,8 @@ bool validateStats(const StatsImage& img, const std::string& what, std::string& 
         return false;
     }
     const size_t pixels = img.pixelCount();
-    const size_t m = size_t(h.M);
     for (int part = 0; part < layout::kPartCount; ++part) {
-        for (const layout::ChannelPlace& c : layout::partChannels(part, h.M)) {
+        for (const layout::ChannelPlace& c : layout::partChannels(part, h.M, h.adaptiveM)) {
             if (c.offset != 0) continue;  // one check per array
             const std::vector<float>& a = layout::arrayOf(img, c.array);
             if (pixels > a.max_size() / c.stride || a.size() != pixels * c.stride) {
@@ -117,14 +232,19 @@ bool validateStats(const StatsImage& img, const std::string& what, std::string& 
             }
         }
     }
+    if (std::string why; !img.checkBufferLayout(why)) {
+        err = what + ": " + why;
+        return false;
+    }
     for (size_t p = 0; p < pixels; ++p) {
         const auto where = [&] {
             return fmt::format("pixel ({}, {})", h.originX + int64_t(p % size_t(h.width)),
                                h.originY + int64_t(p / size_t(h.width)));
         };
         double sum = 0.0;
+        const size_t k0 = img.bufferBegin(p), m = size_t(img.buffersOf(p));
         for (size_t j = 0; j < m; ++j) {
-            const float c = img.bufferCount[p * m + j];
+            const float c = img.bufferCount[k0 + j];
             if (const char* why = countProblem(c)) {
                 err = fmt::format("{}: {}: buffer {} count {} ({})", what, where(), j, why, c);
                 return false;

@@ -8,7 +8,8 @@ std::string bufferChannel(int j, const char* component) {
     return fmt::format("b{:03d}.{}", j, component);
 }
 
-std::vector<ChannelPlace> partChannels(int part, int M) {
+std::vector<ChannelPlace> partChannels(int part, int M, bool adaptiveM) {
+    if (adaptiveM && part == kBuffers) return {};
     const size_t m = size_t(M);
     switch (part) {
         case kBeauty:

@@ -1,4 +1,4 @@
-// Internal: names of the parts, channels and attributes of the statistics file v1 (FORMAT.md), and
+// Internal: names of the parts, channels and attributes of the statistics file (FORMAT.md), and
 // where each channel lives in a StatsImage. Shared by the writer and the reader so they cannot
 // drift.
 #pragma once
@@ -15,6 +15,18 @@ inline constexpr int kPartCount = 4;
 inline constexpr int kBeauty = 0, kBuffers = 1, kMoments = 2, kFeatures = 3;
 /// Part names in file order.
 inline constexpr const char* kPartNames[kPartCount] = {"beauty", "buffers", "moments", "features"};
+/// Part names in file order of an adaptive-M file (version 2): part 1 is the deep part "vbuffers".
+inline constexpr const char* kPartNamesAdaptive[kPartCount] = {"beauty", "vbuffers", "moments",
+                                                               "features"};
+/// The part names for fixed or adaptive M.
+inline const char* const* partNames(bool adaptiveM) {
+    return adaptiveM ? kPartNamesAdaptive : kPartNames;
+}
+
+/// Channels of the deep part "vbuffers", one deep sample per sub-buffer: the buffer's mean and
+/// count, and Z = buffer index j, A = 1 for generic deep tools (readers ignore Z and A).
+inline constexpr int kDeepChannelCount = 6;
+inline constexpr const char* kDeepChannels[kDeepChannelCount] = {"R", "G", "B", "count", "Z", "A"};
 
 // Attributes present on every part.
 inline constexpr const char* kAttrFormatVersion = "mcstat:formatVersion";  // int
@@ -24,6 +36,8 @@ inline constexpr const char* kAttrAssignment = "mcstat:assignment";        // st
 inline constexpr const char* kAttrRenderer = "mcstat:renderer";            // string
 inline constexpr const char* kAttrColorSpace = "mcstat:colorSpace";        // string
 inline constexpr const char* kAttrSeeds = "mcstat:seeds";                  // string
+/// Version 2 on: int 0 (fixed M, part "buffers") or 1 (adaptive M, part "vbuffers").
+inline constexpr const char* kAttrAdaptiveM = "mcstat:adaptiveM";
 /// OpenEXR's part version attribute (int, 1): the Core API wants it on every part once deep parts
 /// exist.
 inline constexpr const char* kAttrPartVersion = "version";
@@ -58,10 +72,12 @@ struct ChannelPlace {
 /// Channel name of buffer j's component, e.g. bufferChannel(7, "R") == "b007.R".
 std::string bufferChannel(int j, const char* component);
 
-/// Every channel of part `part` for a file with M sub-buffers, in a fixed order.
-std::vector<ChannelPlace> partChannels(int part, int M);
+/// Every channel of part `part` for a file with M sub-buffers, in a fixed order. For the deep part
+/// "vbuffers" use kDeepChannels (its flat channel list is empty).
+std::vector<ChannelPlace> partChannels(int part, int M, bool adaptiveM = false);
 
-/// Number of floats per pixel over all parts (3 + 4M + 7 + 11).
+/// Number of floats per pixel over all parts (3 + 4M + 7 + 11). For adaptive M, the floats of
+/// the flat parts plus 4 per buffer is floatsPerPixel(0) + 4 * sum(m_p) / pixels.
 size_t floatsPerPixel(int M);
 
 /// The array of `img` a channel refers to.

@@ -3,6 +3,7 @@
 // once when stored.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <set>
@@ -52,7 +53,11 @@ bool checkCompatible(const StatsHeader& a, const StatsHeader& b, std::string& er
     if (a.originX != b.originX || a.originY != b.originY)
         return fail(fmt::format("data window origins differ (({},{}) vs ({},{}))", a.originX,
                                 a.originY, b.originX, b.originY));
-    if (a.M != b.M) return fail(fmt::format("M differs ({} vs {})", a.M, b.M));
+    if (a.adaptiveM != b.adaptiveM)
+        return fail(fmt::format("one input has adaptive M, the other M = {} in every pixel",
+                                a.adaptiveM ? b.M : a.M));
+    if (a.M != b.M)
+        return fail(fmt::format("{} differs ({} vs {})", a.adaptiveM ? "M_max" : "M", a.M, b.M));
     if (a.assignment != b.assignment)
         return fail(fmt::format("assignments differ ('{}' vs '{}')", a.assignment, b.assignment));
     if (a.colorSpace != b.colorSpace)
@@ -87,14 +92,35 @@ bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::
         r.header.seeds = a.header.seeds + "," + b.header.seeds;
     if (a.header.renderer != b.header.renderer)
         r.header.renderer = a.header.renderer + " + " + b.header.renderer;
-    if (!r.allocate(err)) return false;
-
+    r.header.formatVersion = std::max(a.header.formatVersion, b.header.formatVersion);
     const size_t pixels = r.pixelCount();
-    const size_t m = size_t(r.header.M);
+    if (r.header.adaptiveM) {
+        // Buffer j of a pixel holds the samples i = j mod m_p of each input; with different m_p the
+        // buffers hold different sample sets and cannot be combined without the samples.
+        std::vector<uint32_t> m(pixels);
+        for (size_t p = 0; p < pixels; ++p) {
+            if (a.buffersOf(p) != b.buffersOf(p)) {
+                err = fmt::format(
+                    "cannot merge: adaptive M differs at pixel ({}, {}): {} vs {} sub-buffers "
+                    "(adaptive renders merge only with the same buffer count per pixel, e.g. "
+                    "the same --pilot-seed, --pilot and --m-max)",
+                    r.header.originX + int64_t(p % size_t(r.header.width)),
+                    r.header.originY + int64_t(p / size_t(r.header.width)), a.buffersOf(p),
+                    b.buffersOf(p));
+                return false;
+            }
+            m[p] = uint32_t(a.buffersOf(p));
+        }
+        if (!r.allocateAdaptive(m, err)) return false;
+    } else if (!r.allocate(err)) {
+        return false;
+    }
+
     for (size_t p = 0; p < pixels; ++p) {
         // Sub-buffers: count-weighted means, counts add.
+        const size_t k0 = r.bufferBegin(p), m = size_t(r.buffersOf(p));
         for (size_t j = 0; j < m; ++j) {
-            const size_t k = p * m + j;
+            const size_t k = k0 + j;
             const double na = a.bufferCount[k], nb = b.bufferCount[k];
             for (size_t c = 0; c < 3; ++c)
                 r.bufferMean[k * 3 + c] =

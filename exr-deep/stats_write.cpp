@@ -1,6 +1,9 @@
-// writeStatsFile: validate, write the four parts to a temporary file in the target's directory,
-// rename it onto the target. On failure the temporary file is removed and the target is untouched.
+// writeStatsFile: validate, write the four parts (part 1 deep with adaptive M) to a temporary file
+// in the target's directory, rename it onto the target. On failure the temporary file is removed
+// and the target is untouched.
 #include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfDeepFrameBuffer.h>
+#include <OpenEXR/ImfDeepScanLineOutputPart.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfIntAttribute.h>
@@ -35,13 +38,17 @@ std::vector<Imf::Header> makeHeaders(const StatsHeader& h) {
     const Imath::Box2i window = dataWindowOf(h);
     std::vector<Imf::Header> headers;
     for (int part = 0; part < layout::kPartCount; ++part) {
+        const bool deep = h.adaptiveM && part == layout::kBuffers;
+        // Deep parts cannot use ZIP (16 lines); ZIPS (one line) is the deflate they allow.
         Imf::Header hdr(window, window, 1.f, Imath::V2f(0.f, 0.f), 1.f, Imf::INCREASING_Y,
-                        Imf::ZIP_COMPRESSION);
+                        deep ? Imf::ZIPS_COMPRESSION : Imf::ZIP_COMPRESSION);
         hdr.zipCompressionLevel() = 4;  // fixed, so equal images give equal bytes
-        hdr.setName(layout::kPartNames[part]);
-        hdr.setType(Imf::SCANLINEIMAGE);
+        hdr.setName(layout::partNames(h.adaptiveM)[part]);
+        hdr.setType(deep ? Imf::DEEPSCANLINE : Imf::SCANLINEIMAGE);
         hdr.insert(layout::kAttrPartVersion, Imf::IntAttribute(1));
         hdr.insert(layout::kAttrFormatVersion, Imf::IntAttribute(h.formatVersion));
+        if (h.formatVersion >= kStatsFormatVersionAdaptive)
+            hdr.insert(layout::kAttrAdaptiveM, Imf::IntAttribute(h.adaptiveM ? 1 : 0));
         hdr.insert(layout::kAttrM, Imf::IntAttribute(h.M));
         hdr.insert(layout::kAttrSpp, Imf::IntAttribute(int(h.spp)));
         hdr.insert(layout::kAttrAssignment, Imf::StringAttribute(h.assignment));
@@ -49,8 +56,11 @@ std::vector<Imf::Header> makeHeaders(const StatsHeader& h) {
         hdr.insert(layout::kAttrColorSpace, Imf::StringAttribute(h.colorSpace));
         hdr.insert(layout::kAttrSeeds, Imf::StringAttribute(h.seeds));
         if (part == layout::kBeauty) Imf::addChromaticities(hdr, Imf::Chromaticities());  // Rec.709
-        for (const layout::ChannelPlace& c : layout::partChannels(part, h.M))
+        for (const layout::ChannelPlace& c : layout::partChannels(part, h.M, h.adaptiveM))
             hdr.channels().insert(c.name, Imf::Channel(Imf::FLOAT));
+        if (deep)
+            for (const char* name : layout::kDeepChannels)
+                hdr.channels().insert(name, Imf::Channel(Imf::FLOAT));
         headers.push_back(std::move(hdr));
     }
     return headers;
@@ -70,6 +80,48 @@ std::string dirOf(const std::string& path) {
     return slash == 0 ? "/" : path.substr(0, slash);
 }
 
+/// `base` shifted so that element (x, y) of the data window is at base + (y*width + x) * stride,
+/// as OpenEXR's slices address it (integer arithmetic: no out-of-range pointer is formed).
+template <class T>
+char* windowBase(T* data, const StatsHeader& h, size_t xStride) {
+    const intptr_t shift =
+        (intptr_t(h.originY) * intptr_t(h.width) + intptr_t(h.originX)) * intptr_t(xStride);
+    return reinterpret_cast<char*>(reinterpret_cast<intptr_t>(data) - shift);
+}
+
+/// Adaptive M: part "vbuffers", one deep sample per sub-buffer (R, G, B, count; Z = buffer index,
+/// A = 1).
+void writeDeepBuffers(Imf::MultiPartOutputFile& out, const StatsImage& img) {
+    const StatsHeader& h = img.header;
+    const size_t pixels = img.pixelCount();
+    // Z and A are the same for every pixel: j and 1 for sample j, so all pixels point at one row.
+    std::vector<float> zs(size_t(h.M)), ones(size_t(h.M), 1.f);
+    for (size_t j = 0; j < zs.size(); ++j) zs[j] = float(j);
+    std::vector<uint32_t> m(pixels);
+    std::vector<const char*> ptr[6];
+    for (auto& v : ptr) v.resize(pixels);
+    for (size_t p = 0; p < pixels; ++p) {
+        const size_t k = img.bufferBegin(p);
+        m[p] = uint32_t(img.buffersOf(p));
+        for (size_t c = 0; c < 3; ++c)
+            ptr[c][p] = reinterpret_cast<const char*>(img.bufferMean.data() + k * 3 + c);
+        ptr[3][p] = reinterpret_cast<const char*>(img.bufferCount.data() + k);
+        ptr[4][p] = reinterpret_cast<const char*>(zs.data());
+        ptr[5][p] = reinterpret_cast<const char*>(ones.data());
+    }
+    Imf::DeepFrameBuffer fb;
+    const size_t xs = sizeof(char*), ys = xs * size_t(h.width);
+    fb.insertSampleCountSlice(Imf::Slice(Imf::UINT, windowBase(m.data(), h, sizeof(uint32_t)),
+                                         sizeof(uint32_t), sizeof(uint32_t) * size_t(h.width)));
+    for (size_t c = 0; c < 6; ++c)
+        fb.insert(layout::kDeepChannels[c],
+                  Imf::DeepSlice(Imf::FLOAT, windowBase(ptr[c].data(), h, xs), xs, ys,
+                                 c < 3 ? 3 * sizeof(float) : sizeof(float)));
+    Imf::DeepScanLineOutputPart op(out, layout::kBuffers);
+    op.setFrameBuffer(fb);
+    op.writePixels(h.height);
+}
+
 /// Writes every part to `os`; throws on failure.
 void writeParts(Imf::OStream& os, const StatsImage& img) {
     const StatsHeader& h = img.header;
@@ -77,8 +129,12 @@ void writeParts(Imf::OStream& os, const StatsImage& img) {
     const Imath::Box2i window = dataWindowOf(h);
     Imf::MultiPartOutputFile out(os, headers.data(), int(headers.size()));
     for (int part = 0; part < layout::kPartCount; ++part) {
+        if (h.adaptiveM && part == layout::kBuffers) {
+            writeDeepBuffers(out, img);
+            continue;
+        }
         Imf::FrameBuffer fb;
-        for (const layout::ChannelPlace& c : layout::partChannels(part, h.M)) {
+        for (const layout::ChannelPlace& c : layout::partChannels(part, h.M, h.adaptiveM)) {
             const float* base = layout::arrayOf(img, c.array).data() + c.offset;
             const size_t xStride = c.stride * sizeof(float);
             fb.insert(c.name, Imf::Slice::Make(Imf::FLOAT, base, window, xStride,

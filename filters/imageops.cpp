@@ -39,9 +39,10 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
     const ROI full = dataWindow(h);
     if (!roi.defined()) roi = full;
     roi = OIIO::roi_intersection(roi, full);
-    if (src.bufferMean.size() != src.pixelCount() * size_t(h.M) * 3 ||
-        src.bufferCount.size() != src.pixelCount() * size_t(h.M)) {
-        dst.errorfmt("estimate {}: statistics image has inconsistent buffer arrays", est.name);
+    // Fixed or adaptive M: consistent sub-buffer arrays make pixelBuffers(p) safe.
+    if (std::string why; !src.checkBufferLayout(why)) {
+        dst.errorfmt("estimate {}: statistics image has inconsistent buffer arrays ({})", est.name,
+                     why);
         return false;
     }
     const std::vector<std::string> names = outputChannels(params.mode, diagnostics);
@@ -66,9 +67,7 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
         for (int y = r.ybegin; y < r.yend; ++y)
             for (int x = r.xbegin; x < r.xend; ++x) {
                 const size_t p = size_t(y - h.originY) * size_t(h.width) + size_t(x - h.originX);
-                PixelBuffers buf{&src.bufferMean[p * size_t(h.M) * 3],
-                                 &src.bufferCount[p * size_t(h.M)], h.M};
-                est.fn(buf, params, e, scratch);
+                est.fn(src.pixelBuffers(p), params, e, scratch);
                 float* px =
                     base +
                     (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
@@ -97,6 +96,118 @@ ImageBuf estimate(const StatsImage& src, const EstimatorInfo& est, const Estimat
                   bool diagnostics, ROI roi, int nthreads) {
     ImageBuf dst;
     estimate(dst, src, est, params, diagnostics, roi, nthreads);
+    return dst;
+}
+
+namespace {
+
+/// Float RGB destination for `roi` with the full (display) window of `fullSpec`.
+ImageSpec rgbSpec(ROI roi, ROI full, const std::string& colorSpace) {
+    ImageSpec spec(roi.width(), roi.height(), 3, TypeDesc::FLOAT);
+    spec.x = roi.xbegin;
+    spec.y = roi.ybegin;
+    spec.full_x = full.xbegin;
+    spec.full_y = full.ybegin;
+    spec.full_width = full.width();
+    spec.full_height = full.height();
+    spec.attribute("oiio:ColorSpace", colorSpace);
+    return spec;
+}
+
+}  // namespace
+
+bool medianImageFilter(ImageBuf& dst, const ImageBuf& src, const SpatialParams& params, ROI roi,
+                       int nthreads) {
+    std::string err;
+    if (!validateSpatialParams(params, err)) {
+        dst.errorfmt("median image filter: {}", err);
+        return false;
+    }
+    if (src.nchannels() < 3) {
+        dst.errorfmt("median image filter needs R, G, B channels; the image has {}",
+                     src.nchannels());
+        return false;
+    }
+    const ROI full = src.roi();  // the data window: what the filter window is clipped to
+    if (!roi.defined()) roi = full;
+    roi = OIIO::roi_intersection(roi, full);
+    std::vector<float> in(size_t(full.width()) * size_t(full.height()) * 3);
+    if (!src.get_pixels(ROI(full.xbegin, full.xend, full.ybegin, full.yend, 0, 1, 0, 3),
+                        TypeDesc::FLOAT, in.data())) {
+        dst.errorfmt("median image filter: {}", src.geterror());
+        return false;
+    }
+    std::string colorSpace = src.spec().get_string_attribute("oiio:ColorSpace", "lin_rec709");
+    dst.reset(rgbSpec(roi, src.roi_full(), colorSpace), OIIO::InitializePixels::No);
+    float* const base = static_cast<float*>(dst.localpixels());
+    const RGBImageView view{in.data(), full.width(), full.height()};
+    OIIO::ImageBufAlgo::parallel_image(roi, nthreads, [&](ROI r) {
+        SpatialScratch scratch;
+        PixelEstimate e;
+        for (int y = r.ybegin; y < r.yend; ++y)
+            for (int x = r.xbegin; x < r.xend; ++x) {
+                wmifPixel(view, x - full.xbegin, y - full.ybegin, params, e, scratch);
+                float* px =
+                    base +
+                    (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * 3;
+                px[0] = e.rgb[0];
+                px[1] = e.rgb[1];
+                px[2] = e.rgb[2];
+            }
+    });
+    return true;
+}
+
+ImageBuf medianImageFilter(const ImageBuf& src, const SpatialParams& params, ROI roi,
+                           int nthreads) {
+    ImageBuf dst;
+    medianImageFilter(dst, src, params, roi, nthreads);
+    return dst;
+}
+
+bool filter3D(ImageBuf& dst, const StatsImage& src, const SpatialParams& params, ROI roi,
+              int nthreads) {
+    const StatsHeader& h = src.header;
+    std::string err;
+    if (!validateSpatialParams(params, err)) {
+        dst.errorfmt("3D filter: {}", err);
+        return false;
+    }
+    // Fixed or adaptive M: the view hands each pixel's own buffers (StatsImage::pixelBuffers).
+    if (std::string why; !src.checkBufferLayout(why)) {
+        dst.errorfmt("3D filter: statistics image has inconsistent buffer arrays ({})", why);
+        return false;
+    }
+    const ROI full = dataWindow(h);
+    if (!roi.defined()) roi = full;
+    roi = OIIO::roi_intersection(roi, full);
+    dst.reset(rgbSpec(roi, full, h.colorSpace), OIIO::InitializePixels::No);
+    float* const base = static_cast<float*>(dst.localpixels());
+    const BufferView view{
+        h.width, h.height, &src, [](const void* ctx, int x, int y) {
+            const auto* img = static_cast<const StatsImage*>(ctx);
+            return img->pixelBuffers(size_t(y) * size_t(img->header.width) + size_t(x));
+        }};
+    OIIO::ImageBufAlgo::parallel_image(roi, nthreads, [&](ROI r) {
+        SpatialScratch scratch;
+        PixelEstimate e;
+        for (int y = r.ybegin; y < r.yend; ++y)
+            for (int x = r.xbegin; x < r.xend; ++x) {
+                filter3DPixel(view, x - h.originX, y - h.originY, params, e, scratch);
+                float* px =
+                    base +
+                    (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * 3;
+                px[0] = e.rgb[0];
+                px[1] = e.rgb[1];
+                px[2] = e.rgb[2];
+            }
+    });
+    return true;
+}
+
+ImageBuf filter3D(const StatsImage& src, const SpatialParams& params, ROI roi, int nthreads) {
+    ImageBuf dst;
+    filter3D(dst, src, params, roi, nthreads);
     return dst;
 }
 

@@ -80,6 +80,9 @@ DiffMetrics compareImages(const float* lin, const float* ref, const float* disp,
     const size_t n = size_t(width) * size_t(height);
     std::unique_ptr<bool[]> mask(new bool[n]);
     double rel = 0.0, se = 0.0;
+    // Jung eq. 5.25 per pixel on luminance, kept for the two passes of eq. 5.26-5.27.
+    std::vector<double> normErr;
+    normErr.reserve(n);
     for (size_t p = 0; p < n; ++p) {
         bool ok = true;
         for (int c = 0; c < 3; ++c)
@@ -101,14 +104,26 @@ DiffMetrics compareImages(const float* lin, const float* ref, const float* disp,
             yr += opt.luma[c] * r;
         }
         if (y > opt.fireflyRatio * yr && y - yr > opt.fireflyFloor) ++m.fireflies;
+        if (std::abs(yr) < opt.normEpsilon) ++m.normFloored;
+        normErr.push_back((y - yr) / std::max(std::abs(yr), opt.normEpsilon));  // eq. 5.25
     }
     if (m.pixels == 0) {
         m.relMSE = std::numeric_limits<double>::quiet_NaN();
         m.psnr = std::numeric_limits<double>::quiet_NaN();
         m.ssim = std::numeric_limits<double>::quiet_NaN();
+        m.normBias = std::numeric_limits<double>::quiet_NaN();
+        m.normNoise = std::numeric_limits<double>::quiet_NaN();
         return m;
     }
     m.relMSE = rel / double(3 * m.pixels);
+    // Eq. 5.26 (bias: mean of E') and eq. 5.27 (noise: mean squared deviation of E' from the bias,
+    // 1/N), two passes so the variance has no cancellation.
+    double sumE = 0.0;
+    for (double e : normErr) sumE += e;
+    m.normBias = sumE / double(m.pixels);
+    double sumD = 0.0;
+    for (double e : normErr) sumD += (e - m.normBias) * (e - m.normBias);
+    m.normNoise = sumD / double(m.pixels);
     const double mse = se / double(3 * m.pixels);
     m.psnr = mse > 0.0 ? 10.0 * std::log10(1.0 / mse) : std::numeric_limits<double>::infinity();
     double s = 0.0;

@@ -227,6 +227,7 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
         s.attribute("oiio:subimages", int(kSubimageCount));
         s.attribute("mcstat:formatVersion", h.formatVersion);
         s.attribute("mcstat:M", h.M);
+        if (h.adaptiveM) s.attribute("mcstat:adaptiveM", 1);
         s.attribute("mcstat:spp", int(std::min<int64_t>(h.spp, INT32_MAX)));
         s.attribute("mcstat:assignment", h.assignment);
         s.attribute("mcstat:renderer", h.renderer);
@@ -249,10 +250,12 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     r.spec.attribute("oiio:ColorSpace", h.colorSpace);
     describeEstimator(r.spec);
     r.pixels.resize(npix * 3);
-    // 2: diagnostics: the estimator's gini/kept/excluded channels plus the sample count.
+    // 2: diagnostics: the estimator's gini/kept/excluded channels plus the sample count, and with
+    // adaptive M the map of buffer counts m_p ("M").
     std::vector<std::string> diagNames(robust.spec().channelnames.begin() + 3,
                                        robust.spec().channelnames.end());
     diagNames.push_back("count");
+    if (h.adaptiveM) diagNames.push_back("M");
     Sub& d = m_subs[kDiagnostics];
     d.spec = makeSpec(diagNames, "diagnostics");
     describeEstimator(d.spec);
@@ -262,7 +265,8 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
         const float* src = estPix + p * size_t(estCh);
         std::copy(src, src + 3, &r.pixels[p * 3]);
         std::copy(src + 3, src + estCh, &d.pixels[p * dch]);
-        d.pixels[p * dch + dch - 1] = stats.count[p];
+        d.pixels[p * dch + estCh - 3] = stats.count[p];
+        if (h.adaptiveM) d.pixels[p * dch + dch - 1] = float(stats.buffersOf(p));
     }
     robust.reset();
 

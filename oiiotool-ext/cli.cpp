@@ -119,6 +119,13 @@ bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& 
             opt.fireflyFloor = d;
         else if (k == "eps")
             opt.relmseEpsilon = d;
+        else if (k == "neps") {
+            if (!(d > 0.0)) {
+                err = format("{}: modifier neps must be > 0, not '{}'", cmd, v);
+                return false;
+            }
+            opt.normEpsilon = d;
+        }
     }
     OIIO::ImageBuf ref;
     if (!readImage(args[0], ref, err)) return false;
@@ -129,6 +136,8 @@ bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& 
     }
     std::printf("%-28s relMSE %.6g  SSIM %.5f  PSNR %.3f dB  fireflies %ld / %ld", top.name.c_str(),
                 m.relMSE, m.ssim, m.psnr, m.fireflies, m.pixels);
+    // Jung's normalised error (eq. 5.25-5.27), on luminance
+    std::printf("  nbias %.5g  nnoise %.5g", m.normBias, m.normNoise);
     if (m.nonFinite) std::printf("  non-finite %ld", m.nonFinite);
     std::printf("\n");
     std::fflush(stdout);
@@ -241,8 +250,9 @@ std::vector<Command> buildTable() {
         {"--diff",
          1,
          "REF",
-         "Print relMSE, SSIM, PSNR and the firefly-pixel count of the top image against REF",
-         {"ratio", "floor", "eps"},
+         "Print relMSE, SSIM, PSNR, the firefly-pixel count and Jung's normalised bias and noise "
+         "(eq. 5.25-5.27) of the top image against REF",
+         {"ratio", "floor", "eps", "neps"},
          &cmdDiff,
          ""});
     t.push_back({"--merge",
@@ -263,6 +273,46 @@ std::vector<Command> buildTable() {
                  {"np", "width", "height", "json", "maxm", "maxk", "m", "p", "certainty"},
                  &cmdPlan,
                  ""});
+    // Jung's spatial and 3D filters (thesis chapter 5, docs/spatial_filters.md), spatial.cpp.
+    t.push_back({"--mif",
+                 0,
+                 "",
+                 "Median image filter MIF(k x l) of the top image (Jung eq. 5.8); after --median: "
+                 "MPE+MIF (eq. 5.15)",
+                 {"size", "mode"},
+                 &cmdMedianImageFilter,
+                 ""});
+    t.push_back({"--wmif",
+                 0,
+                 "",
+                 "Weighted median image filter WMIF(w, k x l) of the top image, centre weight w "
+                 "(eq. 5.6, 5.28); after --tmpe: TMPE+WMIF (eq. 5.14)",
+                 {"size", "w", "mode"},
+                 &cmdMedianImageFilter,
+                 ""});
+    t.push_back({"--3dmf",
+                 0,
+                 "",
+                 "3D median filter 3DMF(M x k x l) of the top statistics file: median of every "
+                 "buffer mean in the window (eq. 5.21)",
+                 {"size", "mode"},
+                 &cmdFilter3D,
+                 ""});
+    t.push_back({"--3dwmf",
+                 0,
+                 "",
+                 "3D weighted median filter 3DWMF(w, M x k x l): the centre pixel's buffers "
+                 "weighted w (eq. 5.20, 5.28)",
+                 {"size", "w", "mode"},
+                 &cmdFilter3D,
+                 ""});
+    t.push_back({"--3dwtmf",
+                 0,
+                 "",
+                 "3D weighted trimmed mean filter 3DWTMF(alpha, w, M x k x l) (eq. 5.19)",
+                 {"size", "w", "alpha", "mode"},
+                 &cmdFilter3D,
+                 ""});
     t.push_back({"--dup", 0, "", "Duplicate the top of the stack", {}, &cmdDup, ""});
     t.push_back({"--pop", 0, "", "Remove the top of the stack", {}, &cmdPop, ""});
     t.push_back({"--swap", 0, "", "Exchange the top two stack entries", {}, &cmdSwap, ""});
@@ -282,7 +332,21 @@ std::string modifierHelp(const Command& c) {
         s += "\n        :diag=0 (1 appends channels gini, kept, excluded)";
     } else if (c.name == "--diff") {
         s += "\n        :ratio=2 :floor=0.1 (firefly: Y > ratio*Yref and Y - Yref > floor)"
-             "\n        :eps=0.01 (relMSE denominator r^2 + eps)";
+             "\n        :eps=0.01 (relMSE denominator r^2 + eps)"
+             "\n        :neps=0.01 (normalised error denominator max(|Yref|, neps), > 0)";
+    } else if (c.run == &cmdMedianImageFilter || c.run == &cmdFilter3D) {
+        s += "\n        :size=3x3 (window width x height in pixels, odd, 1..255; clipped at image "
+             "borders)";
+        for (const std::string& m : c.modifiers) {
+            if (m == "w")
+                s +=
+                    "\n        :w=3 (integer weight of the centre pixel, eq. 5.28; 1 = unweighted)";
+            else if (m == "alpha")
+                s += "\n        :alpha=0.25 (breakdown point in [0, 0.5]: floor(alpha*s) weighted "
+                     "copies trimmed per side; 0 = mean, 0.5 = 3DWMF)";
+        }
+        s += "\n        :mode=lum (lum: rank by luminance, return the chosen pixels'/buffers' RGB; "
+             "channel: R, G, B independently)";
     }
     return s;
 }

@@ -61,4 +61,12 @@ bool readImage(const std::string& path, OIIO::ImageBuf& out, std::string& err);
 bool cmdPlan(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
              std::string&);
 
+// Implemented in spatial.cpp: Jung's spatial and 3D filters (docs/spatial_filters.md).
+/// --mif / --wmif on the top image (MPE+MIF: --median --mif; TMPE+WMIF: --tmpe --wmif).
+bool cmdMedianImageFilter(State&, const std::string&, const std::vector<std::string>&,
+                          const Modifiers&, std::string&);
+/// --3dmf / --3dwmf / --3dwtmf on the top statistics file.
+bool cmdFilter3D(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
+                 std::string&);
+
 }  // namespace mcstat::cli

@@ -149,18 +149,38 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
     }
     const StatsHeader& h = top.header;
     std::printf("%s: mcstat statistics file, format %d\n", top.name.c_str(), h.formatVersion);
-    std::printf("  size %d x %d (origin %d,%d), M = %d sub-buffers, spp = %lld, assignment %s\n",
-                h.width, h.height, h.originX, h.originY, h.M, (long long)h.spp,
-                h.assignment.c_str());
+    std::printf("  size %d x %d (origin %d,%d), %s = %d sub-buffers, spp = %lld, assignment %s\n",
+                h.width, h.height, h.originX, h.originY, h.adaptiveM ? "adaptive M, M_max" : "M",
+                h.M, (long long)h.spp, h.assignment.c_str());
     std::printf("  renderer \"%s\", colour space %s, seeds %s\n", h.renderer.c_str(),
                 h.colorSpace.c_str(), h.seeds.empty() ? "(none)" : h.seeds.c_str());
-    std::printf(
-        "  parts: beauty (R,G,B)  buffers (%d x b###.R,G,B,count)  moments (count, mean.RGB, "
-        "variance.RGB)  features (N, P, Albedo, Z, A)\n",
-        h.M);
-    if (!st.verbose) return true;
+    if (h.adaptiveM)
+        std::printf(
+            "  parts: beauty (R,G,B)  vbuffers (deep: m_p in 1..%d samples R,G,B,count,Z,A)  "
+            "moments (count, mean.RGB, variance.RGB)  features (N, P, Albedo, Z, A)\n",
+            h.M);
+    else
+        std::printf(
+            "  parts: beauty (R,G,B)  buffers (%d x b###.R,G,B,count)  moments (count, mean.RGB, "
+            "variance.RGB)  features (N, P, Albedo, Z, A)\n",
+            h.M);
+    if (!st.verbose && !h.adaptiveM) return true;
     if (!loadStats(st, top, err)) return false;
     const StatsImage& s = *top.stats;
+    if (h.adaptiveM) {  // Jung's adaptive M: the per-pixel buffer counts
+        int mmin = h.M, mmax = 0;
+        for (size_t p = 0; p < s.pixelCount(); ++p) {
+            mmin = std::min(mmin, s.buffersOf(p));
+            mmax = std::max(mmax, s.buffersOf(p));
+        }
+        std::printf(
+            "  adaptive M: m_p min %d, mean %.4f, max %d (M_max %d); %zu sub-buffers = %.4f "
+            "image buffers\n",
+            mmin, double(s.bufferCount.size()) / double(std::max<size_t>(1, s.pixelCount())), mmax,
+            h.M, s.bufferCount.size(),
+            double(s.bufferCount.size()) / double(std::max<size_t>(1, s.pixelCount())));
+        if (!st.verbose) return true;
+    }
     double nmin = INFINITY, nmax = 0.0, ntotal = 0.0;
     long emptyBuffers = 0, nonFinite = 0;
     for (size_t p = 0; p < s.pixelCount(); ++p) {

@@ -10,6 +10,7 @@
 #include "mcstat/estimators.h"
 #include "mcstat/metrics.h"
 #include "mcstat/registry.h"
+#include "mcstat/spatial_filters.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat {
@@ -23,6 +24,24 @@ bool estimate(OIIO::ImageBuf& dst, const StatsImage& src, const EstimatorInfo& e
               int nthreads = 0);
 OIIO::ImageBuf estimate(const StatsImage& src, const EstimatorInfo& est,
                         const EstimatorParams& params, bool diagnostics = false, OIIO::ROI roi = {},
+                        int nthreads = 0);
+
+/// Jung's (weighted) median image filter WMIF / MIF (eq. 5.6-5.8, centre weight eq. 5.28; see
+/// spatial_filters.h) over the R, G, B channels (the first three) of `src`, within `roi` (default:
+/// src's data window). The window is clipped to src's data window, never to `roi`, so a tile's
+/// result equals the same pixels of the whole image. The result has channels R, G, B only.
+/// Every output pixel depends on the input alone: identical for any `nthreads`.
+bool medianImageFilter(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, const SpatialParams& params,
+                       OIIO::ROI roi = {}, int nthreads = 0);
+OIIO::ImageBuf medianImageFilter(const OIIO::ImageBuf& src, const SpatialParams& params,
+                                 OIIO::ROI roi = {}, int nthreads = 0);
+
+/// Jung's 3D filters 3DWTMF / 3DWMF / 3DMF (eq. 5.19-5.21, see spatial_filters.h) over the
+/// sub-buffers of `src`, within `roi` (default: the data window; the window is clipped to the data
+/// window). The result has channels R, G, B. Identical for any `nthreads`.
+bool filter3D(OIIO::ImageBuf& dst, const StatsImage& src, const SpatialParams& params,
+              OIIO::ROI roi = {}, int nthreads = 0);
+OIIO::ImageBuf filter3D(const StatsImage& src, const SpatialParams& params, OIIO::ROI roi = {},
                         int nthreads = 0);
 
 /// The beauty part (plain mean) of a statistics file as an RGB float image.

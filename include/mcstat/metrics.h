@@ -5,7 +5,11 @@
 //   clamped to [0, 1]. SSIM (Wang et al. 2004): 11x11 Gaussian window, sigma 1.5, K1 = 0.01,
 //   K2 = 0.03, per channel, averaged; the window is renormalised at image borders.
 // - firefly pixel: Y > ratio * Y_ref and Y - Y_ref > floor, Y the luminance of scene-linear values
-//   (luma coefficients from the OCIO config); defaults ratio 2, floor 0.1 (a tenth of display white).
+//   (luma coefficients from the OCIO config); defaults ratio 2, floor 0.1 (a tenth of display
+//   white).
+// - normalised bias and noise (Jung 2016 thesis, eq. 5.25-5.27) on luminance: per pixel
+//   E'_i = (Y_i - Yref_i) / max(|Yref_i|, eps) (eps = 0.01 for black reference pixels), bias
+//   B = mean of E'_i, noise = mean of (E'_i - B)^2 (the variance of E' over the pixels, 1/N).
 // Pixels where either image is not finite are left out of every metric and counted.
 #pragma once
 
@@ -19,6 +23,9 @@ struct DiffOptions {
     double relmseEpsilon = 0.01;
     double fireflyRatio = 2.0;
     double fireflyFloor = 0.1;
+    /// Floor of the normalised error's denominator (eq. 5.25): max(|Yref|, eps), so black
+    /// reference pixels measure the absolute error in units of eps instead of dividing by 0.
+    double normEpsilon = 0.01;
 };
 
 struct DiffMetrics {
@@ -26,8 +33,11 @@ struct DiffMetrics {
     double psnr = 0.0;  ///< dB; +inf for identical display images
     double ssim = 1.0;
     long fireflies = 0;
-    long nonFinite = 0;  ///< pixels left out because a value was NaN or Inf
-    long pixels = 0;     ///< pixels compared
+    double normBias = 0.0;   ///< Jung eq. 5.26: mean normalised error (signed)
+    double normNoise = 0.0;  ///< Jung eq. 5.27: variance of the normalised error over pixels
+    long normFloored = 0;    ///< pixels whose |Yref| < normEpsilon (denominator floored)
+    long nonFinite = 0;      ///< pixels left out because a value was NaN or Inf
+    long pixels = 0;         ///< pixels compared
 };
 
 /// `lin`/`ref` are scene-linear RGB, `disp`/`refDisp` the same images display-encoded; all

@@ -1,7 +1,7 @@
-// The mcstat statistics file, version 1: in-memory form, writer, reader, validator and merge.
-// The on-disk layout is specified in exr-deep/FORMAT.md; this header is its C++ face.
-// No function here throws: each returns false and fills `err` with a one-line message that names
-// the file (when there is one) and the problem.
+// The mcstat statistics file, versions 1 and 2: in-memory form, writer, reader, validator and
+// merge. The on-disk layout is specified in exr-deep/FORMAT.md; this header is its C++ face. No
+// function here throws: each returns false and fills `err` with a one-line message that names the
+// file (when there is one) and the problem.
 #pragma once
 
 #include <cstddef>
@@ -9,21 +9,33 @@
 #include <string>
 #include <vector>
 
+#include "mcstat/estimators.h"  // PixelBuffers, the per-pixel view estimators take
+
 namespace mcstat {
 
 /// File extension of statistics files (a single extension: OIIO picks readers by the last one).
 inline constexpr const char* kStatsExtension = "mcstat";
-/// Version of the layout written by this library (header attribute "mcstat:formatVersion").
-inline constexpr int kStatsFormatVersion = 1;
+/// Newest layout this library reads and writes (header attribute "mcstat:formatVersion").
+/// Version 1: fixed M (part "buffers"). Version 2 adds adaptive M (deep part "vbuffers" instead of
+/// "buffers", attribute "mcstat:adaptiveM"). The writer writes header.formatVersion as given; a
+/// fixed-M image keeps version 1 (what every reader knows), an adaptive one needs version 2.
+inline constexpr int kStatsFormatVersion = 2;
+/// The version a fixed-M file is written with by default (readable by version-1 readers).
+inline constexpr int kStatsFormatVersionFixed = 1;
+/// The first version that can hold adaptive M.
+inline constexpr int kStatsFormatVersionAdaptive = 2;
 /// Largest number of sub-buffers a file may declare (channel names use three digits).
 inline constexpr int kMaxBuffers = 999;
 
 /// Header data shared by every part of a statistics file.
 struct StatsHeader {
-    int formatVersion = kStatsFormatVersion;
-    int width = 0, height = 0;     ///< data window size (pixels)
-    int originX = 0, originY = 0;  ///< data window origin (OpenEXR dataWindow.min)
-    int M = 1;                     ///< number of sub-buffers
+    int formatVersion = kStatsFormatVersionFixed;  ///< 1, or 2 (required for adaptiveM)
+    int width = 0, height = 0;                     ///< data window size (pixels)
+    int originX = 0, originY = 0;                  ///< data window origin (OpenEXR dataWindow.min)
+    int M = 1;  ///< number of sub-buffers; with adaptiveM the largest m_p allowed (M_max)
+    /// Variable buffer count (Jung's adaptive M, FORMAT.md version 2): pixel p holds m_p in 1..M
+    /// buffers, stored in the deep part "vbuffers" instead of the flat part "buffers".
+    bool adaptiveM = false;
     int64_t spp = 0;  ///< samples per pixel the producer aimed at (counts hold what was taken)
     std::string assignment = "roundrobin";  ///< sample-to-buffer rule, see FORMAT.md
     std::string renderer;                   ///< producer name and version
@@ -38,9 +50,15 @@ struct StatsImage {
     StatsHeader header;
     // part "beauty": the plain mean of every sample
     std::vector<float> beauty;  ///< [p*3 + c]
-    // part "buffers": M sub-buffer means and their sample counts
-    std::vector<float> bufferMean;   ///< [(p*M + j)*3 + c]
-    std::vector<float> bufferCount;  ///< [p*M + j]
+    // part "buffers" (fixed M) or "vbuffers" (adaptive M): sub-buffer means and sample counts.
+    // Buffer j of pixel p is element k = bufferBegin(p) + j, j < buffersOf(p); prefer
+    // pixelBuffers(p), which works for both.
+    std::vector<float> bufferMean;   ///< [k*3 + c]; fixed M: k = p*M + j
+    std::vector<float> bufferCount;  ///< [k]
+    /// Adaptive M only (empty for fixed M): pixels + 1 entries, bufferOffset[0] = 0, pixel p's
+    /// buffers are k in [bufferOffset[p], bufferOffset[p+1]), m_p = bufferOffset[p+1] -
+    /// bufferOffset[p] in 1..header.M.
+    std::vector<uint64_t> bufferOffset;
     // part "moments": Welford statistics over all samples
     std::vector<float> count;  ///< [p]   number of samples
     std::vector<float> mean;   ///< [p*3 + c]
@@ -54,9 +72,33 @@ struct StatsImage {
     std::vector<float> coverage;  ///< [p] fraction of samples whose camera ray hit geometry
 
     size_t pixelCount() const { return size_t(header.width) * size_t(header.height); }
+    /// Index k of pixel p's first buffer in bufferCount (times 3 in bufferMean).
+    size_t bufferBegin(size_t p) const {
+        return header.adaptiveM ? size_t(bufferOffset[p]) : p * size_t(header.M);
+    }
+    /// Number of buffers of pixel p: header.M, or m_p with adaptive M.
+    int buffersOf(size_t p) const {
+        return header.adaptiveM ? int(bufferOffset[p + 1] - bufferOffset[p]) : header.M;
+    }
+    /// Pixel p's buffers as the estimators take them, for fixed and adaptive M alike. The image
+    /// must be valid (validateStats); p < pixelCount().
+    PixelBuffers pixelBuffers(size_t p) const {
+        const size_t k = bufferBegin(p);
+        return {bufferMean.data() + k * 3, bufferCount.data() + k, buffersOf(p)};
+    }
+    /// Whether the sub-buffer arrays (and bufferOffset for adaptive M) have the sizes the header
+    /// implies, so that pixelBuffers(p) is safe for every p; cheap, values are not looked at.
+    /// `why` names the problem. validateStats checks this and more.
+    bool checkBufferLayout(std::string& why) const;
     /// Allocates every array for header.width x header.height x header.M, zero-filled
-    /// (depth filled with +inf). Returns false (and leaves *this untouched) on absurd sizes.
+    /// (depth filled with +inf). Fixed M only (header.adaptiveM false). Returns false (and leaves
+    /// *this untouched) on absurd sizes.
     bool allocate(std::string& err);
+    /// Adaptive M: sets header.adaptiveM, builds bufferOffset from `buffersPerPixel` (pixelCount()
+    /// values, each in 1..header.M) and allocates every array as allocate() does. Returns false
+    /// (and leaves *this untouched) on a bad count or absurd size; header.formatVersion must be >=
+    /// 2.
+    bool allocateAdaptive(const std::vector<uint32_t>& buffersPerPixel, std::string& err);
 };
 
 /// Limits for reading untrusted files, passed in (never global).
@@ -64,6 +106,8 @@ struct ReadLimits {
     int64_t maxPixels = int64_t(1) << 28;  ///< width * height
     int maxBuffers = kMaxBuffers;          ///< M
     int64_t maxBytes = int64_t(16) << 30;  ///< total bytes of pixel data to allocate
+    /// Adaptive M: total deep samples (sum of m_p) of part "vbuffers"; also bounded by maxBytes.
+    int64_t maxDeepSamples = int64_t(1) << 32;
 };
 
 /// Writes `img` to `path` atomically: a temporary file in the same directory, renamed on success.
@@ -78,12 +122,14 @@ bool readStatsFile(const std::string& path, StatsImage& img, std::string& err,
 bool readStatsHeader(const std::string& path, StatsHeader& hdr, std::string& err,
                      const ReadLimits& limits = ReadLimits());
 
-/// Checks the in-memory invariants (sizes, counts finite, non-negative and integral, buffer counts
-/// summing to the moments count). `what` names the source in the message.
+/// Checks the in-memory invariants (sizes, adaptive buffer offsets, counts finite, non-negative and
+/// integral, buffer counts summing to the moments count). `what` names the source in the message.
 bool validateStats(const StatsImage& img, const std::string& what, std::string& err);
 
 /// Combines two renders of the same image (same size, M, assignment) into one, as if a single
 /// render had taken all samples: per-buffer count-weighted sums, Chan's parallel variance.
+/// Adaptive M: both inputs adaptive with the same m_p in every pixel (else refused, naming the
+/// first differing pixel); fixed and adaptive inputs are never merged.
 bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::string& err);
 
 }  // namespace mcstat

@@ -8,6 +8,13 @@ namespace mcstat::render {
 PixelAccumulator::PixelAccumulator(int M)
     : M_(M), bufSum_(size_t(M) * 3, 0.0), bufCount_(size_t(M), 0) {}
 
+void PixelAccumulator::reset(int M) {
+    bufSum_.resize(size_t(M) * 3);
+    bufCount_.resize(size_t(M));
+    M_ = M;
+    reset();
+}
+
 void PixelAccumulator::reset() {
     std::fill(bufSum_.begin(), bufSum_.end(), 0.0);
     std::fill(bufCount_.begin(), bufCount_.end(), 0);
@@ -43,12 +50,12 @@ bool PixelAccumulator::add(int64_t index, const PathSample& s) {
 }
 
 void PixelAccumulator::store(StatsImage& img, size_t p) const {
-    const size_t M = size_t(M_);
+    const size_t M = size_t(M_), k0 = img.bufferBegin(p);
     for (size_t j = 0; j < M; ++j) {
         const int64_t cnt = bufCount_[j];
-        img.bufferCount[p * M + j] = float(cnt);
+        img.bufferCount[k0 + j] = float(cnt);
         for (size_t c = 0; c < 3; ++c)
-            img.bufferMean[(p * M + j) * 3 + c] =
+            img.bufferMean[(k0 + j) * 3 + c] =
                 cnt > 0 ? float(bufSum_[j * 3 + c] / double(cnt)) : 0.0f;
     }
     img.count[p] = float(n_);
@@ -79,6 +86,5 @@ bool MeanAccumulator::add(const Vec3& L) {
 void MeanAccumulator::store(float* rgb) const {
     for (int c = 0; c < 3; ++c) rgb[c] = n > 0 ? float(sum[c] / double(n)) : 0.0f;
 }
-
 
 }  // namespace mcstat::render

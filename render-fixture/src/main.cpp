@@ -41,12 +41,13 @@ bool parseInt(const std::string& text, const char* what, long long lo, long long
     return true;
 }
 
-bool parseSeed(const std::string& text, uint64_t& out, std::string& err) {
+bool parseSeed(const std::string& text, uint64_t& out, std::string& err,
+               const char* what = "--seed") {
     errno = 0;
     char* end = nullptr;
     const unsigned long long v = std::strtoull(text.c_str(), &end, 10);
     if (text.empty() || text[0] == '-' || *end != '\0' || errno == ERANGE) {
-        err = fmt::format("--seed: expected a non-negative 64-bit integer, got '{}'", text);
+        err = fmt::format("{}: expected a non-negative 64-bit integer, got '{}'", what, text);
         return false;
     }
     out = v;
@@ -95,8 +96,9 @@ bool writeReferenceExr(const std::string& path, int width, int height,
 
 int main(int argc, const char** argv) {
     std::string sceneName = "default", outPath, sppText = "64", mText = "8", seedText = "1",
-                threadsText = "0", resW, resH;
-    bool reference = false, quiet = false;
+                threadsText = "0", resW, resH, mMaxText = std::to_string(kDefaultMaxBuffers),
+                pilotText = "0", pilotSeedText = std::to_string(kDefaultPilotSeed);
+    bool reference = false, quiet = false, adaptive = false;
 
     std::string names;
     for (const auto& n : builtinSceneNames()) names += (names.empty() ? "" : ", ") + n;
@@ -125,6 +127,26 @@ int main(int argc, const char** argv) {
             "sub-buffers, 1..999; sample i goes to buffer i mod M; spp < M leaves buffers "
             "empty (default 8; ignored with --reference)")
         .action([&](OIIO::cspan<const char*> a) { mText = a[1]; });
+    ap.arg("--adaptive-m")
+        .help(
+            "adaptive buffer count (Jung eq. 4.15): a pilot pass measures each pixel's "
+            "luminance standard deviation, pixel p gets M_p in 1..M_max buffers (odd); the file "
+            "stores them in a deep part (format 2; docs/adaptive-m.md). --M is ignored")
+        .action([&](OIIO::cspan<const char*>) { adaptive = true; });
+    ap.arg("--m-max N")
+        .help("with --adaptive-m: the largest M_p, odd, 1..999 (default 17)")
+        .action([&](OIIO::cspan<const char*> a) { mMaxText = a[1]; });
+    ap.arg("--pilot N")
+        .help(
+            "with --adaptive-m: pilot samples per pixel (default min(spp, max(64, spp/8))); "
+            "they only choose M_p and are not part of the image")
+        .action([&](OIIO::cspan<const char*> a) { pilotText = a[1]; });
+    ap.arg("--pilot-seed S")
+        .help(
+            "with --adaptive-m: seed of the pilot, independent of --seed so that renders with "
+            "different seeds get the same M_p and can be merged (default " +
+            std::to_string(kDefaultPilotSeed) + ")")
+        .action([&](OIIO::cspan<const char*> a) { pilotSeedText = a[1]; });
     ap.arg("--seed S")
         .help(
             "seed, a non-negative 64-bit integer; the same seed gives bit-identical output "
@@ -165,6 +187,14 @@ int main(int argc, const char** argv) {
     if (!parseInt(threadsText, "--threads", 0, 4096, v, err)) return fail(err);
     opt.threads = int(v);
     if (!parseSeed(seedText, opt.seed, err)) return fail(err);
+    opt.adaptiveM = adaptive;
+    if (!parseInt(mMaxText, "--m-max", 1, mcstat::kMaxBuffers, v, err)) return fail(err);
+    opt.mMax = int(v);
+    if (adaptive && opt.mMax % 2 == 0)
+        return fail(fmt::format("--m-max: must be odd (eq. 4.15 gives odd counts; got {})", v));
+    if (!parseInt(pilotText, "--pilot", 0, (1LL << 40), v, err)) return fail(err);
+    opt.pilotSpp = v;
+    if (!parseSeed(pilotSeedText, opt.pilotSeed, err, "--pilot-seed")) return fail(err);
     opt.progress = !quiet && isatty(STDERR_FILENO);
 
     Scene scene;
@@ -192,8 +222,15 @@ int main(int argc, const char** argv) {
         fmt::print(stderr,
                    "mcstat-render: warning: {} samples with NaN/Inf radiance were dropped\n",
                    stats.nonFiniteSamples);
-    if (!quiet && isatty(STDERR_FILENO))
+    if (!quiet && isatty(STDERR_FILENO)) {
         fmt::print(stderr, "mcstat-render: {} ({}x{}, {} spp) in {:.2f} s -> {}\n", scene.source,
                    scene.width, scene.height, opt.spp, stats.seconds, outPath);
+        if (opt.adaptiveM && !reference)
+            fmt::print(stderr,
+                       "mcstat-render: adaptive M: pilot {} spp ({:.2f} s), sigma_image {:.6g}, "
+                       "{:.4f} buffers per pixel (M_max {})\n",
+                       stats.pilotSamples, stats.pilotSeconds, stats.sigmaImage, stats.meanBuffers,
+                       opt.mMax);
+    }
     return 0;
 }

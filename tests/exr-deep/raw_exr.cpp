@@ -85,6 +85,44 @@ std::vector<RawPart> rawPartsFrom(const StatsImage& img) {
     return parts;
 }
 
+std::vector<RawPart> rawAdaptivePartsFrom(const StatsImage& img) {
+    // The flat parts as for fixed M, then part 1 replaced by the deep part.
+    StatsImage flat = img;
+    flat.header.adaptiveM = false;
+    flat.header.M = 1;
+    flat.bufferOffset.clear();
+    flat.bufferMean.assign(img.pixelCount() * 3, 0.f);
+    flat.bufferCount.assign(img.pixelCount(), 0.f);
+    std::vector<RawPart> parts = rawPartsFrom(flat);
+    for (RawPart& p : parts) {
+        p.header.insert("mcstat:M", Imf::IntAttribute(img.header.M));
+        p.header.insert("mcstat:adaptiveM", Imf::IntAttribute(1));
+    }
+    RawPart& d = parts[1];
+    Imf::Header h = baseHeader(img.header, "vbuffers");
+    h.insert("mcstat:adaptiveM", Imf::IntAttribute(1));
+    h.setType(Imf::DEEPSCANLINE);
+    h.compression() = Imf::ZIPS_COMPRESSION;
+    for (const char* c : {"R", "G", "B", "count", "Z", "A"})
+        h.channels().insert(c, Imf::Channel(Imf::FLOAT));
+    d.header = h;
+    d.values.clear();
+    const size_t pixels = img.pixelCount();
+    d.deepCounts.resize(pixels);
+    const char* rgb[3] = {"R", "G", "B"};
+    for (size_t p = 0; p < pixels; ++p) {
+        const PixelBuffers b = img.pixelBuffers(p);
+        d.deepCounts[p] = unsigned(b.M);
+        for (int j = 0; j < b.M; ++j) {
+            for (int c = 0; c < 3; ++c) d.values[rgb[c]].push_back(b.mean[j * 3 + c]);
+            d.values["count"].push_back(b.count[j]);
+            d.values["Z"].push_back(float(j));
+            d.values["A"].push_back(1.f);
+        }
+    }
+    return parts;
+}
+
 void setIntOnAll(std::vector<RawPart>& parts, const char* name, int v) {
     for (RawPart& p : parts) p.header.insert(name, Imf::IntAttribute(v));
 }
@@ -134,18 +172,37 @@ void writeRaw(const std::string& path, const std::vector<RawPart>& parts) {
             Imf::TiledOutputPart op(out, int(i));
             op.setFrameBuffer(fb);
             op.writeTiles(0, op.numXTiles() - 1, 0, op.numYTiles() - 1);
-        } else {  // deep scanline, zero samples everywhere
-            std::vector<unsigned> counts(n, 0);
-            std::vector<float*> pointers(n, nullptr);
+        } else {  // deep scanline: deepCounts samples per pixel (zero if not given)
+            std::vector<unsigned> counts = parts[i].deepCounts;
+            counts.resize(n, 0);
+            size_t total = 0;
+            for (unsigned c : counts) total += c;
+            // Every channel as FLOAT samples, pixel after pixel (missing values are zero).
+            std::map<std::string, std::vector<float>> samples;
+            std::map<std::string, std::vector<float*>> pointers;
             Imf::DeepFrameBuffer dfb;
             dfb.insertSampleCountSlice(Imf::Slice::Make(Imf::UINT, counts.data(), dw,
                                                         sizeof(unsigned), sizeof(unsigned) * w));
-            for (auto it = h.channels().begin(); it != h.channels().end(); ++it)
+            for (auto it = h.channels().begin(); it != h.channels().end(); ++it) {
+                std::vector<float>& v = samples[it.name()];
+                v.assign(total + 1, 0.f);
+                const auto found = parts[i].values.find(it.name());
+                if (found != parts[i].values.end())
+                    for (size_t k = 0; k < total && k < found->second.size(); ++k)
+                        v[k] = found->second[k];
+                std::vector<float*>& ptr = pointers[it.name()];
+                ptr.resize(n);
+                size_t k = 0;
+                for (size_t p = 0; p < n; ++p) {
+                    ptr[p] = v.data() + k;
+                    k += counts[p];
+                }
                 dfb.insert(it.name(),
                            Imf::DeepSlice(Imf::FLOAT,
-                                          reinterpret_cast<char*>(pointers.data()) -
+                                          reinterpret_cast<char*>(ptr.data()) -
                                               (dw.min.x + dw.min.y * ptrdiff_t(w)) * sizeof(float*),
                                           sizeof(float*), sizeof(float*) * w, sizeof(float)));
+            }
             Imf::DeepScanLineOutputPart op(out, int(i));
             op.setFrameBuffer(dfb);
             op.writePixels(int(ht));

@@ -16,14 +16,21 @@ namespace mcstat::test {
 struct RawPart {
     Imf::Header header;  ///< name, type, channels, windows, attributes
     /// Values per channel, row-major over the part's data window; missing channels are zero.
+    /// Deep parts: every pixel's samples one after the other, in pixel order (deepCounts[p] each).
     std::map<std::string, std::vector<float>> values;
+    /// Deep parts: samples per pixel, row-major (empty: zero samples everywhere).
+    std::vector<unsigned> deepCounts;
 };
 
 /// The four valid parts of `img`, as FORMAT.md describes them.
 std::vector<RawPart> rawPartsFrom(const StatsImage& img);
 
+/// The four valid parts of an adaptive-M `img` (format 2): part 1 is the deep part "vbuffers" with
+/// R, G, B, count, Z (= buffer index) and A (= 1).
+std::vector<RawPart> rawAdaptivePartsFrom(const StatsImage& img);
+
 /// Writes the parts as a multi-part file (scanline, tiled or deep scanline by header type; deep
-/// parts get zero samples per pixel). Throws on OpenEXR errors.
+/// parts have deepCounts samples per pixel, or none). Throws on OpenEXR errors.
 void writeRaw(const std::string& path, const std::vector<RawPart>& parts);
 
 /// Sets int attribute `name` = v on every part.

@@ -69,3 +69,44 @@ TEST(Metrics, NonFinitePixelsAreCountedAndLeftOut) {
     EXPECT_EQ(m.pixels, 14);
     EXPECT_EQ(m.relMSE, 0.0);
 }
+
+TEST(Metrics, NormalisedBiasAndNoiseHandComputed) {
+    // Jung eq. 5.25-5.27 on luminance; grey pixels so Y = the value (luma sums to 1)
+    // ref 1, 2, 0 (black), 4; image 1.5, 1, 0.02, 4
+    // E' = 0.5, -0.5, 0.02 / eps = 2 (eps = 0.01), 0 -> B = 2 / 4 = 0.5
+    // N = (0^2 + (-1)^2 + 1.5^2 + (-0.5)^2) / 4 = 3.5 / 4 = 0.875
+    const std::vector<float> ref = {1, 1, 1, 2, 2, 2, 0, 0, 0, 4, 4, 4},
+                             img = {1.5f, 1.5f, 1.5f, 1, 1, 1, 0.02f, 0.02f, 0.02f, 4, 4, 4};
+    DiffMetrics m = compareImages(img.data(), ref.data(), img.data(), ref.data(), 4, 1, options());
+    EXPECT_NEAR(m.normBias, 0.5, 1e-7);
+    EXPECT_NEAR(m.normNoise, 0.875, 1e-6);
+    EXPECT_EQ(m.normFloored, 1);
+    // a larger epsilon changes only the black pixel's term: E' = 0.02 / 0.1 = 0.2
+    // B = 0.2 / 4 = 0.05; N = (0.45^2 + 0.55^2 + 0.15^2 + 0.05^2) / 4 = 0.53 / 4 = 0.1325
+    DiffOptions o = options();
+    o.normEpsilon = 0.1;
+    m = compareImages(img.data(), ref.data(), img.data(), ref.data(), 4, 1, o);
+    EXPECT_NEAR(m.normBias, 0.05, 1e-7);
+    EXPECT_NEAR(m.normNoise, 0.1325, 1e-6);
+    // identical images: no bias, no noise
+    m = compareImages(ref.data(), ref.data(), ref.data(), ref.data(), 4, 1, options());
+    EXPECT_EQ(m.normBias, 0.0);
+    EXPECT_EQ(m.normNoise, 0.0);
+}
+
+TEST(Metrics, NormalisedErrorUsesLuminanceAndSkipsNonFinite) {
+    // the thesis' pixel value is a scalar: luminance. A colour error with the reference's luminance
+    // (pure red against green of equal Y) has E' = 0; twice the reference has E' = 1.
+    const DiffOptions o = options();
+    const float g = float(o.luma[0] / o.luma[1]);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const std::vector<float> ref = {1, 0, 0, 1, 1, 1, 1, 1, 1},  //
+        img = {0, g, 0, 2, 2, 2, nan, 1, 1};
+    DiffMetrics m = compareImages(img.data(), ref.data(), img.data(), ref.data(), 3, 1, o);
+    EXPECT_EQ(m.pixels, 2);
+    EXPECT_EQ(m.nonFinite, 1);
+    // E' = 0 and 1: B = 0.5, N = ((0 - 0.5)^2 + (1 - 0.5)^2) / 2 = 0.25
+    EXPECT_NEAR(m.normBias, 0.5, 1e-6);
+    EXPECT_NEAR(m.normNoise, 0.25, 1e-6);
+    EXPECT_EQ(m.normFloored, 0);
+}

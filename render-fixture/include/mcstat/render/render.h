@@ -15,23 +15,69 @@ namespace mcstat::render {
 
 inline constexpr const char* kRendererName = "mcstat-render 0.1";
 
+/// Default seed of the adaptive-M pilot pass: independent of --seed, so that renders of the same
+/// scene with different seeds choose the same buffer counts and can be merged (ASCII "pilot").
+inline constexpr uint64_t kDefaultPilotSeed = 0x70696c6f74;
+/// Default M_max of adaptive M (the thesis' default, about 1e-7 overestimated pixels at N*p = 1).
+inline constexpr int kDefaultMaxBuffers = 17;
+
 struct RenderOptions {
     int64_t spp = 64;       ///< samples per pixel, >= 1
-    int M = 8;              ///< sub-buffers, 1..kMaxBuffers (ignored by renderReference)
+    int M = 8;              ///< sub-buffers, 1..kMaxBuffers (ignored by renderReference and with
+                            ///< adaptiveM)
     uint64_t seed = 1;      ///< seeds every sample's generator, recorded in the header
     int threads = 0;        ///< worker threads; 0 = all hardware threads
     bool progress = false;  ///< draw a progress line on stderr (the caller checks isatty)
+    // Adaptive buffer count (Jung 2016, section 4.2.4, eq. 4.15; docs/adaptive-m.md): a pilot pass
+    // of pilotSpp samples per pixel measures every pixel's luminance standard deviation, then the
+    // render takes all spp samples with M_p buffers, sample i -> buffer i mod M_p.
+    bool adaptiveM = false;
+    int mMax = kDefaultMaxBuffers;  ///< M_max, odd, 1..kMaxBuffers (eq. 4.15 gives odd counts)
+    int64_t pilotSpp = 0;           ///< pilot samples per pixel; 0 = pilotSamples() default
+    uint64_t pilotSeed = kDefaultPilotSeed;  ///< seed of the pilot's sample generators
 };
 
 struct RenderStats {
     int64_t nonFiniteSamples = 0;  ///< samples dropped because their radiance was NaN or Inf
-    double seconds = 0;            ///< wall-clock render time
+    double seconds = 0;            ///< wall-clock render time (pilot included)
+    // Adaptive M only:
+    double sigmaImage = 0;     ///< the pilot's sigma_image (mean luminance standard deviation)
+    int64_t pilotSamples = 0;  ///< pilot samples per pixel taken
+    double meanBuffers = 0;    ///< sum of M_p / pixels ("image buffers", Table 4.1)
+    double pilotSeconds = 0;   ///< wall-clock time of the pilot pass
 };
+
+/// Luminance weights of the pilot's standard deviations: Rec.709 / sRGB primaries, which are the
+/// renderer's fixed output colour space (lin_rec709). Deliberately not taken from $OCIO: the
+/// buffer counts, and so the file, must not depend on the environment.
+inline constexpr double kPilotLuma[3] = {0.2126, 0.7152, 0.0722};
+
+/// Eq. 4.15: M_p = 1 when sigmaPixel / sigmaImage < 1, else 2 (floor(log2 ratio) + 1) + 1, capped
+/// at mMax. floor(log2) is computed exactly (ilogb). sigmaPixel = 0 gives 1; sigmaImage = 0 with
+/// sigmaPixel > 0 (an infinite ratio) gives mMax.
+int adaptiveBufferCount(double sigmaPixel, double sigmaImage, int mMax);
+
+/// The pilot's samples per pixel: opt.pilotSpp, or by default min(spp, max(64, spp / 8)).
+int64_t pilotSamples(const RenderOptions& opt);
+
+/// The adaptive-M plan of a render: per pixel (y*width + x) the pilot's luminance standard
+/// deviation sigma_p (unbiased, 0 with fewer than 2 finite samples) and M_p, and sigma_image, the
+/// mean of sigma_p over all pixels (docs/adaptive-m.md). Deterministic for any thread count: each
+/// pixel's statistics come from one thread, sigma_image is reduced afterwards in pixel order.
+struct AdaptivePlan {
+    std::vector<double> sigmaPixel;
+    std::vector<uint32_t> buffers;
+    double sigmaImage = 0;
+    int64_t pilotSamples = 0;
+};
+bool planAdaptive(const Scene& scene, const RenderOptions& opt, AdaptivePlan& plan,
+                  std::string& err);
 
 /// Checks the option ranges; `err` is one line naming the bad option.
 bool validateOptions(const RenderOptions& opt, std::string& err);
 
-/// Renders `scene` and fills every array and the header of `out`.
+/// Renders `scene` and fills every array and the header of `out`. With opt.adaptiveM the image
+/// has adaptive M (format version 2, header.M = mMax) as planAdaptive decides.
 bool render(const Scene& scene, const RenderOptions& opt, StatsImage& out, std::string& err,
             RenderStats* stats = nullptr);
 

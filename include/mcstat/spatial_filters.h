@@ -1,0 +1,147 @@
+// Spatial and hybrid robust filters of Jung's thesis, chapter 5: the (weighted) median image filter
+// MIF / WMIF (eq. 5.6-5.8, weights eq. 5.28) over an RGB image, and the 3D filters 3DWTMF, 3DWMF,
+// 3DMF (eq. 5.19-5.21) over the sub-buffers of a k x l window of pixels. Pure functions over plain
+// arrays, no I/O, no OIIO types; the ImageBuf forms are in imageops.h.
+//
+// Thesis: Jung, "Robust statistical pixel estimation", 2016
+// (../shared/papers/jung2016-thesis-robust-pixel-estimation.txt). docs/spatial_filters.md has the
+// long form. The hybrids are compositions: MPE+MIF (eq. 5.15) = estimateMoN then MIF, TMPE+WMIF
+// (eq. 5.14) = estimateTMPE then WMIF.
+//
+// One rule covers every filter here, the weighted trimmed mean of eq. 5.6 / 5.19:
+// - The window holds *elements*: pixels (MIF/WMIF) or the valid sub-buffers of the window's pixels
+//   (3D filters). Element i has a value x_i (RGB), an integer weight w_i and a count n_i (its
+//   samples; 1 for image pixels).
+// - w_i duplicates x_i (eq. 5.7): w_i = centreWeight for the element(s) of the centre pixel, 1 for
+//   every other pixel (eq. 5.28, generalised to k x l); in 3D every buffer of the centre pixel gets
+//   the centre weight ("the same weight is applied to the sample radiance mean for the same
+//   pixel"). s = sum w_i.
+// - The s duplicated values are sorted (luminance or per channel, see EstimatorMode; ties by
+//   element order: window row, column, buffer index) and c = floor(alpha * s + 1e-9) are dropped
+//   from each side, capped at floor((s - 1) / 2). alpha >= that cap over s (e.g. 0.5) is the
+//   weighted median of eq. 5.6 / 5.20: for odd s the middle value, for even s the two middle values
+//   averaged.
+// - Counts weight the final average, not the ranks (as in every estimator of estimators.h): if r_i
+//   of element i's copies survive the trimming, the result is sum r_i n_i x_i / sum r_i n_i. With
+//   equal counts this is eq. 5.19's plain average of the kept copies; with a 1 x 1 window it makes
+//   3DMF exactly MPE (estimateMoN) and 3DWTMF(alpha, w = 1) exactly TMPE(alpha), including unequal
+//   counts; with alpha = 0 and w = 1 it is the mean of every sample in the window.
+// - Borders (the thesis does not say): the window is clipped to the image. Only pixels inside the
+//   image are elements, so s shrinks at borders and corners (a 3x3 corner window has 4 pixels,
+//   hence an even s and a two-value median). No padding value is invented and no pixel counted
+//   twice.
+// - Invalid elements are left out and counted in PixelEstimate::excluded: an image pixel with a
+//   NaN/Inf channel, a buffer with a NaN/Inf channel or count or a negative count (as
+//   collectValidBuffers). Empty buffers (count 0) are left out silently. A window with no valid
+//   element gives black (kept = 0). A NaN centre pixel with valid neighbours is therefore replaced
+//   by the (weighted) median of the neighbours.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "mcstat/estimators.h"
+
+namespace mcstat {
+
+/// Largest window side accepted (k, l <= this, odd).
+inline constexpr int kMaxSpatialWindow = 255;
+/// Largest centre weight accepted (w_c of eq. 5.28).
+inline constexpr int64_t kMaxCentreWeight = 1000000;
+
+struct SpatialParams {
+    /// Luminance: elements ranked by luminance, the chosen elements' RGB averaged (a window's
+    /// result is a mix of whole pixels / buffers, never R of one with G of another). PerChannel:
+    /// R, G, B ranked and trimmed independently.
+    EstimatorMode mode = EstimatorMode::Luminance;
+    /// Luminance weights, from the OCIO config (color.h).
+    std::array<double, 3> luma{0.0, 0.0, 0.0};
+    /// Window width k and height l in pixels, odd, in [1, kMaxSpatialWindow], centred on the pixel.
+    int windowWidth = 3;
+    int windowHeight = 3;
+    /// Integer weight w_c of the centre pixel (eq. 5.28), in [1, kMaxCentreWeight]; 1 is MIF/3DMF.
+    int64_t centreWeight = 1;
+    /// Breakdown point in [0, 0.5] (eq. 5.19): c = floor(alpha * s + 1e-9) copies trimmed per side,
+    /// capped at floor((s-1)/2). 0.5 is the (weighted) median of MIF/WMIF/3DMF/3DWMF.
+    double alpha = 0.5;
+};
+
+/// Checks the ranges above; false with a one-line message naming the field and value.
+bool validateSpatialParams(const SpatialParams& p, std::string& err);
+
+/// Number of copies trimmed from each side of s weighted copies (eq. 5.6, 5.19):
+/// clamp(floor(alpha * s + 1e-9), 0, floor((s - 1) / 2)); 0 for s < 2.
+int64_t spatialTrim(double alpha, int64_t s);
+
+/// One element of a window: a pixel or a sub-buffer.
+struct WindowElement {
+    const float* rgb = nullptr;  ///< 3 finite floats
+    double count = 1.0;          ///< n_i > 0: weight of the value in the final average
+    int64_t weight = 1;          ///< w_i >= 1: duplication in the ranking (eq. 5.7)
+};
+
+/// Per-thread scratch so the per-pixel functions do not allocate after warm-up.
+struct SpatialScratch {
+    std::vector<WindowElement> elems;
+    std::vector<std::pair<double, int>> ranked;  ///< (rank key, element index)
+    std::vector<int> valid;                      ///< collectValidBuffers' output
+};
+
+/// The weighted trimmed mean of eq. 5.6 / 5.19 over elems (rules at the top of this file);
+/// p.windowWidth/Height are not used. Sets out.rgb, out.kept (elements with a surviving copy, per
+/// channel) and leaves out.excluded as it is. No element: black, kept = 0.
+void weightedTrimmedMean(const WindowElement* elems, int n, const SpatialParams& p,
+                         PixelEstimate& out, SpatialScratch& s);
+
+// ---- MIF / WMIF over an RGB image
+// ------------------------------------------------------------------
+
+/// An interleaved RGB float image: pixel (x, y) at rgb[(y * width + x) * 3 + c].
+struct RGBImageView {
+    const float* rgb = nullptr;
+    int width = 0, height = 0;
+};
+
+/// WMIF(w(w_c), k x l) at pixel (x, y) (eq. 5.6 with the weights of eq. 5.28; MIF, eq. 5.8, for
+/// centreWeight = 1; alpha < 0.5 gives the weighted trimmed mean filter WTMIF of section 5.1.2).
+void wmifPixel(const RGBImageView& img, int x, int y, const SpatialParams& p, PixelEstimate& out,
+               SpatialScratch& s);
+/// wmifPixel over every pixel, one thread; `out` holds width * height * 3 floats (not `img.rgb`).
+void wmifImage(const RGBImageView& img, const SpatialParams& p, float* out);
+
+// ---- 3D filters over pixel buffers
+// -----------------------------------------------------------------
+
+/// Read access to a width x height grid of pixels' sub-buffers: at(x, y) returns pixel (x, y)'s
+/// buffers. Each pixel may have its own M (adaptive buffer counts); the filters never assume a
+/// fixed M.
+struct BufferView {
+    int width = 0, height = 0;
+    const void* ctx = nullptr;
+    PixelBuffers (*fn)(const void* ctx, int x, int y) = nullptr;
+    PixelBuffers at(int x, int y) const { return fn(ctx, x, y); }
+};
+
+/// The fixed-M arrays of a StatsImage: means [(p*M + j)*3 + c], counts [p*M + j], p = y*width + x.
+struct FixedBufferGrid {
+    const float* bufferMean = nullptr;
+    const float* bufferCount = nullptr;
+    int width = 0, height = 0, M = 0;
+    PixelBuffers at(int x, int y) const;
+    /// A view of *this (which must outlive it).
+    BufferView view() const;
+};
+
+/// 3DWTMF(alpha, w(w_c), m x k x l) at pixel (x, y) (eq. 5.19): the elements are the valid buffers
+/// of every pixel in the clipped k x l window, the centre pixel's buffers weighted w_c. 3DWMF (eq.
+/// 5.20) is alpha = 0.5, 3DMF (eq. 5.21) alpha = 0.5 and centreWeight = 1. out.excluded counts the
+/// NaN/Inf buffers of the whole window.
+void filter3DPixel(const BufferView& v, int x, int y, const SpatialParams& p, PixelEstimate& out,
+                   SpatialScratch& s);
+/// filter3DPixel over every pixel, one thread; `out` holds width * height * 3 floats.
+void filter3DImage(const BufferView& v, const SpatialParams& p, float* out);
+
+}  // namespace mcstat
