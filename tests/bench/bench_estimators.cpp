@@ -54,7 +54,7 @@ void BM_Estimator(benchmark::State& state, const EstimatorInfo* est, EstimatorMo
     state.SetItemsProcessed(int64_t(state.iterations()) * kWidth * kHeight);
 }
 
-const std::vector<int64_t> kBufferCounts = {5, 21, 63};
+const std::vector<int64_t> kBufferCounts = {3, 7, 17, 21};
 
 SpatialParams spatialParams(EstimatorMode mode, int64_t w, double alpha) {
     SpatialParams p;
