@@ -31,6 +31,27 @@ ROI dataWindow(const StatsHeader& h) {
     return ROI(h.originX, h.originX + h.width, h.originY, h.originY + h.height);
 }
 
+/// Fills `dst` (an RGB float image already reset to `roi`) in parallel: `pixel(x, y, e, scratch)`
+/// computes each output pixel; every chunk of work has its own scratch, so threads share nothing.
+template <class PixelFn>
+void fillRGB(ImageBuf& dst, ROI roi, int nthreads, PixelFn pixel) {
+    float* const base = static_cast<float*>(dst.localpixels());
+    OIIO::ImageBufAlgo::parallel_image(roi, nthreads, [&](ROI r) {
+        SpatialScratch scratch;
+        PixelEstimate e;
+        for (int y = r.ybegin; y < r.yend; ++y)
+            for (int x = r.xbegin; x < r.xend; ++x) {
+                pixel(x, y, e, scratch);
+                float* px =
+                    base +
+                    (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * 3;
+                px[0] = e.rgb[0];
+                px[1] = e.rgb[1];
+                px[2] = e.rgb[2];
+            }
+    });
+}
+
 }  // namespace
 
 bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
@@ -139,21 +160,9 @@ bool medianImageFilter(ImageBuf& dst, const ImageBuf& src, const SpatialParams& 
     }
     std::string colorSpace = src.spec().get_string_attribute("oiio:ColorSpace", "lin_rec709");
     dst.reset(rgbSpec(roi, src.roi_full(), colorSpace), OIIO::InitializePixels::No);
-    float* const base = static_cast<float*>(dst.localpixels());
     const RGBImageView view{in.data(), full.width(), full.height()};
-    OIIO::ImageBufAlgo::parallel_image(roi, nthreads, [&](ROI r) {
-        SpatialScratch scratch;
-        PixelEstimate e;
-        for (int y = r.ybegin; y < r.yend; ++y)
-            for (int x = r.xbegin; x < r.xend; ++x) {
-                wmifPixel(view, x - full.xbegin, y - full.ybegin, params, e, scratch);
-                float* px =
-                    base +
-                    (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * 3;
-                px[0] = e.rgb[0];
-                px[1] = e.rgb[1];
-                px[2] = e.rgb[2];
-            }
+    fillRGB(dst, roi, nthreads, [&](int x, int y, PixelEstimate& e, SpatialScratch& scratch) {
+        wmifPixel(view, x - full.xbegin, y - full.ybegin, params, e, scratch);
     });
     return true;
 }
@@ -182,25 +191,13 @@ bool filter3D(ImageBuf& dst, const StatsImage& src, const SpatialParams& params,
     if (!roi.defined()) roi = full;
     roi = OIIO::roi_intersection(roi, full);
     dst.reset(rgbSpec(roi, full, h.colorSpace), OIIO::InitializePixels::No);
-    float* const base = static_cast<float*>(dst.localpixels());
     const BufferView view{
         h.width, h.height, &src, [](const void* ctx, int x, int y) {
             const auto* img = static_cast<const StatsImage*>(ctx);
             return img->pixelBuffers(size_t(y) * size_t(img->header.width) + size_t(x));
         }};
-    OIIO::ImageBufAlgo::parallel_image(roi, nthreads, [&](ROI r) {
-        SpatialScratch scratch;
-        PixelEstimate e;
-        for (int y = r.ybegin; y < r.yend; ++y)
-            for (int x = r.xbegin; x < r.xend; ++x) {
-                filter3DPixel(view, x - h.originX, y - h.originY, params, e, scratch);
-                float* px =
-                    base +
-                    (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * 3;
-                px[0] = e.rgb[0];
-                px[1] = e.rgb[1];
-                px[2] = e.rgb[2];
-            }
+    fillRGB(dst, roi, nthreads, [&](int x, int y, PixelEstimate& e, SpatialScratch& scratch) {
+        filter3DPixel(view, x - h.originX, y - h.originY, params, e, scratch);
     });
     return true;
 }
