@@ -2,6 +2,7 @@
 // after the running test, so tests run in parallel (ctest -j) never share them.
 #pragma once
 
+#include <OpenImageIO/filesystem.h>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
@@ -38,5 +39,22 @@ inline Result runMcstat(const std::string& args,
     r.err = slurp(e);
     return r;
 }
+
+/// A fixture giving each test its own scratch directory (removed afterwards) and `mcstat(args)`
+/// run with its output captured there.
+class CliFixture : public ::testing::Test {
+  protected:
+    std::string dir;
+    void SetUp() override {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        dir = std::string(MCSTAT_BINARY_DIR) + "/tests/cli/tmp-" + info->test_suite_name() + "-" +
+              info->name();
+        OIIO::Filesystem::remove_all(dir);
+        OIIO::Filesystem::create_directory(dir);
+    }
+    void TearDown() override { OIIO::Filesystem::remove_all(dir); }
+    std::string path(const std::string& name) const { return dir + "/" + name; }
+    Result mcstat(const std::string& args) const { return runMcstat(args, dir); }
+};
 
 }  // namespace mcstat::testing

@@ -19,19 +19,7 @@ namespace {
 
 using mcstat::testing::Result;
 
-class AdaptiveCli : public ::testing::Test {
-  protected:
-    std::string dir;
-    void SetUp() override {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        dir = std::string(MCSTAT_BINARY_DIR) + "/tests/cli/tmp-adaptive-" + info->name();
-        OIIO::Filesystem::remove_all(dir);
-        OIIO::Filesystem::create_directory(dir);
-    }
-    void TearDown() override { OIIO::Filesystem::remove_all(dir); }
-    std::string path(const std::string& name) const { return dir + "/" + name; }
-    Result mcstat(const std::string& args) const { return mcstat::testing::runMcstat(args, dir); }
-};
+class AdaptiveCli : public mcstat::testing::CliFixture {};
 
 /// 16x12, M_max = 9, m_p in {1, 3, 5, 9} by position, 4 samples per buffer; buffer values vary by
 /// buffer, channel and pixel; pixel (5, 5) (9 buffers) has a firefly buffer, pixel (6, 5) (1

@@ -23,18 +23,7 @@ namespace {
 using mcstat::testing::Result;
 using mcstat::testing::slurp;
 
-class Cli : public ::testing::Test {
-  protected:
-    std::string dir;
-    void SetUp() override {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        dir = std::string(MCSTAT_BINARY_DIR) + "/tests/cli/tmp-" + info->name();
-        OIIO::Filesystem::remove_all(dir);
-        OIIO::Filesystem::create_directory(dir);
-    }
-    std::string path(const std::string& name) const { return dir + "/" + name; }
-    Result mcstat(const std::string& args) const { return mcstat::testing::runMcstat(args, dir); }
-};
+class Cli : public mcstat::testing::CliFixture {};
 
 /// 16x12 grey image, M = 5 buffers of 4 samples each; pixel (5, 5) has one firefly buffer.
 StatsImage makeStats(int M = 5, float firefly = 500.f) {

@@ -20,22 +20,15 @@ namespace {
 
 using mcstat::testing::Result;
 
-class Spatial : public ::testing::Test {
+class Spatial : public mcstat::testing::CliFixture {
   protected:
-    std::string dir;
     StatsImage stats;
     void SetUp() override {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        dir = std::string(MCSTAT_BINARY_DIR) + "/tests/cli/tmp-spatial-" + info->name();
-        OIIO::Filesystem::remove_all(dir);
-        OIIO::Filesystem::create_directory(dir);
+        CliFixture::SetUp();
         stats = makeStats();
         std::string err;
         ASSERT_TRUE(writeStatsFile(path("f.mcstat"), stats, err)) << err;
     }
-    std::string path(const std::string& name) const { return dir + "/" + name; }
-    Result mcstat(const std::string& args) const { return mcstat::testing::runMcstat(args, dir); }
-
     /// 12 x 9 pixels, M = 5 buffers of 3 samples with varied colours; pixel (4, 4) has a firefly
     /// buffer, pixel (8, 2) three.
     static StatsImage makeStats() {
