@@ -86,10 +86,7 @@ bool cmdEstimate(State& st, const std::string& cmd, const std::vector<std::strin
         return false;
     }
     for (const auto& [k, v] : estMods) img->specmod().attribute("mcstat:" + k, v);
-    Item out;
-    out.name = format("{}({})", est->name, top.name);
-    out.image = img;
-    top = std::move(out);
+    replaceWithImage(top, est->name, img);
     return true;
 }
 
@@ -384,6 +381,13 @@ bool splitModifiers(const std::string& arg, std::string& name, Modifiers& mods, 
 }
 
 }  // namespace
+
+void replaceWithImage(Item& top, const std::string& op, std::shared_ptr<OIIO::ImageBuf> img) {
+    Item out;
+    out.name = format("{}({})", op, top.name);
+    out.image = std::move(img);
+    top = std::move(out);
+}
 
 int run(int argc, const char* const* argv) {
     State st;

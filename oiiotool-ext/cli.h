@@ -44,6 +44,9 @@ struct Command {
     std::string estimator;  ///< for commands generated from the estimator registry
 };
 
+/// Replaces `top` by the image `img` that operation `op` computed from it, named "op(top)".
+void replaceWithImage(Item& top, const std::string& op, std::shared_ptr<OIIO::ImageBuf> img);
+
 /// Runs a whole command line; returns the process exit code. Errors print one line to stderr.
 int run(int argc, const char* const* argv);
 

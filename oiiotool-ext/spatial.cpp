@@ -123,10 +123,7 @@ bool cmdMedianImageFilter(State& st, const std::string& cmd, const std::vector<s
         return false;
     }
     recordParams(*img, cmd, p);
-    Item out;
-    out.name = format("{}({})", cmd.substr(2), top.name);
-    out.image = img;
-    top = std::move(out);
+    replaceWithImage(top, cmd.substr(2), img);
     return true;
 }
 
@@ -152,10 +149,7 @@ bool cmdFilter3D(State& st, const std::string& cmd, const std::vector<std::strin
         return false;
     }
     recordParams(*img, cmd, p);
-    Item out;
-    out.name = format("{}({})", cmd.substr(2), top.name);
-    out.image = img;
-    top = std::move(out);
+    replaceWithImage(top, cmd.substr(2), img);
     return true;
 }
 
