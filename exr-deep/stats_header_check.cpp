@@ -283,9 +283,8 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
     if (h0.adaptiveM != adaptive_)  // part 0 decided the part names; cannot differ, but be sure
         return fail(fmt::format("{} disagrees with the parts", layout::kAttrAdaptiveM));
     if (h0.spp < 0) return fail(fmt::format("negative {} {}", layout::kAttrSpp, h0.spp));
-    if (h0.assignment != layout::kAssignmentRoundRobin)
-        return fail(fmt::format("unknown {} '{}' (this reader knows '{}')", layout::kAttrAssignment,
-                                h0.assignment, layout::kAssignmentRoundRobin));
+    if (std::string problem; !layout::knownAssignment(h0.assignment, h0.adaptiveM, problem))
+        return fail(fmt::format("{}: {}", layout::kAttrAssignment, problem));
     hdr = h0;
     return true;
 }

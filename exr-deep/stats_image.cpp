@@ -38,11 +38,7 @@ bool checkHeader(const StatsHeader& h, std::string& problem) {
         problem = fmt::format("negative spp {}", h.spp);
         return false;
     }
-    if (h.assignment != layout::kAssignmentRoundRobin) {
-        problem = fmt::format("unknown sample assignment '{}' (format 1 knows '{}')", h.assignment,
-                              layout::kAssignmentRoundRobin);
-        return false;
-    }
+    if (!layout::knownAssignment(h.assignment, h.adaptiveM, problem)) return false;
     // OpenEXR's dataWindow.max must stay representable.
     if (int64_t(h.originX) + h.width - 1 > std::numeric_limits<int>::max() ||
         int64_t(h.originY) + h.height - 1 > std::numeric_limits<int>::max()) {

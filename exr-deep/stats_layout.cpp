@@ -8,6 +8,20 @@ std::string bufferChannel(int j, const char* component) {
     return fmt::format("b{:03d}.{}", j, component);
 }
 
+bool knownAssignment(const std::string& assignment, bool adaptiveM, std::string& problem) {
+    if (assignment == kAssignmentRoundRobin) return true;
+    if (assignment == kAssignmentLeastCount) {
+        if (adaptiveM) return true;
+        problem = fmt::format("sample assignment '{}' needs adaptive M", assignment);
+        return false;
+    }
+    problem = fmt::format(
+        "unknown sample assignment '{}' (this reader knows '{}' and, with adaptive "
+        "M, '{}')",
+        assignment, kAssignmentRoundRobin, kAssignmentLeastCount);
+    return false;
+}
+
 std::vector<ChannelPlace> partChannels(int part, int M, bool adaptiveM) {
     if (adaptiveM && part == kBuffers) return {};
     const size_t m = size_t(M);

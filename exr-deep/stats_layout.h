@@ -42,8 +42,13 @@ inline constexpr const char* kAttrAdaptiveM = "mcstat:adaptiveM";
 /// exist.
 inline constexpr const char* kAttrPartVersion = "version";
 
-/// The only assignment rule of format version 1.
+/// The sample-to-buffer rules (FORMAT.md, "Sample assignment"). Round robin is the only rule of
+/// format version 1; least count exists only in adaptive files (format version 2).
 inline constexpr const char* kAssignmentRoundRobin = "roundrobin";
+inline constexpr const char* kAssignmentLeastCount = "leastcount";
+/// Whether `assignment` is a rule this reader knows for a file with fixed or adaptive M; if not,
+/// `problem` says why in a phrase.
+bool knownAssignment(const std::string& assignment, bool adaptiveM, std::string& problem);
 
 /// Which StatsImage array a channel is stored in.
 enum class Array {

@@ -102,8 +102,9 @@ bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::
             if (a.buffersOf(p) != b.buffersOf(p)) {
                 err = fmt::format(
                     "cannot merge: adaptive M differs at pixel ({}, {}): {} vs {} sub-buffers "
-                    "(adaptive renders merge only with the same buffer count per pixel, e.g. "
-                    "the same --pilot-seed, --pilot and --m-max)",
+                    "(adaptive renders merge only with the same buffer count per pixel: "
+                    "mcstat-render --m-strategy pilot with the same --pilot-seed, --pilot and "
+                    "--m-max)",
                     r.header.originX + int64_t(p % size_t(r.header.width)),
                     r.header.originY + int64_t(p / size_t(r.header.width)), a.buffersOf(p),
                     b.buffersOf(p));

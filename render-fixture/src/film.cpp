@@ -20,6 +20,7 @@ void PixelAccumulator::reset() {
     std::fill(bufCount_.begin(), bufCount_.end(), 0);
     n_ = 0;
     hits_ = 0;
+    luma_ = RunningVariance();
     for (int c = 0; c < 3; ++c) mean_[c] = m2_[c] = sum_[c] = 0;
     normalSum_ = positionSum_ = albedoSum_ = Vec3();
     depthSum_ = 0;
@@ -27,7 +28,29 @@ void PixelAccumulator::reset() {
 
 bool PixelAccumulator::add(int64_t index, const PathSample& s) {
     if (!isFinite(s.L)) return false;
-    const size_t j = size_t(index % M_);
+    addMoments(size_t(index % M_), s);
+    return true;
+}
+
+bool PixelAccumulator::addLeastCount(const PathSample& s) {
+    if (!isFinite(s.L)) return false;
+    // min_element returns the first minimum: the lowest index on ties.
+    addMoments(size_t(std::min_element(bufCount_.begin(), bufCount_.end()) - bufCount_.begin()), s);
+    return true;
+}
+
+void PixelAccumulator::grow(int M) {
+    if (M <= M_) return;
+    bufSum_.resize(size_t(M) * 3, 0.0);
+    bufCount_.resize(size_t(M), 0);
+    M_ = M;
+}
+
+int64_t PixelAccumulator::maxBufferCount() const {
+    return *std::max_element(bufCount_.begin(), bufCount_.end());
+}
+
+void PixelAccumulator::addMoments(size_t j, const PathSample& s) {
     ++bufCount_[j];
     ++n_;
     for (int c = 0; c < 3; ++c) {
@@ -46,7 +69,7 @@ bool PixelAccumulator::add(int64_t index, const PathSample& s) {
         albedoSum_ += s.albedo;
         depthSum_ += s.depth;
     }
-    return true;
+    luma_.add(sigmaLuma(s.L));
 }
 
 void PixelAccumulator::store(StatsImage& img, size_t p) const {

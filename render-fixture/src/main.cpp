@@ -97,7 +97,8 @@ bool writeReferenceExr(const std::string& path, int width, int height,
 int main(int argc, const char** argv) {
     std::string sceneName = "default", outPath, sppText = "64", mText = "8", seedText = "1",
                 threadsText = "0", resW, resH, mMaxText = std::to_string(kDefaultMaxBuffers),
-                pilotText = "0", pilotSeedText = std::to_string(kDefaultPilotSeed);
+                pilotText = "0", checkpointText = "0", strategyText = "grow",
+                pilotSeedText = std::to_string(kDefaultPilotSeed);
     bool reference = false, quiet = false, adaptive = false;
 
     std::string names;
@@ -129,22 +130,34 @@ int main(int argc, const char** argv) {
         .action([&](OIIO::cspan<const char*> a) { mText = a[1]; });
     ap.arg("--adaptive-m")
         .help(
-            "adaptive buffer count (Jung eq. 4.15): a pilot pass measures each pixel's "
-            "luminance standard deviation, pixel p gets M_p in 1..M_max buffers (odd); the file "
-            "stores them in a deep part (format 2; docs/adaptive-m.md). --M is ignored")
+            "adaptive buffer count (Jung eq. 4.15): pixel p gets M_p in 1..M_max buffers (odd) "
+            "from its luminance standard deviation against the image's; the file stores them in "
+            "a deep part (format 2; docs/adaptive-m.md). --M is ignored")
         .action([&](OIIO::cspan<const char*>) { adaptive = true; });
+    ap.arg("--m-strategy grow|pilot")
+        .help(
+            "with --adaptive-m: 'grow' (default) starts every pixel with one buffer and adds "
+            "buffers at checkpoints during the render, new buffers catching up with the old; "
+            "'pilot' chooses M_p first by a separate pilot pass (extra samples, but renders with "
+            "different --seed get the same M_p and can be merged)")
+        .action([&](OIIO::cspan<const char*> a) { strategyText = a[1]; });
     ap.arg("--m-max N")
         .help("with --adaptive-m: the largest M_p, odd, 1..999 (default 17)")
         .action([&](OIIO::cspan<const char*> a) { mMaxText = a[1]; });
+    ap.arg("--checkpoint N")
+        .help(
+            "with --m-strategy grow: the first checkpoint, in samples per pixel, >= 2; later "
+            "ones at 2N, 4N, ... (default max(2, spp / M_max))")
+        .action([&](OIIO::cspan<const char*> a) { checkpointText = a[1]; });
     ap.arg("--pilot N")
         .help(
-            "with --adaptive-m: pilot samples per pixel (default min(spp, max(64, spp/8))); "
-            "they only choose M_p and are not part of the image")
+            "with --m-strategy pilot: pilot samples per pixel (default min(spp, max(64, "
+            "spp/8))); they only choose M_p and are not part of the image")
         .action([&](OIIO::cspan<const char*> a) { pilotText = a[1]; });
     ap.arg("--pilot-seed S")
         .help(
-            "with --adaptive-m: seed of the pilot, independent of --seed so that renders with "
-            "different seeds get the same M_p and can be merged (default " +
+            "with --m-strategy pilot: seed of the pilot, independent of --seed so that renders "
+            "with different seeds get the same M_p and can be merged (default " +
             std::to_string(kDefaultPilotSeed) + ")")
         .action([&](OIIO::cspan<const char*> a) { pilotSeedText = a[1]; });
     ap.arg("--seed S")
@@ -192,6 +205,15 @@ int main(int argc, const char** argv) {
     opt.mMax = int(v);
     if (adaptive && opt.mMax % 2 == 0)
         return fail(fmt::format("--m-max: must be odd (eq. 4.15 gives odd counts; got {})", v));
+    if (strategyText == "grow")
+        opt.strategy = AdaptiveStrategy::Grow;
+    else if (strategyText == "pilot")
+        opt.strategy = AdaptiveStrategy::Pilot;
+    else
+        return fail(
+            fmt::format("--m-strategy: expected 'grow' or 'pilot', got '{}'", strategyText));
+    if (!parseInt(checkpointText, "--checkpoint", 0, (1LL << 40), v, err)) return fail(err);
+    opt.checkpoint = v;
     if (!parseInt(pilotText, "--pilot", 0, (1LL << 40), v, err)) return fail(err);
     opt.pilotSpp = v;
     if (!parseSeed(pilotSeedText, opt.pilotSeed, err, "--pilot-seed")) return fail(err);
@@ -225,12 +247,21 @@ int main(int argc, const char** argv) {
     if (!quiet && isatty(STDERR_FILENO)) {
         fmt::print(stderr, "mcstat-render: {} ({}x{}, {} spp) in {:.2f} s -> {}\n", scene.source,
                    scene.width, scene.height, opt.spp, stats.seconds, outPath);
-        if (opt.adaptiveM && !reference)
+        if (opt.adaptiveM && !reference && opt.strategy == AdaptiveStrategy::Pilot)
             fmt::print(stderr,
                        "mcstat-render: adaptive M: pilot {} spp ({:.2f} s), sigma_image {:.6g}, "
                        "{:.4f} buffers per pixel (M_max {})\n",
                        stats.pilotSamples, stats.pilotSeconds, stats.sigmaImage, stats.meanBuffers,
                        opt.mMax);
+        if (opt.adaptiveM && !reference && opt.strategy == AdaptiveStrategy::Grow) {
+            for (const GrowCheckpoint& cp : stats.checkpoints)
+                fmt::print(stderr,
+                           "mcstat-render: adaptive M: checkpoint at {} spp: sigma_image {:.6g}, "
+                           "{} pixels grew, {:.4f} buffers per pixel\n",
+                           cp.samples, cp.sigmaImage, cp.grownPixels, cp.meanBuffers);
+            fmt::print(stderr, "mcstat-render: adaptive M: {:.4f} buffers per pixel (M_max {})\n",
+                       stats.meanBuffers, opt.mMax);
+        }
     }
     return 0;
 }

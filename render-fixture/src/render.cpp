@@ -1,7 +1,9 @@
 // Drives the integrator over the image: one task per row, each pixel accumulated by a single
 // thread in sample order, so the result does not depend on scheduling or thread count.
-// Adaptive M (docs/adaptive-m.md): a pilot pass over all rows, a sequential reduction of
-// sigma_image, then the main pass with each pixel's own buffer count.
+// Adaptive M (docs/adaptive-m.md), two strategies. Grow: the render runs in rounds separated by
+// checkpoints; at each, sigma_image is reduced sequentially and buffer counts grow. Pilot: a pilot
+// pass over all rows, a sequential reduction of sigma_image, then the main pass with each pixel's
+// own buffer count.
 #include "mcstat/render/render.h"
 
 #include <OpenImageIO/parallel.h>
@@ -51,16 +53,17 @@ struct RenderContext {
     }
 };
 
-/// Runs rowTask(y) for every row on `threads` threads (caller included), with progress.
+/// Runs rowTask(y) for every row on `threads` threads (caller included), advancing `progress` by
+/// `unitsPerRow` per row. Returns the wall-clock seconds.
 template <typename RowTask>
-double forEachRow(int height, const RenderOptions& opt, RowTask&& rowTask) {
+double forEachRow(int height, const RenderOptions& opt, Progress& progress, int64_t unitsPerRow,
+                  RowTask&& rowTask) {
     const auto start = std::chrono::steady_clock::now();
     const int threads = resolveThreads(opt.threads);
-    Progress progress(height, opt.progress);
     auto task = [&](int64_t y0, int64_t y1) {
         for (int64_t y = y0; y < y1; ++y) {
             rowTask(int(y));
-            progress.advance();
+            progress.advance(unitsPerRow);
         }
     };
     if (threads == 1) {
@@ -72,16 +75,17 @@ double forEachRow(int height, const RenderOptions& opt, RowTask&& rowTask) {
         OIIO::parallel_for_chunked(0, height, 1, task,
                                    OIIO::paropt(threads, OIIO::paropt::SplitDir::Y, 1).pool(&pool));
     }
-    progress.finish();
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-/// Per-pixel luminance statistics of the pilot (Welford), written by the one thread that renders
-/// the pixel's row.
-struct PilotPixel {
-    int64_t n = 0;
-    double mean = 0, m2 = 0;
-};
+/// One pass over every row with its own progress line.
+template <typename RowTask>
+double forEachRow(int height, const RenderOptions& opt, RowTask&& rowTask) {
+    Progress progress(height, opt.progress);
+    const double seconds = forEachRow(height, opt, progress, 1, rowTask);
+    progress.finish();
+    return seconds;
+}
 
 bool planAdaptive(const RenderContext& ctx, const RenderOptions& opt, AdaptivePlan& plan,
                   std::string& err);
@@ -108,6 +112,13 @@ bool validateOptions(const RenderOptions& opt, std::string& err) {
                   " (eq. 4.15 gives odd buffer counts; got " + std::to_string(opt.mMax) + ")";
             return false;
         }
+        if (opt.checkpoint < 0 || opt.checkpoint == 1) {
+            err =
+                "checkpoint must be at least 2 samples per pixel (a standard deviation needs "
+                "two), or 0 for the default (got " +
+                std::to_string(opt.checkpoint) + ")";
+            return false;
+        }
         if (opt.pilotSpp < 0) {
             err = "pilot must be at least 1 sample per pixel, or 0 for the default (got " +
                   std::to_string(opt.pilotSpp) + ")";
@@ -125,6 +136,29 @@ int adaptiveBufferCount(double sigmaPixel, double sigmaImage, int mMax) {
     if (!std::isfinite(ratio)) return mMax;
     const int64_t n = 2 * (int64_t(std::ilogb(ratio)) + 1) + 1;  // ilogb = floor(log2), exact
     return int(std::min<int64_t>(n, mMax));
+}
+
+int growCap(int64_t spp, int64_t maxCount, int mMax) {
+    if (maxCount <= 0) return mMax;
+    const int64_t cap = std::min<int64_t>(spp / maxCount, mMax);
+    if (cap < 1) return 1;  // already over-full (spp below what was taken): no growth
+    return int(cap % 2 == 1 ? cap : cap - 1);
+}
+
+int grownBufferCount(int current, double sigmaPixel, double sigmaImage, int mMax, int64_t spp,
+                     int64_t maxCount) {
+    const int want =
+        std::min(adaptiveBufferCount(sigmaPixel, sigmaImage, mMax), growCap(spp, maxCount, mMax));
+    return std::max(current, want);
+}
+
+std::vector<int64_t> growCheckpoints(const RenderOptions& opt) {
+    std::vector<int64_t> out;
+    if (opt.mMax <= 1) return out;
+    const int64_t n0 =
+        std::max<int64_t>(2, opt.checkpoint > 0 ? opt.checkpoint : opt.spp / opt.mMax);
+    for (int64_t n = n0; n<opt.spp; n = n> opt.spp / 2 ? opt.spp : 2 * n) out.push_back(n);
+    return out;
 }
 
 int64_t pilotSamples(const RenderOptions& opt) {
@@ -150,7 +184,8 @@ bool planAdaptive(const RenderContext& ctx, const RenderOptions& opt, AdaptivePl
     const size_t pixels = size_t(scene.width) * size_t(scene.height);
     AdaptivePlan r;
     r.pilotSamples = pilotSamples(opt);
-    std::vector<PilotPixel> pilot;
+    // Per-pixel luminance statistics, each written only by the one thread rendering its row.
+    std::vector<RunningVariance> pilot;
     try {
         pilot.resize(pixels);
         r.sigmaPixel.resize(pixels);
@@ -162,15 +197,10 @@ bool planAdaptive(const RenderContext& ctx, const RenderOptions& opt, AdaptivePl
     // Pass 1: every pixel's statistics, each pixel by one thread, no shared accumulator.
     forEachRow(scene.height, opt, [&](int y) {
         for (int x = 0; x < scene.width; ++x) {
-            PilotPixel& px = pilot[size_t(y) * size_t(scene.width) + size_t(x)];
+            RunningVariance& px = pilot[size_t(y) * size_t(scene.width) + size_t(x)];
             for (int64_t i = 0; i < r.pilotSamples; ++i) {
                 const Vec3 L = ctx.samplePixel(opt.pilotSeed, x, y, i).L;
-                if (!isFinite(L)) continue;
-                const double v = kPilotLuma[0] * L[0] + kPilotLuma[1] * L[1] + kPilotLuma[2] * L[2];
-                ++px.n;
-                const double d = v - px.mean;
-                px.mean += d / double(px.n);
-                px.m2 += d * (v - px.mean);
+                if (isFinite(L)) px.add(sigmaLuma(L));
             }
         }
     });
@@ -179,14 +209,123 @@ bool planAdaptive(const RenderContext& ctx, const RenderOptions& opt, AdaptivePl
     // no thread ever updates it (docs/adaptive-m.md says why the mean and not the pooled one).
     double sum = 0;
     for (size_t p = 0; p < pixels; ++p) {
-        const PilotPixel& px = pilot[p];
-        r.sigmaPixel[p] = px.n > 1 ? std::sqrt(px.m2 / double(px.n - 1)) : 0.0;
+        r.sigmaPixel[p] = pilot[p].sigma();
         sum += r.sigmaPixel[p];
     }
     r.sigmaImage = sum / double(pixels);
     for (size_t p = 0; p < pixels; ++p)
         r.buffers[p] = uint32_t(adaptiveBufferCount(r.sigmaPixel[p], r.sigmaImage, opt.mMax));
     plan = std::move(r);
+    return true;
+}
+
+}  // namespace
+
+namespace {
+
+/// The header every render writes; the caller allocates the arrays.
+StatsImage newStatsImage(const Scene& scene, const RenderOptions& opt, int M) {
+    StatsImage img;
+    StatsHeader& h = img.header;
+    h.width = scene.width;
+    h.height = scene.height;
+    h.M = M;
+    h.spp = opt.spp;
+    h.assignment =
+        opt.adaptiveM && opt.strategy == AdaptiveStrategy::Grow ? "leastcount" : "roundrobin";
+    h.renderer = kRendererName;
+    h.colorSpace = "lin_rec709";
+    h.seeds = std::to_string(opt.seed);
+    if (opt.adaptiveM) h.formatVersion = kStatsFormatVersionAdaptive;
+    return img;
+}
+
+/// Fixed M, or adaptive M with a pilot plan: every pixel rendered in one go, sample i into
+/// buffer i mod M_p.
+bool renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsImage& img,
+                      std::atomic<int64_t>& dropped, double& seconds) {
+    const Scene& scene = ctx.scene;
+    seconds = forEachRow(scene.height, opt, [&](int y) {
+        PixelAccumulator acc(img.header.M);
+        int64_t rowDropped = 0;
+        for (int x = 0; x < scene.width; ++x) {
+            const size_t p = size_t(y) * size_t(scene.width) + size_t(x);
+            // Sample i goes to buffer i mod M_p: exactly a fixed-M render with M = M_p here.
+            acc.reset(img.buffersOf(p));
+            for (int64_t i = 0; i < opt.spp; ++i)
+                if (!acc.add(i, ctx.samplePixel(opt.seed, x, y, i))) ++rowDropped;
+            acc.store(img, p);
+        }
+        dropped.fetch_add(rowDropped, std::memory_order_relaxed);
+    });
+    return true;
+}
+
+/// Adaptive M growing during the render (docs/adaptive-m.md, "Grow"). The samples are rendered
+/// in rounds ending at the checkpoints; within a round each pixel belongs to the one thread
+/// rendering its row, and between rounds the calling thread alone reduces sigma_image (in pixel
+/// order) and grows buffer counts, so nothing is shared while threads run and the result is
+/// bit-identical for any thread count.
+bool renderGrowing(const RenderContext& ctx, const RenderOptions& opt, StatsImage& img,
+                   std::atomic<int64_t>& dropped, RenderStats& stats, std::string& err) {
+    const Scene& scene = ctx.scene;
+    const size_t pixels = size_t(scene.width) * size_t(scene.height);
+    std::vector<PixelAccumulator> acc;
+    try {
+        acc.assign(pixels, PixelAccumulator(1));
+    } catch (const std::exception& e) {
+        err = std::string("cannot allocate the pixel accumulators: ") + e.what();
+        return false;
+    }
+    std::vector<int64_t> ends = growCheckpoints(opt);
+    ends.push_back(opt.spp);
+    Progress progress(int64_t(scene.height) * opt.spp, opt.progress);
+    int64_t begin = 0;
+    for (const int64_t end : ends) {
+        stats.seconds += forEachRow(scene.height, opt, progress, end - begin, [&](int y) {
+            int64_t rowDropped = 0;
+            for (int x = 0; x < scene.width; ++x) {
+                PixelAccumulator& a = acc[size_t(y) * size_t(scene.width) + size_t(x)];
+                for (int64_t i = begin; i < end; ++i)
+                    if (!a.addLeastCount(ctx.samplePixel(opt.seed, x, y, i))) ++rowDropped;
+            }
+            dropped.fetch_add(rowDropped, std::memory_order_relaxed);
+        });
+        begin = end;
+        if (end == opt.spp) break;
+        // Checkpoint: every thread has joined. sigma_image = mean luminance sigma of all pixels
+        // over all their samples so far, summed in pixel order on this thread.
+        const auto start = std::chrono::steady_clock::now();
+        GrowCheckpoint cp;
+        cp.samples = end;
+        double sum = 0;
+        for (const PixelAccumulator& a : acc) sum += a.luminance().sigma();
+        cp.sigmaImage = sum / double(pixels);
+        int64_t buffers = 0;
+        for (PixelAccumulator& a : acc) {
+            const int m = grownBufferCount(a.buffers(), a.luminance().sigma(), cp.sigmaImage,
+                                           opt.mMax, opt.spp, a.maxBufferCount());
+            if (m > a.buffers()) {
+                a.grow(m);
+                ++cp.grownPixels;
+            }
+            buffers += a.buffers();
+        }
+        cp.meanBuffers = double(buffers) / double(pixels);
+        stats.checkpoints.push_back(cp);
+        stats.sigmaImage = cp.sigmaImage;
+        stats.seconds +=
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    }
+    progress.finish();
+
+    std::vector<uint32_t> counts(pixels);
+    for (size_t p = 0; p < pixels; ++p) counts[p] = uint32_t(acc[p].buffers());
+    if (!img.allocateAdaptive(counts, err)) return false;
+    for (size_t p = 0; p < pixels; ++p) {
+        acc[p].store(img, p);
+        acc[p] = PixelAccumulator(1);  // release its buffers: peak memory is the larger of the two
+    }
     return true;
 }
 
@@ -205,56 +344,31 @@ bool render(const Scene& scene, const RenderOptions& opt, StatsImage& out, std::
     RenderContext ctx(scene);
     if (!ctx.accel.build(scene, err)) return false;
 
-    AdaptivePlan plan;
-    double pilotSeconds = 0;
-    if (opt.adaptiveM) {
-        const auto start = std::chrono::steady_clock::now();
-        if (!planAdaptive(ctx, opt, plan, err)) return false;
-        pilotSeconds =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    }
-
-    StatsImage img;
-    StatsHeader& h = img.header;
-    h.width = scene.width;
-    h.height = scene.height;
-    h.M = M;
-    h.spp = opt.spp;
-    h.assignment = "roundrobin";
-    h.renderer = kRendererName;
-    h.colorSpace = "lin_rec709";
-    h.seeds = std::to_string(opt.seed);
-    if (opt.adaptiveM) {
-        h.formatVersion = kStatsFormatVersionAdaptive;
-        std::vector<uint32_t> buffers = std::move(plan.buffers);
-        if (!img.allocateAdaptive(buffers, err)) return false;
-    } else if (!img.allocate(err)) {
-        return false;
-    }
-
+    RenderStats st;
+    StatsImage img = newStatsImage(scene, opt, M);
     std::atomic<int64_t> dropped{0};
-    const double seconds = forEachRow(scene.height, opt, [&](int y) {
-        PixelAccumulator acc(M);
-        int64_t rowDropped = 0;
-        for (int x = 0; x < scene.width; ++x) {
-            // Sample i goes to buffer i mod M_p: exactly a fixed-M render with M = M_p here.
-            acc.reset(img.buffersOf(size_t(y) * size_t(scene.width) + size_t(x)));
-            for (int64_t i = 0; i < opt.spp; ++i)
-                if (!acc.add(i, ctx.samplePixel(opt.seed, x, y, i))) ++rowDropped;
-            acc.store(img, size_t(y) * size_t(scene.width) + size_t(x));
-        }
-        dropped.fetch_add(rowDropped, std::memory_order_relaxed);
-    });
-    if (stats) {
-        stats->nonFiniteSamples = dropped.load();
-        stats->seconds = seconds + pilotSeconds;
-        stats->pilotSeconds = pilotSeconds;
+    if (opt.adaptiveM && opt.strategy == AdaptiveStrategy::Grow) {
+        if (!renderGrowing(ctx, opt, img, dropped, st, err)) return false;
+    } else {
         if (opt.adaptiveM) {
-            stats->sigmaImage = plan.sigmaImage;
-            stats->pilotSamples = plan.pilotSamples;
-            stats->meanBuffers = double(img.bufferCount.size()) / double(img.pixelCount());
+            AdaptivePlan plan;
+            const auto start = std::chrono::steady_clock::now();
+            if (!planAdaptive(ctx, opt, plan, err)) return false;
+            st.pilotSeconds =
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+            st.sigmaImage = plan.sigmaImage;
+            st.pilotSamples = plan.pilotSamples;
+            if (!img.allocateAdaptive(plan.buffers, err)) return false;
+        } else if (!img.allocate(err)) {
+            return false;
         }
+        double seconds = 0;
+        if (!renderRoundRobin(ctx, opt, img, dropped, seconds)) return false;
+        st.seconds = seconds + st.pilotSeconds;
     }
+    st.nonFiniteSamples = dropped.load();
+    if (opt.adaptiveM) st.meanBuffers = double(img.bufferCount.size()) / double(img.pixelCount());
+    if (stats) *stats = std::move(st);
     out = std::move(img);
     return true;
 }

@@ -223,6 +223,20 @@ TEST(AdaptiveFile, RoundTripIsBitExact) {
     }
 }
 
+TEST(AdaptiveFile, LeastCountAssignmentRoundTrips) {
+    // Buffers grown during the render (mcstat-render --m-strategy grow) record "leastcount".
+    ScratchDir dir;
+    StatsImage img = sampleAdaptive();
+    img.header.assignment = "leastcount";
+    const std::string path = dir.file("grown.mcstat");
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path, img, err)) << err;
+    StatsImage back;
+    ASSERT_TRUE(readStatsFile(path, back, err)) << err;
+    expectSameImage(img, back);
+    EXPECT_EQ(back.header.assignment, "leastcount");
+}
+
 TEST(AdaptiveFile, RawLayoutFromTheSpecReadsBack) {
     // The deep part written independently of the library (raw_exr.cpp), as FORMAT.md describes it.
     ScratchDir dir;

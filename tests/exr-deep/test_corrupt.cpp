@@ -211,7 +211,13 @@ TEST_F(Corrupt, AttributeDiffersBetweenParts) {
 
 TEST_F(Corrupt, UnknownAssignment) {
     for (RawPart& p : parts) p.header.insert("mcstat:assignment", Imf::StringAttribute("random"));
-    EXPECT_TRUE(contains(readError(), "unknown mcstat:assignment 'random'"));
+    EXPECT_TRUE(contains(readError(), "mcstat:assignment: unknown sample assignment 'random'"));
+    // Least count exists only with adaptive M (buffers that grew during the render).
+    for (RawPart& p : parts)
+        p.header.insert("mcstat:assignment", Imf::StringAttribute("leastcount"));
+    const std::string err = readError();
+    EXPECT_TRUE(contains(err, "mcstat:assignment: sample assignment 'leastcount' needs adaptive M"))
+        << err;
 }
 
 // Pixel (x, y) = index y * 5 + x of the 5x4 image.

@@ -123,6 +123,9 @@ TEST_F(ValidateCounts, ArraySizesAndHeaderFields) {
     img.header.assignment = "random";
     err = check();
     EXPECT_TRUE(contains(err, "unknown sample assignment 'random'")) << err;
+    img.header.assignment = "leastcount";
+    err = check();
+    EXPECT_TRUE(contains(err, "sample assignment 'leastcount' needs adaptive M")) << err;
     img.header.assignment = "roundrobin";
     img.header.spp = -1;
     err = check();

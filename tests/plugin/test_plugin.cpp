@@ -236,6 +236,54 @@ TEST_F(Plugin, AllSubimagesHoldWhatTheFileHolds) {
     }
 }
 
+TEST_F(Plugin, AdaptiveFilesShowTheirBufferCountMap) {
+    // mcstat-render --adaptive-m, both strategies: the diagnostics subimage gains channel M, each
+    // pixel's buffer count as the file stores it, and the metadata says how it was assigned.
+    for (const char* strategy : {"grow", "pilot"}) {
+        SCOPED_TRACE(strategy);
+        const std::string f = path(std::string(strategy) + ".mcstat");
+        const Result r = run(std::string(MCSTAT_RENDER_EXE) +
+                             " --scene tiny --spp 40 --adaptive-m --m-max 9 --m-strategy " +
+                             strategy + " --quiet -o " + quote(f));
+        ASSERT_EQ(r.code, 0) << r.err;
+        mcstat::StatsImage s;
+        std::string err;
+        ASSERT_TRUE(mcstat::readStatsFile(f, s, err)) << err;
+        ASSERT_TRUE(s.header.adaptiveM);
+        EXPECT_EQ(s.header.M, 9);
+        const std::string a = path(std::string(strategy) + ".exr");
+        const Result o = run("oiiotool " + quote(f) + " --subimage diagnostics -o " + quote(a));
+        ASSERT_EQ(o.code, 0) << o.err;
+        const Pixels diag = readExr(a);
+        std::map<float, int> histogram;
+        for (size_t p = 0; p < s.pixelCount(); ++p) {
+            ASSERT_EQ(value(diag, p, "M"), float(s.buffersOf(p))) << "pixel " << p;
+            ASSERT_LE(value(diag, p, "kept"), value(diag, p, "M")) << "pixel " << p;
+            ++histogram[value(diag, p, "M")];
+        }
+        EXPECT_GE(histogram.size(), 2u) << "the tiny scene needs more than one buffer count";
+        EXPECT_GT(histogram[1.f], 0);
+        const Result i = run("iinfo -v " + quote(f));
+        ASSERT_EQ(i.code, 0) << i.err;
+        for (const std::string& want :
+             {std::string("mcstat:adaptiveM: 1"), std::string("mcstat:formatVersion: 2"),
+              std::string("mcstat:assignment: \"") +
+                  (strategy == std::string("grow") ? "leastcount" : "roundrobin") + "\""})
+            EXPECT_TRUE(contains(i.out, want)) << "missing '" << want << "' in\n" << i.out;
+    }
+    // Bad adaptive options are one-line errors naming the option.
+    const Result bad = run(std::string(MCSTAT_RENDER_EXE) +
+                           " --scene tiny --adaptive-m --m-strategy later -o " + quote(path("x")));
+    EXPECT_EQ(bad.code, 1);
+    EXPECT_TRUE(contains(bad.err, "--m-strategy: expected 'grow' or 'pilot', got 'later'"))
+        << bad.err;
+    const Result one = run(std::string(MCSTAT_RENDER_EXE) +
+                           " --scene tiny --adaptive-m --checkpoint 1 -o " + quote(path("x")));
+    EXPECT_EQ(one.code, 1);
+    EXPECT_TRUE(contains(one.err, "checkpoint must be at least 2")) << one.err;
+    EXPECT_FALSE(OIIO::Filesystem::exists(path("x")));
+}
+
 TEST_F(Plugin, EstimatorAndParametersThroughIconfig) {
     ASSERT_EQ(mcstat(quote(stats) + " --mon:mode=channel -o " + quote(path("d.exr"))).code, 0);
     const Result r = run("oiiotool --iconfig mcstat:estimator mon --iconfig mcstat:mode channel " +

@@ -1,6 +1,6 @@
 // Adaptive buffer count in the renderer (Jung 2016, section 4.2.4, eq. 4.15; docs/adaptive-m.md):
-// the rule, the pilot's sigma_image, determinism for any thread count, the round-robin rule with
-// M_p, and fireflies getting more buffers than smooth pixels.
+// the rule, both strategies (pilot, and growing during the render), sigma_image, determinism for
+// any thread count, the assignment rules, and fireflies getting more buffers than smooth pixels.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "film.h"
 #include "mcstat/render/render.h"
 #include "mcstat/render/scene.h"
 
@@ -43,7 +44,15 @@ RenderOptions adaptive(int64_t spp, int64_t pilot, int threads = 0, int mMax = 1
     o.threads = threads;
     o.adaptiveM = true;
     o.mMax = mMax;
+    o.strategy = AdaptiveStrategy::Pilot;
     o.pilotSpp = pilot;
+    return o;
+}
+
+RenderOptions growing(int64_t spp, int threads = 0, int mMax = 17, int64_t checkpoint = 0) {
+    RenderOptions o = adaptive(spp, 0, threads, mMax);
+    o.strategy = AdaptiveStrategy::Grow;
+    o.checkpoint = checkpoint;
     return o;
 }
 
@@ -224,40 +233,36 @@ TEST(AdaptiveRender, NoiselessImageHasSigmaImageZeroAndOneBufferEverywhere) {
     EXPECT_TRUE(sameBits(img.bufferMean, img.beauty));
 }
 
-TEST(AdaptiveRender, FireflyPixelsGetMoreBuffersThanSmoothOnes) {
-    // Firefly pixels found in an independent fixed-M render (a buffer mean > 20x the median, as in
-    // test_render.cpp), smooth pixels (every buffer within 2x of the median); the pilot (its own
-    // seed) must give the first far more buffers.
-    Scene s = mustLoad("default");
-    s.width = 80;
-    s.height = 60;
+/// Mean M_p of firefly pixels and of smooth pixels of the default scene at 80 x 60, found in a
+/// fixed M = 8 render of `spp` samples with `seed` (a buffer mean > 20x the median, as in
+/// test_render.cpp; smooth: every buffer within 2x of it); `mp(p)` gives a pixel's M_p.
+template <typename Mp>
+void expectFirefliesGetMoreBuffers(const Scene& s, int64_t spp, uint64_t seed, Mp&& mp) {
     RenderOptions fixedOpt;
-    fixedOpt.spp = 64;
+    fixedOpt.spp = spp;
     fixedOpt.M = 8;
+    fixedOpt.seed = seed;
     const StatsImage fixed = mustRender(s, fixedOpt);
-    AdaptivePlan plan;
-    std::string err;
-    ASSERT_TRUE(planAdaptive(s, adaptive(512, 64), plan, err)) << err;
     double mFirefly = 0, mSmooth = 0;
     size_t nFirefly = 0, nSmooth = 0, moreThanOne = 0;
     for (size_t p = 0; p < fixed.pixelCount(); ++p) {
         std::vector<double> lum(8);
         for (size_t j = 0; j < 8; ++j) {
             const float* c = &fixed.bufferMean[(p * 8 + j) * 3];
-            lum[j] = kPilotLuma[0] * c[0] + kPilotLuma[1] * c[1] + kPilotLuma[2] * c[2];
+            lum[j] = kSigmaLuma[0] * c[0] + kSigmaLuma[1] * c[1] + kSigmaLuma[2] * c[2];
         }
         std::vector<double> sorted = lum;
         std::sort(sorted.begin(), sorted.end());
         const double median = 0.5 * (sorted[3] + sorted[4]), mx = sorted[7], mn = sorted[0];
         if (median <= 0) continue;
         if (mx > 20 * median) {
-            mFirefly += plan.buffers[p];
+            mFirefly += mp(p);
             ++nFirefly;
         } else if (mx < 2 * median && mn > 0.5 * median) {
-            mSmooth += plan.buffers[p];
+            mSmooth += mp(p);
             ++nSmooth;
         }
-        moreThanOne += plan.buffers[p] > 1;
+        moreThanOne += mp(p) > 1;
     }
     ASSERT_GE(nFirefly, 5u);
     ASSERT_GE(nSmooth, 100u);
@@ -267,6 +272,278 @@ TEST(AdaptiveRender, FireflyPixelsGetMoreBuffersThanSmoothOnes) {
                                        << ", smooth pixels " << nSmooth << " mean M_p " << mSmooth;
     // Most of the image needs no robust estimate (the thesis: 93.7% of its scene).
     EXPECT_LT(moreThanOne, fixed.pixelCount() / 4);
+}
+
+TEST(AdaptiveRender, FireflyPixelsGetMoreBuffersThanSmoothOnes) {
+    // The pilot (its own seed) finds firefly-prone pixels: fireflies of an independent render.
+    Scene s = mustLoad("default");
+    s.width = 80;
+    s.height = 60;
+    AdaptivePlan plan;
+    std::string err;
+    ASSERT_TRUE(planAdaptive(s, adaptive(512, 64), plan, err)) << err;
+    expectFirefliesGetMoreBuffers(s, 64, 1, [&](size_t p) { return double(plan.buffers[p]); });
+}
+
+// ---------------------------------------------------------------------------------------------
+// Growing during the render
+
+TEST(GrowRule, CapKeepsEqualCountsReachable) {
+    // floor(spp / fullest buffer), made odd, at most M_max: the first checkpoint of a 1000-spp
+    // render (58 samples in one buffer) may still reach 17, later ones less.
+    EXPECT_EQ(growCap(1000, 58, 17), 17);  // 1000 / 58 = 17.2
+    EXPECT_EQ(growCap(1000, 116, 17), 7);  // 8.6 -> 8 -> odd 7
+    EXPECT_EQ(growCap(1000, 232, 17), 3);  // 4.3 -> 4 -> 3
+    EXPECT_EQ(growCap(1000, 464, 17), 1);  // 2.2 -> 2 -> 1: too late to grow
+    EXPECT_EQ(growCap(1000, 0, 17), 17);   // nothing taken yet
+    EXPECT_EQ(growCap(100, 10, 5), 5);     // M_max binds
+    EXPECT_EQ(growCap(10, 20, 17), 1);     // already over-full: never below 1
+    EXPECT_EQ(growCap(int64_t(1) << 40, 1, 999), 999);
+    // Grown counts: eq. 4.15 within the cap, never shrinking.
+    EXPECT_EQ(grownBufferCount(1, 0.5, 1.0, 17, 1000, 58), 1);     // ratio < 1
+    EXPECT_EQ(grownBufferCount(1, 128.0, 1.0, 17, 1000, 58), 17);  // eq. 4.15: 17, cap 17
+    EXPECT_EQ(grownBufferCount(1, 128.0, 1.0, 17, 1000, 116), 7);  // capped
+    EXPECT_EQ(grownBufferCount(9, 4.0, 1.0, 17, 1000, 58), 9);     // eq. 4.15 says 7: keep 9
+    EXPECT_EQ(grownBufferCount(3, 0.0, 1.0, 17, 1000, 300), 3);    // noiseless now: keep 3
+    EXPECT_EQ(grownBufferCount(1, 1.0, 0.0, 17, 1000, 58), 17);    // sigma_image 0: M_max
+}
+
+TEST(GrowRule, CheckpointsDoubleFromTheFirst) {
+    EXPECT_EQ(growCheckpoints(growing(1000)), (std::vector<int64_t>{58, 116, 232, 464, 928}));
+    EXPECT_EQ(growCheckpoints(growing(1000, 0, 17, 100)),
+              (std::vector<int64_t>{100, 200, 400, 800}));
+    EXPECT_EQ(growCheckpoints(growing(10)), (std::vector<int64_t>{2, 4, 8}));  // at least 2
+    EXPECT_EQ(growCheckpoints(growing(3)), (std::vector<int64_t>{2}));
+    EXPECT_TRUE(growCheckpoints(growing(2)).empty());
+    EXPECT_TRUE(growCheckpoints(growing(1)).empty());
+    EXPECT_TRUE(growCheckpoints(growing(1000, 0, 1)).empty());  // M_max 1: nothing can grow
+    EXPECT_TRUE(growCheckpoints(growing(1000, 0, 17, 1000)).empty());
+    // Doubling never overflows near the top of the range.
+    const std::vector<int64_t> big = growCheckpoints(growing(int64_t(1) << 40, 0, 3));
+    ASSERT_FALSE(big.empty());
+    EXPECT_LT(big.back(), int64_t(1) << 40);
+    EXPECT_LE(big.size(), 3u);
+
+    std::string err;
+    RenderOptions o = growing(100);
+    o.checkpoint = 1;
+    EXPECT_FALSE(validateOptions(o, err));
+    EXPECT_NE(err.find("checkpoint must be at least 2"), std::string::npos) << err;
+    o.checkpoint = -5;
+    EXPECT_FALSE(validateOptions(o, err));
+    o.checkpoint = 2;
+    EXPECT_TRUE(validateOptions(o, err)) << err;
+}
+
+TEST(GrowAccumulator, LeastCountFillsNewBuffersFirst) {
+    // Samples 1, 2, 3, 4 in one buffer; grow to 3: the following samples fill the two new, empty
+    // buffers alternately (fewest samples first, lowest index on ties) until they catch up with
+    // buffer 0's four.
+    PixelAccumulator acc(1);
+    acc.reset(1);
+    PathSample s;
+    auto add = [&](double v) {
+        s.L = Vec3(v, 2 * v, 0);
+        EXPECT_TRUE(acc.addLeastCount(s));
+    };
+    for (double v : {1.0, 2.0, 3.0, 4.0}) add(v);
+    EXPECT_EQ(acc.maxBufferCount(), 4);
+    acc.grow(3);
+    acc.grow(2);  // never shrinks
+    EXPECT_EQ(acc.buffers(), 3);
+    for (double v : {10.0, 20.0, 30.0, 40.0, 100.0, 200.0, 300.0}) add(v);
+    PathSample nan = s;
+    nan.L.x = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_FALSE(acc.addLeastCount(nan));  // dropped, no buffer touched
+    StatsImage img;
+    img.header.width = 1, img.header.height = 1, img.header.M = 3;
+    img.header.formatVersion = mcstat::kStatsFormatVersionAdaptive;
+    std::string err;
+    ASSERT_TRUE(img.allocateAdaptive({3}, err)) << err;
+    acc.store(img, 0);
+    EXPECT_EQ(img.count[0], 11.0f);
+    EXPECT_EQ(img.bufferCount[0], 4.0f);               // 1, 2, 3, 4
+    EXPECT_EQ(img.bufferCount[1], 4.0f);               // 10, 30, 100, 300
+    EXPECT_EQ(img.bufferCount[2], 3.0f);               // 20, 40, 200
+    EXPECT_EQ(img.bufferMean[0], 2.5f);                // 10 / 4
+    EXPECT_EQ(img.bufferMean[3], 110.0f);              // 440 / 4
+    EXPECT_EQ(img.bufferMean[6], float(260.0 / 3.0));  // 260 / 3
+    EXPECT_EQ(img.bufferMean[7], float(520.0 / 3.0));  // G = 2 R
+    // The luminance statistics of eq. 4.15 over the 11 kept samples: (0.2126 + 2 * 0.7152) v.
+    const double k = kSigmaLuma[0] + 2 * kSigmaLuma[1];
+    double mean = 0, ss = 0;
+    const double values[] = {1, 2, 3, 4, 10, 20, 30, 40, 100, 200, 300};
+    for (double v : values) mean += k * v / 11;
+    for (double v : values) ss += (k * v - mean) * (k * v - mean);
+    EXPECT_NEAR(acc.luminance().sigma(), std::sqrt(ss / 10), 1e-12 * std::sqrt(ss / 10));
+}
+
+TEST(GrowRender, DeterministicForAnyThreadCountAndByteIdenticalFiles) {
+    namespace fs = std::filesystem;
+    const Scene s = mustLoad("tiny");
+    RenderStats st1;
+    StatsImage one;
+    std::string err;
+    ASSERT_TRUE(render(s, growing(40, 1), one, err, &st1)) << err;
+    ASSERT_TRUE(one.header.adaptiveM);
+    EXPECT_EQ(one.header.assignment, "leastcount");
+    const fs::path dir =
+        fs::temp_directory_path() /
+        ("mcstat_grow_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
+    fs::create_directories(dir);
+    std::vector<std::string> bytes;
+    for (int threads : {1, 2, 3}) {
+        SCOPED_TRACE("threads = " + std::to_string(threads));
+        RenderStats st;
+        StatsImage img;
+        if (threads == 1) {
+            img = one, st = st1;
+        } else {
+            ASSERT_TRUE(render(s, growing(40, threads), img, err, &st)) << err;
+        }
+        EXPECT_EQ(img.bufferOffset, one.bufferOffset);
+        EXPECT_TRUE(sameBits(img.bufferMean, one.bufferMean));
+        EXPECT_TRUE(sameBits(img.bufferCount, one.bufferCount));
+        ASSERT_EQ(st.checkpoints.size(), st1.checkpoints.size());
+        for (size_t k = 0; k < st.checkpoints.size(); ++k) {
+            EXPECT_EQ(std::memcmp(&st.checkpoints[k].sigmaImage, &st1.checkpoints[k].sigmaImage,
+                                  sizeof(double)),
+                      0);
+            EXPECT_EQ(st.checkpoints[k].grownPixels, st1.checkpoints[k].grownPixels);
+        }
+        const std::string path = (dir / ("t" + std::to_string(threads) + ".mcstat")).string();
+        ASSERT_TRUE(mcstat::writeStatsFile(path, img, err)) << err;
+        std::ifstream in(path, std::ios::binary);
+        bytes.emplace_back(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    }
+    EXPECT_TRUE(bytes[0] == bytes[1]);
+    EXPECT_TRUE(bytes[0] == bytes[2]);
+    StatsImage back;
+    ASSERT_TRUE(mcstat::readStatsFile((dir / "t1.mcstat").string(), back, err)) << err;
+    EXPECT_EQ(back.header.assignment, "leastcount");
+    EXPECT_EQ(back.bufferOffset, one.bufferOffset);
+    EXPECT_TRUE(sameBits(back.bufferMean, one.bufferMean));
+    fs::remove_all(dir);
+}
+
+TEST(GrowRender, FirstCheckpointIsThePilotOfTheRendersOwnSamples) {
+    // The first checkpoint sees samples 0 .. n0-1 of every pixel: exactly what a pilot of n0
+    // samples with the render's seed sees, so sigma_image agrees bit for bit and every pixel grew
+    // to at least eq. 4.15's count under the first cap. Later checkpoints only add buffers.
+    const Scene s = mustLoad("tiny");
+    const int64_t spp = 60;
+    RenderStats st;
+    StatsImage img;
+    std::string err;
+    ASSERT_TRUE(render(s, growing(spp, 2), img, err, &st)) << err;
+    ASSERT_TRUE(mcstat::validateStats(img, "grow", err)) << err;
+    const std::vector<int64_t> cps = growCheckpoints(growing(spp));
+    ASSERT_EQ(st.checkpoints.size(), cps.size());
+    ASSERT_FALSE(cps.empty());
+    const int64_t n0 = cps[0];
+    EXPECT_EQ(n0, 3);  // 60 / 17
+    RenderOptions pilot = adaptive(spp, n0, 2);
+    pilot.pilotSeed = pilot.seed;
+    AdaptivePlan plan;
+    ASSERT_TRUE(planAdaptive(s, pilot, plan, err)) << err;
+    EXPECT_EQ(std::memcmp(&st.checkpoints[0].sigmaImage, &plan.sigmaImage, sizeof(double)), 0);
+    const int cap0 = growCap(spp, n0, 17);
+    int64_t grew = 0;
+    double prevMean = 1.0;
+    for (const GrowCheckpoint& cp : st.checkpoints) {
+        EXPECT_GE(cp.meanBuffers, prevMean);
+        prevMean = cp.meanBuffers;
+        grew += cp.grownPixels;
+    }
+    EXPECT_EQ(st.meanBuffers, prevMean);
+    EXPECT_GT(grew, 0);
+    std::map<int, int> histogram;
+    for (size_t p = 0; p < img.pixelCount(); ++p) {
+        const int m = img.buffersOf(p);
+        ++histogram[m];
+        EXPECT_GE(m, std::min<int>(int(plan.buffers[p]), cap0)) << "pixel " << p;
+        EXPECT_EQ(m % 2, 1);
+        EXPECT_LE(m, 17);
+    }
+    EXPECT_GE(histogram.size(), 3u);
+    EXPECT_GT(histogram[1], 0);
+}
+
+TEST(GrowRender, EqualCountsAndTheSameSamplesAsAFixedRender) {
+    // Buffers end within one sample of each other (the thesis' equal-size means), hold every kept
+    // sample once, and everything but the buffers is bit for bit the fixed-M render with the same
+    // seed: the same samples, accumulated in the same order.
+    const Scene s = mustLoad("tiny");
+    for (const int64_t spp : {int64_t(1), int64_t(2), int64_t(3), int64_t(17), int64_t(100)}) {
+        SCOPED_TRACE("spp = " + std::to_string(spp));
+        const StatsImage img = mustRender(s, growing(spp, 2));
+        RenderOptions fixedOpt = growing(spp, 2);
+        fixedOpt.adaptiveM = false;
+        fixedOpt.M = 1;
+        const StatsImage fixed = mustRender(s, fixedOpt);
+        EXPECT_TRUE(sameBits(img.beauty, fixed.beauty));
+        EXPECT_TRUE(sameBits(img.mean, fixed.mean));
+        EXPECT_TRUE(sameBits(img.variance, fixed.variance));
+        EXPECT_TRUE(sameBits(img.count, fixed.count));
+        EXPECT_TRUE(sameBits(img.normal, fixed.normal));
+        EXPECT_TRUE(sameBits(img.depth, fixed.depth));
+        EXPECT_TRUE(sameBits(img.albedo, fixed.albedo));
+        int grown = 0;
+        for (size_t p = 0; p < img.pixelCount(); ++p) {
+            const mcstat::PixelBuffers b = img.pixelBuffers(p);
+            grown += b.M > 1;
+            const int64_t n = int64_t(img.count[p]);
+            double total = 0, sum[3] = {0, 0, 0};
+            for (int j = 0; j < b.M; ++j) {
+                EXPECT_TRUE(b.count[j] == float(n / b.M) || b.count[j] == float(n / b.M + 1))
+                    << "pixel " << p << " buffer " << j << " of " << b.M << ": " << b.count[j]
+                    << " of " << n;
+                total += b.count[j];
+                for (int c = 0; c < 3; ++c) sum[c] += double(b.count[j]) * b.mean[j * 3 + c];
+            }
+            EXPECT_EQ(total, double(n));
+            for (int c = 0; c < 3; ++c)
+                EXPECT_NEAR(sum[c] / double(n), img.beauty[p * 3 + c],
+                            1e-6 * std::abs(img.beauty[p * 3 + c]) + 1e-30);
+        }
+        if (spp <= 3) {
+            EXPECT_EQ(grown, 0);  // no checkpoint (spp <= 2) or too late (cap 1)
+        }
+        if (spp == 100) {
+            EXPECT_GT(grown, 0);
+        }
+    }
+}
+
+TEST(GrowRender, NoiselessImageKeepsOneBufferEverywhere) {
+    const char* json = R"({"image":{"width":6,"height":4},
+      "camera":{"position":[0,0,0],"lookAt":[0,0,-1]},
+      "background":[0.5,0.25,0.125],
+      "materials":{"m":{"type":"diffuse"}},
+      "shapes":[{"type":"sphere","material":"m","center":[0,0,10],"radius":1}]})";
+    Scene s;
+    std::string err;
+    ASSERT_TRUE(parseScene(json, "empty.json", s, err)) << err;
+    RenderStats st;
+    StatsImage img;
+    ASSERT_TRUE(render(s, growing(64, 2), img, err, &st)) << err;
+    ASSERT_FALSE(st.checkpoints.empty());
+    for (const GrowCheckpoint& cp : st.checkpoints) {
+        EXPECT_EQ(cp.sigmaImage, 0.0);
+        EXPECT_EQ(cp.grownPixels, 0);
+    }
+    EXPECT_EQ(img.bufferCount.size(), img.pixelCount());
+    EXPECT_TRUE(sameBits(img.bufferMean, img.beauty));
+}
+
+TEST(GrowRender, FireflyPixelsGetMoreBuffersThanSmoothOnes) {
+    // Growing sees the render's own samples: pixels whose fireflies arrive early enough grow.
+    // Fireflies are found in a fixed-M render with the same seed and spp (the same samples).
+    Scene s = mustLoad("default");
+    s.width = 80;
+    s.height = 60;
+    const StatsImage img = mustRender(s, growing(256, 0));
+    expectFirefliesGetMoreBuffers(s, 256, 5, [&](size_t p) { return double(img.buffersOf(p)); });
 }
 
 }  // namespace
