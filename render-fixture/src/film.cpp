@@ -5,57 +5,11 @@
 
 namespace mcstat::render {
 
-PixelAccumulator::PixelAccumulator(int M)
-    : M_(M), bufSum_(size_t(M) * 3, 0.0), bufCount_(size_t(M), 0) {}
-
-void PixelAccumulator::reset(int M) {
-    bufSum_.resize(size_t(M) * 3);
-    bufCount_.resize(size_t(M));
-    M_ = M;
-    reset();
-}
-
-void PixelAccumulator::reset() {
-    std::fill(bufSum_.begin(), bufSum_.end(), 0.0);
-    std::fill(bufCount_.begin(), bufCount_.end(), 0);
-    n_ = 0;
-    hits_ = 0;
-    luma_ = RunningVariance();
-    for (int c = 0; c < 3; ++c) mean_[c] = m2_[c] = sum_[c] = 0;
-    normalSum_ = positionSum_ = albedoSum_ = Vec3();
-    depthSum_ = 0;
-}
-
-bool PixelAccumulator::add(int64_t index, const PathSample& s) {
+bool PixelMoments::add(const PathSample& s) {
     if (!isFinite(s.L)) return false;
-    addMoments(size_t(index % M_), s);
-    return true;
-}
-
-bool PixelAccumulator::addLeastCount(const PathSample& s) {
-    if (!isFinite(s.L)) return false;
-    // min_element returns the first minimum: the lowest index on ties.
-    addMoments(size_t(std::min_element(bufCount_.begin(), bufCount_.end()) - bufCount_.begin()), s);
-    return true;
-}
-
-void PixelAccumulator::grow(int M) {
-    if (M <= M_) return;
-    bufSum_.resize(size_t(M) * 3, 0.0);
-    bufCount_.resize(size_t(M), 0);
-    M_ = M;
-}
-
-int64_t PixelAccumulator::maxBufferCount() const {
-    return *std::max_element(bufCount_.begin(), bufCount_.end());
-}
-
-void PixelAccumulator::addMoments(size_t j, const PathSample& s) {
-    ++bufCount_[j];
     ++n_;
     for (int c = 0; c < 3; ++c) {
         const double x = s.L[c];
-        bufSum_[j * 3 + size_t(c)] += x;
         sum_[c] += x;
         // Welford: numerically stable even when the mean dwarfs the spread.
         const double delta = x - mean_[c];
@@ -70,17 +24,10 @@ void PixelAccumulator::addMoments(size_t j, const PathSample& s) {
         depthSum_ += s.depth;
     }
     luma_.add(sigmaLuma(s.L));
+    return true;
 }
 
-void PixelAccumulator::store(StatsImage& img, size_t p) const {
-    const size_t M = size_t(M_), k0 = img.bufferBegin(p);
-    for (size_t j = 0; j < M; ++j) {
-        const int64_t cnt = bufCount_[j];
-        img.bufferCount[k0 + j] = float(cnt);
-        for (size_t c = 0; c < 3; ++c)
-            img.bufferMean[(k0 + j) * 3 + c] =
-                cnt > 0 ? float(bufSum_[j * 3 + c] / double(cnt)) : 0.0f;
-    }
+void PixelMoments::store(StatsImage& img, size_t p) const {
     img.count[p] = float(n_);
     for (size_t c = 0; c < 3; ++c) {
         img.beauty[p * 3 + c] = n_ > 0 ? float(sum_[c] / double(n_)) : 0.0f;
@@ -97,6 +44,79 @@ void PixelAccumulator::store(StatsImage& img, size_t p) const {
     }
     img.depth[p] = hits_ > 0 ? float(depthSum_ * invHits) : std::numeric_limits<float>::infinity();
     img.coverage[p] = float(double(hits_) * invN);
+}
+
+void storeBuffer(StatsImage& img, size_t k, const double sum[3], int64_t count) {
+    img.bufferCount[k] = float(count);
+    for (size_t c = 0; c < 3; ++c)
+        img.bufferMean[k * 3 + c] = count > 0 ? float(sum[c] / double(count)) : 0.0f;
+}
+
+PixelAccumulator::PixelAccumulator(int M) : M_(M), buffers_(size_t(M)) {}
+
+void PixelAccumulator::reset(int M) {
+    buffers_.resize(size_t(M));
+    M_ = M;
+    reset();
+}
+
+void PixelAccumulator::reset() {
+    std::fill(buffers_.begin(), buffers_.end(), BufferSum());
+    moments_ = PixelMoments();
+}
+
+bool PixelAccumulator::add(int64_t index, const PathSample& s) {
+    if (!moments_.add(s)) return false;
+    buffers_[size_t(index % M_)].add(s.L);
+    return true;
+}
+
+void PixelAccumulator::store(StatsImage& img, size_t p) const {
+    const size_t k0 = img.bufferBegin(p);
+    for (size_t j = 0; j < size_t(M_); ++j)
+        storeBuffer(img, k0 + j, buffers_[j].sum, buffers_[j].count);
+    moments_.store(img, p);
+}
+
+bool GrowingPixel::add(const PathSample& s) {
+    if (!moments_.add(s)) return false;
+    if (!buffers_.empty())  // min_element returns the first minimum: the lowest index on ties
+        std::min_element(buffers_.begin(), buffers_.end(),
+                         [](const BufferSum& a, const BufferSum& b) { return a.count < b.count; })
+            ->add(s.L);
+    return true;
+}
+
+void GrowingPixel::grow(int M) {
+    if (M <= buffers()) return;
+    buffers_.reserve(size_t(M));  // exactly M: a doubling growth would waste per-pixel memory
+    if (buffers_.empty()) {       // buffer 0 so far is the pixel's sum
+        BufferSum b0;
+        for (int c = 0; c < 3; ++c) b0.sum[c] = moments_.sum(c);
+        b0.count = moments_.count();
+        buffers_.push_back(b0);
+    }
+    buffers_.resize(size_t(M));
+}
+
+int64_t GrowingPixel::maxBufferCount() const {
+    if (buffers_.empty()) return moments_.count();
+    int64_t m = 0;
+    for (const BufferSum& b : buffers_) m = std::max(m, b.count);
+    return m;
+}
+
+void GrowingPixel::store(StatsImage& img, size_t p) const {
+    const size_t k0 = img.bufferBegin(p);
+    if (buffers_.empty()) {
+        double sum[3];
+        for (int c = 0; c < 3; ++c) sum[c] = moments_.sum(c);
+        storeBuffer(img, k0, sum, moments_.count());
+    } else {
+        for (size_t j = 0; j < buffers_.size(); ++j)
+            storeBuffer(img, k0 + j, buffers_[j].sum, buffers_[j].count);
+    }
+    moments_.store(img, p);
 }
 
 bool MeanAccumulator::add(const Vec3& L) {

@@ -269,10 +269,12 @@ bool renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsI
 bool renderGrowing(const RenderContext& ctx, const RenderOptions& opt, StatsImage& img,
                    std::atomic<int64_t>& dropped, RenderStats& stats, std::string& err) {
     const Scene& scene = ctx.scene;
-    const size_t pixels = size_t(scene.width) * size_t(scene.height);
-    std::vector<PixelAccumulator> acc;
+    const size_t width = size_t(scene.width), pixels = width * size_t(scene.height);
+    // One vector per row, so that each row's state is freed as soon as it is stored.
+    std::vector<std::vector<GrowingPixel>> rows;
     try {
-        acc.assign(pixels, PixelAccumulator(1));
+        rows.resize(size_t(scene.height));
+        for (auto& row : rows) row.resize(width);
     } catch (const std::exception& e) {
         err = std::string("cannot allocate the pixel accumulators: ") + e.what();
         return false;
@@ -285,9 +287,9 @@ bool renderGrowing(const RenderContext& ctx, const RenderOptions& opt, StatsImag
         stats.seconds += forEachRow(scene.height, opt, progress, end - begin, [&](int y) {
             int64_t rowDropped = 0;
             for (int x = 0; x < scene.width; ++x) {
-                PixelAccumulator& a = acc[size_t(y) * size_t(scene.width) + size_t(x)];
+                GrowingPixel& px = rows[size_t(y)][size_t(x)];
                 for (int64_t i = begin; i < end; ++i)
-                    if (!a.addLeastCount(ctx.samplePixel(opt.seed, x, y, i))) ++rowDropped;
+                    if (!px.add(ctx.samplePixel(opt.seed, x, y, i))) ++rowDropped;
             }
             dropped.fetch_add(rowDropped, std::memory_order_relaxed);
         });
@@ -299,18 +301,20 @@ bool renderGrowing(const RenderContext& ctx, const RenderOptions& opt, StatsImag
         GrowCheckpoint cp;
         cp.samples = end;
         double sum = 0;
-        for (const PixelAccumulator& a : acc) sum += a.luminance().sigma();
+        for (const auto& row : rows)
+            for (const GrowingPixel& px : row) sum += px.luminance().sigma();
         cp.sigmaImage = sum / double(pixels);
         int64_t buffers = 0;
-        for (PixelAccumulator& a : acc) {
-            const int m = grownBufferCount(a.buffers(), a.luminance().sigma(), cp.sigmaImage,
-                                           opt.mMax, opt.spp, a.maxBufferCount());
-            if (m > a.buffers()) {
-                a.grow(m);
-                ++cp.grownPixels;
+        for (auto& row : rows)
+            for (GrowingPixel& px : row) {
+                const int m = grownBufferCount(px.buffers(), px.luminance().sigma(), cp.sigmaImage,
+                                               opt.mMax, opt.spp, px.maxBufferCount());
+                if (m > px.buffers()) {
+                    px.grow(m);
+                    ++cp.grownPixels;
+                }
+                buffers += px.buffers();
             }
-            buffers += a.buffers();
-        }
         cp.meanBuffers = double(buffers) / double(pixels);
         stats.checkpoints.push_back(cp);
         stats.sigmaImage = cp.sigmaImage;
@@ -320,11 +324,11 @@ bool renderGrowing(const RenderContext& ctx, const RenderOptions& opt, StatsImag
     progress.finish();
 
     std::vector<uint32_t> counts(pixels);
-    for (size_t p = 0; p < pixels; ++p) counts[p] = uint32_t(acc[p].buffers());
+    for (size_t p = 0; p < pixels; ++p) counts[p] = uint32_t(rows[p / width][p % width].buffers());
     if (!img.allocateAdaptive(counts, err)) return false;
-    for (size_t p = 0; p < pixels; ++p) {
-        acc[p].store(img, p);
-        acc[p] = PixelAccumulator(1);  // release its buffers: peak memory is the larger of the two
+    for (size_t y = 0; y < rows.size(); ++y) {
+        for (size_t x = 0; x < width; ++x) rows[y][x].store(img, y * width + x);
+        std::vector<GrowingPixel>().swap(rows[y]);  // peak memory: the state or the image, not both
     }
     return true;
 }

@@ -339,12 +339,13 @@ TEST(GrowAccumulator, LeastCountFillsNewBuffersFirst) {
     // Samples 1, 2, 3, 4 in one buffer; grow to 3: the following samples fill the two new, empty
     // buffers alternately (fewest samples first, lowest index on ties) until they catch up with
     // buffer 0's four.
-    PixelAccumulator acc(1);
-    acc.reset(1);
+    GrowingPixel acc;
+    EXPECT_EQ(acc.buffers(), 1);
+    EXPECT_EQ(acc.maxBufferCount(), 0);
     PathSample s;
     auto add = [&](double v) {
         s.L = Vec3(v, 2 * v, 0);
-        EXPECT_TRUE(acc.addLeastCount(s));
+        EXPECT_TRUE(acc.add(s));
     };
     for (double v : {1.0, 2.0, 3.0, 4.0}) add(v);
     EXPECT_EQ(acc.maxBufferCount(), 4);
@@ -354,7 +355,7 @@ TEST(GrowAccumulator, LeastCountFillsNewBuffersFirst) {
     for (double v : {10.0, 20.0, 30.0, 40.0, 100.0, 200.0, 300.0}) add(v);
     PathSample nan = s;
     nan.L.x = std::numeric_limits<double>::quiet_NaN();
-    EXPECT_FALSE(acc.addLeastCount(nan));  // dropped, no buffer touched
+    EXPECT_FALSE(acc.add(nan));  // dropped, no buffer touched
     StatsImage img;
     img.header.width = 1, img.header.height = 1, img.header.M = 3;
     img.header.formatVersion = mcstat::kStatsFormatVersionAdaptive;
