@@ -56,6 +56,20 @@ RenderOptions growing(int64_t spp, int threads = 0, int mMax = 17, int64_t check
     return o;
 }
 
+/// Every camera ray misses (the only shape is behind the camera): every sample is the background,
+/// every sigma is 0.
+Scene noiselessScene() {
+    const char* json = R"({"image":{"width":6,"height":4},
+      "camera":{"position":[0,0,0],"lookAt":[0,0,-1]},
+      "background":[0.5,0.25,0.125],
+      "materials":{"m":{"type":"diffuse"}},
+      "shapes":[{"type":"sphere","material":"m","center":[0,0,10],"radius":1}]})";
+    Scene s;
+    std::string err;
+    EXPECT_TRUE(parseScene(json, "empty.json", s, err)) << err;
+    return s;
+}
+
 bool sameBits(const std::vector<float>& a, const std::vector<float>& b) {
     return a.size() == b.size() &&
            (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0);
@@ -214,16 +228,8 @@ TEST(AdaptiveRender, EachPixelEqualsAFixedRenderWithMp) {
 }
 
 TEST(AdaptiveRender, NoiselessImageHasSigmaImageZeroAndOneBufferEverywhere) {
-    // Every camera ray misses (the only shape is behind the camera): every sample is the
-    // background, every sigma is 0.
-    const char* json = R"({"image":{"width":6,"height":4},
-      "camera":{"position":[0,0,0],"lookAt":[0,0,-1]},
-      "background":[0.5,0.25,0.125],
-      "materials":{"m":{"type":"diffuse"}},
-      "shapes":[{"type":"sphere","material":"m","center":[0,0,10],"radius":1}]})";
-    Scene s;
+    const Scene s = noiselessScene();
     std::string err;
-    ASSERT_TRUE(parseScene(json, "empty.json", s, err)) << err;
     AdaptivePlan plan;
     ASSERT_TRUE(planAdaptive(s, adaptive(8, 8, 2), plan, err)) << err;
     EXPECT_EQ(plan.sigmaImage, 0.0);
@@ -517,14 +523,8 @@ TEST(GrowRender, EqualCountsAndTheSameSamplesAsAFixedRender) {
 }
 
 TEST(GrowRender, NoiselessImageKeepsOneBufferEverywhere) {
-    const char* json = R"({"image":{"width":6,"height":4},
-      "camera":{"position":[0,0,0],"lookAt":[0,0,-1]},
-      "background":[0.5,0.25,0.125],
-      "materials":{"m":{"type":"diffuse"}},
-      "shapes":[{"type":"sphere","material":"m","center":[0,0,10],"radius":1}]})";
-    Scene s;
+    const Scene s = noiselessScene();
     std::string err;
-    ASSERT_TRUE(parseScene(json, "empty.json", s, err)) << err;
     RenderStats st;
     StatsImage img;
     ASSERT_TRUE(render(s, growing(64, 2), img, err, &st)) << err;
