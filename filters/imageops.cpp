@@ -4,6 +4,8 @@
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imagebufalgo_util.h>
 
+#include <algorithm>
+
 #include "mcstat/color.h"
 
 namespace mcstat {
@@ -196,8 +198,27 @@ bool filter3D(ImageBuf& dst, const StatsImage& src, const SpatialParams& params,
             const auto* img = static_cast<const StatsImage*>(ctx);
             return img->pixelBuffers(size_t(y) * size_t(img->header.width) + size_t(x));
         }};
+    // Eq. 5.24: sort each pixel's buffers once (the ROI grown by the window radius, clipped to the
+    // data window), then every output pixel merges its window's sorted lists. Both passes split the
+    // image over threads; each pixel's ranking and each output pixel depend on nothing else, so the
+    // result does not depend on the thread count.
+    const int rx = params.windowWidth / 2, ry = params.windowHeight / 2;
+    const int gx0 = std::max(0, roi.xbegin - h.originX - rx);
+    const int gx1 = std::min(h.width, roi.xend - h.originX + rx);
+    const int gy0 = std::max(0, roi.ybegin - h.originY - ry);
+    const int gy1 = std::min(h.height, roi.yend - h.originY + ry);
+    RankedBufferGrid grid;
+    grid.reset(view, params, gx0, gy0, gx1, gy1);
+    if (gx1 > gx0 && gy1 > gy0)
+        OIIO::ImageBufAlgo::parallel_image(
+            ROI(gx0 + h.originX, gx1 + h.originX, gy0 + h.originY, gy1 + h.originY), nthreads,
+            [&](ROI r) {
+                SpatialScratch scratch;
+                grid.sortRect(r.xbegin - h.originX, r.ybegin - h.originY, r.xend - h.originX,
+                              r.yend - h.originY, scratch);
+            });
     fillRGB(dst, roi, nthreads, [&](int x, int y, PixelEstimate& e, SpatialScratch& scratch) {
-        filter3DPixel(view, x - h.originX, y - h.originY, params, e, scratch);
+        grid.filterPixel(x - h.originX, y - h.originY, e, scratch);
     });
     return true;
 }

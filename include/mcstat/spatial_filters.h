@@ -83,11 +83,34 @@ struct WindowElement {
     int64_t weight = 1;          ///< w_i >= 1: duplication in the ranking (eq. 5.7)
 };
 
+/// One window pixel of a 3D filter: its valid buffers in rank order (ascending key, ties by buffer
+/// index), as the k-way merge of eq. 5.24 takes them. Filled by filter3DPixel and
+/// RankedBufferGrid; the merge never looks at invalid buffers.
+struct RankedList {
+    const float* mean = nullptr;   ///< the pixel's buffers: PixelBuffers::mean, ::count
+    const float* count = nullptr;  ///<
+    /// Luminance: order[0][i] is the i-th buffer index by luminance. PerChannel: order[c][i] the
+    /// i-th by channel c.
+    std::array<const int32_t*, 3> order{nullptr, nullptr, nullptr};
+    /// Luminance: key[i] is the luminance of order[0][i] as order-preserving bits (-0 = +0).
+    const uint64_t* key = nullptr;
+    int n = 0;           ///< valid buffers (> 0)
+    int64_t weight = 1;  ///< w_i of every buffer of the pixel (eq. 5.28)
+};
+
 /// Per-thread scratch so the per-pixel functions do not allocate after warm-up.
 struct SpatialScratch {
     std::vector<WindowElement> elems;
     std::vector<std::pair<double, int>> ranked;  ///< (rank key, element index)
     std::vector<int> valid;                      ///< collectValidBuffers' output
+    // 3D filters (eq. 5.24): the window's rank lists, the merge's tournament tree and list
+    // positions, and filter3DPixel's own per-window ranking (RankedBufferGrid keeps its ranking
+    // for the whole image instead).
+    std::vector<RankedList> lists;
+    std::vector<uint64_t> treeKey;
+    std::vector<int> treeList, cursor;
+    std::vector<int32_t> order;
+    std::vector<uint64_t> key;
 };
 
 /// The weighted trimmed mean of eq. 5.6 / 5.19 over elems (rules at the top of this file);
@@ -135,13 +158,55 @@ struct FixedBufferGrid {
     BufferView view() const;
 };
 
+// The 3D filters rank as the thesis' cost model assumes (eq. 5.24, T = m log m + m n log n): each
+// pixel's valid buffers are sorted once by the rank key, and a window merges its n pixels' sorted
+// lists (a k-way merge with a tournament tree keyed by (key, window order)), walking the merged
+// order only up to the last kept rank. The merged order is exactly the order of one full sort of
+// the window's elements (ascending key, ties by window row, column, buffer index), so the result is
+// the same bit for bit as sorting all m n elements per pixel.
+
 /// 3DWTMF(alpha, w(w_c), m x k x l) at pixel (x, y) (eq. 5.19): the elements are the valid buffers
 /// of every pixel in the clipped k x l window, the centre pixel's buffers weighted w_c. 3DWMF (eq.
 /// 5.20) is alpha = 0.5, 3DMF (eq. 5.21) alpha = 0.5 and centreWeight = 1. out.excluded counts the
-/// NaN/Inf buffers of the whole window.
+/// NaN/Inf buffers of the whole window. A single pixel has no sorted neighbours to reuse: this
+/// sorts each window pixel's buffers, then merges; whole images go through RankedBufferGrid.
 void filter3DPixel(const BufferView& v, int x, int y, const SpatialParams& p, PixelEstimate& out,
                    SpatialScratch& s);
-/// filter3DPixel over every pixel, one thread; `out` holds width * height * 3 floats.
+/// filter3DPixel over every pixel, one thread, each pixel's buffers sorted once
+/// (RankedBufferGrid); `out` holds width * height * 3 floats.
 void filter3DImage(const BufferView& v, const SpatialParams& p, float* out);
+
+/// The pre-sorted buffers of eq. 5.24 for a rectangle of a BufferView: every pixel's valid buffers
+/// sorted once by rank key (O(m log m) per pixel), so that filterPixel only merges the window's
+/// sorted lists (O(m n log n)). Results equal filter3DPixel's bit for bit.
+/// Memory: one rank array as large as the buffer means, 12 bytes per buffer (luminance: an int32
+/// index and a 64-bit key; per channel: three int32 indices), plus 16 bytes per pixel.
+class RankedBufferGrid {
+  public:
+    /// Covers pixels [x0, x1) x [y0, y1) of v (v's context must outlive *this), ranked by
+    /// p.mode / p.luma, filtered with p. O(pixels): allocates, reads only each pixel's M.
+    void reset(const BufferView& v, const SpatialParams& p, int x0, int y0, int x1, int y1);
+    /// Sorts the pixels of [xa, xb) x [ya, yb), inside the rectangle. Calls on disjoint
+    /// rectangles may run concurrently (each with its own scratch).
+    void sortRect(int xa, int ya, int xb, int yb, SpatialScratch& s);
+    /// filter3DPixel(v, x, y, p, ...) from the sorted buffers: the window around (x, y), clipped to
+    /// the view, must lie inside the rectangle and be sorted.
+    void filterPixel(int x, int y, PixelEstimate& out, SpatialScratch& s) const;
+
+  private:
+    struct PixelRank {
+        uint64_t begin = 0;  ///< first slot: key_[begin + i], order_[ranks * begin + ...]
+        int32_t n = 0;       ///< valid buffers
+        int32_t excluded = 0;
+    };
+    BufferView view_;
+    SpatialParams params_;
+    int x0_ = 0, y0_ = 0, width_ = 0, height_ = 0;
+    std::vector<PixelRank> pixels_;  ///< [(y - y0) * width + x - x0]
+    /// Per pixel, M slots per ranking (1 for luminance, 3 per channel): ranking r of a pixel with M
+    /// buffers at order_[ranks * begin + r * M + i], i < n.
+    std::vector<int32_t> order_;
+    std::vector<uint64_t> key_;  ///< luminance only: key_[begin + i] of order_[begin + i]
+};
 
 }  // namespace mcstat
