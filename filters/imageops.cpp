@@ -193,11 +193,15 @@ bool filter3D(ImageBuf& dst, const StatsImage& src, const SpatialParams& params,
     if (!roi.defined()) roi = full;
     roi = OIIO::roi_intersection(roi, full);
     dst.reset(rgbSpec(roi, full, h.colorSpace), OIIO::InitializePixels::No);
+    // Adaptive M: a pixel's M_p buffers hold n / M_p samples each next to one-buffer pixels of n,
+    // so every sample votes once (BufferVotes::PerSample); fixed M: one vote per buffer (eq. 5.19).
     const BufferView view{
-        h.width, h.height, &src, [](const void* ctx, int x, int y) {
+        h.width, h.height, &src,
+        [](const void* ctx, int x, int y) {
             const auto* img = static_cast<const StatsImage*>(ctx);
             return img->pixelBuffers(size_t(y) * size_t(img->header.width) + size_t(x));
-        }};
+        },
+        h.adaptiveM ? BufferVotes::PerSample : BufferVotes::PerBuffer};
     // Eq. 5.24: sort each pixel's buffers once (the ROI grown by the window radius, clipped to the
     // data window), then every output pixel merges its window's sorted lists. Both passes split the
     // image over threads; each pixel's ranking and each output pixel depend on nothing else, so the

@@ -5,6 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
+
+#include "mcstat/stats_file.h"  // kMaxBuffers, for the overflow bound below
 
 namespace mcstat {
 
@@ -159,12 +162,45 @@ inline uint64_t orderedBits(double key) {
     return u ^ ((uint64_t(0) - (u >> 63)) | (uint64_t(1) << 63));  // negative: ~u, else set sign
 }
 
-/// Eq. 5.24's per-pixel part, O(m log m): ranks the valid buffers of px (collectValidBuffers' rule)
-/// into order[r * px.M + i] (ranking r, i < n) and, for luminance, key[i] (orderedBits); ties by
-/// buffer index, so each list is the window's total order restricted to this pixel. Returns n.
-int rankPixel(const PixelBuffers& px, const SpatialParams& p, int32_t* order, uint64_t* key,
-              int& excluded, SpatialScratch& s) {
-    const int n = collectValidBuffers(px, s.valid, excluded);
+// BufferVotes::PerSample: the copies of a window, sum over its pixels of w_q * sum_j n_j, fit an
+// int64 for every window, centre weight and count the filters accept and up to 500,000 buffers per
+// pixel, far more than a file can hold (the per-buffer form is far smaller: sum of w_q * M_q). In a
+// validated file a pixel's counts sum to at most 2^24, so the copies stay below
+// (10^6 + 255^2 - 1) * 2^24 < 1.8e13 < 2^53: exact as doubles too (spatialTrim, the weights r_i).
+constexpr int64_t kMaxVotingBuffers = 500000;
+static_assert(kMaxBuffers <= kMaxVotingBuffers);
+static_assert((kMaxCentreWeight + int64_t(kMaxSpatialWindow) * kMaxSpatialWindow - 1) *
+                      kMaxVotingBuffers * kMaxBufferVoteCount <=
+                  std::numeric_limits<int64_t>::max(),
+              "3D filter copy counts could overflow int64");
+
+/// Whether a valid buffer's count can vote per sample: an integer in [1, kMaxBufferVoteCount].
+inline bool votesPerSample(float n) {
+    return n <= float(kMaxBufferVoteCount) && n == std::floor(n);
+}
+
+/// Eq. 5.24's per-pixel part, O(m log m): ranks the valid buffers of px (collectValidBuffers' rule;
+/// with PerSample votes also an integral count up to kMaxBufferVoteCount) into order[r * px.M + i]
+/// (ranking r, i < n) and, for luminance, key[i] (orderedBits); ties by buffer index, so each list
+/// is the window's total order restricted to this pixel. Sets votes (RankedList::votes), returns n.
+int rankPixel(const PixelBuffers& px, const SpatialParams& p, BufferVotes votes, int32_t* order,
+              uint64_t* key, int& excluded, int64_t& voteSum, SpatialScratch& s) {
+    int n = collectValidBuffers(px, s.valid, excluded);
+    voteSum = n;
+    if (votes == BufferVotes::PerSample) {
+        voteSum = 0;
+        int kept = 0;
+        for (int i = 0; i < n; ++i) {
+            const int j = s.valid[size_t(i)];
+            if (!votesPerSample(px.count[j])) {
+                ++excluded;
+                continue;
+            }
+            voteSum += int64_t(px.count[j]);
+            s.valid[size_t(kept++)] = j;
+        }
+        n = kept;
+    }
     s.ranked.resize(size_t(n));
     for (int r = 0; r < rankings(p); ++r) {
         for (int i = 0; i < n; ++i) {
@@ -209,9 +245,9 @@ inline bool mergesBefore(uint64_t ka, int la, uint64_t kb, int lb) {
 /// tournament (loser) tree, ceil(log2 n) comparisons per element. The merged order is the total
 /// order of sortRanked over the window's elements (lists come in window order, each list is in
 /// buffer order within a key), so the copies kept, their weights and the summation order are those
-/// of trimmedAverage, bit for bit. Walks only up to duplicated rank hi. Returns the number of
-/// elements with a kept copy.
-template <bool kLum>
+/// of trimmedAverage, bit for bit (kPerSample: over the elements (x_j, n_j, w_q n_j)). Walks only
+/// up to duplicated rank hi. Returns the number of elements with a kept copy.
+template <bool kLum, bool kPerSample>
 int mergeTrimmed(const RankedList* lists, int nl, int r, int64_t lo, int64_t hi, int c0, int c1,
                  SpatialScratch& s, PixelEstimate& out) {
     int leaves = 1;
@@ -250,11 +286,18 @@ int mergeTrimmed(const RankedList* lists, int nl, int r, int64_t lo, int64_t hi,
         const int l = tl[0];  // < nl: hi <= the number of copies, so no end marker wins
         const RankedList& L = lists[l];
         int& at = s.cursor[size_t(l)];
-        const int64_t a = std::max(pos, lo), b = std::min(pos + L.weight, hi);
-        pos += L.weight;
+        size_t j = 0;
+        int64_t copies = L.weight;  // w_q, or w_q n_j per sample
+        if constexpr (kPerSample) {
+            j = size_t(L.order[size_t(r)][at]);
+            copies *= int64_t(L.count[j]);
+        }
+        const int64_t a = std::max(pos, lo), b = std::min(pos + copies, hi);
+        pos += copies;
         if (b > a) {
-            const size_t j = size_t(L.order[size_t(r)][at]);
-            const double w = double(b - a) * double(L.count[j]);  // r_i n_i
+            if constexpr (!kPerSample) j = size_t(L.order[size_t(r)][at]);
+            // r_i n_i; per sample every copy is one sample: r_i
+            const double w = double(b - a) * (kPerSample ? 1.0 : double(L.count[j]));
             wsum += w;
             for (int c = c0; c < c1; ++c) sum[c] += w * double(L.mean[3 * j + size_t(c)]);
             ++kept;
@@ -283,28 +326,39 @@ int mergeTrimmed(const RankedList* lists, int nl, int r, int64_t lo, int64_t hi,
     return kept;
 }
 
-/// weightedTrimmedMean over the elements of s.lists (non-empty lists, in window order).
-void mergeWindow(const SpatialParams& p, PixelEstimate& out, SpatialScratch& s) {
-    out.rgb = {0.f, 0.f, 0.f};
-    out.gini = {0.f, 0.f, 0.f};
-    out.kept = {0, 0, 0};
+/// The merges of one window in every ranking of p.mode.
+template <bool kPerSample>
+void mergeRankings(const SpatialParams& p, int64_t total, PixelEstimate& out, SpatialScratch& s) {
     const int nl = int(s.lists.size());
-    if (nl == 0) return;  // no valid element: black
-    int64_t total = 0;    // s of eq. 5.6 / 5.19
-    for (const RankedList& L : s.lists) total += int64_t(L.n) * L.weight;
     const int64_t c = spatialTrim(p.alpha, total);
     if (p.mode == EstimatorMode::Luminance) {
-        out.kept.fill(mergeTrimmed<true>(s.lists.data(), nl, 0, c, total - c, 0, 3, s, out));
+        out.kept.fill(
+            mergeTrimmed<true, kPerSample>(s.lists.data(), nl, 0, c, total - c, 0, 3, s, out));
         return;
     }
     for (int ch = 0; ch < 3; ++ch)
-        out.kept[size_t(ch)] =
-            mergeTrimmed<false>(s.lists.data(), nl, ch, c, total - c, ch, ch + 1, s, out);
+        out.kept[size_t(ch)] = mergeTrimmed<false, kPerSample>(s.lists.data(), nl, ch, c, total - c,
+                                                               ch, ch + 1, s, out);
+}
+
+/// weightedTrimmedMean over the elements of s.lists (non-empty lists, in window order), each
+/// buffer voting as `votes` says.
+void mergeWindow(const SpatialParams& p, BufferVotes votes, PixelEstimate& out, SpatialScratch& s) {
+    out.rgb = {0.f, 0.f, 0.f};
+    out.gini = {0.f, 0.f, 0.f};
+    out.kept = {0, 0, 0};
+    if (s.lists.empty()) return;  // no valid element: black
+    int64_t total = 0;            // s of eq. 5.6 / 5.19: every copy (bounded: see static_assert)
+    for (const RankedList& L : s.lists) total += L.votes * L.weight;
+    if (votes == BufferVotes::PerSample)
+        mergeRankings<true>(p, total, out, s);
+    else
+        mergeRankings<false>(p, total, out, s);
 }
 
 /// The list of a pixel ranked by rankPixel into order (ranks rankings) and key.
 RankedList rankedList(const PixelBuffers& px, int ranks, const int32_t* order, const uint64_t* key,
-                      int n, int64_t weight) {
+                      int n, int64_t weight, int64_t votes) {
     RankedList L;
     L.mean = px.mean;
     L.count = px.count;
@@ -312,6 +366,7 @@ RankedList rankedList(const PixelBuffers& px, int ranks, const int32_t* order, c
     L.key = key;
     L.n = n;
     L.weight = weight;
+    L.votes = votes;
     return L;
 }
 
@@ -338,14 +393,15 @@ void filter3DPixel(const BufferView& v, int x, int y, const SpatialParams& p, Pi
             int32_t* order = s.order.data() + begin * size_t(ranks);
             uint64_t* key = lum ? s.key.data() + begin : nullptr;
             int excluded = 0;
-            const int n = rankPixel(px, p, order, key, excluded, s);
+            int64_t votes = 0;
+            const int n = rankPixel(px, p, v.votes, order, key, excluded, votes, s);
             out.excluded += excluded;
             begin += size_t(px.M);
             // eq. 5.19 with eq. 5.28: every buffer of the centre pixel carries w_c
             const int64_t w = (xx == x && yy == y) ? p.centreWeight : int64_t(1);
-            if (n > 0) s.lists.push_back(rankedList(px, ranks, order, key, n, w));
+            if (n > 0) s.lists.push_back(rankedList(px, ranks, order, key, n, w, votes));
         }
-    mergeWindow(p, out, s);
+    mergeWindow(p, v.votes, out, s);
 }
 
 void filter3DImage(const BufferView& v, const SpatialParams& p, float* out) {
@@ -394,8 +450,9 @@ void RankedBufferGrid::sortRect(int xa, int ya, int xb, int yb, SpatialScratch& 
         for (int x = xa; x < xb; ++x) {
             PixelRank& pr = pixels_[size_t(y - y0_) * size_t(width_) + size_t(x - x0_)];
             int excluded = 0;
-            pr.n = rankPixel(view_.at(x, y), params_, order_.data() + pr.begin * size_t(ranks),
-                             lum ? key_.data() + pr.begin : nullptr, excluded, s);
+            pr.n = rankPixel(view_.at(x, y), params_, view_.votes,
+                             order_.data() + pr.begin * size_t(ranks),
+                             lum ? key_.data() + pr.begin : nullptr, excluded, pr.votes, s);
             pr.excluded = excluded;
         }
 }
@@ -415,11 +472,11 @@ void RankedBufferGrid::filterPixel(int x, int y, PixelEstimate& out, SpatialScra
             out.excluded += pr.excluded;
             if (pr.n == 0) continue;
             const int64_t w = (xx == x && yy == y) ? p.centreWeight : int64_t(1);
-            s.lists.push_back(rankedList(view_.at(xx, yy), ranks,
-                                         order_.data() + pr.begin * size_t(ranks),
-                                         lum ? key_.data() + pr.begin : nullptr, pr.n, w));
+            s.lists.push_back(
+                rankedList(view_.at(xx, yy), ranks, order_.data() + pr.begin * size_t(ranks),
+                           lum ? key_.data() + pr.begin : nullptr, pr.n, w, pr.votes));
         }
-    mergeWindow(p, out, s);
+    mergeWindow(p, view_.votes, out, s);
 }
 
 }  // namespace mcstat

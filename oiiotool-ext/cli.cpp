@@ -291,7 +291,8 @@ std::vector<Command> buildTable() {
                  0,
                  "",
                  "3D median filter 3DMF(M x k x l) of the top statistics file: median of every "
-                 "buffer mean in the window (eq. 5.21)",
+                 "buffer mean in the window, one vote per buffer (eq. 5.21); adaptive-M files: one "
+                 "vote per sample",
                  {"size", "mode"},
                  &cmdFilter3D,
                  ""});
@@ -299,14 +300,16 @@ std::vector<Command> buildTable() {
                  0,
                  "",
                  "3D weighted median filter 3DWMF(w, M x k x l): the centre pixel's buffers "
-                 "weighted w (eq. 5.20, 5.28)",
+                 "weighted w (eq. 5.20, 5.28); adaptive-M files: one vote per sample, w for the "
+                 "centre's",
                  {"size", "w", "mode"},
                  &cmdFilter3D,
                  ""});
     t.push_back({"--3dwtmf",
                  0,
                  "",
-                 "3D weighted trimmed mean filter 3DWTMF(alpha, w, M x k x l) (eq. 5.19)",
+                 "3D weighted trimmed mean filter 3DWTMF(alpha, w, M x k x l) (eq. 5.19); "
+                 "adaptive-M files: ranked and trimmed per sample",
                  {"size", "w", "alpha", "mode"},
                  &cmdFilter3D,
                  ""});

@@ -38,7 +38,9 @@ OIIO::ImageBuf medianImageFilter(const OIIO::ImageBuf& src, const SpatialParams&
 
 /// Jung's 3D filters 3DWTMF / 3DWMF / 3DMF (eq. 5.19-5.21, see spatial_filters.h) over the
 /// sub-buffers of `src`, within `roi` (default: the data window; the window is clipped to the data
-/// window). The result has channels R, G, B. Identical for any `nthreads`.
+/// window). Buffers vote once each (BufferVotes::PerBuffer) in a fixed-M image and with their
+/// sample counts (PerSample) when src.header.adaptiveM. The result has channels R, G, B. Identical
+/// for any `nthreads`.
 bool filter3D(OIIO::ImageBuf& dst, const StatsImage& src, const SpatialParams& params,
               OIIO::ROI roi = {}, int nthreads = 0);
 OIIO::ImageBuf filter3D(const StatsImage& src, const SpatialParams& params, OIIO::ROI roi = {},

@@ -26,13 +26,23 @@
 //   equal counts this is eq. 5.19's plain average of the kept copies; with a 1 x 1 window it makes
 //   3DMF exactly MPE (estimateMoN) and 3DWTMF(alpha, w = 1) exactly TMPE(alpha), including unequal
 //   counts; with alpha = 0 and w = 1 it is the mean of every sample in the window.
+// - Adaptive M (BufferVotes::PerSample, which filter3D takes for StatsHeader::adaptiveM): every
+//   *sample* votes once in the ranking. Buffer j of pixel q, holding n_j samples, is the element
+//   (x_j, n_j, w_q n_j): w_q n_j copies, so a pixel's samples weigh the same in the ranking
+//   whatever its M_p (a 17-buffer pixel no longer outvotes a one-buffer neighbour 17 to 1), and s
+//   and the trimming count copies of samples. Each copy is one sample, so the average is
+//   sum r_i x_i / sum r_i, r_i of the w_q n_j copies kept: the mean of the kept samples, as
+//   r_i n_i is for one vote per buffer (alpha = 0, w = 1: the window's sample mean). Counts must be
+//   integers in [1, kMaxBufferVoteCount]; other finite positive counts (never in a validated file)
+//   make the buffer invalid. Fixed-M data votes per buffer (PerBuffer), as above.
 // - Borders (the thesis does not say): the window is clipped to the image. Only pixels inside the
 //   image are elements, so s shrinks at borders and corners (a 3x3 corner window has 4 pixels,
 //   hence an even s and a two-value median). No padding value is invented and no pixel counted
 //   twice.
 // - Invalid elements are left out and counted in PixelEstimate::excluded: an image pixel with a
 //   NaN/Inf channel, a buffer with a NaN/Inf channel or count or a negative count (as
-//   collectValidBuffers). Empty buffers (count 0) are left out silently. A window with no valid
+//   collectValidBuffers), with PerSample votes also a count that is not an integer or is above
+//   kMaxBufferVoteCount. Empty buffers (count 0) are left out silently. A window with no valid
 //   element gives black (kept = 0). A NaN centre pixel with valid neighbours is therefore replaced
 //   by the (weighted) median of the neighbours.
 #pragma once
@@ -51,6 +61,9 @@ namespace mcstat {
 inline constexpr int kMaxSpatialWindow = 255;
 /// Largest centre weight accepted (w_c of eq. 5.28).
 inline constexpr int64_t kMaxCentreWeight = 1000000;
+/// Largest buffer count that votes with BufferVotes::PerSample: 2^24, the largest count a
+/// statistics file may hold (exr-deep/FORMAT.md: every integer up to it is exact in a float32).
+inline constexpr int64_t kMaxBufferVoteCount = int64_t(1) << 24;
 
 struct SpatialParams {
     /// Luminance: elements ranked by luminance, the chosen elements' RGB averaged (a window's
@@ -96,6 +109,9 @@ struct RankedList {
     const uint64_t* key = nullptr;
     int n = 0;           ///< valid buffers (> 0)
     int64_t weight = 1;  ///< w_i of every buffer of the pixel (eq. 5.28)
+    /// Copies of the pixel's buffers before the weight: n (BufferVotes::PerBuffer) or the sum of
+    /// the valid buffers' counts (PerSample). The pixel holds weight * votes copies.
+    int64_t votes = 0;
 };
 
 /// Per-thread scratch so the per-pixel functions do not allocate after warm-up.
@@ -138,13 +154,30 @@ void wmifImage(const RGBImageView& img, const SpatialParams& p, float* out);
 // ---- 3D filters over pixel buffers
 // -----------------------------------------------------------------
 
+/// How the buffers of a 3D filter's window vote in the ranking (docs/spatial_filters.md).
+enum class BufferVotes {
+    /// One vote per buffer, eq. 5.19: buffer j of pixel q is w_q copies and its count n_j weighs
+    /// the average (r_i n_i). For fixed-M files, whose buffers hold equal counts up to one sample.
+    PerBuffer,
+    /// One vote per sample, for adaptive M (M_p buffers of n / M_p samples next to one-buffer
+    /// pixels of n samples): buffer j of pixel q is w_q n_j copies in the ranking, each copy one
+    /// sample in the average (sum r_i x_i / sum r_i). n_j must be an integer in [1,
+    /// kMaxBufferVoteCount],
+    /// else the buffer is invalid (excluded). Sums of copies stay below 2^63 for any window, centre
+    /// weight and count allowed and up to 500,000 buffers per pixel (kMaxBuffers is 999): at most
+    /// (kMaxCentreWeight + 255^2 - 1) * M * 2^24 < 1.8e16 for M = 999.
+    PerSample,
+};
+
 /// Read access to a width x height grid of pixels' sub-buffers: at(x, y) returns pixel (x, y)'s
 /// buffers. Each pixel may have its own M (adaptive buffer counts); the filters never assume a
-/// fixed M.
+/// fixed M. `votes` says how buffers vote: filter3D takes PerSample for adaptive-M statistics
+/// (StatsHeader::adaptiveM), PerBuffer otherwise; a view built by hand chooses.
 struct BufferView {
     int width = 0, height = 0;
     const void* ctx = nullptr;
     PixelBuffers (*fn)(const void* ctx, int x, int y) = nullptr;
+    BufferVotes votes = BufferVotes::PerBuffer;
     PixelBuffers at(int x, int y) const { return fn(ctx, x, y); }
 };
 
@@ -166,10 +199,11 @@ struct FixedBufferGrid {
 // the same bit for bit as sorting all m n elements per pixel.
 
 /// 3DWTMF(alpha, w(w_c), m x k x l) at pixel (x, y) (eq. 5.19): the elements are the valid buffers
-/// of every pixel in the clipped k x l window, the centre pixel's buffers weighted w_c. 3DWMF (eq.
-/// 5.20) is alpha = 0.5, 3DMF (eq. 5.21) alpha = 0.5 and centreWeight = 1. out.excluded counts the
-/// NaN/Inf buffers of the whole window. A single pixel has no sorted neighbours to reuse: this
-/// sorts each window pixel's buffers, then merges; whole images go through RankedBufferGrid.
+/// of every pixel in the clipped k x l window, the centre pixel's buffers weighted w_c, each buffer
+/// voting as v.votes says. 3DWMF (eq. 5.20) is alpha = 0.5, 3DMF (eq. 5.21) alpha = 0.5 and
+/// centreWeight = 1. out.excluded counts the invalid buffers of the whole window. A single pixel
+/// has no sorted neighbours to reuse: this sorts each window pixel's buffers, then merges; whole
+/// images go through RankedBufferGrid.
 void filter3DPixel(const BufferView& v, int x, int y, const SpatialParams& p, PixelEstimate& out,
                    SpatialScratch& s);
 /// filter3DPixel over every pixel, one thread, each pixel's buffers sorted once
@@ -180,7 +214,7 @@ void filter3DImage(const BufferView& v, const SpatialParams& p, float* out);
 /// sorted once by rank key (O(m log m) per pixel), so that filterPixel only merges the window's
 /// sorted lists (O(m n log n)). Results equal filter3DPixel's bit for bit.
 /// Memory: one rank array as large as the buffer means, 12 bytes per buffer (luminance: an int32
-/// index and a 64-bit key; per channel: three int32 indices), plus 16 bytes per pixel.
+/// index and a 64-bit key; per channel: three int32 indices), plus 24 bytes per pixel.
 class RankedBufferGrid {
   public:
     /// Covers pixels [x0, x1) x [y0, y1) of v (v's context must outlive *this), ranked by
@@ -198,6 +232,7 @@ class RankedBufferGrid {
         uint64_t begin = 0;  ///< first slot: key_[begin + i], order_[ranks * begin + ...]
         int32_t n = 0;       ///< valid buffers
         int32_t excluded = 0;
+        int64_t votes = 0;  ///< RankedList::votes
     };
     BufferView view_;
     SpatialParams params_;

@@ -1,11 +1,16 @@
 // `mcstat` spatial and 3D filters end to end (Jung chapter 5): the binary's outputs against the
 // library's pure functions, the hybrids as command chains, parameter errors, --diff's normalised
-// error.
+// error, and the 3D filters on a real adaptive-M render (every sample votes once).
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebuf.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
+#include <cstdlib>
+#include <iterator>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "cli_support.h"
@@ -228,4 +233,83 @@ TEST_F(Spatial, HelpListsTheFilters) {
     for (const char* c : {"--mif ", "--wmif ", "--3dmf ", "--3dwmf ", "--3dwtmf ", ":size=3x3",
                           ":w=3", ":alpha=0.25", ":neps=0.01", "eq. 5.25-5.27"})
         EXPECT_NE(h.out.find(c), std::string::npos) << c;
+}
+
+TEST_F(Spatial, Filters3DOnARenderedAdaptiveFileVotePerSample) {
+    // the tiny scene with adaptive M (a fraction of a second): one-buffer pixels next to pixels
+    // with up to M_max = 17
+    const std::string f = path("adaptive.mcstat");
+    const std::string cmd = std::string(MCSTAT_RENDER_EXE) +
+                            " --scene tiny --spp 96 --adaptive-m --threads 2 --quiet -o " + f;
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    StatsImage s;
+    std::string err;
+    ASSERT_TRUE(readStatsFile(f, s, err)) << err;
+    ASSERT_TRUE(s.header.adaptiveM);
+    int many = 0;
+    for (size_t p = 0; p < s.pixelCount(); ++p) many += s.buffersOf(p) > 1 ? 1 : 0;
+    ASSERT_GT(many, 0);
+    ASSERT_LT(many, int(s.pixelCount()));
+    const int w = s.header.width, h = s.header.height;
+    auto view = [&s](BufferVotes votes) {
+        return BufferView{
+            s.header.width, s.header.height, &s,
+            [](const void* ctx, int x, int y) {
+                const auto* img = static_cast<const StatsImage*>(ctx);
+                return img->pixelBuffers(size_t(y) * size_t(img->header.width) + size_t(x));
+            },
+            votes};
+    };
+    const auto lum = EstimatorMode::Luminance, ch = EstimatorMode::PerChannel;
+    struct Case {
+        std::string args;
+        SpatialParams p;
+    } cases[] = {
+        {"--3dmf", params(3, 3, 1, 0.5, lum)},
+        {"--3dwmf:w=3", params(3, 3, 3, 0.5, lum)},
+        {"--3dwtmf:alpha=0.2:w=2:size=5x3:mode=channel", params(5, 3, 2, 0.2, ch)},
+    };
+    // one run per thread count: each filter of the same file, then 3DMF 1x1
+    for (const char* threads : {"1", "2"}) {
+        std::string args = std::string("--threads ") + threads + " " + f;
+        for (size_t i = 0; i < std::size(cases); ++i)
+            args +=
+                " --dup " + cases[i].args + " -o " + path(std::to_string(i) + ".exr") + " --pop";
+        Result r = mcstat(args + " --3dmf:size=1x1 -o " + path("m.exr"));
+        ASSERT_EQ(r.code, 0) << r.err;
+        for (size_t i = 0; i < std::size(cases); ++i) {
+            const Case& c = cases[i];
+            std::vector<float> lib(size_t(w) * size_t(h) * 3), old(lib.size());
+            filter3DImage(view(BufferVotes::PerSample), c.p, lib.data());
+            EXPECT_EQ(readRGB(path(std::to_string(i) + ".exr")), lib)
+                << c.args << " threads " << threads;
+            // and not what one vote per buffer gives
+            filter3DImage(view(BufferVotes::PerBuffer), c.p, old.data());
+            EXPECT_NE(lib, old) << c.args;
+        }
+    }
+    // 3DMF 1x1: each pixel's count-weighted median, computed here sample by sample
+    const std::vector<float> got = readRGB(path("m.exr"));
+    const std::array<double, 3> luma = lumaCoefficients();
+    for (size_t p = 0; p < s.pixelCount(); ++p) {
+        const PixelBuffers px = s.pixelBuffers(p);
+        std::vector<std::tuple<double, int>> samples;  // (luminance, buffer) per sample
+        for (int j = 0; j < px.M; ++j) {
+            const float* m = px.mean + 3 * j;
+            for (int i = 0; i < int(px.count[j]); ++i)
+                samples.emplace_back(luma[0] * m[0] + luma[1] * m[1] + luma[2] * m[2], j);
+        }
+        ASSERT_FALSE(samples.empty());
+        std::sort(samples.begin(), samples.end());
+        const size_t n = samples.size();
+        // odd: the middle sample's buffer; even: the two middle samples' buffers by count
+        const int a = std::get<1>(samples[(n - 1) / 2]), b = std::get<1>(samples[n / 2]);
+        for (int c = 0; c < 3; ++c) {
+            const double na = px.count[a], nb = px.count[b];
+            const double v = a == b
+                                 ? double(px.mean[3 * a + c])
+                                 : (na * px.mean[3 * a + c] + nb * px.mean[3 * b + c]) / (na + nb);
+            EXPECT_FLOAT_EQ(got[p * 3 + size_t(c)], float(v)) << "pixel " << p;
+        }
+    }
 }

@@ -3,9 +3,10 @@
 // and sorts them all, as the filters did before the merge. Results must be bit-identical: the same
 // total order (ascending key, ties by window element order), the same kept copies and the same
 // summation order. Random windows over fixed M in {1, 2, 3, 7, 17} and adaptive M (1..17 per
-// pixel), ties, all-equal values, zeros of both signs, NaN/Inf buffers and counts, empty buffers,
-// huge ranges (1e-6..1e38), windows 1x1..7x7 clipped at borders, centre weights 1..5, alpha in [0,
-// 0.5], luminance and per-channel modes, one and two threads, tiles.
+// pixel; buffers voting per sample, BufferVotes::PerSample, and per buffer), ties, all-equal
+// values, zeros of both signs, NaN/Inf buffers and counts, empty buffers, huge ranges (1e-6..1e38),
+// windows 1x1..7x7 clipped at borders, centre weights 1..5, alpha in [0, 0.5], luminance and
+// per-channel modes, one and two threads, tiles.
 #include <OpenImageIO/imagebuf.h>
 #include <gtest/gtest.h>
 
@@ -33,7 +34,11 @@ namespace {
 
 // ---- the reference: one full sort of the window's elements per pixel (and per channel) --------
 // A verbatim copy of the full-sort implementation the merge replaced, kept here independent of the
-// library so that the library can change without changing what it is compared with.
+// library so that the library can change without changing what it is compared with. The one
+// addition is the per-sample vote of adaptive M (BufferVotes::PerSample) in filter3DPixel: buffer j
+// of pixel q becomes the element (x_j, count 1, weight w_q n_j): n_j copies of one sample each, so
+// the average counts every kept copy once; n_j must be an integer in [1, 2^24] (any
+// other count makes the buffer invalid); with per-buffer votes the elements are as before.
 namespace reference {
 
 struct Scratch {
@@ -104,8 +109,16 @@ void filter3DPixel(const BufferView& v, int x, int y, const SpatialParams& p, Pi
             collectValidBuffers(px, s.valid, excluded);
             out.excluded += excluded;
             const int64_t w = (xx == x && yy == y) ? p.centreWeight : int64_t(1);
-            for (int j : s.valid)
-                s.elems.push_back({px.mean + 3 * size_t(j), double(px.count[j]), w});
+            for (int j : s.valid) {
+                const float n = px.count[j];
+                if (v.votes == BufferVotes::PerBuffer) {
+                    s.elems.push_back({px.mean + 3 * size_t(j), double(n), w});
+                } else if (n == std::floor(n) && n <= 16777216.f) {
+                    s.elems.push_back({px.mean + 3 * size_t(j), 1.0, w * int64_t(n)});
+                } else {
+                    ++out.excluded;  // a count that cannot vote per sample
+                }
+            }
         }
     weightedTrimmedMean(s.elems.data(), int(s.elems.size()), p, out, s);
 }
@@ -146,22 +159,41 @@ struct Generator {
         }
     }
 
-    /// Fills one buffer: RGB means (grey or not), a count, now and then invalid or empty.
-    void buffer(float* mean, float* count, Values kind, bool grey, int invalidPercent) {
+    /// Fills one buffer: RGB means (grey or not), a count, now and then invalid or empty. `share`
+    /// > 0 (adaptive grids): integral counts, mostly `share` (the pixel's samples split over its
+    /// buffers as a render does), else 1..5, 1..2000 or 2^24.
+    void buffer(float* mean, float* count, Values kind, bool grey, int invalidPercent,
+                int share = 0) {
         const float g = value(kind);
         for (int c = 0; c < 3; ++c) mean[c] = grey ? g : value(kind);
-        switch (pick(6)) {
-            case 0:
-                *count = float(1 + pick(5));
-                break;
-            case 1:
-                *count = float(0.25 + 4.0 * u());
-                break;
-            default:
-                *count = 1.f;
+        if (share > 0) {
+            switch (pick(12)) {
+                case 0:
+                    *count = float(1 + pick(5));
+                    break;
+                case 1:
+                    *count = float(1 + pick(2000));
+                    break;
+                case 2:
+                    *count = 16777216.f;  // 2^24: the largest count that votes
+                    break;
+                default:
+                    *count = float(share);
+            }
+        } else {
+            switch (pick(6)) {
+                case 0:
+                    *count = float(1 + pick(5));
+                    break;
+                case 1:
+                    *count = float(0.25 + 4.0 * u());
+                    break;
+                default:
+                    *count = 1.f;
+            }
         }
         if (pick(100) < invalidPercent) {
-            switch (pick(6)) {
+            switch (pick(8)) {
                 case 0:
                     mean[pick(3)] = kNaN;
                     break;
@@ -177,6 +209,9 @@ struct Generator {
                 case 4:
                     *count = -1.f;
                     break;
+                case 5:  // valid per buffer, not per sample: not an integer, above 2^24
+                    *count = pick(2) ? 2.5f : 16777218.f;
+                    break;
                 default:
                     *count = 0.f;  // empty buffer (spp < M): left out silently
             }
@@ -187,25 +222,32 @@ struct Generator {
 /// A grid of pixels with per-pixel buffer counts (fixed M when all equal).
 struct RandomGrid {
     int width = 0, height = 0;
-    std::vector<int> m;          // buffers of pixel y*width + x
-    std::vector<size_t> offset;  // first buffer of each pixel, pixels + 1 entries
-    std::vector<float> mean;     // [k*3 + c]
-    std::vector<float> count;    // [k]
+    BufferVotes votes = BufferVotes::PerBuffer;  // what filter3D takes for its layout
+    std::vector<int> m;                          // buffers of pixel y*width + x
+    std::vector<size_t> offset;                  // first buffer of each pixel, pixels + 1 entries
+    std::vector<float> mean;                     // [k*3 + c]
+    std::vector<float> count;                    // [k]
     BufferView view() const {
-        return {width, height, this, [](const void* ctx, int x, int y) {
+        return {width, height, this,
+                [](const void* ctx, int x, int y) {
                     const auto* g = static_cast<const RandomGrid*>(ctx);
                     const size_t p = size_t(y) * size_t(g->width) + size_t(x);
                     const size_t k = g->offset[p];
                     return PixelBuffers{g->mean.data() + 3 * k, g->count.data() + k, g->m[p]};
-                }};
+                },
+                votes};
     }
 };
 
-RandomGrid randomGrid(Generator& g, int width, int height, int fixedM /* 0: adaptive */) {
+/// fixedM = 0: adaptive M, buffers voting per sample (as filter3D for an adaptive file), integral
+/// counts. kind < 0: random values of a random kind.
+RandomGrid randomGrid(Generator& g, int width, int height, int fixedM /* 0: adaptive */,
+                      int forcedKind = -1) {
     RandomGrid r;
     r.width = width;
     r.height = height;
-    const Values kind = Values(g.pick(int(Values::kCount)));
+    r.votes = fixedM > 0 ? BufferVotes::PerBuffer : BufferVotes::PerSample;
+    const Values kind = Values(forcedKind >= 0 ? forcedKind : g.pick(int(Values::kCount)));
     const bool grey = g.pick(3) == 0;
     const int invalidPercent = g.pick(3) == 0 ? 0 : g.pick(40);
     r.offset.push_back(0);
@@ -217,8 +259,14 @@ RandomGrid randomGrid(Generator& g, int width, int height, int fixedM /* 0: adap
     }
     r.mean.resize(r.offset.back() * 3);
     r.count.resize(r.offset.back());
-    for (size_t k = 0; k < r.count.size(); ++k)
-        g.buffer(&r.mean[3 * k], &r.count[k], kind, grey, invalidPercent);
+    for (size_t p = 0; p + 1 < r.offset.size(); ++p) {
+        const int n = 1 + g.pick(1000);  // adaptive: the pixel's samples, n / m per buffer
+        for (size_t k = r.offset[p]; k < r.offset[p + 1]; ++k) {
+            const int j = int(k - r.offset[p]), m = r.m[p];
+            const int share = fixedM > 0 ? 0 : std::max(1, n / m + (j < n % m ? 1 : 0));
+            g.buffer(&r.mean[3 * k], &r.count[k], kind, grey, invalidPercent, share);
+        }
+    }
     return r;
 }
 
@@ -337,12 +385,42 @@ TEST(Filter3DMerge, FixedMMatchesFullSort) {
 }
 
 TEST(Filter3DMerge, AdaptiveMMatchesFullSort) {
+    // per-sample votes (what filter3D takes for adaptive files), and per-buffer votes over the
+    // same buffers (a hand-built view may still choose them)
     Generator g(7);
     int failures = 0;
     for (int trial = 0; trial < 800 && failures < 20; ++trial) {
         const int w = 1 + g.pick(9), h = 1 + g.pick(9);
-        const RandomGrid grid = randomGrid(g, w, h, 0);
-        failures += comparePure(grid, randomParams(g));
+        RandomGrid grid = randomGrid(g, w, h, 0);
+        const SpatialParams p = randomParams(g);
+        failures += comparePure(grid, p);
+        grid.votes = BufferVotes::PerBuffer;
+        failures += comparePure(grid, p);
+    }
+    EXPECT_EQ(failures, 0);
+}
+
+TEST(Filter3DMerge, PerSampleVotesWithUnitCountsArePerBufferVotes) {
+    // every count 1: w_q n_j = w_q copies, bit for bit
+    Generator g(11);
+    int failures = 0;
+    for (int trial = 0; trial < 200 && failures < 20; ++trial) {
+        RandomGrid grid = randomGrid(g, 1 + g.pick(9), 1 + g.pick(9), 0);
+        for (float& n : grid.count)
+            if (std::isfinite(n) && n > 0.f) n = 1.f;
+        const SpatialParams p = randomParams(g);
+        for (int y = 0; y < grid.height; ++y)
+            for (int x = 0; x < grid.width; ++x) {
+                SpatialScratch s;
+                PixelEstimate a, b;
+                grid.votes = BufferVotes::PerSample;
+                filter3DPixel(grid.view(), x, y, p, a, s);
+                grid.votes = BufferVotes::PerBuffer;
+                filter3DPixel(grid.view(), x, y, p, b, s);
+                const auto r = sameEstimate(a, b);
+                EXPECT_TRUE(r) << describe(p, x, y);
+                if (!r) ++failures;
+            }
     }
     EXPECT_EQ(failures, 0);
 }
@@ -443,7 +521,8 @@ TEST(Filter3DMerge, ImagesLargeEnoughToSplitOverThreads) {
     Generator g(17);
     for (bool adaptive : {false, true}) {
         const int w = 256, h = 160;
-        RandomGrid grid = randomGrid(g, w, h, adaptive ? 0 : 3);
+        // fireflies: windows whose results depend on every rule (ranks, votes, weights)
+        RandomGrid grid = randomGrid(g, w, h, adaptive ? 0 : 3, int(Values::Fireflies));
         if (adaptive) {  // at most 5 buffers per pixel keeps the reference quick
             for (int& m : grid.m) m = std::min(m, 5);
             grid.offset.assign(1, 0);

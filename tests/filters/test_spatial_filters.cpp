@@ -1,5 +1,6 @@
 // Jung's spatial and 3D filters (thesis chapter 5) against hand-computed windows, and equivalences:
 // 1x1 windows, 3DMF(1x1) = MPE, 3DWTMF(1x1, w = 1) = TMPE, alpha = 0 = box mean, thread counts.
+// Adaptive M (BufferVotes::PerSample): every sample votes once, by hand and as consequences.
 #include <OpenImageIO/imagebuf.h>
 #include <gtest/gtest.h>
 
@@ -452,10 +453,265 @@ TEST(SpatialFilters, ImageBufFormOnAdaptiveBufferCounts) {
         for (int c = 0; c < 3; ++c) s.bufferMean[size_t(k) * 3 + size_t(c)] = means[k];
         s.bufferCount[size_t(k)] = counts[k];
     }
+    // an adaptive file votes per sample: the 4 of count 2 is two copies (per buffer the results
+    // would be 11/3 and 10/3, Filter3DWithVariableBuffersPerPixel)
     OIIO::ImageBuf out = filter3D(s, params(3, 1), {}, 2);
     ASSERT_FALSE(out.has_error()) << out.geterror();
-    EXPECT_FLOAT_EQ(out.getchannel(1, 0, 0, 0), 11.f / 3.f);
-    EXPECT_FLOAT_EQ(out.getchannel(0, 0, 0, 0), 10.f / 3.f);
+    // x = 1: 4 4 | 1 2 100 | 3 5 -> 1 2 3 4 4 5 100 -> 4
+    EXPECT_EQ(out.getchannel(1, 0, 0, 0), 4.f);
+    // x = 0: 4 4 | 1 2 100 -> 1 2 4 4 100 -> 4
+    EXPECT_EQ(out.getchannel(0, 0, 0, 0), 4.f);
     // x = 2: 1 2 100 | 3 5 -> 3
     EXPECT_EQ(out.getchannel(2, 0, 0, 0), 3.f);
+}
+
+// ---- adaptive M: every sample votes once (BufferVotes::PerSample) -------------------------------
+
+namespace {
+
+/// A width x height grid of pixels with their own buffers (adaptive M), added in row order.
+struct VarGrid {
+    int width = 0, height = 0;
+    std::vector<std::vector<float>> mean, count;  // per pixel: [j*3 + c], [j]
+    VarGrid(int w, int h) : width(w), height(h) {}
+    void add(const std::vector<std::array<float, 3>>& rgb, const std::vector<float>& n) {
+        mean.emplace_back();
+        for (const auto& c : rgb) mean.back().insert(mean.back().end(), c.begin(), c.end());
+        count.push_back(n);
+    }
+    void addGrey(const std::vector<float>& v, const std::vector<float>& n) {
+        std::vector<std::array<float, 3>> rgb;
+        for (float x : v) rgb.push_back({x, x, x});
+        add(rgb, n);
+    }
+    BufferView view(BufferVotes votes) const {
+        return {
+            width, height, this,
+            [](const void* ctx, int x, int y) {
+                const auto* g = static_cast<const VarGrid*>(ctx);
+                const size_t p = size_t(y) * size_t(g->width) + size_t(x);
+                return PixelBuffers{g->mean[p].data(), g->count[p].data(), int(g->count[p].size())};
+            },
+            votes};
+    }
+};
+
+PixelEstimate filter3DAt(const VarGrid& g, BufferVotes votes, int x, int y,
+                         const SpatialParams& p) {
+    SpatialScratch s;
+    PixelEstimate e;
+    filter3DPixel(g.view(votes), x, y, p, e, s);
+    // the whole-image path (RankedBufferGrid) agrees
+    std::vector<float> img(size_t(g.width) * size_t(g.height) * 3);
+    filter3DImage(g.view(votes), p, img.data());
+    for (int c = 0; c < 3; ++c)
+        EXPECT_EQ(img[(size_t(y) * size_t(g.width) + size_t(x)) * 3 + size_t(c)], e.rgb[c]);
+    return e;
+}
+
+constexpr BufferVotes kPerBuffer = BufferVotes::PerBuffer, kPerSample = BufferVotes::PerSample;
+
+/// The 3 x 1 row of the brief: a one-buffer centre (90 samples of 1) between a 9-buffer pixel (10
+/// samples each: eight of 100, one of 0.5) and a one-buffer pixel (90 samples of 2).
+VarGrid noisyNeighbourRow() {
+    VarGrid g(3, 1);
+    g.addGrey({100, 100, 100, 0.5f, 100, 100, 100, 100, 100}, std::vector<float>(9, 10.f));
+    g.addGrey({1}, {90});
+    g.addGrey({2}, {90});
+    return g;
+}
+
+}  // namespace
+
+TEST(SpatialFilters, Filter3DPerSampleVotesHandComputed) {
+    const VarGrid g = noisyNeighbourRow();
+    // 3DMF at x = 1. Per buffer: 0.5 1 2 100 x 8, s = 11 -> rank 5 (0-based) = 100: the noisy pixel
+    // outvotes both one-buffer pixels.
+    PixelEstimate e = filter3DAt(g, kPerBuffer, 1, 0, params(3, 1));
+    EXPECT_EQ(e.rgb[0], 100.f);
+    // Per sample: 0.5 x 10, 1 x 90, 2 x 90, 100 x 80, s = 270, c = 134: copies 134 and 135 are 2.
+    e = filter3DAt(g, kPerSample, 1, 0, params(3, 1));
+    EXPECT_EQ(e.rgb, (std::array<float, 3>{2.f, 2.f, 2.f}));
+    EXPECT_EQ(e.kept[0], 1);
+    EXPECT_EQ(e.excluded, 0);
+    // border x = 0: 0.5 x 10, 1 x 90, 100 x 80, s = 180, c = 89: copies 89, 90 are 1 (per buffer:
+    // 0.5 1 100 x 8 -> 100)
+    EXPECT_EQ(filter3DAt(g, kPerSample, 0, 0, params(3, 1)).rgb[0], 1.f);
+    EXPECT_EQ(filter3DAt(g, kPerBuffer, 0, 0, params(3, 1)).rgb[0], 100.f);
+    // 3DWMF w = 2: the centre's 90 samples are 180 copies, s = 360, c = 179: copies 179, 180 in
+    // 10..189 = 1 (per buffer: s = 12, ranks 5, 6 = 100, 100)
+    EXPECT_EQ(filter3DAt(g, kPerSample, 1, 0, params(3, 1, 2)).rgb[0], 1.f);
+    EXPECT_EQ(filter3DAt(g, kPerBuffer, 1, 0, params(3, 1, 2)).rgb[0], 100.f);
+    // 3DWTMF alpha = 0.25: c = floor(67.5) = 67, copies 67..202 kept: 33 of the 90 copies of 1
+    // (partly trimmed), all of 2, the first 100-buffer whole and 3 copies of the second; every kept
+    // copy is one sample: (33 + 180 + 1300) / 136
+    e = filter3DAt(g, kPerSample, 1, 0, params(3, 1, 1, 0.25));
+    EXPECT_EQ(e.rgb[0], float((33.0 * 1.0 + 90.0 * 2.0 + 13.0 * 100.0) / 136.0));
+    EXPECT_EQ(e.kept[0], 4);
+    // per buffer: s = 11, c = 2: 2 and six 100-buffers, count-weighted (180 + 6000) / 150
+    EXPECT_FLOAT_EQ(filter3DAt(g, kPerBuffer, 1, 0, params(3, 1, 1, 0.25)).rgb[0], 41.2f);
+    // the same with w = 3 per sample: s = 450, c = 112, copies 112..337 kept: 1 x 168 (the centre's
+    // 270 copies are 10..279), 2 x 58 (280..337) -> (168 + 116) / 226
+    e = filter3DAt(g, kPerSample, 1, 0, params(3, 1, 3, 0.25));
+    EXPECT_FLOAT_EQ(e.rgb[0], (168.f + 116.f) / 226.f);
+    EXPECT_EQ(e.kept[0], 2);
+    // alpha = 0, nothing trimmed: the window's sample mean (w = 1), the centre's samples counted w
+    // times (w = 2), whether buffers vote per buffer or per sample.
+    EXPECT_FLOAT_EQ(filter3DAt(g, kPerBuffer, 1, 0, params(3, 1, 1, 0.0)).rgb[0],
+                    (10.f * 0.5f + 80.f * 100.f + 90.f * 1.f + 90.f * 2.f) / 270.f);
+    EXPECT_FLOAT_EQ(filter3DAt(g, kPerBuffer, 1, 0, params(3, 1, 2, 0.0)).rgb[0],
+                    (10.f * 0.5f + 80.f * 100.f + 180.f * 1.f + 90.f * 2.f) / 360.f);
+    EXPECT_FLOAT_EQ(filter3DAt(g, kPerSample, 1, 0, params(3, 1, 1, 0.0)).rgb[0],
+                    (10.f * 0.5f + 80.f * 100.f + 90.f * 1.f + 90.f * 2.f) / 270.f);
+    EXPECT_FLOAT_EQ(filter3DAt(g, kPerSample, 1, 0, params(3, 1, 2, 0.0)).rgb[0],
+                    (10.f * 0.5f + 80.f * 100.f + 180.f * 1.f + 90.f * 2.f) / 360.f);
+}
+
+TEST(SpatialFilters, Filter3DPerSampleVotesInvalidAndEmptyBuffers) {
+    VarGrid g(3, 1);
+    // left: empty, NaN mean, Inf count, count 2.5, count 2^24 + 2, then 4 samples of 3
+    g.addGrey({100, kNaN, 50, 60, 70, 3}, {0, 5, kInf, 2.5f, 16777218.f, 4});
+    g.addGrey({1}, {2});
+    g.addGrey({5}, {3});
+    // per sample: counts that are no integer or above 2^24 cannot vote: 1 1 3 3 3 3 5 5 5 -> 3
+    PixelEstimate e = filter3DAt(g, kPerSample, 1, 0, params(3, 1));
+    EXPECT_EQ(e.rgb[0], 3.f);
+    EXPECT_EQ(e.excluded, 4);
+    EXPECT_EQ(e.kept[0], 1);
+    // per buffer they are elements: 1 3 5 60 70 -> 5; only NaN and Inf are excluded
+    e = filter3DAt(g, kPerBuffer, 1, 0, params(3, 1));
+    EXPECT_EQ(e.rgb[0], 5.f);
+    EXPECT_EQ(e.excluded, 2);
+    // a pixel with no voting buffer is no element; alone it gives black
+    VarGrid none(1, 1);
+    none.addGrey({7, 8, kNaN}, {0, 1.5f, 1});
+    e = filter3DAt(none, kPerSample, 0, 0, params(3, 3));
+    EXPECT_EQ(e.rgb, (std::array<float, 3>{0.f, 0.f, 0.f}));
+    EXPECT_EQ(e.kept[0], 0);
+    EXPECT_EQ(e.excluded, 2);
+}
+
+TEST(SpatialFilters, Filter3DPerSampleVotesLargeCountsAndWeights) {
+    // counts up to 2^24 vote, even with the largest centre weight: copies of the order of
+    // 10^6 * 2^25 stay exact
+    VarGrid g(3, 1);
+    g.addGrey({5}, {16777216.f});
+    g.addGrey({9, 1}, {16777216.f, 16777215.f});
+    g.addGrey({6}, {16777216.f});
+    // 1x1: 1 x (2^24 - 1), 9 x 2^24: s odd, the middle copy is the first 9 (MPE: the two buffers
+    // averaged by count, about 5)
+    EXPECT_EQ(filter3DAt(g, kPerSample, 1, 0, params(1, 1)).rgb[0], 9.f);
+    EXPECT_FLOAT_EQ(filter3DAt(g, kPerBuffer, 1, 0, params(1, 1)).rgb[0],
+                    float((16777215.0 + 9.0 * 16777216.0) / 33554431.0));
+    // 3x1: 1 x (2^24 - 1), 5, 6, 9 x 2^24 each: s = 2^26 - 1, median copy 2^25 - 1 is the first 6
+    EXPECT_EQ(filter3DAt(g, kPerSample, 1, 0, params(3, 1)).rgb[0], 6.f);
+    // w = 10^6: s = 10^6 (2^25 - 1) + 2^25 (about 3.4e13). The centre's own median sits one sample
+    // from the boundary between its 1s and 9s, so even this weight leaves the median copy
+    // (index 10^6 (2^24 - 1/2) + 2^24 - 1/2) among the 6s, 5 * 10^5 copies past the 5s
+    EXPECT_EQ(filter3DAt(g, kPerSample, 1, 0, params(3, 1, kMaxCentreWeight)).rgb[0], 6.f);
+    // with 10^6 more samples of 9 in the centre its median copy wins
+    VarGrid g2 = g;
+    g2.count[1] = {16777216.f, 15777215.f};
+    EXPECT_EQ(filter3DAt(g2, kPerSample, 1, 0, params(3, 1, kMaxCentreWeight)).rgb[0], 9.f);
+    EXPECT_EQ(filter3DAt(g2, kPerSample, 1, 0, params(3, 1, 1)).rgb[0], 6.f);
+    // alpha = 0.25 of s = 2^26 - 1: c = floor(2^24 - 1/4) = 2^24 - 1 copies per side, exactly the
+    // 1s; copies up to 3 * 2^24 - 1 kept: every 5 and 6 and the first 9, each weighing 2^24
+    const double n = 16777216.0;
+    const double expect = (5.0 * n * n + 6.0 * n * n + 9.0 * n) / (2.0 * n * n + n);
+    PixelEstimate e = filter3DAt(g, kPerSample, 1, 0, params(3, 1, 1, 0.25));
+    EXPECT_FLOAT_EQ(e.rgb[0], float(expect));
+    EXPECT_EQ(e.kept[0], 3);
+}
+
+TEST(SpatialFilters, Filter3DPerSampleVotesChannelAndLuminanceModes) {
+    VarGrid g(3, 1);
+    // left: three one-sample buffers; centre: one buffer of 3 samples; right: one sample
+    g.add({{4, 0, 9}, {5, 1, 9}, {6, 2, 9}}, {1, 1, 1});
+    g.add({{1, 10, 5}}, {3});
+    g.add({{0, 20, 0}}, {1});
+    // per sample s = 7, median copy 3 (0-based). R: 0 1 1 1 4 5 6 -> 1; G: 0 1 2 10 10 10 20 -> 10;
+    // B: 0 5 5 5 9 9 9 -> 5: the centre's three samples win every channel
+    PixelEstimate e =
+        filter3DAt(g, kPerSample, 1, 0, params(3, 1, 1, 0.5, EstimatorMode::PerChannel));
+    EXPECT_EQ(e.rgb, (std::array<float, 3>{1.f, 10.f, 5.f}));
+    EXPECT_EQ(e.kept, (std::array<int, 3>{1, 1, 1}));
+    // per buffer s = 5, rank 2. R: 0 1 4 5 6 -> 4; G: 0 1 2 10 20 -> 2; B: 0 5 9 9 9 -> 9
+    e = filter3DAt(g, kPerBuffer, 1, 0, params(3, 1, 1, 0.5, EstimatorMode::PerChannel));
+    EXPECT_EQ(e.rgb, (std::array<float, 3>{4.f, 2.f, 9.f}));
+    // luminance (Rec.709): left 1.50, 2.43, 3.36, centre 7.73 x 3, right 14.30 -> the centre
+    e = filter3DAt(g, kPerSample, 1, 0, params(3, 1));
+    EXPECT_EQ(e.rgb, (std::array<float, 3>{1.f, 10.f, 5.f}));
+    // per buffer: 1.50 2.43 3.36 7.73 14.30 -> the third left buffer, whole
+    e = filter3DAt(g, kPerBuffer, 1, 0, params(3, 1));
+    EXPECT_EQ(e.rgb, (std::array<float, 3>{6.f, 2.f, 9.f}));
+    // channel mode with alpha = 2/7 per sample: copies 2..4 kept, the centre's three copies partly
+    // trimmed in every channel (2 kept), each copy one sample. R: 0 1 [1 1 4] 5 6 -> 6 / 3;
+    // G: 0 1 [2 10 10] 10 20 -> 22 / 3; B: 0 5 [5 5 9] 9 9 -> 19 / 3
+    e = filter3DAt(g, kPerSample, 1, 0, params(3, 1, 1, 2.0 / 7.0, EstimatorMode::PerChannel));
+    EXPECT_FLOAT_EQ(e.rgb[0], 2.f);
+    EXPECT_FLOAT_EQ(e.rgb[1], 22.f / 3.f);
+    EXPECT_FLOAT_EQ(e.rgb[2], 19.f / 3.f);
+    EXPECT_EQ(e.kept, (std::array<int, 3>{2, 2, 2}));
+}
+
+TEST(SpatialFilters, Filter3DOneByOnePerSampleIsTheCountWeightedMedian) {
+    // 3DMF(1x1) on an adaptive pixel: the median of its samples' buffer means; MPE when the counts
+    // are equal, not otherwise
+    const struct {
+        std::vector<float> v, n;
+        float perSample, mpe;
+    } cases[] = {
+        {{1, 2, 10}, {3, 1, 1}, 1.f, 2.f},  // 1 1 1 2 10
+        {{1, 2, 10}, {1, 3, 1}, 2.f, 2.f},  // 1 2 2 2 10
+        {{1, 2, 10}, {2, 2, 2}, 2.f, 2.f},  // equal counts
+        {{1, 3}, {3, 1}, 1.f, 1.5f},        // 1 1 1 3: copies 1, 2 are 1; MPE (3 + 3) / 4
+        {{1, 3}, {2, 2}, 2.f, 2.f},         // 1 1 3 3: (1 + 3) / 2
+        {{4, 1, 3, 2, 5}, {5, 5, 6, 5, 5}, 3.f, 3.f},
+    };
+    EstimatorParams ep;
+    ep.luma = kLuma;
+    EstimatorScratch es;
+    for (const auto& c : cases) {
+        VarGrid g(1, 1);
+        g.addGrey(c.v, c.n);
+        EXPECT_EQ(filter3DAt(g, kPerSample, 0, 0, params(1, 1)).rgb[0], c.perSample);
+        for (int64_t w : {2, 7})  // a 1x1 window holds the centre only: any weight
+            EXPECT_EQ(filter3DAt(g, kPerSample, 0, 0, params(1, 1, w)).rgb[0], c.perSample);
+        PixelEstimate mpe;
+        estimateMoN(g.view(kPerSample).at(0, 0), ep, mpe, es);
+        EXPECT_EQ(mpe.rgb[0], c.mpe);
+        EXPECT_EQ(filter3DAt(g, kPerBuffer, 0, 0, params(1, 1)).rgb[0], c.mpe);
+    }
+}
+
+TEST(SpatialFilters, Filter3DPerSampleEqualCountsIsMPEOnRandomPixels) {
+    // every buffer of a pixel holding n samples (n varies by pixel): 3DMF(1x1) per sample = MPE,
+    // bit for bit (the kept copies are one buffer's, or one of each middle buffer), odd and even M,
+    // both modes, NaN and empty buffers
+    std::mt19937 rng(41);
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    EstimatorScratch es;
+    for (auto mode : {EstimatorMode::Luminance, EstimatorMode::PerChannel})
+        for (int trial = 0; trial < 300; ++trial) {
+            VarGrid g(1, 1);
+            const int m = 1 + int(u(rng) * 9.f);
+            const float n = float(1 + int(u(rng) * 500.f));
+            std::vector<std::array<float, 3>> rgb;
+            std::vector<float> cnt;
+            for (int j = 0; j < m; ++j) {
+                const float f = u(rng) < 0.1f ? 300.f : 1.f;
+                rgb.push_back({u(rng) * f, u(rng) * f, u(rng) * f});
+                cnt.push_back(u(rng) < 0.05f ? 0.f : n);
+                if (u(rng) < 0.05f) rgb.back()[1] = kNaN;
+            }
+            g.add(rgb, cnt);
+            EstimatorParams ep;
+            ep.luma = kLuma;
+            ep.mode = mode;
+            PixelEstimate mpe;
+            estimateMoN(g.view(kPerSample).at(0, 0), ep, mpe, es);
+            const PixelEstimate e = filter3DAt(g, kPerSample, 0, 0, params(1, 1, 1, 0.5, mode));
+            EXPECT_EQ(e.rgb, mpe.rgb) << trial;
+            EXPECT_EQ(e.excluded, mpe.excluded);
+        }
 }
