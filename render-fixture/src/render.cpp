@@ -157,7 +157,11 @@ std::vector<int64_t> growCheckpoints(const RenderOptions& opt) {
     if (opt.mMax <= 1) return out;
     const int64_t n0 =
         std::max<int64_t>(2, opt.checkpoint > 0 ? opt.checkpoint : opt.spp / opt.mMax);
-    for (int64_t n = n0; n<opt.spp; n = n> opt.spp / 2 ? opt.spp : 2 * n) out.push_back(n);
+    int64_t n = n0;
+    while (n < opt.spp) {
+        out.push_back(n);
+        n = n > opt.spp / 2 ? opt.spp : 2 * n;  // doubling without overflow
+    }
     return out;
 }
 
