@@ -245,11 +245,11 @@ StatsImage newStatsImage(const Scene& scene, const RenderOptions& opt, int M) {
 }
 
 /// Fixed M, or adaptive M with a pilot plan: every pixel rendered in one go, sample i into
-/// buffer i mod M_p.
-bool renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsImage& img,
-                      std::atomic<int64_t>& dropped, double& seconds) {
+/// buffer i mod M_p. Cannot fail (img is allocated); returns the wall-clock seconds.
+double renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsImage& img,
+                        std::atomic<int64_t>& dropped) {
     const Scene& scene = ctx.scene;
-    seconds = forEachRow(scene.height, opt, [&](int y) {
+    return forEachRow(scene.height, opt, [&](int y) {
         PixelAccumulator acc(img.header.M);
         int64_t rowDropped = 0;
         for (int x = 0; x < scene.width; ++x) {
@@ -262,7 +262,6 @@ bool renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsI
         }
         dropped.fetch_add(rowDropped, std::memory_order_relaxed);
     });
-    return true;
 }
 
 /// Adaptive M growing during the render (docs/adaptive-m.md, "Grow"). The samples are rendered
@@ -370,9 +369,7 @@ bool render(const Scene& scene, const RenderOptions& opt, StatsImage& out, std::
         } else if (!img.allocate(err)) {
             return false;
         }
-        double seconds = 0;
-        if (!renderRoundRobin(ctx, opt, img, dropped, seconds)) return false;
-        st.seconds = seconds + st.pilotSeconds;
+        st.seconds = renderRoundRobin(ctx, opt, img, dropped) + st.pilotSeconds;
     }
     st.nonFiniteSamples = dropped.load();
     if (opt.adaptiveM) st.meanBuffers = double(img.bufferCount.size()) / double(img.pixelCount());
