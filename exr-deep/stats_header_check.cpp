@@ -239,12 +239,23 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
                                     layout::kAttrAdaptiveM, adaptive));
         h.adaptiveM = adaptive == 1;
         if (!intAttr(part, layout::kAttrM, M) || !intAttr(part, layout::kAttrSpp, spp) ||
-            !intAttr(part, layout::kAttrM, M) || !intAttr(part, layout::kAttrSpp, spp) ||
             !stringAttr(part, layout::kAttrAssignment, h.assignment) ||
             !stringAttr(part, layout::kAttrRenderer, h.renderer) ||
             !stringAttr(part, layout::kAttrColorSpace, h.colorSpace) ||
             !stringAttr(part, layout::kAttrSeeds, h.seeds))
             return false;
+        // Version 3 on: provenance, on every part (versions 1 and 2 imply the defaults).
+        if (version >= kStatsFormatVersionProvenance) {
+            std::string features;
+            if (!stringAttr(part, layout::kAttrVariance, h.variance) ||
+                !stringAttr(part, layout::kAttrFeatures, features) ||
+                !stringAttr(part, layout::kAttrSources, h.sources))
+                return false;
+            std::string problem;
+            if (!parseFeatureList(features, h.features, problem))
+                return fail(
+                    fmt::format("part '{}': {}: {}", names_[part], layout::kAttrFeatures, problem));
+        }
         h.formatVersion = version;
         h.M = M;
         h.spp = spp;
@@ -276,6 +287,12 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
         if (h.colorSpace != h0.colorSpace)
             return differs(layout::kAttrColorSpace, h.colorSpace, h0.colorSpace);
         if (h.seeds != h0.seeds) return differs(layout::kAttrSeeds, h.seeds, h0.seeds);
+        if (h.variance != h0.variance)
+            return differs(layout::kAttrVariance, h.variance, h0.variance);
+        if (h.features != h0.features)
+            return differs(layout::kAttrFeatures, featureListText(h.features),
+                           featureListText(h0.features));
+        if (h.sources != h0.sources) return differs(layout::kAttrSources, h.sources, h0.sources);
     }
     if (h0.formatVersion < 1 || h0.formatVersion > kStatsFormatVersion)
         return fail(fmt::format("unsupported {} {} (this reader knows 1..{})",
@@ -285,6 +302,13 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
     if (h0.spp < 0) return fail(fmt::format("negative {} {}", layout::kAttrSpp, h0.spp));
     if (std::string problem; !layout::knownAssignment(h0.assignment, h0.adaptiveM, problem))
         return fail(fmt::format("{}: {}", layout::kAttrAssignment, problem));
+    if (std::string problem; !layout::knownVariance(h0.variance, problem))
+        return fail(fmt::format("{}: {}", layout::kAttrVariance, problem));
+    // A version-1 or -2 file cannot claim what only version 3 can say (e.g. "perfile").
+    if (h0.formatVersion < requiredFormatVersion(h0))
+        return fail(fmt::format("{} = '{}' needs {} >= {} (the file has {})",
+                                layout::kAttrAssignment, h0.assignment, layout::kAttrFormatVersion,
+                                requiredFormatVersion(h0), h0.formatVersion));
     hdr = h0;
     return true;
 }

@@ -39,6 +39,19 @@ bool checkHeader(const StatsHeader& h, std::string& problem) {
         return false;
     }
     if (!layout::knownAssignment(h.assignment, h.adaptiveM, problem)) return false;
+    if (!layout::knownVariance(h.variance, problem)) return false;
+    if (h.features > kAllFeatures) {
+        problem = fmt::format("feature bits {:#x} beyond the known features", h.features);
+        return false;
+    }
+    if (h.formatVersion < requiredFormatVersion(h)) {
+        problem = fmt::format(
+            "format version {} cannot hold this content (assignment '{}', variance '{}', "
+            "features '{}'{}): it needs version {}",
+            h.formatVersion, h.assignment, h.variance, featureListText(h.features),
+            h.sources.empty() ? "" : ", sources", requiredFormatVersion(h));
+        return false;
+    }
     // OpenEXR's dataWindow.max must stay representable.
     if (int64_t(h.originX) + h.width - 1 > std::numeric_limits<int>::max() ||
         int64_t(h.originY) + h.height - 1 > std::numeric_limits<int>::max()) {

@@ -15,12 +15,82 @@ bool knownAssignment(const std::string& assignment, bool adaptiveM, std::string&
         problem = fmt::format("sample assignment '{}' needs adaptive M", assignment);
         return false;
     }
+    if (assignment == kAssignmentPerFile) {
+        if (!adaptiveM) return true;
+        problem = fmt::format("sample assignment '{}' needs a fixed M", assignment);
+        return false;
+    }
     problem = fmt::format(
-        "unknown sample assignment '{}' (this reader knows '{}' and, with adaptive "
+        "unknown sample assignment '{}' (this reader knows '{}', '{}' and, with adaptive "
         "M, '{}')",
-        assignment, kAssignmentRoundRobin, kAssignmentLeastCount);
+        assignment, kAssignmentRoundRobin, kAssignmentPerFile, kAssignmentLeastCount);
     return false;
 }
+
+bool knownVariance(const std::string& variance, std::string& problem) {
+    if (variance == kVarianceSamples || variance == kVarianceBuffers ||
+        variance == kVarianceUnknown)
+        return true;
+    problem = fmt::format("unknown variance source '{}' (this reader knows '{}', '{}', '{}')",
+                          variance, kVarianceSamples, kVarianceBuffers, kVarianceUnknown);
+    return false;
+}
+
+}  // namespace mcstat::layout
+
+namespace mcstat {
+
+namespace {
+constexpr const char* kFeatureNames[] = {"N", "P", "Albedo", "Z", "A"};
+}
+
+std::string featureListText(unsigned bits) {
+    std::string s;
+    for (int i = 0; i < 5; ++i)
+        if (bits & (1u << i)) s += (s.empty() ? "" : ",") + std::string(kFeatureNames[i]);
+    return s;
+}
+
+bool parseFeatureList(const std::string& text, unsigned& bits, std::string& problem) {
+    unsigned out = 0;
+    size_t start = 0;
+    while (start < text.size()) {
+        size_t end = text.find(',', start);
+        if (end == std::string::npos) end = text.size();
+        const std::string item = text.substr(start, end - start);
+        int found = -1;
+        for (int i = 0; i < 5; ++i)
+            if (item == kFeatureNames[i]) found = i;
+        if (found < 0) {
+            problem = fmt::format("unknown feature '{}' (known: N, P, Albedo, Z, A)", item);
+            return false;
+        }
+        if (out & (1u << found)) {
+            problem = fmt::format("feature '{}' listed twice", item);
+            return false;
+        }
+        out |= 1u << found;
+        start = end + 1;
+        if (end + 1 == text.size()) {  // a trailing comma
+            problem = "empty feature name";
+            return false;
+        }
+    }
+    bits = out;
+    return true;
+}
+
+int requiredFormatVersion(const StatsHeader& h) {
+    if (h.assignment == kAssignmentPerFile || h.variance != kVarianceSamples ||
+        h.features != kAllFeatures || !h.sources.empty())
+        return kStatsFormatVersionProvenance;
+    if (h.adaptiveM) return kStatsFormatVersionAdaptive;
+    return kStatsFormatVersionFixed;
+}
+
+}  // namespace mcstat
+
+namespace mcstat::layout {
 
 std::vector<ChannelPlace> partChannels(int part, int M, bool adaptiveM) {
     if (adaptiveM && part == kBuffers) return {};

@@ -42,13 +42,22 @@ inline constexpr const char* kAttrAdaptiveM = "mcstat:adaptiveM";
 /// exist.
 inline constexpr const char* kAttrPartVersion = "version";
 
+/// Version 3 on: provenance (FORMAT.md "Version 3").
+inline constexpr const char* kAttrVariance = "mcstat:variance";  // string
+inline constexpr const char* kAttrFeatures = "mcstat:features";  // string
+inline constexpr const char* kAttrSources = "mcstat:sources";    // string
+
 /// The sample-to-buffer rules (FORMAT.md, "Sample assignment"). Round robin is the only rule of
-/// format version 1; least count exists only in adaptive files (format version 2).
-inline constexpr const char* kAssignmentRoundRobin = "roundrobin";
-inline constexpr const char* kAssignmentLeastCount = "leastcount";
+/// format version 1; least count exists only in adaptive files (format version 2); per file only
+/// in fixed-M files of version 3.
+using mcstat::kAssignmentLeastCount;
+using mcstat::kAssignmentPerFile;
+using mcstat::kAssignmentRoundRobin;
 /// Whether `assignment` is a rule this reader knows for a file with fixed or adaptive M; if not,
 /// `problem` says why in a phrase.
 bool knownAssignment(const std::string& assignment, bool adaptiveM, std::string& problem);
+/// Whether `variance` is a known mcstat:variance value; if not, `problem` says why.
+bool knownVariance(const std::string& variance, std::string& problem);
 
 /// Which StatsImage array a channel is stored in.
 enum class Array {

@@ -59,7 +59,16 @@ bool checkCompatible(const StatsHeader& a, const StatsHeader& b, std::string& er
     if (a.M != b.M)
         return fail(fmt::format("{} differs ({} vs {})", a.adaptiveM ? "M_max" : "M", a.M, b.M));
     if (a.assignment != b.assignment)
-        return fail(fmt::format("assignments differ ('{}' vs '{}')", a.assignment, b.assignment));
+        return fail(fmt::format(
+            "sample assignments differ ('{}' vs '{}'): buffer j holds a different kind of sample "
+            "set in each (FORMAT.md, \"Sample-to-buffer assignment\"), so their sums would "
+            "mean nothing",
+            a.assignment, b.assignment));
+    if (a.variance != b.variance)
+        return fail(fmt::format("variance sources differ ('{}' vs '{}')", a.variance, b.variance));
+    if (a.features != b.features)
+        return fail(fmt::format("feature sets differ ('{}' vs '{}')", featureListText(a.features),
+                                featureListText(b.features)));
     if (a.colorSpace != b.colorSpace)
         return fail(fmt::format("colour spaces differ ('{}' vs '{}')", a.colorSpace, b.colorSpace));
     if (!a.seeds.empty() && !b.seeds.empty()) {
@@ -78,6 +87,20 @@ bool checkCompatible(const StatsHeader& a, const StatsHeader& b, std::string& er
 
 }  // namespace
 
+double bufferVariance(const StatsImage& img, size_t p, size_t c, double mean) {
+    const size_t k0 = img.bufferBegin(p), m = size_t(img.buffersOf(p));
+    double ss = 0.0;
+    size_t filled = 0;
+    for (size_t j = 0; j < m; ++j) {
+        const double n = img.bufferCount[k0 + j];
+        if (n == 0.0) continue;
+        const double d = double(img.bufferMean[(k0 + j) * 3 + c]) - mean;
+        ss += n * d * d;
+        ++filled;
+    }
+    return filled >= 2 ? ss / double(filled - 1) : std::numeric_limits<double>::quiet_NaN();
+}
+
 bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::string& err) {
     if (!validateStats(a, "first merge input", err) ||
         !validateStats(b, "second merge input", err) || !checkCompatible(a.header, b.header, err))
@@ -92,6 +115,10 @@ bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::
         r.header.seeds = a.header.seeds + "," + b.header.seeds;
     if (a.header.renderer != b.header.renderer)
         r.header.renderer = a.header.renderer + " + " + b.header.renderer;
+    if (a.header.sources.empty() || b.header.sources.empty())
+        r.header.sources = a.header.sources + b.header.sources;
+    else
+        r.header.sources = a.header.sources + "," + b.header.sources;
     r.header.formatVersion = std::max(a.header.formatVersion, b.header.formatVersion);
     const size_t pixels = r.pixelCount();
     if (r.header.adaptiveM) {
@@ -150,6 +177,12 @@ bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::
                 var = n > 1.0 ? m2 / (n - 1.0) : 0.0;
             }
             if (n == 0.0) mean = var = 0.0;
+            // Version 3: a variance estimated from the buffers is re-estimated from the merged
+            // buffers (its definition, FORMAT.md); an unknown one stays unknown.
+            if (r.header.variance == kVarianceBuffers)
+                var = bufferVariance(r, p, c, mean);
+            else if (r.header.variance == kVarianceUnknown)
+                var = std::numeric_limits<double>::quiet_NaN();
             r.mean[i] = float(mean);
             r.variance[i] = float(var);
             r.beauty[i] = float(mean);

@@ -55,6 +55,11 @@ std::vector<Imf::Header> makeHeaders(const StatsHeader& h) {
         hdr.insert(layout::kAttrRenderer, Imf::StringAttribute(h.renderer));
         hdr.insert(layout::kAttrColorSpace, Imf::StringAttribute(h.colorSpace));
         hdr.insert(layout::kAttrSeeds, Imf::StringAttribute(h.seeds));
+        if (h.formatVersion >= kStatsFormatVersionProvenance) {
+            hdr.insert(layout::kAttrVariance, Imf::StringAttribute(h.variance));
+            hdr.insert(layout::kAttrFeatures, Imf::StringAttribute(featureListText(h.features)));
+            hdr.insert(layout::kAttrSources, Imf::StringAttribute(h.sources));
+        }
         if (part == layout::kBeauty) Imf::addChromaticities(hdr, Imf::Chromaticities());  // Rec.709
         for (const layout::ChannelPlace& c : layout::partChannels(part, h.M, h.adaptiveM))
             hdr.channels().insert(c.name, Imf::Channel(Imf::FLOAT));

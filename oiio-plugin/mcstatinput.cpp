@@ -97,11 +97,15 @@ class McstatInput final : public ImageInput {
         std::vector<float> pixels;  ///< spec.width * spec.height * spec.nchannels, scanline order
     };
     std::array<Sub, kSubimageCount> m_subs;
+    /// Subimages this file has: kSubimageCount, or one fewer when it holds no features (an
+    /// ingested render without G-buffer AOVs: FORMAT.md version 3, mcstat:features empty).
+    int m_nsubs = kSubimageCount;
     int m_current = -1;
     std::string m_name;  ///< as passed to open(), for messages
 
     void reset() {
         for (Sub& s : m_subs) s = Sub();
+        m_nsubs = kSubimageCount;
         m_current = -1;
         m_name.clear();
         m_spec = ImageSpec();
@@ -224,12 +228,17 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
         s.y = s.full_y = h.originY;
         s.channelnames = channels;
         s.attribute("oiio:subimagename", subname);
-        s.attribute("oiio:subimages", int(kSubimageCount));
+        s.attribute("oiio:subimages", m_nsubs);
         s.attribute("mcstat:formatVersion", h.formatVersion);
         s.attribute("mcstat:M", h.M);
         if (h.adaptiveM) s.attribute("mcstat:adaptiveM", 1);
         s.attribute("mcstat:spp", int(std::min<int64_t>(h.spp, INT32_MAX)));
         s.attribute("mcstat:assignment", h.assignment);
+        if (h.formatVersion >= mcstat::kStatsFormatVersionProvenance) {
+            s.attribute("mcstat:variance", h.variance);
+            s.attribute("mcstat:features", mcstat::featureListText(h.features));
+            s.attribute("mcstat:sources", h.sources);
+        }
         s.attribute("mcstat:renderer", h.renderer);
         s.attribute("mcstat:colorSpace", h.colorSpace);
         s.attribute("mcstat:seeds", h.seeds);
@@ -276,21 +285,44 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     m.spec.attribute("oiio:ColorSpace", h.colorSpace);
     m.pixels = std::move(stats.beauty);
 
-    // 3: first-hit features.
-    Sub& f = m_subs[kFeatures];
-    f.spec = makeSpec(
-        {"N.X", "N.Y", "N.Z", "P.X", "P.Y", "P.Z", "Albedo.R", "Albedo.G", "Albedo.B", "Z", "A"},
-        "features");
-    f.pixels.resize(npix * 11);
-    for (size_t p = 0; p < npix; ++p) {
-        float* o = &f.pixels[p * 11];
-        for (int c = 0; c < 3; ++c) {
-            o[c] = stats.normal[p * 3 + c];
-            o[3 + c] = stats.position[p * 3 + c];
-            o[6 + c] = stats.albedo[p * 3 + c];
+    // 3: first-hit features, only those the file holds (version 3 records absent ones as NaN).
+    struct FeatureChannel {
+        const char* name;
+        unsigned feature;
+        const std::vector<float>* array;
+        size_t stride, offset;
+    };
+    const FeatureChannel all[] = {{"N.X", mcstat::kFeatureNormal, &stats.normal, 3, 0},
+                                  {"N.Y", mcstat::kFeatureNormal, &stats.normal, 3, 1},
+                                  {"N.Z", mcstat::kFeatureNormal, &stats.normal, 3, 2},
+                                  {"P.X", mcstat::kFeaturePosition, &stats.position, 3, 0},
+                                  {"P.Y", mcstat::kFeaturePosition, &stats.position, 3, 1},
+                                  {"P.Z", mcstat::kFeaturePosition, &stats.position, 3, 2},
+                                  {"Albedo.R", mcstat::kFeatureAlbedo, &stats.albedo, 3, 0},
+                                  {"Albedo.G", mcstat::kFeatureAlbedo, &stats.albedo, 3, 1},
+                                  {"Albedo.B", mcstat::kFeatureAlbedo, &stats.albedo, 3, 2},
+                                  {"Z", mcstat::kFeatureDepth, &stats.depth, 1, 0},
+                                  {"A", mcstat::kFeatureCoverage, &stats.coverage, 1, 0}};
+    std::vector<const FeatureChannel*> present;
+    std::vector<std::string> featureNames;
+    for (const FeatureChannel& c : all)
+        if (h.features & c.feature) {
+            present.push_back(&c);
+            featureNames.push_back(c.name);
         }
-        o[9] = stats.depth[p];
-        o[10] = stats.coverage[p];
+    if (present.empty()) {
+        m_nsubs = kFeatures;  // no features subimage; the specs made above say so too
+        for (int i = 0; i < kFeatures; ++i)
+            m_subs[size_t(i)].spec.attribute("oiio:subimages", m_nsubs);
+    } else {
+        Sub& f = m_subs[kFeatures];
+        f.spec = makeSpec(featureNames, "features");
+        const size_t nf = present.size();
+        f.pixels.resize(npix * nf);
+        for (size_t p = 0; p < npix; ++p)
+            for (size_t i = 0; i < nf; ++i)
+                f.pixels[p * nf + i] =
+                    (*present[i]->array)[p * present[i]->stride + present[i]->offset];
     }
 
     m_current = kRobust;
@@ -311,8 +343,7 @@ bool McstatInput::close() {
 bool McstatInput::seek_subimage(int subimage, int miplevel) {
     try {
         lock_guard guard(*this);
-        if (m_current < 0 || subimage < 0 || subimage >= kSubimageCount || miplevel != 0)
-            return false;
+        if (m_current < 0 || subimage < 0 || subimage >= m_nsubs || miplevel != 0) return false;
         if (subimage != m_current) {
             m_current = subimage;
             m_spec = m_subs[subimage].spec;
@@ -329,7 +360,7 @@ bool McstatInput::seek_subimage(int subimage, int miplevel) {
 bool McstatInput::copyRows(int subimage, int miplevel, int ybegin, int yend, int chbegin, int chend,
                            void* data) {
     lock_guard guard(*this);
-    if (m_current < 0 || subimage < 0 || subimage >= kSubimageCount || miplevel != 0) {
+    if (m_current < 0 || subimage < 0 || subimage >= m_nsubs || miplevel != 0) {
         errorfmt("{}: no subimage {} MIP level {}", m_name, subimage, miplevel);
         return false;
     }

@@ -66,8 +66,10 @@ bool cmdEstimate(State& st, const std::string& cmd, const std::vector<std::strin
     if (!needStack(st, 1, cmd, err)) return false;
     Item& top = st.stack.back();
     if (!top.isStats()) {
-        err = format("{}: {} is an image, not a statistics file (.{})", cmd, top.name,
-                     kStatsExtension);
+        err = format(
+            "{}: {} is an image, not a statistics file (.{}); renders of one image (one EXR "
+            "per seed) become one with --ingest 'render_*.exr'",
+            cmd, top.name, kStatsExtension);
         return false;
     }
     Modifiers estMods = mods;
@@ -104,7 +106,12 @@ bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& 
     }
     DiffOptions opt;
     opt.luma = lumaCoefficients();
+    std::string layer;
     for (const auto& [k, v] : mods) {
+        if (k == "layer") {
+            layer = v;
+            continue;
+        }
         double d = 0.0;
         if (!parseDouble(v, d) || d < 0.0) {
             err = format("{}: modifier {} must be a non-negative number, not '{}'", cmd, k, v);
@@ -124,10 +131,15 @@ bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& 
             opt.normEpsilon = d;
         }
     }
-    OIIO::ImageBuf ref;
-    if (!readImage(args[0], ref, err)) return false;
+    // R, G, B by name on both sides: a multilayer reference whose AO layer sorts before its
+    // Combined pass must not be compared with AO.
+    OIIO::ImageBuf ref, img;
+    if (!readRGB(args[0], layer, ref, err) || !selectRGB(*top.image, "", top.name, img, err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
     DiffMetrics m;
-    if (!diffImages(*top.image, ref, opt, m, err)) {
+    if (!diffImages(img, ref, opt, m, err)) {
         err = format("{}: {} vs {}: {}", cmd, top.name, args[0], err);
         return false;
     }
@@ -248,10 +260,18 @@ std::vector<Command> buildTable() {
          1,
          "REF",
          "Print relMSE, SSIM, PSNR, the firefly-pixel count and Jung's normalised bias and noise "
-         "(eq. 5.25-5.27) of the top image against REF",
-         {"ratio", "floor", "eps", "neps"},
+         "(eq. 5.25-5.27) of the top image against REF (R, G, B found by name in both)",
+         {"ratio", "floor", "eps", "neps", "layer"},
          &cmdDiff,
          ""});
+    t.push_back({"--ingest",
+                 1,
+                 "FILES",
+                 "Push one statistics file built from renders of one image, one EXR per seed "
+                 "(glob or comma-separated list; one sub-buffer per file, docs/ingest.md)",
+                 {"layer", "spp"},
+                 &cmdIngest,
+                 ""});
     t.push_back({"--merge",
                  0,
                  "",
@@ -313,6 +333,7 @@ std::vector<Command> buildTable() {
                  {"size", "w", "alpha", "mode"},
                  &cmdFilter3D,
                  ""});
+    appendReviewCommands(t);  // review.cpp: contact sheet, heatmaps, quality-vs-spp plot
     t.push_back({"--dup", 0, "", "Duplicate the top of the stack", {}, &cmdDup, ""});
     t.push_back({"--pop", 0, "", "Remove the top of the stack", {}, &cmdPop, ""});
     t.push_back({"--swap", 0, "", "Exchange the top two stack entries", {}, &cmdSwap, ""});
@@ -333,7 +354,14 @@ std::string modifierHelp(const Command& c) {
     } else if (c.name == "--diff") {
         s += "\n        :ratio=2 :floor=0.1 (firefly: Y > ratio*Yref and Y - Yref > floor)"
              "\n        :eps=0.01 (relMSE denominator r^2 + eps)"
-             "\n        :neps=0.01 (normalised error denominator max(|Yref|, neps), > 0)";
+             "\n        :neps=0.01 (normalised error denominator max(|Yref|, neps), > 0)"
+             "\n        :layer= (REF's RGB layer, e.g. ViewLayer.Combined; default: its beauty, "
+             "docs/ingest.md)";
+    } else if (c.name == "--ingest") {
+        s += "\n        :layer= (the beauty layer, e.g. ViewLayer.Combined; default: plain R,G,B, "
+             "else Blender's <ViewLayer>.Combined, else an AOV named RGBA/beauty/Ci/C)"
+             "\n        :spp= (samples per file; default: the files' metadata, mcstat:spp, "
+             "samplesPerPixel, cycles.<ViewLayer>.samples)";
     } else if (c.run == &cmdMedianImageFilter || c.run == &cmdFilter3D) {
         s += "\n        :size=3x3 (window width x height in pixels, odd, 1..255; clipped at image "
              "borders)";

@@ -57,8 +57,24 @@ bool cmdOutput(State&, const std::string&, const std::vector<std::string>&, cons
                std::string&);
 bool cmdInfo(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
              std::string&);
+/// --ingest PATTERN: one statistics file from renders of one image (one EXR per seed).
+bool cmdIngest(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
+               std::string&);
 /// Reads a file as an image: a statistics file gives its beauty (the plain mean).
 bool readImage(const std::string& path, OIIO::ImageBuf& out, std::string& err);
+/// Reads `path` (an image, or a statistics file's beauty) and returns its R, G, B chosen by channel
+/// name, never by position (docs/ingest.md, "Finding the beauty"): `layer` names the layer (e.g.
+/// "ViewLayer.Combined"); empty applies the beauty rules (plain R,G,B; Blender's
+/// <ViewLayer>.Combined; a beauty AOV such as RGBA). The result has exactly the channels R, G, B.
+/// Errors name the file and list the layers found.
+bool readRGB(const std::string& path, const std::string& layer, OIIO::ImageBuf& out,
+             std::string& err);
+/// The R, G, B of an image in memory, chosen by name as readRGB does; `what` names it in errors.
+bool selectRGB(const OIIO::ImageBuf& src, const std::string& layer, const std::string& what,
+               OIIO::ImageBuf& out, std::string& err);
+/// Spec attribute (int 1) marking an image whose pixels are already display-referred (contact
+/// sheets, heatmaps, plots): -o writes them as they are, without the OCIO display view.
+inline constexpr const char* kDisplayReferredAttr = "mcstat:displayReferred";
 
 // Implemented in plan.cpp: Jung's error-rate planner (docs/planner.md); needs nothing on the stack.
 bool cmdPlan(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
@@ -71,5 +87,9 @@ bool cmdMedianImageFilter(State&, const std::string&, const std::vector<std::str
 /// --3dmf / --3dwmf / --3dwtmf on the top statistics file.
 bool cmdFilter3D(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
                  std::string&);
+
+// Implemented in review.cpp: pictures for review tools (contact sheet, heatmaps, quality plot).
+/// Appends the review commands to the command table.
+void appendReviewCommands(std::vector<Command>& table);
 
 }  // namespace mcstat::cli

@@ -10,6 +10,7 @@
 
 #include "cli.h"
 #include "mcstat/imageops.h"
+#include "mcstat/ingest.h"
 
 namespace mcstat::cli {
 
@@ -98,6 +99,95 @@ bool readImage(const std::string& path, OIIO::ImageBuf& out, std::string& err) {
     return true;
 }
 
+bool readRGB(const std::string& path, const std::string& layer, OIIO::ImageBuf& out,
+             std::string& err) {
+    if (isStatsPath(path)) {
+        if (!layer.empty() && layer != ".") {
+            err = format(
+                "{}: a statistics file has one RGB layer (its beauty); :layer={} does not "
+                "apply",
+                path, layer);
+            return false;
+        }
+        return readImage(path, out, err);
+    }
+    return readRenderRGB(path, layer, out, nullptr, err);
+}
+
+bool selectRGB(const OIIO::ImageBuf& src, const std::string& layer, const std::string& what,
+               OIIO::ImageBuf& out, std::string& err) {
+    BeautyChannels beauty;
+    std::string problem;
+    if (!findBeauty(src.spec().channelnames, layer, beauty, problem)) {
+        err = what + ": " + problem;
+        return false;
+    }
+    const int order[3] = {beauty.index[0], beauty.index[1], beauty.index[2]};
+    const std::string names[3] = {"R", "G", "B"};
+    OIIO::ImageBuf rgb;
+    if (!OIIO::ImageBufAlgo::channels(rgb, src, 3, order, {}, names)) {
+        err = format("{}: {}", what, rgb.geterror());
+        return false;
+    }
+    out = std::move(rgb);
+    return true;
+}
+
+bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>& args,
+               const Modifiers& mods, std::string& err) {
+    IngestOptions opt;
+    for (const auto& [k, v] : mods) {
+        if (k == "layer") {
+            opt.layer = v;
+        } else if (k == "spp") {
+            char* end = nullptr;
+            const long long n = std::strtoll(v.c_str(), &end, 10);
+            if (v.empty() || *end != '\0' || n < 1 || n > (1 << 24)) {
+                err = format("{}: modifier spp must be an integer in 1..2^24, not '{}'", cmd, v);
+                return false;
+            }
+            opt.spp = n;
+        }
+    }
+    std::vector<std::string> paths;
+    if (!expandInputs(args[0], paths, err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
+    // Progress on a terminal only: ingesting many large renders takes a while.
+    const bool tty = isatty(STDERR_FILENO) == 1;
+    if (tty)
+        opt.progress = [](int64_t done, int64_t total) {
+            std::fprintf(stderr, "\rmcstat: ingest %3d%%",
+                         int(100 * done / std::max<int64_t>(1, total)));
+            std::fflush(stderr);
+        };
+    auto stats = std::make_shared<StatsImage>();
+    IngestReport report;
+    const bool ok = ingestRenders(paths, opt, *stats, report, err);
+    if (tty) std::fprintf(stderr, "\r%24s\r", "");
+    if (!ok) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
+    for (const std::string& w : report.warnings)
+        std::fprintf(stderr, "mcstat: warning: %s\n", w.c_str());
+    if (st.verbose) {
+        std::fprintf(
+            stderr, "mcstat: ingest: %zu files, beauty %s (%s), features %s\n", paths.size(),
+            report.beauty.layer.empty() ? "R,G,B" : report.beauty.layer.c_str(),
+            report.beauty.rule.c_str(),
+            report.features.present ? OIIO::Strutil::join(report.features.sources, "; ").c_str()
+                                    : "none");
+    }
+    Item item;
+    item.name = format("ingest({})", args[0]);
+    item.header = stats->header;
+    item.stats = std::move(stats);
+    st.stack.push_back(std::move(item));
+    return true;
+}
+
 bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>& args,
                const Modifiers&, std::string& err) {
     if (st.stack.empty()) {
@@ -121,6 +211,12 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
     if (ext == kStatsExtension) {
         err = format("{} {}: {} is an image, not a statistics file", cmd, path, top.name);
         return false;
+    }
+    if (top.image->spec().get_int_attribute(kDisplayReferredAttr, 0) == 1) {
+        // Already display-referred (a contact sheet, heatmap or plot): written as it is.
+        return writeImageAtomically(
+            *top.image, path, isDisplayFormat(ext) ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT,
+            err);
     }
     if (isDisplayFormat(ext)) {
         OIIO::ImageBuf disp;
@@ -154,16 +250,31 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
                 h.M, (long long)h.spp, h.assignment.c_str());
     std::printf("  renderer \"%s\", colour space %s, seeds %s\n", h.renderer.c_str(),
                 h.colorSpace.c_str(), h.seeds.empty() ? "(none)" : h.seeds.c_str());
+    if (h.formatVersion >= kStatsFormatVersionProvenance) {
+        // What version 3 says about where the data came from (FORMAT.md, "Version 3").
+        const char* variance = h.variance == kVarianceSamples ? "from every sample (Welford)"
+                               : h.variance == kVarianceBuffers
+                                   ? "estimated from the spread of the buffer means"
+                                   : "unknown (stored as NaN)";
+        std::printf("  variance %s: %s\n", h.variance.c_str(), variance);
+        if (!h.sources.empty()) std::printf("  sources %s\n", h.sources.c_str());
+    }
+    const std::string present = featureListText(h.features);
+    const std::string absent = featureListText(kAllFeatures & ~h.features);
+    const std::string features =
+        absent.empty()
+            ? present
+            : (present.empty() ? std::string("none") : present) + "; absent, NaN: " + absent;
     if (h.adaptiveM)
         std::printf(
             "  parts: beauty (R,G,B)  vbuffers (deep: m_p in 1..%d samples R,G,B,count,Z,A)  "
-            "moments (count, mean.RGB, variance.RGB)  features (N, P, Albedo, Z, A)\n",
-            h.M);
+            "moments (count, mean.RGB, variance.RGB)  features (%s)\n",
+            h.M, features.c_str());
     else
         std::printf(
             "  parts: beauty (R,G,B)  buffers (%d x b###.R,G,B,count)  moments (count, mean.RGB, "
-            "variance.RGB)  features (N, P, Albedo, Z, A)\n",
-            h.M);
+            "variance.RGB)  features (%s)\n",
+            h.M, features.c_str());
     if (!st.verbose && !h.adaptiveM) return true;
     if (!loadStats(st, top, err)) return false;
     const StatsImage& s = *top.stats;

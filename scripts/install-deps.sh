@@ -11,6 +11,8 @@ packages=(
   libembree-dev libtbb-dev               # the fixture renderer's ray tracing
   libfmt-dev nlohmann-json3-dev          # formatting, scene files
   libgtest-dev libbenchmark-dev          # tests and benchmarks
+  gnuplot-nox                            # mcstat --qualityplot draws its plot with gnuplot (pngcairo)
+  fonts-dejavu-core                      # OIIO's render_text needs a font: DejaVuSans labels the review pictures
 )
 
 missing=()

@@ -17,13 +17,47 @@ namespace mcstat {
 inline constexpr const char* kStatsExtension = "mcstat";
 /// Newest layout this library reads and writes (header attribute "mcstat:formatVersion").
 /// Version 1: fixed M (part "buffers"). Version 2 adds adaptive M (deep part "vbuffers" instead of
-/// "buffers", attribute "mcstat:adaptiveM"). The writer writes header.formatVersion as given; a
-/// fixed-M image keeps version 1 (what every reader knows), an adaptive one needs version 2.
-inline constexpr int kStatsFormatVersion = 2;
+/// "buffers", attribute "mcstat:adaptiveM"). Version 3 adds provenance (files built from renderer
+/// output by `mcstat --ingest`): the assignment "perfile", where the moments' variance comes from
+/// ("mcstat:variance") and which features hold data ("mcstat:features"); see FORMAT.md. The
+/// writer writes header.formatVersion as given, which must be at least requiredFormatVersion():
+/// a rendered fixed-M image keeps version 1 (what every reader knows).
+inline constexpr int kStatsFormatVersion = 3;
 /// The version a fixed-M file is written with by default (readable by version-1 readers).
 inline constexpr int kStatsFormatVersionFixed = 1;
 /// The first version that can hold adaptive M.
 inline constexpr int kStatsFormatVersionAdaptive = 2;
+/// The first version that can hold provenance: assignment "perfile", mcstat:variance other than
+/// "samples", features absent (mcstat:features), mcstat:sources.
+inline constexpr int kStatsFormatVersionProvenance = 3;
+
+/// Sample-to-buffer rules (FORMAT.md "Sample-to-buffer assignment").
+inline constexpr const char* kAssignmentRoundRobin = "roundrobin";  ///< sample i -> buffer i mod M
+inline constexpr const char* kAssignmentLeastCount = "leastcount";  ///< adaptive M, grown buffers
+/// Version 3: buffer j holds every sample of input file j (one render per seed, ingested).
+inline constexpr const char* kAssignmentPerFile = "perfile";
+
+/// Where the moments part's variance comes from (attribute mcstat:variance, version 3).
+inline constexpr const char* kVarianceSamples = "samples";  ///< Welford over every sample
+/// Estimated from the spread of the buffer means: sum_j n_j (m_j - mean)^2 / (M - 1), the
+/// between-group mean square of a one-way ANOVA (unbiased for independent buffers).
+inline constexpr const char* kVarianceBuffers = "buffers";
+inline constexpr const char* kVarianceUnknown = "unknown";  ///< stored as NaN (M = 1 ingest)
+
+/// The first-hit features a statistics file can hold (part "features"); absent ones are NaN.
+enum Feature : unsigned {
+    kFeatureNormal = 1u << 0,    ///< "N": shading normal
+    kFeaturePosition = 1u << 1,  ///< "P": world position
+    kFeatureAlbedo = 1u << 2,    ///< "Albedo"
+    kFeatureDepth = 1u << 3,     ///< "Z": first-hit distance
+    kFeatureCoverage = 1u << 4,  ///< "A": fraction of samples whose camera ray hit geometry
+    kAllFeatures = 31u
+};
+/// "N,P,Albedo,Z,A"-style text of Feature bits, always in that order ("" for none).
+std::string featureListText(unsigned bits);
+/// Parses such a list (any order; only those five names, each at most once); false with
+/// `problem` (a phrase) otherwise.
+bool parseFeatureList(const std::string& text, unsigned& bits, std::string& problem);
 /// Largest number of sub-buffers a file may declare (channel names use three digits).
 inline constexpr int kMaxBuffers = 999;
 
@@ -41,7 +75,15 @@ struct StatsHeader {
     std::string renderer;                   ///< producer name and version
     std::string colorSpace = "lin_rec709";  ///< OCIO colour space name of every RGB value
     std::string seeds;  ///< comma-separated seeds of the renders merged into this file
+    // Version 3 (provenance); versions 1 and 2 imply the defaults.
+    std::string variance = kVarianceSamples;  ///< mcstat:variance: kVariance*
+    unsigned features = kAllFeatures;         ///< mcstat:features: Feature bits holding data
+    std::string sources;  ///< mcstat:sources: comma-separated input file names (ingest)
 };
+
+/// The lowest format version that can hold what `h` describes: 3 for provenance (assignment
+/// perfile, variance not "samples", absent features, sources), 2 for adaptive M, else 1.
+int requiredFormatVersion(const StatsHeader& h);
 
 /// Whole statistics file in memory. Pixel (x, y) of the data window has index p = y * width + x.
 /// Every array is float32 as on disk; the producer accumulates in double and rounds once when
@@ -125,6 +167,12 @@ bool readStatsHeader(const std::string& path, StatsHeader& hdr, std::string& err
 /// Checks the in-memory invariants (sizes, adaptive buffer offsets, counts finite, non-negative and
 /// integral, buffer counts summing to the moments count). `what` names the source in the message.
 bool validateStats(const StatsImage& img, const std::string& what, std::string& err);
+
+/// Variance of the samples of pixel p, channel c, estimated from its non-empty buffers
+/// (mcstat:variance "buffers"): sum_j n_j (m_j - mean)^2 / (M_f - 1) over the M_f non-empty
+/// buffers, `mean` the pixel's mean; NaN when fewer than two buffers hold samples. Unbiased for
+/// buffers of independent samples (the between-group mean square of a one-way ANOVA).
+double bufferVariance(const StatsImage& img, size_t p, size_t c, double mean);
 
 /// Combines two renders of the same image (same size, M, assignment) into one, as if a single
 /// render had taken all samples: per-buffer count-weighted sums, Chan's parallel variance.

@@ -474,9 +474,9 @@ TEST_F(AdaptiveCorrupt, Version1FileWithTheDeepPart) {
 }
 
 TEST_F(AdaptiveCorrupt, NewerVersionIsRejectedFirst) {
-    setIntOnAll(parts, "mcstat:formatVersion", 3);
+    setIntOnAll(parts, "mcstat:formatVersion", kStatsFormatVersion + 1);
     const std::string err = readError();
-    EXPECT_TRUE(contains(err, "written by a newer mcstat (format 3); this reader knows 2")) << err;
+    EXPECT_TRUE(contains(err, "written by a newer mcstat (format 4); this reader knows 3")) << err;
 }
 
 TEST(AdaptiveCorruptBytes, FlippedBytesAndTruncationsNeverCrash) {

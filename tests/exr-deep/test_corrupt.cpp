@@ -172,12 +172,12 @@ TEST_F(Corrupt, MDisagreesWithBufferChannels) {
 }
 
 TEST_F(Corrupt, NewerVersion) {
-    setIntOnAll(parts, "mcstat:formatVersion", 3);
+    setIntOnAll(parts, "mcstat:formatVersion", kStatsFormatVersion + 1);
     RawPart modes = parts[0];  // a later version adds parts
     modes.header.setName("modes");
     parts.push_back(modes);
     const std::string err = readError();
-    EXPECT_TRUE(contains(err, "written by a newer mcstat (format 3); this reader knows 2")) << err;
+    EXPECT_TRUE(contains(err, "written by a newer mcstat (format 4); this reader knows 3")) << err;
 }
 
 TEST_F(Corrupt, OlderOrZeroVersion) {

@@ -414,17 +414,17 @@ TEST_F(Plugin, CorruptFileIsAnErrorNamingTheFile) {
 
     // A valid OpenEXR file that fails mcstat's validation (a newer format version), made by
     // OIIO's own EXR reader and writer.
-    r = run("oiiotool -a " + quote(stats) + " --attrib:type=int mcstat:formatVersion 3 -o " +
-                quote(path("v3.exr")),
+    r = run("oiiotool -a " + quote(stats) + " --attrib:type=int mcstat:formatVersion 4 -o " +
+                quote(path("v4.exr")),
             false);
     ASSERT_EQ(r.code, 0) << r.err;
-    ASSERT_TRUE(OIIO::Filesystem::rename(path("v3.exr"), path("v3.mcstat")));
-    r = run("oiiotool " + quote(path("v3.mcstat")) + " -o " + quote(path("x.exr")));
+    ASSERT_TRUE(OIIO::Filesystem::rename(path("v4.exr"), path("v4.mcstat")));
+    r = run("oiiotool " + quote(path("v4.mcstat")) + " -o " + quote(path("x.exr")));
     EXPECT_NE(r.code, 0);
-    EXPECT_TRUE(contains(r.err, "v3.mcstat")) << r.err;
-    r = run("idiff " + quote(path("v3.mcstat")) + " " + quote(stats));
+    EXPECT_TRUE(contains(r.err, "v4.mcstat")) << r.err;
+    r = run("idiff " + quote(path("v4.mcstat")) + " " + quote(stats));
     EXPECT_NE(r.code, 0);
-    EXPECT_TRUE(contains(r.err, "written by a newer mcstat (format 3)")) << r.err;
+    EXPECT_TRUE(contains(r.err, "written by a newer mcstat (format 4)")) << r.err;
 }
 
 TEST_F(Plugin, WithoutThePluginOpenExrShowsTheRawParts) {

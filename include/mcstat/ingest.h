@@ -1,0 +1,72 @@
+// Ingest: renders of one image by a real renderer (one EXR per seed: Blender/Cycles multilayer,
+// pbrt-v4, Arnold/Karma/RenderMan AOV layers, or any plain RGB EXR) become one statistics file,
+// one sub-buffer per file (format version 3, assignment "perfile"; exr-deep/FORMAT.md).
+// docs/ingest.md is the user-facing description; channel_naming.h finds channels by name.
+//
+// Nothing here throws: each function returns false with a one-line message naming the file.
+#pragma once
+
+#include <OpenImageIO/imagebuf.h>
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "mcstat/channel_naming.h"
+#include "mcstat/stats_file.h"
+
+namespace mcstat {
+
+/// Expands what `mcstat --ingest` was given into file names: a comma-separated list whose items
+/// are file names or glob patterns (`*`, `?`, `[...]`). Each pattern must match at least one
+/// file; the result is sorted by name in natural order (s2 before s10) and must not name a file
+/// twice. An item that names an existing file is taken as it is, commas and all.
+bool expandInputs(const std::string& pattern, std::vector<std::string>& paths, std::string& err);
+
+struct IngestOptions {
+    /// The beauty layer (e.g. "ViewLayer.Combined"); empty: the rules of findBeauty.
+    std::string layer;
+    /// Samples per pixel of every file; 0: read from each file's metadata (mcstat:spp,
+    /// samplesPerPixel of pbrt-v4, cycles.<ViewLayer>.samples of Blender), an error if absent.
+    int64_t spp = 0;
+    /// Refuses inputs whose statistics file would exceed these (pixels, bytes, M <= 999).
+    ReadLimits limits;
+    /// Rows decoded per read: memory per file is rows x width x the channels read.
+    int rowsPerBlock = 128;
+    /// Called after each block of rows with (blocks done, blocks in all); may be empty.
+    std::function<void(int64_t, int64_t)> progress;
+};
+
+/// What ingest found and warns about (the caller prints the warnings).
+struct IngestReport {
+    BeautyChannels beauty;              ///< of the first file (every file uses the same channels)
+    FeatureChannels features;           ///< likewise
+    std::vector<int64_t> spp;           ///< per file
+    int64_t nonFiniteValues = 0;        ///< NaN/Inf RGB values over every file
+    std::vector<std::string> warnings;  ///< one line each, naming the file where there is one
+};
+
+/// Builds the statistics image of `paths` (one sub-buffer per file, in the order given):
+/// buffer j of a pixel is file j's RGB with count = file j's spp; moments count, mean (= beauty)
+/// are the count-weighted combination in double; the variance is estimated from the buffers
+/// (mcstat:variance "buffers"; "unknown" and NaN with one file); features found by name are
+/// count-weighted means over the files, the others absent (NaN, not in mcstat:features); coverage
+/// is always absent. Every file must have the same data and display windows and channel names.
+/// NaN/Inf RGB values are kept (estimators leave such buffers out; the plain mean is non-finite
+/// there) and counted. Two files with identical RGB are refused (the same render twice).
+bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& opt, StatsImage& out,
+                   IngestReport& report, std::string& err);
+
+/// Channel names of an image file over all its subimages (parts). Subimage 0's names are kept as
+/// they are; in later parts a name without a layer is qualified by the part's name ("N" in part
+/// "normals" becomes "normals.N"). `where` gives (subimage, channel) of each name.
+bool listChannels(const std::string& path, std::vector<std::string>& names,
+                  std::vector<std::pair<int, int>>& where, std::string& err);
+
+/// Reads the R, G, B of an image file chosen by name (findBeauty with `layer`) as a 3-channel
+/// float image named R, G, B; `found` (may be null) tells which layer and rule.
+bool readRenderRGB(const std::string& path, const std::string& layer, OIIO::ImageBuf& out,
+                   BeautyChannels* found, std::string& err);
+
+}  // namespace mcstat
