@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Runs every shell block of README.md verbatim, in order, in one shell (as a user pasting them into
+# a terminal), except the block holding the two set-up commands (scripts/demo.sh, scripts/test.sh),
+# which is what this build already did. The scratch folder stands in for the repository's root:
+# build/ is this build tree, out/demo/ holds the demo's reference (rendered here with fewer samples:
+# the commands need a reference of the same scene and size, not a converged one).
+# Usage: run_readme.sh SOURCE_DIR BUILD_DIR WORK_DIR
+set -euo pipefail
+src=$1 build=$2 work=$3
+[ -n "${KEEP:-}" ] || rm -rf "$work"
+mkdir -p "$work/out/demo"
+ln -s "$build" "$work/build"
+cd "$work"
+build/render-fixture/mcstat-render --scene default --spp 256 --seed 4242 --reference --quiet \
+  -o out/demo/reference-65536spp.exr
+
+# The ```sh blocks of the README, minus the set-up block.
+awk '/^```sh$/ { inblock = 1; block = ""; next }
+     /^```$/ && inblock { inblock = 0; if (block !~ /scripts\/demo\.sh/) printf "%s", block; next }
+     inblock { block = block $0 "\n" }' "$src/README.md" >commands.sh
+n=$(grep -cvE '^\s*(#|$)' commands.sh)
+[ "$n" -ge 10 ] || { echo "run_readme: found only $n commands in README.md" >&2; exit 1; }
+unset OIIO_LIBRARY_PATH
+# Each command is echoed before it runs, so a failure shows which one.
+if ! bash -euo pipefail -x commands.sh >log.txt 2>&1; then
+  echo "run_readme: a README command failed; the end of its log:" >&2
+  tail -n 25 log.txt >&2
+  exit 1
+fi
+echo "run_readme: $n README commands ran"
+[ -n "${KEEP:-}" ] || rm -rf "$work"
