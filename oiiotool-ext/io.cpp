@@ -219,8 +219,14 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
             err);
     }
     if (isDisplayFormat(ext)) {
-        OIIO::ImageBuf disp;
-        if (!displayTransform(disp, *top.image, {}, st.nthreads)) {
+        // The display view of the image's R, G, B found by name (a multilayer file's AO pass
+        // may come first).
+        OIIO::ImageBuf rgb, disp;
+        if (!selectRGB(*top.image, "", top.name, rgb, err)) {
+            err = format("{} {}: {}", cmd, path, err);
+            return false;
+        }
+        if (!displayTransform(disp, rgb, {}, st.nthreads)) {
             err = format("{} {}: {}", cmd, path, disp.geterror());
             return false;
         }

@@ -117,8 +117,14 @@ bool cmdMedianImageFilter(State& st, const std::string& cmd, const std::vector<s
     SpatialParams p;
     p.alpha = 0.5;  // eq. 5.6: the weighted median
     if (!parseSpatialModifiers(cmd, mods, cmd == "--wmif", p, err)) return false;
+    // The filter works on the first three channels: hand it R, G, B found by name.
+    OIIO::ImageBuf rgb;
+    if (!selectRGB(*top.image, "", top.name, rgb, err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
     auto img = std::make_shared<OIIO::ImageBuf>();
-    if (!medianImageFilter(*img, *top.image, p, {}, st.nthreads)) {
+    if (!medianImageFilter(*img, rgb, p, {}, st.nthreads)) {
         err = format("{}: {}", cmd, img->geterror());
         return false;
     }
@@ -135,8 +141,10 @@ bool cmdFilter3D(State& st, const std::string& cmd, const std::vector<std::strin
     }
     Item& top = st.stack.back();
     if (!top.isStats()) {
-        err = format("{}: {} is an image, not a statistics file (.{})", cmd, top.name,
-                     kStatsExtension);
+        err = format(
+            "{}: {} is an image, not a statistics file (.{}); renders of one image (one EXR "
+            "per seed) become one with --ingest 'render_*.exr'",
+            cmd, top.name, kStatsExtension);
         return false;
     }
     SpatialParams p;

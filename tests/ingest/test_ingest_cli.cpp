@@ -176,6 +176,33 @@ TEST_F(IngestCli, DiffPicksRGBByNameNotTheAOLayerThatSortsFirst) {
     (void)img;
 }
 
+TEST_F(IngestCli, DisplayWritesAndImageFiltersTakeRGBByName) {
+    // A multilayer image written as PNG shows its Combined pass, not the AO pass before it; the
+    // median image filter filters Combined too.
+    ExrSpec e;
+    e.width = 6;
+    e.height = 4;
+    e.channels = cyclesChannels();
+    const auto value = [](const std::string& n, int x, int y) -> float {
+        if (n.find("AO") != std::string::npos) return 0.9f;
+        return 0.05f * float(x + y) + (n.back() == 'G' ? 0.2f : 0.f);
+    };
+    writeExr(path("ml.exr"), e, value);
+    e.channels = {"R", "G", "B"};
+    writeExr(path("plain.exr"), e, value);
+    ASSERT_EQ(
+        mcstat(path("ml.exr") + " -o " + path("ml.png") + " --mif -o " + path("ml-mif.exr")).code,
+        0);
+    ASSERT_EQ(mcstat(path("plain.exr") + " -o " + path("plain.png") + " --mif -o " +
+                     path("plain-mif.exr"))
+                  .code,
+              0);
+    OIIO::ImageSpec a, b;
+    EXPECT_EQ(pixelsOf(path("ml.png"), a), pixelsOf(path("plain.png"), b));
+    EXPECT_EQ(pixelsOf(path("ml-mif.exr"), a), pixelsOf(path("plain-mif.exr"), b));
+    EXPECT_EQ(a.nchannels, 3);
+}
+
 TEST_F(IngestCli, DiffRefusesAReferenceWithoutRGBOrOfAnotherSize) {
     ExrSpec e;
     e.width = 4;
