@@ -136,24 +136,24 @@ bool sameLayout(const InputFile& first, const InputFile& f, std::string& err) {
                           windowText(a.full_x, a.full_y, a.full_width, a.full_height));
         return false;
     }
-    const std::set<std::string> sa(first.names.begin(), first.names.end());
-    const std::set<std::string> sb(f.names.begin(), f.names.end());
-    for (const std::string& n : sa)
-        if (!sb.count(n)) {
-            err = fmt::format(
-                "{}: has no channel '{}' that {} has (every render must have the "
-                "same channels)",
-                f.path, n, first.path);
-            return false;
-        }
-    for (const std::string& n : sb)
-        if (!sa.count(n)) {
-            err = fmt::format(
-                "{}: has a channel '{}' that {} has not (every render must have the "
-                "same channels)",
-                f.path, n, first.path);
-            return false;
-        }
+    // The first channel (in name order) of `from` that `in` lacks, or "".
+    const auto firstMissing = [](const std::vector<std::string>& from,
+                                 const std::vector<std::string>& in) {
+        const std::set<std::string> inSet(in.begin(), in.end());
+        for (const std::string& n : std::set<std::string>(from.begin(), from.end()))
+            if (!inSet.count(n)) return n;
+        return std::string();
+    };
+    const char* kSame = "every render must have the same channels";
+    if (const std::string n = firstMissing(first.names, f.names); !n.empty()) {
+        err = fmt::format("{}: has no channel '{}' that {} has ({})", f.path, n, first.path, kSame);
+        return false;
+    }
+    if (const std::string n = firstMissing(f.names, first.names); !n.empty()) {
+        err = fmt::format("{}: has a channel '{}' that {} has not ({})", f.path, n, first.path,
+                          kSame);
+        return false;
+    }
     return true;
 }
 
