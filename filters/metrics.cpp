@@ -74,6 +74,31 @@ double ssimChannel(const float* a, const float* b, size_t stride, int width, int
     return count ? sum / double(count) : 1.0;
 }
 
+PixelError pixelError(const float* x, const float* r, const DiffOptions& opt) {
+    PixelError e;
+    for (int c = 0; c < 3; ++c)
+        if (!std::isfinite(x[c]) || !std::isfinite(r[c])) return e;
+    e.finite = true;
+    for (int c = 0; c < 3; ++c) {
+        const double xc = x[c], rc = r[c];
+        e.relSum += (xc - rc) * (xc - rc) / (rc * rc + opt.relmseEpsilon);
+        e.y += opt.luma[c] * xc;
+        e.yRef += opt.luma[c] * rc;
+    }
+    e.firefly = e.y > opt.fireflyRatio * e.yRef && e.y - e.yRef > opt.fireflyFloor;
+    return e;
+}
+
+void errorMap(const float* lin, const float* ref, size_t npixels, const DiffOptions& opt,
+              float* relerr, float* firefly) {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    for (size_t p = 0; p < npixels; ++p) {
+        const PixelError e = pixelError(lin + 3 * p, ref + 3 * p, opt);
+        if (relerr) relerr[p] = e.finite ? float(e.relSum / 3.0) : nan;
+        if (firefly) firefly[p] = e.finite ? (e.firefly ? 1.f : 0.f) : nan;
+    }
+}
+
 DiffMetrics compareImages(const float* lin, const float* ref, const float* disp,
                           const float* refDisp, int width, int height, const DiffOptions& opt) {
     DiffMetrics m;
@@ -84,26 +109,25 @@ DiffMetrics compareImages(const float* lin, const float* ref, const float* disp,
     std::vector<double> normErr;
     normErr.reserve(n);
     for (size_t p = 0; p < n; ++p) {
-        bool ok = true;
+        // The scene-linear terms come from pixelError (shared with errorMap); the display values
+        // must be finite too, for PSNR and SSIM.
+        const PixelError e = pixelError(lin + 3 * p, ref + 3 * p, opt);
+        bool ok = e.finite;
         for (int c = 0; c < 3; ++c)
-            ok = ok && std::isfinite(lin[3 * p + c]) && std::isfinite(ref[3 * p + c]) &&
-                 std::isfinite(disp[3 * p + c]) && std::isfinite(refDisp[3 * p + c]);
+            ok = ok && std::isfinite(disp[3 * p + c]) && std::isfinite(refDisp[3 * p + c]);
         mask[p] = ok;
         if (!ok) {
             ++m.nonFinite;
             continue;
         }
         ++m.pixels;
-        double y = 0.0, yr = 0.0;
+        rel += e.relSum;
         for (int c = 0; c < 3; ++c) {
-            const double x = lin[3 * p + c], r = ref[3 * p + c];
-            rel += (x - r) * (x - r) / (r * r + opt.relmseEpsilon);
             const double d = clamp01(disp[3 * p + c]) - clamp01(refDisp[3 * p + c]);
             se += d * d;
-            y += opt.luma[c] * x;
-            yr += opt.luma[c] * r;
         }
-        if (y > opt.fireflyRatio * yr && y - yr > opt.fireflyFloor) ++m.fireflies;
+        const double y = e.y, yr = e.yRef;
+        if (e.firefly) ++m.fireflies;
         if (std::abs(yr) < opt.normEpsilon) ++m.normFloored;
         normErr.push_back((y - yr) / std::max(std::abs(yr), opt.normEpsilon));  // eq. 5.25
     }

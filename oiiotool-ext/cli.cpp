@@ -15,17 +15,7 @@
 
 namespace mcstat::cli {
 
-namespace {
-
-using OIIO::Strutil::fmt::format;
-
-bool needStack(State& st, size_t n, const std::string& cmd, std::string& err) {
-    if (st.stack.size() >= n) return true;
-    err = format("{} needs {} image{} on the stack, there {} {}", cmd, n, n > 1 ? "s" : "",
-                 st.stack.size() == 1 ? "is" : "are", st.stack.size());
-    return false;
-}
-
+/// Strict parsing: the whole text must be the number (declared in cli.h).
 bool parseInt(const std::string& s, long lo, long hi, long& out) {
     char* end = nullptr;
     errno = 0;
@@ -42,6 +32,17 @@ bool parseDouble(const std::string& s, double& out) {
     if (s.empty() || *end != '\0' || errno != 0 || !std::isfinite(v)) return false;
     out = v;
     return true;
+}
+
+namespace {
+
+using OIIO::Strutil::fmt::format;
+
+bool needStack(State& st, size_t n, const std::string& cmd, std::string& err) {
+    if (st.stack.size() >= n) return true;
+    err = format("{} needs {} image{} on the stack, there {} {}", cmd, n, n > 1 ? "s" : "",
+                 st.stack.size() == 1 ? "is" : "are", st.stack.size());
+    return false;
 }
 
 bool flagValue(const Modifiers& mods, const std::string& key, bool& out, std::string& err) {

@@ -44,6 +44,11 @@ struct Command {
     std::string estimator;  ///< for commands generated from the estimator registry
 };
 
+/// The one place modifier values are parsed: the whole text must be an integer in [lo, hi] /
+/// a finite number.
+bool parseInt(const std::string& s, long lo, long hi, long& out);
+bool parseDouble(const std::string& s, double& out);
+
 /// Replaces `top` by the image `img` that operation `op` computed from it, named "op(top)".
 void replaceWithImage(Item& top, const std::string& op, std::shared_ptr<OIIO::ImageBuf> img);
 

@@ -140,9 +140,8 @@ bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>
         if (k == "layer") {
             opt.layer = v;
         } else if (k == "spp") {
-            char* end = nullptr;
-            const long long n = std::strtoll(v.c_str(), &end, 10);
-            if (v.empty() || *end != '\0' || n < 1 || n > (1 << 24)) {
+            long n = 0;
+            if (!parseInt(v, 1, 1 << 24, n)) {
                 err = format("{}: modifier spp must be an integer in 1..2^24, not '{}'", cmd, v);
                 return false;
             }

@@ -1,8 +1,609 @@
-// Pictures for review tools: contact sheet, heatmaps, quality-vs-spp plot (docs/review.md).
+// Pictures for review tools (docs/review.md): --contactsheet, --errormap, --heatmap, --qualityplot.
+// The image operations live in filters/review.cpp (include/mcstat/review.h); this file parses
+// modifiers, reads the reference, computes the estimates and metrics, and for the plot writes the
+// CSV and the gnuplot script (plot.cpp runs gnuplot).
+#include "mcstat/review.h"
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/strutil.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <utility>
+
 #include "cli.h"
+#include "mcstat/color.h"
+#include "mcstat/imageops.h"
+#include "mcstat/registry.h"
 
 namespace mcstat::cli {
 
-void appendReviewCommands(std::vector<Command>&) {}
+// Defined in plot.cpp.
+bool haveGnuplot(std::string& err);
+bool runGnuplot(const std::string& script,
+                const std::vector<std::pair<std::string, std::string>>& dataFiles,
+                const std::string& pngName, OIIO::ImageBuf& out, std::string& err);
+
+namespace {
+
+using OIIO::Strutil::fmt::format;
+
+// ---- modifiers ----------------------------------------------------------------------------------
+
+bool intModifier(const Modifiers& mods, const std::string& key, long lo, long hi, long& out,
+                 const std::string& cmd, std::string& err) {
+    auto it = mods.find(key);
+    if (it == mods.end()) return true;
+    if (!parseInt(it->second, lo, hi, out)) {
+        err = format("{}: modifier {} must be an integer in {}..{}, not '{}'", cmd, key, lo, hi,
+                     it->second);
+        return false;
+    }
+    return true;
+}
+
+bool doubleModifier(const Modifiers& mods, const std::string& key, double& out,
+                    const std::string& cmd, std::string& err, bool nonNegative) {
+    auto it = mods.find(key);
+    if (it == mods.end()) return true;
+    double v = 0.0;
+    if (!parseDouble(it->second, v) || (nonNegative && v < 0.0)) {
+        err = format("{}: modifier {} must be a {}number, not '{}'", cmd, key,
+                     nonNegative ? "non-negative " : "finite ", it->second);
+        return false;
+    }
+    out = v;
+    return true;
+}
+
+std::string modifier(const Modifiers& mods, const std::string& key, const std::string& def) {
+    auto it = mods.find(key);
+    return it == mods.end() ? def : it->second;
+}
+
+/// The registry estimators named in `list` (comma-separated), in order, each once.
+bool estimatorList(const std::string& list, const std::string& cmd,
+                   std::vector<const EstimatorInfo*>& out, std::string& err) {
+    out.clear();
+    for (const std::string& name : OIIO::Strutil::splits(list, ",")) {
+        const std::string n(OIIO::Strutil::strip(name));
+        if (n.empty()) continue;
+        const EstimatorInfo* e = findEstimator(n);
+        if (!e) {
+            std::vector<std::string> known;
+            for (const EstimatorInfo& r : estimatorRegistry()) known.push_back(r.name);
+            err = format("{}: unknown estimator '{}' (known: {})", cmd, n,
+                         OIIO::Strutil::join(known, ", "));
+            return false;
+        }
+        if (std::find(out.begin(), out.end(), e) == out.end()) out.push_back(e);
+    }
+    if (out.empty()) {
+        err = format("{}: modifier estimators names no estimator", cmd);
+        return false;
+    }
+    return true;
+}
+
+/// --diff's thresholds (docs/metrics.md) from :eps= :ratio= :floor=, luma from the OCIO config.
+bool diffOptions(const Modifiers& mods, const std::string& cmd, DiffOptions& opt,
+                 std::string& err) {
+    std::string warning;
+    opt.luma = lumaCoefficients(&warning);
+    if (!warning.empty()) std::fprintf(stderr, "mcstat: warning: %s\n", warning.c_str());
+    return doubleModifier(mods, "eps", opt.relmseEpsilon, cmd, err, true) &&
+           doubleModifier(mods, "ratio", opt.fireflyRatio, cmd, err, true) &&
+           doubleModifier(mods, "floor", opt.fireflyFloor, cmd, err, true);
+}
+
+bool readReference(const std::string& path, const Modifiers& mods, const std::string& cmd,
+                   OIIO::ImageBuf& ref, std::string& err) {
+    if (!readRGB(path, modifier(mods, "layer", ""), ref, err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
+    return true;
+}
+
+/// Runs `est` with its default parameters (luma from the OCIO config) on `stats`.
+bool runEstimator(const StatsImage& stats, const EstimatorInfo& est, int nthreads,
+                  OIIO::ImageBuf& out, const std::string& cmd, std::string& err) {
+    EstimatorParams params;
+    params.luma = lumaCoefficients();
+    if (!estimate(out, stats, est, params, false, {}, nthreads)) {
+        err = format("{}: {}: {}", cmd, est.name, out.geterror());
+        return false;
+    }
+    return true;
+}
+
+/// The line --diff prints, so a contact sheet's numbers can be checked against it.
+void printMetrics(const std::string& name, const DiffMetrics& m) {
+    std::printf("%-28s relMSE %.6g  SSIM %.5f  PSNR %.3f dB  fireflies %ld / %ld", name.c_str(),
+                m.relMSE, m.ssim, m.psnr, m.fireflies, m.pixels);
+    std::printf("  nbias %.5g  nnoise %.5g", m.normBias, m.normNoise);
+    if (m.nonFinite) std::printf("  non-finite %ld", m.nonFinite);
+    std::printf("\n");
+}
+
+void setDouble(OIIO::ImageSpec& spec, const std::string& name, double v) {
+    spec.attribute(name, OIIO::TypeDesc::DOUBLE, &v);
+}
+
+bool topStats(State& st, const std::string& cmd, std::string& err) {
+    if (st.stack.empty() || !st.stack.back().isStats()) {
+        err = st.stack.empty()
+                  ? format("{}: needs a statistics file (.{}) on the stack", cmd, kStatsExtension)
+                  : format(
+                        "{}: the top of the stack must be a statistics file (.{}), not the "
+                        "image {}",
+                        cmd, kStatsExtension, st.stack.back().name);
+        return false;
+    }
+    return true;
+}
+
+bool topImage(State& st, const std::string& cmd, std::string& err) {
+    if (st.stack.empty()) {
+        err = format("{}: needs an image on the stack", cmd);
+        return false;
+    }
+    if (st.stack.back().isStats()) {
+        err = format("{}: {} is a statistics file; apply an estimator first (e.g. --gmon)", cmd,
+                     st.stack.back().name);
+        return false;
+    }
+    return true;
+}
+
+// ---- --contactsheet -----------------------------------------------------------------------------
+
+bool cmdContactSheet(State& st, const std::string& cmd, const std::vector<std::string>& args,
+                     const Modifiers& mods, std::string& err) {
+    if (!topStats(st, cmd, err)) return false;
+    Item& top = st.stack.back();
+    std::vector<const EstimatorInfo*> listed;
+    if (!estimatorList(modifier(mods, "estimators", "gmon"), cmd, listed, err)) return false;
+    long scale = defaultReviewScale(top.header.width);
+    if (!intModifier(mods, "scale", 1, 64, scale, cmd, err)) return false;
+    if (!loadStats(st, top, err)) return false;
+    OIIO::ImageBuf ref;
+    if (!readReference(args[0], mods, cmd, ref, err)) return false;
+
+    // The mean first, then the listed estimators (the mean once even when listed).
+    const EstimatorInfo* mean = findEstimator("mean");
+    std::vector<const EstimatorInfo*> shown = {mean};
+    for (const EstimatorInfo* e : listed)
+        if (e != mean) shown.push_back(e);
+    DiffOptions opt;
+    opt.luma = lumaCoefficients();
+    std::vector<SheetTile> tiles;
+    std::vector<DiffMetrics> metrics;
+    std::vector<std::string> names;
+    OIIO::ImageBuf last;  // the last listed estimator's image, for the difference tile
+    std::string lastName;
+    for (const EstimatorInfo* e : shown) {
+        OIIO::ImageBuf img;
+        if (!runEstimator(*top.stats, *e, st.nthreads, img, cmd, err)) return false;
+        DiffMetrics m;
+        if (!diffImages(img, ref, opt, m, err)) {
+            err = format("{}: {}({}) vs {}: {}", cmd, e->name, top.name, args[0], err);
+            return false;
+        }
+        const std::string name = format("{}({})", e->name, top.name);
+        printMetrics(name, m);
+        SheetTile t;
+        if (!displayTransform(t.image, img, {}, st.nthreads)) {
+            err = format("{}: {}", cmd, t.image.geterror());
+            return false;
+        }
+        t.title = e->title;
+        t.lines = {format("relMSE {:.4g}", m.relMSE), format("SSIM {:.4f}", m.ssim),
+                   format("fireflies {}", m.fireflies)};
+        tiles.push_back(std::move(t));
+        metrics.push_back(m);
+        names.push_back(name);
+        if (e == listed.back()) {
+            last = std::move(img);
+            lastName = name;
+        }
+    }
+    std::fflush(stdout);
+
+    SheetTile refTile;
+    if (!displayTransform(refTile.image, ref, {}, st.nthreads)) {
+        err = format("{}: {}", cmd, refTile.image.geterror());
+        return false;
+    }
+    refTile.title = "reference";
+    refTile.lines = {OIIO::Filesystem::filename(args[0])};
+    tiles.push_back(std::move(refTile));
+
+    // The difference: relerr of the last listed estimator, its colour bar under it.
+    SheetTile diffTile;
+    OIIO::ImageBuf errImg;
+    if (!errorImage(errImg, last, ref, opt, {}, st.nthreads)) {
+        err = format("{}: {}", cmd, errImg.geterror());
+        return false;
+    }
+    HeatmapOptions hopt;
+    hopt.channel = "relerr";
+    hopt.colorBar = false;
+    int channel = 0;
+    ColorScale cs;
+    if (!resolveColorScale(errImg, hopt, channel, cs, err) ||
+        !heatmap(diffTile.image, errImg, hopt, {}, st.nthreads)) {
+        err = format("{}: {}", cmd, err.empty() ? diffTile.image.geterror() : err);
+        return false;
+    }
+    cs.label = "relerr (log scale)";
+    SheetOptions sopt;
+    sopt.scale = int(scale);
+    if (!colorBar(diffTile.footer, top.header.width * sopt.scale, cs, sopt.style)) {
+        err = format("{}: {}", cmd, diffTile.footer.geterror());
+        return false;
+    }
+    diffTile.title = "rel. error: " + listed.back()->title;
+    tiles.push_back(std::move(diffTile));
+
+    auto sheet = std::make_shared<OIIO::ImageBuf>();
+    if (!contactSheet(*sheet, tiles, sopt, {}, st.nthreads)) {
+        err = format("{}: {}", cmd, sheet->geterror());
+        return false;
+    }
+    OIIO::ImageSpec& spec = sheet->specmod();
+    spec.attribute(kDisplayReferredAttr, 1);
+    for (size_t i = 0; i < metrics.size(); ++i) {
+        const std::string p = format("mcstat:tile{}:", i + 1);
+        spec.attribute(p + "name", names[i]);
+        setDouble(spec, p + "relMSE", metrics[i].relMSE);
+        setDouble(spec, p + "SSIM", metrics[i].ssim);
+        setDouble(spec, p + "PSNR", metrics[i].psnr);
+        spec.attribute(p + "fireflies", int(metrics[i].fireflies));
+    }
+    spec.attribute(format("mcstat:tile{}:name", metrics.size() + 1), "reference");
+    spec.attribute(format("mcstat:tile{}:name", metrics.size() + 2), "relerr(" + lastName + ")");
+    replaceWithImage(top, "contactsheet", sheet);
+    return true;
+}
+
+// ---- --errormap and --heatmap -------------------------------------------------------------------
+
+bool cmdErrorMap(State& st, const std::string& cmd, const std::vector<std::string>& args,
+                 const Modifiers& mods, std::string& err) {
+    if (!topImage(st, cmd, err)) return false;
+    Item& top = st.stack.back();
+    DiffOptions opt;
+    if (!diffOptions(mods, cmd, opt, err)) return false;
+    OIIO::ImageBuf ref, rgb;
+    if (!readReference(args[0], mods, cmd, ref, err)) return false;
+    if (!selectRGB(*top.image, "", top.name, rgb, err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
+    auto out = std::make_shared<OIIO::ImageBuf>();
+    if (!errorImage(*out, rgb, ref, opt, {}, st.nthreads)) {
+        err = format("{}: {} vs {}: {}", cmd, top.name, args[0], out->geterror());
+        return false;
+    }
+    replaceWithImage(top, "errormap", out);
+    return true;
+}
+
+bool cmdHeatmap(State& st, const std::string& cmd, const std::vector<std::string>&,
+                const Modifiers& mods, std::string& err) {
+    if (!topImage(st, cmd, err)) return false;
+    Item& top = st.stack.back();
+    HeatmapOptions opt;
+    opt.channel = modifier(mods, "channel", "");
+    opt.map = modifier(mods, "map", opt.map);
+    if (!doubleModifier(mods, "min", opt.min, cmd, err, false) ||
+        !doubleModifier(mods, "max", opt.max, cmd, err, false))
+        return false;
+    if (auto it = mods.find("log"); it != mods.end()) {
+        if (it->second == "1" || it->second == "on")
+            opt.log = 1;
+        else if (it->second == "0" || it->second == "off")
+            opt.log = 0;
+        else if (it->second == "auto")
+            opt.log = -1;
+        else {
+            err = format("{}: modifier log must be 0, 1 or auto, not '{}'", cmd, it->second);
+            return false;
+        }
+    }
+    long scale = defaultReviewScale(top.image->spec().width);
+    if (!intModifier(mods, "scale", 1, 64, scale, cmd, err)) return false;
+    opt.scale = int(scale);
+    auto out = std::make_shared<OIIO::ImageBuf>();
+    if (!heatmap(*out, *top.image, opt, {}, st.nthreads)) {
+        err = format("{}: {}: {}", cmd, top.name, out->geterror());
+        return false;
+    }
+    out->specmod().attribute(kDisplayReferredAttr, 1);
+    replaceWithImage(top, "heatmap", out);
+    return true;
+}
+
+// ---- --qualityplot ------------------------------------------------------------------------------
+
+struct QualityRow {
+    double spp = 0.0;
+    int buffers = 0;
+    const EstimatorInfo* est = nullptr;
+    DiffMetrics m;
+};
+
+double meanCount(const StatsImage& s) {
+    double total = 0.0;
+    for (float c : s.count) total += c;
+    return s.pixelCount() ? total / double(s.pixelCount()) : 0.0;
+}
+
+/// The first k buffers of every pixel of fixed-M `src` as a fixed-M image with M = k (the moments
+/// count and the beauty recomputed from those buffers; features left empty: no estimator reads
+/// them).
+bool bufferSubset(const StatsImage& src, int k, StatsImage& out, std::string& err) {
+    out = StatsImage();
+    out.header = src.header;
+    out.header.M = k;
+    if (!out.allocate(err)) return false;
+    const size_t M = size_t(src.header.M);
+    double total = 0.0;
+    for (size_t p = 0; p < src.pixelCount(); ++p) {
+        double n = 0.0, sum[3] = {0.0, 0.0, 0.0};
+        for (size_t j = 0; j < size_t(k); ++j) {
+            const size_t a = p * M + j, b = p * size_t(k) + j;
+            const float c = src.bufferCount[a];
+            out.bufferCount[b] = c;
+            for (size_t ch = 0; ch < 3; ++ch) {
+                out.bufferMean[b * 3 + ch] = src.bufferMean[a * 3 + ch];
+                if (c > 0.f) sum[ch] += double(c) * double(src.bufferMean[a * 3 + ch]);
+            }
+            n += c;
+        }
+        out.count[p] = float(n);
+        for (size_t ch = 0; ch < 3; ++ch)
+            out.beauty[p * 3 + ch] = out.mean[p * 3 + ch] = n > 0.0 ? float(sum[ch] / n) : 0.f;
+        total += n;
+    }
+    out.header.spp = std::llround(total / double(std::max<size_t>(1, src.pixelCount())));
+    return true;
+}
+
+/// Keeps only characters that mean nothing to gnuplot inside a single-quoted string (no quotes,
+/// backquotes, backslashes, '@' or '&'), so a file name can go into a title safely.
+std::string plotSafe(const std::string& s) {
+    std::string out;
+    for (char c : s) {
+        const bool ok = std::isalnum(static_cast<unsigned char>(c)) ||
+                        std::string(" ._-/+,=()[]:").find(c) != std::string::npos;
+        out += ok ? c : '_';
+    }
+    return out;
+}
+
+std::string qualityScript(const std::vector<const EstimatorInfo*>& ests, bool logRelMSE,
+                          const std::string& title) {
+    std::string s =
+        "set terminal pngcairo noenhanced size 1200,480 font 'DejaVu Sans,11'\n"
+        "set output 'plot.png'\n"
+        "set datafile separator ' '\n"
+        "set multiplot layout 1,2 title '" +
+        plotSafe(title) +
+        "'\n"
+        "set grid\n"
+        "set logscale x\n"
+        "set xlabel 'samples per pixel'\n";
+    auto curves = [&](int column) {
+        std::string p = "plot";
+        for (size_t i = 0; i < ests.size(); ++i)
+            p += format("{} 'data.txt' index {} using 1:{} with linespoints lw 2 pt 7 title '{}'",
+                        i ? "," : "", i, column, plotSafe(ests[i]->title));
+        return p + "\n";
+    };
+    s += std::string(logRelMSE ? "set logscale y\n" : "unset logscale y\n") +
+         "set ylabel 'relMSE'\nset key top right\n" + curves(2);
+    s += "unset logscale y\nset ylabel 'SSIM'\nset key bottom right\n" + curves(3);
+    s += "unset multiplot\n";
+    return s;
+}
+
+bool cmdQualityPlot(State& st, const std::string& cmd, const std::vector<std::string>& args,
+                    const Modifiers& mods, std::string& err) {
+    // The statistics files at the top of the stack: one gives nested buffer subsets, several one
+    // point each.
+    size_t nfiles = 0;
+    while (nfiles < st.stack.size() && st.stack[st.stack.size() - 1 - nfiles].isStats()) ++nfiles;
+    if (nfiles == 0) return topStats(st, cmd, err);
+    std::vector<const EstimatorInfo*> ests;
+    if (!estimatorList(modifier(mods, "estimators", "mean,mon,gmon"), cmd, ests, err)) return false;
+    const std::string csvPath = modifier(mods, "csv", "");
+    if (nfiles > 1 && mods.count("buffers")) {
+        err = format("{}: modifier buffers applies to a single statistics file; the stack holds {}",
+                     cmd, nfiles);
+        return false;
+    }
+    if (!haveGnuplot(err)) {  // before the work, not after it
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
+    DiffOptions opt;
+    opt.luma = lumaCoefficients();
+    OIIO::ImageBuf ref;
+    if (!readReference(args[0], mods, cmd, ref, err)) return false;
+
+    std::vector<QualityRow> rows;
+    auto measure = [&](const StatsImage& s, const std::string& what, double spp, int buffers) {
+        for (const EstimatorInfo* e : ests) {
+            OIIO::ImageBuf img;
+            if (!runEstimator(s, *e, st.nthreads, img, cmd, err)) return false;
+            QualityRow r{spp, buffers, e, {}};
+            if (!diffImages(img, ref, opt, r.m, err)) {
+                err = format("{}: {}({}) vs {}: {}", cmd, e->name, what, args[0], err);
+                return false;
+            }
+            std::printf(
+                "%-10s spp %-10.6g buffers %-3d relMSE %.6g  SSIM %.5f  PSNR %.3f dB  "
+                "fireflies %ld / %ld\n",
+                e->name.c_str(), spp, buffers, r.m.relMSE, r.m.ssim, r.m.psnr, r.m.fireflies,
+                r.m.pixels);
+            rows.push_back(r);
+        }
+        return true;
+    };
+    const size_t first = st.stack.size() - nfiles;
+    std::string title;
+    if (nfiles == 1) {
+        Item& top = st.stack.back();
+        if (top.header.adaptiveM) {
+            err = format(
+                "{}: {} has adaptive M (1..{} buffers per pixel); nested buffer subsets need a "
+                "fixed-M file (or push several files for one point each)",
+                cmd, top.name, top.header.M);
+            return false;
+        }
+        const int M = top.header.M;
+        std::vector<long> ks;
+        if (auto it = mods.find("buffers"); it != mods.end()) {
+            for (const std::string& s : OIIO::Strutil::splits(it->second, ",")) {
+                Modifiers one{{"buffers", s}};
+                long k = 0;
+                if (!intModifier(one, "buffers", 1, M, k, cmd, err)) return false;
+                ks.push_back(k);
+            }
+        } else {
+            for (long k = 1; k <= M; k += 2) ks.push_back(k);
+            ks.push_back(M);
+        }
+        std::sort(ks.begin(), ks.end());
+        ks.erase(std::unique(ks.begin(), ks.end()), ks.end());
+        if (ks.empty()) {
+            err = format("{}: modifier buffers names no buffer count", cmd);
+            return false;
+        }
+        if (!loadStats(st, top, err)) return false;
+        for (long k : ks) {
+            StatsImage sub;
+            if (!bufferSubset(*top.stats, int(k), sub, err)) {
+                err = format("{}: {}: {}", cmd, top.name, err);
+                return false;
+            }
+            if (!measure(sub, format("{} buffers of {}", k, top.name), meanCount(sub), int(k)))
+                return false;
+        }
+        title = format("{}: first k of {} buffers vs {}", top.name, M, args[0]);
+    } else {
+        for (size_t i = first; i < st.stack.size(); ++i) {
+            Item& it = st.stack[i];
+            if (!loadStats(st, it, err)) return false;
+            if (!measure(*it.stats, it.name, meanCount(*it.stats), it.header.M)) return false;
+            it.stats.reset();  // one file in memory at a time
+        }
+        title = format("{} files vs {}", nfiles, args[0]);
+    }
+    std::fflush(stdout);
+
+    if (!csvPath.empty()) {
+        std::string csv = "spp,buffers,estimator,relMSE,SSIM,PSNR,fireflies\n";
+        for (const QualityRow& r : rows)
+            csv += format("{:.17g},{},{},{:.17g},{:.17g},{:.17g},{}\n", r.spp, r.buffers,
+                          r.est->name, r.m.relMSE, r.m.ssim, r.m.psnr, r.m.fireflies);
+        std::ofstream f(csvPath, std::ios::binary);
+        f << csv;
+        f.close();
+        if (!f) {
+            err = format("{}: cannot write {}", cmd, csvPath);
+            return false;
+        }
+    }
+
+    // One data block per estimator (gnuplot's "index"): spp, relMSE, SSIM, sorted by spp.
+    std::string data;
+    bool logRelMSE = true;
+    for (size_t i = 0; i < ests.size(); ++i) {
+        std::vector<const QualityRow*> pts;
+        for (const QualityRow& r : rows)
+            if (r.est == ests[i]) pts.push_back(&r);
+        std::stable_sort(pts.begin(), pts.end(),
+                         [](const QualityRow* a, const QualityRow* b) { return a->spp < b->spp; });
+        data += format("# {}\n", ests[i]->name);
+        for (const QualityRow* r : pts) {
+            // gnuplot takes NaN as a missing point; a log axis cannot show relMSE <= 0.
+            logRelMSE = logRelMSE && r->m.relMSE > 0.0;
+            data += format("{:.17g} {:.17g} {:.17g}\n", r->spp, r->m.relMSE, r->m.ssim);
+        }
+        data += "\n\n";
+    }
+    auto plot = std::make_shared<OIIO::ImageBuf>();
+    if (!runGnuplot(qualityScript(ests, logRelMSE, title), {{"data.txt", data}}, "plot.png", *plot,
+                    err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
+    plot->specmod().attribute(kDisplayReferredAttr, 1);
+    plot->specmod().attribute("mcstat:qualityplot:points", int(rows.size()));
+    Item out;
+    out.name =
+        format("qualityplot({})", nfiles == 1 ? st.stack.back().name : format("{} files", nfiles));
+    out.image = plot;
+    st.stack.resize(first);
+    st.stack.push_back(std::move(out));
+    return true;
+}
+
+}  // namespace
+
+void appendReviewCommands(std::vector<Command>& t) {
+    t.push_back({"--contactsheet",
+                 1,
+                 "REF",
+                 "Contact sheet of the top statistics file: mean | each estimator | REF | "
+                 "relative error of the last estimator, labelled, with relMSE, SSIM, fireflies "
+                 "(docs/review.md)"
+                 "\n        :estimators=gmon (registry names, comma-separated) :scale=N (integer "
+                 "tile upscaling; default: tiles >= 256 px wide) :layer= (REF's layer)",
+                 {"estimators", "scale", "layer"},
+                 &cmdContactSheet,
+                 ""});
+    t.push_back({"--errormap",
+                 1,
+                 "REF",
+                 "Replace the top image by its per-pixel error against REF: channels relerr "
+                 "(relMSE's per-pixel term) and firefly (1/0)"
+                 "\n        :eps=0.01 :ratio=2 :floor=0.1 (as --diff) :layer= (REF's layer)",
+                 {"eps", "ratio", "floor", "layer"},
+                 &cmdErrorMap,
+                 ""});
+    t.push_back({"--heatmap",
+                 0,
+                 "",
+                 "Replace the top image by a heatmap of one channel with a colour bar "
+                 "(display-referred; NaN/Inf magenta)"
+                 "\n        :channel= (default: relerr if present, else the first) :map=inferno "
+                 "(OIIO colour map) :min= "
+                 ":max= (default: the data range)"
+                 "\n        :log=auto (auto: log10 for relerr*, else linear; 0, 1) :scale=N "
+                 "(default: >= 256 px wide)",
+                 {"channel", "map", "min", "max", "log", "scale"},
+                 &cmdHeatmap,
+                 ""});
+    t.push_back({"--qualityplot",
+                 1,
+                 "REF",
+                 "Plot relMSE and SSIM against spp (gnuplot): the first k buffers of the top "
+                 "statistics file, or one point per statistics file on top of the stack"
+                 "\n        :estimators=mean,mon,gmon :buffers=1,3,...,M (one file: values of k) "
+                 ":csv=FILE (spp,buffers,estimator,relMSE,SSIM,PSNR,fireflies) :layer=",
+                 {"estimators", "buffers", "csv", "layer"},
+                 &cmdQualityPlot,
+                 ""});
+}
 
 }  // namespace mcstat::cli

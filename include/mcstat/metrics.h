@@ -40,6 +40,25 @@ struct DiffMetrics {
     long pixels = 0;         ///< pixels compared
 };
 
+/// The per-pixel terms the metrics above are built from, for one pixel of scene-linear RGB `x`
+/// against the reference `r` (3 floats each). compareImages and errorMap both use it, so the error
+/// map shows exactly what relMSE averages and what the firefly count counts.
+struct PixelError {
+    bool finite = false;   ///< all six values finite; when false the other fields are unset
+    double relSum = 0.0;   ///< sum over R, G, B of (x - r)^2 / (r^2 + eps): 3 x the relMSE term
+    double y = 0.0;        ///< luminance of x
+    double yRef = 0.0;     ///< luminance of r
+    bool firefly = false;  ///< y > ratio * yRef and y - yRef > floor
+};
+PixelError pixelError(const float* x, const float* r, const DiffOptions& opt);
+
+/// Per-pixel error map of scene-linear RGB `lin` against `ref` (npixels*3 floats each):
+/// relerr[p] = relSum / 3, the mean over R, G, B of (x - r)^2 / (r^2 + eps), whose mean over the
+/// pixels is relMSE; firefly[p] = 1 for a firefly pixel, else 0. Both are NaN where a value of
+/// either pixel is NaN or Inf (the pixels every metric leaves out). Either output may be null.
+void errorMap(const float* lin, const float* ref, size_t npixels, const DiffOptions& opt,
+              float* relerr, float* firefly);
+
 /// `lin`/`ref` are scene-linear RGB, `disp`/`refDisp` the same images display-encoded; all
 /// width*height*3 floats.
 DiffMetrics compareImages(const float* lin, const float* ref, const float* disp,

@@ -1,0 +1,600 @@
+// Pictures for review tools: heatmaps with a colour bar and contact sheets
+// (include/mcstat/review.h, docs/review.md). Everything drawn goes through ImageBufAlgo (color_map,
+// render_text, fill, paste, resample); the only pixels written by hand are data: the positions on
+// the colour scale that color_map turns into colours, and the non-finite mask.
+#include "mcstat/review.h"
+
+#include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/imagebufalgo_util.h>
+#include <OpenImageIO/strutil.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "mcstat/imageops.h"
+
+namespace mcstat {
+
+using OIIO::ImageBuf;
+using OIIO::ImageSpec;
+using OIIO::ROI;
+using OIIO::TypeDesc;
+namespace IBA = OIIO::ImageBufAlgo;
+using OIIO::Strutil::fmt::format;
+
+namespace {
+
+constexpr int kMaxScale = 64;
+// A sheet or heatmap larger than this is a mistake (a huge :scale=), not a picture.
+constexpr long long kMaxCanvasPixels = 1LL << 28;
+
+ImageBuf canvas(int w, int h, const std::array<float, 3>& bg) {
+    ImageBuf c(ImageSpec(w, h, 3, TypeDesc::FLOAT));
+    IBA::fill(c, bg);
+    return c;
+}
+
+/// Distance from the top of a line of text to its baseline (DejaVu Sans' ascent is 0.76 em).
+int ascent(const ReviewStyle& st) { return int(std::lround(0.8 * st.fontSize)); }
+
+int textWidth(const std::string& text, int fontSize) {
+    if (text.empty()) return 0;
+    const ROI r = IBA::text_size(text, fontSize, kReviewFont);
+    // An empty box (e.g. only spaces) comes back as begin > end, near INT_MAX and INT_MIN.
+    if (!r.defined() || r.xend <= r.xbegin) return 0;
+    return r.xend - r.xbegin;
+}
+
+/// `text`, shortened with "..." until it is at most `width` pixels wide, so a long file name does
+/// not run into the next tile.
+std::string fitText(const std::string& text, int width, int fontSize) {
+    if (textWidth(text, fontSize) <= width) return text;
+    std::string s = text;
+    while (!s.empty()) {
+        s.pop_back();
+        if (textWidth(s + "...", fontSize) <= width) return s + "...";
+    }
+    return "";
+}
+
+/// Draws `text` with its top at `top` (baseline at top + ascent) and its left edge at `x`.
+bool drawText(ImageBuf& dst, int x, int top, const std::string& text, const ReviewStyle& st) {
+    if (text.empty()) return true;
+    return IBA::render_text(dst, x, top + ascent(st), text, st.fontSize, kReviewFont, st.text);
+}
+
+/// The RGB of `src` within `roi`, moved to origin (0, 0) with the full window equal to the data
+/// window, so that resample maps pixel to pixel.
+bool cutRGB(ImageBuf& dst, const ImageBuf& src, ROI roi, int nthreads) {
+    if (src.nchannels() < 3) {
+        dst.errorfmt("needs R, G, B channels; the image has {}", src.nchannels());
+        return false;
+    }
+    roi.chbegin = 0;
+    roi.chend = 3;
+    if (!IBA::cut(dst, src, roi, nthreads)) return false;
+    return true;
+}
+
+/// Integer nearest-pixel upscaling (ImageBufAlgo::resample without interpolation: every source
+/// pixel becomes an s x s block of the same value).
+bool upscale(ImageBuf& dst, const ImageBuf& src, int s, int nthreads) {
+    if (s == 1) return dst.copy(src);
+    const ImageSpec& in = src.spec();
+    ImageSpec spec(in.width * s, in.height * s, in.nchannels, TypeDesc::FLOAT);
+    spec.channelnames = in.channelnames;
+    dst.reset(spec);
+    return IBA::resample(dst, src, false, {}, nthreads);
+}
+
+bool checkCanvas(ImageBuf& dst, long long w, long long h, const char* what) {
+    if (w <= 0 || h <= 0 || w * h > kMaxCanvasPixels) {
+        dst.errorfmt("{}: {} x {} pixels is too large (at most {} pixels; lower :scale=)", what, w,
+                     h, kMaxCanvasPixels);
+        return false;
+    }
+    return true;
+}
+
+/// Tick values of a scale: decades on a log scale, 1-2-5 steps on a linear one; the two ends (and
+/// the one such value between them, if any) when fewer than two fall inside.
+std::vector<double> tickValues(const ColorScale& s) {
+    std::vector<double> v;
+    if (s.log) {
+        const double a = std::log10(s.lo), b = std::log10(s.hi);
+        const int k0 = int(std::ceil(a - 1e-9)), k1 = int(std::floor(b + 1e-9));
+        const int n = k1 - k0 + 1;
+        const int step = std::max(1, (n + 5) / 6);  // at most about six decades labelled
+        for (int k = k0; k <= k1; k += step) v.push_back(std::pow(10.0, k));
+    } else {
+        const double raw = (s.hi - s.lo) / 5.0;
+        const double mag = std::pow(10.0, std::floor(std::log10(raw)));
+        const double f = raw / mag;
+        const double step = (f < 1.5 ? 1.0 : f < 3.5 ? 2.0 : f < 7.5 ? 5.0 : 10.0) * mag;
+        for (double k = std::ceil(s.lo / step - 1e-9); k * step <= s.hi + 1e-9 * step; k += 1.0)
+            v.push_back(std::abs(k) < 0.5 ? 0.0 : k * step);
+    }
+    if (v.size() < 2) {  // the ends, and the one value inside if there is one
+        std::vector<double> ends = {s.lo};
+        for (double x : v)
+            if (x > s.lo && x < s.hi) ends.push_back(x);
+        ends.push_back(s.hi);
+        v = ends;
+    }
+    return v;
+}
+
+std::string tickLabel(double v) { return format("{:.3g}", v); }
+
+bool knownMap(const std::string& map) {
+    ImageBuf one(ImageSpec(1, 1, 1, TypeDesc::FLOAT));
+    IBA::zero(one);
+    ImageBuf out;
+    const bool ok = IBA::color_map(out, one, 0, map);
+    (void)out.geterror();  // consumed: an unknown name is reported by the caller
+    return ok;
+}
+
+}  // namespace
+
+int defaultReviewScale(int width, int minWidth) {
+    if (width <= 0) return 1;
+    return std::clamp((minWidth + width - 1) / width, 1, kMaxScale);
+}
+
+double colorScalePosition(const ColorScale& s, double v) {
+    if (!std::isfinite(v)) return std::numeric_limits<double>::quiet_NaN();
+    double t;
+    if (s.log)
+        t = v > 0.0 ? (std::log10(v) - std::log10(s.lo)) / (std::log10(s.hi) - std::log10(s.lo))
+                    : 0.0;
+    else
+        t = (v - s.lo) / (s.hi - s.lo);
+    return std::clamp(t, 0.0, 1.0);
+}
+
+bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& channel,
+                       ColorScale& scale, std::string& err, ROI roi) {
+    const ImageSpec& spec = src.spec();
+    if (spec.nchannels < 1) {
+        err = "the image has no channels";
+        return false;
+    }
+    if (opt.channel.empty()) {
+        // relerr when there is one: OpenEXR stores channels sorted by name, so an error map read
+        // back from a file starts with "firefly".
+        channel = std::max(0, spec.channelindex("relerr"));
+    } else {
+        channel = spec.channelindex(opt.channel);
+        if (channel < 0) {
+            err = format("no channel '{}' (channels: {})", opt.channel,
+                         OIIO::Strutil::join(spec.channelnames, ", "));
+            return false;
+        }
+    }
+    if (!knownMap(opt.map)) {
+        err = format(
+            "unknown colour map '{}' (OIIO knows inferno, viridis, magma, plasma, turbo, "
+            "blue-red, spectrum, heat)",
+            opt.map);
+        return false;
+    }
+    const std::string name = spec.channel_name(channel);
+    ColorScale s;
+    s.map = opt.map;
+    // Errors span decades: a linear relerr map would show one firefly and black elsewhere.
+    s.log = opt.log < 0 ? OIIO::Strutil::starts_with(name, "relerr") : opt.log != 0;
+    if (!roi.defined()) roi = src.roi();
+    roi = OIIO::roi_intersection(roi, src.roi());
+    std::vector<float> v(roi.npixels());
+    if (!v.empty() &&
+        !src.get_pixels(ROI(roi.xbegin, roi.xend, roi.ybegin, roi.yend, 0, 1, channel, channel + 1),
+                        TypeDesc::FLOAT, v.data())) {
+        err = src.geterror();
+        return false;
+    }
+    double lo = INFINITY, hi = -INFINITY;
+    for (float x : v) {
+        if (!std::isfinite(x)) {
+            ++s.nonFinite;
+            continue;
+        }
+        if (s.log && !(x > 0.f)) continue;  // zeros sit at the bottom of a log scale
+        lo = std::min(lo, double(x));
+        hi = std::max(hi, double(x));
+    }
+    if (lo > hi) {  // no usable value: an arbitrary range, so the bar still has numbers
+        lo = s.log ? 1.0 : 0.0;
+        hi = s.log ? 10.0 : 1.0;
+    }
+    const bool userMin = !std::isnan(opt.min), userMax = !std::isnan(opt.max);
+    if (userMin) lo = opt.min;
+    if (userMax) hi = opt.max;
+    if (!std::isfinite(lo) || !std::isfinite(hi)) {
+        err = "min and max must be finite";
+        return false;
+    }
+    if (hi <= lo) {
+        if (userMin && userMax) {
+            err = format("min ({}) must be below max ({})", lo, hi);
+            return false;
+        }
+        if (!userMax)
+            hi = s.log ? lo * 10.0 : lo + 1.0;
+        else
+            lo = s.log ? hi / 10.0 : hi - 1.0;
+    }
+    if (s.log && !(lo > 0.0)) {
+        err = format("a log scale needs min > 0, not {}", lo);
+        return false;
+    }
+    s.lo = lo;
+    s.hi = hi;
+    s.label = s.log ? name + " (log scale)" : name;
+    scale = s;
+    return true;
+}
+
+bool colorBar(ImageBuf& dst, int width, const ColorScale& scale, const ReviewStyle& st) {
+    if (width < 2 || width > 1 << 16) {
+        dst.errorfmt("colour bar: width {} out of range", width);
+        return false;
+    }
+    const int barH = std::max(10, st.fontSize), tickH = 4, lineH = st.lineHeight();
+    const int height = barH + tickH + 2 * lineH + 2;
+    ImageBuf out = canvas(width, height, st.background);
+
+    // The gradient: column i holds t = (i + 0.5) / width, colour-mapped like the heatmap's pixels.
+    ImageBuf t(ImageSpec(width, barH, 1, TypeDesc::FLOAT));
+    {
+        std::vector<float> row(size_t(width) * size_t(barH));
+        for (int y = 0; y < barH; ++y)
+            for (int x = 0; x < width; ++x) row[size_t(y) * width + x] = (float(x) + 0.5f) / width;
+        t.set_pixels(t.roi(), TypeDesc::FLOAT, row.data());
+    }
+    ImageBuf mapped, disp;
+    if (!IBA::color_map(mapped, t, 0, scale.map)) {
+        dst.errorfmt("colour bar: {}", mapped.geterror());
+        return false;
+    }
+    if (!displayTransform(disp, mapped)) {
+        dst.errorfmt("colour bar: {}", disp.geterror());
+        return false;
+    }
+    if (!IBA::paste(out, 0, 0, 0, 0, disp)) {
+        dst.errorfmt("colour bar: {}", out.geterror());
+        return false;
+    }
+
+    // Ticks and numbers; a label that would overlap the previous one is left out.
+    int prevRight = -1000000;
+    for (double v : tickValues(scale)) {
+        const double pos = colorScalePosition(scale, v);
+        const int x = std::clamp(int(std::lround(pos * width)), 0, width - 1);
+        IBA::fill(out, st.text, ROI(x, x + 1, barH, barH + tickH));
+        const std::string label = tickLabel(v);
+        const int w = textWidth(label, st.fontSize);
+        const int left = std::clamp(x - w / 2, 0, std::max(0, width - w));
+        if (left < prevRight + st.fontSize / 2) continue;
+        if (!drawText(out, left, barH + tickH, label, st)) {
+            dst.errorfmt("colour bar: {}", out.geterror());
+            return false;
+        }
+        prevRight = left + w;
+    }
+    const int labelTop = barH + tickH + lineH;
+    const std::string label = fitText(scale.label, width, st.fontSize);
+    if (!drawText(out, 0, labelTop, label, st)) {
+        dst.errorfmt("colour bar: {}", out.geterror());
+        return false;
+    }
+    if (scale.nonFinite > 0) {
+        // The legend of the non-finite colour, after the label: a swatch and the pixel count.
+        const int sw = std::max(6, st.fontSize * 3 / 4);
+        const int x = textWidth(label, st.fontSize) + st.fontSize;
+        if (x + sw < width) {
+            const int y = labelTop + ascent(st) - sw;
+            IBA::fill(out, kNonFiniteColor, ROI(x, x + sw, y, y + sw));
+            const std::string what = fitText(format("NaN/Inf: {} px", scale.nonFinite),
+                                             width - (x + sw + 4), st.fontSize);
+            if (!drawText(out, x + sw + 4, labelTop, what, st)) {
+                dst.errorfmt("colour bar: {}", out.geterror());
+                return false;
+            }
+        }
+    }
+    ImageSpec& spec = out.specmod();
+    spec.attribute("mcstat:colorbar:x", 0);
+    spec.attribute("mcstat:colorbar:y", 0);
+    spec.attribute("mcstat:colorbar:width", width);
+    spec.attribute("mcstat:colorbar:height", barH);
+    dst = std::move(out);
+    return true;
+}
+
+ImageBuf colorBar(int width, const ColorScale& scale, const ReviewStyle& style) {
+    ImageBuf dst;
+    colorBar(dst, width, scale, style);
+    return dst;
+}
+
+bool heatmap(ImageBuf& dst, const ImageBuf& src, const HeatmapOptions& opt, ROI roi, int nthreads) {
+    if (opt.scale < 1 || opt.scale > kMaxScale) {
+        dst.errorfmt("heatmap: scale must be 1..{}, not {}", kMaxScale, opt.scale);
+        return false;
+    }
+    if (!roi.defined()) roi = src.roi();
+    roi = OIIO::roi_intersection(roi, src.roi());
+    if (roi.npixels() == 0) {
+        dst.errorfmt("heatmap: empty region");
+        return false;
+    }
+    int ch = 0;
+    ColorScale cs;
+    std::string err;
+    if (!resolveColorScale(src, opt, ch, cs, err, roi)) {
+        dst.errorfmt("heatmap: {}", err);
+        return false;
+    }
+    const int w = roi.width(), h = roi.height();
+    const long long mapW = (long long)w * opt.scale, mapH = (long long)h * opt.scale;
+    const int barW = opt.colorBar ? int(std::max<long long>(mapW, opt.minBarWidth)) : 0;
+    const int m = opt.style.margin;
+    if (!checkCanvas(dst, mapW + 2 * m + barW, mapH + 3 * m + 4 * opt.style.lineHeight(),
+                     "heatmap"))
+        return false;
+
+    // Data: each pixel's position on the scale, and which pixels are NaN / Inf (3 channels, to
+    // mask the RGB below).
+    std::vector<float> v(size_t(w) * size_t(h));
+    if (!src.get_pixels(ROI(roi.xbegin, roi.xend, roi.ybegin, roi.yend, 0, 1, ch, ch + 1),
+                        TypeDesc::FLOAT, v.data())) {
+        dst.errorfmt("heatmap: {}", src.geterror());
+        return false;
+    }
+    std::vector<float> tv(v.size()), nfv(v.size() * 3), keepv(v.size() * 3);
+    for (size_t p = 0; p < v.size(); ++p) {
+        const double t = colorScalePosition(cs, v[p]);
+        const bool bad = std::isnan(t);
+        tv[p] = bad ? 0.f : float(t);
+        for (int c = 0; c < 3; ++c) {
+            nfv[p * 3 + c] = bad ? 1.f : 0.f;
+            keepv[p * 3 + c] = bad ? 0.f : 1.f;
+        }
+    }
+    ImageBuf t(ImageSpec(w, h, 1, TypeDesc::FLOAT)), nf(ImageSpec(w, h, 3, TypeDesc::FLOAT)),
+        keep(ImageSpec(w, h, 3, TypeDesc::FLOAT));
+    t.set_pixels(t.roi(), TypeDesc::FLOAT, tv.data());
+    nf.set_pixels(nf.roi(), TypeDesc::FLOAT, nfv.data());
+    keep.set_pixels(keep.roi(), TypeDesc::FLOAT, keepv.data());
+
+    // OIIO's colour maps are scene-linear; the display view makes them display-referred (with the
+    // built-in config, the maps' published sRGB values), as the contact sheet's image tiles are.
+    ImageBuf mapped, disp, magenta, map;
+    if (!IBA::color_map(mapped, t, 0, cs.map, {}, nthreads) || !displayTransform(disp, mapped) ||
+        !IBA::mul(magenta, nf, OIIO::cspan<float>(kNonFiniteColor), {}, nthreads) ||
+        !IBA::mad(map, disp, keep, magenta, {}, nthreads)) {
+        std::string e = mapped.geterror() + disp.geterror() + magenta.geterror() + map.geterror();
+        dst.errorfmt("heatmap: {}", e);
+        return false;
+    }
+    ImageBuf scaled;
+    if (!upscale(scaled, map, opt.scale, nthreads)) {
+        dst.errorfmt("heatmap: {}", scaled.geterror());
+        return false;
+    }
+    ImageBuf out;
+    int mapX = 0, mapY = 0, barX = 0, barY = 0, barH = 0;
+    if (!opt.colorBar) {
+        out = std::move(scaled);
+    } else {
+        ImageBuf bar;
+        if (!colorBar(bar, barW, cs, opt.style)) {
+            dst.errorfmt("heatmap: {}", bar.geterror());
+            return false;
+        }
+        const int cw = int(std::max<long long>(mapW, barW)) + 2 * m;
+        const int chh = m + int(mapH) + m + bar.spec().height + m;
+        out = canvas(cw, chh, opt.style.background);
+        mapX = m;
+        mapY = m;
+        barX = m;
+        barY = m + int(mapH) + m;
+        barH = bar.spec().get_int_attribute("mcstat:colorbar:height");
+        if (!IBA::paste(out, mapX, mapY, 0, 0, scaled, {}, nthreads) ||
+            !IBA::paste(out, barX, barY, 0, 0, bar, {}, nthreads)) {
+            dst.errorfmt("heatmap: {}", out.geterror());
+            return false;
+        }
+    }
+    ImageSpec& spec = out.specmod();
+    spec.channelnames = {"R", "G", "B"};
+    spec.attribute("mcstat:heatmap:channel", src.spec().channel_name(ch));
+    spec.attribute("mcstat:heatmap:map", cs.map);
+    spec.attribute("mcstat:heatmap:min", TypeDesc::DOUBLE, &cs.lo);
+    spec.attribute("mcstat:heatmap:max", TypeDesc::DOUBLE, &cs.hi);
+    spec.attribute("mcstat:heatmap:log", cs.log ? 1 : 0);
+    spec.attribute("mcstat:heatmap:nonFinite", int(std::min<long>(cs.nonFinite, 0x7fffffff)));
+    spec.attribute("mcstat:heatmap:scale", opt.scale);
+    spec.attribute("mcstat:heatmap:x", mapX);
+    spec.attribute("mcstat:heatmap:y", mapY);
+    spec.attribute("mcstat:heatmap:width", int(mapW));
+    spec.attribute("mcstat:heatmap:height", int(mapH));
+    if (opt.colorBar) {
+        spec.attribute("mcstat:colorbar:x", barX);
+        spec.attribute("mcstat:colorbar:y", barY);
+        spec.attribute("mcstat:colorbar:width", barW);
+        spec.attribute("mcstat:colorbar:height", barH);
+    }
+    dst = std::move(out);
+    return true;
+}
+
+ImageBuf heatmap(const ImageBuf& src, const HeatmapOptions& opt, ROI roi, int nthreads) {
+    ImageBuf dst;
+    heatmap(dst, src, opt, roi, nthreads);
+    return dst;
+}
+
+bool errorImage(ImageBuf& dst, const ImageBuf& img, const ImageBuf& ref, const DiffOptions& opt,
+                ROI roi, int nthreads) {
+    const ROI a = img.roi(), b = ref.roi();
+    if (a.width() != b.width() || a.height() != b.height()) {
+        dst.errorfmt("error map: image is {}x{} but the reference is {}x{}", a.width(), a.height(),
+                     b.width(), b.height());
+        return false;
+    }
+    if (img.nchannels() < 3 || ref.nchannels() < 3) {
+        dst.errorfmt("error map: both images need R, G, B channels");
+        return false;
+    }
+    if (!roi.defined()) roi = a;
+    roi = OIIO::roi_intersection(roi, a);
+    if (roi.npixels() == 0) {
+        dst.errorfmt("error map: empty region");
+        return false;
+    }
+    const int w = roi.width(), h = roi.height();
+    const int dx = b.xbegin - a.xbegin, dy = b.ybegin - a.ybegin;
+    std::vector<float> lin(size_t(w) * size_t(h) * 3), rlin(lin.size());
+    if (!img.get_pixels(ROI(roi.xbegin, roi.xend, roi.ybegin, roi.yend, 0, 1, 0, 3),
+                        TypeDesc::FLOAT, lin.data()) ||
+        !ref.get_pixels(
+            ROI(roi.xbegin + dx, roi.xend + dx, roi.ybegin + dy, roi.yend + dy, 0, 1, 0, 3),
+            TypeDesc::FLOAT, rlin.data())) {
+        dst.errorfmt("error map: {}{}", img.geterror(), ref.geterror());
+        return false;
+    }
+    // One thread per block of rows: errorMap is per pixel, so any split gives the same result.
+    std::vector<float> out(size_t(w) * size_t(h) * 2), relerr(size_t(w) * size_t(h)),
+        firefly(relerr.size());
+    IBA::parallel_image(ROI(0, w, 0, h), nthreads, [&](ROI r) {
+        for (int y = r.ybegin; y < r.yend; ++y) {
+            const size_t p0 = size_t(y) * size_t(w) + size_t(r.xbegin);
+            errorMap(lin.data() + 3 * p0, rlin.data() + 3 * p0, size_t(r.width()), opt,
+                     relerr.data() + p0, firefly.data() + p0);
+        }
+    });
+    for (size_t p = 0; p < relerr.size(); ++p) {
+        out[2 * p] = relerr[p];
+        out[2 * p + 1] = firefly[p];
+    }
+    ImageSpec spec(w, h, 2, TypeDesc::FLOAT);
+    spec.x = roi.xbegin;
+    spec.y = roi.ybegin;
+    spec.full_x = img.spec().full_x;
+    spec.full_y = img.spec().full_y;
+    spec.full_width = img.spec().full_width;
+    spec.full_height = img.spec().full_height;
+    spec.channelnames = {"relerr", "firefly"};
+    spec.attribute("mcstat:errormap:eps", TypeDesc::DOUBLE, &opt.relmseEpsilon);
+    spec.attribute("mcstat:errormap:ratio", TypeDesc::DOUBLE, &opt.fireflyRatio);
+    spec.attribute("mcstat:errormap:floor", TypeDesc::DOUBLE, &opt.fireflyFloor);
+    ImageBuf result(spec);
+    result.set_pixels(result.roi(), TypeDesc::FLOAT, out.data());
+    dst = std::move(result);
+    return true;
+}
+
+ImageBuf errorImage(const ImageBuf& img, const ImageBuf& ref, const DiffOptions& opt, ROI roi,
+                    int nthreads) {
+    ImageBuf dst;
+    errorImage(dst, img, ref, opt, roi, nthreads);
+    return dst;
+}
+
+bool contactSheet(ImageBuf& dst, const std::vector<SheetTile>& tiles, const SheetOptions& opt,
+                  ROI roi, int nthreads) {
+    if (tiles.empty()) {
+        dst.errorfmt("contact sheet: no tiles");
+        return false;
+    }
+    if (opt.scale < 1 || opt.scale > kMaxScale) {
+        dst.errorfmt("contact sheet: scale must be 1..{}, not {}", kMaxScale, opt.scale);
+        return false;
+    }
+    const int w = tiles[0].image.spec().width, h = tiles[0].image.spec().height;
+    for (size_t i = 0; i < tiles.size(); ++i) {
+        const ImageSpec& s = tiles[i].image.spec();
+        if (s.width != w || s.height != h || s.nchannels < 3) {
+            dst.errorfmt(
+                "contact sheet: tile {} ({}) is {}x{} with {} channels; every tile must be "
+                "{}x{} RGB",
+                i + 1, tiles[i].title, s.width, s.height, s.nchannels, w, h);
+            return false;
+        }
+    }
+    const ReviewStyle& st = opt.style;
+    const int n = int(tiles.size()), m = st.margin, lineH = st.lineHeight();
+    const long long W = (long long)w * opt.scale, H = (long long)h * opt.scale;
+    int labelH = 0;
+    for (const SheetTile& t : tiles) {
+        int th = int(t.lines.size()) * lineH;
+        if (t.footer.initialized()) th += (t.lines.empty() ? 0 : m / 2) + t.footer.spec().height;
+        labelH = std::max(labelH, th);
+    }
+    const long long sheetW = n * W + (n + 1) * (long long)m;
+    const long long tileY = m + lineH, stripY = tileY + H + m / 2;
+    const long long sheetH = stripY + labelH + m;
+    if (!checkCanvas(dst, sheetW, sheetH, "contact sheet")) return false;
+
+    ImageBuf sheet = canvas(int(sheetW), int(sheetH), st.background);
+    ImageSpec& spec = sheet.specmod();
+    for (int i = 0; i < n; ++i) {
+        const SheetTile& t = tiles[size_t(i)];
+        const int x = int(m + i * (W + m));
+        ImageBuf rgb, clamped, scaled;
+        // Clamped: a PNG clamps anyway, and the EXR of a sheet then shows the same pixels.
+        if (!cutRGB(rgb, t.image, t.image.roi(), nthreads) ||
+            !IBA::clamp(clamped, rgb, 0.f, 1.f, false, {}, nthreads) ||
+            !upscale(scaled, clamped, opt.scale, nthreads) ||
+            !IBA::paste(sheet, x, int(tileY), 0, 0, scaled, {}, nthreads)) {
+            dst.errorfmt("contact sheet: tile {} ({}): {}{}{}{}", i + 1, t.title, rgb.geterror(),
+                         clamped.geterror(), scaled.geterror(), sheet.geterror());
+            return false;
+        }
+        bool ok = drawText(sheet, x, m, fitText(t.title, int(W), st.fontSize), st);
+        for (size_t j = 0; ok && j < t.lines.size(); ++j)
+            ok = drawText(sheet, x, int(stripY + long(j) * lineH),
+                          fitText(t.lines[j], int(W), st.fontSize), st);
+        if (ok && t.footer.initialized()) {
+            const int fy =
+                int(stripY + long(t.lines.size()) * lineH + (t.lines.empty() ? 0 : m / 2));
+            ok = IBA::paste(sheet, x, fy, 0, 0, t.footer, {}, nthreads);
+        }
+        if (!ok) {
+            dst.errorfmt("contact sheet: tile {} ({}): {}", i + 1, t.title, sheet.geterror());
+            return false;
+        }
+        spec.attribute(format("mcstat:tile{}:x", i + 1), x);
+        spec.attribute(format("mcstat:tile{}:y", i + 1), int(tileY));
+    }
+    spec.attribute("mcstat:sheet:tiles", n);
+    spec.attribute("mcstat:sheet:scale", opt.scale);
+    spec.attribute("mcstat:sheet:tileWidth", int(W));
+    spec.attribute("mcstat:sheet:tileHeight", int(H));
+    spec.attribute("mcstat:sheet:margin", m);
+    spec.attribute("mcstat:sheet:titleHeight", lineH);
+    spec.attribute("mcstat:sheet:labelHeight", labelH);
+    if (roi.defined()) {
+        ImageBuf part;
+        if (!IBA::cut(part, sheet, roi, nthreads)) {
+            dst.errorfmt("contact sheet: {}", part.geterror());
+            return false;
+        }
+        dst = std::move(part);
+    } else {
+        dst = std::move(sheet);
+    }
+    return true;
+}
+
+ImageBuf contactSheet(const std::vector<SheetTile>& tiles, const SheetOptions& opt, ROI roi,
+                      int nthreads) {
+    ImageBuf dst;
+    contactSheet(dst, tiles, opt, roi, nthreads);
+    return dst;
+}
+
+}  // namespace mcstat

@@ -1,0 +1,129 @@
+// Pictures for review tools (docs/review.md): heatmaps of one channel with a colour bar, and
+// contact sheets assembled from already computed tiles. OIIO's two forms:
+//   ImageBuf op(const Src&, ..., ROI roi = {}, int nthreads = 0)
+//   bool     op(ImageBuf& dst, const Src&, ..., ROI roi = {}, int nthreads = 0)
+// Errors are recorded on the returned / destination ImageBuf (has_error(), geterror()); nothing
+// throws. Every result is display-referred (values meant for the screen as they are), RGB float.
+#pragma once
+
+#include <OpenImageIO/imagebuf.h>
+
+#include <array>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "mcstat/metrics.h"
+
+namespace mcstat {
+
+/// Colour of NaN / Inf pixels in a heatmap (display-referred magenta): no colour map in OIIO
+/// contains it, so a non-finite pixel is never mistaken for a value.
+inline constexpr std::array<float, 3> kNonFiniteColor{1.f, 0.f, 1.f};
+/// Font of every label: OIIO 2.4's default font lookup fails on Debian, DejaVu Sans is installed
+/// with fonts-dejavu-core (scripts/install-deps.sh).
+inline constexpr const char* kReviewFont = "DejaVuSans";
+
+/// Text, colours and spacing shared by heatmaps, colour bars and contact sheets.
+struct ReviewStyle {
+    int fontSize = 14;  ///< nominal text height in pixels
+    int margin = 8;     ///< space around and between tiles, in pixels
+    std::array<float, 3> background{0.12f, 0.12f, 0.12f};
+    std::array<float, 3> text{0.92f, 0.92f, 0.92f};
+    /// Height of one line of text (baseline to baseline).
+    int lineHeight() const { return fontSize + fontSize / 2; }
+};
+
+/// How values map to colours: value v -> position t in [0, 1] -> map(t).
+struct ColorScale {
+    std::string map = "inferno";  ///< an OIIO colour map name (ImageBufAlgo::color_map)
+    double lo = 0.0, hi = 1.0;    ///< values at t = 0 and t = 1 (lo < hi; lo > 0 when log)
+    bool log = false;             ///< t linear in log10(v) instead of v
+    std::string label;            ///< what the colour bar says under its numbers
+    long nonFinite = 0;           ///< NaN / Inf pixels in the mapped data (shown in the legend)
+};
+
+/// Position of `v` on the scale, clamped to [0, 1] (a log scale sends v <= 0 to 0); NaN when v is
+/// NaN or Inf.
+double colorScalePosition(const ColorScale& scale, double v);
+
+/// What a heatmap shows and how.
+struct HeatmapOptions {
+    std::string channel;          ///< channel name; empty: "relerr" if present, else the first
+    std::string map = "inferno";  ///< OIIO colour map name
+    /// Range: NaN means the data range over the finite values (on a log scale: the positive ones).
+    double min = std::numeric_limits<double>::quiet_NaN();
+    double max = std::numeric_limits<double>::quiet_NaN();
+    /// -1: log10 scale for channels named "relerr*" (errors span decades), linear otherwise.
+    int log = -1;
+    int scale = 1;          ///< integer upscaling of the map (nearest pixel), 1..64
+    bool colorBar = true;   ///< false: only the mapped pixels (a contact-sheet tile)
+    int minBarWidth = 256;  ///< the colour bar is at least this wide (room for its numbers)
+    ReviewStyle style;
+};
+
+/// Resolves the channel and the range of a heatmap of `src` within `roi` (default: src's data
+/// window): `channel` its index, `scale` the map, range (defaults from the data, an empty range
+/// widened: linear to [v, v + 1], log to [v, 10 v]), log flag, label and non-finite count. False
+/// with `err` for an unknown channel or map, or a bad range.
+bool resolveColorScale(const OIIO::ImageBuf& src, const HeatmapOptions& opt, int& channel,
+                       ColorScale& scale, std::string& err, OIIO::ROI roi = {});
+
+/// A horizontal colour bar `width` pixels wide: the gradient of `scale.map` from scale.lo (left) to
+/// scale.hi (right), tick marks and numbers under it, and scale.label (plus a magenta swatch when
+/// scale.nonFinite > 0). Column i of the gradient shows t = (i + 0.5) / width. Spec attributes
+/// mcstat:colorbar:x, y, width, height give the gradient's rectangle in dst.
+bool colorBar(OIIO::ImageBuf& dst, int width, const ColorScale& scale,
+              const ReviewStyle& style = {});
+OIIO::ImageBuf colorBar(int width, const ColorScale& scale, const ReviewStyle& style = {});
+
+/// Heatmap of one channel of `src` within `roi`: colour_map of the position on the resolved scale,
+/// through the OCIO display view (OIIO's maps are scene-linear; the built-in config's view gives
+/// their published sRGB values), NaN / Inf pixels kNonFiniteColor, upscaled `opt.scale` times,
+/// with a colour bar under it unless opt.colorBar is false. Spec attributes:
+/// mcstat:heatmap:channel, map, min, max, log, nonFinite, scale; mcstat:heatmap:x, y, width, height
+/// (the map's rectangle) and mcstat:colorbar:x, y, width, height (the gradient's), in dst's pixel
+/// coordinates.
+bool heatmap(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, const HeatmapOptions& opt,
+             OIIO::ROI roi = {}, int nthreads = 0);
+OIIO::ImageBuf heatmap(const OIIO::ImageBuf& src, const HeatmapOptions& opt, OIIO::ROI roi = {},
+                       int nthreads = 0);
+
+/// Per-pixel error of the R, G, B (first three channels) of `img` against those of `ref` (same
+/// size; pixels paired by their place in each data window, as diffImages pairs them), within `roi`
+/// (default: img's data window): channels "relerr" and "firefly" from errorMap (metrics.h), NaN
+/// where a value of either pixel is NaN or Inf. Spec attributes mcstat:errormap:eps, ratio, floor.
+bool errorImage(OIIO::ImageBuf& dst, const OIIO::ImageBuf& img, const OIIO::ImageBuf& ref,
+                const DiffOptions& opt, OIIO::ROI roi = {}, int nthreads = 0);
+OIIO::ImageBuf errorImage(const OIIO::ImageBuf& img, const OIIO::ImageBuf& ref,
+                          const DiffOptions& opt, OIIO::ROI roi = {}, int nthreads = 0);
+
+/// One tile of a contact sheet.
+struct SheetTile {
+    OIIO::ImageBuf image;            ///< display-referred RGB (the first three channels are used)
+    std::string title;               ///< drawn above the tile
+    std::vector<std::string> lines;  ///< drawn under the tile, one per line
+    OIIO::ImageBuf footer;  ///< optional display-referred strip under the lines (a colour bar)
+};
+
+struct SheetOptions {
+    int scale = 1;  ///< integer upscaling of every tile (nearest pixel), 1..64
+    ReviewStyle style;
+};
+
+/// Tiles in one row, each upscaled opt.scale times and clamped to [0, 1], with its title above
+/// and its lines (and footer) below; every tile must have the same size. Width
+/// n * (w * scale) + (n + 1) * margin; height margin + lineHeight (titles) + h * scale +
+/// margin / 2 + label strip + margin, the label strip as tall as the tallest tile's lines (one
+/// lineHeight each) plus, for a footer, margin / 2 (after lines) and the footer's height. `roi`
+/// crops the sheet (default: all of it). Spec attributes: mcstat:sheet:tiles, scale, tileWidth,
+/// tileHeight (scaled); mcstat:tile<i>:x, y (i from 1) the top-left corner of tile i's pixels.
+bool contactSheet(OIIO::ImageBuf& dst, const std::vector<SheetTile>& tiles, const SheetOptions& opt,
+                  OIIO::ROI roi = {}, int nthreads = 0);
+OIIO::ImageBuf contactSheet(const std::vector<SheetTile>& tiles, const SheetOptions& opt,
+                            OIIO::ROI roi = {}, int nthreads = 0);
+
+/// Integer upscaling that makes an image `width` pixels wide at least `minWidth` wide (at most 64).
+int defaultReviewScale(int width, int minWidth = 256);
+
+}  // namespace mcstat
