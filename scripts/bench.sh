@@ -49,3 +49,27 @@ printf '%s\n%s\n%s\n' "$ref" "$gmon" "$mean" | awk '
     else if ($1 == "mcstat") label = "mcstat FILE --gmon -o out.exr"
     else label = "mcstat FILE --mean -o out.exr"
     printf "%-40s %8.3f s %8.2fx %10.1f MiB\n", label, $2, $2 / base, $3 / 1024 }'
+
+echo
+# Ingest: renders of one image, one plain EXR per seed (docs/ingest.md), against stock oiiotool
+# reading the same files once each.
+NSEEDS=${NSEEDS:-21}
+mkdir -p "$out/seeds"
+for s in $(seq "$NSEEDS"); do
+  f=$out/seeds/seed_$s.exr
+  if [ ! -f "$f" ] || [ build/render-fixture/mcstat-render -nt "$f" ]; then
+    build/render-fixture/mcstat-render --scene default --res 640 480 --spp 4 --seed "$s" \
+      --reference --quiet -o "$f"
+  fi
+done
+echo "== mcstat --ingest of $NSEEDS renders (640x480, plain float EXR) against oiiotool reading each once =="
+readall=$(measure "oiiotool" bash -c "for f in $out/seeds/seed_*.exr; do oiiotool \"\$f\" --stats >/dev/null; done")
+ingest=$(measure "ingest" build/oiiotool-ext/mcstat --ingest "$out/seeds/seed_*.exr" -o "$out/ingested.mcstat")
+ingestg=$(measure "ingest-gmon" build/oiiotool-ext/mcstat --ingest "$out/seeds/seed_*.exr" --gmon -o "$out/ingested-gmon.exr")
+printf "%-40s %10s %9s %14s\n" "command" "wall" "ratio" "peak RSS"
+printf '%s\n%s\n%s\n' "$readall" "$ingest" "$ingestg" | awk '
+  NR == 1 { base = $2 }
+  { if ($1 == "oiiotool") label = "oiiotool F --stats, each file"
+    else if ($1 == "ingest") label = "mcstat --ingest FILES -o f.mcstat"
+    else label = "mcstat --ingest FILES --gmon -o g.exr"
+    printf "%-40s %8.3f s %8.2fx %10.1f MiB\n", label, $2, $2 / base, $3 / 1024 }'

@@ -427,6 +427,36 @@ TEST_F(Plugin, CorruptFileIsAnErrorNamingTheFile) {
     EXPECT_TRUE(contains(r.err, "written by a newer mcstat (format 4)")) << r.err;
 }
 
+TEST_F(Plugin, IngestedFileShowsItsProvenanceAndNoFeaturesItDoesNotHave) {
+    // Three renders of one image as plain EXRs (no G-buffer AOVs), ingested: format 3, no
+    // features, so no features subimage; the robust subimage equals mcstat's G-MoN.
+    std::string list;
+    for (int s = 1; s <= 3; ++s) {
+        const std::string f = path("seed" + std::to_string(s) + ".exr");
+        const Result r = run(std::string(MCSTAT_RENDER_EXE) + " --scene tiny --spp 8 --seed " +
+                                 std::to_string(s) + " --reference --quiet -o " + quote(f),
+                             false);
+        ASSERT_EQ(r.code, 0) << r.err;
+        list += (s > 1 ? "," : "") + f;
+    }
+    const std::string ingested = path("ingested.mcstat");
+    Result r = mcstat("--ingest " + quote(list) + " -o " + quote(ingested) + " --gmon -o " +
+                      quote(path("mcstat-gmon.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    r = run("oiiotool --info -v " + quote(ingested));
+    ASSERT_EQ(r.code, 0) << r.err;
+    // gmon, mean, diagnostics: no features subimage (the raw file has 4 parts, features NaN).
+    EXPECT_TRUE(contains(r.out, "3 subimages: ")) << r.out;
+    EXPECT_TRUE(contains(r.out, "mcstat:variance: \"buffers\"")) << r.out;
+    EXPECT_TRUE(contains(r.out, "mcstat:assignment: \"perfile\"")) << r.out;
+    EXPECT_TRUE(contains(r.out, "mcstat:sources: \"seed1.exr,seed2.exr,seed3.exr\"")) << r.out;
+    r = run("oiiotool " + quote(ingested) + " -o " + quote(path("plugin-gmon.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    const Pixels a = readExr(path("plugin-gmon.exr")), b = readExr(path("mcstat-gmon.exr"));
+    EXPECT_EQ(a.data, b.data);
+    EXPECT_FALSE(a.data.empty());
+}
+
 TEST_F(Plugin, WithoutThePluginOpenExrShowsTheRawParts) {
     const Result r = run("oiiotool --info -v -a " + quote(stats), false);
     ASSERT_EQ(r.code, 0) << r.err;
