@@ -62,14 +62,19 @@ for s in $(seq "$NSEEDS"); do
       --reference --quiet -o "$f"
   fi
 done
-echo "== mcstat --ingest of $NSEEDS renders (640x480, plain float EXR) against oiiotool reading each once =="
-readall=$(measure "oiiotool" bash -c "for f in $out/seeds/seed_*.exr; do oiiotool \"\$f\" --stats >/dev/null; done")
+echo "== mcstat --ingest of $NSEEDS renders (640x480, plain float EXR) against stock oiiotool averaging them =="
+# The reference: what a user without mcstat does with seed renders, their plain mean in oiiotool.
+addall=("$out/seeds/seed_1.exr")
+for s in $(seq 2 "$NSEEDS"); do addall+=("$out/seeds/seed_$s.exr" --add); done
+meanref=$(measure "oiiotool" oiiotool "${addall[@]}" --divc "$NSEEDS" -o "$out/oiiotool-mean.exr")
 ingest=$(measure "ingest" build/oiiotool-ext/mcstat --ingest "$out/seeds/seed_*.exr" -o "$out/ingested.mcstat")
+ingestm=$(measure "ingest-mean" build/oiiotool-ext/mcstat --ingest "$out/seeds/seed_*.exr" --mean -o "$out/ingested-mean.exr")
 ingestg=$(measure "ingest-gmon" build/oiiotool-ext/mcstat --ingest "$out/seeds/seed_*.exr" --gmon -o "$out/ingested-gmon.exr")
-printf "%-40s %10s %9s %14s\n" "command" "wall" "ratio" "peak RSS"
-printf '%s\n%s\n%s\n' "$readall" "$ingest" "$ingestg" | awk '
+printf "%-48s %10s %9s %14s\n" "command" "wall" "ratio" "peak RSS"
+printf '%s\n%s\n%s\n%s\n' "$meanref" "$ingest" "$ingestm" "$ingestg" | awk '
   NR == 1 { base = $2 }
-  { if ($1 == "oiiotool") label = "oiiotool F --stats, each file"
+  { if ($1 == "oiiotool") label = "oiiotool F1 F2 --add ... --divc N -o mean.exr"
     else if ($1 == "ingest") label = "mcstat --ingest FILES -o f.mcstat"
+    else if ($1 == "ingest-mean") label = "mcstat --ingest FILES --mean -o m.exr"
     else label = "mcstat --ingest FILES --gmon -o g.exr"
-    printf "%-40s %8.3f s %8.2fx %10.1f MiB\n", label, $2, $2 / base, $3 / 1024 }'
+    printf "%-48s %8.3f s %8.2fx %10.1f MiB\n", label, $2, $2 / base, $3 / 1024 }'
