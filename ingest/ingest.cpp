@@ -368,8 +368,9 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
                           opt.limits.maxPixels);
         return false;
     }
-    // The statistics image, plus 10 doubles per pixel for the feature sums.
-    const double bytes = double(pixels) * (double(3 + 4 * M + 7 + 11) * 4.0 + 80.0);
+    // The statistics image, plus 10 doubles per pixel for the feature sums when there are any.
+    const double featureBytes = first.features.present != 0 ? 80.0 : 0.0;
+    const double bytes = double(pixels) * (double(3 + 4 * M + 7 + 11) * 4.0 + featureBytes);
     if (bytes > double(opt.limits.maxBytes)) {
         err = fmt::format("{} renders of {}x{} need {:.0f} bytes, exceeding the limit of {} bytes",
                           M, W, H, bytes, opt.limits.maxBytes);
@@ -417,9 +418,9 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
         h.sources += (j ? "," : "") + OIIO::Filesystem::filename(files[j].path);
     if (!img.allocate(err)) return false;
     const size_t npix = size_t(pixels);
-    std::vector<double> featureSum;
+    std::vector<double> featureSum;  // N xyz, P xyz, Albedo rgb, Z; only when a feature exists
     try {
-        featureSum.assign(npix * 10, 0.0);  // N xyz, P xyz, Albedo rgb, Z
+        if (features != 0) featureSum.assign(npix * 10, 0.0);
     } catch (const std::exception& e) {
         err = fmt::format("cannot allocate the feature sums for {}x{}: {}", W, H, e.what());
         return false;
@@ -540,6 +541,13 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
             img.beauty[p * 3 + c] = float(mean);
             img.variance[p * 3 + c] = float(bufferVariance(img, p, c, mean));
         }
+        img.coverage[p] = nan;
+        if (features == 0) {
+            for (size_t c = 0; c < 3; ++c)
+                img.normal[p * 3 + c] = img.position[p * 3 + c] = img.albedo[p * 3 + c] = nan;
+            img.depth[p] = nan;
+            continue;
+        }
         const double* fs = &featureSum[p * 10];
         for (size_t c = 0; c < 3; ++c) {
             img.normal[p * 3 + c] = features & kFeatureNormal ? float(fs[c] / N) : nan;
@@ -547,7 +555,6 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
             img.albedo[p * 3 + c] = features & kFeatureAlbedo ? float(fs[6 + c] / N) : nan;
         }
         img.depth[p] = features & kFeatureDepth ? float(fs[9] / N) : nan;
-        img.coverage[p] = nan;
     }
     out = std::move(img);
     return true;
