@@ -92,6 +92,25 @@ struct InputFile {
     std::string sppKey;
 };
 
+/// The channel names of every subimage of `in` (see listChannels); leaves `in` on some subimage.
+void channelsOf(ImageInput& in, std::vector<std::string>& names,
+                std::vector<std::pair<int, int>>& where) {
+    names.clear();
+    where.clear();
+    for (int sub = 0; in.seek_subimage(sub, 0); ++sub) {
+        const ImageSpec& s = in.spec();
+        const std::string part = s.get_string_attribute("oiio:subimagename");
+        for (int c = 0; c < s.nchannels; ++c) {
+            std::string n = s.channel_name(c);
+            if (sub > 0 && n.find('.') == std::string::npos && !part.empty()) n = part + "." + n;
+            if (std::find(names.begin(), names.end(), n) != names.end()) continue;  // first wins
+            names.push_back(n);
+            where.emplace_back(sub, c);
+        }
+        if (sub > 4096) break;  // a sane bound on parts
+    }
+}
+
 bool openInput(const std::string& path, InputFile& f, std::string& err) {
     f.path = path;
     if (!OIIO::Filesystem::is_regular(path)) {
@@ -113,7 +132,8 @@ bool openInput(const std::string& path, InputFile& f, std::string& err) {
         err = path + ": a volume image; ingest reads flat 2D renders";
         return false;
     }
-    return listChannels(path, f.names, f.where, err);
+    channelsOf(*f.in, f.names, f.where);
+    return true;
 }
 
 std::string windowText(int x, int y, int w, int h) {
@@ -246,20 +266,7 @@ bool listChannels(const std::string& path, std::vector<std::string>& names,
         err = fmt::format("{}: {}", path, oneLine(OIIO::geterror()));
         return false;
     }
-    names.clear();
-    where.clear();
-    for (int sub = 0; in->seek_subimage(sub, 0); ++sub) {
-        const ImageSpec& s = in->spec();
-        const std::string part = s.get_string_attribute("oiio:subimagename");
-        for (int c = 0; c < s.nchannels; ++c) {
-            std::string n = s.channel_name(c);
-            if (sub > 0 && n.find('.') == std::string::npos && !part.empty()) n = part + "." + n;
-            if (std::find(names.begin(), names.end(), n) != names.end()) continue;  // first wins
-            names.push_back(n);
-            where.emplace_back(sub, c);
-        }
-        if (sub > 4096) break;  // a sane bound on parts
-    }
+    channelsOf(*in, names, where);
     return true;
 }
 
@@ -353,6 +360,7 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
             return false;
         }
         report.spp.push_back(f.spp);
+        f.in.reset();  // closed until its pixels are read: 999 inputs must not hold 999 files open
     }
     const InputFile& first = files[0];
     report.beauty = first.beauty;
@@ -434,6 +442,14 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
     std::vector<float> rows;
     for (size_t j = 0; j < files.size(); ++j) {
         InputFile& f = files[j];
+        f.in = ImageInput::open(f.path);
+        if (!f.in || f.in->spec().x != f.spec.x || f.in->spec().y != f.spec.y ||
+            f.in->spec().width != f.spec.width || f.in->spec().height != f.spec.height ||
+            f.in->spec().nchannels != f.spec.nchannels) {
+            err = f.in ? f.path + ": changed while being ingested"
+                       : fmt::format("{}: {}", f.path, oneLine(OIIO::geterror()));
+            return false;
+        }
         const double n = double(f.spp);
         std::vector<int> used(f.beauty.index.begin(), f.beauty.index.end());
         for (int i : f.features.normal) used.push_back(i);
