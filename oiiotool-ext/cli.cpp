@@ -15,6 +15,8 @@
 
 namespace mcstat::cli {
 
+using OIIO::Strutil::fmt::format;
+
 /// Strict parsing: the whole text must be the number (declared in cli.h).
 bool parseInt(const std::string& s, long lo, long hi, long& out) {
     char* end = nullptr;
@@ -34,9 +36,40 @@ bool parseDouble(const std::string& s, double& out) {
     return true;
 }
 
-namespace {
+bool parseDiffOptions(const Modifiers& mods, const std::string& cmd, DiffOptions& opt,
+                      std::string& err) {
+    for (const auto& [k, v] : mods) {
+        double* target = k == "ratio"   ? &opt.fireflyRatio
+                         : k == "floor" ? &opt.fireflyFloor
+                         : k == "eps"   ? &opt.relmseEpsilon
+                         : k == "neps"  ? &opt.normEpsilon
+                                        : nullptr;
+        if (target == nullptr) continue;  // not a metric's modifier (e.g. layer)
+        double d = 0.0;
+        if (!parseDouble(v, d) || d < 0.0) {
+            err = format("{}: modifier {} must be a non-negative number, not '{}'", cmd, k, v);
+            return false;
+        }
+        if (k == "neps" && !(d > 0.0)) {
+            err = format("{}: modifier neps must be > 0, not '{}'", cmd, v);
+            return false;
+        }
+        *target = d;
+    }
+    return true;
+}
 
-using OIIO::Strutil::fmt::format;
+void printDiffLine(const std::string& name, const DiffMetrics& m) {
+    std::printf("%-28s relMSE %.6g  SSIM %.5f  PSNR %.3f dB  fireflies %ld / %ld", name.c_str(),
+                m.relMSE, m.ssim, m.psnr, m.fireflies, m.pixels);
+    // Jung's normalised error (eq. 5.25-5.27), on luminance
+    std::printf("  nbias %.5g  nnoise %.5g", m.normBias, m.normNoise);
+    if (m.nonFinite) std::printf("  non-finite %ld", m.nonFinite);
+    std::printf("\n");
+    std::fflush(stdout);
+}
+
+namespace {
 
 bool needStack(State& st, size_t n, const std::string& cmd, std::string& err) {
     if (st.stack.size() >= n) return true;
@@ -107,35 +140,13 @@ bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& 
     }
     DiffOptions opt;
     opt.luma = lumaCoefficients();
-    std::string layer;
-    for (const auto& [k, v] : mods) {
-        if (k == "layer") {
-            layer = v;
-            continue;
-        }
-        double d = 0.0;
-        if (!parseDouble(v, d) || d < 0.0) {
-            err = format("{}: modifier {} must be a non-negative number, not '{}'", cmd, k, v);
-            return false;
-        }
-        if (k == "ratio")
-            opt.fireflyRatio = d;
-        else if (k == "floor")
-            opt.fireflyFloor = d;
-        else if (k == "eps")
-            opt.relmseEpsilon = d;
-        else if (k == "neps") {
-            if (!(d > 0.0)) {
-                err = format("{}: modifier neps must be > 0, not '{}'", cmd, v);
-                return false;
-            }
-            opt.normEpsilon = d;
-        }
-    }
+    if (!parseDiffOptions(mods, cmd, opt, err)) return false;
+    const auto layer = mods.find("layer");
     // R, G, B by name on both sides: a multilayer reference whose AO layer sorts before its
     // Combined pass must not be compared with AO.
     OIIO::ImageBuf ref, img;
-    if (!readRGB(args[0], layer, ref, err) || !selectRGB(*top.image, "", top.name, img, err)) {
+    if (!readRGB(args[0], layer == mods.end() ? std::string() : layer->second, ref, err) ||
+        !selectRGB(*top.image, "", top.name, img, err)) {
         err = format("{}: {}", cmd, err);
         return false;
     }
@@ -144,13 +155,7 @@ bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& 
         err = format("{}: {} vs {}: {}", cmd, top.name, args[0], err);
         return false;
     }
-    std::printf("%-28s relMSE %.6g  SSIM %.5f  PSNR %.3f dB  fireflies %ld / %ld", top.name.c_str(),
-                m.relMSE, m.ssim, m.psnr, m.fireflies, m.pixels);
-    // Jung's normalised error (eq. 5.25-5.27), on luminance
-    std::printf("  nbias %.5g  nnoise %.5g", m.normBias, m.normNoise);
-    if (m.nonFinite) std::printf("  non-finite %ld", m.nonFinite);
-    std::printf("\n");
-    std::fflush(stdout);
+    printDiffLine(top.name, m);
     return true;
 }
 

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "mcstat/metrics.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat::cli {
@@ -48,6 +49,13 @@ struct Command {
 /// a finite number.
 bool parseInt(const std::string& s, long lo, long hi, long& out);
 bool parseDouble(const std::string& s, double& out);
+
+/// The metrics' modifiers of --diff and the review commands (ratio, floor, eps, neps; others are
+/// left alone) into `opt`, whose luma the caller sets.
+bool parseDiffOptions(const Modifiers& mods, const std::string& cmd, DiffOptions& opt,
+                      std::string& err);
+/// The one line --diff prints for image `name` (the review commands print the same).
+void printDiffLine(const std::string& name, const DiffMetrics& m);
 
 /// Replaces `top` by the image `img` that operation `op` computed from it, named "op(top)".
 void replaceWithImage(Item& top, const std::string& op, std::shared_ptr<OIIO::ImageBuf> img);

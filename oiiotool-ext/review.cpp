@@ -97,9 +97,7 @@ bool diffOptions(const Modifiers& mods, const std::string& cmd, DiffOptions& opt
     std::string warning;
     opt.luma = lumaCoefficients(&warning);
     if (!warning.empty()) std::fprintf(stderr, "mcstat: warning: %s\n", warning.c_str());
-    return doubleModifier(mods, "eps", opt.relmseEpsilon, cmd, err, true) &&
-           doubleModifier(mods, "ratio", opt.fireflyRatio, cmd, err, true) &&
-           doubleModifier(mods, "floor", opt.fireflyFloor, cmd, err, true);
+    return parseDiffOptions(mods, cmd, opt, err);
 }
 
 bool readReference(const std::string& path, const Modifiers& mods, const std::string& cmd,
@@ -121,15 +119,6 @@ bool runEstimator(const StatsImage& stats, const EstimatorInfo& est, int nthread
         return false;
     }
     return true;
-}
-
-/// The line --diff prints, so a contact sheet's numbers can be checked against it.
-void printMetrics(const std::string& name, const DiffMetrics& m) {
-    std::printf("%-28s relMSE %.6g  SSIM %.5f  PSNR %.3f dB  fireflies %ld / %ld", name.c_str(),
-                m.relMSE, m.ssim, m.psnr, m.fireflies, m.pixels);
-    std::printf("  nbias %.5g  nnoise %.5g", m.normBias, m.normNoise);
-    if (m.nonFinite) std::printf("  non-finite %ld", m.nonFinite);
-    std::printf("\n");
 }
 
 void setDouble(OIIO::ImageSpec& spec, const std::string& name, double v) {
@@ -197,7 +186,7 @@ bool cmdContactSheet(State& st, const std::string& cmd, const std::vector<std::s
             return false;
         }
         const std::string name = format("{}({})", e->name, top.name);
-        printMetrics(name, m);
+        printDiffLine(name, m);  // --diff's line, to check the sheet's numbers against
         SheetTile t;
         if (!displayTransform(t.image, img, {}, st.nthreads)) {
             err = format("{}: {}", cmd, t.image.geterror());
