@@ -233,6 +233,80 @@ ImageBuf filter3D(const StatsImage& src, const SpatialParams& params, ROI roi, i
     return dst;
 }
 
+bool applyOperation(ImageBuf& dst, const StatsImage& src, const Operation& op,
+                    const ParamValues& values, const std::array<double, 3>& luma, bool diagnostics,
+                    ROI roi, int nthreads) {
+    switch (op.input) {
+        case InputKind::BufferMeans: {
+            EstimatorParams params;
+            params.luma = luma;
+            applyEstimatorParams(values, params);
+            return estimate(dst, src, op, params, diagnostics, roi, nthreads);
+        }
+        case InputKind::Neighbourhood: {
+            const SpatialParams params = spatialParams(values, luma);
+            if (op.over == Neighbourhood::SubBuffers)
+                return filter3D(dst, src, params, roi, nthreads);
+            if (op.over == Neighbourhood::Image) {
+                // The plain mean as the "mean" estimator computes it (`mcstat f --mean --mif`),
+                // over the whole data window: the filter's windows reach outside roi.
+                EstimatorParams meanParams;
+                meanParams.luma = luma;
+                ImageBuf mean;
+                if (!estimate(mean, src, *findEstimator("mean"), meanParams, false, {}, nthreads)) {
+                    dst.errorfmt("{}: {}", op.name, mean.geterror());
+                    return false;
+                }
+                return medianImageFilter(dst, mean, params, roi, nthreads);
+            }
+            break;
+        }
+        case InputKind::Samples:
+            dst.errorfmt("{} works on the per-sample records of a statistics file on disk",
+                         op.name);
+            return false;
+    }
+    dst.errorfmt("{}: the registry entry names no input it can run on", op.name);
+    return false;
+}
+
+bool runSamplesOperation(ImageBuf& dst, const std::string& path, const StatsHeader& header,
+                         const Operation& op, const ParamValues& values,
+                         const std::array<double, 3>& luma, int nthreads) {
+    if (op.input != InputKind::Samples || op.samples == nullptr) {
+        dst.errorfmt("{} is not a per-sample operation", op.name);
+        return false;
+    }
+    SamplesRequest req;
+    req.path = path;
+    req.params = &values;
+    req.luma = luma;
+    req.nthreads = nthreads;
+    OperationImage out;
+    std::string err;
+    if (!op.samples(req, out, err)) {
+        dst.errorfmt("{}", err);
+        return false;
+    }
+    const size_t nch = out.channels.size();
+    if (out.width != header.width || out.height != header.height || nch < 3 ||
+        out.pixels.size() != size_t(out.width) * size_t(out.height) * nch) {
+        dst.errorfmt(
+            "{}: {} returned a {} x {} image of {} channels and {} values; the file is {} "
+            "x {}",
+            path, op.name, out.width, out.height, nch, out.pixels.size(), header.width,
+            header.height);
+        return false;
+    }
+    ImageSpec spec(header.width, header.height, int(nch), TypeDesc::FLOAT);
+    spec.x = spec.full_x = header.originX;
+    spec.y = spec.full_y = header.originY;
+    spec.channelnames = out.channels;
+    spec.attribute("oiio:ColorSpace", header.colorSpace);
+    dst.reset(spec);
+    return dst.set_pixels(dst.roi(), TypeDesc::FLOAT, out.pixels.data());
+}
+
 ImageBuf beautyImage(const StatsImage& src) {
     const StatsHeader& h = src.header;
     ImageSpec spec(h.width, h.height, 3, TypeDesc::FLOAT);

@@ -1,9 +1,12 @@
-// The estimator registry: one table feeds `mcstat` commands, the plugin and the benchmarks.
+// The operation registry: one table feeds the `mcstat` commands and --help, the plugin and the
+// benchmarks; parseParamValue is the one checked parser of parameter values.
 #include "mcstat/registry.h"
 
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <stdexcept>
 
 #include "mcstat/jung_estimators.h"
 
@@ -11,85 +14,342 @@ namespace mcstat {
 
 namespace {
 
-const EstimatorParamInfo kModeParam{"mode", "lum",
-                                    "lum: rank buffers by luminance and return the chosen buffers' "
-                                    "RGB; channel: R, G, B independently"};
+// ---- parameters shared by several operations
+// -----------------------------------------------------
 
-const EstimatorParamInfo kScaleParam{
-    "scale", "rel",
-    "rel: gamma/delta is a factor of the pixel's input range max - min; abs: an absolute value"};
+ParamSpec modeParam(const std::string& help) {
+    ParamSpec p;
+    p.name = "mode";
+    p.type = ParamType::Enum;
+    p.defaultValue = "lum";
+    p.choices = {"lum", "channel"};
+    p.aliases = {{"luminance", "lum"}, {"rgb", "channel"}};
+    p.help = help;
+    return p;
+}
 
-/// Parses a finite number in [lo, hi] (lo excluded when loOpen); on failure the error names the
-/// estimator, the key, the expected range (`expected`) and the rejected text.
-bool parseNumber(const std::string& estimator, const std::string& key, const std::string& value,
-                 double lo, double hi, bool loOpen, const char* expected, double& out,
-                 std::string& err) {
-    errno = 0;
-    char* end = nullptr;
-    const double v = std::strtod(value.c_str(), &end);
-    const bool inRange = (loOpen ? v > lo : v >= lo) && v <= hi;
-    if (value.empty() || *end != '\0' || errno != 0 || !std::isfinite(v) || !inRange) {
-        err = "estimator '" + estimator + "': " + key + " must be " + expected + ", not '" + value +
-              "'";
-        return false;
-    }
+ParamSpec realParam(const std::string& name, double lo, double hi, bool loOpen,
+                    const std::string& def, const std::string& help, bool fixed = false) {
+    ParamSpec p;
+    p.name = name;
+    p.type = ParamType::Real;
+    p.min = lo;
+    p.max = hi;
+    p.minOpen = loOpen;
+    p.defaultValue = def;
+    p.help = help;
+    p.fixed = fixed;
+    return p;
+}
+
+// Functions, not namespace-scope constants: operationRegistry() may run during another translation
+// unit's static initialisation (the benchmarks register from it), before such constants exist.
+ParamSpec modeSpec() {
+    return modeParam(
+        "lum: rank buffers by luminance and return the chosen buffers' RGB; channel: R, G, B "
+        "independently");
+}
+
+ParamSpec scaleSpec() {
+    ParamSpec p;
+    p.name = "scale";
+    p.type = ParamType::Enum;
+    p.defaultValue = "rel";
+    p.choices = {"rel", "abs"};
+    p.aliases = {{"relative", "rel"}, {"absolute", "abs"}};
+    p.help =
+        "rel: gamma/delta is a factor of the pixel's input range max - min; abs: an absolute "
+        "value";
+    return p;
+}
+
+// Jung's spatial and 3D filters (thesis chapter 5). SpatialParams's defaults are MIF's / 3DMF's
+// values below (tests/filters/test_registry.cpp checks it).
+ParamSpec sizeSpec() {
+    ParamSpec p;
+    p.name = "size";
+    p.type = ParamType::Size;
+    p.min = 1;
+    p.max = kMaxSpatialWindow;
+    p.odd = true;
+    p.defaultValue = "3x3";
+    p.help = "window width x height in pixels, centred; clipped at image borders";
+    return p;
+}
+
+ParamSpec weightParam(const std::string& def, bool fixed) {
+    ParamSpec p;
+    p.name = "w";
+    p.type = ParamType::Int;
+    p.min = 1;
+    p.max = double(kMaxCentreWeight);
+    p.defaultValue = def;
+    p.help = "integer weight of the centre pixel (eq. 5.28); 1 = unweighted";
+    p.fixed = fixed;
+    return p;
+}
+
+ParamSpec alphaParam(const std::string& def, bool fixed) {
+    return realParam("alpha", 0.0, 0.5, false, def,
+                     "breakdown point: floor(alpha*s) weighted copies trimmed per side; 0 = mean, "
+                     "0.5 = the weighted median",
+                     fixed);
+}
+
+ParamSpec spatialModeSpec() {
+    return modeParam(
+        "lum: rank by luminance, return the chosen pixels'/buffers' RGB; channel: R, G, B "
+        "independently");
+}
+
+Operation estimator(const std::string& name, const std::string& title, const std::string& help,
+                    const std::string& equation, EstimatorFn fn, std::vector<ParamSpec> params) {
+    Operation op;
+    op.name = name;
+    op.title = title;
+    op.help = help;
+    op.equation = equation;
+    op.input = InputKind::BufferMeans;
+    op.fn = fn;
+    op.params = std::move(params);
+    return op;
+}
+
+Operation neighbourhood(const std::string& name, const std::string& title, const std::string& help,
+                        const std::string& equation, Neighbourhood over,
+                        std::vector<ParamSpec> params) {
+    Operation op;
+    op.name = name;
+    op.title = title;
+    op.help = help;
+    op.equation = equation;
+    op.input = InputKind::Neighbourhood;
+    op.over = over;
+    op.params = std::move(params);
+    return op;
+}
+
+std::string numberText(double v, bool integer) {
+    if (v == HUGE_VAL) return "inf";
+    if (v == -HUGE_VAL) return "-inf";
+    char buf[64];
+    if (integer)
+        std::snprintf(buf, sizeof buf, "%lld", static_cast<long long>(v));
+    else
+        std::snprintf(buf, sizeof buf, "%g", v);
+    return buf;
+}
+
+bool inRange(const ParamSpec& s, double v) {
+    return (s.minOpen ? v > s.min : v >= s.min) && v <= s.max;
+}
+
+bool parseBoundedInt(const ParamSpec& s, const std::string& text, int64_t& out) {
+    int64_t v = 0;
+    if (!parseIntegerText(text, v) || !inRange(s, double(v)) || (s.odd && v % 2 == 0)) return false;
     out = v;
     return true;
 }
 
 }  // namespace
 
-const std::vector<EstimatorInfo>& estimatorRegistry() {
-    static const std::vector<EstimatorInfo> registry = {
-        {"mean",
-         "mean",
-         "Plain mean of every sample (eq. 1), from the sub-buffers",
-         &estimateMean,
-         {}},
-        {"mon",
-         "MoN",
-         "Median of the M sub-buffer means (Buisine et al. eq. 2)",
-         &estimateMoN,
-         {kModeParam}},
-        {"gmon",
-         "G-MoN",
-         "Adaptive median of means: trims c = floor(G*floor(M/2)) means per side (eq. 4, 6)",
-         &estimateGMoN,
-         {kModeParam}},
-        {"gmonb",
-         "G-MoN_b",
-         "Mean when the Gini coefficient G <= threshold, else MoN (eq. 5)",
-         &estimateGMoNb,
-         {kModeParam, {"threshold", "0.25", "Gini threshold in [0, 1]"}}},
+// ---- the parser ---------------------------------------------------------------------------------
+
+bool parseIntegerText(const std::string& text, int64_t& out) {
+    if (text.empty() || std::isspace(static_cast<unsigned char>(text[0]))) return false;
+    char* end = nullptr;
+    errno = 0;
+    const long long v = std::strtoll(text.c_str(), &end, 10);
+    if (*end != '\0' || errno != 0) return false;
+    out = int64_t(v);
+    return true;
+}
+
+bool parseRealText(const std::string& text, double& out) {
+    if (text.empty() || std::isspace(static_cast<unsigned char>(text[0]))) return false;
+    char* end = nullptr;
+    errno = 0;
+    const double v = std::strtod(text.c_str(), &end);
+    if (*end != '\0' || errno != 0 || !std::isfinite(v)) return false;
+    out = v;
+    return true;
+}
+
+std::string describeParam(const ParamSpec& s) {
+    switch (s.type) {
+        case ParamType::Flag:
+            return "0 or 1";
+        case ParamType::Enum: {
+            std::string t;
+            for (size_t i = 0; i < s.choices.size(); ++i)
+                t += (i == 0                      ? ""
+                      : i + 1 == s.choices.size() ? " or "
+                                                  : ", ") +
+                     ("'" + s.choices[i] + "'");
+            return t;
+        }
+        case ParamType::Size:
+            return std::string("KxL with ") + (s.odd ? "odd " : "") + "K, L in [" +
+                   numberText(s.min, true) + ", " + numberText(s.max, true) + "] (e.g. " +
+                   s.defaultValue + ")";
+        case ParamType::Int:
+            return std::string(s.odd ? "an odd integer" : "an integer") + " in [" +
+                   numberText(s.min, true) + ", " + numberText(s.max, true) + "]";
+        case ParamType::Real:
+            if (s.max == HUGE_VAL) {
+                if (s.min == -HUGE_VAL) return "a finite number";
+                return "a finite number " + std::string(s.minOpen ? "> " : ">= ") +
+                       numberText(s.min, false);
+            }
+            return "a number in " + std::string(s.minOpen ? "(" : "[") + numberText(s.min, false) +
+                   ", " + numberText(s.max, false) + "]";
+    }
+    return "";
+}
+
+bool parseParamValue(const std::string& context, const ParamSpec& s, const std::string& text,
+                     ParamValue& out, std::string& err) {
+    ParamValue v;
+    v.type = s.type;
+    v.text = text;
+    bool ok = false;
+    switch (s.type) {
+        case ParamType::Flag:
+            if (text == "1" || text == "true" || text == "on")
+                v.integer = 1, ok = true;
+            else if (text == "0" || text == "false" || text == "off")
+                v.integer = 0, ok = true;
+            v.real = double(v.integer);
+            break;
+        case ParamType::Enum:
+            for (const std::string& c : s.choices)
+                if (text == c) v.text = c, ok = true;
+            for (const auto& [alias, choice] : s.aliases)
+                if (text == alias) v.text = choice, ok = true;
+            break;
+        case ParamType::Int:
+            ok = parseBoundedInt(s, text, v.integer);
+            v.real = double(v.integer);
+            break;
+        case ParamType::Size: {
+            const size_t x = text.find('x');
+            if (x == std::string::npos) {
+                ok = parseBoundedInt(s, text, v.integer);
+                v.integer2 = v.integer;
+            } else {
+                ok = parseBoundedInt(s, text.substr(0, x), v.integer) &&
+                     parseBoundedInt(s, text.substr(x + 1), v.integer2);
+            }
+            break;
+        }
+        case ParamType::Real:
+            ok = parseRealText(text, v.real) && inRange(s, v.real);
+            break;
+    }
+    if (!ok) {
+        err = context + ": " + s.name + " must be " + describeParam(s) + ", not '" + text + "'";
+        return false;
+    }
+    out = std::move(v);
+    return true;
+}
+
+// ---- the table ----------------------------------------------------------------------------------
+
+const std::vector<Operation>& operationRegistry() {
+    static const std::vector<Operation> registry = {
+        // Buisine et al. 2021
+        estimator("mean", "mean", "Plain mean of every sample (eq. 1), from the sub-buffers",
+                  "Buisine et al. eq. 1", &estimateMean, {}),
+        estimator("mon", "MoN", "Median of the M sub-buffer means (Buisine et al. eq. 2)",
+                  "Buisine et al. eq. 2", &estimateMoN, {modeSpec()}),
+        estimator(
+            "gmon", "G-MoN",
+            "Adaptive median of means: trims c = floor(G*floor(M/2)) means per side (eq. 4, 6)",
+            "Buisine et al. eq. 4, 6", &estimateGMoN, {modeSpec()}),
+        estimator("gmonb", "G-MoN_b",
+                  "Mean when the Gini coefficient G <= threshold, else MoN (eq. 5)",
+                  "Buisine et al. eq. 5", &estimateGMoNb,
+                  {modeSpec(), realParam("threshold", 0.0, 1.0, false, "0.25", "Gini threshold")}),
         // Jung 2016 thesis (chapters 4, 5). MPE(m) (eq. 4.6, 5.2) is MoN, even-M rule included.
-        {"median",
-         "MPE (median)",
-         "Median pixel estimate MPE (Jung eq. 4.6, 5.2): the same estimator as --mon",
-         &estimateMoN,
-         {kModeParam}},
-        {"tmpe",
-         "TMPE",
-         "Trimmed mean TMPE(alpha) (Jung eq. 5.1): drops floor(alpha*M) means per side, averages "
-         "the rest",
-         &estimateTMPE,
-         {kModeParam,
-          {"alpha", "0.25", "breakdown point in [0, 0.5]: 0 = mean, 0.5 = median (MPE)"}}},
-        {"myriad",
-         "myriad",
-         "Myriad (Jung eq. 4.7): argmin sum n_j log(gamma^2 + (x_j - b)^2), global minimum",
-         &estimateMyriad,
-         {kModeParam,
-          {"gamma", "0.05", "scale > 0 (small: mode-like, large: the mean)"},
-          kScaleParam}},
-        {"meridian",
-         "meridian",
-         "Meridian (Jung eq. 4.8): the buffer mean minimising sum n_j log(delta + |x_j - b|)",
-         &estimateMeridian,
-         {kModeParam,
-          {"delta", "0.05", "scale > 0 (small: mode-like, large: the median)"},
-          kScaleParam}},
+        estimator("median", "MPE (median)",
+                  "Median pixel estimate MPE (Jung eq. 4.6, 5.2): the same estimator as --mon",
+                  "Jung eq. 4.6, 5.2", &estimateMoN, {modeSpec()}),
+        estimator("tmpe", "TMPE",
+                  "Trimmed mean TMPE(alpha) (Jung eq. 5.1): drops floor(alpha*M) means per side, "
+                  "averages the rest",
+                  "Jung eq. 5.1", &estimateTMPE,
+                  {modeSpec(), realParam("alpha", 0.0, 0.5, false, "0.25",
+                                         "breakdown point: 0 = mean, 0.5 = median (MPE)")}),
+        estimator("myriad", "myriad",
+                  "Myriad (Jung eq. 4.7): argmin sum n_j log(gamma^2 + (x_j - b)^2), global "
+                  "minimum",
+                  "Jung eq. 4.7", &estimateMyriad,
+                  {modeSpec(),
+                   realParam("gamma", 0.0, HUGE_VAL, true, "0.05",
+                             "scale (small: mode-like, large: the mean)"),
+                   scaleSpec()}),
+        estimator("meridian", "meridian",
+                  "Meridian (Jung eq. 4.8): the buffer mean minimising sum n_j log(delta + |x_j - "
+                  "b|)",
+                  "Jung eq. 4.8", &estimateMeridian,
+                  {modeSpec(),
+                   realParam("delta", 0.0, HUGE_VAL, true, "0.05",
+                             "scale (small: mode-like, large: the median)"),
+                   scaleSpec()}),
+        // Jung's spatial filters over an image (section 5.1) and 3D filters over the sub-buffers
+        // (section 5.2); spatial_filters.h.
+        neighbourhood(
+            "mif", "MIF",
+            "Median image filter MIF(k x l) of the top image (Jung eq. 5.8); after "
+            "--median: MPE+MIF (eq. 5.15)",
+            "Jung eq. 5.8", Neighbourhood::Image,
+            {sizeSpec(), weightParam("1", true), alphaParam("0.5", true), spatialModeSpec()}),
+        neighbourhood(
+            "wmif", "WMIF",
+            "Weighted median image filter WMIF(w, k x l) of the top image, centre "
+            "weight w (eq. 5.6, 5.28); after --tmpe: TMPE+WMIF (eq. 5.14)",
+            "Jung eq. 5.6, 5.28", Neighbourhood::Image,
+            {sizeSpec(), weightParam("3", false), alphaParam("0.5", true), spatialModeSpec()}),
+        neighbourhood(
+            "3dmf", "3DMF",
+            "3D median filter 3DMF(M x k x l) of the top statistics file: median of "
+            "every buffer mean in the window, one vote per buffer (eq. 5.21); "
+            "adaptive-M files: one vote per sample",
+            "Jung eq. 5.21", Neighbourhood::SubBuffers,
+            {sizeSpec(), weightParam("1", true), alphaParam("0.5", true), spatialModeSpec()}),
+        neighbourhood(
+            "3dwmf", "3DWMF",
+            "3D weighted median filter 3DWMF(w, M x k x l): the centre pixel's buffers "
+            "weighted w (eq. 5.20, 5.28); adaptive-M files: one vote per sample, w for "
+            "the centre's",
+            "Jung eq. 5.20, 5.28", Neighbourhood::SubBuffers,
+            {sizeSpec(), weightParam("3", false), alphaParam("0.5", true), spatialModeSpec()}),
+        neighbourhood(
+            "3dwtmf", "3DWTMF",
+            "3D weighted trimmed mean filter 3DWTMF(alpha, w, M x k x l) (eq. 5.19); "
+            "adaptive-M files: ranked and trimmed per sample",
+            "Jung eq. 5.19", Neighbourhood::SubBuffers,
+            {sizeSpec(), weightParam("3", false), alphaParam("0.25", false), spatialModeSpec()}),
+        // Per-sample operations (InputKind::Samples, a SamplesFn) go here.
     };
     return registry;
+}
+
+const Operation* findOperation(std::string_view name) {
+    for (const Operation& op : operationRegistry())
+        if (op.name == name) return &op;
+    return nullptr;
+}
+
+const std::vector<EstimatorInfo>& estimatorRegistry() {
+    static const std::vector<EstimatorInfo> estimators = [] {
+        std::vector<EstimatorInfo> v;
+        for (const Operation& op : operationRegistry())
+            if (op.input == InputKind::BufferMeans) v.push_back(op);
+        return v;
+    }();
+    return estimators;
 }
 
 const EstimatorInfo* findEstimator(std::string_view name) {
@@ -98,62 +358,81 @@ const EstimatorInfo* findEstimator(std::string_view name) {
     return nullptr;
 }
 
-bool parseEstimatorParams(const EstimatorInfo& info, const std::map<std::string, std::string>& kv,
-                          EstimatorParams& out, std::string& err) {
-    auto accepted = [&info] {
-        if (info.params.empty()) return std::string("it takes no parameters");
-        std::string s = "accepted: ";
-        for (size_t i = 0; i < info.params.size(); ++i) s += (i ? ", " : "") + info.params[i].name;
-        return s;
-    };
+std::vector<const ParamSpec*> Operation::settable() const {
+    std::vector<const ParamSpec*> v;
+    for (const ParamSpec& p : params)
+        if (!p.fixed) v.push_back(&p);
+    return v;
+}
+
+const ParamSpec* Operation::param(std::string_view key) const {
+    for (const ParamSpec& p : params)
+        if (p.name == key) return &p;
+    return nullptr;
+}
+
+bool parseOperationParams(const Operation& op, const std::map<std::string, std::string>& kv,
+                          ParamValues& out, std::string& err, const std::string& context) {
+    const std::string ctx = context.empty() ? op.name : context;
+    out.clear();
     // Defaults first, so every parameter is set the same way whether given or not.
-    std::map<std::string, std::string> all;
-    for (const EstimatorParamInfo& pi : info.params) all[pi.name] = pi.defaultValue;
+    for (const ParamSpec& p : op.params)
+        if (!parseParamValue(ctx, p, p.defaultValue, out[p.name], err)) return false;
     for (const auto& [key, value] : kv) {
-        if (!all.count(key)) {
-            err =
-                "estimator '" + info.name + "' has no parameter '" + key + "' (" + accepted() + ")";
+        const ParamSpec* p = op.param(key);
+        if (p == nullptr || p->fixed) {
+            const std::vector<const ParamSpec*> keys = op.settable();
+            std::string accepted = keys.empty() ? "it takes no parameters" : "accepted: ";
+            for (size_t i = 0; i < keys.size(); ++i) accepted += (i ? ", " : "") + keys[i]->name;
+            err = "estimator '" + op.name + "' has no parameter '" + key + "' (" + accepted + ")";
             return false;
         }
-        all[key] = value;
-    }
-    for (const auto& [key, value] : all) {
-        if (key == "mode") {
-            if (value == "lum" || value == "luminance")
-                out.mode = EstimatorMode::Luminance;
-            else if (value == "channel" || value == "rgb")
-                out.mode = EstimatorMode::PerChannel;
-            else {
-                err = "estimator '" + info.name + "': mode must be 'lum' or 'channel', not '" +
-                      value + "'";
-                return false;
-            }
-        } else if (key == "threshold") {
-            if (!parseNumber(info.name, key, value, 0.0, 1.0, false, "a number in [0, 1]",
-                             out.giniThreshold, err))
-                return false;
-        } else if (key == "alpha") {
-            if (!parseNumber(info.name, key, value, 0.0, 0.5, false, "a number in [0, 0.5]",
-                             out.alpha, err))
-                return false;
-        } else if (key == "gamma" || key == "delta") {
-            double& dst = key == "gamma" ? out.gamma : out.delta;
-            if (!parseNumber(info.name, key, value, 0.0, HUGE_VAL, true, "a finite number > 0", dst,
-                             err))
-                return false;
-        } else if (key == "scale") {
-            if (value == "rel" || value == "relative")
-                out.scaleRelative = true;
-            else if (value == "abs" || value == "absolute")
-                out.scaleRelative = false;
-            else {
-                err = "estimator '" + info.name + "': scale must be 'rel' or 'abs', not '" + value +
-                      "'";
-                return false;
-            }
-        }
+        if (!parseParamValue(ctx, *p, value, out[key], err)) return false;
     }
     return true;
+}
+
+void applyEstimatorParams(const ParamValues& values, EstimatorParams& out) {
+    for (const auto& [key, v] : values) {
+        if (key == "mode")
+            out.mode = v.text == "lum" ? EstimatorMode::Luminance : EstimatorMode::PerChannel;
+        else if (key == "threshold")
+            out.giniThreshold = v.real;
+        else if (key == "alpha")
+            out.alpha = v.real;
+        else if (key == "gamma")
+            out.gamma = v.real;
+        else if (key == "delta")
+            out.delta = v.real;
+        else if (key == "scale")
+            out.scaleRelative = v.text == "rel";
+    }
+}
+
+bool parseEstimatorParams(const EstimatorInfo& info, const std::map<std::string, std::string>& kv,
+                          EstimatorParams& out, std::string& err) {
+    ParamValues values;
+    if (!parseOperationParams(info, kv, values, err, "estimator '" + info.name + "'")) return false;
+    applyEstimatorParams(values, out);
+    return true;
+}
+
+SpatialParams spatialParams(const ParamValues& values, const std::array<double, 3>& luma) {
+    SpatialParams p;
+    p.luma = luma;
+    for (const auto& [key, v] : values) {
+        if (key == "mode") {
+            p.mode = v.text == "lum" ? EstimatorMode::Luminance : EstimatorMode::PerChannel;
+        } else if (key == "size") {
+            p.windowWidth = int(v.integer);
+            p.windowHeight = int(v.integer2);
+        } else if (key == "w") {
+            p.centreWeight = v.integer;
+        } else if (key == "alpha") {
+            p.alpha = v.real;
+        }
+    }
+    return p;
 }
 
 }  // namespace mcstat

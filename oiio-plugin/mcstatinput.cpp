@@ -1,9 +1,10 @@
 // OpenImageIO reader plugin for mcstat statistics files (docs/plugin.md).
 //
 // Opening a statistics file in any OIIO tool gives an ordinary image: subimage 0 is the robust
-// estimate (G-MoN by default) computed through the estimator registry exactly as `mcstat FILE
-// --gmon` computes it; subimages 1..3 are the stored plain mean, the estimator's diagnostics and
-// the first-hit features. Everything is computed in open(); reads copy rows out of memory.
+// estimate (G-MoN by default) computed through the operation registry exactly as `mcstat FILE
+// --gmon` computes it (any registry operation: `?estimator=3dwtmf` as `mcstat FILE --3dwtmf`);
+// subimages 1..3 are the stored plain mean, the estimator's diagnostics and the first-hit features.
+// Everything is computed in open(); reads copy rows out of memory.
 //
 // Parameters come from the open() configuration (oiiotool --iconfig mcstat:estimator mon,
 // --iconfig mcstat:mode channel) and from the file-name form
@@ -48,10 +49,11 @@ constexpr const char* kConfigPrefix = "mcstat:";
 /// Subimages, in order.
 enum Subimage { kRobust = 0, kMean = 1, kDiagnostics = 2, kFeatures = 3, kSubimageCount = 4 };
 
+/// Every registry operation: per-pixel estimators, neighbourhood filters, per-sample operations.
 std::string acceptedEstimators() {
     std::string s;
-    for (const mcstat::EstimatorInfo& e : mcstat::estimatorRegistry())
-        s += (s.empty() ? "" : ", ") + e.name;
+    for (const mcstat::Operation& op : mcstat::operationRegistry())
+        s += (s.empty() ? "" : ", ") + op.name;
     return s;
 }
 
@@ -184,19 +186,19 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
         estName = it->second;
         kv.erase(it);
     }
-    const mcstat::EstimatorInfo* est = mcstat::findEstimator(estName);
+    const mcstat::Operation* est = mcstat::findOperation(estName);
     if (!est) {
         errorfmt("{}: unknown estimator '{}' (accepted: {})", path, estName, acceptedEstimators());
         return false;
     }
-    mcstat::EstimatorParams params;
-    params.luma = mcstat::lumaCoefficients();
+    mcstat::ParamValues values;
     std::string err;
-    if (!mcstat::parseEstimatorParams(*est, kv, params, err)) {
+    if (!mcstat::parseOperationParams(*est, kv, values, err, "estimator '" + est->name + "'")) {
         errorfmt("{}: {}; the plugin also takes 'estimator' (one of: {})", path, err,
                  acceptedEstimators());
         return false;
     }
+    const std::array<double, 3> luma = mcstat::lumaCoefficients();
 
     // The file, validated (the message names the file).
     mcstat::StatsImage stats;
@@ -207,16 +209,23 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     const mcstat::StatsHeader& h = stats.header;
     const size_t npix = stats.pixelCount();
 
-    // Subimage 0 and the diagnostics in one pass: estimate() with diagnostics returns R, G, B
-    // first, computed by the same per-pixel call as without them.
+    // Subimage 0 and the diagnostics in one pass: every operation returns R, G, B first; an
+    // estimator over buffer means (with diagnostics) its gini/kept/excluded channels after them,
+    // computed by the same per-pixel call as without them. Neighbourhood operations run over the
+    // sub-buffers (3D filters) or over the stored mean (MIF, WMIF); per-sample operations stream
+    // the file themselves (docs/plugin.md).
     OIIO::ImageBuf robust;
-    if (!mcstat::estimate(robust, stats, *est, params, true, {}, threads())) {
+    const bool ok =
+        est->input == mcstat::InputKind::Samples
+            ? mcstat::runSamplesOperation(robust, path, h, *est, values, luma, threads())
+            : mcstat::applyOperation(robust, stats, *est, values, luma, true, {}, threads());
+    if (!ok) {
         errorfmt("{}: {}", path, robust.geterror());
         return false;
     }
     const int estCh = robust.nchannels();
     const float* estPix = static_cast<const float*>(robust.localpixels());
-    if (!estPix || size_t(robust.spec().image_pixels()) != npix) {
+    if (!estPix || size_t(robust.spec().image_pixels()) != npix || estCh < 3) {
         errorfmt("{}: the estimate has an unexpected layout", path);
         return false;
     }
@@ -246,9 +255,9 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     };
     auto describeEstimator = [&](ImageSpec& s) {
         s.attribute("mcstat:estimator", est->name);
-        for (const mcstat::EstimatorParamInfo& pi : est->params) {
-            auto it = kv.find(pi.name);
-            s.attribute("mcstat:" + pi.name, it != kv.end() ? it->second : pi.defaultValue);
+        for (const mcstat::ParamSpec* pi : est->settable()) {
+            auto it = kv.find(pi->name);
+            s.attribute("mcstat:" + pi->name, it != kv.end() ? it->second : pi->defaultValue);
         }
     };
 
@@ -269,6 +278,7 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     d.spec = makeSpec(diagNames, "diagnostics");
     describeEstimator(d.spec);
     const size_t dch = diagNames.size();
+
     d.pixels.resize(npix * dch);
     for (size_t p = 0; p < npix; ++p) {
         const float* src = estPix + p * size_t(estCh);

@@ -6,6 +6,7 @@
 #include <OpenImageIO/strutil.h>
 #include <OpenImageIO/timer.h>
 
+#include <array>
 #include <cstdio>
 #include <cstdlib>
 
@@ -17,24 +18,15 @@ namespace mcstat::cli {
 
 using OIIO::Strutil::fmt::format;
 
-/// Strict parsing: the whole text must be the number (declared in cli.h).
+/// Strict parsing through the registry's number parser (declared in cli.h).
 bool parseInt(const std::string& s, long lo, long hi, long& out) {
-    char* end = nullptr;
-    errno = 0;
-    const long v = std::strtol(s.c_str(), &end, 10);
-    if (s.empty() || *end != '\0' || errno != 0 || v < lo || v > hi) return false;
-    out = v;
+    int64_t v = 0;
+    if (!parseIntegerText(s, v) || v < lo || v > hi) return false;
+    out = long(v);
     return true;
 }
 
-bool parseDouble(const std::string& s, double& out) {
-    char* end = nullptr;
-    errno = 0;
-    const double v = std::strtod(s.c_str(), &end);
-    if (s.empty() || *end != '\0' || errno != 0 || !std::isfinite(v)) return false;
-    out = v;
-    return true;
-}
+bool parseDouble(const std::string& s, double& out) { return parseRealText(s, out); }
 
 bool parseDiffOptions(const Modifiers& mods, const std::string& cmd, DiffOptions& opt,
                       std::string& err) {
@@ -81,49 +73,97 @@ bool needStack(State& st, size_t n, const std::string& cmd, std::string& err) {
 bool flagValue(const Modifiers& mods, const std::string& key, bool& out, std::string& err) {
     auto it = mods.find(key);
     if (it == mods.end()) return true;
-    if (it->second == "1" || it->second == "true" || it->second == "on") {
-        out = true;
-    } else if (it->second == "0" || it->second == "false" || it->second == "off") {
-        out = false;
-    } else {
-        err = format("modifier {} must be 0 or 1, not '{}'", key, it->second);
-        return false;
-    }
+    ParamSpec spec;
+    spec.name = key;
+    spec.type = ParamType::Flag;
+    ParamValue v;
+    if (!parseParamValue("modifier", spec, it->second, v, err)) return false;
+    out = v.integer != 0;
     return true;
 }
 
-// ---- estimator commands, one per registry entry -------------------------------------------------
+// ---- operation commands, one per registry entry ------------------------------------------------
 
-bool cmdEstimate(State& st, const std::string& cmd, const std::vector<std::string>&,
-                 const Modifiers& mods, std::string& err) {
-    const EstimatorInfo* est = findEstimator(cmd.substr(2));
+std::array<double, 3> luma() {
+    std::string warning;
+    const std::array<double, 3> l = lumaCoefficients(&warning);
+    if (!warning.empty()) std::fprintf(stderr, "mcstat: warning: %s\n", warning.c_str());
+    return l;
+}
+
+bool needStatsOnTop(State& st, const std::string& cmd, std::string& err) {
     if (!needStack(st, 1, cmd, err)) return false;
+    const Item& top = st.stack.back();
+    if (top.isStats()) return true;
+    err = format(
+        "{}: {} is an image, not a statistics file (.{}); renders of one image (one EXR "
+        "per seed) become one with --ingest 'render_*.exr'",
+        cmd, top.name, kStatsExtension);
+    return false;
+}
+
+/// BufferMeans: the estimator on every pixel of the top statistics file.
+bool runEstimator(State& st, const std::string& cmd, const Operation& op, const Modifiers& mods,
+                  std::string& err) {
+    if (!needStatsOnTop(st, cmd, err)) return false;
     Item& top = st.stack.back();
-    if (!top.isStats()) {
-        err = format(
-            "{}: {} is an image, not a statistics file (.{}); renders of one image (one EXR "
-            "per seed) become one with --ingest 'render_*.exr'",
-            cmd, top.name, kStatsExtension);
-        return false;
-    }
     Modifiers estMods = mods;
     bool diag = false;
     if (!flagValue(mods, "diag", diag, err)) return false;
     estMods.erase("diag");
     EstimatorParams params;
-    std::string warning;
-    params.luma = lumaCoefficients(&warning);
-    if (!warning.empty()) std::fprintf(stderr, "mcstat: warning: %s\n", warning.c_str());
-    if (!parseEstimatorParams(*est, estMods, params, err)) return false;
+    params.luma = luma();
+    ParamValues values;
+    if (!parseOperationParams(op, estMods, values, err, cmd)) return false;
+    applyEstimatorParams(values, params);
     if (!loadStats(st, top, err)) return false;
     auto img = std::make_shared<OIIO::ImageBuf>();
-    if (!estimate(*img, *top.stats, *est, params, diag, {}, st.nthreads)) {
+    if (!estimate(*img, *top.stats, op, params, diag, {}, st.nthreads)) {
         err = format("{}: {}", cmd, img->geterror());
         return false;
     }
     for (const auto& [k, v] : estMods) img->specmod().attribute("mcstat:" + k, v);
-    replaceWithImage(top, est->name, img);
+    replaceWithImage(top, op.name, img);
     return true;
+}
+
+/// Samples: the operation streams the top statistics file itself, so it must be a file on disk.
+bool runSamples(State& st, const std::string& cmd, const Operation& op, const Modifiers& mods,
+                std::string& err) {
+    if (!needStatsOnTop(st, cmd, err)) return false;
+    Item& top = st.stack.back();
+    if (top.path.empty()) {
+        err = format(
+            "{} reads the per-sample records of a statistics file on disk; {} was "
+            "computed (write it with -o and read it back)",
+            cmd, top.name);
+        return false;
+    }
+    ParamValues values;
+    if (!parseOperationParams(op, mods, values, err, cmd)) return false;
+    auto img = std::make_shared<OIIO::ImageBuf>();
+    if (!runSamplesOperation(*img, top.path, top.header, op, values, luma(), st.nthreads)) {
+        err = format("{}: {}", cmd, img->geterror());
+        return false;
+    }
+    img->specmod().attribute("mcstat:estimator", op.name);
+    for (const auto& [k, v] : mods) img->specmod().attribute("mcstat:" + k, v);
+    replaceWithImage(top, op.name, img);
+    return true;
+}
+
+bool cmdOperation(State& st, const std::string& cmd, const std::vector<std::string>&,
+                  const Modifiers& mods, std::string& err) {
+    const Operation* op = findOperation(cmd.substr(2));
+    switch (op->input) {
+        case InputKind::BufferMeans:
+            return runEstimator(st, cmd, *op, mods, err);
+        case InputKind::Neighbourhood:
+            return runNeighbourhood(st, cmd, *op, mods, err);
+        case InputKind::Samples:
+            return runSamples(st, cmd, *op, mods, err);
+    }
+    return false;
 }
 
 // ---- comparison and merging
@@ -256,9 +296,11 @@ std::vector<Command> buildTable() {
          &cmdOutput,
          ""},
     };
-    for (const EstimatorInfo& e : estimatorRegistry()) {
-        Command c{"--" + e.name, 0, "", e.help, {"diag"}, &cmdEstimate, e.name};
-        for (const EstimatorParamInfo& p : e.params) c.modifiers.push_back(p.name);
+    // Every registry operation is a command; its modifiers are the operation's parameters.
+    for (const Operation& op : operationRegistry()) {
+        Command c{"--" + op.name, 0, "", op.help, {}, &cmdOperation, op.name};
+        for (const ParamSpec* p : op.settable()) c.modifiers.push_back(p->name);
+        if (op.input == InputKind::BufferMeans) c.modifiers.push_back("diag");
         t.push_back(c);
     }
     t.push_back(
@@ -289,55 +331,9 @@ std::vector<Command> buildTable() {
                  0,
                  "",
                  "Jung's error-rate planner: buffers M, windows and spp for fewer than one "
-                 "overestimated pixel (docs/planner.md); needs no input"
-                 "\n        :np=1 :width=1920 :height=1080 :json=0 :maxm=21 :maxk=15 :m=3,5,7"
-                 "\n        :p=0.001 :certainty=0.99 (minimum spp to include a sample of "
-                 "probability p)",
+                 "overestimated pixel (docs/planner.md); needs no input",
                  {"np", "width", "height", "json", "maxm", "maxk", "m", "p", "certainty"},
                  &cmdPlan,
-                 ""});
-    // Jung's spatial and 3D filters (thesis chapter 5, docs/spatial_filters.md), spatial.cpp.
-    t.push_back({"--mif",
-                 0,
-                 "",
-                 "Median image filter MIF(k x l) of the top image (Jung eq. 5.8); after --median: "
-                 "MPE+MIF (eq. 5.15)",
-                 {"size", "mode"},
-                 &cmdMedianImageFilter,
-                 ""});
-    t.push_back({"--wmif",
-                 0,
-                 "",
-                 "Weighted median image filter WMIF(w, k x l) of the top image, centre weight w "
-                 "(eq. 5.6, 5.28); after --tmpe: TMPE+WMIF (eq. 5.14)",
-                 {"size", "w", "mode"},
-                 &cmdMedianImageFilter,
-                 ""});
-    t.push_back({"--3dmf",
-                 0,
-                 "",
-                 "3D median filter 3DMF(M x k x l) of the top statistics file: median of every "
-                 "buffer mean in the window, one vote per buffer (eq. 5.21); adaptive-M files: one "
-                 "vote per sample",
-                 {"size", "mode"},
-                 &cmdFilter3D,
-                 ""});
-    t.push_back({"--3dwmf",
-                 0,
-                 "",
-                 "3D weighted median filter 3DWMF(w, M x k x l): the centre pixel's buffers "
-                 "weighted w (eq. 5.20, 5.28); adaptive-M files: one vote per sample, w for the "
-                 "centre's",
-                 {"size", "w", "mode"},
-                 &cmdFilter3D,
-                 ""});
-    t.push_back({"--3dwtmf",
-                 0,
-                 "",
-                 "3D weighted trimmed mean filter 3DWTMF(alpha, w, M x k x l) (eq. 5.19); "
-                 "adaptive-M files: ranked and trimmed per sample",
-                 {"size", "w", "alpha", "mode"},
-                 &cmdFilter3D,
                  ""});
     appendReviewCommands(t);  // review.cpp: contact sheet, heatmaps, quality-vs-spp plot
     t.push_back({"--dup", 0, "", "Duplicate the top of the stack", {}, &cmdDup, ""});
@@ -351,12 +347,19 @@ const std::vector<Command>& table() {
     return t;
 }
 
+/// One help line per parameter: ":name=default (what it accepts; help)".
+std::string paramHelp(const ParamSpec& p) {
+    return format("\n        :{}={} ({}; {})", p.name, p.defaultValue, describeParam(p), p.help);
+}
+
 std::string modifierHelp(const Command& c) {
     std::string s;
-    if (const EstimatorInfo* e = c.estimator.empty() ? nullptr : findEstimator(c.estimator)) {
-        for (const EstimatorParamInfo& p : e->params)
-            s += format("\n        :{}={} ({})", p.name, p.defaultValue, p.help);
-        s += "\n        :diag=0 (1 appends channels gini, kept, excluded)";
+    if (const Operation* op = c.operation.empty() ? nullptr : findOperation(c.operation)) {
+        for (const ParamSpec* p : op->settable()) s += paramHelp(*p);
+        if (op->input == InputKind::BufferMeans)
+            s += "\n        :diag=0 (1 appends channels gini, kept, excluded)";
+    } else if (c.name == "--plan") {
+        for (const ParamSpec& p : planParams()) s += paramHelp(p);
     } else if (c.name == "--diff") {
         s += "\n        :ratio=2 :floor=0.1 (firefly: Y > ratio*Yref and Y - Yref > floor)"
              "\n        :eps=0.01 (relMSE denominator r^2 + eps)"
@@ -368,19 +371,6 @@ std::string modifierHelp(const Command& c) {
              "else Blender's <ViewLayer>.Combined, else an AOV named RGBA/beauty/Ci/C)"
              "\n        :spp= (samples per file; default: the files' metadata, mcstat:spp, "
              "samplesPerPixel, cycles.<ViewLayer>.samples)";
-    } else if (c.run == &cmdMedianImageFilter || c.run == &cmdFilter3D) {
-        s += "\n        :size=3x3 (window width x height in pixels, odd, 1..255; clipped at image "
-             "borders)";
-        for (const std::string& m : c.modifiers) {
-            if (m == "w")
-                s +=
-                    "\n        :w=3 (integer weight of the centre pixel, eq. 5.28; 1 = unweighted)";
-            else if (m == "alpha")
-                s += "\n        :alpha=0.25 (breakdown point in [0, 0.5]: floor(alpha*s) weighted "
-                     "copies trimmed per side; 0 = mean, 0.5 = 3DWMF)";
-        }
-        s += "\n        :mode=lum (lum: rank by luminance, return the chosen pixels'/buffers' RGB; "
-             "channel: R, G, B independently)";
     }
     return s;
 }

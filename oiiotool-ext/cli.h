@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "mcstat/metrics.h"
+#include "mcstat/registry.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat::cli {
@@ -42,11 +43,12 @@ struct Command {
     std::vector<std::string> modifiers;  ///< accepted modifier names (documented in help)
     bool (*run)(State&, const std::string& cmd, const std::vector<std::string>& args,
                 const Modifiers& mods, std::string& err) = nullptr;
-    std::string estimator;  ///< for commands generated from the estimator registry
+    std::string operation;  ///< for commands generated from the operation registry
 };
 
-/// The one place modifier values are parsed: the whole text must be an integer in [lo, hi] /
-/// a finite number.
+/// Modifier values of the commands outside the registry: the whole text must be an integer in
+/// [lo, hi] / a finite number. Both use the registry's one number parser (parseIntegerText,
+/// parseRealText in mcstat/registry.h); registry operations and --plan parse with parseParamValue.
 bool parseInt(const std::string& s, long lo, long hi, long& out);
 bool parseDouble(const std::string& s, double& out);
 
@@ -92,14 +94,15 @@ inline constexpr const char* kDisplayReferredAttr = "mcstat:displayReferred";
 // Implemented in plan.cpp: Jung's error-rate planner (docs/planner.md); needs nothing on the stack.
 bool cmdPlan(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
              std::string&);
+/// --plan's modifiers, typed as registry parameters (m is a comma-separated list of such values).
+const std::vector<ParamSpec>& planParams();
 
-// Implemented in spatial.cpp: Jung's spatial and 3D filters (docs/spatial_filters.md).
-/// --mif / --wmif on the top image (MPE+MIF: --median --mif; TMPE+WMIF: --tmpe --wmif).
-bool cmdMedianImageFilter(State&, const std::string&, const std::vector<std::string>&,
-                          const Modifiers&, std::string&);
-/// --3dmf / --3dwmf / --3dwtmf on the top statistics file.
-bool cmdFilter3D(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
-                 std::string&);
+// Implemented in spatial.cpp: the registry's Neighbourhood operations (docs/spatial_filters.md).
+/// `op` over the top of the stack: Neighbourhood::Image operations (--mif, --wmif) filter the top
+/// image (MPE+MIF: --median --mif; TMPE+WMIF: --tmpe --wmif), Neighbourhood::SubBuffers ones
+/// (--3dmf, --3dwmf, --3dwtmf) the sub-buffers of the top statistics file.
+bool runNeighbourhood(State& st, const std::string& cmd, const Operation& op, const Modifiers& mods,
+                      std::string& err);
 
 // Implemented in review.cpp: pictures for review tools (contact sheet, heatmaps, quality plot).
 /// Appends the review commands to the command table.

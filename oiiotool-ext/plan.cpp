@@ -1,10 +1,9 @@
 // `mcstat --plan`: Jung's design questions answered from the analytic error rates (thesis eq. 4.13,
 // 5.3, 5.9, 5.16, 5.22 and section 5.3.1) by the pure planner (include/mcstat/planner.h). It needs
 // nothing on the stack and prints a table, or JSON with :json=1. docs/planner.md describes it.
-#include <cerrno>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -13,84 +12,113 @@
 
 namespace mcstat::cli {
 
+const std::vector<ParamSpec>& planParams() {
+    static const std::vector<ParamSpec> params = [] {
+        auto real = [](const std::string& name, double hi, const std::string& def,
+                       const std::string& help) {
+            ParamSpec s;
+            s.name = name;
+            s.type = ParamType::Real;
+            s.min = 0.0;
+            s.minOpen = true;
+            s.max = hi;
+            s.defaultValue = def;
+            s.help = help;
+            return s;
+        };
+        auto oddInt = [](const std::string& name, const std::string& def, const std::string& help) {
+            ParamSpec s;
+            s.name = name;
+            s.type = ParamType::Int;
+            s.min = 1;
+            s.max = 101;
+            s.odd = true;
+            s.defaultValue = def;
+            s.help = help;
+            return s;
+        };
+        ParamSpec json;
+        json.name = "json";
+        json.type = ParamType::Flag;
+        json.defaultValue = "0";
+        json.help = "1 prints JSON instead of tables";
+        return std::vector<ParamSpec>{
+            real("np", 1e6, "1", "overestimated pixels tolerated per image"),
+            real("width", 1e9, "1920", "image width in pixels"),
+            real("height", 1e9, "1080", "image height in pixels"),
+            json,
+            oddInt("maxm", "21", "largest buffer count M considered"),
+            oddInt("maxk", "15", "largest window side k considered"),
+            oddInt("m", "3,5,7", "buffer counts of the hybrid tables, comma-separated"),
+            real("p", 1.0, "0.001", "probability of a rare sample: the minimum spp to include one"),
+            real("certainty", 1.0, "0.99", "confidence of including it, below 1"),
+        };
+    }();
+    return params;
+}
+
 namespace {
 
 using namespace mcstat::planner;
 
 struct PlanOptions {
-    double np = 1.0;
-    double width = 1920, height = 1080;
-    int maxm = 21, maxk = 15;
-    std::vector<int> ms{3, 5, 7};
-    double p = 1e-3, certainty = 0.99;
+    double np = 0.0;
+    double width = 0.0, height = 0.0;
+    int maxm = 0, maxk = 0;
+    std::vector<int> ms;
+    double p = 0.0, certainty = 0.0;
     bool json = false;
 };
 
-bool number(const Modifiers& mods, const std::string& key, double lo, double hi, double& out,
-            std::string& err) {
+/// Parses mods[key] (or the default) with `key`'s spec; a comma-separated list for "m".
+bool value(const Modifiers& mods, const std::string& key, std::vector<ParamValue>& out,
+           std::string& err) {
+    const ParamSpec* spec = nullptr;
+    for (const ParamSpec& s : planParams())
+        if (s.name == key) spec = &s;
     auto it = mods.find(key);
-    if (it == mods.end()) return true;
-    errno = 0;
-    char* end = nullptr;
-    const double v = std::strtod(it->second.c_str(), &end);
-    if (it->second.empty() || *end != '\0' || errno != 0 || !std::isfinite(v) || !(v > lo) ||
-        v > hi) {
-        err = "--plan: " + key + " must be a number in (" + std::to_string(lo) + ", " +
-              std::to_string(hi) + "], not '" + it->second + "'";
-        return false;
-    }
-    out = v;
-    return true;
-}
-
-bool oddInt(const std::string& key, const std::string& s, int lo, int hi, int& out,
-            std::string& err) {
-    errno = 0;
-    char* end = nullptr;
-    const long v = std::strtol(s.c_str(), &end, 10);
-    if (s.empty() || *end != '\0' || errno != 0 || v < lo || v > hi || v % 2 == 0) {
-        err = "--plan: " + key + " must be an odd integer in [" + std::to_string(lo) + ", " +
-              std::to_string(hi) + "], not '" + s + "'";
-        return false;
-    }
-    out = int(v);
+    const std::string& text = it == mods.end() ? spec->defaultValue : it->second;
+    out.clear();
+    size_t start = 0;
+    do {
+        const size_t comma =
+            key == "m" ? std::min(text.find(',', start), text.size()) : text.size();
+        ParamValue v;
+        if (!parseParamValue("--plan", *spec, text.substr(start, comma - start), v, err))
+            return false;
+        out.push_back(v);
+        start = comma + 1;
+    } while (start <= text.size());
     return true;
 }
 
 bool parse(const Modifiers& mods, PlanOptions& o, std::string& err) {
-    if (!number(mods, "np", 0.0, 1e6, o.np, err) ||
-        !number(mods, "width", 0.0, 1e9, o.width, err) ||
-        !number(mods, "height", 0.0, 1e9, o.height, err) ||
-        !number(mods, "p", 0.0, 1.0, o.p, err) ||
-        !number(mods, "certainty", 0.0, 1.0, o.certainty, err))
-        return false;
+    std::vector<ParamValue> v;
+    auto one = [&](const std::string& key) { return value(mods, key, v, err); };
+    if (!one("np")) return false;
+    o.np = v[0].real;
+    if (!one("width")) return false;
+    o.width = v[0].real;
+    if (!one("height")) return false;
+    o.height = v[0].real;
+    if (!one("p")) return false;
+    o.p = v[0].real;
+    if (!one("certainty")) return false;
+    o.certainty = v[0].real;
     if (o.certainty >= 1.0) {
         err =
             "--plan: certainty must be below 1 (no finite spp includes a sample with certainty 1)";
         return false;
     }
-    if (mods.count("maxm") && !oddInt("maxm", mods.at("maxm"), 1, 101, o.maxm, err)) return false;
-    if (mods.count("maxk") && !oddInt("maxk", mods.at("maxk"), 1, 101, o.maxk, err)) return false;
-    if (mods.count("m")) {
-        o.ms.clear();
-        const std::string& list = mods.at("m");
-        size_t start = 0;
-        while (start <= list.size()) {
-            const size_t comma = std::min(list.find(',', start), list.size());
-            int m = 0;
-            if (!oddInt("m", list.substr(start, comma - start), 1, 101, m, err)) return false;
-            o.ms.push_back(m);
-            start = comma + 1;
-        }
-    }
-    auto it = mods.find("json");
-    if (it != mods.end()) {
-        if (it->second != "0" && it->second != "1") {
-            err = "--plan: json must be 0 or 1, not '" + it->second + "'";
-            return false;
-        }
-        o.json = it->second == "1";
-    }
+    if (!one("maxm")) return false;
+    o.maxm = int(v[0].integer);
+    if (!one("maxk")) return false;
+    o.maxk = int(v[0].integer);
+    if (!one("m")) return false;
+    o.ms.clear();
+    for (const ParamValue& m : v) o.ms.push_back(int(m.integer));
+    if (!one("json")) return false;
+    o.json = v[0].integer != 0;
     return true;
 }
 

@@ -46,6 +46,23 @@ bool filter3D(OIIO::ImageBuf& dst, const StatsImage& src, const SpatialParams& p
 OIIO::ImageBuf filter3D(const StatsImage& src, const SpatialParams& params, OIIO::ROI roi = {},
                         int nthreads = 0);
 
+/// Runs registry operation `op` with parsed `values` (parseOperationParams) over the statistics
+/// image `src`, whatever its input kind: BufferMeans through estimate() (with `diagnostics`, its
+/// gini/kept/excluded channels follow R, G, B), Neighbourhood over SubBuffers through filter3D,
+/// over an Image through medianImageFilter applied to the plain mean of the sub-buffers (the
+/// "mean" estimator: the same as `mcstat f --mean --mif`). Samples
+/// operations need the file itself (runSamplesOperation). `luma` as lumaCoefficients() gives it.
+bool applyOperation(OIIO::ImageBuf& dst, const StatsImage& src, const Operation& op,
+                    const ParamValues& values, const std::array<double, 3>& luma,
+                    bool diagnostics = false, OIIO::ROI roi = {}, int nthreads = 0);
+
+/// Runs a Samples operation on the statistics file `path` (op.samples streams it) and turns its
+/// OperationImage into an ImageBuf with the data window of `header` (the file's). False with the
+/// message on dst.
+bool runSamplesOperation(OIIO::ImageBuf& dst, const std::string& path, const StatsHeader& header,
+                         const Operation& op, const ParamValues& values,
+                         const std::array<double, 3>& luma, int nthreads = 0);
+
 /// The beauty part (plain mean) of a statistics file as an RGB float image.
 OIIO::ImageBuf beautyImage(const StatsImage& src);
 

@@ -1,42 +1,165 @@
-// The one registry of estimators. The `mcstat` commands, the (future) OIIO plugin and the
-// benchmarks all enumerate it, so a new estimator is written once: add a function to estimators.h
-// and an entry to filters/registry.cpp.
+// The one registry of operations: everything an image can be made with. Each operation is
+// registered once, with the input it needs (InputKind) and its typed parameters (ParamSpec: name,
+// type, range, default, help). The `mcstat` commands and their --help, the OIIO plugin's
+// `mcstat:estimator` / `?estimator=` choices and the benchmarks are all generated from it, and
+// parseParamValue is the one checked parser of parameter and modifier values.
+//
+// Adding an operation: one file pair (filters/<method>.cpp, include/mcstat/<method>.h) with the
+// function, one entry in filters/registry.cpp, and tests (docs/estimators.md, "Adding an
+// operation").
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <map>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "mcstat/estimators.h"
+#include "mcstat/spatial_filters.h"
 
 namespace mcstat {
+
+// ---- typed parameters ---------------------------------------------------------------------------
+
+enum class ParamType {
+    Int,   ///< an integer in [min, max] (odd when ParamSpec::odd)
+    Real,  ///< a finite number in [min, max] (min excluded when minOpen)
+    Enum,  ///< one of ParamSpec::choices (or an alias of one)
+    Size,  ///< "KxL" or "K" (K x K): integers in [min, max] (odd when ParamSpec::odd)
+    Flag,  ///< 0 or 1 (also true/false, on/off)
+};
+
+struct ParamSpec {
+    std::string name;  ///< modifier / configuration key, e.g. "alpha"
+    ParamType type = ParamType::Real;
+    double min = 0.0, max = 0.0;       ///< Int, Real, Size; +-HUGE_VAL for no bound
+    bool minOpen = false;              ///< Real: min itself is excluded
+    bool odd = false;                  ///< Int, Size: only odd values
+    std::string defaultValue;          ///< as text; parses with parseParamValue
+    std::vector<std::string> choices;  ///< Enum: the accepted values, the canonical ones
+    /// Enum: other spellings, alias -> choice (e.g. "luminance" -> "lum").
+    std::vector<std::pair<std::string, std::string>> aliases;
+    std::string help;
+    /// Fixed by the operation, not a modifier: the value is always defaultValue (e.g. 3DMF's
+    /// centre weight 1). Listed so that the operation's whole configuration is in the registry.
+    bool fixed = false;
+};
+
+/// A parsed parameter value.
+struct ParamValue {
+    ParamType type = ParamType::Real;
+    std::string text;      ///< as given; Enum: the canonical choice
+    double real = 0.0;     ///< Real; Int and Flag: the value too
+    int64_t integer = 0;   ///< Int, Flag; Size: K (width)
+    int64_t integer2 = 0;  ///< Size: L (height)
+};
+
+/// Every parameter of one operation, defaults applied: name -> value.
+using ParamValues = std::map<std::string, ParamValue>;
+
+/// What `spec` accepts, as error messages and --help say it: "a number in [0, 0.5]", "an integer
+/// in [1, 1000000]", "'lum' or 'channel'", "KxL with odd K, L in [1, 255] (e.g. 3x3)", "0 or 1".
+std::string describeParam(const ParamSpec& spec);
+
+/// The one checked parser: the whole of `text` must be a value of `spec` in its range. On failure
+/// `err` is the one line "<context>: <key> must be <describeParam>, not '<text>'".
+bool parseParamValue(const std::string& context, const ParamSpec& spec, const std::string& text,
+                     ParamValue& out, std::string& err);
+
+/// The low-level number syntax parseParamValue uses (and nothing else does): the whole text is a
+/// base-10 integer / a finite number, without surrounding spaces.
+bool parseIntegerText(const std::string& text, int64_t& out);
+bool parseRealText(const std::string& text, double& out);
+
+// ---- operations ---------------------------------------------------------------------------------
+
+/// The input an operation needs, which decides where it can run.
+enum class InputKind {
+    BufferMeans,    ///< per pixel, over its M sub-buffer means (EstimatorFn)
+    Neighbourhood,  ///< a window of pixels (Neighbourhood says of what)
+    Samples,        ///< per-sample records / the renderer's online state (SamplesFn)
+};
+
+/// What a Neighbourhood operation's window holds.
+enum class Neighbourhood {
+    None,
+    SubBuffers,  ///< the sub-buffers of the window's pixels in a statistics file (3D filters)
+    Image,       ///< the pixels of an RGB image (MIF/WMIF): in `mcstat` the top image, in the
+                 ///< plugin the plain mean of the sub-buffers (as `--mean` computes it)
+};
 
 using EstimatorFn = void (*)(const PixelBuffers&, const EstimatorParams&, PixelEstimate&,
                              EstimatorScratch&);
 
-struct EstimatorParamInfo {
-    std::string name;          ///< modifier / config key, e.g. "mode"
-    std::string defaultValue;  ///< as text
-    std::string help;
+/// The image a Samples operation makes: the file's data window, scanline order, R, G, B first.
+struct OperationImage {
+    int width = 0, height = 0;
+    std::vector<std::string> channels{"R", "G", "B"};
+    std::vector<float> pixels;  ///< width * height * channels.size()
 };
 
-struct EstimatorInfo {
-    std::string name;   ///< command name without dashes, e.g. "gmon"
-    std::string title;  ///< e.g. "G-MoN"
-    std::string help;   ///< one line for --help
-    EstimatorFn fn = nullptr;
-    std::vector<EstimatorParamInfo> params;
+/// What a Samples operation is given: the statistics file's path (it streams the file by blocks
+/// itself; it reads whatever parts it needs), its parsed parameters and the environment.
+struct SamplesRequest {
+    std::string path;
+    const ParamValues* params = nullptr;  ///< every parameter, defaults applied
+    std::array<double, 3> luma{0.0, 0.0, 0.0};
+    int nthreads = 0;  ///< 0: all cores
 };
 
-/// Every estimator, in a stable order.
-const std::vector<EstimatorInfo>& estimatorRegistry();
+/// A Samples operation: false with a one-line `err` (naming the file) when the file cannot
+/// provide its input (e.g. no per-sample part) or is bad.
+using SamplesFn = bool (*)(const SamplesRequest&, OperationImage& out, std::string& err);
+
+struct Operation {
+    std::string name;      ///< command name without dashes, e.g. "gmon"
+    std::string title;     ///< e.g. "G-MoN"
+    std::string help;      ///< one line for --help
+    std::string equation;  ///< the paper equation(s) it implements, e.g. "Buisine et al. eq. 4, 6"
+    InputKind input = InputKind::BufferMeans;
+    EstimatorFn fn = nullptr;  ///< BufferMeans
+    std::vector<ParamSpec> params;
+    Neighbourhood over = Neighbourhood::None;  ///< Neighbourhood
+    SamplesFn samples = nullptr;               ///< Samples
+
+    /// Parameters a user may set (params without the fixed ones).
+    std::vector<const ParamSpec*> settable() const;
+    const ParamSpec* param(std::string_view key) const;
+};
+
+// Former names, still used by the estimator code.
+using EstimatorInfo = Operation;
+using EstimatorParamInfo = ParamSpec;
+
+/// Every operation, in a stable order: the per-pixel estimators, then the neighbourhood filters,
+/// then the per-sample operations.
+const std::vector<Operation>& operationRegistry();
 /// nullptr when unknown.
+const Operation* findOperation(std::string_view name);
+
+/// The BufferMeans operations (the estimators over sub-buffer means), in registry order.
+const std::vector<EstimatorInfo>& estimatorRegistry();
+/// A BufferMeans operation; nullptr when unknown or of another kind.
 const EstimatorInfo* findEstimator(std::string_view name);
 
-/// Parses key=value parameters for `info` into `out` (which already holds luma coefficients).
-/// An unknown key or a bad value is an error naming it and listing the accepted keys.
+/// Parses key=value parameters of `op` into `out`: every parameter, defaults (and fixed values)
+/// applied first. An unknown key or a bad value is a one-line error: the unknown key is named with
+/// the accepted ones; a bad value as parseParamValue says, with `context` (default: op.name).
+bool parseOperationParams(const Operation& op, const std::map<std::string, std::string>& kv,
+                          ParamValues& out, std::string& err, const std::string& context = "");
+
+/// The estimator's parameters from parsed values (keys the estimator does not have are left as
+/// `out` holds them; the caller sets out.luma).
+void applyEstimatorParams(const ParamValues& values, EstimatorParams& out);
+/// parseOperationParams + applyEstimatorParams.
 bool parseEstimatorParams(const EstimatorInfo& info, const std::map<std::string, std::string>& kv,
                           EstimatorParams& out, std::string& err);
+
+/// A Neighbourhood operation's SpatialParams (size, w, alpha, mode) from parsed values, with
+/// `luma`.
+SpatialParams spatialParams(const ParamValues& values, const std::array<double, 3>& luma);
 
 }  // namespace mcstat

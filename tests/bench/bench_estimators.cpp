@@ -1,13 +1,16 @@
 // Per-estimator throughput over a synthetic statistics image with fireflies, single-threaded, for
 // several M. Items are pixels, so Google Benchmark reports pixel/s; scripts/bench.sh turns the
 // results into ratios against the plain mean measured in the same run.
-// Jung's spatial filters (chapter 5) run with a 3x3 window: the 3D filters 3dmf, 3dwmf (w = 3),
-// 3dwtmf (alpha = 0.25, w = 3) over the M buffers; mif and wmif (w = 3) over the mean image
-// (computed outside the timing, so their cost does not depend on M); mpe+mif is the whole hybrid,
-// MPE then MIF. Names follow estimate/NAME/MODE/M as bench.sh expects.
+// Every operation of the registry is measured with its registry defaults: the per-pixel estimators,
+// and the neighbourhood filters (Jung chapter 5; 3x3 windows by default): 3dmf, 3dwmf, 3dwtmf over
+// the M buffers; mif and wmif over the mean image (computed outside the timing, so their cost does
+// not depend on M). mpe+mif is the whole hybrid, MPE then MIF. Per-sample operations read a file
+// and are not measured here. Names follow estimate/NAME/MODE/M as bench.sh expects.
 #include <benchmark/benchmark.h>
 
+#include <map>
 #include <random>
+#include <stdexcept>
 
 #include "mcstat/color.h"
 #include "mcstat/imageops.h"
@@ -56,67 +59,62 @@ void BM_Estimator(benchmark::State& state, const EstimatorInfo* est, EstimatorMo
 
 const std::vector<int64_t> kBufferCounts = {3, 7, 17, 21};
 
-SpatialParams spatialParams(EstimatorMode mode, int64_t w, double alpha) {
-    SpatialParams p;
-    p.mode = mode;
-    p.luma = lumaCoefficients();
-    p.centreWeight = w;
-    p.alpha = alpha;
-    return p;
+/// `op`'s parameters: the registry's defaults with `mode`.
+ParamValues defaults(const Operation& op, EstimatorMode mode) {
+    ParamValues v;
+    std::string err;
+    std::map<std::string, std::string> kv;
+    if (op.param("mode")) kv["mode"] = mode == EstimatorMode::Luminance ? "lum" : "channel";
+    if (!parseOperationParams(op, kv, v, err)) throw std::runtime_error(err);
+    return v;
 }
 
-void BM_Filter3D(benchmark::State& state, EstimatorMode mode, int64_t w, double alpha) {
+/// A Neighbourhood operation over the sub-buffers (3D filters) or over an image (MIF, WMIF; with
+/// `withMPE` the MPE estimate is part of the timing: MPE+MIF).
+void BM_Neighbourhood(benchmark::State& state, const Operation* op, EstimatorMode mode,
+                      bool withMPE) {
     const StatsImage& img = syntheticImage(int(state.range(0)));
-    const SpatialParams p = spatialParams(mode, w, alpha);
+    const SpatialParams p = spatialParams(defaults(*op, mode), lumaCoefficients());
     OIIO::ImageBuf out;
-    for (auto _ : state) {
-        filter3D(out, img, p, {}, 1);
-        benchmark::DoNotOptimize(out.localpixels());
-    }
-    state.SetItemsProcessed(int64_t(state.iterations()) * kWidth * kHeight);
-}
-
-/// MIF / WMIF of the mean image; with `withMPE` the MPE estimate is part of the timing (MPE+MIF).
-void BM_ImageFilter(benchmark::State& state, EstimatorMode mode, int64_t w, bool withMPE) {
-    const StatsImage& img = syntheticImage(int(state.range(0)));
-    const SpatialParams p = spatialParams(mode, w, 0.5);
-    EstimatorParams ep;
-    ep.mode = mode;
-    ep.luma = p.luma;
-    const EstimatorInfo& est = *findEstimator(withMPE ? "median" : "mean");
-    OIIO::ImageBuf src = estimate(img, est, ep, false, {}, 1), out;
-    for (auto _ : state) {
-        if (withMPE) estimate(src, img, est, ep, false, {}, 1);
-        medianImageFilter(out, src, p, {}, 1);
-        benchmark::DoNotOptimize(out.localpixels());
+    if (op->over == Neighbourhood::SubBuffers) {
+        for (auto _ : state) {
+            filter3D(out, img, p, {}, 1);
+            benchmark::DoNotOptimize(out.localpixels());
+        }
+    } else {
+        EstimatorParams ep;
+        ep.mode = mode;
+        ep.luma = p.luma;
+        const EstimatorInfo& est = *findEstimator(withMPE ? "median" : "mean");
+        OIIO::ImageBuf src = estimate(img, est, ep, false, {}, 1);
+        for (auto _ : state) {
+            if (withMPE) estimate(src, img, est, ep, false, {}, 1);
+            medianImageFilter(out, src, p, {}, 1);
+            benchmark::DoNotOptimize(out.localpixels());
+        }
     }
     state.SetItemsProcessed(int64_t(state.iterations()) * kWidth * kHeight);
 }
 
 const bool registered = [] {
-    for (const EstimatorInfo& e : estimatorRegistry()) {
+    auto reg = [](const std::string& name, auto fn, auto... args) {
+        benchmark::RegisterBenchmark(name.c_str(), fn, args...)
+            ->ArgsProduct({kBufferCounts})
+            ->Unit(benchmark::kMillisecond);
+    };
+    for (const Operation& op : operationRegistry()) {
         for (auto mode : {EstimatorMode::Luminance, EstimatorMode::PerChannel}) {
-            if (e.params.empty() && mode == EstimatorMode::PerChannel) continue;
+            if (!op.param("mode") && mode == EstimatorMode::PerChannel) continue;
             const std::string name =
-                "estimate/" + e.name + (mode == EstimatorMode::Luminance ? "/lum" : "/channel");
-            benchmark::RegisterBenchmark(name.c_str(), BM_Estimator, &e, mode)
-                ->ArgsProduct({kBufferCounts})
-                ->Unit(benchmark::kMillisecond);
+                "estimate/" + op.name + (mode == EstimatorMode::Luminance ? "/lum" : "/channel");
+            if (op.input == InputKind::BufferMeans)
+                reg(name, BM_Estimator, &op, mode);
+            else if (op.input == InputKind::Neighbourhood)
+                reg(name, BM_Neighbourhood, &op, mode, false);
+            if (op.name == "mif")  // the hybrid MPE+MIF (Jung eq. 5.15)
+                reg("estimate/mpe+mif" + name.substr(name.rfind('/')), BM_Neighbourhood, &op, mode,
+                    true);
         }
-    }
-    for (auto mode : {EstimatorMode::Luminance, EstimatorMode::PerChannel}) {
-        const std::string m = mode == EstimatorMode::Luminance ? "/lum" : "/channel";
-        auto reg = [](const std::string& name, auto fn, auto... args) {
-            benchmark::RegisterBenchmark(name.c_str(), fn, args...)
-                ->ArgsProduct({kBufferCounts})
-                ->Unit(benchmark::kMillisecond);
-        };
-        reg("estimate/3dmf" + m, BM_Filter3D, mode, int64_t(1), 0.5);
-        reg("estimate/3dwmf" + m, BM_Filter3D, mode, int64_t(3), 0.5);
-        reg("estimate/3dwtmf" + m, BM_Filter3D, mode, int64_t(3), 0.25);
-        reg("estimate/mif" + m, BM_ImageFilter, mode, int64_t(1), false);
-        reg("estimate/wmif" + m, BM_ImageFilter, mode, int64_t(3), false);
-        reg("estimate/mpe+mif" + m, BM_ImageFilter, mode, int64_t(1), true);
     }
     return true;
 }();

@@ -179,8 +179,15 @@ TEST_F(Cli, InfoAndHelp) {
     EXPECT_NE(r.out.find("min 28, max 28"), std::string::npos) << r.out;
     Result h = mcstat("--help");
     ASSERT_EQ(h.code, 0);
-    for (const EstimatorInfo& e : estimatorRegistry())
-        EXPECT_NE(h.out.find("--" + e.name + " "), std::string::npos) << e.name;
+    // every registry operation, each settable parameter with its default, type and range
+    for (const Operation& op : operationRegistry()) {
+        EXPECT_NE(h.out.find("  --" + op.name + " "), std::string::npos) << op.name;
+        for (const ParamSpec* p : op.settable())
+            EXPECT_NE(h.out.find(":" + p->name + "=" + p->defaultValue + " (" + describeParam(*p) +
+                                 "; " + p->help + ")"),
+                      std::string::npos)
+                << op.name << " " << p->name;
+    }
     for (const char* c : {"--diff REF", "-o FILE", "--info", "--threads N", "--merge", "-v "})
         EXPECT_NE(h.out.find(c), std::string::npos) << c;
 }

@@ -365,6 +365,55 @@ TEST_F(Plugin, IdiffComparesTwoEstimators) {
     EXPECT_EQ(r.code, 0) << r.out << r.err;
 }
 
+TEST_F(Plugin, NeighbourhoodOperationsFromTheRegistry) {
+    // idiff "f.mcstat?estimator=3dwtmf" against `mcstat f --3dwtmf`: tolerance 0.
+    ASSERT_EQ(mcstat(quote(stats) + " --3dwtmf -o " + quote(path("w.exr"))).code, 0);
+    Result r = run("idiff -fail 0 -warn 0 " + quote(stats + "?estimator=3dwtmf") + " " +
+                   quote(path("w.exr")));
+    EXPECT_EQ(r.code, 0) << r.out << r.err;
+    EXPECT_TRUE(contains(r.out, "PASS")) << r.out;
+    r = run("oiiotool " + quote(stats + "?estimator=3dwtmf") + " -o " + quote(path("p.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    const Pixels p = readExr(path("p.exr"));
+    EXPECT_EQ(p.subimageName, "3dwtmf");
+    EXPECT_TRUE(samePixels(p, readExr(path("w.exr"))));
+    EXPECT_GT(countDifferent(p, library("gmon")), 0u);
+
+    // Parameters the same way as an estimator's, from the file name or the configuration.
+    ASSERT_EQ(
+        mcstat(quote(stats) + " --3dwmf:size=5x3:w=2:mode=channel -o " + quote(path("m1.exr")))
+            .code,
+        0);
+    r = run("oiiotool " + quote(stats + "?estimator=3dwmf&size=5x3&w=2&mode=channel") + " -o " +
+            quote(path("m2.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(samePixels(readExr(path("m2.exr")), readExr(path("m1.exr"))));
+    r = run("oiiotool --iconfig mcstat:estimator 3dmf --iconfig mcstat:size 1x1 " + quote(stats) +
+            " -o " + quote(path("m3.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(samePixels(readExr(path("m3.exr")), library("median")));  // 3DMF(1x1) = MPE
+
+    // MIF / WMIF filter the plain mean: the same as `mcstat f --mean --wmif`.
+    ASSERT_EQ(mcstat(quote(stats) + " --mean --wmif:w=5 -o " + quote(path("i1.exr"))).code, 0);
+    r = run("oiiotool " + quote(stats + "?estimator=wmif&w=5") + " -o " + quote(path("i2.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(samePixels(readExr(path("i2.exr")), readExr(path("i1.exr"))));
+
+    // Their diagnostics subimage holds the sample count only; a bad value names itself.
+    r = run("oiiotool -a " + quote(stats + "?estimator=3dwtmf") + " -o " + quote(path("all.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(readExr(path("all.exr"), 2).channels, (std::vector<std::string>{"count"}));
+    r = run("iinfo " + quote(stats + "?estimator=3dwtmf&alpha=0.7"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_TRUE(contains(r.err, "alpha must be a number in [0, 0.5], not '0.7'")) << r.err;
+    r = run("iinfo " + quote(stats + "?estimator=3dmf&w=2"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_TRUE(contains(r.err, "estimator '3dmf' has no parameter 'w' (accepted: size, mode)"))
+        << r.err;
+    r = run("iinfo " + quote(stats + "?estimator=foo"));
+    EXPECT_TRUE(contains(r.err, "3dmf, 3dwmf, 3dwtmf")) << r.err;
+}
+
 TEST_F(Plugin, IinfoListsSubimagesAndMetadata) {
     const Result r = run("iinfo -v -a " + quote(stats));
     ASSERT_EQ(r.code, 0) << r.err;

@@ -1,0 +1,452 @@
+// Pajot et al. 2011, Algorithm 1 with the learning phase (section 4.1), ADR (section 4.2, eq. 4),
+// ROT (section 4.4, eq. 5) and the hybrid switch (section 4.6). The rules the paper leaves open are
+// listed in include/mcstat/pajot.h; docs/pajot.md explains them.
+#include "mcstat/pajot.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace mcstat {
+
+namespace {
+
+constexpr float kNoMode = -std::numeric_limits<float>::infinity();
+
+/// Epanechnikov kernel (eq. 3's K, normalised on [-1, 1]).
+inline double epanechnikov(double u) { return std::fabs(u) < 1.0 ? 0.75 * (1.0 - u * u) : 0.0; }
+
+/// Kernels of bandwidths ha, hb centred at a <= b overlap, or the values are equal.
+inline bool overlaps(double a, double b, double ha, double hb) { return a == b || b - a < ha + hb; }
+
+double adrDensityOf(const std::vector<PajotMode>& modes, int64_t n, double x, double h);
+
+int64_t totalSamples(const std::vector<PajotMode>& modes) {
+    int64_t n = 0;
+    for (const PajotMode& m : modes) n += m.n;
+    return n;
+}
+
+/// Sum over the n regularly spaced values of `m` of (1 - u^2) for |u| < 1, u = (x - value) / h:
+/// closed form over the index range inside the window, relative to its first index so that the
+/// sums stay small (no cancellation even for modes of millions of samples).
+double modeKernelSum(const PajotMode& m, double x, double h) {
+    const double lo = m.lo, hi = m.hi;
+    if (m.n == 1 || lo == hi) return double(m.n) * epanechnikov((x - lo) / h) / 0.75;
+    const double s = (hi - lo) / double(m.n - 1);
+    const double tLo = (x - h - lo) / s, tHi = (x + h - lo) / s;
+    const int64_t last = int64_t(m.n) - 1;
+    const int64_t i0 = std::max<int64_t>(0, int64_t(std::floor(tLo)) + 1);
+    const int64_t i1 = std::min<int64_t>(last, int64_t(std::ceil(tHi)) - 1);
+    if (i0 > i1) return 0.0;
+    const double cnt = double(i1 - i0 + 1);
+    const double a = (x - (lo + double(i0) * s)) / h, b = s / h;
+    const double sj = cnt * (cnt - 1.0) / 2.0;                      // sum of j, j < cnt
+    const double sj2 = (cnt - 1.0) * cnt * (2.0 * cnt - 1.0) / 6.0;  // sum of j^2
+    // sum_j 1 - (a - b j)^2 = cnt (1 - a^2) + 2 a b sum j - b^2 sum j^2
+    return std::max(0.0, cnt * (1.0 - a * a) + 2.0 * a * b * sj - b * b * sj2);
+}
+
+/// Geometric mean of the pilot density over the approximate distribution (eq. 4's numerator).
+/// Modes of at most 16 values use every value; larger ones 16 evenly spread values, each standing
+/// for n / 16 of them (the density varies slowly inside an extended mode; this bounds the cost of
+/// an update by the number of modes, not of samples).
+double adrGeometricMeanDensity(const std::vector<PajotMode>& modes, double nn) {
+    // A single mode farther than nn from both neighbours sees only its own kernel: its density is
+    // exactly 0.75 / (n nn), no search needed. ADR accumulates many of those in the tails (section
+    // 4.3, Table 1), so this keeps an update linear in the number of modes with a small constant.
+    const int64_t total = totalSamples(modes);
+    const double isolatedLog = std::log(0.75 / (double(total) * nn));
+    double logSum = 0, weight = 0;
+    for (size_t k = 0; k < modes.size(); ++k) {
+        const PajotMode& m = modes[k];
+        if (m.n == 1 && (k == 0 || double(m.lo) - double(modes[k - 1].hi) >= nn) &&
+            (k + 1 == modes.size() || double(modes[k + 1].lo) - double(m.hi) >= nn)) {
+            logSum += isolatedLog;
+            weight += 1;
+            continue;
+        }
+        const int64_t q = std::min<int64_t>(m.n, 16);
+        const double w = double(m.n) / double(q);
+        for (int64_t t = 0; t < q; ++t) {
+            const double pos = q == 1 ? 0.0 : double(t) / double(q - 1);
+            const double x = double(m.lo) + (double(m.hi) - double(m.lo)) * pos;
+            logSum += w * std::log(adrDensityOf(modes, total, x, nn));
+            weight += w;
+        }
+    }
+    return std::exp(logSum / weight);
+}
+
+}  // namespace
+
+const char* pajotMethodName(PajotMethod m) {
+    switch (m) {
+        case PajotMethod::ADR: return "adr";
+        case PajotMethod::ROT: return "rot";
+        case PajotMethod::Hybrid: return "hybrid";
+    }
+    return "?";
+}
+
+bool parsePajotMethod(const std::string& text, PajotMethod& out) {
+    if (text == "adr") out = PajotMethod::ADR;
+    else if (text == "rot") out = PajotMethod::ROT;
+    else if (text == "hybrid") out = PajotMethod::Hybrid;
+    else return false;
+    return true;
+}
+
+bool validatePajotParams(const PajotParams& p, std::string& err) {
+    if (p.learning < 1 || p.learning > 1000000) {
+        err = "pajot: n (learning samples) must be in [1, 1000000], not " +
+              std::to_string(p.learning);
+        return false;
+    }
+    if (p.maxDelayed < 0 || p.maxDelayed > 1000000) {
+        err = "pajot: delayed (dubious list bound) must be in [0, 1000000], not " +
+              std::to_string(p.maxDelayed);
+        return false;
+    }
+    if (p.T < 1 || p.T > 1000000) {
+        err = "pajot: t must be in [1, 1000000], not " + std::to_string(p.T);
+        return false;
+    }
+    if (!(p.delta >= 0.0) || !std::isfinite(p.delta)) {
+        err = "pajot: delta must be a finite number >= 0";
+        return false;
+    }
+    for (double w : p.luma)
+        if (!std::isfinite(w)) {
+            err = "pajot: luma coefficients must be finite";
+            return false;
+        }
+    return true;
+}
+
+float pajotLogLuminance(const float rgb[3], const std::array<double, 3>& luma) {
+    const double y = luma[0] * double(rgb[0]) + luma[1] * double(rgb[1]) + luma[2] * double(rgb[2]);
+    if (!(y > 0.0)) return kNoMode;  // black: zero, or negative components summing to <= 0
+    return float(std::log(y));
+}
+
+double adrNearestNeighbour(const std::vector<PajotMode>& modes) {
+    const int64_t n = totalSamples(modes);
+    if (n < 2) return 0.0;
+    const double inf = std::numeric_limits<double>::infinity();
+    double sum = 0;
+    for (size_t k = 0; k < modes.size(); ++k) {
+        const PajotMode& m = modes[k];
+        const double below = k > 0 ? double(m.lo) - double(modes[k - 1].hi) : inf;
+        const double above = k + 1 < modes.size() ? double(modes[k + 1].lo) - double(m.hi) : inf;
+        if (m.n == 1) {
+            sum += std::min(below, above);
+        } else {
+            const double s = (double(m.hi) - double(m.lo)) / double(m.n - 1);
+            sum += std::min(s, below) + std::min(s, above) + double(m.n - 2) * s;
+        }
+    }
+    return sum / double(n);
+}
+
+double adrDensity(const std::vector<PajotMode>& modes, double x, double h) {
+    return adrDensityOf(modes, totalSamples(modes), x, h);
+}
+
+namespace {
+
+double adrDensityOf(const std::vector<PajotMode>& modes, int64_t n, double x, double h) {
+    if (n == 0 || !(h > 0.0)) return 0.0;
+    // Modes are sorted and disjoint: start at the first whose hi reaches the window.
+    auto it = std::lower_bound(modes.begin(), modes.end(), x - h,
+                               [](const PajotMode& m, double v) { return double(m.hi) <= v; });
+    double sum = 0;
+    for (; it != modes.end() && double(it->lo) < x + h; ++it) sum += modeKernelSum(*it, x, h);
+    return 0.75 * sum / (double(n) * h);
+}
+
+}  // namespace
+
+double rotBandwidth(int64_t n, double sigma) {
+    if (n < 1) return 0.0;
+    return std::pow(25.0 * double(n), -0.2) * sigma;  // eq. 5
+}
+
+std::vector<PajotMode> aggregateModes(const std::vector<float>& l, const std::vector<double>& h) {
+    std::vector<PajotMode> modes;
+    for (size_t i = 0; i < l.size(); ++i) {
+        if (i > 0 && overlaps(l[i - 1], l[i], h[i - 1], h[i]) && modes.back().n < UINT32_MAX) {
+            modes.back().hi = l[i];
+            ++modes.back().n;
+        } else {
+            modes.push_back({l[i], l[i], 1});
+        }
+    }
+    return modes;
+}
+
+std::vector<double> adaptiveBandwidths(const std::vector<float>& l) {
+    const size_t n = l.size();
+    std::vector<double> h(n, 0.0);
+    if (n < 2) return h;
+    double nn = 0;  // mean nearest-neighbour distance
+    for (size_t i = 0; i < n; ++i) {
+        const double below = i > 0 ? double(l[i]) - double(l[i - 1]) : HUGE_VAL;
+        const double above = i + 1 < n ? double(l[i + 1]) - double(l[i]) : HUGE_VAL;
+        nn += std::min(below, above);
+    }
+    nn /= double(n);
+    if (!(nn > 0.0)) return h;  // all equal: zero bandwidths, one mode of equal values
+    // Pilot density at every value with bandwidth nn (eq. 3), a window over the sorted values.
+    std::vector<double> pilot(n);
+    double logSum = 0;
+    size_t first = 0;
+    for (size_t i = 0; i < n; ++i) {
+        while (double(l[i]) - double(l[first]) >= nn) ++first;
+        double sum = 0;
+        for (size_t j = first; j < n && double(l[j]) - double(l[i]) < nn; ++j)
+            sum += epanechnikov((double(l[i]) - double(l[j])) / nn);
+        pilot[i] = sum / (double(n) * nn);
+        logSum += std::log(pilot[i]);
+    }
+    const double g = std::exp(logSum / double(n));
+    for (size_t i = 0; i < n; ++i) h[i] = nn * std::sqrt(g / pilot[i]);  // eq. 4
+    return h;
+}
+
+float lastExtendedUpperBound(const std::vector<PajotMode>& modes) {
+    for (auto it = modes.rbegin(); it != modes.rend(); ++it)
+        if (it->extended()) return it->hi;
+    return kNoMode;
+}
+
+// ---- the per-pixel estimator ----------------------------------------------------------------------
+
+namespace {
+
+/// ADR's incremental update (section 4.2) for a non-black value l.
+void adrAdd(std::vector<PajotMode>& modes, float l) {
+    auto it = std::lower_bound(modes.begin(), modes.end(), l,
+                               [](const PajotMode& m, float v) { return m.hi < v; });
+    if (it != modes.end() && it->lo <= l) {  // inside [lo, hi] of a mode: one more sample
+        if (it->n < UINT32_MAX) ++it->n;
+        return;
+    }
+    // A new single mode; its kernel (bandwidth from eq. 4 over the approximate distribution that
+    // now includes it) may overlap the neighbouring modes' extreme samples' kernels.
+    const size_t k = size_t(it - modes.begin());
+    modes.insert(it, PajotMode{l, l, 1});
+    const double nn = adrNearestNeighbour(modes);
+    const int64_t total = totalSamples(modes);
+    auto bandwidth = [&modes, nn, total](double g, double x) {
+        return nn > 0.0 ? nn * std::sqrt(g / adrDensityOf(modes, total, x, nn)) : 0.0;
+    };
+    const double g = nn > 0.0 ? adrGeometricMeanDensity(modes, nn) : 0.0;
+    const double hl = bandwidth(g, l);
+    const bool below = k > 0 && overlaps(modes[k - 1].hi, l, bandwidth(g, modes[k - 1].hi), hl);
+    const bool above =
+        k + 1 < modes.size() && overlaps(l, modes[k + 1].lo, hl, bandwidth(g, modes[k + 1].lo));
+    // Merging on both sides replaces the two modes and the new sample by one extended mode.
+    size_t first = k, last = k;
+    if (below) first = k - 1;
+    if (above) last = k + 1;
+    if (first == last) return;
+    PajotMode merged{modes[first].lo, modes[last].hi, 0};
+    uint64_t n = 0;
+    for (size_t i = first; i <= last; ++i) n += modes[i].n;
+    merged.n = uint32_t(std::min<uint64_t>(n, UINT32_MAX));
+    modes[first] = merged;
+    modes.erase(modes.begin() + std::ptrdiff_t(first) + 1, modes.begin() + std::ptrdiff_t(last) + 1);
+}
+
+/// ROT's modes above m from the sorted singles with the constant bandwidth h (section 4.4): the
+/// singles chained to the last extended mode extend it; a group of overlapping singles above
+/// becomes the new last extended mode. Returns the new m and drops the singles at or below it.
+float rotRebuild(std::vector<float>& singles, float m, double h) {
+    float top = m;
+    size_t i = 0;
+    if (m != kNoMode)
+        while (i < singles.size() && overlaps(top, singles[i], h, h)) top = singles[i++];
+    float newM = top;
+    for (size_t g = i; g < singles.size();) {
+        size_t e = g;
+        while (e + 1 < singles.size() && overlaps(singles[e], singles[e + 1], h, h)) ++e;
+        if (e > g) newM = singles[e];
+        g = e + 1;
+    }
+    singles.erase(singles.begin(),
+                  std::upper_bound(singles.begin(), singles.end(), newM));
+    return newM;
+}
+
+double rotSigma(const PajotState& s) {
+    return s.rotN > 1 ? std::sqrt(s.rotM2 / double(s.rotN - 1)) : 0.0;
+}
+
+void welford(PajotState& s, float l) {
+    ++s.rotN;
+    const double d = double(l) - s.rotMean;
+    s.rotMean += d / double(s.rotN);
+    s.rotM2 += d * (double(l) - s.rotMean);
+}
+
+/// Section 4.6's relative distance |m_rot - m_adr| / |m_adr|; equal values (both absent
+/// included) are 0, one absent or m_adr = 0 with m_rot != 0 is infinite.
+double hybridDistance(float mAdr, float mRot) {
+    if (mAdr == mRot) return 0.0;
+    if (mAdr == kNoMode || mRot == kNoMode || mAdr == 0.f) return HUGE_VAL;
+    return std::fabs(double(mRot) - double(mAdr)) / std::fabs(double(mAdr));
+}
+
+}  // namespace
+
+bool PajotPixel::add(const float rgb[3], const PajotParams& p) {
+    if (!std::isfinite(rgb[0]) || !std::isfinite(rgb[1]) || !std::isfinite(rgb[2])) return false;
+    ++s_.taken;
+    const PajotSample smp{{rgb[0], rgb[1], rgb[2]}, pajotLogLuminance(rgb, p.luma)};
+    if (s_.phase == PajotPhase::Learning) {
+        s_.learning.push_back(smp);
+        if (int64_t(s_.learning.size()) >= p.learning) finishLearning(p);
+        return true;
+    }
+    if (smp.l != kNoMode) {
+        const float oldM = acceptance();
+        const float oldAdr = s_.mAdr, oldRot = s_.mRot;
+        if (s_.phase == PajotPhase::ADR) {
+            adrAdd(s_.modes, smp.l);
+            s_.mAdr = lastExtendedUpperBound(s_.modes);
+        }
+        if (p.method != PajotMethod::ADR) {
+            welford(s_, smp.l);
+            if (smp.l > s_.mRot) {
+                s_.rotSingles.insert(
+                    std::upper_bound(s_.rotSingles.begin(), s_.rotSingles.end(), smp.l), smp.l);
+                s_.mRot = rotRebuild(s_.rotSingles, s_.mRot, rotBandwidth(s_.rotN, rotSigma(s_)));
+            }
+        }
+        if (p.method == PajotMethod::Hybrid && s_.phase == PajotPhase::ADR &&
+            (s_.mAdr != oldAdr || s_.mRot != oldRot)) {
+            s_.run = hybridDistance(s_.mAdr, s_.mRot) <= p.delta ? s_.run + 1 : 0;
+            if (s_.run >= p.T) {  // ROT alone from now on; ADR's data is released
+                s_.phase = PajotPhase::ROT;
+                std::vector<PajotMode>().swap(s_.modes);
+            }
+        }
+        if (acceptance() != oldM) retest();
+    }
+    offer(smp, p);
+    return true;
+}
+
+void PajotPixel::finishLearning(const PajotParams& p) {
+    std::vector<float> l;  // non-black log-luminances in the order taken
+    for (const PajotSample& smp : s_.learning)
+        if (smp.l != kNoMode) l.push_back(smp.l);
+    std::vector<float> sorted = l;
+    std::sort(sorted.begin(), sorted.end());
+    s_.mAdr = s_.mRot = kNoMode;
+    if (p.method != PajotMethod::ROT) {
+        s_.modes = aggregateModes(sorted, adaptiveBandwidths(sorted));
+        s_.mAdr = lastExtendedUpperBound(s_.modes);
+    }
+    if (p.method != PajotMethod::ADR) {
+        for (float v : l) welford(s_, v);
+        const double h = rotBandwidth(s_.rotN, rotSigma(s_));
+        const std::vector<PajotMode> modes =
+            aggregateModes(sorted, std::vector<double>(sorted.size(), h));
+        s_.mRot = lastExtendedUpperBound(modes);
+        // Modes at or below m are released (section 4.4); above m every mode is single.
+        s_.rotSingles.assign(std::upper_bound(sorted.begin(), sorted.end(), s_.mRot),
+                             sorted.end());
+    }
+    s_.phase = p.method == PajotMethod::ROT ? PajotPhase::ROT : PajotPhase::ADR;
+    if (p.method == PajotMethod::Hybrid && (s_.mAdr != kNoMode || s_.mRot != kNoMode)) {
+        s_.run = hybridDistance(s_.mAdr, s_.mRot) <= p.delta ? 1 : 0;
+        if (s_.run >= p.T) {
+            s_.phase = PajotPhase::ROT;
+            std::vector<PajotMode>().swap(s_.modes);
+        }
+    }
+    std::vector<PajotSample> learned;
+    learned.swap(s_.learning);
+    for (const PajotSample& smp : learned) offer(smp, p);
+}
+
+float PajotPixel::acceptance() const {
+    switch (s_.phase) {
+        case PajotPhase::ADR: return s_.mAdr;
+        case PajotPhase::ROT: return s_.mRot;
+        case PajotPhase::Learning: break;
+    }
+    return kNoMode;
+}
+
+void PajotPixel::offer(const PajotSample& smp, const PajotParams& p) {
+    if (smp.l == kNoMode || smp.l <= acceptance())
+        splat(smp);
+    else
+        delay(smp, p);
+}
+
+void PajotPixel::splat(const PajotSample& smp) {
+    for (int c = 0; c < 3; ++c) s_.sum[size_t(c)] += double(smp.rgb[size_t(c)]);
+    ++s_.splatted;
+}
+
+void PajotPixel::delay(const PajotSample& smp, const PajotParams& p) {
+    if (int64_t(s_.delayed.size()) < int64_t(p.maxDelayed)) {
+        s_.delayed.push_back(smp);
+        return;
+    }
+    ++s_.discarded;  // full: the largest log-luminance of the list and the newcomer goes
+    if (s_.delayed.empty()) return;
+    auto worst = std::max_element(
+        s_.delayed.begin(), s_.delayed.end(),
+        [](const PajotSample& a, const PajotSample& b) { return a.l < b.l; });
+    if (worst->l > smp.l) {
+        s_.delayed.erase(worst);
+        s_.delayed.push_back(smp);
+    }
+}
+
+void PajotPixel::retest() {
+    const float m = acceptance();
+    size_t kept = 0;
+    for (size_t i = 0; i < s_.delayed.size(); ++i) {
+        if (s_.delayed[i].l <= m)
+            splat(s_.delayed[i]);
+        else
+            s_.delayed[kept++] = s_.delayed[i];
+    }
+    s_.delayed.resize(kept);
+}
+
+std::array<float, 3> PajotPixel::estimate() const {
+    std::array<double, 3> sum{0, 0, 0};
+    int64_t n = 0;
+    if (s_.phase == PajotPhase::Learning) {  // nothing classified yet: the plain mean
+        for (const PajotSample& smp : s_.learning)
+            for (size_t c = 0; c < 3; ++c) sum[c] += double(smp.rgb[c]);
+        n = int64_t(s_.learning.size());
+    } else {
+        sum = s_.sum;
+        n = s_.splatted;
+    }
+    if (n == 0) return {0.f, 0.f, 0.f};
+    return {float(sum[0] / double(n)), float(sum[1] / double(n)), float(sum[2] / double(n))};
+}
+
+PajotCounts PajotPixel::counts() const {
+    PajotCounts c;
+    for (const PajotMode& m : s_.modes) (m.extended() ? c.extendedModes : c.singleModes) += 1;
+    if (s_.phase != PajotPhase::Learning && (s_.rotN > 0 || s_.phase == PajotPhase::ROT)) {
+        c.singleModes += int64_t(s_.rotSingles.size());
+        if (s_.mRot != kNoMode) c.extendedModes += 1;
+    }
+    c.delayed = int64_t(s_.delayed.size());
+    c.bytes = int64_t(s_.modes.size() * sizeof(PajotMode) + s_.rotSingles.size() * sizeof(float) +
+                      (s_.delayed.size() + s_.learning.size()) * sizeof(PajotSample));
+    return c;
+}
+
+}  // namespace mcstat
