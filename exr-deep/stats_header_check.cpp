@@ -151,6 +151,7 @@ class Checker {
     std::string path_;
     int nparts_ = 0;
     bool adaptive_ = false;
+    bool hasPajot_ = false, hasRecords_ = false;
     const char* const* names_ = layout::kPartNames;
 };
 
@@ -192,33 +193,55 @@ bool Checker::checkParts() {
     if (n < layout::kPartCount)
         return fail(fmt::format("missing part '{}' (parts found: {}; expected {})", names_[n],
                                 found, expected));
-    if (n > layout::kPartCount)
-        return fail(fmt::format("extra part '{}' at index {} (the file has exactly the 4 parts {})",
-                                partName(layout::kPartCount), layout::kPartCount, expected));
+    // Version 4: optional parts after the four, in the order pajot, modes, records (pajot and
+    // modes together). Older versions have exactly four parts.
+    int extra = layout::kPartCount;
+    const exr_attribute_t* v0 = attr(0, layout::kAttrFormatVersion);
+    if (v0 != nullptr && v0->type == EXR_ATTR_INT && v0->i >= kStatsFormatVersionSamples) {
+        if (extra < n && partName(extra) == layout::kPartPajot) {
+            if (extra + 1 >= n || partName(extra + 1) != layout::kPartModes)
+                return fail(fmt::format("part '{}' at index {} is not followed by part '{}'",
+                                        layout::kPartPajot, extra, layout::kPartModes));
+            hasPajot_ = true;
+            extra += 2;
+        }
+        if (extra < n && partName(extra) == layout::kPartRecords) {
+            hasRecords_ = true;
+            ++extra;
+        }
+    }
+    if (n > extra)
+        return fail(fmt::format(
+            "extra part '{}' at index {} (the file has the 4 parts {}{})", partName(extra), extra,
+            expected,
+            v0 != nullptr && v0->type == EXR_ATTR_INT && v0->i >= kStatsFormatVersionSamples
+                ? ", then optionally pajot and modes, then records"
+                : ""));
     exr_attr_box2i_t dw0{}, disp0{};
     for (int part = 0; part < n; ++part) {
         exr_storage_t storage = EXR_STORAGE_LAST_TYPE;
-        const bool deep = adaptive_ && part == layout::kBuffers;
+        const std::string pname = part < layout::kPartCount ? names_[part] : partName(part);
+        const bool deep = (adaptive_ && part == layout::kBuffers) || pname == layout::kPartModes ||
+                          pname == layout::kPartRecords;
         const exr_storage_t want = deep ? EXR_STORAGE_DEEP_SCANLINE : EXR_STORAGE_SCANLINE;
         if (exr_get_storage(c_, part, &storage) != EXR_ERR_SUCCESS || storage != want)
-            return fail(fmt::format("part '{}' is {}, expected {}", names_[part],
-                                    storageName(storage),
+            return fail(fmt::format("part '{}' is {}, expected {}", pname, storageName(storage),
                                     deep ? "a deep scanline image" : "a flat scanline image"));
         exr_attr_box2i_t dw{}, disp{};
         if (exr_get_data_window(c_, part, &dw) != EXR_ERR_SUCCESS ||
             exr_get_display_window(c_, part, &disp) != EXR_ERR_SUCCESS)
-            return fail(fmt::format("part '{}' has no data or display window", names_[part]));
+            return fail(fmt::format("part '{}' has no data or display window", pname));
         if (part == 0) {
             dw0 = dw;
             disp0 = disp;
         } else if (!sameBox(dw, dw0)) {
             return fail(
                 fmt::format("dimension mismatch: part '{}' has data window {}, part '{}' has {}",
-                            names_[part], windowText(dw), names_[0], windowText(dw0)));
+                            pname, windowText(dw), names_[0], windowText(dw0)));
         } else if (!sameBox(disp, disp0)) {
             return fail(
                 fmt::format("dimension mismatch: part '{}' has display window {}, part '{}' has {}",
-                            names_[part], windowText(disp), names_[0], windowText(disp0)));
+                            pname, windowText(disp), names_[0], windowText(disp0)));
         }
     }
     return true;
@@ -402,6 +425,10 @@ bool Checker::run(const ReadLimits& limits, StatsHeader& hdr) {
     for (int part = 0; part < layout::kPartCount; ++part)
         if (!checkChannels(part, hdr.M)) return false;
 
+    hdr.hasPajot = hasPajot_;
+    hdr.hasRecords = hasRecords_;
+    if ((hasPajot_ || hasRecords_) && hdr.formatVersion < kStatsFormatVersionSamples)
+        return fail("optional parts need format version 4");
     hdr.width = int(w);
     hdr.height = int(h);
     hdr.originX = dw.min.x;

@@ -81,6 +81,7 @@ bool parseFeatureList(const std::string& text, unsigned& bits, std::string& prob
 }
 
 int requiredFormatVersion(const StatsHeader& h) {
+    if (h.hasPajot || h.hasRecords) return kStatsFormatVersionSamples;
     if (h.assignment == kAssignmentPerFile || h.variance != kVarianceSamples ||
         h.features != kAllFeatures || !h.sources.empty())
         return kStatsFormatVersionProvenance;

@@ -23,6 +23,16 @@ inline const char* const* partNames(bool adaptiveM) {
     return adaptiveM ? kPartNamesAdaptive : kPartNames;
 }
 
+/// Version 4: the optional parts after the four, in this order when present (pajot and modes
+/// always together).
+inline constexpr const char* kPartPajot = "pajot";
+inline constexpr const char* kPartModes = "modes";
+inline constexpr const char* kPartRecords = "records";
+/// Version 4 on, parts records: the fields present (kRecordFieldsBase and later optional ones).
+inline constexpr const char* kAttrRecordFields = "mcstat:recordFields";
+/// Version 4 on, parts pajot and modes: the parameters of the online estimate (pajotParamsText).
+inline constexpr const char* kAttrPajot = "mcstat:pajot";
+
 /// Channels of the deep part "vbuffers", one deep sample per sub-buffer: the buffer's mean and
 /// count, and Z = buffer index j, A = 1 for generic deep tools (readers ignore Z and A).
 inline constexpr int kDeepChannelCount = 6;

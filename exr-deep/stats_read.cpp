@@ -55,7 +55,8 @@ Imath::Box2i windowOf(const StatsHeader& h) {
 /// Checks that the file opened by the C++ API is the file the header check saw.
 void checkSameFile(const Imf::MultiPartInputFile& in, const StatsHeader& h) {
     // Same open file as the header check; guard anyway against it changing under us.
-    if (in.parts() != layout::kPartCount) throw std::runtime_error("file changed while reading");
+    const int expected = layout::kPartCount + (h.hasPajot ? 2 : 0) + (h.hasRecords ? 1 : 0);
+    if (in.parts() != expected) throw std::runtime_error("file changed while reading");
     const char* const* names = layout::partNames(h.adaptiveM);
     for (int part = 0; part < layout::kPartCount; ++part) {
         const Imf::Header& ph = in.header(part);

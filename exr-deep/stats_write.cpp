@@ -21,7 +21,9 @@
 #include <cstring>
 #include <random>
 
+#include "extra_parts.h"
 #include "fd_stream.h"
+#include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
 #include "stats_layout.h"
 
@@ -34,32 +36,53 @@ Imath::Box2i dataWindowOf(const StatsHeader& h) {
                         Imath::V2i(h.originX + h.width - 1, h.originY + h.height - 1));
 }
 
-std::vector<Imf::Header> makeHeaders(const StatsHeader& h) {
+}  // namespace
+
+namespace detail {
+
+std::string tempNameFor(const std::string& path) {
+    const size_t slash = path.rfind('/');
+    const std::string dir = slash == std::string::npos ? std::string() : path.substr(0, slash + 1);
+    const std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
+    std::random_device rd;
+    return fmt::format("{}.{}.tmp-{}-{:08x}", dir, name, long(::getpid()), rd());
+}
+
+Imf::Header commonHeader(const StatsHeader& h, const std::string& name, bool deep) {
     const Imath::Box2i window = dataWindowOf(h);
+    // Deep parts cannot use ZIP (16 lines); ZIPS (one line) is the deflate they allow.
+    Imf::Header hdr(window, window, 1.f, Imath::V2f(0.f, 0.f), 1.f, Imf::INCREASING_Y,
+                    deep ? Imf::ZIPS_COMPRESSION : Imf::ZIP_COMPRESSION);
+    hdr.zipCompressionLevel() = 4;  // fixed, so equal images give equal bytes
+    hdr.setName(name);
+    hdr.setType(deep ? Imf::DEEPSCANLINE : Imf::SCANLINEIMAGE);
+    hdr.insert(layout::kAttrPartVersion, Imf::IntAttribute(1));
+    hdr.insert(layout::kAttrFormatVersion, Imf::IntAttribute(h.formatVersion));
+    if (h.formatVersion >= kStatsFormatVersionAdaptive)
+        hdr.insert(layout::kAttrAdaptiveM, Imf::IntAttribute(h.adaptiveM ? 1 : 0));
+    hdr.insert(layout::kAttrM, Imf::IntAttribute(h.M));
+    hdr.insert(layout::kAttrSpp, Imf::IntAttribute(int(h.spp)));
+    hdr.insert(layout::kAttrAssignment, Imf::StringAttribute(h.assignment));
+    hdr.insert(layout::kAttrRenderer, Imf::StringAttribute(h.renderer));
+    hdr.insert(layout::kAttrColorSpace, Imf::StringAttribute(h.colorSpace));
+    hdr.insert(layout::kAttrSeeds, Imf::StringAttribute(h.seeds));
+    if (h.formatVersion >= kStatsFormatVersionProvenance) {
+        hdr.insert(layout::kAttrVariance, Imf::StringAttribute(h.variance));
+        hdr.insert(layout::kAttrFeatures, Imf::StringAttribute(featureListText(h.features)));
+        hdr.insert(layout::kAttrSources, Imf::StringAttribute(h.sources));
+    }
+    return hdr;
+}
+
+}  // namespace detail
+
+namespace {
+
+std::vector<Imf::Header> makeHeaders(const StatsHeader& h) {
     std::vector<Imf::Header> headers;
     for (int part = 0; part < layout::kPartCount; ++part) {
         const bool deep = h.adaptiveM && part == layout::kBuffers;
-        // Deep parts cannot use ZIP (16 lines); ZIPS (one line) is the deflate they allow.
-        Imf::Header hdr(window, window, 1.f, Imath::V2f(0.f, 0.f), 1.f, Imf::INCREASING_Y,
-                        deep ? Imf::ZIPS_COMPRESSION : Imf::ZIP_COMPRESSION);
-        hdr.zipCompressionLevel() = 4;  // fixed, so equal images give equal bytes
-        hdr.setName(layout::partNames(h.adaptiveM)[part]);
-        hdr.setType(deep ? Imf::DEEPSCANLINE : Imf::SCANLINEIMAGE);
-        hdr.insert(layout::kAttrPartVersion, Imf::IntAttribute(1));
-        hdr.insert(layout::kAttrFormatVersion, Imf::IntAttribute(h.formatVersion));
-        if (h.formatVersion >= kStatsFormatVersionAdaptive)
-            hdr.insert(layout::kAttrAdaptiveM, Imf::IntAttribute(h.adaptiveM ? 1 : 0));
-        hdr.insert(layout::kAttrM, Imf::IntAttribute(h.M));
-        hdr.insert(layout::kAttrSpp, Imf::IntAttribute(int(h.spp)));
-        hdr.insert(layout::kAttrAssignment, Imf::StringAttribute(h.assignment));
-        hdr.insert(layout::kAttrRenderer, Imf::StringAttribute(h.renderer));
-        hdr.insert(layout::kAttrColorSpace, Imf::StringAttribute(h.colorSpace));
-        hdr.insert(layout::kAttrSeeds, Imf::StringAttribute(h.seeds));
-        if (h.formatVersion >= kStatsFormatVersionProvenance) {
-            hdr.insert(layout::kAttrVariance, Imf::StringAttribute(h.variance));
-            hdr.insert(layout::kAttrFeatures, Imf::StringAttribute(featureListText(h.features)));
-            hdr.insert(layout::kAttrSources, Imf::StringAttribute(h.sources));
-        }
+        Imf::Header hdr = detail::commonHeader(h, layout::partNames(h.adaptiveM)[part], deep);
         if (part == layout::kBeauty) Imf::addChromaticities(hdr, Imf::Chromaticities());  // Rec.709
         for (const layout::ChannelPlace& c : layout::partChannels(part, h.M, h.adaptiveM))
             hdr.channels().insert(c.name, Imf::Channel(Imf::FLOAT));
@@ -69,14 +92,6 @@ std::vector<Imf::Header> makeHeaders(const StatsHeader& h) {
         headers.push_back(std::move(hdr));
     }
     return headers;
-}
-
-std::string tempNameFor(const std::string& path) {
-    const size_t slash = path.rfind('/');
-    const std::string dir = slash == std::string::npos ? std::string() : path.substr(0, slash + 1);
-    const std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
-    std::random_device rd;
-    return fmt::format("{}.{}.tmp-{}-{:08x}", dir, name, long(::getpid()), rd());
 }
 
 std::string dirOf(const std::string& path) {
@@ -128,9 +143,10 @@ void writeDeepBuffers(Imf::MultiPartOutputFile& out, const StatsImage& img) {
 }
 
 /// Writes every part to `os`; throws on failure.
-void writeParts(Imf::OStream& os, const StatsImage& img) {
+void writeParts(Imf::OStream& os, const StatsImage& img, const StatsExtras& extras) {
     const StatsHeader& h = img.header;
-    const std::vector<Imf::Header> headers = makeHeaders(h);
+    std::vector<Imf::Header> headers = makeHeaders(h);
+    detail::appendExtraHeaders(headers, h, extras);
     const Imath::Box2i window = dataWindowOf(h);
     Imf::MultiPartOutputFile out(os, headers.data(), int(headers.size()));
     for (int part = 0; part < layout::kPartCount; ++part) {
@@ -149,18 +165,25 @@ void writeParts(Imf::OStream& os, const StatsImage& img) {
         op.setFrameBuffer(fb);
         op.writePixels(h.height);
     }
+    detail::writeExtraParts(out, img, extras);
 }
 
 }  // namespace
 
 bool writeStatsFile(const std::string& path, const StatsImage& img, std::string& err) {
+    return writeStatsFile(path, img, StatsExtras(), err);
+}
+
+bool writeStatsFile(const std::string& path, const StatsImage& img, const StatsExtras& extras,
+                    std::string& err) {
     if (!validateStats(img, path, err)) return false;
+    if (!detail::checkExtras(path, img, extras, err)) return false;
     if (img.header.spp > std::numeric_limits<int>::max()) {
         err = fmt::format("{}: spp {} does not fit the int attribute {}", path, img.header.spp,
                           layout::kAttrSpp);
         return false;
     }
-    const std::string tmp = tempNameFor(path);
+    const std::string tmp = detail::tempNameFor(path);
     detail::Fd fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666));
     if (fd.get() < 0) {
         err = fmt::format("{}: cannot create temporary file {} ({})", path, tmp,
@@ -170,7 +193,7 @@ bool writeStatsFile(const std::string& path, const StatsImage& img, std::string&
     std::string problem;
     try {
         detail::FdOStream os(fd.get(), tmp);
-        writeParts(os, img);  // the offset table is written when `out` is destroyed
+        writeParts(os, img, extras);  // the offset table is written when `out` is destroyed
         problem = os.error();
     } catch (const std::exception& e) {
         problem = e.what();

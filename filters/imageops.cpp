@@ -7,6 +7,7 @@
 #include <algorithm>
 
 #include "mcstat/color.h"
+#include "mcstat/sample_records.h"
 
 namespace mcstat {
 
@@ -277,8 +278,15 @@ bool runSamplesOperation(ImageBuf& dst, const std::string& path, const StatsHead
         dst.errorfmt("{} is not a per-sample operation", op.name);
         return false;
     }
+    std::string openErr;
+    const std::unique_ptr<SampleSource> source = openSampleSource(path, openErr);
+    if (!source) {
+        dst.errorfmt("{}", openErr);
+        return false;
+    }
     SamplesRequest req;
     req.path = path;
+    req.source = source.get();
     req.params = &values;
     req.luma = luma;
     req.nthreads = nthreads;

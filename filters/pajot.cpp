@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <limits>
 
 namespace mcstat {
@@ -41,7 +43,7 @@ double modeKernelSum(const PajotMode& m, double x, double h) {
     if (i0 > i1) return 0.0;
     const double cnt = double(i1 - i0 + 1);
     const double a = (x - (lo + double(i0) * s)) / h, b = s / h;
-    const double sj = cnt * (cnt - 1.0) / 2.0;                      // sum of j, j < cnt
+    const double sj = cnt * (cnt - 1.0) / 2.0;                       // sum of j, j < cnt
     const double sj2 = (cnt - 1.0) * cnt * (2.0 * cnt - 1.0) / 6.0;  // sum of j^2
     // sum_j 1 - (a - b j)^2 = cnt (1 - a^2) + 2 a b sum j - b^2 sum j^2
     return std::max(0.0, cnt * (1.0 - a * a) + 2.0 * a * b * sj - b * b * sj2);
@@ -82,18 +84,25 @@ double adrGeometricMeanDensity(const std::vector<PajotMode>& modes, double nn) {
 
 const char* pajotMethodName(PajotMethod m) {
     switch (m) {
-        case PajotMethod::ADR: return "adr";
-        case PajotMethod::ROT: return "rot";
-        case PajotMethod::Hybrid: return "hybrid";
+        case PajotMethod::ADR:
+            return "adr";
+        case PajotMethod::ROT:
+            return "rot";
+        case PajotMethod::Hybrid:
+            return "hybrid";
     }
     return "?";
 }
 
 bool parsePajotMethod(const std::string& text, PajotMethod& out) {
-    if (text == "adr") out = PajotMethod::ADR;
-    else if (text == "rot") out = PajotMethod::ROT;
-    else if (text == "hybrid") out = PajotMethod::Hybrid;
-    else return false;
+    if (text == "adr")
+        out = PajotMethod::ADR;
+    else if (text == "rot")
+        out = PajotMethod::ROT;
+    else if (text == "hybrid")
+        out = PajotMethod::Hybrid;
+    else
+        return false;
     return true;
 }
 
@@ -220,7 +229,80 @@ float lastExtendedUpperBound(const std::vector<PajotMode>& modes) {
     return kNoMode;
 }
 
-// ---- the per-pixel estimator ----------------------------------------------------------------------
+// ---- Pajot's parameters as text -----------------------------------------------------------------
+
+std::string pajotParamsText(const PajotParams& p) {
+    char buf[256];
+    std::snprintf(buf, sizeof buf,
+                  "method=%s,n=%d,delayed=%d,t=%d,delta=%.17g,luma=%.17g:%.17g:%.17g",
+                  pajotMethodName(p.method), p.learning, p.maxDelayed, p.T, p.delta, p.luma[0],
+                  p.luma[1], p.luma[2]);
+    return buf;
+}
+
+bool parsePajotParamsText(const std::string& text, PajotParams& p, std::string& problem) {
+    PajotParams out;
+    size_t pos = 0;
+    int seen = 0;
+    while (pos < text.size()) {
+        size_t comma = text.find(',', pos);
+        if (comma == std::string::npos) comma = text.size();
+        const std::string item = text.substr(pos, comma - pos);
+        pos = comma + 1;
+        const size_t eq = item.find('=');
+        if (eq == std::string::npos) {
+            problem = "'" + item + "' is not key=value";
+            return false;
+        }
+        const std::string k = item.substr(0, eq), v = item.substr(eq + 1);
+        char* end = nullptr;
+        if (k == "method") {
+            if (!parsePajotMethod(v, out.method)) {
+                problem = "unknown method '" + v + "'";
+                return false;
+            }
+        } else if (k == "luma") {
+            const char* s = v.c_str();
+            for (int c = 0; c < 3; ++c) {
+                out.luma[size_t(c)] = std::strtod(s, &end);
+                if (end == s || (c < 2 && *end != ':') || (c == 2 && *end != '\0')) {
+                    problem = "bad luma '" + v + "'";
+                    return false;
+                }
+                s = end + 1;
+            }
+        } else {
+            const double d = std::strtod(v.c_str(), &end);
+            if (v.empty() || *end != '\0') {
+                problem = "bad value '" + item + "'";
+                return false;
+            }
+            if (k == "n")
+                out.learning = int(d);
+            else if (k == "delayed")
+                out.maxDelayed = int(d);
+            else if (k == "t")
+                out.T = int(d);
+            else if (k == "delta")
+                out.delta = d;
+            else {
+                problem = "unknown key '" + k + "'";
+                return false;
+            }
+        }
+        ++seen;
+    }
+    if (seen != 6) {
+        problem = "expected method, n, delayed, t, delta and luma";
+        return false;
+    }
+    if (!validatePajotParams(out, problem)) return false;
+    p = out;
+    return true;
+}
+
+// ---- the per-pixel estimator
+// ----------------------------------------------------------------------
 
 namespace {
 
@@ -256,7 +338,8 @@ void adrAdd(std::vector<PajotMode>& modes, float l) {
     for (size_t i = first; i <= last; ++i) n += modes[i].n;
     merged.n = uint32_t(std::min<uint64_t>(n, UINT32_MAX));
     modes[first] = merged;
-    modes.erase(modes.begin() + std::ptrdiff_t(first) + 1, modes.begin() + std::ptrdiff_t(last) + 1);
+    modes.erase(modes.begin() + std::ptrdiff_t(first) + 1,
+                modes.begin() + std::ptrdiff_t(last) + 1);
 }
 
 /// ROT's modes above m from the sorted singles with the constant bandwidth h (section 4.4): the
@@ -274,8 +357,7 @@ float rotRebuild(std::vector<float>& singles, float m, double h) {
         if (e > g) newM = singles[e];
         g = e + 1;
     }
-    singles.erase(singles.begin(),
-                  std::upper_bound(singles.begin(), singles.end(), newM));
+    singles.erase(singles.begin(), std::upper_bound(singles.begin(), singles.end(), newM));
     return newM;
 }
 
@@ -356,8 +438,7 @@ void PajotPixel::finishLearning(const PajotParams& p) {
             aggregateModes(sorted, std::vector<double>(sorted.size(), h));
         s_.mRot = lastExtendedUpperBound(modes);
         // Modes at or below m are released (section 4.4); above m every mode is single.
-        s_.rotSingles.assign(std::upper_bound(sorted.begin(), sorted.end(), s_.mRot),
-                             sorted.end());
+        s_.rotSingles.assign(std::upper_bound(sorted.begin(), sorted.end(), s_.mRot), sorted.end());
     }
     s_.phase = p.method == PajotMethod::ROT ? PajotPhase::ROT : PajotPhase::ADR;
     if (p.method == PajotMethod::Hybrid && (s_.mAdr != kNoMode || s_.mRot != kNoMode)) {
@@ -374,9 +455,12 @@ void PajotPixel::finishLearning(const PajotParams& p) {
 
 float PajotPixel::acceptance() const {
     switch (s_.phase) {
-        case PajotPhase::ADR: return s_.mAdr;
-        case PajotPhase::ROT: return s_.mRot;
-        case PajotPhase::Learning: break;
+        case PajotPhase::ADR:
+            return s_.mAdr;
+        case PajotPhase::ROT:
+            return s_.mRot;
+        case PajotPhase::Learning:
+            break;
     }
     return kNoMode;
 }
@@ -400,9 +484,9 @@ void PajotPixel::delay(const PajotSample& smp, const PajotParams& p) {
     }
     ++s_.discarded;  // full: the largest log-luminance of the list and the newcomer goes
     if (s_.delayed.empty()) return;
-    auto worst = std::max_element(
-        s_.delayed.begin(), s_.delayed.end(),
-        [](const PajotSample& a, const PajotSample& b) { return a.l < b.l; });
+    auto worst =
+        std::max_element(s_.delayed.begin(), s_.delayed.end(),
+                         [](const PajotSample& a, const PajotSample& b) { return a.l < b.l; });
     if (worst->l > smp.l) {
         s_.delayed.erase(worst);
         s_.delayed.push_back(smp);

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "mcstat/jung_estimators.h"
+#include "pajot_offline.h"
 
 namespace mcstat {
 
@@ -126,6 +127,46 @@ Operation neighbourhood(const std::string& name, const std::string& title, const
     op.input = InputKind::Neighbourhood;
     op.over = over;
     op.params = std::move(params);
+    return op;
+}
+
+ParamSpec intParam(const std::string& name, double lo, double hi, const std::string& def,
+                   const std::string& help) {
+    ParamSpec p;
+    p.name = name;
+    p.type = ParamType::Int;
+    p.min = lo;
+    p.max = hi;
+    p.defaultValue = def;
+    p.help = help;
+    return p;
+}
+
+// Pajot et al. 2011 (docs/pajot.md): per pixel, its samples in the order taken.
+Operation pajot() {
+    Operation op;
+    op.name = "pajot";
+    op.title = "Pajot (ADR/ROT)";
+    op.help =
+        "Pajot et al.: samples above the last extended kernel-density mode of log-luminance are "
+        "delayed (Algorithm 1); from the per-sample records, or the stored online result";
+    op.equation = "Pajot et al. Algorithm 1, eq. 3-5";
+    op.input = InputKind::Samples;
+    op.samples = &pajotOperation;
+    ParamSpec method;
+    method.name = "method";
+    method.type = ParamType::Enum;
+    method.defaultValue = "stored";
+    method.choices = {"stored", "adr", "rot", "hybrid"};
+    method.help =
+        "stored: the parameters of the render's online run (hybrid, n=50 when the file has only "
+        "records), the other keys ignored; adr (eq. 4), rot (eq. 5), hybrid (section 4.6)";
+    op.params = {method, intParam("n", 1, 1e6, "50", "samples of the learning phase (section 4.1)"),
+                 intParam("delayed", 0, 1e6, "64",
+                          "bound of the dubious list; when full the brightest is discarded"),
+                 intParam("t", 1, 1e6, "2", "hybrid: successive close maxima before ROT alone"),
+                 realParam("delta", 0.0, HUGE_VAL, false, "0",
+                           "hybrid: largest |m_rot - m_adr| / |m_adr| counted as close")};
     return op;
 }
 
@@ -331,7 +372,8 @@ const std::vector<Operation>& operationRegistry() {
             "adaptive-M files: ranked and trimmed per sample",
             "Jung eq. 5.19", Neighbourhood::SubBuffers,
             {sizeSpec(), weightParam("3", false), alphaParam("0.25", false), spatialModeSpec()}),
-        // Per-sample operations (InputKind::Samples, a SamplesFn) go here.
+        // Per-sample operations (InputKind::Samples, a SamplesFn).
+        pajot(),
     };
     return registry;
 }

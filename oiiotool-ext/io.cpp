@@ -11,6 +11,8 @@
 #include "cli.h"
 #include "mcstat/imageops.h"
 #include "mcstat/ingest.h"
+#include "mcstat/pajot.h"
+#include "mcstat/sample_records.h"
 
 namespace mcstat::cli {
 
@@ -234,6 +236,37 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
     return writeImageAtomically(*top.image, path, OIIO::TypeDesc::FLOAT, err);
 }
 
+/// Pajot's online state in numbers (docs/pajot.md): what the benchmark's tables report.
+bool printPajotSummary(const std::string& path, std::string& err) {
+    PajotImage pj;
+    if (!readPajotParts(path, pj, err)) return false;
+    int64_t single = 0, extended = 0, delayed = 0, discarded = 0, taken = 0, bytes = 0,
+            learning = 0, rotOnly = 0;
+    for (const PajotState& s : pj.pixels) {
+        const PajotCounts c = PajotPixel(s).counts();
+        single += c.singleModes;
+        extended += c.extendedModes;
+        delayed += c.delayed;
+        bytes += c.bytes;
+        discarded += s.discarded;
+        taken += s.taken;
+        learning += s.phase == PajotPhase::Learning;
+        rotOnly += s.phase == PajotPhase::ROT;
+    }
+    const double n = double(std::max<size_t>(1, pj.pixels.size()));
+    std::printf(
+        "  pajot (online, %s): modes per pixel %.3f single, %.3f extended; %.2f bytes per "
+        "pixel (%.3f image buffers of 12 bytes)\n",
+        pajotParamsText(pj.params).c_str(), double(single) / n, double(extended) / n,
+        double(bytes) / n, double(bytes) / n / 12.0);
+    std::printf(
+        "  pajot: samples delayed %.4f %% (%lld of %lld), discarded %lld; pixels still "
+        "learning %lld, on ROT alone %lld\n",
+        taken ? 100.0 * double(delayed) / double(taken) : 0.0, (long long)delayed, (long long)taken,
+        (long long)discarded, (long long)learning, (long long)rotOnly);
+    return true;
+}
+
 bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&, const Modifiers&,
              std::string& err) {
     if (st.stack.empty()) {
@@ -280,6 +313,10 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
             "  parts: beauty (R,G,B)  buffers (%d x b###.R,G,B,count)  moments (count, mean.RGB, "
             "variance.RGB)  features (%s)\n",
             h.M, features.c_str());
+    if (h.hasRecords)
+        std::printf("  records (deep: every sample in the order taken, R,G,B,Z,A; %d bytes each)\n",
+                    kRecordBytesOnDisk);
+    if (h.hasPajot && !printPajotSummary(top.path, err)) return false;
     if (!st.verbose && !h.adaptiveM) return true;
     if (!loadStats(st, top, err)) return false;
     const StatsImage& s = *top.stats;

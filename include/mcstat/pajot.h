@@ -51,12 +51,17 @@ bool parsePajotMethod(const std::string& text, PajotMethod& out);
 
 struct PajotParams {
     PajotMethod method = PajotMethod::Hybrid;
-    int learning = 50;      ///< N, samples of the learning phase (section 4.1; section 5 uses 50)
-    int maxDelayed = 64;    ///< bound of the dubious list (section 4.1: "can be bounded")
-    int T = 2;              ///< hybrid: successive small distances before ROT alone (section 4.6)
-    double delta = 0.0;     ///< hybrid: largest relative distance counted as small
+    int learning = 50;    ///< N, samples of the learning phase (section 4.1; section 5 uses 50)
+    int maxDelayed = 64;  ///< bound of the dubious list (section 4.1: "can be bounded")
+    int T = 2;            ///< hybrid: successive small distances before ROT alone (section 4.6)
+    double delta = 0.0;   ///< hybrid: largest relative distance counted as small
     std::array<double, 3> luma{0.2126, 0.7152, 0.0722};  ///< from the colour config (color.h)
 };
+
+/// "method=hybrid,n=50,delayed=64,t=2,delta=0,luma=0.2126:0.7152:0.0722" (delta and luma with
+/// 17 significant digits, so the text gives the parameters back exactly): attribute mcstat:pajot.
+std::string pajotParamsText(const PajotParams& p);
+bool parsePajotParamsText(const std::string& text, PajotParams& p, std::string& problem);
 
 /// Range checks of PajotParams; `err` is one line naming the parameter.
 bool validatePajotParams(const PajotParams& p, std::string& err);
@@ -141,7 +146,8 @@ class PajotPixel {
 /// log-luminance of a sample as the estimator computes it (-inf when black), for tests and tools.
 float pajotLogLuminance(const float rgb[3], const std::array<double, 3>& luma);
 
-// ---- building blocks, exposed for the hand-worked tests ------------------------------------------
+// ---- building blocks, exposed for the hand-worked tests
+// ------------------------------------------
 
 /// Mean nearest-neighbour distance of the approximate distribution `modes` (section 4.2: each mode
 /// of n samples stands for n regularly spaced values in [lo, hi]); 0 with fewer than two values.

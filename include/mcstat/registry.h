@@ -103,8 +103,13 @@ struct OperationImage {
 
 /// What a Samples operation is given: the statistics file's path (it streams the file by blocks
 /// itself; it reads whatever parts it needs), its parsed parameters and the environment.
+class SampleSource;  // sample_records.h
+
 struct SamplesRequest {
     std::string path;
+    /// The file, opened by the caller (exr-deep's openSampleSource): the operation reads its parts
+    /// through it, by blocks of rows, and never opens files itself.
+    SampleSource* source = nullptr;
     const ParamValues* params = nullptr;  ///< every parameter, defaults applied
     std::array<double, 3> luma{0.0, 0.0, 0.0};
     int nthreads = 0;  ///< 0: all cores

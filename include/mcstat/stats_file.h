@@ -22,7 +22,9 @@ inline constexpr const char* kStatsExtension = "mcstat";
 /// ("mcstat:variance") and which features hold data ("mcstat:features"); see FORMAT.md. The
 /// writer writes header.formatVersion as given, which must be at least requiredFormatVersion():
 /// a rendered fixed-M image keeps version 1 (what every reader knows).
-inline constexpr int kStatsFormatVersion = 3;
+/// Version 4 adds optional parts after the four: per-sample records (`records`) and Pajot's online
+/// state (`pajot`, `modes`); include/mcstat/sample_records.h reads and writes them.
+inline constexpr int kStatsFormatVersion = 4;
 /// The version a fixed-M file is written with by default (readable by version-1 readers).
 inline constexpr int kStatsFormatVersionFixed = 1;
 /// The first version that can hold adaptive M.
@@ -30,6 +32,8 @@ inline constexpr int kStatsFormatVersionAdaptive = 2;
 /// The first version that can hold provenance: assignment "perfile", mcstat:variance other than
 /// "samples", features absent (mcstat:features), mcstat:sources.
 inline constexpr int kStatsFormatVersionProvenance = 3;
+/// The first version that can hold the optional parts records, pajot and modes.
+inline constexpr int kStatsFormatVersionSamples = 4;
 
 /// Sample-to-buffer rules (FORMAT.md "Sample-to-buffer assignment").
 inline constexpr const char* kAssignmentRoundRobin = "roundrobin";  ///< sample i -> buffer i mod M
@@ -79,10 +83,15 @@ struct StatsHeader {
     std::string variance = kVarianceSamples;  ///< mcstat:variance: kVariance*
     unsigned features = kAllFeatures;         ///< mcstat:features: Feature bits holding data
     std::string sources;  ///< mcstat:sources: comma-separated input file names (ingest)
+    // Version 4: which optional parts follow the four (set by the reader; the writer writes what
+    // it is given, see sample_records.h).
+    bool hasPajot = false;    ///< parts `pajot` and `modes`: Pajot's online state
+    bool hasRecords = false;  ///< part `records`: every sample
 };
 
-/// The lowest format version that can hold what `h` describes: 3 for provenance (assignment
-/// perfile, variance not "samples", absent features, sources), 2 for adaptive M, else 1.
+/// The lowest format version that can hold what `h` describes: 4 for the optional parts, 3 for
+/// provenance (assignment perfile, variance not "samples", absent features, sources), 2 for
+/// adaptive M, else 1.
 int requiredFormatVersion(const StatsHeader& h);
 
 /// Whole statistics file in memory. Pixel (x, y) of the data window has index p = y * width + x.

@@ -6,12 +6,16 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <string>
 
+#include "mcstat/color.h"
+#include "mcstat/pajot.h"
 #include "mcstat/render/render.h"
 #include "mcstat/render/scene.h"
+#include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
 
 namespace {
@@ -99,7 +103,10 @@ int main(int argc, const char** argv) {
                 threadsText = "0", resW, resH, mMaxText = std::to_string(kDefaultMaxBuffers),
                 pilotText = "0", checkpointText = "0", strategyText = "grow",
                 pilotSeedText = std::to_string(kDefaultPilotSeed);
-    bool reference = false, quiet = false, adaptive = false;
+    bool reference = false, quiet = false, adaptive = false, keepSamples = false;
+    std::string pajotText,
+        pajotNText = "50", pajotDelayedText = "64", pajotTText = "2", pajotDeltaText = "0",
+        maxSampleBytesText = std::to_string(mcstat::kDefaultMaxRecordBytes), resumePath;
 
     std::string names;
     for (const auto& n : builtinSceneNames()) names += (names.empty() ? "" : ", ") + n;
@@ -160,6 +167,42 @@ int main(int argc, const char** argv) {
             "with different seeds get the same M_p and can be merged (default " +
             std::to_string(kDefaultPilotSeed) + ")")
         .action([&](OIIO::cspan<const char*> a) { pilotSeedText = a[1]; });
+    ap.arg("--pajot adr|rot|hybrid")
+        .help(
+            "Pajot et al. 2011 online: every sample updates its pixel's kernel-density modes of "
+            "log-luminance; samples above the last extended mode are delayed until it reaches them "
+            "(docs/pajot.md). Adds parts pajot and modes (format 4)")
+        .action([&](OIIO::cspan<const char*> a) { pajotText = a[1]; });
+    ap.arg("--pajot-n N")
+        .help("with --pajot: samples of the learning phase (section 4.1), >= 1 (default 50)")
+        .action([&](OIIO::cspan<const char*> a) { pajotNText = a[1]; });
+    ap.arg("--pajot-delayed N")
+        .help(
+            "with --pajot: bound of each pixel's dubious list; when full, the brightest is "
+            "discarded for good (default 64)")
+        .action([&](OIIO::cspan<const char*> a) { pajotDelayedText = a[1]; });
+    ap.arg("--pajot-t T")
+        .help("with --pajot hybrid: successive close maxima before ROT alone (default 2)")
+        .action([&](OIIO::cspan<const char*> a) { pajotTText = a[1]; });
+    ap.arg("--pajot-delta D")
+        .help("with --pajot hybrid: largest |m_rot - m_adr| / |m_adr| counted as close (default 0)")
+        .action([&](OIIO::cspan<const char*> a) { pajotDeltaText = a[1]; });
+    ap.arg("--keep-samples")
+        .help(
+            "keep every sample (R, G, B, first-hit distance; 20 bytes each before compression) in "
+            "the deep part records (format 4), written by blocks of rows")
+        .action([&](OIIO::cspan<const char*>) { keepSamples = true; });
+    ap.arg("--max-sample-bytes N")
+        .help(
+            "with --keep-samples: refuse renders whose records exceed N bytes before compression "
+            "(default " +
+            std::to_string(mcstat::kDefaultMaxRecordBytes) + ", 4 GiB)")
+        .action([&](OIIO::cspan<const char*> a) { maxSampleBytesText = a[1]; });
+    ap.arg("--resume FILE")
+        .help(
+            "continue FILE (rendered with fixed M by this renderer) up to --spp samples per pixel: "
+            "same scene, size, seed and M; Pajot's state continues bit for bit")
+        .action([&](OIIO::cspan<const char*> a) { resumePath = a[1]; });
     ap.arg("--seed S")
         .help(
             "seed, a non-negative 64-bit integer; the same seed gives bit-identical output "
@@ -229,16 +272,134 @@ int main(int argc, const char** argv) {
         scene.width = int(w), scene.height = int(h);
     }
 
+    // Pajot and the records (format version 4).
+    mcstat::PajotImage pajot;
+    const bool wantPajot = !pajotText.empty();
+    if (wantPajot) {
+        if (!mcstat::parsePajotMethod(pajotText, pajot.params.method))
+            return fail(
+                fmt::format("--pajot: expected 'adr', 'rot' or 'hybrid', got '{}'", pajotText));
+        if (!parseInt(pajotNText, "--pajot-n", 1, 1000000, v, err)) return fail(err);
+        pajot.params.learning = int(v);
+        if (!parseInt(pajotDelayedText, "--pajot-delayed", 0, 1000000, v, err)) return fail(err);
+        pajot.params.maxDelayed = int(v);
+        if (!parseInt(pajotTText, "--pajot-t", 1, 1000000, v, err)) return fail(err);
+        pajot.params.T = int(v);
+        char* end = nullptr;
+        pajot.params.delta = std::strtod(pajotDeltaText.c_str(), &end);
+        if (pajotDeltaText.empty() || *end != '\0' || !(pajot.params.delta >= 0) ||
+            !std::isfinite(pajot.params.delta))
+            return fail(fmt::format("--pajot-delta: expected a finite number >= 0, got '{}'",
+                                    pajotDeltaText));
+        std::string warning;
+        pajot.params.luma = mcstat::lumaCoefficients(&warning);
+        if (!warning.empty()) fmt::print(stderr, "mcstat-render: warning: {}\n", warning);
+    }
+    if (!parseInt(maxSampleBytesText, "--max-sample-bytes", 0, (1LL << 62), v, err))
+        return fail(err);
+    const int64_t maxSampleBytes = v;
     RenderStats stats;
     if (reference) {
+        if (wantPajot || keepSamples || !resumePath.empty())
+            return fail(
+                "--reference writes a plain EXR: --pajot, --keep-samples and --resume do "
+                "not apply");
         std::vector<float> rgb;
         if (!renderReference(scene, opt, rgb, err, &stats)) return fail(err);
         if (!writeReferenceExr(outPath, scene.width, scene.height, rgb, opt.seed, opt.spp, err))
             return fail(err);
     } else {
+        mcstat::StatsImage prev;
+        const int64_t totalSpp = opt.spp;
+        if (!resumePath.empty()) {
+            if (keepSamples)
+                return fail(
+                    "--resume with --keep-samples is not supported: the records of the "
+                    "earlier render would have to be interleaved row by row");
+            if (!mcstat::readStatsFile(resumePath, prev, err)) return fail(err);
+            const mcstat::StatsHeader& ph = prev.header;
+            if (ph.renderer != kRendererName || ph.adaptiveM || ph.assignment != "roundrobin")
+                return fail(resumePath + ": only a fixed-M file written by " + kRendererName +
+                            " can be resumed");
+            if (ph.width != scene.width || ph.height != scene.height)
+                return fail(fmt::format("{}: the file is {}x{}, the scene {}x{}", resumePath,
+                                        ph.width, ph.height, scene.width, scene.height));
+            if (!parseSeed(ph.seeds, opt.seed, err, "mcstat:seeds of the resumed file"))
+                return fail(resumePath + ": " + err);
+            for (float c : prev.count)
+                if (double(c) != double(ph.spp))
+                    return fail(resumePath + ": its pixels do not all hold mcstat:spp samples");
+            if (totalSpp <= ph.spp)
+                return fail(
+                    fmt::format("--spp {}: the resumed file already has {} samples per "
+                                "pixel; --spp is the total wanted",
+                                totalSpp, ph.spp));
+            opt.M = ph.M;
+            opt.firstSample = ph.spp;
+            opt.spp = totalSpp - ph.spp;
+            if (ph.hasPajot) {
+                mcstat::PajotImage stored;
+                if (!mcstat::readPajotParts(resumePath, stored, err)) return fail(err);
+                if (wantPajot &&
+                    mcstat::pajotParamsText(stored.params) != mcstat::pajotParamsText(pajot.params))
+                    return fail(fmt::format("{}: rendered with Pajot {}, not {}", resumePath,
+                                            mcstat::pajotParamsText(stored.params),
+                                            mcstat::pajotParamsText(pajot.params)));
+                pajot = std::move(stored);
+            } else if (wantPajot) {
+                return fail(resumePath +
+                            ": has no Pajot state to continue (rendered without "
+                            "--pajot)");
+            }
+        }
+        const bool pajotOn = wantPajot || prev.header.hasPajot;
+        mcstat::SampleRecordsWriter records;
+        RenderExtras extras;
+        if (pajotOn) extras.pajot = &pajot;
+        mcstat::StatsHeader recHeader;
+        recHeader.width = scene.width;
+        recHeader.height = scene.height;
+        recHeader.formatVersion = mcstat::kStatsFormatVersionSamples;
+        if (keepSamples) {
+            const double bytes = double(scene.width) * double(scene.height) * double(opt.spp) *
+                                 mcstat::kRecordBytesOnDisk;
+            if (bytes > double(maxSampleBytes))
+                return fail(fmt::format(
+                    "--keep-samples: {}x{} pixels x {} spp x {} bytes = {:.4g} bytes of records "
+                    "exceed --max-sample-bytes {}; raise it or lower --spp or --res",
+                    scene.width, scene.height, opt.spp, mcstat::kRecordBytesOnDisk, bytes,
+                    maxSampleBytes));
+            if (!records.open(outPath, recHeader, err)) return fail(err);
+            extras.records = [&records](const mcstat::SampleBlock& b, std::string& e) {
+                return records.write(b, e);
+            };
+        }
+        if (wantPajot && pajot.params.learning > totalSpp)
+            fmt::print(stderr,
+                       "mcstat-render: warning: --pajot-n {} exceeds --spp {}: no pixel ends its "
+                       "learning phase, and the Pajot estimate is the plain mean\n",
+                       pajot.params.learning, totalSpp);
         mcstat::StatsImage img;
-        if (!render(scene, opt, img, err, &stats)) return fail(err);
-        if (!mcstat::writeStatsFile(outPath, img, err)) return fail(err);
+        if (!render(scene, opt, img, err, &stats, &extras)) return fail(err);
+        if (!resumePath.empty()) {
+            mcstat::StatsImage merged;
+            img.header.seeds.clear();  // the same seed, later samples: no overlap
+            if (!mcstat::mergeStats(prev, img, merged, err)) return fail(err);
+            merged.header.seeds = prev.header.seeds;
+            merged.header.renderer = kRendererName;
+            img = std::move(merged);
+        }
+        mcstat::StatsExtras ex;
+        if (pajotOn) ex.pajot = &pajot;
+        if (keepSamples) {
+            if (!records.close(err)) return fail(err);
+            ex.recordsFile = records.path();
+        }
+        img.header.hasPajot = pajotOn;
+        img.header.hasRecords = keepSamples;
+        img.header.formatVersion =
+            std::max(img.header.formatVersion, mcstat::requiredFormatVersion(img.header));
+        if (!mcstat::writeStatsFile(outPath, img, ex, err)) return fail(err);
     }
     if (stats.nonFiniteSamples > 0)
         fmt::print(stderr,

@@ -13,6 +13,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <thread>
 
 #include "accel.h"
@@ -244,24 +245,86 @@ StatsImage newStatsImage(const Scene& scene, const RenderOptions& opt, int M) {
     return img;
 }
 
+/// Pajot's per-pixel estimators of a render (RenderExtras::pajot), or none.
+struct PajotPixels {
+    PajotParams params;
+    std::vector<PajotPixel> pixels;
+    bool on() const { return !pixels.empty(); }
+    void add(size_t p, const Vec3& L) {
+        const float rgb[3] = {float(L[0]), float(L[1]), float(L[2])};
+        pixels[p].add(rgb, params);  // refuses non-finite values (the renderer counts those)
+    }
+};
+
+/// Samples of one row for the records: counts per pixel, R, G, B, Z per sample.
+struct RowRecords {
+    std::vector<uint32_t> counts;
+    std::vector<float> samples;
+};
+
 /// Fixed M, or adaptive M with a pilot plan: every pixel rendered in one go, sample i into
-/// buffer i mod M_p. Cannot fail (img is allocated); returns the wall-clock seconds.
-double renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsImage& img,
-                        std::atomic<int64_t>& dropped) {
+/// buffer i mod M_p. With records, rows are rendered by blocks and each block handed to the sink
+/// in order, so memory holds one block of samples, never the image's. Returns false only when
+/// the sink fails.
+bool renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsImage& img,
+                      std::atomic<int64_t>& dropped, PajotPixels& pajot,
+                      const std::function<bool(const SampleBlock&, std::string&)>& records,
+                      double& seconds, std::string& err) {
     const Scene& scene = ctx.scene;
-    return forEachRow(scene.height, opt, [&](int y) {
+    const int64_t first = opt.firstSample, end = opt.firstSample + opt.spp;
+    auto renderRow = [&](int y, RowRecords* rec) {
         PixelAccumulator acc(img.header.M);
         int64_t rowDropped = 0;
+        if (rec) {
+            rec->counts.assign(size_t(scene.width), uint32_t(opt.spp));
+            rec->samples.clear();
+            rec->samples.reserve(size_t(scene.width) * size_t(opt.spp) * kRecordFloats);
+        }
         for (int x = 0; x < scene.width; ++x) {
             const size_t p = size_t(y) * size_t(scene.width) + size_t(x);
             // Sample i goes to buffer i mod M_p: exactly a fixed-M render with M = M_p here.
             acc.reset(img.buffersOf(p));
-            for (int64_t i = 0; i < opt.spp; ++i)
-                if (!acc.add(i, ctx.samplePixel(opt.seed, x, y, i))) ++rowDropped;
+            for (int64_t i = first; i < end; ++i) {
+                const PathSample s = ctx.samplePixel(opt.seed, x, y, i);
+                if (!acc.add(i, s)) ++rowDropped;
+                if (pajot.on()) pajot.add(p, s.L);
+                if (rec) {
+                    const float z = s.hit ? float(s.depth) : std::numeric_limits<float>::infinity();
+                    rec->samples.insert(rec->samples.end(),
+                                        {float(s.L[0]), float(s.L[1]), float(s.L[2]), z});
+                }
+            }
             acc.store(img, p);
         }
         dropped.fetch_add(rowDropped, std::memory_order_relaxed);
-    });
+    };
+    if (!records) {
+        seconds = forEachRow(scene.height, opt, [&](int y) { renderRow(y, nullptr); });
+        return true;
+    }
+    // Blocks of rows: at least one row per thread, at most 64 rows or 256 MiB of samples.
+    const double rowBytes = double(scene.width) * double(opt.spp) * kRecordFloats * sizeof(float);
+    const int rows = int(std::clamp(std::floor(double(256 << 20) / rowBytes),
+                                    double(resolveThreads(opt.threads)), 64.0));
+    Progress progress(scene.height, opt.progress);
+    std::vector<RowRecords> block(static_cast<size_t>(rows));
+    SampleBlock out;
+    const auto start = std::chrono::steady_clock::now();
+    for (int y0 = 0; y0 < scene.height; y0 += rows) {
+        const int n = std::min(rows, scene.height - y0);
+        forEachRow(n, opt, progress, 1, [&](int r) { renderRow(y0 + r, &block[size_t(r)]); });
+        out.clear(y0, n, scene.width);
+        for (int r = 0; r < n; ++r) {
+            std::copy(block[size_t(r)].counts.begin(), block[size_t(r)].counts.end(),
+                      out.counts.begin() + std::ptrdiff_t(r) * scene.width);
+            out.samples.insert(out.samples.end(), block[size_t(r)].samples.begin(),
+                               block[size_t(r)].samples.end());
+        }
+        if (!records(out, err)) return false;
+    }
+    progress.finish();
+    seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return true;
 }
 
 /// Adaptive M growing during the render (docs/adaptive-m.md, "Grow"). The samples are rendered
@@ -270,7 +333,8 @@ double renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, Stat
 /// order) and grows buffer counts, so nothing is shared while threads run and the result is
 /// bit-identical for any thread count.
 bool renderGrowing(const RenderContext& ctx, const RenderOptions& opt, StatsImage& img,
-                   std::atomic<int64_t>& dropped, RenderStats& stats, std::string& err) {
+                   std::atomic<int64_t>& dropped, RenderStats& stats, PajotPixels& pajot,
+                   std::string& err) {
     const Scene& scene = ctx.scene;
     const size_t width = size_t(scene.width), pixels = width * size_t(scene.height);
     // One vector per row, so that each row's state is freed as soon as it is stored.
@@ -291,8 +355,12 @@ bool renderGrowing(const RenderContext& ctx, const RenderOptions& opt, StatsImag
             int64_t rowDropped = 0;
             for (int x = 0; x < scene.width; ++x) {
                 GrowingPixel& px = rows[size_t(y)][size_t(x)];
-                for (int64_t i = begin; i < end; ++i)
-                    if (!px.add(ctx.samplePixel(opt.seed, x, y, i))) ++rowDropped;
+                const size_t p = size_t(y) * width + size_t(x);
+                for (int64_t i = begin; i < end; ++i) {
+                    const PathSample s = ctx.samplePixel(opt.seed, x, y, i);
+                    if (!px.add(s)) ++rowDropped;
+                    if (pajot.on()) pajot.add(p, s.L);
+                }
             }
             dropped.fetch_add(rowDropped, std::memory_order_relaxed);
         });
@@ -339,8 +407,39 @@ bool renderGrowing(const RenderContext& ctx, const RenderOptions& opt, StatsImag
 }  // namespace
 
 bool render(const Scene& scene, const RenderOptions& opt, StatsImage& out, std::string& err,
-            RenderStats* stats) {
+            RenderStats* stats, RenderExtras* extras) {
     if (!validateOptions(opt, err)) return false;
+    const bool growing = opt.adaptiveM && opt.strategy == AdaptiveStrategy::Grow;
+    if (extras && extras->records && growing) {
+        err =
+            "per-sample records need every pixel's samples in one pass: use fixed M or "
+            "--m-strategy pilot with --keep-samples";
+        return false;
+    }
+    if (opt.firstSample != 0 && opt.adaptiveM) {
+        err = "a resumed render (first sample > 0) needs fixed M";
+        return false;
+    }
+    PajotPixels pajot;
+    if (extras && extras->pajot) {
+        if (!validatePajotParams(extras->pajot->params, err)) return false;
+        pajot.params = extras->pajot->params;
+        const size_t pixels = size_t(scene.width) * size_t(scene.height);
+        std::vector<PajotState>& states = extras->pajot->pixels;
+        if (!states.empty() && states.size() != pixels) {
+            err = "the Pajot state to resume has " + std::to_string(states.size()) +
+                  " pixels, the image " + std::to_string(pixels);
+            return false;
+        }
+        try {
+            pajot.pixels.resize(pixels);
+            for (size_t p = 0; p < states.size(); ++p)
+                pajot.pixels[p] = PajotPixel(std::move(states[p]));
+        } catch (const std::exception& e) {
+            err = std::string("cannot allocate the Pajot state: ") + e.what();
+            return false;
+        }
+    }
     const int M = opt.adaptiveM ? opt.mMax : opt.M;
     const uint64_t cells = uint64_t(scene.width) * uint64_t(scene.height) * uint64_t(M);
     if (scene.width < 1 || scene.height < 1 || cells > (uint64_t(1) << 30)) {
@@ -354,8 +453,8 @@ bool render(const Scene& scene, const RenderOptions& opt, StatsImage& out, std::
     RenderStats st;
     StatsImage img = newStatsImage(scene, opt, M);
     std::atomic<int64_t> dropped{0};
-    if (opt.adaptiveM && opt.strategy == AdaptiveStrategy::Grow) {
-        if (!renderGrowing(ctx, opt, img, dropped, st, err)) return false;
+    if (growing) {
+        if (!renderGrowing(ctx, opt, img, dropped, st, pajot, err)) return false;
     } else {
         if (opt.adaptiveM) {
             AdaptivePlan plan;
@@ -369,10 +468,27 @@ bool render(const Scene& scene, const RenderOptions& opt, StatsImage& out, std::
         } else if (!img.allocate(err)) {
             return false;
         }
-        st.seconds = renderRoundRobin(ctx, opt, img, dropped) + st.pilotSeconds;
+        double seconds = 0;
+        static const std::function<bool(const SampleBlock&, std::string&)> kNoRecords;
+        if (!renderRoundRobin(ctx, opt, img, dropped, pajot,
+                              extras && extras->records ? extras->records : kNoRecords, seconds,
+                              err))
+            return false;
+        st.seconds = seconds + st.pilotSeconds;
     }
     st.nonFiniteSamples = dropped.load();
     if (opt.adaptiveM) st.meanBuffers = double(img.bufferCount.size()) / double(img.pixelCount());
+    if (pajot.on()) {
+        PajotImage& pj = *extras->pajot;
+        const size_t pixels = pajot.pixels.size();
+        pj.estimate.resize(pixels * 3);
+        pj.pixels.resize(pixels);
+        for (size_t p = 0; p < pixels; ++p) {
+            const std::array<float, 3> e = pajot.pixels[p].estimate();
+            std::copy(e.begin(), e.end(), pj.estimate.begin() + std::ptrdiff_t(p * 3));
+            pj.pixels[p] = std::move(pajot.pixels[p].state());
+        }
+    }
     if (stats) *stats = std::move(st);
     out = std::move(img);
     return true;

@@ -177,7 +177,7 @@ TEST_F(Corrupt, NewerVersion) {
     modes.header.setName("modes");
     parts.push_back(modes);
     const std::string err = readError();
-    EXPECT_TRUE(contains(err, "written by a newer mcstat (format 4); this reader knows 3")) << err;
+    EXPECT_TRUE(contains(err, "written by a newer mcstat (format 5); this reader knows 4")) << err;
 }
 
 TEST_F(Corrupt, OlderOrZeroVersion) {

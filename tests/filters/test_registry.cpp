@@ -6,6 +6,8 @@
 
 #include "mcstat/imageops.h"
 #include "mcstat/registry.h"
+#include "mcstat/sample_records.h"
+#include "mcstat/stats_file.h"
 
 using namespace mcstat;
 
@@ -125,7 +127,8 @@ TEST(Operations, EveryOperationIsComplete) {
     }
     EXPECT_EQ(findOperation("mif")->over, Neighbourhood::Image);
     EXPECT_EQ(findOperation("3dwtmf")->over, Neighbourhood::SubBuffers);
-    EXPECT_EQ(estimatorRegistry().size() + 5, operationRegistry().size());
+    EXPECT_EQ(findOperation("pajot")->input, InputKind::Samples);
+    EXPECT_EQ(estimatorRegistry().size() + 6, operationRegistry().size());
 }
 
 TEST(Operations, EveryDefaultParsesWithinItsRange) {
@@ -319,8 +322,18 @@ TEST(Operations, EstimatorParamsDefaultsAreTheRegistrys) {
 
 // A Samples operation is one registry entry: its SamplesFn gets the path and the parsed parameters,
 // and runSamplesOperation (what `mcstat --NAME` and the plugin call) makes the image of it.
+// The two files it is run on (written by the test: runSamplesOperation opens the file and hands
+// the operation a SampleSource).
+std::string fakeFile(const char* name) {
+    return std::string(MCSTAT_BINARY_DIR) + "/tests/filters/" + name;
+}
+
 bool fakeSamples(const SamplesRequest& req, OperationImage& out, std::string& err) {
-    if (req.path != "f.mcstat") {
+    if (req.source == nullptr || req.source->header().width != 2) {
+        err = "no source";
+        return false;
+    }
+    if (req.path != fakeFile("f.mcstat")) {
         err = req.path + ": no per-sample part";
         return false;
     }
@@ -348,19 +361,26 @@ TEST(Operations, SamplesOperationsRunThroughTheirFunction) {
     ParamValues v;
     std::string err;
     ASSERT_TRUE(parseOperationParams(op, {{"bandwidth", "2"}}, v, err)) << err;
-    StatsHeader h;
-    h.width = 2;
-    h.height = 1;
-    h.originX = 5;
+    StatsImage file;
+    file.header.width = 2;
+    file.header.height = 1;
+    file.header.originX = 5;
+    ASSERT_TRUE(file.allocate(err)) << err;
+    ASSERT_TRUE(writeStatsFile(fakeFile("f.mcstat"), file, err)) << err;
+    ASSERT_TRUE(writeStatsFile(fakeFile("g.mcstat"), file, err)) << err;
+    const StatsHeader h = file.header;
     OIIO::ImageBuf img;
-    ASSERT_TRUE(runSamplesOperation(img, "f.mcstat", h, op, v, {0.2, 0.7, 0.1})) << img.geterror();
+    ASSERT_TRUE(runSamplesOperation(img, fakeFile("f.mcstat"), h, op, v, {0.2, 0.7, 0.1}))
+        << img.geterror();
     EXPECT_EQ(img.spec().x, 5);
     EXPECT_EQ(img.spec().channelnames, (std::vector<std::string>{"R", "G", "B", "modes"}));
     EXPECT_EQ(img.getchannel(6, 0, 0, 0), 4.f);
-    EXPECT_FALSE(runSamplesOperation(img, "g.mcstat", h, op, v, {0.2, 0.7, 0.1}));
-    EXPECT_EQ(img.geterror(), "g.mcstat: no per-sample part");
-    h.width = 3;  // a result of the wrong size is refused
-    EXPECT_FALSE(runSamplesOperation(img, "f.mcstat", h, op, v, {0.2, 0.7, 0.1}));
+    EXPECT_FALSE(runSamplesOperation(img, fakeFile("g.mcstat"), h, op, v, {0.2, 0.7, 0.1}));
+    EXPECT_EQ(img.geterror(), fakeFile("g.mcstat") + ": no per-sample part");
+    EXPECT_FALSE(runSamplesOperation(img, fakeFile("none.mcstat"), h, op, v, {0.2, 0.7, 0.1}));
+    StatsHeader wider = h;
+    wider.width = 3;  // a result of the wrong size is refused
+    EXPECT_FALSE(runSamplesOperation(img, fakeFile("f.mcstat"), wider, op, v, {0.2, 0.7, 0.1}));
     // and a statistics image in memory cannot feed it
     EXPECT_FALSE(applyOperation(img, StatsImage(), op, v, {0.2, 0.7, 0.1}));
 }

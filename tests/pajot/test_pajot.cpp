@@ -33,7 +33,8 @@ float logOf(double y) {
     return pajotLogLuminance(rgb, {1.0, 0.0, 0.0});
 }
 
-// ---- eq. 3 and eq. 4, the slow way, over explicit values ------------------------------------------
+// ---- eq. 3 and eq. 4, the slow way, over explicit values
+// ------------------------------------------
 
 double kernel(double u) { return std::fabs(u) < 1 ? 0.75 * (1 - u * u) : 0.0; }
 
@@ -112,23 +113,23 @@ TEST(PajotKernel, AggregationJoinsOverlappingAndEqualNeighbours) {
     EXPECT_EQ(lastExtendedUpperBound({{1, 1, 1}}), kNegInf);
 }
 
-// ---- two clusters and an outlier, worked by hand -------------------------------------------------
-// l = 0, 0.1, 0.2 | 2, 2.1, 2.2 | 10.  ADR: nn = (6 * 0.1 + 7.8) / 7 = 1.2; the clusters' pilot
-// densities are ~0.26, the outlier's 0.75 / 8.4 = 0.089, G ~ 0.225, so h ~ 1.11 in the clusters and
-// 1.90 at the outlier: the clusters (gap 1.8 < 2.22) form one extended mode [0, 2.2], the outlier
-// (gap 7.8) stays single and is delayed. ROT: sigma = 3.51, h = 175^-0.2 sigma = 1.25: the same.
+// ---- two clusters and an outlier, worked by hand
+// ------------------------------------------------- l = 0, 0.1, 0.2 | 2, 2.1, 2.2 | 10.  ADR: nn =
+// (6 * 0.1 + 7.8) / 7 = 1.2; the clusters' pilot densities are ~0.26, the outlier's 0.75 / 8.4 =
+// 0.089, G ~ 0.225, so h ~ 1.11 in the clusters and 1.90 at the outlier: the clusters (gap 1.8
+// < 2.22) form one extended mode [0, 2.2], the outlier (gap 7.8) stays single and is delayed. ROT:
+// sigma = 3.51, h = 175^-0.2 sigma = 1.25: the same.
 
 class TwoClustersAndAnOutlier : public ::testing::TestWithParam<PajotMethod> {};
 
 TEST_P(TwoClustersAndAnOutlier, TheOutlierIsDelayedAndTheRestSplatted) {
     const PajotParams p = params(GetParam());
     PajotPixel px;
-    for (double y : {1.0, 1.1051709, 1.2214028, 7.3890561, 8.1661699, 9.0250135})
-        addY(px, y, p);
+    for (double y : {1.0, 1.1051709, 1.2214028, 7.3890561, 8.1661699, 9.0250135}) addY(px, y, p);
     EXPECT_EQ(px.state().phase, PajotPhase::Learning);
     // During learning the estimate is the plain mean of the samples so far.
-    EXPECT_NEAR(px.estimate()[0], (1.0 + 1.1051709 + 1.2214028 + 7.3890561 + 8.1661699 + 9.0250135) / 6,
-                1e-5);
+    EXPECT_NEAR(px.estimate()[0],
+                (1.0 + 1.1051709 + 1.2214028 + 7.3890561 + 8.1661699 + 9.0250135) / 6, 1e-5);
     addY(px, 22026.466, p);  // the 7th sample ends the learning
     ASSERT_NE(px.state().phase, PajotPhase::Learning);
     EXPECT_FLOAT_EQ(px.acceptance(), logOf(9.0250135));
@@ -178,8 +179,7 @@ TEST_P(TwoClustersAndAnOutlier, AClusterGrowingIntoTheOutlierReleasesIt) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Methods, TwoClustersAndAnOutlier,
-                         ::testing::Values(PajotMethod::ADR, PajotMethod::ROT,
-                                           PajotMethod::Hybrid),
+                         ::testing::Values(PajotMethod::ADR, PajotMethod::ROT, PajotMethod::Hybrid),
                          [](const ::testing::TestParamInfo<PajotMethod>& param) {
                              return std::string(pajotMethodName(param.param));
                          });
@@ -304,8 +304,7 @@ TEST(PajotEdges, ASingleSample) {
 TEST(PajotEdges, ExtremeMagnitudesStayFinite) {
     const PajotParams p = params(PajotMethod::Hybrid, 4);
     PajotPixel px;
-    for (double y : {1e38, 2e38, 1e-40 /* denormal in float */, 3e-45, 1.0})
-        addY(px, y, p);
+    for (double y : {1e38, 2e38, 1e-40 /* denormal in float */, 3e-45, 1.0}) addY(px, y, p);
     for (float v : px.estimate()) EXPECT_TRUE(std::isfinite(v));
     EXPECT_TRUE(std::isfinite(logOf(1e-40)));
     EXPECT_NEAR(logOf(1e38), std::log(1e38), 1e-4);

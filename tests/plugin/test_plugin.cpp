@@ -463,7 +463,7 @@ TEST_F(Plugin, CorruptFileIsAnErrorNamingTheFile) {
 
     // A valid OpenEXR file that fails mcstat's validation (a newer format version), made by
     // OIIO's own EXR reader and writer.
-    r = run("oiiotool -a " + quote(stats) + " --attrib:type=int mcstat:formatVersion 4 -o " +
+    r = run("oiiotool -a " + quote(stats) + " --attrib:type=int mcstat:formatVersion 5 -o " +
                 quote(path("v4.exr")),
             false);
     ASSERT_EQ(r.code, 0) << r.err;
@@ -473,7 +473,7 @@ TEST_F(Plugin, CorruptFileIsAnErrorNamingTheFile) {
     EXPECT_TRUE(contains(r.err, "v4.mcstat")) << r.err;
     r = run("idiff " + quote(path("v4.mcstat")) + " " + quote(stats));
     EXPECT_NE(r.code, 0);
-    EXPECT_TRUE(contains(r.err, "written by a newer mcstat (format 4)")) << r.err;
+    EXPECT_TRUE(contains(r.err, "written by a newer mcstat (format 5)")) << r.err;
 }
 
 TEST_F(Plugin, IngestedFileShowsItsProvenanceAndNoFeaturesItDoesNotHave) {

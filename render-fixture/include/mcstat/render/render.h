@@ -5,10 +5,13 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
+#include "mcstat/pajot.h"
 #include "mcstat/render/scene.h"
+#include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat::render {
@@ -49,6 +52,24 @@ struct RenderOptions {
     int64_t checkpoint = 0;  ///< Grow: first checkpoint (samples); 0 = growCheckpoints() default
     int64_t pilotSpp = 0;    ///< Pilot: pilot samples per pixel; 0 = pilotSamples() default
     uint64_t pilotSeed = kDefaultPilotSeed;  ///< Pilot: seed of the pilot's sample generators
+    /// Index of the first sample of every pixel: a resumed render takes samples firstSample ..
+    /// firstSample + spp - 1 of the same sequence (sample i still goes to buffer i mod M), so
+    /// that with the earlier render it took exactly the samples of one longer render. Fixed M only.
+    int64_t firstSample = 0;
+};
+
+/// What a render produces besides the StatsImage (format version 4, docs/pajot.md).
+struct RenderExtras {
+    /// Pajot's online estimate: when non-null, every sample also goes, as float32 RGB (the values
+    /// the records keep), in the order taken, to its pixel's PajotPixel with pajot->params. On
+    /// entry pajot->pixels is empty (a new render) or the state a resumed render continues from;
+    /// on return it holds every pixel's state and estimate.
+    PajotImage* pajot = nullptr;
+    /// Per-sample records (--keep-samples): called with consecutive blocks of whole rows, in
+    /// order, each pixel's samples in the order taken (R, G, B, Z = first-hit distance or +inf).
+    /// Returning false stops the render with its message. Not with the Grow strategy (a pixel's
+    /// samples are taken in rounds).
+    std::function<bool(const SampleBlock&, std::string&)> records;
 };
 
 /// One checkpoint of the Grow strategy: the state right after its decisions.
@@ -118,7 +139,7 @@ bool validateOptions(const RenderOptions& opt, std::string& err);
 /// Renders `scene` and fills every array and the header of `out`. With opt.adaptiveM the image
 /// has adaptive M (format version 2, header.M = mMax), chosen by opt.strategy.
 bool render(const Scene& scene, const RenderOptions& opt, StatsImage& out, std::string& err,
-            RenderStats* stats = nullptr);
+            RenderStats* stats = nullptr, RenderExtras* extras = nullptr);
 
 /// Renders the plain mean only (no sub-buffers, no features): rgb[(y*width + x)*3 + c].
 /// Memory is one RGB image, so it suits very high spp.

@@ -1,0 +1,29 @@
+// Internal: the writer's pieces shared by stats_write.cpp (the four parts) and sample_records.cpp
+// (the optional parts of format version 4).
+#pragma once
+
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfMultiPartOutputFile.h>
+
+#include <string>
+#include <vector>
+
+#include "mcstat/sample_records.h"
+
+namespace mcstat::detail {
+
+/// A temporary name next to `path`: "<dir>/.<name>.tmp-<pid>-<random>".
+std::string tempNameFor(const std::string& path);
+/// A part header with the attributes every part carries (FORMAT.md "Header attributes").
+Imf::Header commonHeader(const StatsHeader& h, const std::string& name, bool deep);
+/// Checks the extras against the image (sizes, version 4); `err` names `path`.
+bool checkExtras(const std::string& path, const StatsImage& img, const StatsExtras& extras,
+                 std::string& err);
+/// Appends the headers of parts pajot, modes, records as `extras` asks.
+void appendExtraHeaders(std::vector<Imf::Header>& headers, const StatsHeader& h,
+                        const StatsExtras& extras);
+/// Writes those parts (after the four); throws on failure.
+void writeExtraParts(Imf::MultiPartOutputFile& out, const StatsImage& img,
+                     const StatsExtras& extras);
+
+}  // namespace mcstat::detail

@@ -1,0 +1,622 @@
+// Format version 4's optional parts (FORMAT.md "Version 4: samples and modes"): the per-sample
+// part `records`, written by blocks of rows to a temporary deep file and moved chunk by chunk into
+// the statistics file, read back by blocks of rows; and Pajot's online state, parts `pajot` (flat:
+// the estimate and each pixel's scalars, doubles as their exact 64-bit patterns in two UINT
+// channels) and `modes` (deep: one record per mode, delayed sample or learning sample).
+#include "mcstat/sample_records.h"
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfDeepFrameBuffer.h>
+#include <OpenEXR/ImfDeepScanLineInputFile.h>
+#include <OpenEXR/ImfDeepScanLineInputPart.h>
+#include <OpenEXR/ImfDeepScanLineOutputFile.h>
+#include <OpenEXR/ImfDeepScanLineOutputPart.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfInputPart.h>
+#include <OpenEXR/ImfMultiPartInputFile.h>
+#include <OpenEXR/ImfOutputPart.h>
+#include <OpenEXR/ImfStringAttribute.h>
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "extra_parts.h"
+#include "stats_layout.h"
+
+namespace mcstat {
+
+namespace {
+
+constexpr double kMaxExactCount = 16777216.0;  // 2^24: counts are float32 in the file
+
+Imath::Box2i windowOf(const StatsHeader& h) {
+    return Imath::Box2i(Imath::V2i(h.originX, h.originY),
+                        Imath::V2i(h.originX + h.width - 1, h.originY + h.height - 1));
+}
+
+/// Address of element (x, y) of the data window for OpenEXR slices whose element (0, 0) of row
+/// `firstRow` (0-based within the window) is at `data`, with the given strides in bytes.
+char* sliceBase(const void* data, const StatsHeader& h, int firstRow, size_t xStride,
+                size_t yStride) {
+    const intptr_t shift = intptr_t(h.originY + firstRow) * intptr_t(yStride) +
+                           intptr_t(h.originX) * intptr_t(xStride);
+    return reinterpret_cast<char*>(reinterpret_cast<intptr_t>(data) - shift);
+}
+
+// ---- records ---------------------------------------------------------------------------------
+
+constexpr const char* kRecordChannels[] = {"R", "G", "B", "Z"};
+
+Imf::Header recordsHeader(const StatsHeader& h) {
+    Imf::Header hdr = detail::commonHeader(h, layout::kPartRecords, true);
+    for (const char* c : {"R", "G", "B", "Z", "A"})
+        hdr.channels().insert(c, Imf::Channel(Imf::FLOAT));
+    hdr.insert(layout::kAttrRecordFields, Imf::StringAttribute(kRecordFieldsBase));
+    return hdr;
+}
+
+/// A deep frame buffer over `block`: per-pixel pointers into its samples, A from `ones`. The
+/// frame buffer refers to the pointer arrays by address, so a reader sets it, reads the counts
+/// into block.counts, allocates the samples and only then calls point() (OpenEXR forgets the
+/// counts when a new frame buffer is set).
+struct RecordPointers {
+    std::vector<char*> ptr[5];
+    std::vector<float> ones;
+    Imf::DeepFrameBuffer fb;
+    RecordPointers(const StatsHeader& h, SampleBlock& b, bool withA) {
+        const size_t pixels = b.counts.size();
+        for (auto& v : ptr) v.assign(pixels, nullptr);
+        const size_t xs = sizeof(char*), ys = xs * size_t(b.width);
+        const size_t cys = sizeof(uint32_t) * size_t(b.width);
+        fb.insertSampleCountSlice(
+            Imf::Slice(Imf::UINT, sliceBase(b.counts.data(), h, b.y0, sizeof(uint32_t), cys),
+                       sizeof(uint32_t), cys));
+        for (int c = 0; c < (withA ? 5 : 4); ++c)
+            fb.insert(c < 4 ? kRecordChannels[c] : "A",
+                      Imf::DeepSlice(Imf::FLOAT, sliceBase(ptr[c].data(), h, b.y0, xs, ys), xs, ys,
+                                     c < 4 ? kRecordFloats * sizeof(float) : sizeof(float)));
+        if (withA) point(b);
+    }
+    /// Points every pixel at its samples (after the counts are known and the samples allocated).
+    void point(SampleBlock& b) {
+        uint32_t most = 0;
+        for (uint32_t c : b.counts) most = std::max(most, c);
+        ones.assign(std::max<size_t>(most, 1), 1.f);
+        size_t offset = 0;
+        for (size_t p = 0; p < b.counts.size(); ++p) {
+            float* s = b.samples.data() + offset * kRecordFloats;
+            for (int c = 0; c < 4; ++c)
+                ptr[c][p] = b.counts[p] ? reinterpret_cast<char*>(s + c) : nullptr;
+            ptr[4][p] = reinterpret_cast<char*>(ones.data());
+            offset += b.counts[p];
+        }
+    }
+};
+
+}  // namespace
+
+struct SampleRecordsWriter::Impl {
+    StatsHeader header;
+    std::string path;
+    std::unique_ptr<Imf::DeepScanLineOutputFile> file;
+    int nextRow = 0;
+    bool released = false;
+};
+
+SampleRecordsWriter::SampleRecordsWriter() : impl_(new Impl) {}
+
+SampleRecordsWriter::~SampleRecordsWriter() {
+    try {
+        impl_->file.reset();
+    } catch (...) {
+    }
+    if (!impl_->path.empty()) ::unlink(impl_->path.c_str());
+}
+
+const std::string& SampleRecordsWriter::path() const { return impl_->path; }
+
+bool SampleRecordsWriter::open(const std::string& target, const StatsHeader& h, std::string& err) {
+    impl_->header = h;
+    impl_->path = detail::tempNameFor(target) + ".records";
+    try {
+        impl_->file.reset(new Imf::DeepScanLineOutputFile(impl_->path.c_str(), recordsHeader(h)));
+    } catch (const std::exception& e) {
+        err = fmt::format("{}: cannot create the per-sample records ({})", target,
+                          detail::oneLine(e.what()));
+        return false;
+    }
+    return true;
+}
+
+bool SampleRecordsWriter::write(const SampleBlock& block, std::string& err) {
+    if (!impl_->file || block.y0 != impl_->nextRow || block.width != impl_->header.width ||
+        block.rows < 1 || impl_->nextRow + block.rows > impl_->header.height) {
+        err = impl_->path + ": records written out of order";
+        return false;
+    }
+    try {
+        RecordPointers rp(impl_->header, const_cast<SampleBlock&>(block), true);
+        impl_->file->setFrameBuffer(rp.fb);
+        impl_->file->writePixels(block.rows);
+    } catch (const std::exception& e) {
+        err = fmt::format("{}: cannot write records ({})", impl_->path, detail::oneLine(e.what()));
+        return false;
+    }
+    impl_->nextRow += block.rows;
+    return true;
+}
+
+bool SampleRecordsWriter::close(std::string& err) {
+    if (impl_->nextRow != impl_->header.height) {
+        err = impl_->path + ": records closed before the last row";
+        return false;
+    }
+    try {
+        impl_->file.reset();
+    } catch (const std::exception& e) {
+        err = fmt::format("{}: cannot finish records ({})", impl_->path, detail::oneLine(e.what()));
+        return false;
+    }
+    return true;
+}
+
+struct SampleRecordsReader::Impl {
+    std::string path;
+    StatsHeader header;
+    ReadLimits limits;
+    std::unique_ptr<Imf::MultiPartInputFile> file;
+    int part = -1;
+};
+
+SampleRecordsReader::SampleRecordsReader() : impl_(new Impl) {}
+SampleRecordsReader::~SampleRecordsReader() = default;
+const StatsHeader& SampleRecordsReader::header() const { return impl_->header; }
+
+bool SampleRecordsReader::open(const std::string& path, std::string& err,
+                               const ReadLimits& limits) {
+    impl_->path = path;
+    impl_->limits = limits;
+    if (!readStatsHeader(path, impl_->header, err, limits)) return false;
+    if (!impl_->header.hasRecords) {
+        err = path +
+              ": no per-sample records (part 'records'); render with mcstat-render "
+              "--keep-samples";
+        return false;
+    }
+    try {
+        impl_->file.reset(new Imf::MultiPartInputFile(path.c_str()));
+        for (int i = 0; i < impl_->file->parts(); ++i)
+            if (impl_->file->header(i).name() == layout::kPartRecords) impl_->part = i;
+        if (impl_->part < 0) throw std::runtime_error("part 'records' vanished");
+        const Imf::ChannelList& ch = impl_->file->header(impl_->part).channels();
+        for (const char* c : kRecordChannels) {
+            const Imf::Channel* x = ch.findChannel(c);
+            if (x == nullptr || x->type != Imf::FLOAT)
+                throw std::runtime_error(fmt::format(
+                    "part 'records' has no FLOAT channel '{}' (required: R, G, B, Z)", c));
+        }
+    } catch (const std::exception& e) {
+        err = fmt::format("{}: {}", path, detail::oneLine(e.what()));
+        return false;
+    }
+    return true;
+}
+
+bool SampleRecordsReader::read(int y0, int rows, SampleBlock& block, std::string& err) {
+    const StatsHeader& h = impl_->header;
+    if (y0 < 0 || rows < 1 || y0 + rows > h.height) {
+        err = fmt::format("{}: rows {}..{} outside the image", impl_->path, y0, y0 + rows - 1);
+        return false;
+    }
+    try {
+        block.clear(y0, rows, h.width);
+        Imf::DeepScanLineInputPart ip(*impl_->file, impl_->part);
+        RecordPointers rp(h, block, false);
+        ip.setFrameBuffer(rp.fb);
+        ip.readPixelSampleCounts(h.originY + y0, h.originY + y0 + rows - 1);
+        // The counts come from the file's own chunks; bound them before allocating.
+        uint64_t total = 0;
+        for (size_t p = 0; p < block.counts.size(); ++p) {
+            if (block.counts[p] > uint32_t(kMaxExactCount)) {
+                err = fmt::format("{}: pixel ({}, {}): {} records, more than 2^24", impl_->path,
+                                  p % size_t(h.width), y0 + int(p / size_t(h.width)),
+                                  block.counts[p]);
+                return false;
+            }
+            total += block.counts[p];
+        }
+        if (total * kRecordFloats * sizeof(float) > uint64_t(impl_->limits.maxBytes) ||
+            total > uint64_t(impl_->limits.maxDeepSamples)) {
+            err = fmt::format(
+                "{}: rows {}..{} hold {} records ({} bytes), exceeding the limit of "
+                "{} bytes",
+                impl_->path, y0, y0 + rows - 1, total, total * kRecordFloats * sizeof(float),
+                impl_->limits.maxBytes);
+            return false;
+        }
+        block.samples.assign(size_t(total) * kRecordFloats, 0.f);
+        rp.point(block);
+        ip.readPixels(h.originY + y0, h.originY + y0 + rows - 1);
+    } catch (const std::bad_alloc&) {
+        err = impl_->path + ": out of memory while reading records";
+        return false;
+    } catch (const std::exception& e) {
+        err = fmt::format("{}: truncated or corrupt ({})", impl_->path, detail::oneLine(e.what()));
+        return false;
+    }
+    return true;
+}
+
+// ---- parts pajot and modes -------------------------------------------------------------------
+
+namespace {
+
+/// Flat part `pajot`: FLOAT channels, then UINT pairs holding doubles' bit patterns.
+constexpr const char* kPajotFloats[] = {"R",     "G",     "B",   "delayed", "splatted", "discarded",
+                                        "taken", "phase", "run", "mAdr",    "mRot",     "rotN"};
+constexpr int kPajotFloatCount = 12;
+constexpr const char* kPajotWords[] = {"sum.R.hi", "sum.R.lo", "sum.G.hi",   "sum.G.lo",
+                                       "sum.B.hi", "sum.B.lo", "rotMean.hi", "rotMean.lo",
+                                       "rotM2.hi", "rotM2.lo"};
+constexpr int kPajotWordCount = 10;
+/// Deep part `modes`: one record per mode, ROT single, delayed or learning sample.
+constexpr const char* kModeChannels[] = {"kind", "lo", "hi", "count", "R", "G", "B", "Z", "A"};
+constexpr int kModeFloats = 9;
+enum RecordKind { kAdrMode = 1, kRotSingle = 2, kDelayed = 3, kLearning = 4 };
+
+void putDouble(uint32_t* w, double d) {
+    uint64_t bits = 0;
+    std::memcpy(&bits, &d, sizeof bits);
+    w[0] = uint32_t(bits >> 32);
+    w[1] = uint32_t(bits & 0xffffffffu);
+}
+double getDouble(const uint32_t* w) {
+    const uint64_t bits = (uint64_t(w[0]) << 32) | uint64_t(w[1]);
+    double d = 0;
+    std::memcpy(&d, &bits, sizeof d);
+    return d;
+}
+
+size_t recordCount(const PajotState& s) {
+    return s.modes.size() + s.rotSingles.size() + s.delayed.size() + s.learning.size();
+}
+
+}  // namespace
+
+namespace detail {
+
+bool checkExtras(const std::string& path, const StatsImage& img, const StatsExtras& extras,
+                 std::string& err) {
+    const StatsHeader& h = img.header;
+    const bool any = extras.pajot != nullptr || !extras.recordsFile.empty();
+    if (any && h.formatVersion < kStatsFormatVersionSamples) {
+        err = fmt::format(
+            "{}: parts pajot, modes and records need format version {} (header "
+            "says {})",
+            path, kStatsFormatVersionSamples, h.formatVersion);
+        return false;
+    }
+    if (extras.pajot != nullptr) {
+        const PajotImage& pj = *extras.pajot;
+        if (pj.pixels.size() != img.pixelCount() || pj.estimate.size() != img.pixelCount() * 3) {
+            err = path + ": Pajot state does not match the image size";
+            return false;
+        }
+        for (const PajotState& s : pj.pixels)
+            if (double(s.taken) > kMaxExactCount) {
+                err = path +
+                      ": a pixel took more than 2^24 samples, beyond what part 'pajot' "
+                      "stores exactly";
+                return false;
+            }
+    }
+    return true;
+}
+
+void appendExtraHeaders(std::vector<Imf::Header>& headers, const StatsHeader& h,
+                        const StatsExtras& extras) {
+    if (extras.pajot != nullptr) {
+        const std::string params = pajotParamsText(extras.pajot->params);
+        Imf::Header flat = commonHeader(h, layout::kPartPajot, false);
+        for (const char* c : kPajotFloats) flat.channels().insert(c, Imf::Channel(Imf::FLOAT));
+        for (const char* c : kPajotWords) flat.channels().insert(c, Imf::Channel(Imf::UINT));
+        flat.insert(layout::kAttrPajot, Imf::StringAttribute(params));
+        headers.push_back(std::move(flat));
+        Imf::Header deep = commonHeader(h, layout::kPartModes, true);
+        for (const char* c : kModeChannels) deep.channels().insert(c, Imf::Channel(Imf::FLOAT));
+        deep.insert(layout::kAttrPajot, Imf::StringAttribute(params));
+        headers.push_back(std::move(deep));
+    }
+    if (!extras.recordsFile.empty()) headers.push_back(recordsHeader(h));
+}
+
+void writeExtraParts(Imf::MultiPartOutputFile& out, const StatsImage& img,
+                     const StatsExtras& extras) {
+    const StatsHeader& h = img.header;
+    const Imath::Box2i window = windowOf(h);
+    int part = layout::kPartCount;
+    if (extras.pajot != nullptr) {
+        const PajotImage& pj = *extras.pajot;
+        const size_t pixels = img.pixelCount();
+        std::vector<float> fl(pixels * kPajotFloatCount);
+        std::vector<uint32_t> words(pixels * kPajotWordCount);
+        for (size_t p = 0; p < pixels; ++p) {
+            const PajotState& s = pj.pixels[p];
+            float* f = fl.data() + p * kPajotFloatCount;
+            for (size_t c = 0; c < 3; ++c) f[c] = pj.estimate[p * 3 + c];
+            f[3] = float(s.delayed.size());
+            f[4] = float(s.splatted);
+            f[5] = float(s.discarded);
+            f[6] = float(s.taken);
+            f[7] = float(int(s.phase));
+            f[8] = float(s.run);
+            f[9] = s.mAdr;
+            f[10] = s.mRot;
+            f[11] = float(s.rotN);
+            uint32_t* w = words.data() + p * kPajotWordCount;
+            for (size_t c = 0; c < 3; ++c) putDouble(w + 2 * c, s.sum[c]);
+            putDouble(w + 6, s.rotMean);
+            putDouble(w + 8, s.rotM2);
+        }
+        Imf::FrameBuffer fb;
+        for (int c = 0; c < kPajotFloatCount; ++c)
+            fb.insert(kPajotFloats[c],
+                      Imf::Slice::Make(Imf::FLOAT, fl.data() + c, window,
+                                       kPajotFloatCount * sizeof(float),
+                                       kPajotFloatCount * sizeof(float) * size_t(h.width)));
+        for (int c = 0; c < kPajotWordCount; ++c)
+            fb.insert(kPajotWords[c],
+                      Imf::Slice::Make(Imf::UINT, words.data() + c, window,
+                                       kPajotWordCount * sizeof(uint32_t),
+                                       kPajotWordCount * sizeof(uint32_t) * size_t(h.width)));
+        Imf::OutputPart op(out, part++);
+        op.setFrameBuffer(fb);
+        op.writePixels(h.height);
+
+        // Part modes: every pixel's records, contiguous.
+        std::vector<uint32_t> counts(pixels);
+        size_t total = 0;
+        for (size_t p = 0; p < pixels; ++p)
+            total += counts[p] = uint32_t(recordCount(pj.pixels[p]));
+        std::vector<float> rec(std::max<size_t>(total, 1) * kModeFloats, 0.f);
+        std::vector<const char*> ptr[kModeFloats];
+        for (auto& v : ptr) v.assign(pixels, nullptr);
+        size_t k = 0;
+        for (size_t p = 0; p < pixels; ++p) {
+            const PajotState& s = pj.pixels[p];
+            for (int c = 0; c < kModeFloats; ++c)
+                ptr[c][p] = reinterpret_cast<const char*>(rec.data() + k * kModeFloats + size_t(c));
+            size_t index = 0;
+            auto put = [&](int kind, float lo, float hi, float count, const float* rgb) {
+                float* r = rec.data() + k++ * kModeFloats;
+                r[0] = float(kind);
+                r[1] = lo;
+                r[2] = hi;
+                r[3] = count;
+                for (int c = 0; c < 3; ++c) r[4 + c] = rgb ? rgb[c] : 0.f;
+                r[7] = float(index++);
+                r[8] = 1.f;
+            };
+            for (const PajotMode& m : s.modes) put(kAdrMode, m.lo, m.hi, float(m.n), nullptr);
+            for (float l : s.rotSingles) put(kRotSingle, l, l, 1.f, nullptr);
+            for (const PajotSample& d : s.delayed) put(kDelayed, d.l, d.l, 1.f, d.rgb.data());
+            for (const PajotSample& d : s.learning) put(kLearning, d.l, d.l, 1.f, d.rgb.data());
+        }
+        Imf::DeepFrameBuffer dfb;
+        const size_t xs = sizeof(char*), ys = xs * size_t(h.width);
+        dfb.insertSampleCountSlice(Imf::Slice(
+            Imf::UINT,
+            sliceBase(counts.data(), h, 0, sizeof(uint32_t), sizeof(uint32_t) * size_t(h.width)),
+            sizeof(uint32_t), sizeof(uint32_t) * size_t(h.width)));
+        for (int c = 0; c < kModeFloats; ++c)
+            dfb.insert(kModeChannels[c],
+                       Imf::DeepSlice(Imf::FLOAT, sliceBase(ptr[c].data(), h, 0, xs, ys), xs, ys,
+                                      kModeFloats * sizeof(float)));
+        Imf::DeepScanLineOutputPart dp(out, part++);
+        dp.setFrameBuffer(dfb);
+        dp.writePixels(h.height);
+    }
+    if (!extras.recordsFile.empty()) {
+        // Chunks move as they are: no decoding, no memory growing with the image.
+        Imf::DeepScanLineInputFile in(extras.recordsFile.c_str());
+        Imf::DeepScanLineOutputPart op(out, part++);
+        op.copyPixels(in);
+    }
+}
+
+}  // namespace detail
+
+bool readPajotParts(const std::string& path, PajotImage& out, std::string& err,
+                    const ReadLimits& limits) {
+    StatsHeader h;
+    if (!readStatsHeader(path, h, err, limits)) return false;
+    if (!h.hasPajot) {
+        err = path +
+              ": no Pajot state (parts 'pajot' and 'modes'); render with mcstat-render "
+              "--pajot";
+        return false;
+    }
+    try {
+        Imf::MultiPartInputFile in(path.c_str());
+        const int flatPart = layout::kPartCount, deepPart = layout::kPartCount + 1;
+        const Imf::Header& fh = in.header(flatPart);
+        const Imf::StringAttribute* pa =
+            fh.findTypedAttribute<Imf::StringAttribute>(layout::kAttrPajot);
+        std::string problem;
+        PajotImage r;
+        if (pa == nullptr || !parsePajotParamsText(pa->value(), r.params, problem))
+            throw std::runtime_error(fmt::format("part 'pajot': attribute {}: {}",
+                                                 layout::kAttrPajot, pa ? problem : "missing"));
+        for (const char* c : kPajotFloats)
+            if (!fh.channels().findChannel(c) || fh.channels().findChannel(c)->type != Imf::FLOAT)
+                throw std::runtime_error(fmt::format("part 'pajot' has no FLOAT channel '{}'", c));
+        for (const char* c : kPajotWords)
+            if (!fh.channels().findChannel(c) || fh.channels().findChannel(c)->type != Imf::UINT)
+                throw std::runtime_error(fmt::format("part 'pajot' has no UINT channel '{}'", c));
+        const size_t pixels = size_t(h.width) * size_t(h.height);
+        const Imath::Box2i window = windowOf(h);
+        std::vector<float> fl(pixels * kPajotFloatCount);
+        std::vector<uint32_t> words(pixels * kPajotWordCount);
+        {
+            Imf::FrameBuffer fb;
+            for (int c = 0; c < kPajotFloatCount; ++c)
+                fb.insert(kPajotFloats[c],
+                          Imf::Slice::Make(Imf::FLOAT, fl.data() + c, window,
+                                           kPajotFloatCount * sizeof(float),
+                                           kPajotFloatCount * sizeof(float) * size_t(h.width)));
+            for (int c = 0; c < kPajotWordCount; ++c)
+                fb.insert(kPajotWords[c],
+                          Imf::Slice::Make(Imf::UINT, words.data() + c, window,
+                                           kPajotWordCount * sizeof(uint32_t),
+                                           kPajotWordCount * sizeof(uint32_t) * size_t(h.width)));
+            Imf::InputPart ip(in, flatPart);
+            ip.setFrameBuffer(fb);
+            ip.readPixels(window.min.y, window.max.y);
+        }
+        Imf::DeepScanLineInputPart dp(in, deepPart);
+        for (const char* c : kModeChannels)
+            if (!dp.header().channels().findChannel(c))
+                throw std::runtime_error(fmt::format("part 'modes' has no channel '{}'", c));
+        std::vector<uint32_t> counts(pixels);
+        const size_t cys = sizeof(uint32_t) * size_t(h.width);
+        std::vector<char*> ptr[kModeFloats];
+        for (auto& v : ptr) v.assign(pixels, nullptr);
+        Imf::DeepFrameBuffer dfb;
+        const size_t xs = sizeof(char*), ys = xs * size_t(h.width);
+        dfb.insertSampleCountSlice(Imf::Slice(Imf::UINT,
+                                              sliceBase(counts.data(), h, 0, sizeof(uint32_t), cys),
+                                              sizeof(uint32_t), cys));
+        for (int c = 0; c < kModeFloats; ++c)
+            dfb.insert(kModeChannels[c],
+                       Imf::DeepSlice(Imf::FLOAT, sliceBase(ptr[c].data(), h, 0, xs, ys), xs, ys,
+                                      kModeFloats * sizeof(float)));
+        dp.setFrameBuffer(dfb);
+        dp.readPixelSampleCounts(window.min.y, window.max.y);
+        uint64_t total = 0;
+        for (uint32_t c : counts) total += c;
+        if (total > uint64_t(limits.maxDeepSamples) ||
+            total * kModeFloats * sizeof(float) > uint64_t(limits.maxBytes))
+            throw std::runtime_error(
+                fmt::format("part 'modes' holds {} records, beyond the limits", total));
+        std::vector<float> rec(std::max<uint64_t>(total, 1) * kModeFloats);
+        size_t k = 0;
+        for (size_t p = 0; p < pixels; ++p) {
+            for (int c = 0; c < kModeFloats; ++c)
+                ptr[c][p] = reinterpret_cast<char*>(rec.data() + k * kModeFloats + size_t(c));
+            k += counts[p];
+        }
+        dp.readPixels(window.min.y, window.max.y);
+
+        r.pixels.resize(pixels);
+        r.estimate.resize(pixels * 3);
+        k = 0;
+        for (size_t p = 0; p < pixels; ++p) {
+            PajotState& s = r.pixels[p];
+            const float* f = fl.data() + p * kPajotFloatCount;
+            const uint32_t* w = words.data() + p * kPajotWordCount;
+            auto count = [&](float v, const char* what) {
+                if (!(v >= 0.f) || v > float(kMaxExactCount) || v != std::floor(v))
+                    throw std::runtime_error(
+                        fmt::format("pixel ({}, {}): part 'pajot' {} = {} is not a count",
+                                    p % size_t(h.width), p / size_t(h.width), what, v));
+                return int64_t(v);
+            };
+            for (size_t c = 0; c < 3; ++c) r.estimate[p * 3 + c] = f[c];
+            s.splatted = count(f[4], "splatted");
+            s.discarded = count(f[5], "discarded");
+            s.taken = count(f[6], "taken");
+            const int64_t phase = count(f[7], "phase");
+            if (phase > 2)
+                throw std::runtime_error(fmt::format("pixel {}: unknown phase {}", p, phase));
+            s.phase = PajotPhase(phase);
+            s.run = int(count(f[8], "run"));
+            s.mAdr = f[9];
+            s.mRot = f[10];
+            s.rotN = count(f[11], "rotN");
+            for (size_t c = 0; c < 3; ++c) s.sum[c] = getDouble(w + 2 * c);
+            s.rotMean = getDouble(w + 6);
+            s.rotM2 = getDouble(w + 8);
+            for (uint32_t i = 0; i < counts[p]; ++i, ++k) {
+                const float* x = rec.data() + k * kModeFloats;
+                const int64_t kind = count(x[0], "kind");
+                const PajotSample smp{{x[4], x[5], x[6]}, x[1]};
+                switch (kind) {
+                    case kAdrMode:
+                        s.modes.push_back({x[1], x[2], uint32_t(count(x[3], "count"))});
+                        break;
+                    case kRotSingle:
+                        s.rotSingles.push_back(x[1]);
+                        break;
+                    case kDelayed:
+                        s.delayed.push_back(smp);
+                        break;
+                    case kLearning:
+                        s.learning.push_back(smp);
+                        break;
+                    default:
+                        throw std::runtime_error(fmt::format(
+                            "pixel {}: part 'modes' record of unknown kind {}", p, kind));
+                }
+            }
+            if (double(s.delayed.size()) != double(f[3]))
+                throw std::runtime_error(
+                    fmt::format("pixel {}: part 'pajot' says {} delayed, part 'modes' holds {}", p,
+                                f[3], s.delayed.size()));
+        }
+        out = std::move(r);
+    } catch (const std::bad_alloc&) {
+        err = path + ": out of memory while reading the Pajot state";
+        return false;
+    } catch (const std::exception& e) {
+        err = fmt::format("{}: {}", path, detail::oneLine(e.what()));
+        return false;
+    }
+    return true;
+}
+
+namespace {
+
+class FileSampleSource : public SampleSource {
+  public:
+    FileSampleSource(std::string path, const ReadLimits& limits)
+        : path_(std::move(path)), limits_(limits) {}
+    bool open(std::string& err) {
+        if (!readStatsHeader(path_, header_, err, limits_)) return false;
+        if (header_.hasRecords && !records_.open(path_, err, limits_)) return false;
+        return true;
+    }
+    const StatsHeader& header() const override { return header_; }
+    const std::string& path() const override { return path_; }
+    bool readRecords(int y0, int rows, SampleBlock& block, std::string& err) override {
+        if (!header_.hasRecords) {
+            err = path_ +
+                  ": no per-sample records (part 'records'); render with mcstat-render "
+                  "--keep-samples";
+            return false;
+        }
+        return records_.read(y0, rows, block, err);
+    }
+    bool readPajot(PajotImage& out, std::string& err) override {
+        return readPajotParts(path_, out, err, limits_);
+    }
+
+  private:
+    std::string path_;
+    ReadLimits limits_;
+    StatsHeader header_;
+    SampleRecordsReader records_;
+};
+
+}  // namespace
+
+std::unique_ptr<SampleSource> openSampleSource(const std::string& path, std::string& err,
+                                               const ReadLimits& limits) {
+    auto src = std::make_unique<FileSampleSource>(path, limits);
+    if (!src->open(err)) return nullptr;
+    return src;
+}
+
+}  // namespace mcstat

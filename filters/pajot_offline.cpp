@@ -1,0 +1,133 @@
+// `mcstat FILE --pajot` and the plugin's `?estimator=pajot` (docs/pajot.md, "Offline"): Pajot's
+// estimate recomputed from the per-sample records, pixel by pixel in the order the samples were
+// taken, through the same PajotPixel the renderer feeds, so that it equals the online result bit
+// for bit; or, without records, the online result the file stores. Reads through SampleSource
+// (exr-deep opens the file), by blocks of rows: memory holds one block of samples.
+#include "pajot_offline.h"
+
+#include <algorithm>
+#include <cmath>
+#include <thread>
+#include <vector>
+
+#include "mcstat/pajot.h"
+#include "mcstat/sample_records.h"
+
+namespace mcstat {
+
+namespace {
+
+/// The parameters asked for: method "stored" takes the online run's (or, with records only, the
+/// paper's defaults) and ignores the other keys.
+bool requestedParams(const SamplesRequest& req, const PajotImage* stored, PajotParams& p,
+                     std::string& err) {
+    const ParamValues& v = *req.params;
+    const std::string method = v.at("method").text;
+    if (method == "stored") {
+        if (stored) {
+            p = stored->params;
+            return true;
+        }
+        p = PajotParams();
+        p.luma = req.luma;
+        return true;
+    }
+    if (!parsePajotMethod(method, p.method)) {
+        err = "pajot: unknown method '" + method + "'";
+        return false;
+    }
+    p.learning = int(v.at("n").integer);
+    p.maxDelayed = int(v.at("delayed").integer);
+    p.T = int(v.at("t").integer);
+    p.delta = v.at("delta").real;
+    p.luma = req.luma;
+    return validatePajotParams(p, err);
+}
+
+int threadCount(int requested, int rows) {
+    int n = requested > 0 ? requested : int(std::thread::hardware_concurrency());
+    return std::max(1, std::min(n, rows));
+}
+
+}  // namespace
+
+bool pajotOperation(const SamplesRequest& req, OperationImage& out, std::string& err) {
+    SampleSource* src = req.source;
+    if (src == nullptr || req.params == nullptr) {
+        err = req.path + ": pajot needs an opened statistics file";
+        return false;
+    }
+    const StatsHeader& h = src->header();
+    const std::string& path = src->path();
+    if (!h.hasRecords && !h.hasPajot) {
+        err = path +
+              ": has neither per-sample records nor Pajot's online state: render with "
+              "mcstat-render --keep-samples (to compute it here, any parameters) or --pajot "
+              "hybrid (the online result)";
+        return false;
+    }
+    PajotImage stored;
+    const bool haveStored = h.hasPajot;
+    if (haveStored && !src->readPajot(stored, err)) return false;
+    PajotParams p;
+    if (!requestedParams(req, haveStored ? &stored : nullptr, p, err)) return false;
+
+    const size_t width = size_t(h.width), pixels = width * size_t(h.height);
+    out.width = h.width;
+    out.height = h.height;
+    out.channels = {"R", "G", "B", "delayed"};
+    out.pixels.assign(pixels * 4, 0.f);
+
+    if (!h.hasRecords) {  // the stored online result, for its own parameters only
+        if (pajotParamsText(p) != pajotParamsText(stored.params)) {
+            err = path + ": holds the online result for " + pajotParamsText(stored.params) +
+                  "; computing " + pajotParamsText(p) +
+                  " needs per-sample records (render with --keep-samples), or use method=stored";
+            return false;
+        }
+        for (size_t px = 0; px < pixels; ++px) {
+            for (size_t c = 0; c < 3; ++c) out.pixels[px * 4 + c] = stored.estimate[px * 3 + c];
+            out.pixels[px * 4 + 3] = float(stored.pixels[px].delayed.size());
+        }
+        return true;
+    }
+
+    // Blocks of rows of about 128 MiB of samples (the per-pixel counts say how many exactly).
+    const double rowBytes = std::max(
+        1.0, double(width) * double(std::max<int64_t>(h.spp, 1)) * kRecordFloats * sizeof(float));
+    const int rows = int(std::clamp(std::floor(double(128 << 20) / rowBytes), 1.0, 64.0));
+    SampleBlock block;
+    for (int y0 = 0; y0 < h.height; y0 += rows) {
+        const int n = std::min(rows, h.height - y0);
+        if (!src->readRecords(y0, n, block, err)) return false;
+        // Where each pixel's samples start, then the pixels of the block on a few threads: every
+        // pixel is one PajotPixel fed in sample order, so the split does not change a bit.
+        std::vector<size_t> offset(block.counts.size() + 1, 0);
+        for (size_t i = 0; i < block.counts.size(); ++i)
+            offset[i + 1] = offset[i] + block.counts[i];
+        auto work = [&](size_t begin, size_t end) {
+            for (size_t i = begin; i < end; ++i) {
+                PajotPixel px;
+                for (size_t k = offset[i]; k < offset[i + 1]; ++k)
+                    px.add(block.samples.data() + k * kRecordFloats, p);  // non-finite: refused
+                const std::array<float, 3> e = px.estimate();
+                float* o = out.pixels.data() + (size_t(y0) * width + i) * 4;
+                o[0] = e[0];
+                o[1] = e[1];
+                o[2] = e[2];
+                o[3] = float(px.state().delayed.size());
+            }
+        };
+        const int threads = threadCount(req.nthreads, n);
+        const size_t count = block.counts.size();
+        std::vector<std::thread> pool;
+        for (int t = 1; t < threads; ++t)
+            pool.emplace_back(work, count * size_t(t) / size_t(threads),
+                              count * size_t(t + 1) / size_t(threads));
+        work(0, count / size_t(threads));
+        for (std::thread& th : pool) th.join();
+    }
+    return true;
+}
+
+}  // namespace mcstat

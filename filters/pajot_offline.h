@@ -1,0 +1,13 @@
+// Internal: the registry's per-sample operation "pajot" (filters/pajot_offline.cpp).
+#pragma once
+
+#include <string>
+
+#include "mcstat/registry.h"
+
+namespace mcstat {
+
+/// SamplesFn of "pajot": R, G, B and `delayed` (samples still delayed per pixel).
+bool pajotOperation(const SamplesRequest& req, OperationImage& out, std::string& err);
+
+}  // namespace mcstat

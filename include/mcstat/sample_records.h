@@ -1,0 +1,125 @@
+// Format version 4 (exr-deep/FORMAT.md, "Version 4: samples and modes"): the optional parts a
+// statistics file can carry after its four parts.
+// - `records`: every sample of every pixel in the order taken (a deep scanline part). It is large
+//   by nature, so it is written and read by blocks of rows: SampleRecordsWriter streams a render's
+//   rows to a temporary file, which writeStatsFile copies chunk by chunk (no decoding) into the
+//   final file; SampleRecordsReader reads rows [y0, y1) at a time.
+// - `pajot` (flat) and `modes` (deep): Pajot's per-pixel online state (include/mcstat/pajot.h),
+//   exact, so that a render resumed from the file continues bit for bit.
+// No function throws; each returns false with a one-line `err` naming the file.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "mcstat/pajot.h"
+#include "mcstat/stats_file.h"
+
+namespace mcstat {
+
+/// Fields of a per-sample record. Required: R, G, B (the sample's radiance as float32) and Z (the
+/// first-hit distance along the camera ray, +inf on a miss), plus A = 1 for deep tools. Optional
+/// fields are declared by their channels being present and listed in `mcstat:recordFields`;
+/// readers ignore channels they do not know (FORMAT.md).
+inline constexpr int kRecordFloats = 4;  ///< R, G, B, Z per sample in memory
+/// Bytes one sample costs in the file before compression: R, G, B, Z, A as float32.
+inline constexpr int kRecordBytesOnDisk = 20;
+/// The record fields this version writes (attribute mcstat:recordFields).
+inline constexpr const char* kRecordFieldsBase = "R,G,B,Z";
+
+/// Default limit of `mcstat-render --keep-samples` (uncompressed bytes of the records part).
+inline constexpr int64_t kDefaultMaxRecordBytes = int64_t(4) << 30;
+
+/// Rows of samples: pixel p of the block (p = (y - y0) * width + x) holds counts[p] samples,
+/// stored from samples[offset(p) * kRecordFloats], offset(p) = counts[0] + ... + counts[p-1].
+struct SampleBlock {
+    int y0 = 0, rows = 0, width = 0;
+    std::vector<uint32_t> counts;
+    std::vector<float> samples;
+    void clear(int firstRow, int nrows, int w) {
+        y0 = firstRow;
+        rows = nrows;
+        width = w;
+        counts.assign(size_t(nrows) * size_t(w), 0);
+        samples.clear();
+    }
+};
+
+/// Streams the records of a render, rows in increasing order, to a single-part deep file (a
+/// temporary next to the target); writeStatsFile then moves its chunks into the statistics file.
+class SampleRecordsWriter {
+  public:
+    SampleRecordsWriter();
+    ~SampleRecordsWriter();  ///< removes the temporary file unless release() was called
+    SampleRecordsWriter(const SampleRecordsWriter&) = delete;
+    SampleRecordsWriter& operator=(const SampleRecordsWriter&) = delete;
+    /// Opens a temporary file next to `target` for an image of header `h` (its data window).
+    bool open(const std::string& target, const StatsHeader& h, std::string& err);
+    /// Writes the next rows (block.y0 must be the first row not yet written).
+    bool write(const SampleBlock& block, std::string& err);
+    /// Finishes the file (every row must have been written).
+    bool close(std::string& err);
+    const std::string& path() const;
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+/// Reads the `records` part of a statistics file by blocks of rows.
+class SampleRecordsReader {
+  public:
+    SampleRecordsReader();
+    ~SampleRecordsReader();
+    /// Opens `path` and checks its headers (readStatsHeader) and that it has a records part.
+    bool open(const std::string& path, std::string& err, const ReadLimits& limits = ReadLimits());
+    const StatsHeader& header() const;
+    /// Reads rows [y0, y0 + rows) into `block`; the block's samples are bounded by the limits
+    /// (checked against the counts before anything is allocated) and every count by 2^24.
+    bool read(int y0, int rows, SampleBlock& block, std::string& err);
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+/// Pajot's online state of every pixel (parts `pajot` and `modes`).
+struct PajotImage {
+    PajotParams params;              ///< recorded as attribute mcstat:pajot
+    std::vector<PajotState> pixels;  ///< [p]
+    std::vector<float> estimate;     ///< [p*3 + c], PajotPixel::estimate()
+};
+/// What writeStatsFile adds to the four parts (format version 4).
+struct StatsExtras {
+    const PajotImage* pajot = nullptr;  ///< parts pajot and modes
+    std::string recordsFile;            ///< a closed SampleRecordsWriter's file: part records
+};
+
+/// writeStatsFile with the version-4 parts; img.header.formatVersion must be 4 when any is given.
+bool writeStatsFile(const std::string& path, const StatsImage& img, const StatsExtras& extras,
+                    std::string& err);
+
+/// What a per-sample operation reads of a statistics file, behind an interface so that the
+/// operation itself (filters/, free of I/O) never opens a file: exr-deep implements it.
+class SampleSource {
+  public:
+    virtual ~SampleSource() = default;
+    virtual const StatsHeader& header() const = 0;
+    /// Rows [y0, y0 + rows) of part records (header().hasRecords).
+    virtual bool readRecords(int y0, int rows, SampleBlock& block, std::string& err) = 0;
+    /// Parts pajot and modes (header().hasPajot).
+    virtual bool readPajot(PajotImage& out, std::string& err) = 0;
+    /// The file name, for messages.
+    virtual const std::string& path() const = 0;
+};
+/// A SampleSource over statistics file `path` (its headers checked); nullptr with `err`.
+std::unique_ptr<SampleSource> openSampleSource(const std::string& path, std::string& err,
+                                               const ReadLimits& limits = ReadLimits());
+
+/// Reads parts `pajot` and `modes` of a statistics file (the whole state: small next to records).
+bool readPajotParts(const std::string& path, PajotImage& out, std::string& err,
+                    const ReadLimits& limits = ReadLimits());
+
+}  // namespace mcstat

@@ -1,0 +1,231 @@
+// Pajot and the per-sample records end to end: mcstat-render --pajot/--keep-samples writes format
+// version 4; the records read back by blocks of rows; `mcstat --pajot` recomputes the online result
+// bit for bit; a resumed render equals the straight one; 1 and N threads give the same bytes; the
+// refusals are one-line errors.
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imagebuf.h>
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "mcstat/pajot.h"
+#include "mcstat/sample_records.h"
+#include "mcstat/stats_file.h"
+
+namespace mcstat {
+namespace {
+
+struct ToolRun {
+    int code = 0;
+    std::string err;
+};
+
+std::string slurp(const std::string& path) {
+    std::ifstream f(path, std::ios::binary);
+    std::stringstream s;
+    s << f.rdbuf();
+    return s.str();
+}
+
+class PajotFile : public ::testing::Test {
+  protected:
+    std::string dir;
+    void SetUp() override {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        std::string name = std::string(info->test_suite_name()) + "-" + info->name();
+        std::replace(name.begin(), name.end(), '/', '_');  // parameterised names have slashes
+        dir = std::string(MCSTAT_BINARY_DIR) + "/tests/pajot/tmp-" + name;
+        OIIO::Filesystem::remove_all(dir);
+        OIIO::Filesystem::create_directory(dir);
+    }
+    void TearDown() override {
+        if (!HasFailure()) OIIO::Filesystem::remove_all(dir);
+    }
+    std::string path(const std::string& n) const { return dir + "/" + n; }
+    ToolRun run(const std::string& exe, const std::string& args) const {
+        const std::string e = path("stderr.txt");
+        const int status = std::system((exe + " " + args + " >/dev/null 2>" + e).c_str());
+        return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(e)};
+    }
+    ToolRun render(const std::string& args) const {
+        return run(MCSTAT_RENDER_EXE, "--quiet " + args);
+    }
+    ToolRun mcstat(const std::string& args) const { return run(MCSTAT_EXE, args); }
+};
+
+/// Pixels of an EXR written by mcstat, all channels.
+std::vector<float> pixelsOf(const std::string& file, int& nch) {
+    OIIO::ImageBuf b(file);
+    EXPECT_TRUE(b.read(0, 0, true, OIIO::TypeDesc::FLOAT)) << b.geterror();
+    nch = b.nchannels();
+    std::vector<float> v(size_t(b.spec().image_pixels()) * size_t(nch));
+    b.get_pixels(b.roi(), OIIO::TypeDesc::FLOAT, v.data());
+    return v;
+}
+
+TEST_F(PajotFile, RecordsHoldEverySampleInOrderAndReadBackByBlocks) {
+    const std::string f = path("r.mcstat");
+    ASSERT_EQ(render("--scene tiny --spp 9 --M 3 --keep-samples -o " + f).code, 0);
+    StatsImage img;
+    std::string err;
+    ASSERT_TRUE(readStatsFile(f, img, err)) << err;
+    EXPECT_EQ(img.header.formatVersion, 4);
+    EXPECT_TRUE(img.header.hasRecords);
+    EXPECT_FALSE(img.header.hasPajot);
+    SampleRecordsReader rd;
+    ASSERT_TRUE(rd.open(f, err)) << err;
+    SampleBlock block;
+    int worst = 0;
+    for (int y0 = 0; y0 < img.header.height; y0 += 5) {  // blocks of 5 rows, the last one short
+        const int rows = std::min(5, img.header.height - y0);
+        ASSERT_TRUE(rd.read(y0, rows, block, err)) << err;
+        ASSERT_EQ(block.counts.size(), size_t(rows * img.header.width));
+        size_t k = 0;
+        for (size_t i = 0; i < block.counts.size(); ++i) {
+            ASSERT_EQ(block.counts[i], 9u);
+            const size_t p = size_t(y0) * size_t(img.header.width) + i;
+            // Sample j of the pixel went to buffer j mod 3: each buffer's mean from the records.
+            for (int b = 0; b < 3; ++b) {
+                double sum = 0;
+                for (int j = b; j < 9; j += 3)
+                    sum += block.samples[(k + size_t(j)) * kRecordFloats + 0];
+                const double want = img.bufferMean[(p * 3 + size_t(b)) * 3 + 0];
+                const double got = sum / 3;
+                if (std::fabs(got - want) > 1e-6 * (1 + std::fabs(want))) ++worst;
+            }
+            k += 9;
+        }
+    }
+    EXPECT_EQ(worst, 0) << "buffer means differ from the records' samples";
+    EXPECT_FALSE(rd.read(10, 10, block, err));  // past the last row
+}
+
+class OnlineOffline : public PajotFile, public ::testing::WithParamInterface<const char*> {};
+
+TEST_P(OnlineOffline, TheOfflineEstimateEqualsTheOnlineOneBitForBit) {
+    const std::string f = path("o.mcstat"), off = path("off.exr");
+    ASSERT_EQ(render(std::string("--res 40 30 --spp 120 --pajot ") + GetParam() +
+                     " --pajot-n 20 --keep-samples -o " + f)
+                  .code,
+              0);
+    PajotImage online;
+    std::string err;
+    ASSERT_TRUE(readPajotParts(f, online, err)) << err;
+    EXPECT_EQ(online.params.learning, 20);
+    // method=stored (the default) takes the render's parameters; the explicit ones give the same.
+    for (const std::string& args :
+         {std::string("--pajot"), std::string("--pajot:method=") + GetParam() + ":n=20"}) {
+        const ToolRun r = mcstat(f + " " + args + " -o " + off);
+        ASSERT_EQ(r.code, 0) << r.err;
+        int nch = 0;
+        const std::vector<float> px = pixelsOf(off, nch);
+        ASSERT_EQ(nch, 4);  // R, G, B, delayed
+        int differ = 0, delayedSeen = 0;
+        for (size_t p = 0; p < online.pixels.size(); ++p) {
+            for (size_t c = 0; c < 3; ++c)
+                if (std::memcmp(&px[p * 4 + c], &online.estimate[p * 3 + c], sizeof(float)) != 0)
+                    ++differ;
+            if (px[p * 4 + 3] != float(online.pixels[p].delayed.size())) ++differ;
+            delayedSeen += int(px[p * 4 + 3]);
+        }
+        EXPECT_EQ(differ, 0) << args;
+        EXPECT_GT(delayedSeen, 0) << "the default scene's caustic must delay some samples";
+    }
+    // Other parameters recompute from the records (and differ somewhere).
+    ASSERT_EQ(mcstat(f + " --pajot:method=rot:n=5 -o " + off).code, 0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Methods, OnlineOffline, ::testing::Values("adr", "rot", "hybrid"));
+
+TEST_F(PajotFile, AResumedRenderEqualsTheStraightOneBitForBit) {
+    const std::string half = path("half.mcstat"), resumed = path("resumed.mcstat"),
+                      straight = path("straight.mcstat");
+    ASSERT_EQ(render("--res 32 24 --spp 70 --pajot hybrid --pajot-n 30 -o " + half).code, 0);
+    const ToolRun r = render("--res 32 24 --spp 150 --resume " + half + " -o " + resumed);
+    ASSERT_EQ(r.code, 0) << r.err;
+    ASSERT_EQ(render("--res 32 24 --spp 150 --pajot hybrid --pajot-n 30 -o " + straight).code, 0);
+    PajotImage a, b;
+    std::string err;
+    ASSERT_TRUE(readPajotParts(resumed, a, err)) << err;
+    ASSERT_TRUE(readPajotParts(straight, b, err)) << err;
+    ASSERT_EQ(a.estimate.size(), b.estimate.size());
+    EXPECT_EQ(std::memcmp(a.estimate.data(), b.estimate.data(), a.estimate.size() * 4), 0);
+    int stateDiffers = 0;
+    for (size_t p = 0; p < a.pixels.size(); ++p) {
+        const PajotState &x = a.pixels[p], &y = b.pixels[p];
+        if (x.sum != y.sum || x.splatted != y.splatted || x.taken != y.taken ||
+            x.delayed.size() != y.delayed.size() || x.modes.size() != y.modes.size() ||
+            x.rotSingles != y.rotSingles || x.phase != y.phase || x.rotM2 != y.rotM2)
+            ++stateDiffers;
+    }
+    EXPECT_EQ(stateDiffers, 0);
+    // The statistics merged: every pixel holds 150 samples, sub-buffers as one render's within
+    // float rounding.
+    StatsImage s, t;
+    ASSERT_TRUE(readStatsFile(resumed, s, err)) << err;
+    ASSERT_TRUE(readStatsFile(straight, t, err)) << err;
+    EXPECT_EQ(s.header.spp, 150);
+    EXPECT_EQ(s.count, t.count);
+    double worst = 0;
+    for (size_t i = 0; i < s.bufferMean.size(); ++i)
+        worst = std::max(worst, std::fabs(double(s.bufferMean[i]) - t.bufferMean[i]) /
+                                    (1.0 + std::fabs(double(t.bufferMean[i]))));
+    EXPECT_LT(worst, 1e-6);
+}
+
+TEST_F(PajotFile, OneAndTwoThreadsWriteTheSameBytes) {
+    const std::string a = path("t1.mcstat"), b = path("t2.mcstat");
+    const std::string args = "--res 30 20 --spp 80 --pajot adr --pajot-n 25 --keep-samples ";
+    ASSERT_EQ(render(args + "--threads 1 -o " + a).code, 0);
+    ASSERT_EQ(render(args + "--threads 2 -o " + b).code, 0);
+    EXPECT_EQ(slurp(a), slurp(b));
+    const std::string c = path("t3.exr"), d = path("t4.exr");
+    ASSERT_EQ(mcstat(a + " --pajot:method=rot --threads 1 -o " + c).code, 0);
+    ASSERT_EQ(mcstat(a + " --pajot:method=rot --threads 2 -o " + d).code, 0);
+    int n1 = 0, n2 = 0;
+    EXPECT_EQ(pixelsOf(c, n1), pixelsOf(d, n2));
+}
+
+TEST_F(PajotFile, RefusalsAreOneLineErrorsBeforeAnyWork) {
+    // The records limit is checked before rendering: 160 x 120 x 1000 spp x 20 bytes = 384 MB.
+    ToolRun r =
+        render("--spp 1000 --keep-samples --max-sample-bytes 100000000 -o " + path("x.mcstat"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("exceed --max-sample-bytes 100000000"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1);
+    EXPECT_FALSE(OIIO::Filesystem::exists(path("x.mcstat")));
+    // A file with neither part.
+    ASSERT_EQ(render("--scene tiny --spp 4 -o " + path("plain.mcstat")).code, 0);
+    r = mcstat(path("plain.mcstat") + " --pajot -o " + path("o.exr"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_NE(r.err.find("neither per-sample records nor Pajot's online state"), std::string::npos)
+        << r.err;
+    // Stored result only: other parameters need the records.
+    ASSERT_EQ(render("--scene tiny --spp 8 --pajot rot --pajot-n 4 -o " + path("s.mcstat")).code,
+              0);
+    r = mcstat(path("s.mcstat") + " --pajot:method=adr -o " + path("o.exr"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_NE(r.err.find("needs per-sample records"), std::string::npos) << r.err;
+    EXPECT_EQ(mcstat(path("s.mcstat") + " --pajot -o " + path("o.exr")).code, 0);
+    // Bad values.
+    r = mcstat(path("s.mcstat") + " --pajot:n=0 -o " + path("o.exr"));
+    EXPECT_NE(r.err.find("n must be"), std::string::npos) << r.err;
+    r = render("--scene tiny --pajot fast -o " + path("y.mcstat"));
+    EXPECT_NE(r.err.find("--pajot: expected 'adr', 'rot' or 'hybrid'"), std::string::npos) << r.err;
+    // Resume: a file without Pajot's state cannot continue it; --spp is the total.
+    r = render("--scene tiny --spp 8 --pajot hybrid --resume " + path("plain.mcstat") + " -o " +
+               path("z.mcstat"));
+    EXPECT_NE(r.err.find("has no Pajot state to continue"), std::string::npos) << r.err;
+    r = render("--scene tiny --spp 8 --resume " + path("s.mcstat") + " -o " + path("z.mcstat"));
+    EXPECT_NE(r.err.find("already has 8 samples per pixel"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace mcstat
