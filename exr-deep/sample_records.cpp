@@ -280,6 +280,22 @@ double getDouble(const uint32_t* w) {
     return d;
 }
 
+/// Part pajot's frame buffer over pixel-interleaved floats and words.
+Imf::FrameBuffer pajotFrameBuffer(std::vector<float>& fl, std::vector<uint32_t>& words,
+                                  const Imath::Box2i& window) {
+    const size_t width = size_t(window.max.x - window.min.x + 1);
+    Imf::FrameBuffer fb;
+    for (int c = 0; c < kPajotFloatCount; ++c)
+        fb.insert(kPajotFloats[c], Imf::Slice::Make(Imf::FLOAT, fl.data() + c, window,
+                                                    kPajotFloatCount * sizeof(float),
+                                                    kPajotFloatCount * sizeof(float) * width));
+    for (int c = 0; c < kPajotWordCount; ++c)
+        fb.insert(kPajotWords[c], Imf::Slice::Make(Imf::UINT, words.data() + c, window,
+                                                   kPajotWordCount * sizeof(uint32_t),
+                                                   kPajotWordCount * sizeof(uint32_t) * width));
+    return fb;
+}
+
 size_t recordCount(const PajotState& s) {
     return s.modes.size() + s.rotSingles.size() + s.delayed.size() + s.learning.size();
 }
@@ -361,17 +377,7 @@ void writeExtraParts(Imf::MultiPartOutputFile& out, const StatsImage& img,
             putDouble(w + 6, s.rotMean);
             putDouble(w + 8, s.rotM2);
         }
-        Imf::FrameBuffer fb;
-        for (int c = 0; c < kPajotFloatCount; ++c)
-            fb.insert(kPajotFloats[c],
-                      Imf::Slice::Make(Imf::FLOAT, fl.data() + c, window,
-                                       kPajotFloatCount * sizeof(float),
-                                       kPajotFloatCount * sizeof(float) * size_t(h.width)));
-        for (int c = 0; c < kPajotWordCount; ++c)
-            fb.insert(kPajotWords[c],
-                      Imf::Slice::Make(Imf::UINT, words.data() + c, window,
-                                       kPajotWordCount * sizeof(uint32_t),
-                                       kPajotWordCount * sizeof(uint32_t) * size_t(h.width)));
+        const Imf::FrameBuffer fb = pajotFrameBuffer(fl, words, window);
         Imf::OutputPart op(out, part++);
         op.setFrameBuffer(fb);
         op.writePixels(h.height);
@@ -461,17 +467,7 @@ bool readPajotParts(const std::string& path, PajotImage& out, std::string& err,
         std::vector<float> fl(pixels * kPajotFloatCount);
         std::vector<uint32_t> words(pixels * kPajotWordCount);
         {
-            Imf::FrameBuffer fb;
-            for (int c = 0; c < kPajotFloatCount; ++c)
-                fb.insert(kPajotFloats[c],
-                          Imf::Slice::Make(Imf::FLOAT, fl.data() + c, window,
-                                           kPajotFloatCount * sizeof(float),
-                                           kPajotFloatCount * sizeof(float) * size_t(h.width)));
-            for (int c = 0; c < kPajotWordCount; ++c)
-                fb.insert(kPajotWords[c],
-                          Imf::Slice::Make(Imf::UINT, words.data() + c, window,
-                                           kPajotWordCount * sizeof(uint32_t),
-                                           kPajotWordCount * sizeof(uint32_t) * size_t(h.width)));
+            const Imf::FrameBuffer fb = pajotFrameBuffer(fl, words, window);
             Imf::InputPart ip(in, flatPart);
             ip.setFrameBuffer(fb);
             ip.readPixels(window.min.y, window.max.y);

@@ -132,13 +132,8 @@ Operation neighbourhood(const std::string& name, const std::string& title, const
 
 ParamSpec intParam(const std::string& name, double lo, double hi, const std::string& def,
                    const std::string& help) {
-    ParamSpec p;
-    p.name = name;
+    ParamSpec p = realParam(name, lo, hi, false, def, help);
     p.type = ParamType::Int;
-    p.min = lo;
-    p.max = hi;
-    p.defaultValue = def;
-    p.help = help;
     return p;
 }
 
