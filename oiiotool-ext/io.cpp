@@ -207,6 +207,18 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
             return false;
         }
         if (!loadStats(st, top, err)) return false;
+        StatsHeader& h = top.stats->header;
+        if (h.hasPajot || h.hasRecords) {
+            // The per-sample parts belong to one render's samples in their order: a merge cannot
+            // combine them and this tool holds only the four statistics parts in memory. The file
+            // written is the lowest version that holds what remains.
+            std::fprintf(stderr,
+                         "mcstat: warning: %s: parts pajot, modes and records of %s are not "
+                         "written (only the four statistics parts are)\n",
+                         path.c_str(), top.name.c_str());
+            h.hasPajot = h.hasRecords = false;
+            h.formatVersion = requiredFormatVersion(h);
+        }
         return writeStatsFile(path, *top.stats, err);
     }
     if (ext == kStatsExtension) {

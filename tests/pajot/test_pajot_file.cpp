@@ -193,6 +193,24 @@ TEST_F(PajotFile, OneAndTwoThreadsWriteTheSameBytes) {
     EXPECT_EQ(pixelsOf(c, n1), pixelsOf(d, n2));
 }
 
+TEST_F(PajotFile, MergingOrRewritingDropsThePerSamplePartsWithAWarning) {
+    const std::string a = path("a.mcstat"), b = path("b.mcstat"), ab = path("ab.mcstat");
+    ASSERT_EQ(
+        render("--scene tiny --spp 8 --pajot rot --pajot-n 4 --keep-samples --seed 1 -o " + a).code,
+        0);
+    ASSERT_EQ(render("--scene tiny --spp 8 --pajot rot --pajot-n 4 --seed 2 -o " + b).code, 0);
+    const ToolRun r = mcstat(a + " " + b + " --merge -o " + ab);
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.err.find("parts pajot, modes and records of merge("), std::string::npos) << r.err;
+    StatsHeader h;
+    std::string err;
+    ASSERT_TRUE(readStatsHeader(ab, h, err)) << err;
+    EXPECT_FALSE(h.hasPajot);
+    EXPECT_FALSE(h.hasRecords);
+    EXPECT_EQ(h.formatVersion, 1);  // the lowest version that holds what remains
+    EXPECT_EQ(h.spp, 16);
+}
+
 TEST_F(PajotFile, RefusalsAreOneLineErrorsBeforeAnyWork) {
     // The records limit is checked before rendering: 160 x 120 x 1000 spp x 20 bytes = 384 MB.
     ToolRun r =
