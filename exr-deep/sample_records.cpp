@@ -25,6 +25,7 @@
 
 #include "extra_parts.h"
 #include "stats_layout.h"
+#include "window.h"
 
 namespace mcstat {
 
@@ -32,19 +33,8 @@ namespace {
 
 constexpr double kMaxExactCount = 16777216.0;  // 2^24: counts are float32 in the file
 
-Imath::Box2i windowOf(const StatsHeader& h) {
-    return Imath::Box2i(Imath::V2i(h.originX, h.originY),
-                        Imath::V2i(h.originX + h.width - 1, h.originY + h.height - 1));
-}
-
-/// Address of element (x, y) of the data window for OpenEXR slices whose element (0, 0) of row
-/// `firstRow` (0-based within the window) is at `data`, with the given strides in bytes.
-char* sliceBase(const void* data, const StatsHeader& h, int firstRow, size_t xStride,
-                size_t yStride) {
-    const intptr_t shift = intptr_t(h.originY + firstRow) * intptr_t(yStride) +
-                           intptr_t(h.originX) * intptr_t(xStride);
-    return reinterpret_cast<char*>(reinterpret_cast<intptr_t>(data) - shift);
-}
+using detail::windowBase;
+using detail::windowOf;
 
 // ---- records ---------------------------------------------------------------------------------
 
@@ -71,12 +61,12 @@ struct RecordPointers {
         for (auto& v : ptr) v.assign(pixels, nullptr);
         const size_t xs = sizeof(char*), ys = xs * size_t(b.width);
         const size_t cys = sizeof(uint32_t) * size_t(b.width);
-        fb.insertSampleCountSlice(
-            Imf::Slice(Imf::UINT, sliceBase(b.counts.data(), h, b.y0, sizeof(uint32_t), cys),
-                       sizeof(uint32_t), cys));
+        fb.insertSampleCountSlice(Imf::Slice(Imf::UINT,
+                                             windowBase(b.counts.data(), h, sizeof(uint32_t), b.y0),
+                                             sizeof(uint32_t), cys));
         for (int c = 0; c < (withA ? 5 : 4); ++c)
             fb.insert(c < 4 ? kRecordChannels[c] : "A",
-                      Imf::DeepSlice(Imf::FLOAT, sliceBase(ptr[c].data(), h, b.y0, xs, ys), xs, ys,
+                      Imf::DeepSlice(Imf::FLOAT, windowBase(ptr[c].data(), h, xs, b.y0), xs, ys,
                                      c < 4 ? kRecordFloats * sizeof(float) : sizeof(float)));
         if (withA) point(b);
     }
@@ -413,13 +403,12 @@ void writeExtraParts(Imf::MultiPartOutputFile& out, const StatsImage& img,
         }
         Imf::DeepFrameBuffer dfb;
         const size_t xs = sizeof(char*), ys = xs * size_t(h.width);
-        dfb.insertSampleCountSlice(Imf::Slice(
-            Imf::UINT,
-            sliceBase(counts.data(), h, 0, sizeof(uint32_t), sizeof(uint32_t) * size_t(h.width)),
-            sizeof(uint32_t), sizeof(uint32_t) * size_t(h.width)));
+        dfb.insertSampleCountSlice(
+            Imf::Slice(Imf::UINT, windowBase(counts.data(), h, sizeof(uint32_t)), sizeof(uint32_t),
+                       sizeof(uint32_t) * size_t(h.width)));
         for (int c = 0; c < kModeFloats; ++c)
             dfb.insert(kModeChannels[c],
-                       Imf::DeepSlice(Imf::FLOAT, sliceBase(ptr[c].data(), h, 0, xs, ys), xs, ys,
+                       Imf::DeepSlice(Imf::FLOAT, windowBase(ptr[c].data(), h, xs), xs, ys,
                                       kModeFloats * sizeof(float)));
         Imf::DeepScanLineOutputPart dp(out, part++);
         dp.setFrameBuffer(dfb);
@@ -482,12 +471,11 @@ bool readPajotParts(const std::string& path, PajotImage& out, std::string& err,
         for (auto& v : ptr) v.assign(pixels, nullptr);
         Imf::DeepFrameBuffer dfb;
         const size_t xs = sizeof(char*), ys = xs * size_t(h.width);
-        dfb.insertSampleCountSlice(Imf::Slice(Imf::UINT,
-                                              sliceBase(counts.data(), h, 0, sizeof(uint32_t), cys),
-                                              sizeof(uint32_t), cys));
+        dfb.insertSampleCountSlice(Imf::Slice(
+            Imf::UINT, windowBase(counts.data(), h, sizeof(uint32_t)), sizeof(uint32_t), cys));
         for (int c = 0; c < kModeFloats; ++c)
             dfb.insert(kModeChannels[c],
-                       Imf::DeepSlice(Imf::FLOAT, sliceBase(ptr[c].data(), h, 0, xs, ys), xs, ys,
+                       Imf::DeepSlice(Imf::FLOAT, windowBase(ptr[c].data(), h, xs), xs, ys,
                                       kModeFloats * sizeof(float)));
         dp.setFrameBuffer(dfb);
         dp.readPixelSampleCounts(window.min.y, window.max.y);

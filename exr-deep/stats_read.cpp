@@ -21,6 +21,7 @@
 #include "mcstat/stats_file.h"
 #include "stats_header_check.h"
 #include "stats_layout.h"
+#include "window.h"
 
 namespace mcstat {
 
@@ -47,10 +48,8 @@ bool openAndCheck(const std::string& path, const ReadLimits& limits, detail::Fd&
     return detail::checkStatsHeaders(fd.get(), size, path, limits, hdr, err);
 }
 
-Imath::Box2i windowOf(const StatsHeader& h) {
-    return Imath::Box2i(Imath::V2i(h.originX, h.originY),
-                        Imath::V2i(h.originX + h.width - 1, h.originY + h.height - 1));
-}
+using detail::windowBase;
+using detail::windowOf;
 
 /// Checks that the file opened by the C++ API is the file the header check saw.
 void checkSameFile(const Imf::MultiPartInputFile& in, const StatsHeader& h) {
@@ -84,15 +83,6 @@ void readFlatParts(Imf::MultiPartInputFile& in, StatsImage& img) {
         ip.setFrameBuffer(fb);
         ip.readPixels(window.min.y, window.max.y);
     }
-}
-
-/// `base` shifted so that element (x, y) of the data window is at base + (y*width + x) * stride,
-/// as OpenEXR's slices address it (integer arithmetic: no out-of-range pointer is formed).
-template <class T>
-char* windowBase(T* data, const StatsHeader& h, size_t xStride) {
-    const intptr_t shift =
-        (intptr_t(h.originY) * intptr_t(h.width) + intptr_t(h.originX)) * intptr_t(xStride);
-    return reinterpret_cast<char*>(reinterpret_cast<intptr_t>(data) - shift);
 }
 
 /// Adaptive M: reads the per-pixel sample counts of part "vbuffers", checks them (1..M each,

@@ -26,15 +26,14 @@
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
 #include "stats_layout.h"
+#include "window.h"
 
 namespace mcstat {
 
 namespace {
 
-Imath::Box2i dataWindowOf(const StatsHeader& h) {
-    return Imath::Box2i(Imath::V2i(h.originX, h.originY),
-                        Imath::V2i(h.originX + h.width - 1, h.originY + h.height - 1));
-}
+using detail::windowBase;
+using detail::windowOf;
 
 }  // namespace
 
@@ -49,7 +48,7 @@ std::string tempNameFor(const std::string& path) {
 }
 
 Imf::Header commonHeader(const StatsHeader& h, const std::string& name, bool deep) {
-    const Imath::Box2i window = dataWindowOf(h);
+    const Imath::Box2i window = windowOf(h);
     // Deep parts cannot use ZIP (16 lines); ZIPS (one line) is the deflate they allow.
     Imf::Header hdr(window, window, 1.f, Imath::V2f(0.f, 0.f), 1.f, Imf::INCREASING_Y,
                     deep ? Imf::ZIPS_COMPRESSION : Imf::ZIP_COMPRESSION);
@@ -100,15 +99,6 @@ std::string dirOf(const std::string& path) {
     return slash == 0 ? "/" : path.substr(0, slash);
 }
 
-/// `base` shifted so that element (x, y) of the data window is at base + (y*width + x) * stride,
-/// as OpenEXR's slices address it (integer arithmetic: no out-of-range pointer is formed).
-template <class T>
-char* windowBase(T* data, const StatsHeader& h, size_t xStride) {
-    const intptr_t shift =
-        (intptr_t(h.originY) * intptr_t(h.width) + intptr_t(h.originX)) * intptr_t(xStride);
-    return reinterpret_cast<char*>(reinterpret_cast<intptr_t>(data) - shift);
-}
-
 /// Adaptive M: part "vbuffers", one deep sample per sub-buffer (R, G, B, count; Z = buffer index,
 /// A = 1).
 void writeDeepBuffers(Imf::MultiPartOutputFile& out, const StatsImage& img) {
@@ -147,7 +137,7 @@ void writeParts(Imf::OStream& os, const StatsImage& img, const StatsExtras& extr
     const StatsHeader& h = img.header;
     std::vector<Imf::Header> headers = makeHeaders(h);
     detail::appendExtraHeaders(headers, h, extras);
-    const Imath::Box2i window = dataWindowOf(h);
+    const Imath::Box2i window = windowOf(h);
     Imf::MultiPartOutputFile out(os, headers.data(), int(headers.size()));
     for (int part = 0; part < layout::kPartCount; ++part) {
         if (h.adaptiveM && part == layout::kBuffers) {
