@@ -19,9 +19,11 @@
 #include <fmt/format.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <numeric>
 
 #include "extra_parts.h"
 #include "stats_layout.h"
@@ -38,14 +40,24 @@ using detail::windowOf;
 
 // ---- records ---------------------------------------------------------------------------------
 
-constexpr const char* kRecordChannels[] = {"R", "G", "B", "Z"};
-
-Imf::Header recordsHeader(const StatsHeader& h) {
+Imf::Header recordsHeader(const StatsHeader& h, const std::vector<std::string>& channels,
+                          const std::string& fields) {
     Imf::Header hdr = detail::commonHeader(h, layout::kPartRecords, true);
-    for (const char* c : {"R", "G", "B", "Z", "A"})
-        hdr.channels().insert(c, Imf::Channel(Imf::FLOAT));
-    hdr.insert(layout::kAttrRecordFields, Imf::StringAttribute(kRecordFieldsBase));
+    for (const std::string& c : channels) hdr.channels().insert(c, Imf::Channel(Imf::FLOAT));
+    hdr.channels().insert("A", Imf::Channel(Imf::FLOAT));
+    hdr.insert(layout::kAttrRecordFields, Imf::StringAttribute(fields));
     return hdr;
+}
+
+std::vector<std::string> splitList(const std::string& text) {
+    std::vector<std::string> out;
+    size_t start = 0;
+    while (start <= text.size()) {
+        const size_t comma = std::min(text.find(',', start), text.size());
+        if (comma > start) out.push_back(text.substr(start, comma - start));
+        start = comma + 1;
+    }
+    return out;
 }
 
 /// A deep frame buffer over `block`: per-pixel pointers into its samples, A from `ones`. The
@@ -53,34 +65,35 @@ Imf::Header recordsHeader(const StatsHeader& h) {
 /// into block.counts, allocates the samples and only then calls point() (OpenEXR forgets the
 /// counts when a new frame buffer is set).
 struct RecordPointers {
-    std::vector<char*> ptr[5];
+    std::vector<std::vector<char*>> ptr;  // [channel][pixel], then A
     std::vector<float> ones;
     Imf::DeepFrameBuffer fb;
     RecordPointers(const StatsHeader& h, SampleBlock& b, bool withA) {
-        const size_t pixels = b.counts.size();
-        for (auto& v : ptr) v.assign(pixels, nullptr);
+        const size_t pixels = b.counts.size(), nc = b.stride();
+        ptr.assign(nc + 1, std::vector<char*>(pixels, nullptr));
         const size_t xs = sizeof(char*), ys = xs * size_t(b.width);
         const size_t cys = sizeof(uint32_t) * size_t(b.width);
         fb.insertSampleCountSlice(Imf::Slice(Imf::UINT,
                                              windowBase(b.counts.data(), h, sizeof(uint32_t), b.y0),
                                              sizeof(uint32_t), cys));
-        for (int c = 0; c < (withA ? 5 : 4); ++c)
-            fb.insert(c < 4 ? kRecordChannels[c] : "A",
+        for (size_t c = 0; c < nc + (withA ? 1 : 0); ++c)
+            fb.insert(c < nc ? b.channels[c].c_str() : "A",
                       Imf::DeepSlice(Imf::FLOAT, windowBase(ptr[c].data(), h, xs, b.y0), xs, ys,
-                                     c < 4 ? kRecordFloats * sizeof(float) : sizeof(float)));
+                                     c < nc ? nc * sizeof(float) : sizeof(float)));
         if (withA) point(b);
     }
     /// Points every pixel at its samples (after the counts are known and the samples allocated).
     void point(SampleBlock& b) {
+        const size_t nc = b.stride();
         uint32_t most = 0;
         for (uint32_t c : b.counts) most = std::max(most, c);
         ones.assign(std::max<size_t>(most, 1), 1.f);
         size_t offset = 0;
         for (size_t p = 0; p < b.counts.size(); ++p) {
-            float* s = b.samples.data() + offset * kRecordFloats;
-            for (int c = 0; c < 4; ++c)
+            float* s = b.samples.data() + offset * nc;
+            for (size_t c = 0; c < nc; ++c)
                 ptr[c][p] = b.counts[p] ? reinterpret_cast<char*>(s + c) : nullptr;
-            ptr[4][p] = reinterpret_cast<char*>(ones.data());
+            ptr[nc][p] = reinterpret_cast<char*>(ones.data());
             offset += b.counts[p];
         }
     }
@@ -88,9 +101,66 @@ struct RecordPointers {
 
 }  // namespace
 
+const std::vector<RecordField>& recordFieldTable() {
+    static const std::vector<RecordField> table = {
+        {"R", {"R"}, "red radiance of the sample"},
+        {"G", {"G"}, "green radiance of the sample"},
+        {"B", {"B"}, "blue radiance of the sample"},
+        {"Z", {"Z"}, "first-hit distance along the camera ray, +inf on a miss"},
+        {"screen",
+         {"screen.x", "screen.y"},
+         "raster position of the camera sample in the data window: pixel (i, j) covers "
+         "[i, i+1) x [j, j+1)"},
+        {"lens",
+         {"rand.lens.u", "rand.lens.v"},
+         "point on the lens in unit-disk coordinates, [-1, 1] (depth of field)"},
+        {"time", {"rand.time"}, "shutter time of the sample, [0, 1) (motion blur)"},
+        {"light",
+         {"rand.light.u", "rand.light.v"},
+         "the two numbers that chose the point on the light sampled at the first hit, [0, 1); "
+         "0 when none was sampled"},
+        {"bounce",
+         {"rand.bounce.u", "rand.bounce.v"},
+         "the two numbers that chose the direction leaving the first hit, [0, 1); 0 when none"},
+        {"N1", {"N1.X", "N1.Y", "N1.Z"}, "unit shading normal at the first hit; 0 on a miss"},
+        {"P1", {"P1.X", "P1.Y", "P1.Z"}, "world position of the first hit; 0 on a miss"},
+        {"T1",
+         {"T1.R", "T1.G", "T1.B"},
+         "texture value at the first hit: the albedo the shader used; 0 on a miss"},
+        {"N2", {"N2.X", "N2.Y", "N2.Z"}, "unit normal at the second hit; 0 when none"},
+        {"P2", {"P2.X", "P2.Y", "P2.Z"}, "world position of the second hit; 0 when none"},
+    };
+    return table;
+}
+
+bool recordChannelsOf(const std::vector<std::string>& fields, std::vector<std::string>& channels,
+                      std::string& err) {
+    const auto& table = recordFieldTable();
+    std::vector<bool> want(table.size(), false);
+    for (int i = 0; i < kRecordFloats; ++i) want[size_t(i)] = true;
+    for (const std::string& f : fields) {
+        size_t i = 0;
+        while (i < table.size() && f != table[i].name) ++i;
+        if (i == table.size()) {
+            std::string known;
+            for (const RecordField& r : table)
+                known += (known.empty() ? "" : ", ") + std::string(r.name);
+            err = fmt::format("unknown record field '{}' (known: {})", f, known);
+            return false;
+        }
+        want[i] = true;
+    }
+    channels.clear();
+    for (size_t i = 0; i < table.size(); ++i)
+        if (want[i])
+            for (const char* c : table[i].channels) channels.emplace_back(c);
+    return true;
+}
+
 struct SampleRecordsWriter::Impl {
     StatsHeader header;
     std::string path;
+    std::vector<std::string> channels;
     std::unique_ptr<Imf::DeepScanLineOutputFile> file;
     int nextRow = 0;
     bool released = false;
@@ -107,12 +177,27 @@ SampleRecordsWriter::~SampleRecordsWriter() {
 }
 
 const std::string& SampleRecordsWriter::path() const { return impl_->path; }
+const std::vector<std::string>& SampleRecordsWriter::channels() const { return impl_->channels; }
 
-bool SampleRecordsWriter::open(const std::string& target, const StatsHeader& h, std::string& err) {
+bool SampleRecordsWriter::open(const std::string& target, const StatsHeader& h, std::string& err,
+                               const std::vector<std::string>& fields) {
     impl_->header = h;
+    std::string why;
+    if (!recordChannelsOf(fields, impl_->channels, why)) {
+        err = target + ": " + why;
+        return false;
+    }
+    // mcstat:recordFields: the fields in table order (R, G, B, Z first).
+    std::string list;
+    for (const RecordField& f : recordFieldTable()) {
+        bool present = false;
+        for (const std::string& c : impl_->channels) present = present || c == f.channels[0];
+        if (present) list += (list.empty() ? "" : ",") + std::string(f.name);
+    }
     impl_->path = detail::tempNameFor(target) + ".records";
     try {
-        impl_->file.reset(new Imf::DeepScanLineOutputFile(impl_->path.c_str(), recordsHeader(h)));
+        impl_->file.reset(new Imf::DeepScanLineOutputFile(impl_->path.c_str(),
+                                                          recordsHeader(h, impl_->channels, list)));
     } catch (const std::exception& e) {
         err = fmt::format("{}: cannot create the per-sample records ({})", target,
                           detail::oneLine(e.what()));
@@ -125,6 +210,13 @@ bool SampleRecordsWriter::write(const SampleBlock& block, std::string& err) {
     if (!impl_->file || block.y0 != impl_->nextRow || block.width != impl_->header.width ||
         block.rows < 1 || impl_->nextRow + block.rows > impl_->header.height) {
         err = impl_->path + ": records written out of order";
+        return false;
+    }
+    if (block.channels != impl_->channels ||
+        block.samples.size() <
+            block.stride() *
+                size_t(std::accumulate(block.counts.begin(), block.counts.end(), uint64_t(0)))) {
+        err = impl_->path + ": a block of records does not hold the channels the file declares";
         return false;
     }
     try {
@@ -159,11 +251,14 @@ struct SampleRecordsReader::Impl {
     ReadLimits limits;
     std::unique_ptr<Imf::MultiPartInputFile> file;
     int part = -1;
+    std::vector<std::string> available, fields, selected;
 };
 
 SampleRecordsReader::SampleRecordsReader() : impl_(new Impl) {}
 SampleRecordsReader::~SampleRecordsReader() = default;
 const StatsHeader& SampleRecordsReader::header() const { return impl_->header; }
+const std::vector<std::string>& SampleRecordsReader::available() const { return impl_->available; }
+const std::vector<std::string>& SampleRecordsReader::fields() const { return impl_->fields; }
 
 bool SampleRecordsReader::open(const std::string& path, std::string& err,
                                const ReadLimits& limits) {
@@ -181,17 +276,56 @@ bool SampleRecordsReader::open(const std::string& path, std::string& err,
         for (int i = 0; i < impl_->file->parts(); ++i)
             if (impl_->file->header(i).name() == layout::kPartRecords) impl_->part = i;
         if (impl_->part < 0) throw std::runtime_error("part 'records' vanished");
-        const Imf::ChannelList& ch = impl_->file->header(impl_->part).channels();
-        for (const char* c : kRecordChannels) {
+        const Imf::Header& hdr = impl_->file->header(impl_->part);
+        const Imf::ChannelList& ch = hdr.channels();
+        impl_->available.clear();
+        for (const char* c : {"R", "G", "B", "Z"}) {
             const Imf::Channel* x = ch.findChannel(c);
             if (x == nullptr || x->type != Imf::FLOAT)
                 throw std::runtime_error(fmt::format(
                     "part 'records' has no FLOAT channel '{}' (required: R, G, B, Z)", c));
+            impl_->available.emplace_back(c);
         }
+        for (auto it = ch.begin(); it != ch.end(); ++it) {
+            const std::string name = it.name();
+            if (it.channel().type != Imf::FLOAT || name == "A" || name == "R" || name == "G" ||
+                name == "B" || name == "Z")
+                continue;
+            impl_->available.push_back(name);
+        }
+        // mcstat:recordFields: every field it lists must have its channels (FORMAT.md).
+        const auto* f = hdr.findTypedAttribute<Imf::StringAttribute>(layout::kAttrRecordFields);
+        impl_->fields = splitList(f != nullptr ? f->value() : std::string(kRecordFieldsBase));
+        for (const std::string& name : impl_->fields)
+            for (const RecordField& rf : recordFieldTable())
+                if (name == rf.name)
+                    for (const char* c : rf.channels) {
+                        const Imf::Channel* x = ch.findChannel(c);
+                        if (x == nullptr || x->type != Imf::FLOAT)
+                            throw std::runtime_error(fmt::format(
+                                "part 'records' lists field '{}' but has no FLOAT channel '{}'",
+                                name, c));
+                    }
+        impl_->selected = impl_->available;
     } catch (const std::exception& e) {
         err = fmt::format("{}: {}", path, detail::oneLine(e.what()));
         return false;
     }
+    return true;
+}
+
+bool SampleRecordsReader::select(const std::vector<std::string>& channels, std::string& err) {
+    std::vector<std::string> sel{"R", "G", "B", "Z"};
+    for (const std::string& c : channels) {
+        if (std::find(sel.begin(), sel.end(), c) != sel.end()) continue;
+        if (std::find(impl_->available.begin(), impl_->available.end(), c) ==
+            impl_->available.end()) {
+            err = fmt::format("{}: part 'records' has no channel '{}'", impl_->path, c);
+            return false;
+        }
+        sel.push_back(c);
+    }
+    impl_->selected = std::move(sel);
     return true;
 }
 
@@ -203,6 +337,8 @@ bool SampleRecordsReader::read(int y0, int rows, SampleBlock& block, std::string
     }
     try {
         block.clear(y0, rows, h.width);
+        block.channels = impl_->selected;
+        const size_t recordBytes = block.stride() * sizeof(float);
         Imf::DeepScanLineInputPart ip(*impl_->file, impl_->part);
         RecordPointers rp(h, block, false);
         ip.setFrameBuffer(rp.fb);
@@ -218,16 +354,15 @@ bool SampleRecordsReader::read(int y0, int rows, SampleBlock& block, std::string
             }
             total += block.counts[p];
         }
-        if (total * kRecordFloats * sizeof(float) > uint64_t(impl_->limits.maxBytes) ||
+        if (total * recordBytes > uint64_t(impl_->limits.maxBytes) ||
             total > uint64_t(impl_->limits.maxDeepSamples)) {
             err = fmt::format(
                 "{}: rows {}..{} hold {} records ({} bytes), exceeding the limit of "
                 "{} bytes",
-                impl_->path, y0, y0 + rows - 1, total, total * kRecordFloats * sizeof(float),
-                impl_->limits.maxBytes);
+                impl_->path, y0, y0 + rows - 1, total, total * recordBytes, impl_->limits.maxBytes);
             return false;
         }
-        block.samples.assign(size_t(total) * kRecordFloats, 0.f);
+        block.samples.assign(size_t(total) * block.stride(), 0.f);
         rp.point(block);
         ip.readPixels(h.originY + y0, h.originY + y0 + rows - 1);
     } catch (const std::bad_alloc&) {
@@ -336,7 +471,17 @@ void appendExtraHeaders(std::vector<Imf::Header>& headers, const StatsHeader& h,
         deep.insert(layout::kAttrPajot, Imf::StringAttribute(params));
         headers.push_back(std::move(deep));
     }
-    if (!extras.recordsFile.empty()) headers.push_back(recordsHeader(h));
+    if (!extras.recordsFile.empty()) {
+        // The records part takes the temporary file's channels and field list as they are.
+        Imf::DeepScanLineInputFile in(extras.recordsFile.c_str());
+        std::vector<std::string> channels;
+        for (auto it = in.header().channels().begin(); it != in.header().channels().end(); ++it)
+            if (std::string(it.name()) != "A") channels.emplace_back(it.name());
+        const auto* f =
+            in.header().findTypedAttribute<Imf::StringAttribute>(layout::kAttrRecordFields);
+        headers.push_back(
+            recordsHeader(h, channels, f != nullptr ? f->value() : std::string(kRecordFieldsBase)));
+    }
 }
 
 void writeExtraParts(Imf::MultiPartOutputFile& out, const StatsImage& img,
@@ -574,6 +719,13 @@ class FileSampleSource : public SampleSource {
     }
     const StatsHeader& header() const override { return header_; }
     const std::string& path() const override { return path_; }
+    std::vector<std::string> recordChannels() const override {
+        return header_.hasRecords ? records_.available() : std::vector<std::string>();
+    }
+    bool selectRecordChannels(const std::vector<std::string>& channels, std::string& err) override {
+        if (!header_.hasRecords) return readRecords(0, 1, scratch_, err);
+        return records_.select(channels, err);
+    }
     bool readRecords(int y0, int rows, SampleBlock& block, std::string& err) override {
         if (!header_.hasRecords) {
             err = path_ +
@@ -592,6 +744,7 @@ class FileSampleSource : public SampleSource {
     ReadLimits limits_;
     StatsHeader header_;
     SampleRecordsReader records_;
+    SampleBlock scratch_;
 };
 
 }  // namespace

@@ -273,7 +273,8 @@ bool applyOperation(ImageBuf& dst, const StatsImage& src, const Operation& op,
 
 bool runSamplesOperation(ImageBuf& dst, const std::string& path, const StatsHeader& header,
                          const Operation& op, const ParamValues& values,
-                         const std::array<double, 3>& luma, int nthreads) {
+                         const std::array<double, 3>& luma, int nthreads,
+                         const std::function<void(double)>& progress) {
     if (op.input != InputKind::Samples || op.samples == nullptr) {
         dst.errorfmt("{} is not a per-sample operation", op.name);
         return false;
@@ -290,6 +291,7 @@ bool runSamplesOperation(ImageBuf& dst, const std::string& path, const StatsHead
     req.params = &values;
     req.luma = luma;
     req.nthreads = nthreads;
+    req.progress = progress;
     OperationImage out;
     std::string err;
     if (!op.samples(req, out, err)) {

@@ -92,6 +92,8 @@ bool pajotOperation(const SamplesRequest& req, OperationImage& out, std::string&
         return true;
     }
 
+    // Only R, G, B (with Z, always read) of the records: Pajot needs nothing else.
+    if (!src->selectRecordChannels({}, err)) return false;
     // Blocks of rows of about 128 MiB of samples (the per-pixel counts say how many exactly).
     const double rowBytes = std::max(
         1.0, double(width) * double(std::max<int64_t>(h.spp, 1)) * kRecordFloats * sizeof(float));
@@ -109,7 +111,7 @@ bool pajotOperation(const SamplesRequest& req, OperationImage& out, std::string&
             for (size_t i = begin; i < end; ++i) {
                 PajotPixel px;
                 for (size_t k = offset[i]; k < offset[i + 1]; ++k)
-                    px.add(block.samples.data() + k * kRecordFloats, p);  // non-finite: refused
+                    px.add(block.samples.data() + k * block.stride(), p);  // non-finite: refused
                 const std::array<float, 3> e = px.estimate();
                 float* o = out.pixels.data() + (size_t(y0) * width + i) * 4;
                 o[0] = e[0];

@@ -10,6 +10,7 @@
 
 #include "mcstat/jung_estimators.h"
 #include "pajot_offline.h"
+#include "rpf_offline.h"
 
 namespace mcstat {
 
@@ -162,6 +163,39 @@ Operation pajot() {
                  intParam("t", 1, 1e6, "2", "hybrid: successive close maxima before ROT alone"),
                  realParam("delta", 0.0, HUGE_VAL, false, "0",
                            "hybrid: largest |m_rot - m_adr| / |m_adr| counted as close")};
+    return op;
+}
+
+// Sen and Darabi 2011 (docs/rpf.md): every sample's colour, screen position, random parameters
+// and scene features, filtered by the dependency of colour on the random parameters.
+Operation rpf() {
+    Operation op;
+    op.name = "rpf";
+    op.title = "RPF";
+    op.help =
+        "random parameter filtering (Sen & Darabi): cross-bilateral filter of the per-sample "
+        "records weighted by the mutual information of colour and features with the random "
+        "parameters; needs mcstat-render --keep-samples";
+    op.equation = "Sen & Darabi Algorithms 1-4, eq. 1-20";
+    op.input = InputKind::Samples;
+    op.samples = &rpfOperation;
+    ParamSpec flag = intParam("spikes", 0, 1, "1",
+                              "section 6.1: a filtered sample above its pixel's mean by more than "
+                              "one deviation becomes the mean");
+    flag.type = ParamType::Flag;
+    op.params = {
+        realParam("sigma8", 0.0, 1e6, true, "0.002",
+                  "sigma_8^2 of section 6 (bilateral variance at 8 spp; the report uses 0.02 "
+                  "for noisy indoor path tracing)"),
+        realParam("samples", 0.0, 64.0, true, "0.5",
+                  "at most box^2 x spp x this samples per neighbourhood (Algorithm 1 line 8)"),
+        intParam("passes", 1, 4, "4", "passes with boxes 55, 35, 17, 7 (section 3.2)"),
+        flag,
+        intParam("seed", 0, 2147483647, "0", "seed of the neighbourhoods' random draws"),
+        intParam("rows", 0, 1e6, "0",
+                 "output rows per block (0: as many as fit in about 256 MiB of samples); the "
+                 "result does not depend on it"),
+    };
     return op;
 }
 
@@ -369,6 +403,7 @@ const std::vector<Operation>& operationRegistry() {
             {sizeSpec(), weightParam("3", false), alphaParam("0.25", false), spatialModeSpec()}),
         // Per-sample operations (InputKind::Samples, a SamplesFn).
         pajot(),
+        rpf(),
     };
     return registry;
 }

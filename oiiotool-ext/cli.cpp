@@ -5,10 +5,12 @@
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
 #include <OpenImageIO/timer.h>
+#include <unistd.h>
 
 #include <array>
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
 
 #include "mcstat/color.h"
 #include "mcstat/imageops.h"
@@ -142,7 +144,21 @@ bool runSamples(State& st, const std::string& cmd, const Operation& op, const Mo
     ParamValues values;
     if (!parseOperationParams(op, mods, values, err, cmd)) return false;
     auto img = std::make_shared<OIIO::ImageBuf>();
-    if (!runSamplesOperation(*img, top.path, top.header, op, values, luma(), st.nthreads)) {
+    // Progress on a terminal only (RPF over a large file takes a while).
+    std::function<void(double)> progress;
+    int shown = -1;
+    if (isatty(STDERR_FILENO) == 1)
+        progress = [&shown, &cmd](double f) {
+            const int pct = int(100 * f);
+            if (pct == shown) return;
+            shown = pct;
+            std::fprintf(stderr, "\rmcstat: %s %3d%%", cmd.c_str(), pct);
+            std::fflush(stderr);
+        };
+    const bool ok =
+        runSamplesOperation(*img, top.path, top.header, op, values, luma(), st.nthreads, progress);
+    if (progress) std::fprintf(stderr, "\r%40s\r", "");
+    if (!ok) {
         err = format("{}: {}", cmd, img->geterror());
         return false;
     }

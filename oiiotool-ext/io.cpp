@@ -325,9 +325,15 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
             "  parts: beauty (R,G,B)  buffers (%d x b###.R,G,B,count)  moments (count, mean.RGB, "
             "variance.RGB)  features (%s)\n",
             h.M, features.c_str());
-    if (h.hasRecords)
-        std::printf("  records (deep: every sample in the order taken, R,G,B,Z,A; %d bytes each)\n",
-                    kRecordBytesOnDisk);
+    if (h.hasRecords) {
+        SampleRecordsReader records;
+        if (!records.open(top.path, err)) return false;
+        std::string fields;
+        for (const std::string& f : records.fields()) fields += (fields.empty() ? "" : ",") + f;
+        std::printf(
+            "  records (deep: every sample in the order taken; fields %s; %lld bytes each)\n",
+            fields.c_str(), static_cast<long long>(recordBytesOnDisk(records.available().size())));
+    }
     if (h.hasPajot && !printPajotSummary(top.path, err)) return false;
     if (!st.verbose && !h.adaptiveM) return true;
     if (!loadStats(st, top, err)) return false;

@@ -58,10 +58,11 @@ bool applyOperation(OIIO::ImageBuf& dst, const StatsImage& src, const Operation&
 
 /// Runs a Samples operation on the statistics file `path` (op.samples streams it) and turns its
 /// OperationImage into an ImageBuf with the data window of `header` (the file's). False with the
-/// message on dst.
+/// message on dst. `progress` (0..1), when set, hears from long operations.
 bool runSamplesOperation(OIIO::ImageBuf& dst, const std::string& path, const StatsHeader& header,
                          const Operation& op, const ParamValues& values,
-                         const std::array<double, 3>& luma, int nthreads = 0);
+                         const std::array<double, 3>& luma, int nthreads = 0,
+                         const std::function<void(double)>& progress = {});
 
 /// The beauty part (plain mean) of a statistics file as an RGB float image.
 OIIO::ImageBuf beautyImage(const StatsImage& src);

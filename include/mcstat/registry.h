@@ -11,6 +11,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <string>
 #include <string_view>
@@ -113,6 +114,9 @@ struct SamplesRequest {
     const ParamValues* params = nullptr;  ///< every parameter, defaults applied
     std::array<double, 3> luma{0.0, 0.0, 0.0};
     int nthreads = 0;  ///< 0: all cores
+    /// Long operations report their progress (0..1) here when set (the CLI sets it on a
+    /// terminal only).
+    std::function<void(double)> progress;
 };
 
 /// A Samples operation: false with a one-line `err` (naming the file) when the file cannot

@@ -21,23 +21,54 @@ namespace mcstat {
 
 /// Fields of a per-sample record. Required: R, G, B (the sample's radiance as float32) and Z (the
 /// first-hit distance along the camera ray, +inf on a miss), plus A = 1 for deep tools. Optional
-/// fields are declared by their channels being present and listed in `mcstat:recordFields`;
-/// readers ignore channels they do not know (FORMAT.md).
-inline constexpr int kRecordFloats = 4;  ///< R, G, B, Z per sample in memory
-/// Bytes one sample costs in the file before compression: R, G, B, Z, A as float32.
-inline constexpr int kRecordBytesOnDisk = 20;
-/// The record fields this version writes (attribute mcstat:recordFields).
+/// fields (random parameter filtering's inputs, Sen & Darabi 2011 section 3.1) are declared by
+/// their channels being present and listed in `mcstat:recordFields`; readers ignore channels they
+/// do not know (FORMAT.md "Per-sample fields").
+inline constexpr int kRecordFloats = 4;  ///< R, G, B, Z: the required channels, first in memory
+/// The record fields every records part holds (attribute mcstat:recordFields starts with these).
 inline constexpr const char* kRecordFieldsBase = "R,G,B,Z";
+
+/// One field of a record: its name in mcstat:recordFields and its FLOAT channels.
+struct RecordField {
+    const char* name;
+    std::vector<const char*> channels;
+    const char* meaning;  ///< one line: what the value is and its range
+};
+/// Every field this version knows, in the order they are stored (FORMAT.md lists the same).
+const std::vector<RecordField>& recordFieldTable();
+/// The channels of `fields` (names from recordFieldTable, each once; R,G,B,Z always first).
+/// False with `err` naming an unknown field.
+bool recordChannelsOf(const std::vector<std::string>& fields, std::vector<std::string>& channels,
+                      std::string& err);
+/// Bytes one sample costs in the file before compression: its channels plus A, as float32.
+inline int64_t recordBytesOnDisk(size_t channels) { return int64_t(channels + 1) * 4; }
+/// Bytes of a record with only the required fields (R, G, B, Z, A).
+inline constexpr int kRecordBytesOnDisk = 20;
+
+/// Prefixes of channel names by role, for operations that find their inputs by name: random
+/// parameters (the numbers a sample drew, in the form the renderer used them) and scene
+/// features; screen position is `screen.x`, `screen.y`.
+inline constexpr const char* kRandomParameterPrefix = "rand.";
+inline constexpr const char* kFeaturePrefix = "feat.";
 
 /// Default limit of `mcstat-render --keep-samples` (uncompressed bytes of the records part).
 inline constexpr int64_t kDefaultMaxRecordBytes = int64_t(4) << 30;
 
 /// Rows of samples: pixel p of the block (p = (y - y0) * width + x) holds counts[p] samples,
-/// stored from samples[offset(p) * kRecordFloats], offset(p) = counts[0] + ... + counts[p-1].
+/// stored from samples[offset(p) * stride()], offset(p) = counts[0] + ... + counts[p-1]; a
+/// sample's floats follow `channels` (R, G, B, Z first).
 struct SampleBlock {
     int y0 = 0, rows = 0, width = 0;
+    std::vector<std::string> channels{"R", "G", "B", "Z"};
     std::vector<uint32_t> counts;
     std::vector<float> samples;
+    size_t stride() const { return channels.size(); }
+    /// Index of channel `name` within a sample, or -1.
+    int channel(const std::string& name) const {
+        for (size_t i = 0; i < channels.size(); ++i)
+            if (channels[i] == name) return int(i);
+        return -1;
+    }
     void clear(int firstRow, int nrows, int w) {
         y0 = firstRow;
         rows = nrows;
@@ -55,9 +86,14 @@ class SampleRecordsWriter {
     ~SampleRecordsWriter();  ///< removes the temporary file unless release() was called
     SampleRecordsWriter(const SampleRecordsWriter&) = delete;
     SampleRecordsWriter& operator=(const SampleRecordsWriter&) = delete;
-    /// Opens a temporary file next to `target` for an image of header `h` (its data window).
-    bool open(const std::string& target, const StatsHeader& h, std::string& err);
-    /// Writes the next rows (block.y0 must be the first row not yet written).
+    /// Opens a temporary file next to `target` for an image of header `h` (its data window),
+    /// storing `fields` (names from recordFieldTable; R, G, B, Z are always stored).
+    bool open(const std::string& target, const StatsHeader& h, std::string& err,
+              const std::vector<std::string>& fields = {});
+    /// The channels a written block must hold, in this order (SampleBlock::channels).
+    const std::vector<std::string>& channels() const;
+    /// Writes the next rows (block.y0 must be the first row not yet written, block.channels
+    /// equal to channels()).
     bool write(const SampleBlock& block, std::string& err);
     /// Finishes the file (every row must have been written).
     bool close(std::string& err);
@@ -76,8 +112,16 @@ class SampleRecordsReader {
     /// Opens `path` and checks its headers (readStatsHeader) and that it has a records part.
     bool open(const std::string& path, std::string& err, const ReadLimits& limits = ReadLimits());
     const StatsHeader& header() const;
-    /// Reads rows [y0, y0 + rows) into `block`; the block's samples are bounded by the limits
-    /// (checked against the counts before anything is allocated) and every count by 2^24.
+    /// The FLOAT channels of the part (A excepted): R, G, B, Z, then the others in file order.
+    const std::vector<std::string>& available() const;
+    /// The fields listed in mcstat:recordFields.
+    const std::vector<std::string>& fields() const;
+    /// Reads only `channels` from now on (R, G, B, Z are always read, first); false with `err`
+    /// naming the first channel the part does not hold.
+    bool select(const std::vector<std::string>& channels, std::string& err);
+    /// Reads rows [y0, y0 + rows) into `block` (its channels set to the selection); the block's
+    /// samples are bounded by the limits (checked against the counts before anything is allocated)
+    /// and every count by 2^24.
     bool read(int y0, int rows, SampleBlock& block, std::string& err);
 
   private:
@@ -109,6 +153,11 @@ class SampleSource {
     virtual const StatsHeader& header() const = 0;
     /// Rows [y0, y0 + rows) of part records (header().hasRecords).
     virtual bool readRecords(int y0, int rows, SampleBlock& block, std::string& err) = 0;
+    /// The channels part records holds (SampleRecordsReader::available), empty without it.
+    virtual std::vector<std::string> recordChannels() const = 0;
+    /// Restricts readRecords to `channels` (SampleRecordsReader::select).
+    virtual bool selectRecordChannels(const std::vector<std::string>& channels,
+                                      std::string& err) = 0;
     /// Parts pajot and modes (header().hasPajot).
     virtual bool readPajot(PajotImage& out, std::string& err) = 0;
     /// The file name, for messages.

@@ -21,15 +21,13 @@ double fresnelDielectric(double cosI, double etaI, double etaT) {
     return 0.5 * (rs * rs + rp * rp);
 }
 
-bool hasSmoothComponent(const Material& m) {
+bool hasSmoothComponent(const Bsdf& m) {
     return m.type == MaterialType::Diffuse && !isBlack(m.albedo);
 }
 
-Vec3 featureAlbedo(const Material& m) {
-    return m.type == MaterialType::Glass ? Vec3(1.0) : m.albedo;
-}
+Vec3 featureAlbedo(const Bsdf& m) { return m.type == MaterialType::Glass ? Vec3(1.0) : m.albedo; }
 
-Vec3 evalBsdfCos(const Material& m, const Vec3& n, const Vec3& wo, const Vec3& wi) {
+Vec3 evalBsdfCos(const Bsdf& m, const Vec3& n, const Vec3& wo, const Vec3& wi) {
     if (m.type != MaterialType::Diffuse) return {};
     // Two-sided: light must arrive on the side the viewer is on.
     const double cosO = dot(n, wo), cosI = dot(n, wi);
@@ -37,14 +35,14 @@ Vec3 evalBsdfCos(const Material& m, const Vec3& n, const Vec3& wo, const Vec3& w
     return m.albedo * (std::abs(cosI) / kPi);
 }
 
-double pdfBsdf(const Material& m, const Vec3& n, const Vec3& wo, const Vec3& wi) {
+double pdfBsdf(const Bsdf& m, const Vec3& n, const Vec3& wo, const Vec3& wi) {
     if (m.type != MaterialType::Diffuse) return 0;
     const double cosO = dot(n, wo), cosI = dot(n, wi);
     if (cosO * cosI <= 0) return 0;
     return std::abs(cosI) / kPi;
 }
 
-bool sampleBsdf(const Material& m, const Vec3& n, const Vec3& wo, Pcg32& rng, BsdfSample& bs) {
+bool sampleBsdf(const Bsdf& m, const Vec3& n, const Vec3& wo, Pcg32& rng, BsdfSample& bs) {
     const double cosO = dot(n, wo);
     if (cosO == 0) return false;
     // The normal on the viewer's side.
@@ -52,6 +50,8 @@ bool sampleBsdf(const Material& m, const Vec3& n, const Vec3& wo, Pcg32& rng, Bs
     switch (m.type) {
         case MaterialType::Diffuse: {
             const double u1 = rng.uniform(), u2 = rng.uniform();
+            bs.u1 = u1;
+            bs.u2 = u2;
             const Vec3 local = sampleCosineHemisphere(u1, u2);
             if (local.z <= 0) return false;
             bs.wi = Frame(nf).toWorld(local);
@@ -78,7 +78,9 @@ bool sampleBsdf(const Material& m, const Vec3& n, const Vec3& wo, Pcg32& rng, Bs
             bs.delta = true;
             bs.pdf = 0;
             // Reflect or refract with probabilities F and 1-F: the Fresnel factors cancel.
-            if (rng.uniform() < F) {
+            bs.u1 = rng.uniform();
+            bs.u2 = 0;
+            if (bs.u1 < F) {
                 bs.wi = reflect(wo, nf);
                 bs.weight = Vec3(1.0);
                 bs.etaScale = 1;

@@ -7,9 +7,26 @@
 
 namespace mcstat::render {
 
-Vec3 PathIntegrator::sampleDirect(const Material& m, const Hit& hit, const Vec3& wo,
-                                  Pcg32& rng) const {
-    LightSample ls;
+namespace {
+
+/// Where a hit's texture is looked up: the hit point, except that on a quad perpendicular to an
+/// axis the coordinate along that axis is the plane's exactly. Otherwise rounding would put hits
+/// on a plane lying on a checker cell boundary (a floor at y = 0) randomly on either side.
+Vec3 texturePoint(const Shape& s, const Vec3& p, double time) {
+    if (s.type != ShapeType::Quad) return p;
+    const Vec3 n = cross(s.edge1, s.edge2);
+    const Vec3 corner = s.moving() ? s.corner + s.velocity * time : s.corner;
+    Vec3 q = p;
+    if (n.y == 0 && n.z == 0) q.x = corner.x;
+    if (n.x == 0 && n.z == 0) q.y = corner.y;
+    if (n.x == 0 && n.y == 0) q.z = corner.z;
+    return q;
+}
+
+}  // namespace
+
+Vec3 PathIntegrator::sampleDirect(const Bsdf& m, const Hit& hit, const Vec3& wo, double time,
+                                  Pcg32& rng, LightSample& ls) const {
     if (!lights_.sample(rng, ls)) return {};
     const Vec3 d = ls.p - hit.p;
     const double dist2 = dot(d, d);
@@ -28,7 +45,8 @@ Vec3 PathIntegrator::sampleDirect(const Material& m, const Hit& hit, const Vec3&
     const Vec3 to = offsetOrigin(ls.p, ls.n, -wi);
     const Vec3 seg = to - from;
     const double segLen = length(seg);
-    if (segLen > 0 && dot(seg, wi) > 0 && accel_.occluded(from, seg / segLen, segLen)) return {};
+    if (segLen > 0 && dot(seg, wi) > 0 && accel_.occluded(from, seg / segLen, segLen, time))
+        return {};
     const double w = powerHeuristic(pdfLight, pdfBsdf(m, hit.n, wo, wi));
     return f * Le * (w / pdfLight);
 }
@@ -52,12 +70,18 @@ PathSample PathIntegrator::trace(const Ray& cameraRay, Pcg32& rng) const {
         const Shape& shape = scene_.shapes[size_t(hit.shape)];
         const Material* mat =
             shape.material >= 0 ? &scene_.materials[size_t(shape.material)] : nullptr;
+        // The material here, its texture looked up at this point (at the path's time).
+        const Bsdf bsdf = mat ? bsdfAt(*mat, texturePoint(shape, hit.p, ray.time)) : Bsdf{};
         if (depth == 0) {
             out.hit = true;
             out.normal = hit.n;
             out.position = hit.p;
             out.depth = hit.t;
-            out.albedo = mat ? featureAlbedo(*mat) : Vec3();
+            out.albedo = mat ? featureAlbedo(bsdf) : Vec3();
+        } else if (depth == 1) {
+            out.hit2 = true;
+            out.normal2 = hit.n;
+            out.position2 = hit.p;
         }
         const Vec3 wo = -ray.d;
 
@@ -72,17 +96,23 @@ PathSample PathIntegrator::trace(const Ray& cameraRay, Pcg32& rng) const {
         }
         if (depth == scene_.maxDepth || !mat) break;
 
-        if (hasSmoothComponent(*mat)) out.L += beta * sampleDirect(*mat, hit, wo, rng);
+        if (hasSmoothComponent(bsdf)) {
+            LightSample ls;
+            out.L += beta * sampleDirect(bsdf, hit, wo, ray.time, rng, ls);
+            if (depth == 0) out.lightU = ls.u1, out.lightV = ls.u2;
+        }
 
         BsdfSample bs;
-        if (!sampleBsdf(*mat, hit.n, wo, rng, bs)) break;
+        const bool bounced = sampleBsdf(bsdf, hit.n, wo, rng, bs);
+        if (depth == 0) out.bounceU = bs.u1, out.bounceV = bs.u2;
+        if (!bounced) break;
         beta *= bs.weight;
         if (isBlack(beta)) break;
         etaScale *= bs.etaScale;
         specular = bs.delta;
         prevPdf = bs.pdf;
         prevP = hit.p;
-        ray = {offsetOrigin(hit.p, hit.n, bs.wi), bs.wi};
+        ray = {offsetOrigin(hit.p, hit.n, bs.wi), bs.wi, ray.time};
 
         // Russian roulette on the throughput without the radiance scaling of refraction (which
         // cancels on leaving the object): survive with probability min(1, max component), and
@@ -96,6 +126,18 @@ PathSample PathIntegrator::trace(const Ray& cameraRay, Pcg32& rng) const {
         }
     }
     return out;
+}
+
+PathSample samplePixel(const Camera& camera, const PathIntegrator& integrator, int width,
+                       uint64_t seed, int x, int y, int64_t index) {
+    const uint64_t pixel = uint64_t(y) * uint64_t(width) + uint64_t(x);
+    Pcg32 rng = sampleRng(seed, pixel, uint64_t(index));
+    const CameraSample cs = camera.sample(x, y, rng);
+    PathSample s = integrator.trace(camera.generateRay(cs), rng);
+    s.screenX = cs.screenX, s.screenY = cs.screenY;
+    s.lensU = cs.lensU, s.lensV = cs.lensV;
+    s.time = cs.time;
+    return s;
 }
 
 }  // namespace mcstat::render

@@ -3,17 +3,36 @@
 #pragma once
 
 #include "accel.h"
+#include "bsdf.h"
+#include "camera.h"
 #include "lights.h"
 #include "rng.h"
 
 namespace mcstat::render {
 
-/// One camera sample: its radiance and the first-hit G-buffer features.
+/// One camera sample: its radiance, the first-hit G-buffer features, and what random parameter
+/// filtering (Sen and Darabi 2011, section 3.1) needs besides: the sample's random parameters and
+/// the second intersection. Recording them changes neither the random numbers drawn nor L.
 struct PathSample {
     Vec3 L;
     bool hit = false;  ///< the camera ray hit geometry (features below are valid only then)
-    Vec3 normal, position, albedo;
-    double depth = 0;  ///< distance from the camera along the ray
+    Vec3 normal, position;
+    Vec3 albedo;       ///< textured albedo at the first hit (the "texture value" feature)
+    double depth = 0;  ///< distance from the camera (lens point) along the ray
+
+    // Random parameters of the camera sample (set by the caller that draws them).
+    double screenX = 0, screenY = 0;  ///< raster position: pixel (x, y) + jitter in [0, 1)^2
+    double lensU = 0, lensV = 0;      ///< lens point on the unit disk, in [-1, 1]; 0 without lens
+    double time = 0;                  ///< shutter time in [0, 1); 0 when nothing moves
+    // Random parameters at the first hit.
+    double lightU = 0, lightV = 0;    ///< the two numbers in [0, 1) that chose the point on the
+                                      ///< light for the light sample there; 0 if none was taken
+    double bounceU = 0, bounceV = 0;  ///< the numbers in [0, 1) that chose the first bounce there
+                                      ///< (diffuse: both; glass: U = reflect/refract choice, V = 0;
+                                      ///< mirror or no bounce: 0)
+    // The second intersection: where the first bounce's ray hits (zero when it has none).
+    bool hit2 = false;
+    Vec3 normal2, position2;  ///< as normal and position, at the second hit
 };
 
 class PathIntegrator {
@@ -24,12 +43,20 @@ class PathIntegrator {
     PathSample trace(const Ray& cameraRay, Pcg32& rng) const;
 
   private:
-    /// Light-sampling estimate of direct light at a non-delta vertex, MIS-weighted.
-    Vec3 sampleDirect(const Material& m, const Hit& hit, const Vec3& wo, Pcg32& rng) const;
+    /// Light-sampling estimate of direct light at a non-delta vertex, MIS-weighted, the scene at
+    /// `time`. `used` receives the light sample drawn (untouched when there are no lights).
+    Vec3 sampleDirect(const Bsdf& m, const Hit& hit, const Vec3& wo, double time, Pcg32& rng,
+                      LightSample& used) const;
 
     const Scene& scene_;
     const Accel& accel_;
     const LightSet& lights_;
 };
+
+/// Camera sample `index` of pixel (x, y) of an image `width` pixels wide, as every render takes
+/// it: a generator seeded by (seed, pixel, index), the camera's numbers first (Camera::sample:
+/// jitter, then lens only with a lens, then time only with motion), then the path's.
+PathSample samplePixel(const Camera& camera, const PathIntegrator& integrator, int width,
+                       uint64_t seed, int x, int y, int64_t index);
 
 }  // namespace mcstat::render

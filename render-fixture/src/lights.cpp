@@ -57,6 +57,8 @@ bool LightSet::sample(Pcg32& rng, LightSample& ls) const {
         ls.n = normalize(cross(s.edge1, s.edge2));
     }
     ls.shape = shape;
+    ls.u1 = u1;
+    ls.u2 = u2;
     ls.pdfArea = shapePdfArea_[size_t(shape)];
     return true;
 }

@@ -15,6 +15,9 @@ struct LightSample {
     Vec3 n;              ///< the light shape's unit normal there
     int shape = -1;      ///< index into Scene::shapes
     double pdfArea = 0;  ///< selection probability / area: pdf with respect to area
+    /// The two numbers in [0, 1) that chose the point on the light (after the one that chose the
+    /// light): the light sample's random parameters (Sen and Darabi 2011, section 3.1).
+    double u1 = 0, u2 = 0;
 };
 
 class LightSet {

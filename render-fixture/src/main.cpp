@@ -189,8 +189,12 @@ int main(int argc, const char** argv) {
         .action([&](OIIO::cspan<const char*> a) { pajotDeltaText = a[1]; });
     ap.arg("--keep-samples")
         .help(
-            "keep every sample (R, G, B, first-hit distance; 20 bytes each before compression) in "
-            "the deep part records (format 4), written by blocks of rows")
+            "keep every sample in the deep part records (format 4), written by blocks of rows: "
+            "R, G, B, first-hit distance, screen position, the random parameters drawn (lens "
+            "with an aperture, time with motion, the first hit's light and bounce numbers) and "
+            "the normal, position and texture value of the first hit and normal and position of "
+            "the second (random parameter filtering's inputs; 108-116 bytes per sample before "
+            "compression)")
         .action([&](OIIO::cspan<const char*>) { keepSamples = true; });
     ap.arg("--max-sample-bytes N")
         .help(
@@ -361,15 +365,19 @@ int main(int argc, const char** argv) {
         recHeader.height = scene.height;
         recHeader.formatVersion = mcstat::kStatsFormatVersionSamples;
         if (keepSamples) {
-            const double bytes = double(scene.width) * double(scene.height) * double(opt.spp) *
-                                 mcstat::kRecordBytesOnDisk;
+            const std::vector<std::string> fields = recordFieldsFor(scene);
+            std::vector<std::string> channels;
+            if (!mcstat::recordChannelsOf(fields, channels, err)) return fail(err);
+            const int64_t perSample = mcstat::recordBytesOnDisk(channels.size());
+            const double bytes =
+                double(scene.width) * double(scene.height) * double(opt.spp) * double(perSample);
             if (bytes > double(maxSampleBytes))
                 return fail(fmt::format(
                     "--keep-samples: {}x{} pixels x {} spp x {} bytes = {:.4g} bytes of records "
                     "exceed --max-sample-bytes {}; raise it or lower --spp or --res",
-                    scene.width, scene.height, opt.spp, mcstat::kRecordBytesOnDisk, bytes,
-                    maxSampleBytes));
-            if (!records.open(outPath, recHeader, err)) return fail(err);
+                    scene.width, scene.height, opt.spp, perSample, bytes, maxSampleBytes));
+            if (!records.open(outPath, recHeader, err, fields)) return fail(err);
+            extras.recordChannels = records.channels();
             extras.records = [&records](const mcstat::SampleBlock& b, std::string& e) {
                 return records.write(b, e);
             };

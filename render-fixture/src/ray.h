@@ -6,7 +6,8 @@
 namespace mcstat::render {
 
 struct Ray {
-    Vec3 o, d;  ///< origin, unit direction
+    Vec3 o, d;        ///< origin, unit direction
+    double time = 0;  ///< shutter time in [0, 1): where moving shapes are (0 without motion)
 };
 
 /// Moves p off its surface (geometric normal n) to the side `dir` points to. Embree works in float,

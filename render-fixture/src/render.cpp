@@ -43,14 +43,15 @@ struct RenderContext {
     PathIntegrator integrator;
 
     explicit RenderContext(const Scene& s)
-        : scene(s), lights(s), camera(s.camera, s.width, s.height), integrator(s, accel, lights) {}
+        : scene(s),
+          lights(s),
+          camera(s.camera, s.width, s.height, s.hasMotion()),
+          integrator(s, accel, lights) {}
 
-    /// The camera sample `index` of pixel (x, y): box filter, jittered uniformly in the pixel.
+    /// The camera sample `index` of pixel (x, y): box filter, jittered uniformly in the pixel;
+    /// then, only with a lens, the lens point; then, only with motion, the time (Camera::sample).
     PathSample samplePixel(uint64_t seed, int x, int y, int64_t index) const {
-        const uint64_t pixel = uint64_t(y) * uint64_t(scene.width) + uint64_t(x);
-        Pcg32 rng = sampleRng(seed, pixel, uint64_t(index));
-        const double jx = rng.uniform(), jy = rng.uniform();
-        return integrator.trace(camera.generateRay(x + jx, y + jy), rng);
+        return mcstat::render::samplePixel(camera, integrator, scene.width, seed, x, y, index);
     }
 };
 
@@ -256,11 +257,157 @@ struct PajotPixels {
     }
 };
 
-/// Samples of one row for the records: counts per pixel, R, G, B, Z per sample.
+}  // namespace
+
+std::vector<std::string> recordFieldsFor(const Scene& scene) {
+    std::vector<std::string> f{"screen"};
+    if (scene.hasLens()) f.emplace_back("lens");
+    if (scene.hasMotion()) f.emplace_back("time");
+    for (const char* name : {"light", "bounce", "N1", "P1", "T1", "N2", "P2"}) f.emplace_back(name);
+    return f;
+}
+
+namespace {
+
+/// Samples of one row for the records: counts per pixel, the record channels per sample.
 struct RowRecords {
     std::vector<uint32_t> counts;
     std::vector<float> samples;
 };
+
+/// What a record channel holds, resolved once from its name.
+enum class RecordValue {
+    R,
+    G,
+    B,
+    Z,
+    ScreenX,
+    ScreenY,
+    LensU,
+    LensV,
+    Time,
+    LightU,
+    LightV,
+    BounceU,
+    BounceV,
+    N1x,
+    N1y,
+    N1z,
+    P1x,
+    P1y,
+    P1z,
+    T1r,
+    T1g,
+    T1b,
+    N2x,
+    N2y,
+    N2z,
+    P2x,
+    P2y,
+    P2z
+};
+
+bool recordValueOf(const std::string& channel, RecordValue& v) {
+    static const std::pair<const char*, RecordValue> kNames[] = {
+        {"R", RecordValue::R},
+        {"G", RecordValue::G},
+        {"B", RecordValue::B},
+        {"Z", RecordValue::Z},
+        {"screen.x", RecordValue::ScreenX},
+        {"screen.y", RecordValue::ScreenY},
+        {"rand.lens.u", RecordValue::LensU},
+        {"rand.lens.v", RecordValue::LensV},
+        {"rand.time", RecordValue::Time},
+        {"rand.light.u", RecordValue::LightU},
+        {"rand.light.v", RecordValue::LightV},
+        {"rand.bounce.u", RecordValue::BounceU},
+        {"rand.bounce.v", RecordValue::BounceV},
+        {"N1.X", RecordValue::N1x},
+        {"N1.Y", RecordValue::N1y},
+        {"N1.Z", RecordValue::N1z},
+        {"P1.X", RecordValue::P1x},
+        {"P1.Y", RecordValue::P1y},
+        {"P1.Z", RecordValue::P1z},
+        {"T1.R", RecordValue::T1r},
+        {"T1.G", RecordValue::T1g},
+        {"T1.B", RecordValue::T1b},
+        {"N2.X", RecordValue::N2x},
+        {"N2.Y", RecordValue::N2y},
+        {"N2.Z", RecordValue::N2z},
+        {"P2.X", RecordValue::P2x},
+        {"P2.Y", RecordValue::P2y},
+        {"P2.Z", RecordValue::P2z},
+    };
+    for (const auto& [name, value] : kNames)
+        if (channel == name) {
+            v = value;
+            return true;
+        }
+    return false;
+}
+
+/// One sample's value of channel `v`, as float32 (features are 0 where the path has no hit).
+float recordValue(const PathSample& s, RecordValue v) {
+    switch (v) {
+        case RecordValue::R:
+            return float(s.L[0]);
+        case RecordValue::G:
+            return float(s.L[1]);
+        case RecordValue::B:
+            return float(s.L[2]);
+        case RecordValue::Z:
+            return s.hit ? float(s.depth) : std::numeric_limits<float>::infinity();
+        case RecordValue::ScreenX:
+            return float(s.screenX);
+        case RecordValue::ScreenY:
+            return float(s.screenY);
+        case RecordValue::LensU:
+            return float(s.lensU);
+        case RecordValue::LensV:
+            return float(s.lensV);
+        case RecordValue::Time:
+            return float(s.time);
+        case RecordValue::LightU:
+            return float(s.lightU);
+        case RecordValue::LightV:
+            return float(s.lightV);
+        case RecordValue::BounceU:
+            return float(s.bounceU);
+        case RecordValue::BounceV:
+            return float(s.bounceV);
+        case RecordValue::N1x:
+            return s.hit ? float(s.normal.x) : 0.f;
+        case RecordValue::N1y:
+            return s.hit ? float(s.normal.y) : 0.f;
+        case RecordValue::N1z:
+            return s.hit ? float(s.normal.z) : 0.f;
+        case RecordValue::P1x:
+            return s.hit ? float(s.position.x) : 0.f;
+        case RecordValue::P1y:
+            return s.hit ? float(s.position.y) : 0.f;
+        case RecordValue::P1z:
+            return s.hit ? float(s.position.z) : 0.f;
+        case RecordValue::T1r:
+            return s.hit ? float(s.albedo.x) : 0.f;
+        case RecordValue::T1g:
+            return s.hit ? float(s.albedo.y) : 0.f;
+        case RecordValue::T1b:
+            return s.hit ? float(s.albedo.z) : 0.f;
+        case RecordValue::N2x:
+            return s.hit2 ? float(s.normal2.x) : 0.f;
+        case RecordValue::N2y:
+            return s.hit2 ? float(s.normal2.y) : 0.f;
+        case RecordValue::N2z:
+            return s.hit2 ? float(s.normal2.z) : 0.f;
+        case RecordValue::P2x:
+            return s.hit2 ? float(s.position2.x) : 0.f;
+        case RecordValue::P2y:
+            return s.hit2 ? float(s.position2.y) : 0.f;
+        case RecordValue::P2z:
+            return s.hit2 ? float(s.position2.z) : 0.f;
+    }
+    return 0.f;
+}
 
 /// Fixed M, or adaptive M with a pilot plan: every pixel rendered in one go, sample i into
 /// buffer i mod M_p. With records, rows are rendered by blocks and each block handed to the sink
@@ -269,16 +416,25 @@ struct RowRecords {
 bool renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsImage& img,
                       std::atomic<int64_t>& dropped, PajotPixels& pajot,
                       const std::function<bool(const SampleBlock&, std::string&)>& records,
-                      double& seconds, std::string& err) {
+                      const std::vector<std::string>* recordChannels, double& seconds,
+                      std::string& err) {
     const Scene& scene = ctx.scene;
     const int64_t first = opt.firstSample, end = opt.firstSample + opt.spp;
+    static const std::vector<std::string> kBase{"R", "G", "B", "Z"};
+    const std::vector<std::string>& channels = recordChannels ? *recordChannels : kBase;
+    std::vector<RecordValue> values(channels.size());
+    for (size_t c = 0; c < channels.size(); ++c)
+        if (!recordValueOf(channels[c], values[c])) {
+            err = "per-sample records: the renderer cannot fill channel '" + channels[c] + "'";
+            return false;
+        }
     auto renderRow = [&](int y, RowRecords* rec) {
         PixelAccumulator acc(img.header.M);
         int64_t rowDropped = 0;
         if (rec) {
             rec->counts.assign(size_t(scene.width), uint32_t(opt.spp));
             rec->samples.clear();
-            rec->samples.reserve(size_t(scene.width) * size_t(opt.spp) * kRecordFloats);
+            rec->samples.reserve(size_t(scene.width) * size_t(opt.spp) * values.size());
         }
         for (int x = 0; x < scene.width; ++x) {
             const size_t p = size_t(y) * size_t(scene.width) + size_t(x);
@@ -288,11 +444,8 @@ bool renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsI
                 const PathSample s = ctx.samplePixel(opt.seed, x, y, i);
                 if (!acc.add(i, s)) ++rowDropped;
                 if (pajot.on()) pajot.add(p, s.L);
-                if (rec) {
-                    const float z = s.hit ? float(s.depth) : std::numeric_limits<float>::infinity();
-                    rec->samples.insert(rec->samples.end(),
-                                        {float(s.L[0]), float(s.L[1]), float(s.L[2]), z});
-                }
+                if (rec)
+                    for (RecordValue v : values) rec->samples.push_back(recordValue(s, v));
             }
             acc.store(img, p);
         }
@@ -303,7 +456,8 @@ bool renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsI
         return true;
     }
     // Blocks of rows: at least one row per thread, at most 64 rows or 256 MiB of samples.
-    const double rowBytes = double(scene.width) * double(opt.spp) * kRecordFloats * sizeof(float);
+    const double rowBytes =
+        double(scene.width) * double(opt.spp) * double(values.size()) * sizeof(float);
     const int rows = int(std::clamp(std::floor(double(256 << 20) / rowBytes),
                                     double(resolveThreads(opt.threads)), 64.0));
     Progress progress(scene.height, opt.progress);
@@ -314,6 +468,7 @@ bool renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsI
         const int n = std::min(rows, scene.height - y0);
         forEachRow(n, opt, progress, 1, [&](int r) { renderRow(y0 + r, &block[size_t(r)]); });
         out.clear(y0, n, scene.width);
+        out.channels = channels;
         for (int r = 0; r < n; ++r) {
             std::copy(block[size_t(r)].counts.begin(), block[size_t(r)].counts.end(),
                       out.counts.begin() + std::ptrdiff_t(r) * scene.width);
@@ -471,8 +626,8 @@ bool render(const Scene& scene, const RenderOptions& opt, StatsImage& out, std::
         double seconds = 0;
         static const std::function<bool(const SampleBlock&, std::string&)> kNoRecords;
         if (!renderRoundRobin(ctx, opt, img, dropped, pajot,
-                              extras && extras->records ? extras->records : kNoRecords, seconds,
-                              err))
+                              extras && extras->records ? extras->records : kNoRecords,
+                              extras ? &extras->recordChannels : nullptr, seconds, err))
             return false;
         st.seconds = seconds + st.pilotSeconds;
     }

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cmath>
+#include <utility>
 
 #include "mcstat/render/vec3.h"
 
@@ -14,6 +15,22 @@ inline Vec3 sampleCosineHemisphere(double u1, double u2) {
     const double r = std::sqrt(u1);
     const double phi = 2 * kPi * u2;
     return {r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0, 1 - u1))};
+}
+
+/// Shirley and Chiu's concentric map from [0, 1)^2 to the unit disk: uniform over the disk,
+/// low distortion; (0.5, 0.5) goes to the centre. Returns (x, y) with x^2 + y^2 <= 1.
+inline std::pair<double, double> sampleConcentricDisk(double u1, double u2) {
+    const double a = 2 * u1 - 1, b = 2 * u2 - 1;
+    if (a == 0 && b == 0) return {0.0, 0.0};
+    double r, phi;
+    if (std::abs(a) > std::abs(b)) {
+        r = a;
+        phi = (kPi / 4) * (b / a);
+    } else {
+        r = b;
+        phi = kPi / 2 - (kPi / 4) * (a / b);
+    }
+    return {r * std::cos(phi), r * std::sin(phi)};
 }
 
 /// Uniform direction on the unit sphere; pdf = 1 / (4 pi).

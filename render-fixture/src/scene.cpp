@@ -144,6 +144,27 @@ bool inUnitRange(const Vec3& v) {
 }
 bool nonNegative(const Vec3& v) { return v.x >= 0 && v.y >= 0 && v.z >= 0; }
 
+/// The optional "texture" of a diffuse material.
+bool parseTexture(Reader& r, const json& mj, const std::string& matPath, Texture& tex) {
+    const json* tj = r.find(mj, "texture", matPath, false);
+    if (!tj) return true;
+    const std::string path = matPath + ".texture";
+    if (!r.expectObject(*tj, path)) return false;
+    std::string type;
+    if (!r.getString(*tj, "type", path, type, true)) return false;
+    if (type != "checker")
+        return r.fail(path + ".type", "unknown texture type \"" + type + "\" (expected checker)");
+    tex.type = TextureType::Checker;
+    if (!r.checkKeys(*tj, path, {"type", "scale", "albedo2"}) ||
+        !r.getNumber(*tj, "scale", path, tex.scale, true) ||
+        !r.getVec3(*tj, "albedo2", path, tex.albedo2, true))
+        return false;
+    if (!(tex.scale > 0)) return r.fail(path + ".scale", "must be positive");
+    if (!inUnitRange(tex.albedo2))
+        return r.fail(path + ".albedo2", "components must lie in [0, 1]");
+    return true;
+}
+
 bool parseMaterials(Reader& r, const json& root, Scene& scene, std::map<std::string, int>& ids) {
     const json* mats = r.find(root, "materials", "", true);
     if (!mats) return false;
@@ -158,10 +179,11 @@ bool parseMaterials(Reader& r, const json& root, Scene& scene, std::map<std::str
         if (!r.getString(mj, "type", path, type, true)) return false;
         if (type == "diffuse") {
             m.type = MaterialType::Diffuse;
-            if (!r.checkKeys(mj, path, {"type", "albedo"})) return false;
+            if (!r.checkKeys(mj, path, {"type", "albedo", "texture"})) return false;
             if (!r.getVec3(mj, "albedo", path, m.albedo, false)) return false;
             if (!inUnitRange(m.albedo))
                 return r.fail(path + ".albedo", "components must lie in [0, 1]");
+            if (!parseTexture(r, mj, path, m.texture)) return false;
         } else if (type == "mirror") {
             m.type = MaterialType::Mirror;
             m.albedo = Vec3(1.0);
@@ -224,8 +246,14 @@ bool parseShapes(Reader& r, const json& root, const std::map<std::string, int>& 
         if (!r.getVec3(sj, "emission", path, s.emission, false)) return false;
         if (!nonNegative(s.emission))
             return r.fail(path + ".emission", "components must be non-negative");
+        if (!r.getVec3(sj, "velocity", path, s.velocity, false)) return false;
+        if (s.moving() && !isBlack(s.emission))
+            return r.fail(path + ".velocity",
+                          "emitters must be static (light sampling assumes it): a shape with "
+                          "emission cannot have a non-zero velocity");
         if (type == "sphere") {
-            if (!r.checkKeys(sj, path, {"type", "material", "emission", "center", "radius"}) ||
+            if (!r.checkKeys(sj, path,
+                             {"type", "material", "emission", "velocity", "center", "radius"}) ||
                 !r.getVec3(sj, "center", path, s.center, true) ||
                 !r.getNumber(sj, "radius", path, s.radius, true))
                 return false;
@@ -233,8 +261,9 @@ bool parseShapes(Reader& r, const json& root, const std::map<std::string, int>& 
             s.type = ShapeType::Sphere;
             scene.shapes.push_back(s);
         } else if (type == "quad") {
-            if (!r.checkKeys(sj, path,
-                             {"type", "material", "emission", "corner", "edge1", "edge2"}) ||
+            if (!r.checkKeys(
+                    sj, path,
+                    {"type", "material", "emission", "velocity", "corner", "edge1", "edge2"}) ||
                 !r.getVec3(sj, "corner", path, s.corner, true) ||
                 !r.getVec3(sj, "edge1", path, s.edge1, true) ||
                 !r.getVec3(sj, "edge2", path, s.edge2, true))
@@ -245,7 +274,8 @@ bool parseShapes(Reader& r, const json& root, const std::map<std::string, int>& 
             scene.shapes.push_back(s);
         } else if (type == "box") {
             Vec3 lo, hi;
-            if (!r.checkKeys(sj, path, {"type", "material", "emission", "min", "max"}) ||
+            if (!r.checkKeys(sj, path,
+                             {"type", "material", "emission", "velocity", "min", "max"}) ||
                 !r.getVec3(sj, "min", path, lo, true) || !r.getVec3(sj, "max", path, hi, true))
                 return false;
             if (!(hi.x > lo.x && hi.y > lo.y && hi.z > lo.z))
@@ -295,12 +325,21 @@ bool parseScene(const std::string& jsonText, const std::string& source, Scene& s
 
     const json* cam = r.find(root, "camera", "", true);
     if (!cam || !r.expectObject(*cam, "camera") ||
-        !r.checkKeys(*cam, "camera", {"position", "lookAt", "up", "fov"}) ||
+        !r.checkKeys(*cam, "camera",
+                     {"position", "lookAt", "up", "fov", "aperture", "focusDistance"}) ||
         !r.getVec3(*cam, "position", "camera", s.camera.position, true) ||
         !r.getVec3(*cam, "lookAt", "camera", s.camera.lookAt, true) ||
         !r.getVec3(*cam, "up", "camera", s.camera.up, false) ||
-        !r.getNumber(*cam, "fov", "camera", s.camera.fovDeg, false))
+        !r.getNumber(*cam, "fov", "camera", s.camera.fovDeg, false) ||
+        !r.getNumber(*cam, "aperture", "camera", s.camera.aperture, false))
         return false;
+    if (!(s.camera.aperture >= 0)) return r.fail("camera.aperture", "must be non-negative");
+    if (cam->contains("focusDistance")) {
+        if (!r.getNumber(*cam, "focusDistance", "camera", s.camera.focusDistance, true))
+            return false;
+        if (!(s.camera.focusDistance > 0))
+            return r.fail("camera.focusDistance", "must be positive");
+    }
     if (!(s.camera.fovDeg > 0 && s.camera.fovDeg < 180))
         return r.fail("camera.fov", "must lie strictly between 0 and 180 degrees");
     const Vec3 fwd = s.camera.lookAt - s.camera.position;

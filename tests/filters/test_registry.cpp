@@ -128,7 +128,8 @@ TEST(Operations, EveryOperationIsComplete) {
     EXPECT_EQ(findOperation("mif")->over, Neighbourhood::Image);
     EXPECT_EQ(findOperation("3dwtmf")->over, Neighbourhood::SubBuffers);
     EXPECT_EQ(findOperation("pajot")->input, InputKind::Samples);
-    EXPECT_EQ(estimatorRegistry().size() + 6, operationRegistry().size());
+    EXPECT_EQ(findOperation("rpf")->input, InputKind::Samples);
+    EXPECT_EQ(estimatorRegistry().size() + 7, operationRegistry().size());
 }
 
 TEST(Operations, EveryDefaultParsesWithinItsRange) {

@@ -95,7 +95,7 @@ TEST_F(PajotFile, RecordsHoldEverySampleInOrderAndReadBackByBlocks) {
             for (int b = 0; b < 3; ++b) {
                 double sum = 0;
                 for (int j = b; j < 9; j += 3)
-                    sum += block.samples[(k + size_t(j)) * kRecordFloats + 0];
+                    sum += block.samples[(k + size_t(j)) * block.stride() + 0];
                 const double want = img.bufferMean[(p * 3 + size_t(b)) * 3 + 0];
                 const double got = sum / 3;
                 if (std::fabs(got - want) > 1e-6 * (1 + std::fabs(want))) ++worst;

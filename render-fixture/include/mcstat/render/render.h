@@ -66,11 +66,18 @@ struct RenderExtras {
     /// on return it holds every pixel's state and estimate.
     PajotImage* pajot = nullptr;
     /// Per-sample records (--keep-samples): called with consecutive blocks of whole rows, in
-    /// order, each pixel's samples in the order taken (R, G, B, Z = first-hit distance or +inf).
-    /// Returning false stops the render with its message. Not with the Grow strategy (a pixel's
-    /// samples are taken in rounds).
+    /// order, each pixel's samples in the order taken, with `recordChannels` (R, G, B, Z =
+    /// first-hit distance or +inf, then the channels of recordFieldsFor's fields). Returning
+    /// false stops the render with its message. Not with the Grow strategy (a pixel's samples
+    /// are taken in rounds).
     std::function<bool(const SampleBlock&, std::string&)> records;
+    std::vector<std::string> recordChannels{"R", "G", "B", "Z"};
 };
+
+/// The record fields (sample_records.h's recordFieldTable) a render of `scene` can fill: screen
+/// position, the random parameters the scene draws (lens with an aperture, time with motion,
+/// the first hit's light and bounce numbers) and the features of the first and second hit.
+std::vector<std::string> recordFieldsFor(const Scene& scene);
 
 /// One checkpoint of the Grow strategy: the state right after its decisions.
 struct GrowCheckpoint {

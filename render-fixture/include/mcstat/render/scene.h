@@ -2,6 +2,7 @@
 // render-fixture/SCENES.md documents every key, unit and default.
 #pragma once
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -11,11 +12,35 @@ namespace mcstat::render {
 
 enum class MaterialType { Diffuse, Glass, Mirror };
 
+enum class TextureType { None, Checker };
+
+/// A procedural albedo texture of a diffuse material, looked up at the world hit position.
+struct Texture {
+    TextureType type = TextureType::None;
+    double scale = 1;  ///< checker: edge length of a cell, world units (> 0)
+    Vec3 albedo2;      ///< checker: albedo of the odd cells (the even ones have Material::albedo)
+};
+
+/// The 3D checkerboard: cell (floor(x/s), floor(y/s), floor(z/s)); true when the sum of the three
+/// cell indices is odd.
+inline bool checkerOdd(const Vec3& p, double scale) {
+    const double k = std::floor(p.x / scale) + std::floor(p.y / scale) + std::floor(p.z / scale);
+    return std::fmod(std::abs(k), 2.0) == 1.0;
+}
+
 struct Material {
     std::string name;
     MaterialType type = MaterialType::Diffuse;
     Vec3 albedo{0.8};  ///< diffuse albedo, or mirror reflectance
     double ior = 1.5;  ///< glass index of refraction (outside is vacuum, ior 1)
+    Texture texture;   ///< diffuse only: replaces the constant albedo when its type is not None
+
+    /// The albedo (reflectance) at world position p: the texture's value there, or `albedo`.
+    Vec3 albedoAt(const Vec3& p) const {
+        if (texture.type == TextureType::Checker && checkerOdd(p, texture.scale))
+            return texture.albedo2;
+        return albedo;
+    }
 };
 
 enum class ShapeType { Sphere, Quad };
@@ -29,6 +54,11 @@ struct Shape {
     Vec3 edge1, edge2;  ///< quad; its normal (and emission side) is normalize(edge1 x edge2)
     int material = -1;  ///< index into Scene::materials; -1 = black (absorbs everything)
     Vec3 emission;      ///< emitted radiance (quads: on the normal side only; spheres: both sides)
+    /// Motion blur: displacement over the shutter interval; at time t in [0, 1) the shape is
+    /// translated by velocity * t. Zero = static. Emitters are always static.
+    Vec3 velocity;
+
+    bool moving() const { return !isBlack(velocity); }
 };
 
 struct CameraDesc {
@@ -36,6 +66,13 @@ struct CameraDesc {
     Vec3 lookAt{0, 0, -1};
     Vec3 up{0, 1, 0};
     double fovDeg = 40;  ///< vertical field of view in degrees
+    /// Thin lens: radius of the lens in world units; 0 = pinhole (no lens sample is drawn).
+    double aperture = 0;
+    /// Distance from the lens, along the viewing direction, of the plane in focus; 0 = the
+    /// distance from position to lookAt.
+    double focusDistance = 0;
+
+    bool hasLens() const { return aperture > 0; }
 };
 
 struct Scene {
@@ -48,6 +85,17 @@ struct Scene {
     int rrDepth = 3;    ///< Russian roulette starts after this many scattering events
     std::vector<Material> materials;
     std::vector<Shape> shapes;
+
+    /// Whether camera samples have a lens position (aperture > 0): then PathSample::lensU, lensV
+    /// are random parameters; otherwise they are always 0 and no lens numbers are drawn.
+    bool hasLens() const { return camera.hasLens(); }
+    /// Whether any shape moves: then every camera sample draws a time, PathSample::time is a
+    /// random parameter; otherwise it is always 0 and no time is drawn.
+    bool hasMotion() const {
+        for (const Shape& s : shapes)
+            if (s.moving()) return true;
+        return false;
+    }
 };
 
 /// Loads a built-in scene by name (see builtinSceneNames) or a JSON file by path. Names win over

@@ -1,0 +1,603 @@
+// Random parameter filtering (Sen and Darabi 2011, implementation report; docs/rpf.md). Section
+// and equation numbers below are the report's.
+#include "mcstat/rpf.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <mutex>
+#include <thread>
+
+namespace mcstat {
+
+namespace {
+
+constexpr int kMaxBins = 256;  // per variable; a joint histogram is at most 256 x 256
+
+/// splitmix64: one small, well-mixed generator per (seed, pass, pixel).
+struct PixelRng {
+    uint64_t state;
+    PixelRng(uint64_t seed, int pass, uint64_t pixel)
+        : state(seed ^ (uint64_t(pass + 1) * 0x9e3779b97f4a7c15ull) ^
+                (pixel * 0xbf58476d1ce4e5b9ull)) {
+        next();
+        next();
+    }
+    uint64_t next() {
+        uint64_t z = (state += 0x9e3779b97f4a7c15ull);
+        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+        return z ^ (z >> 31);
+    }
+    double uniform() { return double(next() >> 11) * 0x1.0p-53; }  // [0, 1)
+};
+
+/// c log c for integer counts and its increments, grown on demand (one per thread).
+struct CLogC {
+    std::vector<double> table{0.0};
+    std::vector<double> step;  ///< step[c] = (c+1) log(c+1) - c log c
+    void ensure(size_t n) {
+        for (size_t c = table.size(); c <= n + 1; ++c)
+            table.push_back(double(c) * std::log(double(c)));
+        for (size_t c = step.size(); c <= n; ++c) step.push_back(table[c + 1] - table[c]);
+    }
+    double operator[](size_t c) const { return table[c]; }
+};
+
+/// Values binned by rounding after subtracting the minimum (section 5.1), with their entropy.
+struct Binned {
+    std::vector<uint8_t> bin;  // kMaxBins = 256
+    int bins = 1;
+    double entropy = 0;  ///< natural log
+};
+
+void binValues(const float* v, size_t stride, size_t n, int maxBins, Binned& out,
+               std::vector<uint32_t>& count, const CLogC& clogc) {
+    out.bin.resize(n);
+    float lo = std::numeric_limits<float>::infinity();
+    for (size_t i = 0; i < n; ++i) lo = std::min(lo, v[i * stride]);
+    const float top = float(maxBins - 1);
+    int most = 0;
+    for (size_t i = 0; i < n; ++i) {
+        // v - lo + 0.5 >= 0.5, so truncation is floor: round to the nearest bin.
+        const float d = std::min(v[i * stride] - lo + 0.5f, top);
+        const int b = int(d);
+        out.bin[i] = uint8_t(b);
+        most = std::max(most, b);
+    }
+    out.bins = most + 1;
+    count.assign(size_t(out.bins), 0);
+    for (size_t i = 0; i < n; ++i) ++count[out.bin[i]];
+    // H = log n - (1/n) sum c log c
+    double s = 0;
+    for (uint32_t c : count) s += clogc[c];
+    out.entropy = n > 0 ? std::log(double(n)) - s / double(n) : 0.0;
+}
+
+/// Eq. 1 from two binned vectors: H(X) + H(Y) - H(X, Y), clamped at 0 against rounding.
+double binnedMutualInformation(const Binned& a, const Binned& b, size_t n,
+                               std::vector<uint32_t>& joint, const CLogC& clogc) {
+    if (a.bins == 1 || b.bins == 1 || n == 0) return 0.0;  // a constant tells nothing
+    const size_t nb = size_t(b.bins), cells = size_t(a.bins) * nb;
+    if (joint.size() < cells) joint.assign(cells, 0);
+    // One pass: sum c log c grows by step[c] each time a bin's count c grows by one.
+    double s = 0;
+    const uint8_t* ab = a.bin.data();
+    const uint8_t* bb = b.bin.data();
+    for (size_t i = 0; i < n; ++i) s += clogc.step[joint[size_t(ab[i]) * nb + bb[i]]++];
+    // Zero the table for the next pair: the cells when few, else only the occupied ones.
+    if (cells <= 2 * n)
+        std::fill_n(joint.begin(), cells, 0u);
+    else
+        for (size_t i = 0; i < n; ++i) joint[size_t(ab[i]) * nb + bb[i]] = 0;
+    const double hxy = std::log(double(n)) - s / double(n);
+    return std::max(0.0, a.entropy + b.entropy - hxy);
+}
+
+/// Eq. 1 of variable `a` with each of variables [b0, b1) (out[b - b0]), in one pass over the
+/// samples: the joint histograms are independent, so their increments overlap in the CPU instead
+/// of waiting on each other as one histogram's repeated cells would.
+void mutualInformationRange(const std::vector<Binned>& v, int a, int b0, int b1, size_t n,
+                            std::vector<uint32_t>& joint, std::vector<size_t>& offsets,
+                            std::vector<int>& which, const CLogC& clogc, double* out) {
+    std::fill(out, out + (b1 - b0), 0.0);
+    const Binned& x = v[size_t(a)];
+    if (x.bins == 1 || n == 0) return;
+    which.clear();
+    offsets.clear();
+    size_t total = 0;
+    for (int b = b0; b < b1; ++b)
+        if (b != a && v[size_t(b)].bins > 1) {
+            which.push_back(b);
+            offsets.push_back(total);
+            total += size_t(x.bins) * size_t(v[size_t(b)].bins);
+        }
+    if (which.empty()) return;
+    if (joint.size() < total) joint.assign(total, 0);
+    const size_t m = which.size();
+    const uint8_t* xa = x.bin.data();
+    // Tables in groups of four per pass, their increments interleaved.
+    for (size_t k0 = 0; k0 < m; k0 += 4) {
+        const size_t g = std::min<size_t>(4, m - k0);
+        uint32_t* t[4];
+        const uint8_t* yb[4];
+        size_t nb[4];
+        for (size_t l = 0; l < 4; ++l) {
+            const size_t k = k0 + std::min(l, g - 1);  // a short group repeats its last table
+            t[l] = joint.data() + offsets[k];
+            yb[l] = v[size_t(which[k])].bin.data();
+            nb[l] = size_t(v[size_t(which[k])].bins);
+        }
+        if (g == 4) {
+            for (size_t i = 0; i < n; ++i) {
+                const size_t r = xa[i];
+                ++t[0][r * nb[0] + yb[0][i]];
+                ++t[1][r * nb[1] + yb[1][i]];
+                ++t[2][r * nb[2] + yb[2][i]];
+                ++t[3][r * nb[3] + yb[3][i]];
+            }
+        } else {
+            for (size_t l = 0; l < g; ++l)
+                for (size_t i = 0; i < n; ++i) ++t[l][size_t(xa[i]) * nb[l] + yb[l][i]];
+        }
+    }
+    const double logn = std::log(double(n));
+    for (size_t k = 0; k < m; ++k) {
+        const Binned& y = v[size_t(which[k])];
+        const size_t cells = size_t(x.bins) * size_t(y.bins);
+        uint32_t* t = joint.data() + offsets[k];
+        double s = 0;
+        if (cells <= 2 * n) {
+            for (size_t c = 0; c < cells; ++c) s += clogc[t[c]];
+            std::fill_n(t, cells, 0u);
+        } else {  // sparse: visit the occupied cells through the samples, clearing each once
+            const size_t nb = size_t(y.bins);
+            for (size_t i = 0; i < n; ++i) {
+                uint32_t& c = t[size_t(xa[i]) * nb + y.bin[i]];
+                s += clogc[c];
+                c = 0;
+            }
+        }
+        const double hxy = logn - s / double(n);
+        out[which[k] - b0] = std::max(0.0, x.entropy + y.entropy - hxy);
+    }
+}
+
+/// Everything one thread reuses from pixel to pixel.
+struct Scratch {
+    CLogC clogc;
+    std::vector<Binned> binned;
+    std::vector<uint32_t> count, joint;
+    std::vector<size_t> offsets;
+    std::vector<int> which;
+    std::vector<double> mi;       // dims x dims, the pairs Algorithm 3 uses
+    std::vector<size_t> members;  // N: sample indices into the window
+    std::vector<float> xs;        // dims x |N| (by dimension), normalised (section 4.3)
+    std::vector<float> cs;        // |N| x 3: the current colours c', normalised for eq. 18
+    std::vector<float> z;         // k x |N|: the weighted coordinates of eq. 18, by dimension
+    std::vector<float> colour;    // 3 x |N|: the current colours c', by channel
+    std::vector<float> d2;        // |N|: squared distances, then weights
+    std::vector<double> mean, sd, threshold;
+};
+
+/// The law, per axis, of a neighbour's pixel offset: round(N(0, sigma_p^2)) with sigma_p = b/4
+/// (Algorithm 2 line 1), as its cumulative distribution: cdf[0] = P(offset < -half),
+/// cdf[1 + k] = P(offset <= k - half) for k in [0, 2 half]; beyond is outside the box.
+struct OffsetLaw {
+    static constexpr int kGuide = 1024;
+    std::vector<double> cdf;
+    std::vector<uint16_t> guide;  ///< guide[g]: the first index whose cdf exceeds g / kGuide
+    explicit OffsetLaw(int b) {
+        const int half = b / 2;
+        const double sigma = b / 4.0;
+        auto phi = [&](double v) { return 0.5 * std::erfc(-v / (sigma * std::sqrt(2.0))); };
+        cdf.push_back(phi(-half - 0.5));
+        for (int k = -half; k <= half; ++k) cdf.push_back(phi(k + 0.5));
+        for (int g = 0; g < kGuide; ++g)
+            guide.push_back(uint16_t(std::upper_bound(cdf.begin(), cdf.end(), double(g) / kGuide) -
+                                     cdf.begin()));
+    }
+    /// The index of u in [0, 1): the first k with u < cdf[k], or cdf.size() (beyond the box).
+    size_t find(double u) const {
+        size_t k = guide[size_t(u * kGuide)];
+        while (k < cdf.size() && !(u < cdf[k])) ++k;
+        return k;
+    }
+};
+
+/// exp(-x) for x >= 0 in float, vectorisable (the compiler cannot vectorise std::exp without
+/// -ffast-math): 2^(-x log2 e) split into an integer power (exponent bits) and a degree-7
+/// polynomial of 2^f on (-1, 0]: relative error below 5e-6 (measured). Zero below 2^-126.
+inline float expNegative(float x) {
+    const float t = std::min(x * 1.44269504f, 126.0f);  // -log2 of the result, in [0, 126]
+    const int32_t n = int32_t(t);                       // t >= 0: truncation is floor
+    const float f = float(n) - t;                       // in (-1, 0]
+    // 2^f = e^(f ln 2) for f in (-1, 0]: its Taylor series to degree 7 (Horner).
+    float p = 1.5252734e-5f;
+    p = p * f + 1.5403530e-4f;
+    p = p * f + 1.3333558e-3f;
+    p = p * f + 9.6181291e-3f;
+    p = p * f + 5.5504109e-2f;
+    p = p * f + 2.4022651e-1f;
+    p = p * f + 6.9314718e-1f;
+    p = p * f + 1.0f;
+    const int32_t bits = (127 - n) << 23;  // 2^-n
+    float scale;
+    std::memcpy(&scale, &bits, sizeof scale);
+    return t < 126.0f ? p * scale : 0.0f;
+}
+
+void meanAndDeviation(const float* v, size_t stride, size_t n, double& mean, double& sd) {
+    // Four running sums, so the additions do not wait on each other (same result every run).
+    double s[4] = {0, 0, 0, 0};
+    size_t i = 0;
+    for (; i + 4 <= n; i += 4)
+        for (size_t l = 0; l < 4; ++l) s[l] += double(v[(i + l) * stride]);
+    for (; i < n; ++i) s[0] += double(v[i * stride]);
+    mean = n > 0 ? ((s[0] + s[1]) + (s[2] + s[3])) / double(n) : 0.0;
+    double q[4] = {0, 0, 0, 0};
+    for (i = 0; i + 4 <= n; i += 4)
+        for (size_t l = 0; l < 4; ++l) {
+            const double d = double(v[(i + l) * stride]) - mean;
+            q[l] += d * d;
+        }
+    for (; i < n; ++i) {
+        const double d = double(v[i * stride]) - mean;
+        q[0] += d * d;
+    }
+    sd = n > 0 ? std::sqrt(((q[0] + q[1]) + (q[2] + q[3])) / double(n)) : 0.0;
+}
+
+/// Algorithm 3 over |N| = n samples; dimension d of sample i is xs[d * dimStride + i *
+/// sampleStride] (samples by rows or by columns).
+RpfWeights featureWeights(const RpfLayout& layout, const float* xs, size_t dimStride,
+                          size_t sampleStride, size_t n, int pass, double epsilon, Scratch& sc) {
+    const int dims = layout.dims(), nr = layout.randoms, nf = layout.features;
+    const int pBase = 3, rBase = 5, fBase = 5 + nr;
+    sc.clogc.ensure(n);
+    sc.binned.resize(size_t(dims));
+    for (int d = 0; d < dims; ++d)
+        binValues(xs + size_t(d) * dimStride, sampleStride, n, kMaxBins, sc.binned[size_t(d)],
+                  sc.count, sc.clogc);
+    // Every mutual information Algorithm 3 uses: colour channel k with all of p, r, f (dims
+    // [3, dims)), feature k with p and r (dims [3, 5 + n)).
+    sc.mi.assign(size_t(dims) * size_t(dims), 0.0);
+    for (int k = 0; k < 3; ++k)
+        mutualInformationRange(sc.binned, k, 3, dims, n, sc.joint, sc.offsets, sc.which, sc.clogc,
+                               sc.mi.data() + size_t(k) * size_t(dims) + 3);
+    for (int k = 0; k < nf; ++k)
+        mutualInformationRange(sc.binned, fBase + k, 3, fBase, n, sc.joint, sc.offsets, sc.which,
+                               sc.clogc, sc.mi.data() + size_t(fBase + k) * size_t(dims) + 3);
+    auto mi = [&](int a, int b) { return sc.mi[size_t(a) * size_t(dims) + size_t(b)]; };
+    RpfWeights w;
+    const double grow = 1.0 + 0.1 * pass;  // the (1 + 0.1 t) of eq. 15 and 16
+    double dcr = 0, dcp = 0, dcf = 0;
+    std::vector<double> dcfk(size_t(3 * nf), 0.0);  // D_c,k^f,l, eq. 6 terms
+    for (int k = 0; k < 3; ++k) {
+        double r = 0, p = 0, f = 0;
+        for (int l = 0; l < nr; ++l) r += mi(k, rBase + l);  // eq. 4
+        for (int l = 0; l < 2; ++l) p += mi(k, pBase + l);   // eq. 5
+        for (int l = 0; l < nf; ++l) {                       // eq. 6
+            dcfk[size_t(k * nf + l)] = mi(k, fBase + l);
+            f += dcfk[size_t(k * nf + l)];
+        }
+        const double wcr = randomFraction(r, p, epsilon);  // eq. 10
+        w.colourChannelOnRandom[size_t(k)] = wcr;
+        w.alpha[size_t(k)] = std::max(1.0 - 2.0 * grow * wcr, 0.0);  // eq. 15
+        dcr += r;
+        dcp += p;
+        dcf += f;  // eq. 8
+    }
+    w.colourOnRandom =
+        (w.colourChannelOnRandom[0] + w.colourChannelOnRandom[1] + w.colourChannelOnRandom[2]) /
+        3.0;  // eq. 11
+    w.beta.assign(size_t(nf), 0.0);
+    w.featureOnRandom.assign(size_t(nf), 0.0);
+    w.colourOnFeature.assign(size_t(nf), 0.0);
+    const double all = dcr + dcp + dcf;
+    for (int k = 0; k < nf; ++k) {
+        double r = 0, p = 0;
+        for (int l = 0; l < nr; ++l) r += mi(fBase + k, rBase + l);  // eq. 2
+        for (int l = 0; l < 2; ++l) p += mi(fBase + k, pBase + l);   // eq. 3
+        const double dck =
+            dcfk[size_t(k)] + dcfk[size_t(nf + k)] + dcfk[size_t(2 * nf + k)];  // eq. 7
+        const double wfr = randomFraction(r, p, epsilon);                       // eq. 9
+        const double wcf = all > 0 ? dck / all : 0.0;                           // eq. 12
+        w.featureOnRandom[size_t(k)] = wfr;
+        w.colourOnFeature[size_t(k)] = wcf;
+        w.beta[size_t(k)] = wcf * std::max(1.0 - grow * wfr, 0.0);  // eq. 16
+    }
+    return w;
+}
+
+/// Algorithm 2 + 3 + 4 for pixel (x, y).
+void filterPixel(const RpfWindow& w, const RpfParams& prm, int pass, const OffsetLaw& law, int x,
+                 int y, const std::vector<float>& cIn, std::vector<float>& cOut, Scratch& sc,
+                 RpfPixelReport* report) {
+    const RpfLayout& L = w.layout;
+    const int dims = L.dims(), fBase = 5 + L.randoms;
+    const size_t p = size_t(y - w.y0) * size_t(w.width) + size_t(x);
+    const size_t first = size_t(w.offset[p]), s = size_t(w.offset[p + 1]) - first;
+    if (s == 0) return;
+    const int b = prm.boxes[size_t(pass)], half = b / 2;
+
+    // Mean and standard deviation of the pixel's features, for clustering (line 2).
+    sc.mean.assign(size_t(L.features), 0.0);
+    sc.sd.assign(size_t(L.features), 0.0);
+    for (int k = 0; k < L.features; ++k)
+        meanAndDeviation(w.sample(first) + fBase + k, size_t(dims), s, sc.mean[size_t(k)],
+                         sc.sd[size_t(k)]);
+
+    // N <- P, then up to M - s neighbours drawn with a Gaussian of sigma_p around the pixel
+    // (section 4.1) and kept when every feature is close to the pixel's (section 4.2).
+    sc.members.clear();
+    for (size_t i = 0; i < s; ++i) sc.members.push_back(first + i);
+    const double M = std::floor(double(b) * double(b) * double(s) * prm.samplesFactor);
+    const int64_t draws = std::max<int64_t>(0, int64_t(M) - int64_t(s));
+    PixelRng rng(prm.seed, pass, uint64_t(y) * uint64_t(w.width) + uint64_t(x));
+    // Algorithm 2 line 7 as one threshold per feature: a neighbour is dropped when it lies more
+    // than 3 (world positions: 30) pixel deviations from the pixel's mean, and beyond the 0.1
+    // floor unless the pixel itself varies more than 0.1.
+    sc.threshold.resize(size_t(L.features));
+    for (int k = 0; k < L.features; ++k) {
+        const double sd = sc.sd[size_t(k)];
+        const double limit =
+            (L.isPosition[size_t(k)] ? prm.positionSigmas : prm.featureSigmas) * sd;
+        sc.threshold[size_t(k)] = sd > prm.floor ? limit : std::max(limit, prm.floor);
+    }
+    const std::vector<double>& cdf = law.cdf;
+    for (int64_t q = 0; q < draws; ++q) {
+        // The offset per axis: round(N(0, sigma_p^2)) by inverting its law (section 4.1).
+        const double ux = rng.uniform(), uy = rng.uniform(), pick = rng.uniform();
+        const long ix = long(law.find(ux)), iy = long(law.find(uy));
+        const long last = long(cdf.size());
+        if (ix == 0 || ix == last || iy == 0 || iy == last) continue;  // outside the box
+        const long ox = ix - 1 - half, oy = iy - 1 - half;
+        if (ox == 0 && oy == 0) continue;  // inside P: its samples are in N already
+        const long nx = x + ox, ny = y + oy;
+        if (nx < 0 || nx >= w.width || ny < w.y0 || ny >= w.y0 + w.rows) continue;
+        const size_t q0 = size_t(ny - w.y0) * size_t(w.width) + size_t(nx);
+        const size_t cnt = size_t(w.offset[q0 + 1] - w.offset[q0]);
+        if (cnt == 0) continue;
+        const size_t j = size_t(w.offset[q0]) + std::min(cnt - 1, size_t(pick * double(cnt)));
+        const float* f = w.sample(j) + fBase;
+        bool keep = true;
+        for (int k = 0; k < L.features; ++k)
+            keep &= std::abs(double(f[k]) - sc.mean[size_t(k)]) <= sc.threshold[size_t(k)];
+        if (keep) sc.members.push_back(j);
+    }
+    const size_t n = sc.members.size();
+
+    // Section 4.3: every element normalised over N; the current colours too (eq. 18).
+    sc.xs.resize(n * size_t(dims));
+    for (size_t i = 0; i < n; ++i) {
+        const float* v = w.sample(sc.members[i]);
+        for (int d = 0; d < dims; ++d) sc.xs[size_t(d) * n + i] = v[d];
+    }
+    for (int d = 0; d < dims; ++d) {
+        float* v = sc.xs.data() + size_t(d) * n;
+        double m, sd;
+        meanAndDeviation(v, 1, n, m, sd);
+        const double inv = sd > 0 ? 1.0 / sd : 0.0;
+        for (size_t i = 0; i < n; ++i) v[i] = float((double(v[i]) - m) * inv);
+    }
+    sc.cs.resize(n * 3);
+    for (size_t i = 0; i < n; ++i)
+        std::copy_n(cIn.data() + sc.members[i] * 3, 3, sc.cs.data() + i * 3);
+    for (int d = 0; d < 3; ++d) {
+        double m, sd;
+        meanAndDeviation(sc.cs.data() + d, 3, n, m, sd);
+        const double inv = sd > 0 ? 1.0 / sd : 0.0;
+        for (size_t i = 0; i < n; ++i)
+            sc.cs[i * 3 + size_t(d)] = float((double(sc.cs[i * 3 + size_t(d)]) - m) * inv);
+    }
+
+    const RpfWeights wt = featureWeights(L, sc.xs.data(), n, 1, n, pass, prm.epsilon, sc);
+    if (report) {
+        report->neighbours = int(n);
+        report->alpha = wt.alpha;
+        report->beta = wt.beta;
+        report->colourOnRandom = wt.colourOnRandom;
+        report->featureOnRandom = wt.featureOnRandom;
+    }
+
+    // Algorithm 4 lines 2-3, eq. 19: sigma_c^2 = sigma_f^2 = sigma^2 / (1 - W_c^r)^2.
+    const double sigma2 = 8.0 * prm.sigma8sq / double(s);
+    const double keepShare = (1.0 - wt.colourOnRandom) * (1.0 - wt.colourOnRandom);
+    // Eq. 18 as one squared distance: coordinate k scaled by sqrt(weight_k / (2 sigma^2)).
+    std::vector<double> scale;
+    std::vector<int> source;  // -1 - k: colour channel k; else the dims index
+    for (int k = 0; k < 3; ++k)
+        if (wt.alpha[size_t(k)] > 0 && keepShare > 0) {
+            scale.push_back(std::sqrt(wt.alpha[size_t(k)] * keepShare / (2.0 * sigma2)));
+            source.push_back(-1 - k);
+        }
+    for (int k = 0; k < L.features; ++k)
+        if (wt.beta[size_t(k)] > 0 && keepShare > 0) {
+            scale.push_back(std::sqrt(wt.beta[size_t(k)] * keepShare / (2.0 * sigma2)));
+            source.push_back(fBase + k);
+        }
+    // Coordinates by dimension (rows of n), so that the loops over N run on contiguous floats.
+    const size_t kz = scale.size();
+    sc.z.resize(kz * n);
+    for (size_t k = 0; k < kz; ++k) {
+        const int src = source[k];
+        float* zk = sc.z.data() + k * n;
+        for (size_t i = 0; i < n; ++i) {
+            const float v = src < 0 ? sc.cs[i * 3 + size_t(-1 - src)] : sc.xs[size_t(src) * n + i];
+            zk[i] = float(double(v) * scale[k]);
+        }
+    }
+    sc.colour.resize(3 * n);
+    for (size_t j = 0; j < n; ++j)
+        for (size_t c = 0; c < 3; ++c) sc.colour[c * n + j] = cIn[sc.members[j] * 3 + c];
+    sc.d2.resize(n);
+
+    // Eq. 18-20 for every sample of the pixel (the first s members of N).
+    double mean[3] = {0, 0, 0}, sq[3] = {0, 0, 0};
+    for (size_t i = 0; i < s; ++i) {
+        float* d2 = sc.d2.data();
+        std::fill_n(d2, n, 0.f);
+        for (size_t k = 0; k < kz; ++k) {
+            const float* zk = sc.z.data() + k * n;
+            const float zi = zk[i];
+            for (size_t j = 0; j < n; ++j) {
+                const float d = zi - zk[j];
+                d2[j] += d * d;
+            }
+        }
+        for (size_t j = 0; j < n; ++j) d2[j] = expNegative(d2[j]);  // w_ij
+        const float* r = sc.colour.data();
+        const float* g = r + n;
+        const float* bl = g + n;
+        double acc[3] = {0, 0, 0}, wsum = 0;
+        for (size_t j = 0; j < n; ++j) {
+            const double wij = d2[j];
+            acc[0] += wij * r[j];
+            acc[1] += wij * g[j];
+            acc[2] += wij * bl[j];
+            wsum += wij;
+        }
+        float* o = cOut.data() + (first + i) * 3;
+        for (int c = 0; c < 3; ++c) {
+            o[c] = float(acc[c] / wsum);  // wsum >= w_ii = 1
+            mean[c] += double(o[c]);
+        }
+    }
+    if (!prm.spikes || s < 2) return;
+    // Section 6.1 (Algorithm 4 lines 13-20): spikes above mean + one deviation become the mean.
+    for (int c = 0; c < 3; ++c) mean[c] /= double(s);
+    for (size_t i = 0; i < s; ++i)
+        for (int c = 0; c < 3; ++c) {
+            const double d = double(cOut[(first + i) * 3 + size_t(c)]) - mean[c];
+            sq[c] += d * d;
+        }
+    for (int c = 0; c < 3; ++c) {
+        const double sd = std::sqrt(sq[c] / double(s));
+        for (size_t i = 0; i < s; ++i) {
+            float& v = cOut[(first + i) * 3 + size_t(c)];
+            if (double(v) - mean[c] > sd) v = float(mean[c]);
+        }
+    }
+}
+
+int threadCount(int requested) {
+    const int n = requested > 0 ? requested : int(std::thread::hardware_concurrency());
+    return std::max(1, n);
+}
+
+}  // namespace
+
+double mutualInformation(const float* a, const float* b, size_t n, int maxBins) {
+    CLogC clogc;
+    clogc.ensure(n);
+    Binned ba, bb;
+    std::vector<uint32_t> count, joint;
+    std::vector<size_t> offsets;
+    std::vector<int> which;
+    std::vector<double> mi;  // dims x dims, the pairs Algorithm 3 uses
+    maxBins = std::clamp(maxBins, 1, 65535);
+    binValues(a, 1, n, maxBins, ba, count, clogc);
+    binValues(b, 1, n, maxBins, bb, count, clogc);
+    return binnedMutualInformation(ba, bb, n, joint, clogc);
+}
+
+RpfWeights rpfFeatureWeights(const RpfLayout& layout, const float* xs, size_t n, int pass,
+                             double epsilon) {
+    Scratch sc;
+    return featureWeights(layout, xs, 1, size_t(layout.dims()), n, pass, epsilon, sc);
+}
+
+int rpfHalo(const RpfParams& params) {
+    int h = 0;
+    for (int b : params.boxes) h += b / 2;
+    return h;
+}
+
+bool validateRpfParams(const RpfParams& p, std::string& err) {
+    if (p.boxes.empty()) {
+        err = "rpf: no box sizes";
+        return false;
+    }
+    for (int b : p.boxes)
+        if (b < 1 || b > 255) {
+            err = "rpf: box sizes must be in [1, 255]";
+            return false;
+        }
+    if (!(p.samplesFactor > 0 && p.samplesFactor <= 64) || !(p.sigma8sq > 0) ||
+        !std::isfinite(p.sigma8sq) || !(p.featureSigmas >= 0) || !(p.positionSigmas >= 0) ||
+        !(p.floor >= 0) || !(p.epsilon > 0)) {
+        err = "rpf: parameters out of range";
+        return false;
+    }
+    return true;
+}
+
+void rpfPass(const RpfWindow& w, const RpfParams& params, int pass, const std::vector<float>& cIn,
+             std::vector<float>& cOut, int rowBegin, int rowEnd, int nthreads,
+             std::vector<RpfPixelReport>* report, const std::function<void(int)>& rowDone) {
+    rowBegin = std::max(rowBegin, w.y0);
+    rowEnd = std::min(rowEnd, w.y0 + w.rows);
+    if (rowEnd <= rowBegin) return;
+    if (report) report->assign(size_t(rowEnd - rowBegin) * size_t(w.width), RpfPixelReport());
+    const OffsetLaw law(params.boxes[size_t(pass)]);
+    std::atomic<int> next{rowBegin};
+    std::mutex progressLock;
+    auto worker = [&]() {
+        Scratch sc;
+        for (int y = next++; y < rowEnd; y = next++) {
+            for (int x = 0; x < w.width; ++x)
+                filterPixel(w, params, pass, law, x, y, cIn, cOut, sc,
+                            report ? &(*report)[size_t(y - rowBegin) * size_t(w.width) + size_t(x)]
+                                   : nullptr);
+            if (rowDone) {
+                std::lock_guard<std::mutex> lock(progressLock);
+                rowDone(y);
+            }
+        }
+    };
+    const int threads = std::min(threadCount(nthreads), rowEnd - rowBegin);
+    std::vector<std::thread> pool;
+    for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+    worker();
+    for (std::thread& t : pool) t.join();
+}
+
+void rpfFilterRows(const RpfWindow& w, const RpfParams& params, int outBegin, int outEnd,
+                   std::vector<float>& rgb, int nthreads, const std::function<void(int)>& rowDone) {
+    const int passes = int(params.boxes.size());
+    // Rows each pass must filter so that the last pass has what it reads: pass t covers the
+    // rows of pass t+1 widened by pass t+1's box/2, clipped to the image.
+    std::vector<int> lo(static_cast<size_t>(passes)), hi(static_cast<size_t>(passes));
+    lo[size_t(passes - 1)] = outBegin;
+    hi[size_t(passes - 1)] = outEnd;
+    for (int t = passes - 2; t >= 0; --t) {
+        const int r = params.boxes[size_t(t + 1)] / 2;
+        lo[size_t(t)] = std::max(0, lo[size_t(t + 1)] - r);
+        hi[size_t(t)] = std::min(w.height, hi[size_t(t + 1)] + r);
+    }
+    std::vector<float> cur(w.samples() * 3), nxt;
+    for (size_t i = 0; i < w.samples(); ++i) std::copy_n(w.sample(i), 3, cur.data() + i * 3);
+    for (int t = 0; t < passes; ++t) {
+        nxt = cur;  // Algorithm 1 lines 14-16: c' <- c'' after the pass
+        rpfPass(w, params, t, cur, nxt, lo[size_t(t)], hi[size_t(t)], nthreads, nullptr, rowDone);
+        cur.swap(nxt);
+    }
+    // Algorithm 1 line 19: box filter of each pixel's filtered samples.
+    rgb.assign(size_t(std::max(0, outEnd - outBegin)) * size_t(w.width) * 3, 0.f);
+    for (int y = outBegin; y < outEnd; ++y)
+        for (int x = 0; x < w.width; ++x) {
+            const size_t p = size_t(y - w.y0) * size_t(w.width) + size_t(x);
+            const size_t a = size_t(w.offset[p]), e = size_t(w.offset[p + 1]);
+            if (e == a) continue;
+            double s[3] = {0, 0, 0};
+            for (size_t i = a; i < e; ++i)
+                for (int c = 0; c < 3; ++c) s[c] += double(cur[i * 3 + size_t(c)]);
+            float* o = rgb.data() + (size_t(y - outBegin) * size_t(w.width) + size_t(x)) * 3;
+            for (int c = 0; c < 3; ++c) o[c] = float(s[c] / double(e - a));
+        }
+}
+
+}  // namespace mcstat

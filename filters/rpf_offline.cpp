@@ -1,0 +1,180 @@
+// `mcstat FILE --rpf` and the plugin's `?estimator=rpf` (docs/rpf.md): random parameter filtering
+// over part `records`, read through SampleSource by blocks of output rows with the passes' halo
+// (55 rows each side for the report's boxes), so memory holds a window of rows, never the image.
+// Channels are found by name (FORMAT.md "Per-sample fields"): colour R, G, B; screen position
+// screen.x, screen.y; random parameters rand.*; scene features N1, P1, T1, N2, P2 (and feat.*).
+#include "rpf_offline.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "mcstat/rpf.h"
+#include "mcstat/sample_records.h"
+
+namespace mcstat {
+
+namespace {
+
+bool startsWith(const std::string& s, const char* prefix) { return s.rfind(prefix, 0) == 0; }
+
+bool isFeatureChannel(const std::string& c) {
+    for (const char* f : {"N1.", "P1.", "T1.", "N2.", "P2."})
+        if (startsWith(c, f)) return true;
+    return startsWith(c, kFeaturePrefix);
+}
+
+bool isPositionChannel(const std::string& c) {
+    return startsWith(c, "P1.") || startsWith(c, "P2.") || startsWith(c, "feat.P.");
+}
+
+/// Which channels of the records are which role; false with the missing fields named.
+bool planChannels(const std::string& path, const std::vector<std::string>& available,
+                  std::vector<std::string>& channels, RpfLayout& layout, std::string& err) {
+    std::vector<std::string> randoms, features;
+    bool sx = false, sy = false;
+    for (const std::string& c : available) {
+        if (c == "screen.x") sx = true;
+        if (c == "screen.y") sy = true;
+        if (startsWith(c, kRandomParameterPrefix)) randoms.push_back(c);
+        if (isFeatureChannel(c)) features.push_back(c);
+    }
+    std::vector<std::string> missing;
+    if (!sx || !sy) missing.emplace_back("screen (screen.x, screen.y)");
+    if (randoms.empty())
+        missing.emplace_back("random parameters (rand.*: lens, time, light, bounce)");
+    if (features.empty()) missing.emplace_back("scene features (N1, P1, T1, N2, P2)");
+    if (!missing.empty()) {
+        std::string list;
+        for (const std::string& m : missing) list += (list.empty() ? "" : "; ") + m;
+        err = path + ": rpf needs per-sample fields it does not hold: " + list +
+              " (render with mcstat-render --keep-samples)";
+        return false;
+    }
+    channels = {"R", "G", "B", "screen.x", "screen.y"};
+    channels.insert(channels.end(), randoms.begin(), randoms.end());
+    channels.insert(channels.end(), features.begin(), features.end());
+    layout.randoms = int(randoms.size());
+    layout.features = int(features.size());
+    layout.isPosition.clear();
+    for (const std::string& f : features) layout.isPosition.push_back(isPositionChannel(f));
+    return true;
+}
+
+/// Packs a block of records into the window's sample vectors (RpfLayout order). Samples with a
+/// non-finite value in any field used are left out (docs/rpf.md, "Extremes"); `dropped` counts
+/// them.
+void pack(const SampleBlock& block, const std::vector<std::string>& channels, int height,
+          RpfWindow& w, int64_t& dropped) {
+    const size_t dims = channels.size(), stride = block.stride();
+    std::vector<int> from(dims);
+    for (size_t d = 0; d < dims; ++d) from[d] = block.channel(channels[d]);
+    w.width = block.width;
+    w.height = height;
+    w.y0 = block.y0;
+    w.rows = block.rows;
+    w.offset.assign(block.counts.size() + 1, 0);
+    w.x.clear();
+    w.x.reserve(block.samples.size() / std::max<size_t>(stride, 1) * dims);
+    size_t k = 0;
+    for (size_t p = 0; p < block.counts.size(); ++p) {
+        uint64_t kept = 0;
+        for (uint32_t i = 0; i < block.counts[p]; ++i, ++k) {
+            const float* s = block.samples.data() + k * stride;
+            bool finite = true;
+            for (size_t d = 0; d < dims; ++d) finite = finite && std::isfinite(s[from[d]]);
+            if (!finite) {
+                ++dropped;
+                continue;
+            }
+            for (size_t d = 0; d < dims; ++d) w.x.push_back(s[from[d]]);
+            ++kept;
+        }
+        w.offset[p + 1] = w.offset[p] + kept;
+    }
+}
+
+}  // namespace
+
+bool rpfParamsFrom(const ParamValues& v, RpfParams& p, std::string& err) {
+    p.sigma8sq = v.at("sigma8").real;
+    p.samplesFactor = v.at("samples").real;
+    p.spikes = v.at("spikes").integer != 0;
+    p.seed = uint64_t(v.at("seed").integer);
+    const int passes = int(v.at("passes").integer);
+    p.boxes = {55, 35, 17, 7};
+    p.boxes.resize(size_t(std::min(passes, 4)));
+    return validateRpfParams(p, err);
+}
+
+bool rpfOperation(const SamplesRequest& req, OperationImage& out, std::string& err) {
+    SampleSource* src = req.source;
+    if (src == nullptr || req.params == nullptr) {
+        err = req.path + ": rpf needs an opened statistics file";
+        return false;
+    }
+    const StatsHeader& h = src->header();
+    const std::string& path = src->path();
+    if (!h.hasRecords) {
+        err = path +
+              ": no per-sample records (part 'records'): rpf filters samples; render with "
+              "mcstat-render --keep-samples";
+        return false;
+    }
+    RpfParams prm;
+    if (!rpfParamsFrom(*req.params, prm, err)) {
+        err = path + ": " + err;
+        return false;
+    }
+    std::vector<std::string> channels;
+    RpfWindow w;
+    if (!planChannels(path, src->recordChannels(), channels, w.layout, err)) return false;
+    if (!src->selectRecordChannels(channels, err)) return false;
+
+    // Output rows per block: a window of (rows + 2 halo) rows of samples within about 256 MiB
+    // (the counts of the file decide exactly; the reader bounds them), or the `rows` asked for.
+    const int halo = rpfHalo(prm);
+    const double rowBytes = std::max(1.0, double(h.width) * double(std::max<int64_t>(h.spp, 1)) *
+                                              double(channels.size() + 1) * sizeof(float) * 2.0);
+    int rows = int(req.params->at("rows").integer);
+    if (rows <= 0)
+        rows = int(std::clamp(std::floor(double(256 << 20) / rowBytes) - 2.0 * halo, 16.0,
+                              double(h.height)));
+    rows = std::min(rows, h.height);
+
+    out.width = h.width;
+    out.height = h.height;
+    out.channels = {"R", "G", "B"};
+    out.pixels.assign(size_t(h.width) * size_t(h.height) * 3, 0.f);
+    const int passes = int(prm.boxes.size());
+    int64_t dropped = 0, rowsDone = 0, rowsTotal = 0;
+    for (int y0 = 0; y0 < h.height; y0 += rows) {  // rows every pass filters, for progress
+        int lo = y0, hi = std::min(h.height, y0 + rows);
+        rowsTotal += hi - lo;
+        for (int t = passes - 2; t >= 0; --t) {
+            lo = std::max(0, lo - prm.boxes[size_t(t + 1)] / 2);
+            hi = std::min(h.height, hi + prm.boxes[size_t(t + 1)] / 2);
+            rowsTotal += hi - lo;
+        }
+    }
+    auto rowDone = [&](int) {
+        ++rowsDone;
+        if (req.progress) req.progress(double(rowsDone) / double(std::max<int64_t>(rowsTotal, 1)));
+    };
+    SampleBlock block;
+    std::vector<float> rgb;
+    for (int y0 = 0; y0 < h.height; y0 += rows) {
+        const int y1 = std::min(h.height, y0 + rows);
+        const int a = std::max(0, y0 - halo), e = std::min(h.height, y1 + halo);
+        if (!src->readRecords(a, e - a, block, err)) return false;
+        pack(block, channels, h.height, w, dropped);
+        block.samples = std::vector<float>();  // the window holds the samples now
+        rpfFilterRows(w, prm, y0, y1, rgb, req.nthreads, rowDone);
+        std::copy(rgb.begin(), rgb.end(), out.pixels.begin() + std::ptrdiff_t(y0) * h.width * 3);
+    }
+    if (req.progress) req.progress(1.0);
+    return true;
+}
+
+}  // namespace mcstat

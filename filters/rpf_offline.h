@@ -1,0 +1,17 @@
+// Internal: the registry's per-sample operation "rpf" (filters/rpf_offline.cpp).
+#pragma once
+
+#include <string>
+
+#include "mcstat/registry.h"
+#include "mcstat/rpf.h"
+
+namespace mcstat {
+
+/// SamplesFn of "rpf": R, G, B filtered by random parameter filtering.
+bool rpfOperation(const SamplesRequest& req, OperationImage& out, std::string& err);
+
+/// RpfParams from the registry entry's parsed values.
+bool rpfParamsFrom(const ParamValues& values, RpfParams& out, std::string& err);
+
+}  // namespace mcstat
