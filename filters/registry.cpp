@@ -179,10 +179,18 @@ Operation rpf() {
     op.equation = "Sen & Darabi Algorithms 1-4, eq. 1-20";
     op.input = InputKind::Samples;
     op.samples = &rpfOperation;
-    ParamSpec flag = intParam("spikes", 0, 1, "1",
-                              "section 6.1: a filtered sample above its pixel's mean by more than "
-                              "one deviation becomes the mean");
+    ParamSpec flag = intParam("spikes", 0, 1, "0",
+                              "section 6.1 (for path-traced scenes with small bright lights, as "
+                              "the report applies it): a filtered sample above its pixel's mean "
+                              "by more than one deviation becomes the mean; it loses the energy "
+                              "of partly covered bright edges (docs/rpf.md)");
     flag.type = ParamType::Flag;
+    ParamSpec mapsFlag =
+        intParam("maps", 0, 1, "0",
+                 "add the first pass's dependency maps (the report's Fig. 6): channels "
+                 "rpf.colourOnRandom (eq. 11), rpf.textureOnRandom (eq. 9), rpf.alpha (eq. 15), "
+                 "rpf.textureBeta (eq. 16), rpf.neighbours (|N|)");
+    mapsFlag.type = ParamType::Flag;
     op.params = {
         realParam("sigma8", 0.0, 1e6, true, "0.002",
                   "sigma_8^2 of section 6 (bilateral variance at 8 spp; the report uses 0.02 "
@@ -192,6 +200,7 @@ Operation rpf() {
         intParam("passes", 1, 4, "4", "passes with boxes 55, 35, 17, 7 (section 3.2)"),
         flag,
         intParam("seed", 0, 2147483647, "0", "seed of the neighbourhoods' random draws"),
+        mapsFlag,
         intParam("rows", 0, 1e6, "0",
                  "output rows per block (0: as many as fit in about 256 MiB of samples); the "
                  "result does not depend on it"),

@@ -566,7 +566,8 @@ void rpfPass(const RpfWindow& w, const RpfParams& params, int pass, const std::v
 }
 
 void rpfFilterRows(const RpfWindow& w, const RpfParams& params, int outBegin, int outEnd,
-                   std::vector<float>& rgb, int nthreads, const std::function<void(int)>& rowDone) {
+                   std::vector<float>& rgb, int nthreads, const std::function<void(int)>& rowDone,
+                   std::vector<RpfPixelReport>* firstPass) {
     const int passes = int(params.boxes.size());
     // Rows each pass must filter so that the last pass has what it reads: pass t covers the
     // rows of pass t+1 widened by pass t+1's box/2, clipped to the image.
@@ -582,7 +583,16 @@ void rpfFilterRows(const RpfWindow& w, const RpfParams& params, int outBegin, in
     for (size_t i = 0; i < w.samples(); ++i) std::copy_n(w.sample(i), 3, cur.data() + i * 3);
     for (int t = 0; t < passes; ++t) {
         nxt = cur;  // Algorithm 1 lines 14-16: c' <- c'' after the pass
-        rpfPass(w, params, t, cur, nxt, lo[size_t(t)], hi[size_t(t)], nthreads, nullptr, rowDone);
+        std::vector<RpfPixelReport> report;
+        const bool want = t == 0 && firstPass != nullptr;
+        rpfPass(w, params, t, cur, nxt, lo[size_t(t)], hi[size_t(t)], nthreads,
+                want ? &report : nullptr, rowDone);
+        if (want) {  // pass 0 covers [lo, hi], which holds the output rows
+            const size_t skip = size_t(outBegin - std::max(lo[0], w.y0)) * size_t(w.width);
+            firstPass->assign(report.begin() + std::ptrdiff_t(skip),
+                              report.begin() + std::ptrdiff_t(skip + size_t(outEnd - outBegin) *
+                                                                         size_t(w.width)));
+        }
         cur.swap(nxt);
     }
     // Algorithm 1 line 19: box filter of each pixel's filtered samples.

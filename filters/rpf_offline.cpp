@@ -17,6 +17,11 @@ namespace mcstat {
 
 namespace {
 
+/// maps=1 (Fig. 6), per pixel from pass 0: W_c^r (eq. 11), W_f^r of the texture value (eq. 9,
+/// mean over T1.*), mean alpha (eq. 15), mean beta of T1 (eq. 16) and |N|.
+const std::vector<std::string> kMapChannels{"rpf.colourOnRandom", "rpf.textureOnRandom",
+                                            "rpf.alpha", "rpf.textureBeta", "rpf.neighbours"};
+
 bool startsWith(const std::string& s, const char* prefix) { return s.rfind(prefix, 0) == 0; }
 
 bool isFeatureChannel(const std::string& c) {
@@ -145,8 +150,15 @@ bool rpfOperation(const SamplesRequest& req, OperationImage& out, std::string& e
 
     out.width = h.width;
     out.height = h.height;
+    // maps=1: the dependency maps of the report's Fig. 6, from the first pass.
+    const bool maps = req.params->at("maps").integer != 0;
     out.channels = {"R", "G", "B"};
-    out.pixels.assign(size_t(h.width) * size_t(h.height) * 3, 0.f);
+    if (maps) out.channels.insert(out.channels.end(), kMapChannels.begin(), kMapChannels.end());
+    const size_t nch = out.channels.size();
+    out.pixels.assign(size_t(h.width) * size_t(h.height) * nch, 0.f);
+    std::vector<int> texture;  // features of the texture value T1 (Fig. 6g)
+    for (size_t k = 0; k < channels.size(); ++k)
+        if (startsWith(channels[k], "T1.")) texture.push_back(int(k) - 5 - w.layout.randoms);
     const int passes = int(prm.boxes.size());
     int64_t dropped = 0, rowsDone = 0, rowsTotal = 0;
     for (int y0 = 0; y0 < h.height; y0 += rows) {  // rows every pass filters, for progress
@@ -164,14 +176,32 @@ bool rpfOperation(const SamplesRequest& req, OperationImage& out, std::string& e
     };
     SampleBlock block;
     std::vector<float> rgb;
+    std::vector<RpfPixelReport> report;
     for (int y0 = 0; y0 < h.height; y0 += rows) {
         const int y1 = std::min(h.height, y0 + rows);
         const int a = std::max(0, y0 - halo), e = std::min(h.height, y1 + halo);
         if (!src->readRecords(a, e - a, block, err)) return false;
         pack(block, channels, h.height, w, dropped);
         block.samples = std::vector<float>();  // the window holds the samples now
-        rpfFilterRows(w, prm, y0, y1, rgb, req.nthreads, rowDone);
-        std::copy(rgb.begin(), rgb.end(), out.pixels.begin() + std::ptrdiff_t(y0) * h.width * 3);
+        rpfFilterRows(w, prm, y0, y1, rgb, req.nthreads, rowDone, maps ? &report : nullptr);
+        const size_t pixels = size_t(y1 - y0) * size_t(h.width);
+        for (size_t i = 0; i < pixels; ++i) {
+            float* o = out.pixels.data() + (size_t(y0) * size_t(h.width) + i) * nch;
+            std::copy_n(rgb.data() + i * 3, 3, o);
+            if (!maps) continue;
+            const RpfPixelReport& r = report[i];
+            double tr = 0, tb = 0;
+            for (int k : texture) {
+                tr += r.featureOnRandom.empty() ? 0.0 : r.featureOnRandom[size_t(k)];
+                tb += r.beta.empty() ? 0.0 : r.beta[size_t(k)];
+            }
+            const double nt = std::max<size_t>(texture.size(), 1);
+            o[3] = float(r.colourOnRandom);
+            o[4] = float(tr / nt);
+            o[5] = float((r.alpha[0] + r.alpha[1] + r.alpha[2]) / 3.0);
+            o[6] = float(tb / nt);
+            o[7] = float(r.neighbours);
+        }
     }
     if (req.progress) req.progress(1.0);
     return true;

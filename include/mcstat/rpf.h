@@ -34,8 +34,10 @@ struct RpfParams {
     /// pixel's mean, and either that distance exceeds `floor` or the deviation does.
     double featureSigmas = 3, positionSigmas = 30, floor = 0.1;
     /// Section 6.1: after each pass, a sample above its pixel's mean by more than the pixel's
-    /// standard deviation (per channel) is set to the mean.
-    bool spikes = true;
+    /// standard deviation (per channel) is set to the mean. Off by default: the report applies it
+    /// only to path-traced scenes with small bright lights, and it removes the energy of pixels
+    /// partly covering a bright edge (docs/rpf.md, "HDR spikes").
+    bool spikes = false;
     /// epsilon of eq. 9 and 10.
     double epsilon = 1e-10;
     uint64_t seed = 0;
@@ -118,9 +120,12 @@ int rpfHalo(const RpfParams& params);
 /// the image), then the box filter of Algorithm 1 line 19: the mean of each pixel's filtered
 /// samples for rows [outBegin, outEnd), RGB interleaved. A pixel without samples is 0.
 /// `rowDone` is called (serialised) after each row of each pass.
+/// `firstPass`, when given, receives pass 0's RpfPixelReport of the output rows' pixels (the
+/// dependency maps of the report's Fig. 6).
 void rpfFilterRows(const RpfWindow& w, const RpfParams& params, int outBegin, int outEnd,
                    std::vector<float>& rgb, int nthreads,
-                   const std::function<void(int)>& rowDone = {});
+                   const std::function<void(int)>& rowDone = {},
+                   std::vector<RpfPixelReport>* firstPass = nullptr);
 
 /// Checks parameters; false with a one-line `err`.
 bool validateRpfParams(const RpfParams& p, std::string& err);

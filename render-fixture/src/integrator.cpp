@@ -99,12 +99,20 @@ PathSample PathIntegrator::trace(const Ray& cameraRay, Pcg32& rng) const {
         if (hasSmoothComponent(bsdf)) {
             LightSample ls;
             out.L += beta * sampleDirect(bsdf, hit, wo, ray.time, rng, ls);
-            if (depth == 0) out.lightU = ls.u1, out.lightV = ls.u2;
+            if (depth == 0 && ls.shape >= 0) {
+                out.lightU = ls.u1, out.lightV = ls.u2;
+                out.lightNumbers = 2;
+            }
         }
 
         BsdfSample bs;
         const bool bounced = sampleBsdf(bsdf, hit.n, wo, rng, bs);
-        if (depth == 0) out.bounceU = bs.u1, out.bounceV = bs.u2;
+        if (depth == 0) {
+            out.bounceU = bs.u1, out.bounceV = bs.u2;
+            out.bounceNumbers = bsdf.type == MaterialType::Diffuse ? 2
+                                : bsdf.type == MaterialType::Glass ? 1
+                                                                   : 0;
+        }
         if (!bounced) break;
         beta *= bs.weight;
         if (isBlack(beta)) break;
@@ -137,6 +145,16 @@ PathSample samplePixel(const Camera& camera, const PathIntegrator& integrator, i
     s.screenX = cs.screenX, s.screenY = cs.screenY;
     s.lensU = cs.lensU, s.lensV = cs.lensV;
     s.time = cs.time;
+    // Numbers the path did not draw: independent uniforms from a generator of their own (see
+    // PathSample), seeded apart from the path's so that the path is unchanged.
+    if (s.lightNumbers < 2 || s.bounceNumbers < 2) {
+        Pcg32 filler = sampleRng(~seed, pixel, uint64_t(index));
+        const double u[4] = {filler.uniform(), filler.uniform(), filler.uniform(),
+                             filler.uniform()};
+        if (s.lightNumbers < 2) s.lightU = u[0], s.lightV = u[1];
+        if (s.bounceNumbers < 1) s.bounceU = u[2];
+        if (s.bounceNumbers < 2) s.bounceV = u[3];
+    }
     return s;
 }
 

@@ -24,12 +24,18 @@ struct PathSample {
     double screenX = 0, screenY = 0;  ///< raster position: pixel (x, y) + jitter in [0, 1)^2
     double lensU = 0, lensV = 0;      ///< lens point on the unit disk, in [-1, 1]; 0 without lens
     double time = 0;                  ///< shutter time in [0, 1); 0 when nothing moves
-    // Random parameters at the first hit.
+    // Random parameters at the first hit. A number the path did not draw (no light sample or
+    // no bounce there, glass's unused second number, a mirror's none, a miss) holds an
+    // independent uniform number from a generator of its own (samplePixel): it carries no
+    // information about the colour, as an unused input should, so mutual information sees no
+    // dependency (a constant 0 would tie "ended at an emitter" to "parameter = 0"). The path's
+    // own random numbers and its radiance do not change.
     double lightU = 0, lightV = 0;    ///< the two numbers in [0, 1) that chose the point on the
-                                      ///< light for the light sample there; 0 if none was taken
+                                      ///< light for the light sample there
     double bounceU = 0, bounceV = 0;  ///< the numbers in [0, 1) that chose the first bounce there
-                                      ///< (diffuse: both; glass: U = reflect/refract choice, V = 0;
-                                      ///< mirror or no bounce: 0)
+                                      ///< (diffuse: both; glass: U = reflect/refract choice)
+    int lightNumbers = 0;             ///< how many of lightU, lightV the path drew (0 or 2)
+    int bounceNumbers = 0;            ///< how many of bounceU, bounceV the path drew (0, 1 or 2)
     // The second intersection: where the first bounce's ray hits (zero when it has none).
     bool hit2 = false;
     Vec3 normal2, position2;  ///< as normal and position, at the second hit

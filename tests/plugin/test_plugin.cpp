@@ -365,6 +365,24 @@ TEST_F(Plugin, IdiffComparesTwoEstimators) {
     EXPECT_EQ(r.code, 0) << r.out << r.err;
 }
 
+TEST_F(Plugin, RandomParameterFilteringFromTheRegistry) {
+    // "f.mcstat?estimator=rpf" is `mcstat f --rpf` (tolerance 0), parameters from the name; a
+    // file without per-sample records is a clear error naming the flag that writes them.
+    const std::string dof = path("dof.mcstat");
+    ASSERT_EQ(run(std::string(MCSTAT_RENDER_EXE) +
+                  " --scene dof --res 24 20 --spp 4 --keep-samples --quiet -o " + quote(dof))
+                  .code,
+              0);
+    ASSERT_EQ(mcstat(quote(dof) + " --rpf:passes=2 -o " + quote(path("r1.exr"))).code, 0);
+    Result r =
+        run("oiiotool " + quote(dof + "?estimator=rpf&passes=2") + " -o " + quote(path("r2.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(samePixels(readExr(path("r2.exr")), readExr(path("r1.exr"))));
+    r = run("iinfo -v " + quote(stats + "?estimator=rpf"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_TRUE(contains(r.out + r.err, "--keep-samples")) << r.out << r.err;
+}
+
 TEST_F(Plugin, NeighbourhoodOperationsFromTheRegistry) {
     // idiff "f.mcstat?estimator=3dwtmf" against `mcstat f --3dwtmf`: tolerance 0.
     ASSERT_EQ(mcstat(quote(stats) + " --3dwtmf -o " + quote(path("w.exr"))).code, 0);

@@ -573,7 +573,7 @@ TEST(RpfFeatures, RandomParametersAreTheNumbersDrawnInOrder) {
         for (double& v : u) v = rng.uniform();
         EXPECT_EQ(ps.screenX, x + u[0]);
         EXPECT_EQ(ps.screenY, y + u[1]);
-        if (ps.lightU != 0) {  // a light sample at the first hit: a diffuse surface
+        if (ps.lightNumbers == 2) {  // a light sample at the first hit: a diffuse surface
             ++diffuse;
             EXPECT_EQ(ps.lightU, u[3]);
             EXPECT_EQ(ps.lightV, u[4]);
@@ -581,12 +581,13 @@ TEST(RpfFeatures, RandomParametersAreTheNumbersDrawnInOrder) {
             EXPECT_EQ(ps.bounceV, u[6]);
         } else if (ps.hit && ps.albedo.x == 1.0) {  // glass: one number, reflect or refract
             ++glass;
+            EXPECT_EQ(ps.bounceNumbers, 1);
             EXPECT_EQ(ps.bounceU, u[2]);
-            EXPECT_EQ(ps.bounceV, 0.0);
+            EXPECT_NE(ps.bounceV, 0.0);             // unused: an independent filler number
         } else if (ps.hit && ps.albedo.x == 0.9) {  // mirror: no number at all
             ++mirror;
-            EXPECT_EQ(ps.bounceU, 0.0);
-            EXPECT_EQ(ps.bounceV, 0.0);
+            EXPECT_EQ(ps.bounceNumbers, 0);
+            EXPECT_EQ(ps.lightNumbers, 0);
         }
     }
     EXPECT_GT(diffuse, 100);
@@ -650,9 +651,16 @@ TEST(RpfFeatures, FieldsAreInRangeAndTheSecondHitIsInsideTheBox) {
         const PathSample ps = none.sample(11, i % 8, i / 8, i);
         EXPECT_TRUE(ps.hit);
         EXPECT_FALSE(ps.hit2);
-        EXPECT_EQ(ps.lightU, 0.0);
-        EXPECT_EQ(ps.bounceU, 0.0);
+        EXPECT_EQ(ps.lightNumbers, 0);
+        EXPECT_EQ(ps.bounceNumbers, 0);
         EXPECT_EQ(length(ps.position2), 0.0);
+        // The unused numbers are the filler generator's, not zeros: they tell nothing.
+        Pcg32 filler =
+            sampleRng(~uint64_t(11), uint64_t((i / 8) * flat.width + i % 8), uint64_t(i));
+        EXPECT_EQ(ps.lightU, filler.uniform());
+        EXPECT_EQ(ps.lightV, filler.uniform());
+        EXPECT_EQ(ps.bounceU, filler.uniform());
+        EXPECT_EQ(ps.bounceV, filler.uniform());
     }
 }
 
