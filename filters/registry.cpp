@@ -197,6 +197,8 @@ Operation rpf() {
                   "for noisy indoor path tracing)"),
         realParam("samples", 0.0, 64.0, true, "0.5",
                   "at most box^2 x spp x this samples per neighbourhood (Algorithm 1 line 8)"),
+        intParam("max", 1, 1e7, "16384",
+                 "but never more than this many (a pixel costs its samples x |N|)"),
         intParam("passes", 1, 4, "4", "passes with boxes 55, 35, 17, 7 (section 3.2)"),
         flag,
         intParam("seed", 0, 2147483647, "0", "seed of the neighbourhoods' random draws"),

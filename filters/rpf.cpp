@@ -334,7 +334,8 @@ void filterPixel(const RpfWindow& w, const RpfParams& prm, int pass, const Offse
     // (section 4.1) and kept when every feature is close to the pixel's (section 4.2).
     sc.members.clear();
     for (size_t i = 0; i < s; ++i) sc.members.push_back(first + i);
-    const double M = std::floor(double(b) * double(b) * double(s) * prm.samplesFactor);
+    const double M = std::min(std::floor(double(b) * double(b) * double(s) * prm.samplesFactor),
+                              double(prm.maxNeighbourhood));
     const int64_t draws = std::max<int64_t>(0, int64_t(M) - int64_t(s));
     PixelRng rng(prm.seed, pass, uint64_t(y) * uint64_t(w.width) + uint64_t(x));
     // Algorithm 2 line 7 as one threshold per feature: a neighbour is dropped when it lies more
@@ -348,25 +349,41 @@ void filterPixel(const RpfWindow& w, const RpfParams& prm, int pass, const Offse
         sc.threshold[size_t(k)] = sd > prm.floor ? limit : std::max(limit, prm.floor);
     }
     const std::vector<double>& cdf = law.cdf;
-    for (int64_t q = 0; q < draws; ++q) {
-        // The offset per axis: round(N(0, sigma_p^2)) by inverting its law (section 4.1).
-        const double ux = rng.uniform(), uy = rng.uniform(), pick = rng.uniform();
-        const long ix = long(law.find(ux)), iy = long(law.find(uy));
-        const long last = long(cdf.size());
-        if (ix == 0 || ix == last || iy == 0 || iy == last) continue;  // outside the box
-        const long ox = ix - 1 - half, oy = iy - 1 - half;
-        if (ox == 0 && oy == 0) continue;  // inside P: its samples are in N already
-        const long nx = x + ox, ny = y + oy;
-        if (nx < 0 || nx >= w.width || ny < w.y0 || ny >= w.y0 + w.rows) continue;
-        const size_t q0 = size_t(ny - w.y0) * size_t(w.width) + size_t(nx);
-        const size_t cnt = size_t(w.offset[q0 + 1] - w.offset[q0]);
-        if (cnt == 0) continue;
-        const size_t j = size_t(w.offset[q0]) + std::min(cnt - 1, size_t(pick * double(cnt)));
-        const float* f = w.sample(j) + fBase;
-        bool keep = true;
-        for (int k = 0; k < L.features; ++k)
-            keep &= std::abs(double(f[k]) - sc.mean[size_t(k)]) <= sc.threshold[size_t(k)];
-        if (keep) sc.members.push_back(j);
+    // Candidates in batches: draw a batch, prefetch the candidates' features (random places in
+    // a window of megabytes), then test them in draw order. The same draws and the same
+    // decisions as one at a time.
+    constexpr int kBatch = 32;
+    size_t batch[kBatch];
+    const size_t featureOffset = size_t(fBase) * sizeof(float);
+    for (int64_t q0 = 0; q0 < draws; q0 += kBatch) {
+        const int64_t qn = std::min<int64_t>(kBatch, draws - q0);
+        int found = 0;
+        for (int64_t q = 0; q < qn; ++q) {
+            // The offset per axis: round(N(0, sigma_p^2)) by inverting its law (section 4.1).
+            const double ux = rng.uniform(), uy = rng.uniform(), pick = rng.uniform();
+            const long ix = long(law.find(ux)), iy = long(law.find(uy));
+            const long last = long(cdf.size());
+            if (ix == 0 || ix == last || iy == 0 || iy == last) continue;  // outside the box
+            const long ox = ix - 1 - half, oy = iy - 1 - half;
+            if (ox == 0 && oy == 0) continue;  // inside P: its samples are in N already
+            const long nx = x + ox, ny = y + oy;
+            if (nx < 0 || nx >= w.width || ny < w.y0 || ny >= w.y0 + w.rows) continue;
+            const size_t pq = size_t(ny - w.y0) * size_t(w.width) + size_t(nx);
+            const size_t cnt = size_t(w.offset[pq + 1] - w.offset[pq]);
+            if (cnt == 0) continue;
+            const size_t j = size_t(w.offset[pq]) + std::min(cnt - 1, size_t(pick * double(cnt)));
+            const char* at = reinterpret_cast<const char*>(w.sample(j)) + featureOffset;
+            __builtin_prefetch(at);
+            __builtin_prefetch(at + size_t(L.features) * sizeof(float) - 1);
+            batch[found++] = j;
+        }
+        for (int c = 0; c < found; ++c) {
+            const float* f = w.sample(batch[c]) + fBase;
+            bool keep = true;
+            for (int k = 0; k < L.features; ++k)
+                keep &= std::abs(double(f[k]) - sc.mean[size_t(k)]) <= sc.threshold[size_t(k)];
+            if (keep) sc.members.push_back(batch[c]);
+        }
     }
     const size_t n = sc.members.size();
 
@@ -526,9 +543,9 @@ bool validateRpfParams(const RpfParams& p, std::string& err) {
             err = "rpf: box sizes must be in [1, 255]";
             return false;
         }
-    if (!(p.samplesFactor > 0 && p.samplesFactor <= 64) || !(p.sigma8sq > 0) ||
-        !std::isfinite(p.sigma8sq) || !(p.featureSigmas >= 0) || !(p.positionSigmas >= 0) ||
-        !(p.floor >= 0) || !(p.epsilon > 0)) {
+    if (!(p.samplesFactor > 0 && p.samplesFactor <= 64) || p.maxNeighbourhood < 1 ||
+        !(p.sigma8sq > 0) || !std::isfinite(p.sigma8sq) || !(p.featureSigmas >= 0) ||
+        !(p.positionSigmas >= 0) || !(p.floor >= 0) || !(p.epsilon > 0)) {
         err = "rpf: parameters out of range";
         return false;
     }

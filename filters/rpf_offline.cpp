@@ -105,6 +105,7 @@ void pack(const SampleBlock& block, const std::vector<std::string>& channels, in
 bool rpfParamsFrom(const ParamValues& v, RpfParams& p, std::string& err) {
     p.sigma8sq = v.at("sigma8").real;
     p.samplesFactor = v.at("samples").real;
+    p.maxNeighbourhood = v.at("max").integer;
     p.spikes = v.at("spikes").integer != 0;
     p.seed = uint64_t(v.at("seed").integer);
     const int passes = int(v.at("passes").integer);

@@ -136,6 +136,7 @@ metrics() {  # metrics IMAGE REF: prints "relMSE SSIM"
 
 if want 1; then
 t0=$SECONDS
+load1=$(cut -d' ' -f1 /proc/loadavg)
 md_begin 1 "1. Speed and memory at 8 spp (256x256, all $(nproc) cores, median of $REPS)"
 md_cmds <<EOF
 $R --scene SCENE --spp 8 --keep-samples --seed $SEED -o $out/SCENE-8-keep.mcstat
@@ -158,7 +159,7 @@ for scene in $SCENES; do
     "$(awk -v a="$pt" 'BEGIN { print a <= 30 ? "yes" : "no" }')"
 done
 tend
-note "Peak RSS is the largest of the REPS runs. Section 1 took $(hms $((SECONDS - t0)))."
+note "Peak RSS is the largest of the REPS runs. 1-minute load average at the start: $load1 on $(nproc) cores (other jobs on the machine inflate the times). Section 1 took $(hms $((SECONDS - t0)))."
 fi
 
 if want 2; then

@@ -26,6 +26,10 @@ struct RpfParams {
     std::vector<int> boxes{55, 35, 17, 7};
     /// Algorithm 1 line 8: at most M = b^2 * s * samplesFactor samples per neighbourhood (1/2).
     double samplesFactor = 0.5;
+    /// ... and never more than this (the rule is the report's for 8 spp, where pass 1 draws
+    /// 12,100; the cost of a pixel is its samples x |N|, so without a bound it would grow with
+    /// the square of spp).
+    int64_t maxNeighbourhood = 16384;
     /// sigma_8^2 of section 6: the bilateral variance at 8 spp, sigma^2 = 8 sigma_8^2 / s.
     /// The report uses 0.002, and 0.02 for noisy indoor path-traced scenes.
     double sigma8sq = 0.002;

@@ -272,5 +272,32 @@ TEST(RpfFilter, BlocksOfRowsAndThreadsGiveTheSameBits) {
     EXPECT_LT(outVar, 0.25 * inVar);
 }
 
+TEST(RpfFilter, ExtremesStayFinite) {
+    // One sample per pixel (s = 1: the pixel's deviation is 0, so the clustering floor decides),
+    // empty pixels (a pixel without samples is 0 and lends none), a 1e38 sample and denormals:
+    // every output is finite; the empty pixel is exactly 0.
+    RpfWindow w = makeWindow(12, 10, 1, 4, [](int x, int y, int, float* s) {
+        s[0] = s[1] = s[2] = 0.5f;
+        if (x == 3 && y == 3) s[0] = s[1] = s[2] = 1e38f;
+        if (x == 7 && y == 2) s[0] = s[1] = s[2] = 1e-40f;
+    });
+    // Empty pixel (5, 5): remove its sample.
+    const size_t p = 5 * 12 + 5, at = size_t(w.offset[p]), dims = size_t(w.layout.dims());
+    w.x.erase(w.x.begin() + std::ptrdiff_t(at * dims),
+              w.x.begin() + std::ptrdiff_t((at + 1) * dims));
+    for (size_t q = p + 1; q < w.offset.size(); ++q) --w.offset[q];
+    RpfParams prm;
+    for (bool spikes : {false, true}) {
+        prm.spikes = spikes;
+        std::vector<float> rgb;
+        rpfFilterRows(w, prm, 0, 10, rgb, 2);
+        for (float v : rgb) ASSERT_TRUE(std::isfinite(v)) << v;
+        EXPECT_EQ(rgb[p * 3], 0.f);
+        // A lone 1e38 sample on a constant surface whose colour does not depend on the random
+        // parameter keeps its own value: the colour term separates it from the 0.5s.
+        EXPECT_GT(rgb[(3 * 12 + 3) * 3], 1e37f);
+    }
+}
+
 }  // namespace
 }  // namespace mcstat
