@@ -18,46 +18,17 @@
 #include "mcstat/pajot.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
+#include "tool_test.h"
 
 namespace mcstat {
 namespace {
 
-struct ToolRun {
-    int code = 0;
-    std::string err;
-};
+using testing::slurp;
+using testing::ToolRun;
 
-std::string slurp(const std::string& path) {
-    std::ifstream f(path, std::ios::binary);
-    std::stringstream s;
-    s << f.rdbuf();
-    return s.str();
-}
-
-class PajotFile : public ::testing::Test {
+class PajotFile : public testing::ToolTest {
   protected:
-    std::string dir;
-    void SetUp() override {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        std::string name = std::string(info->test_suite_name()) + "-" + info->name();
-        std::replace(name.begin(), name.end(), '/', '_');  // parameterised names have slashes
-        dir = std::string(MCSTAT_BINARY_DIR) + "/tests/pajot/tmp-" + name;
-        OIIO::Filesystem::remove_all(dir);
-        OIIO::Filesystem::create_directory(dir);
-    }
-    void TearDown() override {
-        if (!HasFailure()) OIIO::Filesystem::remove_all(dir);
-    }
-    std::string path(const std::string& n) const { return dir + "/" + n; }
-    ToolRun run(const std::string& exe, const std::string& args) const {
-        const std::string e = path("stderr.txt");
-        const int status = std::system((exe + " " + args + " >/dev/null 2>" + e).c_str());
-        return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(e)};
-    }
-    ToolRun render(const std::string& args) const {
-        return run(MCSTAT_RENDER_EXE, "--quiet " + args);
-    }
-    ToolRun mcstat(const std::string& args) const { return run(MCSTAT_EXE, args); }
+    PajotFile() : ToolTest("pajot") {}
 };
 
 /// Pixels of an EXR written by mcstat, all channels.

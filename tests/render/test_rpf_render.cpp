@@ -17,6 +17,7 @@
 #include "integrator.h"
 #include "mcstat/render/render.h"
 #include "mcstat/render/scene.h"
+#include "render_test_util.h"
 #include "rng.h"
 #include "sampling.h"
 
@@ -24,6 +25,7 @@ namespace {
 
 using mcstat::StatsImage;
 using namespace mcstat::render;
+using namespace mcstat::render::testutil;
 using mcstat::render::render;
 
 Scene mustParse(const std::string& json) {
@@ -33,53 +35,11 @@ Scene mustParse(const std::string& json) {
     return s;
 }
 
-Scene mustLoad(const std::string& name) {
-    Scene s;
-    std::string err;
-    EXPECT_TRUE(loadScene(name, s, err)) << err;
-    return s;
-}
-
-RenderOptions options(int64_t spp, int M, uint64_t seed = 1, int threads = 0) {
-    RenderOptions o;
-    o.spp = spp;
-    o.M = M;
-    o.seed = seed;
-    o.threads = threads;
-    return o;
-}
-
-StatsImage mustRender(const Scene& scene, const RenderOptions& opt) {
-    StatsImage img;
-    std::string err;
-    EXPECT_TRUE(render(scene, opt, img, err)) << err;
-    return img;
-}
-
 std::vector<float> mustReference(const Scene& scene, const RenderOptions& opt) {
     std::vector<float> rgb;
     std::string err;
     EXPECT_TRUE(renderReference(scene, opt, rgb, err)) << err;
     return rgb;
-}
-
-bool sameBits(const std::vector<float>& a, const std::vector<float>& b) {
-    return a.size() == b.size() &&
-           (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0);
-}
-
-void expectIdentical(const StatsImage& a, const StatsImage& b) {
-    EXPECT_TRUE(sameBits(a.beauty, b.beauty));
-    EXPECT_TRUE(sameBits(a.bufferMean, b.bufferMean));
-    EXPECT_TRUE(sameBits(a.bufferCount, b.bufferCount));
-    EXPECT_TRUE(sameBits(a.count, b.count));
-    EXPECT_TRUE(sameBits(a.mean, b.mean));
-    EXPECT_TRUE(sameBits(a.variance, b.variance));
-    EXPECT_TRUE(sameBits(a.normal, b.normal));
-    EXPECT_TRUE(sameBits(a.position, b.position));
-    EXPECT_TRUE(sameBits(a.albedo, b.albedo));
-    EXPECT_TRUE(sameBits(a.depth, b.depth));
-    EXPECT_TRUE(sameBits(a.coverage, b.coverage));
 }
 
 std::string builtinJson(const std::string& name) {

@@ -17,44 +17,17 @@
 
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
+#include "tool_test.h"
 
 namespace mcstat {
 namespace {
 
-std::string slurp(const std::string& path) {
-    std::ifstream f(path, std::ios::binary);
-    std::stringstream s;
-    s << f.rdbuf();
-    return s.str();
-}
+using testing::slurp;
+using testing::ToolRun;
 
-struct ToolRun {
-    int code = 0;
-    std::string err;
-};
-
-class RpfFile : public ::testing::Test {
+class RpfFile : public testing::ToolTest {
   protected:
-    std::string dir;
-    void SetUp() override {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        dir = std::string(MCSTAT_BINARY_DIR) + "/tests/rpf/tmp-" + info->name();
-        OIIO::Filesystem::remove_all(dir);
-        OIIO::Filesystem::create_directory(dir);
-    }
-    void TearDown() override {
-        if (!HasFailure()) OIIO::Filesystem::remove_all(dir);
-    }
-    std::string path(const std::string& n) const { return dir + "/" + n; }
-    ToolRun run(const std::string& exe, const std::string& args) const {
-        const std::string e = path("stderr.txt");
-        const int status = std::system((exe + " " + args + " >/dev/null 2>" + e).c_str());
-        return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(e)};
-    }
-    ToolRun render(const std::string& args) const {
-        return run(MCSTAT_RENDER_EXE, "--quiet " + args);
-    }
-    ToolRun mcstat(const std::string& args) const { return run(MCSTAT_EXE, args); }
+    RpfFile() : ToolTest("rpf") {}
 };
 
 std::vector<float> rgbOf(const std::string& file, int& width, int& height) {
