@@ -15,7 +15,7 @@
 # BUILD (build: the binaries' build directory), SKIP_BUILD=1 (use the binaries as they are),
 # REFRESH=1 (re-render the cached MC renders; references are re-rendered only when deleted).
 # Cached under out/bench-rpf/: ref-SCENE-SPP.exr, mc-SCENE-SPP.exr, SCENE-8-keep.mcstat; RPF
-# outputs are recomputed when older than the mcstat binary or their input.
+# outputs are recomputed unless made from their input by the same mcstat binary (OUT.by).
 set -Eeuo pipefail
 cd "$(dirname "$0")/.."
 trap 'rc=$?; echo "bench_rpf: line $LINENO failed (exit $rc): $BASH_COMMAND" >&2' ERR
@@ -69,11 +69,16 @@ mib() { awk -v b="$1" 'BEGIN { printf "%.1f", b / 1048576 }'; }
 # fragments present, so running one section keeps the others' last results.
 md=/dev/null
 machine="$(lscpu 2>/dev/null | sed -n 's/^Model name: *//p' | head -n1), $(nproc) cores, $(free -g | awk '/^Mem:/ {print $2}') GiB"
+# What the binaries were built from: the tree's commit when this script built them; with SKIP_BUILD
+# only their build time is known (the tree may have moved on since).
 commit=$(git describe --always --dirty 2>/dev/null || echo unknown)
+built=$(date -u -r "$M" '+%Y-%m-%d %H:%M UTC')
+if [ "${SKIP_BUILD:-0}" = 0 ]; then provenance="commit $commit (built by this run)"
+else provenance="binaries in $BUILD built $built (SKIP_BUILD; the tree is now at $commit)"; fi
 md_begin() {  # md_begin N TITLE
   md=$out/section-$1.md
   { echo "## $2"; echo
-    echo "Run $(date -u '+%Y-%m-%d %H:%M UTC') on ${machine}; commit $commit; REPS=$REPS, REF_SPP=$REF_SPP."
+    echo "Run $(date -u '+%Y-%m-%d %H:%M UTC') on ${machine}; ${provenance}; REPS=$REPS, REF_SPP=$REF_SPP."
     echo; } >"$md"
   echo; echo "== $2 =="
 }
@@ -117,16 +122,21 @@ ensure_mc() {  # ensure_mc SCENE SPP
     "$R" --scene "$1" --spp "$2" --seed "$SEED" --reference -o "$f"
   fi
 }
-stale() { [ ! -f "$1" ] || [ "$M" -nt "$1" ] || [ "$2" -nt "$1" ]; }  # stale OUT INPUT
+# An RPF output is reused only if made from its input by this very mcstat binary (OUT.by holds the
+# binary's path and mtime: another BUILD's older binary must not pass off its output).
+mstamp="$(readlink -f "$M") $(stat -c %Y "$M")"
+stale() { [ ! -f "$1" ] || [ "$2" -nt "$1" ] || [ "$(cat "$1.by" 2>/dev/null)" != "$mstamp" ]; }
 ensure_rpf() {
   local k f; k=$(keep_file "$1"); f=$out/$1-rpf8.exr
   ensure_keep "$1"
-  if stale "$f" "$k"; then say "$1: RPF"; "$M" "$k" --rpf -o "$f"; fi
+  if stale "$f" "$k"; then say "$1: RPF"; "$M" "$k" --rpf -o "$f"; echo "$mstamp" >"$f.by"; fi
 }
 ensure_maps() {
   local k f; k=$(keep_file "$1"); f=$out/$1-rpf8-maps.exr
   ensure_keep "$1"
-  if stale "$f" "$k"; then say "$1: RPF with maps=1"; "$M" "$k" --rpf:maps=1 -o "$f"; fi
+  if stale "$f" "$k"; then
+    say "$1: RPF with maps=1"; "$M" "$k" --rpf:maps=1 -o "$f"; echo "$mstamp" >"$f.by"
+  fi
 }
 metrics() {  # metrics IMAGE REF: prints "relMSE SSIM"
   "$M" "$1" --diff "$2" | awk '{ for (i = 1; i <= NF; ++i) { if ($i == "relMSE") r = $(i + 1)
@@ -151,6 +161,7 @@ for scene in $SCENES; do
     say "$scene: 8 spp --keep-samples, then RPF"
     timed "$R" --scene "$scene" --spp 8 --keep-samples --seed "$SEED" -o "$keep"; rts+=("$T")
     timed "$M" "$keep" --rpf -o "$out/$scene-rpf8.exr"; pts+=("$T")
+    echo "$mstamp" >"$out/$scene-rpf8.exr.by"
     if [ "$MEM" -gt "$peak" ]; then peak=$MEM; fi
   done
   rt=$(printf '%s\n' "${rts[@]}" | median); pt=$(printf '%s\n' "${pts[@]}" | median)
