@@ -138,6 +138,13 @@ ParamSpec intParam(const std::string& name, double lo, double hi, const std::str
     return p;
 }
 
+/// A 0/1 switch (also true/false, on/off).
+ParamSpec flagParam(const std::string& name, const std::string& def, const std::string& help) {
+    ParamSpec p = intParam(name, 0, 1, def, help);
+    p.type = ParamType::Flag;
+    return p;
+}
+
 // Pajot et al. 2011 (docs/pajot.md): per pixel, its samples in the order taken.
 Operation pajot() {
     Operation op;
@@ -179,18 +186,17 @@ Operation rpf() {
     op.equation = "Sen & Darabi Algorithms 1-4, eq. 1-20";
     op.input = InputKind::Samples;
     op.samples = &rpfOperation;
-    ParamSpec flag = intParam("spikes", 0, 1, "0",
-                              "section 6.1 (for path-traced scenes with small bright lights, as "
-                              "the report applies it): a filtered sample above its pixel's mean "
-                              "by more than one deviation becomes the mean; it loses the energy "
-                              "of partly covered bright edges (docs/rpf.md)");
-    flag.type = ParamType::Flag;
-    ParamSpec mapsFlag =
-        intParam("maps", 0, 1, "0",
-                 "add the first pass's dependency maps (the report's Fig. 6): channels "
-                 "rpf.colourOnRandom (eq. 11), rpf.textureOnRandom (eq. 9), rpf.alpha (eq. 15), "
-                 "rpf.textureBeta (eq. 16), rpf.neighbours (|N|)");
-    mapsFlag.type = ParamType::Flag;
+    const ParamSpec spikes =
+        flagParam("spikes", "0",
+                  "section 6.1 (for path-traced scenes with small bright lights, as "
+                  "the report applies it): a filtered sample above its pixel's mean "
+                  "by more than one deviation becomes the mean; it loses the energy "
+                  "of partly covered bright edges (docs/rpf.md)");
+    const ParamSpec maps =
+        flagParam("maps", "0",
+                  "add the first pass's dependency maps (the report's Fig. 6): channels "
+                  "rpf.colourOnRandom (eq. 11), rpf.textureOnRandom (eq. 9), rpf.alpha (eq. 15), "
+                  "rpf.textureBeta (eq. 16), rpf.neighbours (|N|)");
     op.params = {
         realParam("sigma8", 0.0, 1e6, true, "0.002",
                   "sigma_8^2 of section 6 (bilateral variance at 8 spp; the report uses 0.02 "
@@ -200,9 +206,9 @@ Operation rpf() {
         intParam("max", 1, 1e7, "16384",
                  "but never more than this many (a pixel costs its samples x |N|)"),
         intParam("passes", 1, 4, "4", "passes with boxes 55, 35, 17, 7 (section 3.2)"),
-        flag,
+        spikes,
         intParam("seed", 0, 2147483647, "0", "seed of the neighbourhoods' random draws"),
-        mapsFlag,
+        maps,
         intParam("rows", 0, 1e6, "0",
                  "output rows per block (0: as many as fit in about 256 MiB of samples); the "
                  "result does not depend on it"),
