@@ -147,6 +147,13 @@ class Checker {
     bool checkAttributes(StatsHeader& hdr);
     bool checkChannels(int part, int M);
 
+  public:
+    /// Every chunk of every part lies inside the file: its offset table entry, its packed size
+    /// and (deep parts) its sample-count table end within `fileSize` bytes. OpenEXR's readers
+    /// would otherwise find a truncated file only while decoding, after pixels are allocated.
+    bool checkChunks(uint64_t fileSize);
+
+  private:
     exr_const_context_t c_;
     std::string path_;
     int nparts_ = 0;
@@ -436,6 +443,40 @@ bool Checker::run(const ReadLimits& limits, StatsHeader& hdr) {
     return true;
 }
 
+bool Checker::checkChunks(uint64_t fileSize) {
+    for (int part = 0; part < nparts_; ++part) {
+        const std::string pn = partName(part);
+        exr_storage_t storage = EXR_STORAGE_LAST_TYPE;
+        exr_attr_box2i_t dw{};
+        int32_t lines = 0;
+        if (exr_get_storage(c_, part, &storage) != EXR_ERR_SUCCESS ||
+            exr_get_data_window(c_, part, &dw) != EXR_ERR_SUCCESS ||
+            exr_get_scanlines_per_chunk(c_, part, &lines) != EXR_ERR_SUCCESS || lines < 1)
+            return fail(fmt::format("truncated or corrupt (part '{}': no chunk layout)", pn));
+        if (storage != EXR_STORAGE_SCANLINE && storage != EXR_STORAGE_DEEP_SCANLINE) continue;
+        for (int64_t y = dw.min.y; y <= dw.max.y; y += lines) {
+            exr_chunk_info_t ci{};
+            const exr_result_t rv = exr_read_scanline_chunk_info(c_, part, int(y), &ci);
+            uint64_t end = ci.data_offset + ci.packed_size;
+            bool inside = rv == EXR_ERR_SUCCESS && ci.data_offset <= fileSize &&
+                          ci.packed_size <= fileSize - ci.data_offset;
+            if (inside && storage == EXR_STORAGE_DEEP_SCANLINE) {
+                end = ci.sample_count_data_offset + ci.sample_count_table_size;
+                inside = ci.sample_count_data_offset <= fileSize &&
+                         ci.sample_count_table_size <= fileSize - ci.sample_count_data_offset;
+            }
+            if (!inside)
+                return fail(fmt::format(
+                    "truncated or corrupt (part '{}': the chunk of row {} {} the file's {} bytes)",
+                    pn, y,
+                    rv == EXR_ERR_SUCCESS ? fmt::format("ends at byte {}, beyond", end)
+                                          : std::string("has no valid offset within"),
+                    fileSize));
+        }
+    }
+    return true;
+}
+
 }  // namespace
 
 bool checkStatsHeaders(int fd, uint64_t size, const std::string& path, const ReadLimits& limits,
@@ -472,7 +513,7 @@ bool checkStatsHeaders(int fd, uint64_t size, const std::string& path, const Rea
         return false;
     }
     Checker checker(ctx.ctxt, path);
-    if (!checker.run(limits, hdr)) {
+    if (!checker.run(limits, hdr) || !checker.checkChunks(size)) {
         err = checker.err;
         return false;
     }

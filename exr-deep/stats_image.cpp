@@ -114,6 +114,45 @@ bool allocateArrays(StatsImage& img, size_t buffers, std::vector<uint64_t>&& off
 
 }  // namespace
 
+namespace detail {
+
+bool resizeParts(StatsImage& img, unsigned parts, size_t buffers, std::vector<uint64_t>&& offsets,
+                 std::string& err) {
+    const StatsHeader& h = img.header;
+    const size_t pixels = size_t(h.width) * size_t(h.height);  // a block: bounded by the file's
+    // resize, not assign: a reused block keeps its storage, and every element of a part read is
+    // overwritten by the decoder (the header check saw every channel).
+    const auto fit = [](std::vector<float>& v, size_t n, bool keep) {
+        if (keep)
+            v.resize(n);
+        else
+            v.clear();
+    };
+    try {
+        const bool beauty = parts & kStatsPartBeauty, buf = parts & kStatsPartBuffers;
+        const bool mom = parts & kStatsPartMoments, feat = parts & kStatsPartFeatures;
+        fit(img.beauty, pixels * 3, beauty);
+        fit(img.bufferMean, buffers * 3, buf);
+        fit(img.bufferCount, buffers, buf);
+        img.bufferOffset = buf ? std::move(offsets) : std::vector<uint64_t>();
+        fit(img.count, pixels, mom);
+        fit(img.mean, pixels * 3, mom);
+        fit(img.variance, pixels * 3, mom);
+        fit(img.normal, pixels * 3, feat);
+        fit(img.position, pixels * 3, feat);
+        fit(img.albedo, pixels * 3, feat);
+        fit(img.depth, pixels, feat);
+        fit(img.coverage, pixels, feat);
+    } catch (const std::exception& e) {  // bad_alloc, length_error
+        err = fmt::format("cannot allocate {} rows of {} pixels with {} buffers: {}", h.height,
+                          h.width, buffers, e.what());
+        return false;
+    }
+    return true;
+}
+
+}  // namespace detail
+
 bool StatsImage::allocate(std::string& err) {
     std::string problem;
     if (!checkHeader(header, problem)) {
@@ -222,6 +261,11 @@ bool StatsImage::checkBufferLayout(std::string& why) const {
 }
 
 bool validateStats(const StatsImage& img, const std::string& what, std::string& err) {
+    return validateStats(img, kStatsAllParts, what, err);
+}
+
+bool validateStats(const StatsImage& img, unsigned parts, const std::string& what,
+                   std::string& err) {
     const StatsHeader& h = img.header;
     std::string problem;
     if (!checkHeader(h, problem)) {
@@ -229,7 +273,10 @@ bool validateStats(const StatsImage& img, const std::string& what, std::string& 
         return false;
     }
     const size_t pixels = img.pixelCount();
+    const bool buffers = (parts & kStatsPartBuffers) != 0,
+               moments = (parts & kStatsPartMoments) != 0;
     for (int part = 0; part < layout::kPartCount; ++part) {
+        if (!(parts & (1u << part))) continue;  // StatsParts bits follow the part order
         for (const layout::ChannelPlace& c : layout::partChannels(part, h.M, h.adaptiveM)) {
             if (c.offset != 0) continue;  // one check per array
             const std::vector<float>& a = layout::arrayOf(img, c.array);
@@ -241,17 +288,19 @@ bool validateStats(const StatsImage& img, const std::string& what, std::string& 
             }
         }
     }
-    if (std::string why; !img.checkBufferLayout(why)) {
+    if (std::string why; buffers && !img.checkBufferLayout(why)) {
         err = what + ": " + why;
         return false;
     }
+    if (!buffers && !moments) return true;
     for (size_t p = 0; p < pixels; ++p) {
         const auto where = [&] {
             return fmt::format("pixel ({}, {})", h.originX + int64_t(p % size_t(h.width)),
                                h.originY + int64_t(p / size_t(h.width)));
         };
         double sum = 0.0;
-        const size_t k0 = img.bufferBegin(p), m = size_t(img.buffersOf(p));
+        const size_t k0 = buffers ? img.bufferBegin(p) : 0;
+        const size_t m = buffers ? size_t(img.buffersOf(p)) : 0;
         for (size_t j = 0; j < m; ++j) {
             const float c = img.bufferCount[k0 + j];
             if (const char* why = countProblem(c)) {
@@ -260,12 +309,13 @@ bool validateStats(const StatsImage& img, const std::string& what, std::string& 
             }
             sum += double(c);
         }
+        if (!moments) continue;
         const float n = img.count[p];
         if (const char* why = countProblem(n)) {
             err = fmt::format("{}: {}: moments count {} ({})", what, where(), why, n);
             return false;
         }
-        if (sum != double(n)) {
+        if (buffers && sum != double(n)) {
             err = fmt::format("{}: {}: buffer counts sum to {} but the moments count is {}", what,
                               where(), sum, n);
             return false;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -111,6 +112,11 @@ const std::vector<float>& arrayOf(const StatsImage& img, Array a);
 }  // namespace mcstat::layout
 
 namespace mcstat::detail {
+/// Sizes the arrays of the parts in `parts` (StatsParts) for img.header's pixels and `buffers`
+/// sub-buffers in total, keeping their storage; `offsets` (adaptive M) moves into bufferOffset.
+/// The arrays of other parts are emptied. Contents are unspecified: the caller overwrites them.
+bool resizeParts(StatsImage& img, unsigned parts, size_t buffers, std::vector<uint64_t>&& offsets,
+                 std::string& err);
 /// `s` with line breaks replaced by spaces (library messages must stay on one line).
 std::string oneLine(std::string s);
 }  // namespace mcstat::detail

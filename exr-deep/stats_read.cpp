@@ -1,7 +1,9 @@
-// readStatsFile / readStatsHeader: header validation first (stats_header_check), then each part is
-// read straight into the StatsImage arrays through Imf::FrameBuffer slices, then validateStats.
-// Adaptive M (format 2): the deep part's sample counts are read and checked first, then the image
-// is allocated for them, then the deep samples are read through per-pixel pointers.
+// StatsFileReader, readStatsFile, readStatsHeader: header validation first (stats_header_check),
+// then blocks of rows of the parts asked for are decoded straight into a StatsImage's arrays
+// through Imf::FrameBuffer slices (OpenEXR decodes a block's chunks in parallel), then each block
+// is validated. readStatsFile is one block of every row and part.
+// Adaptive M (format 2): the block's deep sample counts are read and checked first, then the block
+// is sized for them, then the deep samples are read through per-pixel pointers.
 #include <OpenEXR/ImfDeepFrameBuffer.h>
 #include <OpenEXR/ImfDeepScanLineInputPart.h>
 #include <OpenEXR/ImfFrameBuffer.h>
@@ -9,13 +11,17 @@
 #include <OpenEXR/ImfInputPart.h>
 #include <OpenEXR/ImfMultiPartInputFile.h>
 #include <OpenEXR/ImfPartType.h>
+#include <OpenEXR/ImfThreading.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
+#include <memory>
+#include <thread>
 
 #include "fd_stream.h"
 #include "mcstat/stats_file.h"
@@ -66,33 +72,54 @@ void checkSameFile(const Imf::MultiPartInputFile& in, const StatsHeader& h) {
     }
 }
 
-/// Reads the flat parts into `img` (allocated for img.header); throws on failure.
-void readFlatParts(Imf::MultiPartInputFile& in, StatsImage& img) {
-    const StatsHeader& h = img.header;
-    const Imath::Box2i window = windowOf(h);
-    for (int part = 0; part < layout::kPartCount; ++part) {
-        if (h.adaptiveM && part == layout::kBuffers) continue;
-        Imf::FrameBuffer fb;
-        for (const layout::ChannelPlace& c : layout::partChannels(part, h.M, h.adaptiveM)) {
-            float* base = layout::arrayOf(img, c.array).data() + c.offset;
-            const size_t xStride = c.stride * sizeof(float);
-            fb.insert(c.name, Imf::Slice::Make(Imf::FLOAT, base, window, xStride,
-                                               xStride * size_t(h.width)));
-        }
-        Imf::InputPart ip(in, part);
-        ip.setFrameBuffer(fb);
-        ip.readPixels(window.min.y, window.max.y);
+/// Rows of one compressed chunk for `c` (OpenEXR's per-compression line buffers).
+int linesPerChunk(Imf::Compression c) {
+    switch (c) {
+        case Imf::NO_COMPRESSION:
+        case Imf::RLE_COMPRESSION:
+        case Imf::ZIPS_COMPRESSION:
+            return 1;
+        case Imf::ZIP_COMPRESSION:
+        case Imf::PXR24_COMPRESSION:
+            return 16;
+        case Imf::PIZ_COMPRESSION:
+        case Imf::B44_COMPRESSION:
+        case Imf::B44A_COMPRESSION:
+        case Imf::DWAA_COMPRESSION:
+            return 32;
+        case Imf::DWAB_COMPRESSION:
+            return 256;
+        default:
+            return 16;
     }
 }
 
-/// Adaptive M: reads the per-pixel sample counts of part "vbuffers", checks them (1..M each,
-/// total within the limits) and allocates `img` for them. False with `err` on a bad file;
-/// throws on read errors.
+/// Reads the flat parts of `parts` (StatsParts) into `blk`, whose header is the block's (origin
+/// at its first row) and whose arrays are sized; throws on failure.
+void readFlatParts(Imf::MultiPartInputFile& in, unsigned parts, StatsImage& blk) {
+    const StatsHeader& h = blk.header;
+    for (int part = 0; part < layout::kPartCount; ++part) {
+        if (!(parts & (1u << part)) || (h.adaptiveM && part == layout::kBuffers)) continue;
+        Imf::FrameBuffer fb;
+        for (const layout::ChannelPlace& c : layout::partChannels(part, h.M, h.adaptiveM)) {
+            float* data = layout::arrayOf(blk, c.array).data() + c.offset;
+            const size_t xStride = c.stride * sizeof(float);
+            fb.insert(c.name, Imf::Slice(Imf::FLOAT, windowBase(data, h, xStride), xStride,
+                                         xStride * size_t(h.width)));
+        }
+        Imf::InputPart ip(in, part);
+        ip.setFrameBuffer(fb);
+        ip.readPixels(h.originY, h.originY + h.height - 1);
+    }
+}
+
+/// Adaptive M: reads the per-pixel sample counts of the block's rows of part "vbuffers" and
+/// checks them (1..M each, total within the limits). False with `err` on a bad file; throws on
+/// read errors.
 bool readDeepCounts(Imf::MultiPartInputFile& in, const std::string& path, const ReadLimits& limits,
-                    StatsImage& img, std::string& err) {
-    const StatsHeader& h = img.header;
+                    const StatsHeader& h, std::vector<uint32_t>& m, std::string& err) {
     const size_t pixels = size_t(h.width) * size_t(h.height);
-    std::vector<uint32_t> m(pixels);
+    m.assign(pixels, 0);
     Imf::DeepScanLineInputPart dp(in, layout::kBuffers);
     Imf::DeepFrameBuffer fb;
     fb.insertSampleCountSlice(Imf::Slice(Imf::UINT, windowBase(m.data(), h, sizeof(uint32_t)),
@@ -123,27 +150,23 @@ bool readDeepCounts(Imf::MultiPartInputFile& in, const std::string& path, const 
             limits.maxBytes);
         return false;
     }
-    std::string allocErr;
-    if (!img.allocateAdaptive(m, allocErr)) {
-        err = path + ": " + allocErr;
-        return false;
-    }
     return true;
 }
 
-/// Adaptive M: reads the buffer means and counts of part "vbuffers" into `img` (allocated by
-/// readDeepCounts); Z and A are not read. Throws on read errors.
-void readDeepBuffers(Imf::MultiPartInputFile& in, StatsImage& img) {
-    const StatsHeader& h = img.header;
-    const size_t pixels = img.pixelCount();
+/// Adaptive M: reads the buffer means and counts of the block's rows of part "vbuffers" into
+/// `blk` (sized for the counts readDeepCounts returned); Z and A are not read. Throws on read
+/// errors.
+void readDeepBuffers(Imf::MultiPartInputFile& in, StatsImage& blk) {
+    const StatsHeader& h = blk.header;
+    const size_t pixels = blk.pixelCount();
     std::vector<uint32_t> m(pixels);
     std::vector<char*> ptr[4];
     for (auto& v : ptr) v.resize(pixels);
     for (size_t p = 0; p < pixels; ++p) {
-        const size_t k = img.bufferBegin(p);
+        const size_t k = blk.bufferBegin(p);
         for (size_t c = 0; c < 3; ++c)
-            ptr[c][p] = reinterpret_cast<char*>(img.bufferMean.data() + k * 3 + c);
-        ptr[3][p] = reinterpret_cast<char*>(img.bufferCount.data() + k);
+            ptr[c][p] = reinterpret_cast<char*>(blk.bufferMean.data() + k * 3 + c);
+        ptr[3][p] = reinterpret_cast<char*>(blk.bufferCount.data() + k);
     }
     Imf::DeepFrameBuffer fb;
     const size_t xs = sizeof(char*), ys = xs * size_t(h.width);
@@ -157,7 +180,7 @@ void readDeepBuffers(Imf::MultiPartInputFile& in, StatsImage& img) {
     dp.setFrameBuffer(fb);
     dp.readPixelSampleCounts(h.originY, h.originY + h.height - 1);
     for (size_t p = 0; p < pixels; ++p)
-        if (m[p] != uint32_t(img.buffersOf(p)))
+        if (m[p] != uint32_t(blk.buffersOf(p)))
             throw std::runtime_error("file changed while reading");
     dp.readPixels(h.originY, h.originY + h.height - 1);
 }
@@ -181,45 +204,133 @@ bool readStatsHeader(const std::string& path, StatsHeader& hdr, std::string& err
     return false;
 }
 
-bool readStatsFile(const std::string& path, StatsImage& img, std::string& err,
-                   const ReadLimits& limits) {
+struct StatsFileReader::Impl {
+    std::string path;
+    ReadLimits limits;
+    detail::Fd fd;
+    uint64_t size = 0;
+    StatsHeader header;
+    std::unique_ptr<detail::FdIStream> stream;
+    std::unique_ptr<Imf::MultiPartInputFile> file;
+    int chunkRows = 1;
+    std::vector<uint32_t> deepCounts;  // adaptive M: the block's m_p, reused
+};
+
+StatsFileReader::StatsFileReader() = default;
+StatsFileReader::~StatsFileReader() = default;
+
+bool StatsFileReader::isOpen() const { return impl_ && impl_->file; }
+const std::string& StatsFileReader::path() const {
+    static const std::string none;
+    return impl_ ? impl_->path : none;
+}
+const StatsHeader& StatsFileReader::header() const {
+    static const StatsHeader none;
+    return impl_ ? impl_->header : none;
+}
+int StatsFileReader::chunkRows() const { return impl_ ? impl_->chunkRows : 1; }
+
+int StatsFileReader::blockRows(unsigned parts, size_t budgetBytes) const {
+    if (!isOpen()) return 1;
+    const StatsHeader& h = impl_->header;
+    size_t floats = 0;  // per pixel, over the parts read (adaptive M: at M_max, an upper bound)
+    if (parts & kStatsPartBeauty) floats += 3;
+    if (parts & kStatsPartBuffers) floats += 4 * size_t(h.M) + (h.adaptiveM ? 2 : 0);
+    if (parts & kStatsPartMoments) floats += 7;
+    if (parts & kStatsPartFeatures) floats += 11;
+    const size_t rowBytes = std::max<size_t>(1, floats * sizeof(float) * size_t(h.width));
+    const size_t chunk = size_t(impl_->chunkRows);
+    const size_t rows = std::max<size_t>(1, budgetBytes / rowBytes / chunk) * chunk;
+    return int(std::min<size_t>(rows, size_t(h.height)));
+}
+
+bool StatsFileReader::open(const std::string& path, std::string& err, const ReadLimits& limits,
+                           int nthreads) {
+    impl_.reset();
     try {
-        detail::Fd fd;
-        uint64_t size = 0;
-        StatsImage t;
-        if (!openAndCheck(path, limits, fd, size, t.header, err)) return false;
-        if (!t.header.adaptiveM) {
-            std::string allocErr;
-            if (!t.allocate(allocErr)) {
-                err = path + ": " + allocErr;
-                return false;
-            }
-        }
-        try {
-            detail::FdIStream is(fd.get(), path, size);
-            Imf::MultiPartInputFile in(is);
-            checkSameFile(in, t.header);
-            if (t.header.adaptiveM) {
-                if (!readDeepCounts(in, path, limits, t, err)) return false;
-                readDeepBuffers(in, t);
-            }
-            readFlatParts(in, t);
-        } catch (const std::bad_alloc&) {
-            err = path + ": out of memory while reading pixels";
-            return false;
-        } catch (const std::exception& e) {
-            err = fmt::format("{}: truncated or corrupt ({})", path, detail::oneLine(e.what()));
-            return false;
-        }
-        if (!validateStats(t, path, err)) return false;
-        img = std::move(t);
+        auto impl = std::make_unique<Impl>();
+        impl->path = path;
+        impl->limits = limits;
+        if (!openAndCheck(path, limits, impl->fd, impl->size, impl->header, err)) return false;
+        const int threads =
+            nthreads > 0 ? nthreads : int(std::max(1u, std::thread::hardware_concurrency()));
+        // OpenEXR decodes a read's chunks on its global pool; a process that never sized it
+        // (globalThreadCount() == 0) decodes on one thread. Hosts that sized it keep their choice.
+        if (threads > 1 && Imf::globalThreadCount() == 0) Imf::setGlobalThreadCount(threads);
+        impl->stream = std::make_unique<detail::FdIStream>(impl->fd.get(), path, impl->size);
+        impl->file = std::make_unique<Imf::MultiPartInputFile>(*impl->stream, threads);
+        checkSameFile(*impl->file, impl->header);
+        impl->chunkRows = linesPerChunk(impl->file->header(layout::kBuffers).compression());
+        impl_ = std::move(impl);
         return true;
+    } catch (const std::bad_alloc&) {
+        err = path + ": out of memory while reading the headers";
     } catch (const std::exception& e) {
-        err = fmt::format("{}: {}", path, detail::oneLine(e.what()));
-    } catch (...) {
-        err = path + ": unknown error while reading";
+        err = fmt::format("{}: truncated or corrupt ({})", path, detail::oneLine(e.what()));
     }
     return false;
+}
+
+bool StatsFileReader::read(int firstRow, int rows, unsigned parts, StatsImage& block,
+                           std::string& err) {
+    if (!isOpen()) {
+        err = "statistics file reader: read before a successful open";
+        return false;
+    }
+    Impl& im = *impl_;
+    const StatsHeader& fh = im.header;
+    if (rows < 1 || firstRow < 0 || firstRow > fh.height - rows || (parts & ~kStatsAllParts)) {
+        err = fmt::format("{}: cannot read rows {}..{} of parts {:#x} (the image has {} rows)",
+                          im.path, firstRow, int64_t(firstRow) + rows - 1, parts, fh.height);
+        return false;
+    }
+    try {
+        block.header = fh;
+        block.header.height = rows;
+        block.header.originY = fh.originY + firstRow;
+        const StatsHeader& h = block.header;
+        const size_t pixels = size_t(h.width) * size_t(rows);
+        std::vector<uint64_t> offsets;
+        size_t buffers = 0;
+        if (parts & kStatsPartBuffers) {
+            if (h.adaptiveM) {
+                if (!readDeepCounts(*im.file, im.path, im.limits, h, im.deepCounts, err))
+                    return false;
+                offsets.resize(pixels + 1);
+                for (size_t p = 0; p < pixels; ++p) {
+                    offsets[p] = buffers;
+                    buffers += im.deepCounts[p];
+                }
+                offsets[pixels] = buffers;
+            } else {
+                buffers = pixels * size_t(h.M);
+            }
+        }
+        std::string allocErr;
+        if (!detail::resizeParts(block, parts, buffers, std::move(offsets), allocErr)) {
+            err = im.path + ": " + allocErr;
+            return false;
+        }
+        if (h.adaptiveM && (parts & kStatsPartBuffers)) readDeepBuffers(*im.file, block);
+        readFlatParts(*im.file, parts, block);
+    } catch (const std::bad_alloc&) {
+        err = im.path + ": out of memory while reading pixels";
+        return false;
+    } catch (const std::exception& e) {
+        err = fmt::format("{}: truncated or corrupt ({})", im.path, detail::oneLine(e.what()));
+        return false;
+    }
+    return validateStats(block, parts, im.path, err);
+}
+
+bool readStatsFile(const std::string& path, StatsImage& img, std::string& err,
+                   const ReadLimits& limits) {
+    StatsFileReader reader;
+    if (!reader.open(path, err, limits)) return false;
+    StatsImage t;
+    if (!reader.read(0, reader.header().height, kStatsAllParts, t, err)) return false;
+    img = std::move(t);
+    return true;
 }
 
 }  // namespace mcstat

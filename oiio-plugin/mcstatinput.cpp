@@ -4,7 +4,11 @@
 // estimate (G-MoN by default) computed through the operation registry exactly as `mcstat FILE
 // --gmon` computes it (any registry operation: `?estimator=3dwtmf` as `mcstat FILE --3dwtmf`);
 // subimages 1..3 are the stored plain mean, the estimator's diagnostics and the first-hit features.
-// Everything is computed in open(); reads copy rows out of memory.
+//
+// open() reads the headers only. A subimage's pixels are computed when first read, streaming the
+// file by blocks of rows (StatsFileReader), and kept in a process-wide cache (PixelCache) keyed by
+// the file's identity and the operation: oiiotool opens a file twice and iv reopens it on every
+// subimage switch, yet each file is decoded once per process and only the subimages asked for.
 //
 // Parameters come from the open() configuration (oiiotool --iconfig mcstat:estimator mon,
 // --iconfig mcstat:mode channel) and from the file-name form
@@ -14,13 +18,18 @@
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <array>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <exception>
+#include <functional>
+#include <future>
+#include <list>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -49,6 +58,26 @@ constexpr const char* kConfigPrefix = "mcstat:";
 /// Subimages, in order.
 enum Subimage { kRobust = 0, kMean = 1, kDiagnostics = 2, kFeatures = 3, kSubimageCount = 4 };
 
+/// The first-hit feature channels in file order, with where a StatsImage holds them.
+struct FeatureChannel {
+    const char* name;
+    unsigned feature;
+    std::vector<float> mcstat::StatsImage::*array;
+    size_t stride, offset;
+};
+const FeatureChannel kFeatureChannels[] = {
+    {"N.X", mcstat::kFeatureNormal, &mcstat::StatsImage::normal, 3, 0},
+    {"N.Y", mcstat::kFeatureNormal, &mcstat::StatsImage::normal, 3, 1},
+    {"N.Z", mcstat::kFeatureNormal, &mcstat::StatsImage::normal, 3, 2},
+    {"P.X", mcstat::kFeaturePosition, &mcstat::StatsImage::position, 3, 0},
+    {"P.Y", mcstat::kFeaturePosition, &mcstat::StatsImage::position, 3, 1},
+    {"P.Z", mcstat::kFeaturePosition, &mcstat::StatsImage::position, 3, 2},
+    {"Albedo.R", mcstat::kFeatureAlbedo, &mcstat::StatsImage::albedo, 3, 0},
+    {"Albedo.G", mcstat::kFeatureAlbedo, &mcstat::StatsImage::albedo, 3, 1},
+    {"Albedo.B", mcstat::kFeatureAlbedo, &mcstat::StatsImage::albedo, 3, 2},
+    {"Z", mcstat::kFeatureDepth, &mcstat::StatsImage::depth, 1, 0},
+    {"A", mcstat::kFeatureCoverage, &mcstat::StatsImage::coverage, 1, 0}};
+
 /// Every registry operation: per-pixel estimators, neighbourhood filters, per-sample operations.
 std::string acceptedEstimators() {
     std::string s;
@@ -70,6 +99,121 @@ bool splitName(const std::string& name, std::string& path, std::map<std::string,
     path = name;
     if (name.find('?') == std::string::npos || Filesystem::exists(name)) return true;
     return Strutil::get_rest_arguments(name, path, kv);
+}
+
+/// Pixels a subimage is served from: `channels` interleaved per pixel, scanline order.
+struct Computed {
+    std::vector<std::string> channels;
+    std::vector<float> pixels;
+};
+using ComputedPtr = std::shared_ptr<const Computed>;
+
+/// Process-wide cache of computed pixels, least recently used first out once it holds more than
+/// its budget (MCSTAT_PLUGIN_CACHE_MB, default 2048 MiB; 0 disables keeping anything). A key is
+/// computed once: concurrent requests for it wait for the first one's result.
+class PixelCache {
+  public:
+    static PixelCache& instance() {
+        static PixelCache cache;
+        return cache;
+    }
+
+    /// The pixels of `key`, made by `make` (which returns false with `err`) unless cached.
+    /// Failures are not kept: the next request tries again.
+    ComputedPtr get(const std::string& key,
+                    const std::function<bool(Computed&, std::string&)>& make, std::string& err) {
+        std::promise<Result> promise;
+        std::shared_future<Result> future;
+        bool mine = false;
+        {
+            std::lock_guard<std::mutex> lock(m_mutex);
+            auto it = m_entries.find(key);
+            if (it != m_entries.end()) {
+                m_lru.splice(m_lru.begin(), m_lru, it->second.lru);
+                future = it->second.value;
+            } else {
+                future = promise.get_future().share();
+                m_lru.push_front(key);
+                m_entries.emplace(key, Entry{future, 0, m_lru.begin()});
+                mine = true;
+            }
+        }
+        if (mine) {
+            Result r;
+            try {
+                auto c = std::make_shared<Computed>();
+                if (make(*c, r.error))
+                    r.pixels = std::move(c);
+                else if (r.error.empty())
+                    r.error = "cannot compute the pixels";
+            } catch (const std::bad_alloc&) {
+                r.error = "out of memory while computing the pixels";
+            } catch (const std::exception& e) {
+                r.error = e.what();
+            }
+            promise.set_value(r);
+            std::lock_guard<std::mutex> lock(m_mutex);
+            auto it = m_entries.find(key);
+            if (it != m_entries.end()) {
+                if (!r.pixels) {
+                    m_lru.erase(it->second.lru);
+                    m_entries.erase(it);
+                } else {
+                    it->second.bytes = r.pixels->pixels.size() * sizeof(float);
+                    m_bytes += it->second.bytes;
+                    evict(key);
+                }
+            }
+        }
+        const Result& r = future.get();
+        if (!r.pixels) err = r.error;
+        return r.pixels;
+    }
+
+  private:
+    struct Result {
+        ComputedPtr pixels;
+        std::string error;
+    };
+    struct Entry {
+        std::shared_future<Result> value;
+        size_t bytes;  ///< 0 while being computed
+        std::list<std::string>::iterator lru;
+    };
+    PixelCache() {
+        if (const char* mb = std::getenv("MCSTAT_PLUGIN_CACHE_MB")) {
+            char* end = nullptr;
+            const unsigned long long v = std::strtoull(mb, &end, 10);
+            if (end != mb && *end == '\0') m_budget = size_t(std::min(v, 1ull << 40)) << 20;
+        }
+    }
+    /// Drops least recently used finished entries until the budget holds (never `keep`, never
+    /// one being computed; holders of a dropped entry's pointer keep its pixels alive).
+    void evict(const std::string& keep) {
+        for (auto it = m_lru.end(); m_bytes > m_budget && it != m_lru.begin();) {
+            --it;
+            auto e = m_entries.find(*it);
+            if (*it == keep || e == m_entries.end() || e->second.bytes == 0) continue;
+            m_bytes -= e->second.bytes;
+            m_entries.erase(e);
+            it = m_lru.erase(it);
+        }
+    }
+    std::mutex m_mutex;
+    std::map<std::string, Entry> m_entries;
+    std::list<std::string> m_lru;  ///< most recently used first
+    size_t m_bytes = 0;
+    size_t m_budget = size_t(2048) << 20;
+};
+
+/// The identity of the file's content: a file rewritten in place (new size or time) or replaced
+/// (new inode) is a new cache key.
+bool fileIdentity(const std::string& path, std::string& id) {
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0) return false;
+    id = format("{}:{}:{}:{}.{}", uint64_t(st.st_dev), uint64_t(st.st_ino), int64_t(st.st_size),
+                int64_t(st.st_mtim.tv_sec), int64_t(st.st_mtim.tv_nsec));
+    return true;
 }
 
 class McstatInput final : public ImageInput {
@@ -94,25 +238,49 @@ class McstatInput final : public ImageInput {
                                int chend, void* data) override;
 
   private:
+    /// The cached arrays subimages are served from.
+    enum Source { kEstimate, kCounts, kBeauty, kFeatureArrays, kSourceCount };
+    /// Channel c of a subimage is channel `index` of source `source`.
+    struct ChannelFrom {
+        Source source;
+        size_t index;
+    };
     struct Sub {
         ImageSpec spec;
-        std::vector<float> pixels;  ///< spec.width * spec.height * spec.nchannels, scanline order
+        std::vector<ChannelFrom> from;  ///< one per channel of spec
     };
     std::array<Sub, kSubimageCount> m_subs;
+    std::array<ComputedPtr, kSourceCount> m_sources;  ///< null until first read
     /// Subimages this file has: kSubimageCount, or one fewer when it holds no features (an
     /// ingested render without G-buffer AOVs: FORMAT.md version 3, mcstat:features empty).
     int m_nsubs = kSubimageCount;
     int m_current = -1;
     std::string m_name;  ///< as passed to open(), for messages
+    std::string m_path;  ///< the file (name without "?...")
+    std::string m_identity;
+    const mcstat::Operation* m_op = nullptr;
+    mcstat::ParamValues m_values;
+    std::array<double, 3> m_luma{0.0, 0.0, 0.0};
+    mcstat::StatsHeader m_header;
 
     void reset() {
         for (Sub& s : m_subs) s = Sub();
+        for (ComputedPtr& c : m_sources) c.reset();
         m_nsubs = kSubimageCount;
         m_current = -1;
         m_name.clear();
+        m_path.clear();
+        m_identity.clear();
+        m_op = nullptr;
+        m_values.clear();
+        m_header = mcstat::StatsHeader();
         m_spec = ImageSpec();
     }
     bool openImpl(const std::string& name, ImageSpec& newspec, const ImageSpec& config);
+    /// The cached source `s`, computed (once per process) if needed; null with errorfmt called.
+    const Computed* source(Source s);
+    bool computeSource(Source s, Computed& out, std::string& err);
+    std::string cacheKey(Source s) const;
     bool copyRows(int subimage, int miplevel, int ybegin, int yend, int chbegin, int chend,
                   void* data);
 };
@@ -191,41 +359,40 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
         errorfmt("{}: unknown estimator '{}' (accepted: {})", path, estName, acceptedEstimators());
         return false;
     }
-    mcstat::ParamValues values;
     std::string err;
-    if (!mcstat::parseOperationParams(*est, kv, values, err, "estimator '" + est->name + "'")) {
+    if (!mcstat::parseOperationParams(*est, kv, m_values, err, "estimator '" + est->name + "'")) {
         errorfmt("{}: {}; the plugin also takes 'estimator' (one of: {})", path, err,
                  acceptedEstimators());
         return false;
     }
-    const std::array<double, 3> luma = mcstat::lumaCoefficients();
+    m_op = est;
+    m_path = path;
+    m_luma = mcstat::lumaCoefficients();
 
-    // The file, validated (the message names the file).
-    mcstat::StatsImage stats;
-    if (!mcstat::readStatsFile(path, stats, err)) {
-        errorfmt("{}", err);
+    // The headers, validated (the message names the file); pixels wait for the first read.
+    {
+        mcstat::StatsFileReader reader;
+        if (!reader.open(path, err)) {
+            errorfmt("{}", err);
+            return false;
+        }
+        m_header = reader.header();
+    }
+    if (!fileIdentity(path, m_identity)) {
+        errorfmt("{}: cannot stat the file", path);
         return false;
     }
-    const mcstat::StatsHeader& h = stats.header;
-    const size_t npix = stats.pixelCount();
+    const mcstat::StatsHeader& h = m_header;
 
-    // Subimage 0 and the diagnostics in one pass: every operation returns R, G, B first; an
-    // estimator over buffer means (with diagnostics) its gini/kept/excluded channels after them,
-    // computed by the same per-pixel call as without them. Neighbourhood operations run over the
-    // sub-buffers (3D filters) or over the stored mean (MIF, WMIF); per-sample operations stream
-    // the file themselves (docs/plugin.md).
-    OIIO::ImageBuf robust;
-    const bool ok =
-        est->input == mcstat::InputKind::Samples
-            ? mcstat::runSamplesOperation(robust, path, h, *est, values, luma, threads())
-            : mcstat::applyOperation(robust, stats, *est, values, luma, true, {}, threads());
-    if (!ok) {
-        errorfmt("{}: {}", path, robust.geterror());
-        return false;
+    // The estimate's channels: R, G, B, then an estimator's diagnostics (gini/kept/excluded).
+    // A per-sample operation's extra channels are known only once it ran: it runs now.
+    std::vector<std::string> estChannels = mcstat::operationChannels(*est, m_values, true);
+    if (est->input == mcstat::InputKind::Samples) {
+        const Computed* c = source(kEstimate);
+        if (!c) return false;
+        estChannels = c->channels;
     }
-    const int estCh = robust.nchannels();
-    const float* estPix = static_cast<const float*>(robust.localpixels());
-    if (!estPix || size_t(robust.spec().image_pixels()) != npix || estCh < 3) {
+    if (estChannels.size() < 3) {
         errorfmt("{}: the estimate has an unexpected layout", path);
         return false;
     }
@@ -267,77 +434,161 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     r.spec = makeSpec({"R", "G", "B"}, est->name.c_str());
     r.spec.attribute("oiio:ColorSpace", h.colorSpace);
     describeEstimator(r.spec);
-    r.pixels.resize(npix * 3);
+    r.from = {{kEstimate, 0}, {kEstimate, 1}, {kEstimate, 2}};
     // 2: diagnostics: the estimator's gini/kept/excluded channels plus the sample count, and with
     // adaptive M the map of buffer counts m_p ("M").
-    std::vector<std::string> diagNames(robust.spec().channelnames.begin() + 3,
-                                       robust.spec().channelnames.end());
-    diagNames.push_back("count");
-    if (h.adaptiveM) diagNames.push_back("M");
     Sub& d = m_subs[kDiagnostics];
+    std::vector<std::string> diagNames(estChannels.begin() + 3, estChannels.end());
+    for (size_t i = 3; i < estChannels.size(); ++i) d.from.push_back({kEstimate, i});
+    diagNames.push_back("count");
+    d.from.push_back({kCounts, 0});
+    if (h.adaptiveM) {
+        diagNames.push_back("M");
+        d.from.push_back({kCounts, 1});
+    }
     d.spec = makeSpec(diagNames, "diagnostics");
     describeEstimator(d.spec);
-    const size_t dch = diagNames.size();
-
-    d.pixels.resize(npix * dch);
-    for (size_t p = 0; p < npix; ++p) {
-        const float* src = estPix + p * size_t(estCh);
-        std::copy(src, src + 3, &r.pixels[p * 3]);
-        std::copy(src + 3, src + estCh, &d.pixels[p * dch]);
-        d.pixels[p * dch + estCh - 3] = stats.count[p];
-        if (h.adaptiveM) d.pixels[p * dch + dch - 1] = float(stats.buffersOf(p));
-    }
-    robust.reset();
 
     // 1: the plain mean as stored (part "beauty").
     Sub& m = m_subs[kMean];
     m.spec = makeSpec({"R", "G", "B"}, meanName.c_str());
     m.spec.attribute("oiio:ColorSpace", h.colorSpace);
-    m.pixels = std::move(stats.beauty);
+    m.from = {{kBeauty, 0}, {kBeauty, 1}, {kBeauty, 2}};
 
     // 3: first-hit features, only those the file holds (version 3 records absent ones as NaN).
-    struct FeatureChannel {
-        const char* name;
-        unsigned feature;
-        const std::vector<float>* array;
-        size_t stride, offset;
-    };
-    const FeatureChannel all[] = {{"N.X", mcstat::kFeatureNormal, &stats.normal, 3, 0},
-                                  {"N.Y", mcstat::kFeatureNormal, &stats.normal, 3, 1},
-                                  {"N.Z", mcstat::kFeatureNormal, &stats.normal, 3, 2},
-                                  {"P.X", mcstat::kFeaturePosition, &stats.position, 3, 0},
-                                  {"P.Y", mcstat::kFeaturePosition, &stats.position, 3, 1},
-                                  {"P.Z", mcstat::kFeaturePosition, &stats.position, 3, 2},
-                                  {"Albedo.R", mcstat::kFeatureAlbedo, &stats.albedo, 3, 0},
-                                  {"Albedo.G", mcstat::kFeatureAlbedo, &stats.albedo, 3, 1},
-                                  {"Albedo.B", mcstat::kFeatureAlbedo, &stats.albedo, 3, 2},
-                                  {"Z", mcstat::kFeatureDepth, &stats.depth, 1, 0},
-                                  {"A", mcstat::kFeatureCoverage, &stats.coverage, 1, 0}};
-    std::vector<const FeatureChannel*> present;
     std::vector<std::string> featureNames;
-    for (const FeatureChannel& c : all)
-        if (h.features & c.feature) {
-            present.push_back(&c);
-            featureNames.push_back(c.name);
+    Sub& f = m_subs[kFeatures];
+    for (size_t i = 0; i < std::size(kFeatureChannels); ++i)
+        if (h.features & kFeatureChannels[i].feature) {
+            featureNames.push_back(kFeatureChannels[i].name);
+            f.from.push_back({kFeatureArrays, i});
         }
-    if (present.empty()) {
+    if (featureNames.empty()) {
         m_nsubs = kFeatures;  // no features subimage; the specs made above say so too
         for (int i = 0; i < kFeatures; ++i)
             m_subs[size_t(i)].spec.attribute("oiio:subimages", m_nsubs);
+        f = Sub();
     } else {
-        Sub& f = m_subs[kFeatures];
         f.spec = makeSpec(featureNames, "features");
-        const size_t nf = present.size();
-        f.pixels.resize(npix * nf);
-        for (size_t p = 0; p < npix; ++p)
-            for (size_t i = 0; i < nf; ++i)
-                f.pixels[p * nf + i] =
-                    (*present[i]->array)[p * present[i]->stride + present[i]->offset];
     }
 
     m_current = kRobust;
     m_spec = m_subs[kRobust].spec;
     newspec = m_spec;
+    return true;
+}
+
+std::string McstatInput::cacheKey(Source s) const {
+    std::string key = format("{}|{}|{}", m_identity, m_path, int(s));
+    if (s == kEstimate) {
+        key += "|" + m_op->name;
+        for (const auto& [k, v] : m_values) key += "|" + k + "=" + v.text;
+        key += format("|{:.17g},{:.17g},{:.17g}", m_luma[0], m_luma[1], m_luma[2]);
+    }
+    return key;
+}
+
+const Computed* McstatInput::source(Source s) {
+    if (!m_sources[s]) {
+        std::string err;
+        m_sources[s] = PixelCache::instance().get(
+            cacheKey(s), [&](Computed& out, std::string& e) { return computeSource(s, out, e); },
+            err);
+        if (!m_sources[s]) {
+            errorfmt("{}", err);
+            return nullptr;
+        }
+    }
+    return m_sources[s].get();
+}
+
+bool McstatInput::computeSource(Source s, Computed& out, std::string& err) {
+    const mcstat::StatsHeader& h = m_header;
+    const size_t npix = size_t(h.width) * size_t(h.height);
+    if (s == kEstimate) {
+        // Subimages 0 and 2 in one pass: every operation returns R, G, B first; an estimator
+        // over buffer means (with diagnostics) its gini/kept/excluded channels after them,
+        // computed by the same per-pixel call as without them.
+        OIIO::ImageBuf img;
+        bool ok = false;
+        if (m_op->input == mcstat::InputKind::Samples) {
+            ok = mcstat::runSamplesOperation(img, m_path, h, *m_op, m_values, m_luma, threads());
+        } else {
+            mcstat::StatsFileReader reader;
+            if (!reader.open(m_path, err, mcstat::ReadLimits(), threads())) return false;
+            if (reader.header().width != h.width || reader.header().height != h.height ||
+                reader.header().M != h.M) {
+                err = m_path + ": the file changed since it was opened";
+                return false;
+            }
+            ok = mcstat::applyOperation(img, reader, *m_op, m_values, m_luma, true, {}, threads());
+        }
+        if (!ok) {
+            // Messages from the file's reader already start with its path.
+            err = img.geterror();
+            if (err.rfind(m_path, 0) != 0) err = m_path + ": " + err;
+            return false;
+        }
+        const ImageSpec& spec = img.spec();
+        const size_t nch = size_t(spec.nchannels);
+        if (!img.localpixels() || spec.format != TypeFloat || size_t(spec.image_pixels()) != npix ||
+            nch < 3) {
+            err = m_path + ": the estimate has an unexpected layout";
+            return false;
+        }
+        out.channels = spec.channelnames;
+        const float* px = static_cast<const float*>(img.localpixels());
+        out.pixels.assign(px, px + npix * nch);
+        return true;
+    }
+    // The stored parts, streamed by blocks of rows.
+    unsigned parts = 0;
+    switch (s) {
+        case kCounts:
+            out.channels = {"count"};
+            if (h.adaptiveM) out.channels.push_back("M");
+            parts = mcstat::kStatsPartMoments | (h.adaptiveM ? mcstat::kStatsPartBuffers : 0u);
+            break;
+        case kBeauty:
+            out.channels = {"R", "G", "B"};
+            parts = mcstat::kStatsPartBeauty;
+            break;
+        default:
+            for (const FeatureChannel& c : kFeatureChannels) out.channels.push_back(c.name);
+            parts = mcstat::kStatsPartFeatures;
+            break;
+    }
+    mcstat::StatsFileReader reader;
+    if (!reader.open(m_path, err, mcstat::ReadLimits(), threads())) return false;
+    const mcstat::StatsHeader& fh = reader.header();
+    if (fh.width != h.width || fh.height != h.height || fh.adaptiveM != h.adaptiveM) {
+        err = m_path + ": the file changed since it was opened";
+        return false;
+    }
+    const size_t nch = out.channels.size();
+    out.pixels.resize(npix * nch);
+    const int rows = reader.blockRows(parts);
+    mcstat::StatsImage block;
+    for (int y = 0; y < h.height; y += rows) {
+        const int n = std::min(rows, h.height - y);
+        if (!reader.read(y, n, parts, block, err)) return false;
+        float* o = out.pixels.data() + size_t(y) * size_t(h.width) * nch;
+        const size_t bp = block.pixelCount();
+        if (s == kCounts) {
+            for (size_t p = 0; p < bp; ++p, o += nch) {
+                o[0] = block.count[p];
+                if (h.adaptiveM) o[1] = float(block.buffersOf(p));
+            }
+        } else if (s == kBeauty) {
+            std::copy(block.beauty.begin(), block.beauty.end(), o);
+        } else {
+            for (size_t p = 0; p < bp; ++p, o += nch)
+                for (size_t i = 0; i < nch; ++i) {
+                    const FeatureChannel& c = kFeatureChannels[i];
+                    o[i] = (block.*(c.array))[p * c.stride + c.offset];
+                }
+        }
+    }
     return true;
 }
 
@@ -383,17 +634,26 @@ bool McstatInput::copyRows(int subimage, int miplevel, int ybegin, int yend, int
                  yend, chbegin, chend, subimage);
         return false;
     }
-    const size_t w = size_t(sp.width), nch = size_t(sp.nchannels), nsel = size_t(chend - chbegin);
+    // Where each requested channel comes from, its source computed on first use.
+    const size_t w = size_t(sp.width), nsel = size_t(chend - chbegin);
+    std::vector<const float*> base(nsel);
+    std::vector<size_t> stride(nsel);
+    for (size_t i = 0; i < nsel; ++i) {
+        const ChannelFrom& from = s.from[size_t(chbegin) + i];
+        const Computed* c = source(from.source);
+        if (!c) return false;
+        stride[i] = c->channels.size();
+        if (from.index >= stride[i] || c->pixels.size() != w * size_t(sp.height) * stride[i]) {
+            errorfmt("{}: subimage {} has an unexpected layout", m_name, subimage);
+            return false;
+        }
+        base[i] = c->pixels.data() + from.index;
+    }
     float* out = static_cast<float*>(data);
     for (int y = ybegin; y < yend; ++y) {
-        const float* row = &s.pixels[size_t(y - sp.y) * w * nch];
-        if (nsel == nch) {
-            std::memcpy(out, row, w * nch * sizeof(float));
-            out += w * nch;
-        } else {
-            for (size_t x = 0; x < w; ++x, out += nsel)
-                std::memcpy(out, row + x * nch + size_t(chbegin), nsel * sizeof(float));
-        }
+        const size_t row = size_t(y - sp.y) * w;
+        for (size_t x = 0; x < w; ++x)
+            for (size_t i = 0; i < nsel; ++i) *out++ = base[i][(row + x) * stride[i]];
     }
     return true;
 }

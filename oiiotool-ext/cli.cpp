@@ -118,9 +118,13 @@ bool runEstimator(State& st, const std::string& cmd, const Operation& op, const 
     ParamValues values;
     if (!parseOperationParams(op, estMods, values, err, cmd)) return false;
     applyEstimatorParams(values, params);
-    if (!loadStats(st, top, err)) return false;
+    // A file on disk is streamed by blocks of rows; an item already in memory is used as it is.
+    StatsFileReader reader;
+    bool streamed = false;
+    if (!openStream(st, top, reader, err, streamed)) return false;
     auto img = std::make_shared<OIIO::ImageBuf>();
-    if (!estimate(*img, *top.stats, op, params, diag, {}, st.nthreads)) {
+    if (!(streamed ? estimate(*img, reader, op, params, diag, {}, st.nthreads)
+                   : estimate(*img, *top.stats, op, params, diag, {}, st.nthreads))) {
         err = format("{}: {}", cmd, img->geterror());
         return false;
     }

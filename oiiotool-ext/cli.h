@@ -67,6 +67,10 @@ int run(int argc, const char* const* argv);
 
 // Commands implemented in io.cpp.
 bool pushFile(State& st, const std::string& path, std::string& err);
+/// Opens `item`'s file for streaming when it is a file on disk not loaded whole (`opened` set);
+/// an item in memory leaves `opened` false (use item.stats). False with `err` on a bad file.
+bool openStream(const State& st, const Item& item, StatsFileReader& reader, std::string& err,
+                bool& opened);
 bool loadStats(State& st, Item& item, std::string& err);
 bool cmdOutput(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
                std::string&);

@@ -72,6 +72,15 @@ bool pushFile(State& st, const std::string& path, std::string& err) {
     return true;
 }
 
+bool openStream(const State& st, const Item& item, StatsFileReader& reader, std::string& err,
+                bool& opened) {
+    opened = false;
+    if (item.stats || item.path.empty()) return true;
+    if (!reader.open(item.path, err, ReadLimits(), st.nthreads)) return false;
+    opened = true;
+    return true;
+}
+
 bool loadStats(State&, Item& item, std::string& err) {
     if (item.stats) return true;
     auto img = std::make_shared<StatsImage>();

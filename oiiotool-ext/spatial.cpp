@@ -87,9 +87,12 @@ bool filterBuffers(State& st, const std::string& cmd, const Operation& op, const
     }
     SpatialParams p;
     if (!parseSpatialModifiers(cmd, op, mods, p, err)) return false;
-    if (!loadStats(st, top, err)) return false;
+    StatsFileReader reader;
+    bool streamed = false;
+    if (!openStream(st, top, reader, err, streamed)) return false;
     auto img = std::make_shared<OIIO::ImageBuf>();
-    if (!filter3D(*img, *top.stats, p, {}, st.nthreads)) {
+    if (!(streamed ? filter3D(*img, reader, p, {}, st.nthreads)
+                   : filter3D(*img, *top.stats, p, {}, st.nthreads))) {
         err = format("{}: {}", cmd, img->geterror());
         return false;
     }

@@ -56,6 +56,37 @@ bool applyOperation(OIIO::ImageBuf& dst, const StatsImage& src, const Operation&
                     const ParamValues& values, const std::array<double, 3>& luma,
                     bool diagnostics = false, OIIO::ROI roi = {}, int nthreads = 0);
 
+// ---- the same operations streamed from a file
+// ---------------------------------------------------- Over a StatsFileReader (stats_file.h) the
+// operations read the file by blocks of rows of about kStreamBlockBytes of decoded sub-buffers (the
+// 3D filters 4x that, plus their window's halo rows) and only the rows `roi` needs; the result
+// equals the in-memory operation's over readStatsFile's image, pixel for pixel. Only the sub-buffer
+// part is decoded: each block's counts are checked, but the cross-part check that they sum to the
+// moments count is left to readStatsFile / --check.
+
+/// The channels applyOperation gives for `op` with `values`: R, G, B, then, for an estimator over
+/// buffer means with `diagnostics`, "gini", "kept", "excluded" (luminance mode) or "gini.R/G/B",
+/// "kept.R/G/B", "excluded" (channel mode). Empty for a Samples operation (known once it ran).
+std::vector<std::string> operationChannels(const Operation& op, const ParamValues& values,
+                                           bool diagnostics);
+
+/// Decoded bytes per block of a streamed operation.
+inline constexpr size_t kStreamBlockBytes = size_t(64) << 20;
+
+bool estimate(OIIO::ImageBuf& dst, StatsFileReader& src, const EstimatorInfo& est,
+              const EstimatorParams& params, bool diagnostics = false, OIIO::ROI roi = {},
+              int nthreads = 0);
+OIIO::ImageBuf estimate(StatsFileReader& src, const EstimatorInfo& est,
+                        const EstimatorParams& params, bool diagnostics = false, OIIO::ROI roi = {},
+                        int nthreads = 0);
+bool filter3D(OIIO::ImageBuf& dst, StatsFileReader& src, const SpatialParams& params,
+              OIIO::ROI roi = {}, int nthreads = 0);
+OIIO::ImageBuf filter3D(StatsFileReader& src, const SpatialParams& params, OIIO::ROI roi = {},
+                        int nthreads = 0);
+bool applyOperation(OIIO::ImageBuf& dst, StatsFileReader& src, const Operation& op,
+                    const ParamValues& values, const std::array<double, 3>& luma,
+                    bool diagnostics = false, OIIO::ROI roi = {}, int nthreads = 0);
+
 /// Runs a Samples operation on the statistics file `path` (op.samples streams it) and turns its
 /// OperationImage into an ImageBuf with the data window of `header` (the file's). False with the
 /// message on dst. `progress` (0..1), when set, hears from long operations.

@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -169,6 +170,56 @@ bool writeStatsFile(const std::string& path, const StatsImage& img, std::string&
 bool readStatsFile(const std::string& path, StatsImage& img, std::string& err,
                    const ReadLimits& limits = ReadLimits());
 
+/// The four parts of a statistics file as bits, for reading only some of them
+/// (StatsFileReader::read). The sub-buffers are part "buffers" or, with adaptive M, "vbuffers".
+enum StatsParts : unsigned {
+    kStatsPartBeauty = 1u << 0,    ///< StatsImage::beauty
+    kStatsPartBuffers = 1u << 1,   ///< bufferMean, bufferCount (and bufferOffset)
+    kStatsPartMoments = 1u << 2,   ///< count, mean, variance
+    kStatsPartFeatures = 1u << 3,  ///< normal, position, albedo, depth, coverage
+    kStatsAllParts = 15u
+};
+
+/// Streams a statistics file by blocks of rows, so that memory follows the rows in flight and
+/// not the image height. The headers are validated once by open() (as readStatsFile does); each
+/// read() validates what it decoded (counts, and with buffers and moments both read, that buffer
+/// counts sum to the moments count). OpenEXR decodes each block's chunks on `nthreads` threads.
+/// Not thread-safe: one reader per thread.
+class StatsFileReader {
+  public:
+    StatsFileReader();
+    ~StatsFileReader();
+    StatsFileReader(const StatsFileReader&) = delete;
+    StatsFileReader& operator=(const StatsFileReader&) = delete;
+
+    /// Opens `path` and checks its headers; no pixel memory is allocated. `nthreads` 0: all
+    /// cores. When OpenEXR's global thread pool is empty (a process that never set it, like
+    /// `mcstat`) it is sized to `nthreads`; a pool the host application sized (OIIO) is left as it
+    /// is.
+    bool open(const std::string& path, std::string& err, const ReadLimits& limits = ReadLimits(),
+              int nthreads = 0);
+    bool isOpen() const;
+    const std::string& path() const;
+    /// The file's header (valid after open()).
+    const StatsHeader& header() const;
+    /// Rows per compressed chunk of the sub-buffer part (1 uncompressed, 16 ZIP, 32 PIZ, ...):
+    /// blocks that start on a multiple of it never decode a chunk twice.
+    int chunkRows() const;
+    /// A block height for about `budgetBytes` of decoded parts `parts` per block: a multiple of
+    /// chunkRows(), at least one chunk, at most the image height.
+    int blockRows(unsigned parts = kStatsAllParts, size_t budgetBytes = size_t(64) << 20) const;
+    /// Reads rows [firstRow, firstRow + rows) of the data window (0-based) of the parts in
+    /// `parts` into `block`: its header is the file's with height = rows and originY moved to
+    /// the first row; the arrays of parts not read are empty. `block`'s storage is reused from
+    /// one call to the next. False with `err` ("<path>: <problem>") on a bad range, a bad
+    /// value or a damaged file.
+    bool read(int firstRow, int rows, unsigned parts, StatsImage& block, std::string& err);
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
 /// Reads only the headers (cheap): what `mcstat --info` shows before loading pixels.
 bool readStatsHeader(const std::string& path, StatsHeader& hdr, std::string& err,
                      const ReadLimits& limits = ReadLimits());
@@ -176,6 +227,10 @@ bool readStatsHeader(const std::string& path, StatsHeader& hdr, std::string& err
 /// Checks the in-memory invariants (sizes, adaptive buffer offsets, counts finite, non-negative and
 /// integral, buffer counts summing to the moments count). `what` names the source in the message.
 bool validateStats(const StatsImage& img, const std::string& what, std::string& err);
+/// validateStats over the parts in `parts` only (StatsParts bits): the arrays of the other parts
+/// are not looked at; the buffer-count sum is checked when buffers and moments are both there.
+bool validateStats(const StatsImage& img, unsigned parts, const std::string& what,
+                   std::string& err);
 
 /// Variance of the samples of pixel p, channel c, estimated from its non-empty buffers
 /// (mcstat:variance "buffers"): sum_j n_j (m_j - mean)^2 / (M_f - 1) over the M_f non-empty

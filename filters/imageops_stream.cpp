@@ -1,0 +1,195 @@
+// The image operations of imageops.h over a statistics file streamed by blocks of rows
+// (StatsFileReader): each block is decoded (in parallel by OpenEXR), run through the in-memory
+// operation, and its rows copied into the result. Peak memory is one block (plus the neighbourhood
+// operations' halo rows), not the file. Every output pixel is the in-memory operation's pixel: a
+// block carries every row a pixel's window reaches, and each window is clipped to the file's data
+// window exactly as in the whole image (tests/io/test_stream_ops.cpp compares them bit for bit).
+#include <OpenImageIO/imagebufalgo.h>
+
+#include <algorithm>
+#include <cstring>
+
+#include "mcstat/imageops.h"
+
+namespace mcstat {
+
+using OIIO::ImageBuf;
+using OIIO::ImageSpec;
+using OIIO::ROI;
+
+namespace {
+
+ROI dataWindowOf(const StatsHeader& h) {
+    return ROI(h.originX, h.originX + h.width, h.originY, h.originY + h.height);
+}
+
+/// Runs `op(block, rows)` for consecutive blocks covering the rows of `roi` (absolute
+/// coordinates, within the data window), where `rows` is the ROI of output rows the block
+/// answers for and `block` holds them plus up to `halo` rows above and below (clipped to the
+/// image). Each result image is copied into `dst`, which is sized on the first block from its
+/// spec. Blocks start on multiples of the block height counted from the data window's top, a
+/// multiple of the file's chunk height, so that no chunk is decoded twice apart from the halo.
+template <class BlockOp>
+bool forEachBlock(ImageBuf& dst, StatsFileReader& reader, ROI roi, int halo, unsigned parts,
+                  size_t budget, const char* what, BlockOp op) {
+    const StatsHeader& h = reader.header();
+    const ROI full = dataWindowOf(h);
+    if (!roi.defined()) roi = full;
+    roi = OIIO::roi_intersection(roi, full);
+    roi.zbegin = 0, roi.zend = 1, roi.chbegin = 0, roi.chend = 10000;
+    if (roi.width() <= 0 || roi.height() <= 0) {
+        dst.errorfmt("{}: the region {} lies outside the data window {}", what, roi, full);
+        return false;
+    }
+    const int blockRows = std::max(1, reader.blockRows(parts, budget));
+    StatsImage block;
+    std::string err;
+    const int top = roi.ybegin - h.originY, bottom = roi.yend - h.originY;  // window rows
+    for (int b0 = top - top % blockRows; b0 < bottom; b0 += blockRows) {
+        const int y0 = std::max(b0, top), y1 = std::min(b0 + blockRows, bottom);
+        const int r0 = std::max(0, y0 - halo), r1 = std::min(h.height, y1 + halo);
+        if (!reader.read(r0, r1 - r0, parts, block, err)) {
+            dst.errorfmt("{}", err);
+            return false;
+        }
+        ImageBuf part;
+        const ROI rows(roi.xbegin, roi.xend, h.originY + y0, h.originY + y1);
+        if (!op(part, block, rows)) {
+            dst.errorfmt("{}", part.geterror());
+            return false;
+        }
+        if (!dst.initialized()) {
+            ImageSpec spec = part.spec();
+            spec.y = roi.ybegin;
+            spec.height = roi.height();
+            spec.full_x = full.xbegin;
+            spec.full_y = full.ybegin;
+            spec.full_width = full.width();
+            spec.full_height = full.height();
+            dst.reset(spec, OIIO::InitializePixels::No);
+        }
+        const ImageSpec& ps = part.spec();
+        if (ps.format != OIIO::TypeDesc::FLOAT || ps.nchannels != dst.nchannels() ||
+            ps.width != roi.width() || ps.height != rows.height()) {
+            dst.errorfmt("{}: a block's result has an unexpected shape", what);
+            return false;
+        }
+        const size_t rowBytes = size_t(roi.width()) * size_t(ps.nchannels) * sizeof(float);
+        std::memcpy(static_cast<char*>(dst.localpixels()) + size_t(y0 - top) * rowBytes,
+                    part.localpixels(), rowBytes * size_t(rows.height()));
+    }
+    return true;
+}
+
+}  // namespace
+
+std::vector<std::string> operationChannels(const Operation& op, const ParamValues& values,
+                                           bool diagnostics) {
+    if (op.input == InputKind::Samples) return {};
+    std::vector<std::string> names = {"R", "G", "B"};
+    if (op.input != InputKind::BufferMeans || !diagnostics) return names;
+    EstimatorParams params;
+    applyEstimatorParams(values, params);
+    if (params.mode == EstimatorMode::Luminance)
+        names.insert(names.end(), {"gini", "kept", "excluded"});
+    else
+        names.insert(names.end(),
+                     {"gini.R", "gini.G", "gini.B", "kept.R", "kept.G", "kept.B", "excluded"});
+    return names;
+}
+
+bool estimate(ImageBuf& dst, StatsFileReader& src, const EstimatorInfo& est,
+              const EstimatorParams& params, bool diagnostics, ROI roi, int nthreads) {
+    dst.clear();
+    if (!src.isOpen()) {
+        dst.errorfmt("estimate {}: no statistics file open", est.name);
+        return false;
+    }
+    // Per pixel: only the sub-buffers are decoded (the moments' count check needs part moments,
+    // which `mcstat --check` reads; every count read here is still checked on its own).
+    return forEachBlock(dst, src, roi, 0, kStatsPartBuffers, kStreamBlockBytes, est.name.c_str(),
+                        [&](ImageBuf& out, const StatsImage& block, ROI rows) {
+                            return estimate(out, block, est, params, diagnostics, rows, nthreads);
+                        });
+}
+
+ImageBuf estimate(StatsFileReader& src, const EstimatorInfo& est, const EstimatorParams& params,
+                  bool diagnostics, ROI roi, int nthreads) {
+    ImageBuf dst;
+    estimate(dst, src, est, params, diagnostics, roi, nthreads);
+    return dst;
+}
+
+bool filter3D(ImageBuf& dst, StatsFileReader& src, const SpatialParams& params, ROI roi,
+              int nthreads) {
+    dst.clear();
+    if (!src.isOpen()) {
+        dst.errorfmt("3D filter: no statistics file open");
+        return false;
+    }
+    std::string err;
+    if (!validateSpatialParams(params, err)) {
+        dst.errorfmt("3D filter: {}", err);
+        return false;
+    }
+    // The halo re-decodes up to two chunks per block: a larger block keeps that small.
+    return forEachBlock(dst, src, roi, params.windowHeight / 2, kStatsPartBuffers,
+                        4 * kStreamBlockBytes, "3D filter",
+                        [&](ImageBuf& out, const StatsImage& block, ROI rows) {
+                            return filter3D(out, block, params, rows, nthreads);
+                        });
+}
+
+ImageBuf filter3D(StatsFileReader& src, const SpatialParams& params, ROI roi, int nthreads) {
+    ImageBuf dst;
+    filter3D(dst, src, params, roi, nthreads);
+    return dst;
+}
+
+bool applyOperation(ImageBuf& dst, StatsFileReader& src, const Operation& op,
+                    const ParamValues& values, const std::array<double, 3>& luma, bool diagnostics,
+                    ROI roi, int nthreads) {
+    switch (op.input) {
+        case InputKind::BufferMeans: {
+            EstimatorParams params;
+            params.luma = luma;
+            applyEstimatorParams(values, params);
+            return estimate(dst, src, op, params, diagnostics, roi, nthreads);
+        }
+        case InputKind::Neighbourhood: {
+            const SpatialParams params = spatialParams(values, luma);
+            if (op.over == Neighbourhood::SubBuffers)
+                return filter3D(dst, src, params, roi, nthreads);
+            if (op.over == Neighbourhood::Image) {
+                // The plain mean over roi grown by the window's radius (clipped to the data
+                // window), then the median filter over roi: each window sees the same pixels as in
+                // the whole image, since only the file's edges clip it.
+                const StatsHeader& h = src.header();
+                const ROI full = dataWindowOf(h);
+                if (!roi.defined()) roi = full;
+                roi = OIIO::roi_intersection(roi, full);
+                const int rx = params.windowWidth / 2, ry = params.windowHeight / 2;
+                const ROI grown = OIIO::roi_intersection(
+                    ROI(roi.xbegin - rx, roi.xend + rx, roi.ybegin - ry, roi.yend + ry), full);
+                EstimatorParams meanParams;
+                meanParams.luma = luma;
+                ImageBuf mean;
+                if (!estimate(mean, src, *findEstimator("mean"), meanParams, false, grown,
+                              nthreads)) {
+                    dst.errorfmt("{}: {}", op.name, mean.geterror());
+                    return false;
+                }
+                return medianImageFilter(dst, mean, params, roi, nthreads);
+            }
+            break;
+        }
+        case InputKind::Samples:
+            dst.errorfmt("{} works on the per-sample records of a statistics file on disk",
+                         op.name);
+            return false;
+    }
+    dst.errorfmt("{}: the registry entry names no input it can run on", op.name);
+    return false;
+}
+
+}  // namespace mcstat
