@@ -1,80 +1,203 @@
 #!/usr/bin/env bash
-# Benchmarks (never part of the test suite): prints two tables.
-#  1. Per-estimator throughput (Mpixel/s, one thread) and its ratio to the plain mean of the same run.
-#  2. Wall time and peak memory of `mcstat FILE --gmon -o out.exr` against stock `oiiotool` merely
-#     reading every part of the same file, median of REPS runs, as a ratio.
+# Benchmarks (never part of the test suite); prints the tables of docs/benchmarks.md. Every speed
+# figure is a ratio against a reference measured in the same run: the plain mean (estimators),
+# stock oiiotool reading the same file's sub-buffer part (statistics files), stock oiiotool
+# averaging the same renders (ingest), M = 1 (renderer).
+#
+#   scripts/bench.sh                 all sections
+#   SECTIONS="file height" scripts/bench.sh
+#
+# Environment:
+#   SECTIONS  any of: estimators threads file height ingest render   (default: all)
+#   REPS      runs per command, alternated, medians reported (default 4)
+#   BASELINE  a folder holding an older build's mcstat and mcstat.imageio.so: the file table then
+#             shows its figures beside today's, measured in the same run (docs/benchmarks.md)
+#   BUILD     the build folder (default build)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-REPS=${REPS:-5}
-scripts/install-deps.sh
-scripts/build.sh build >/dev/null
-out=out/bench; mkdir -p "$out"
-
-echo "== Estimator throughput, 256x256 pixels, single thread =="
-build/tests/bench/bench_estimators --benchmark_format=csv 2>/dev/null >"$out/estimators.csv"
-printf "%-18s %6s %12s %16s\n" "estimator" "M" "Mpixel/s" "time / mean's"
-awk -F, 'NR > 1 {
-    gsub(/"/, "", $1); split($1, a, "/");   # estimate/NAME/MODE/M
-    key = a[2] "/" a[3]; rate[key "@" a[4]] = $7; keys[key "@" a[4]] = 1 }
-  END { for (k in keys) { split(k, b, "@");
-          printf "%-18s %6d %12.2f %16.2f\n", b[1], b[2], rate[k] / 1e6, rate["mean/lum@" b[2]] / rate[k] } }' \
-  "$out/estimators.csv" | sort -k1,1 -k2,2n
-
-echo
-file=$out/bench-640x480-M21.mcstat
-if [ ! -f "$file" ] || [ build/render-fixture/mcstat-render -nt "$file" ]; then
-  build/render-fixture/mcstat-render --scene default --res 640 480 --spp 64 --M 21 --seed 3 \
-    --quiet -o "$file"
+REPS=${REPS:-4}
+SECTIONS=${SECTIONS:-estimators threads file height ingest render}
+BUILD=${BUILD:-build}
+BASELINE=${BASELINE:-}
+if [ "${SKIP_BUILD:-0}" != 1 ]; then
+  scripts/install-deps.sh
+  scripts/build.sh "$BUILD" >/dev/null
 fi
-size=$(du -h "$file" | cut -f1)
-echo "== mcstat --gmon against stock oiiotool reading the same file ($file, $size, all threads) =="
-measure() {  # measure NAME CMD...: median wall seconds and max peak RSS over REPS runs
-  local name=$1; shift
-  local times=() mems=()
-  for _ in $(seq "$REPS"); do
-    /usr/bin/time -f "%e %M" -o "$out/time.txt" "$@" >/dev/null 2>&1
-    read -r t m <"$out/time.txt"; times+=("$t"); mems+=("$m")
-  done
-  local tmed; tmed=$(printf '%s\n' "${times[@]}" | sort -n | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}')
-  local mmax; mmax=$(printf '%s\n' "${mems[@]}" | sort -n | tail -1)
-  echo "$name $tmed $mmax"
-}
-ref=$(measure "oiiotool" oiiotool -a --stats "$file")
-gmon=$(measure "mcstat" build/oiiotool-ext/mcstat "$file" --gmon -o "$out/gmon.exr")
-mean=$(measure "mcstat-mean" build/oiiotool-ext/mcstat "$file" --mean -o "$out/mean.exr")
-printf "%-40s %10s %9s %14s\n" "command" "wall" "ratio" "peak RSS"
-printf '%s\n%s\n%s\n' "$ref" "$gmon" "$mean" | awk '
-  NR == 1 { base = $2 }
-  { if ($1 == "oiiotool") label = "oiiotool -a --stats FILE (reads all parts)"
-    else if ($1 == "mcstat") label = "mcstat FILE --gmon -o out.exr"
-    else label = "mcstat FILE --mean -o out.exr"
-    printf "%-40s %8.3f s %8.2fx %10.1f MiB\n", label, $2, $2 / base, $3 / 1024 }'
+out=out/bench; mkdir -p "$out"
+mcstat=$BUILD/oiiotool-ext/mcstat
+render=$BUILD/render-fixture/mcstat-render
+want() { [[ " $SECTIONS " == *" $1 "* ]]; }
 
-echo
-# Ingest: renders of one image, one plain EXR per seed (docs/ingest.md), against stock oiiotool
-# reading the same files once each.
-NSEEDS=${NSEEDS:-21}
-mkdir -p "$out/seeds"
-for s in $(seq "$NSEEDS"); do
-  f=$out/seeds/seed_$s.exr
-  if [ ! -f "$f" ] || [ build/render-fixture/mcstat-render -nt "$f" ]; then
-    build/render-fixture/mcstat-render --scene default --res 640 480 --spp 4 --seed "$s" \
-      --reference --quiet -o "$f"
+# run_alternating NAME... : runs the commands "${cmd_NAME[@]}" REPS times each, alternately, and
+# sets med_NAME (median wall s), cpu_NAME (median user+sys s) and rss_NAME (max peak RSS, MiB).
+run_alternating() {
+  local name rep
+  for name in "$@"; do eval "t_$name=(); c_$name=(); m_$name=()"; done
+  for rep in $(seq "$REPS"); do
+    for name in "$@"; do
+      local -n cmd="cmd_$name"
+      if ! /usr/bin/time -f "%e %U %S %M" -o "$out/time.txt" "${cmd[@]}" >/dev/null 2>"$out/err.txt"; then
+        echo "bench: $name failed: ${cmd[*]}" >&2; cat "$out/err.txt" >&2; exit 1
+      fi
+      local t u s m; read -r t u s m <"$out/time.txt"
+      eval "t_$name+=($t); c_$name+=($(echo "$u + $s" | bc)); m_$name+=($m)"
+    done
+  done
+  for name in "$@"; do
+    local -n ts="t_$name" cs="c_$name" ms="m_$name"
+    printf -v "med_$name" '%s' "$(printf '%s\n' "${ts[@]}" | sort -n | awk '{a[NR]=$1} END {print (NR % 2) ? a[(NR+1)/2] : (a[NR/2] + a[NR/2+1]) / 2}')"
+    printf -v "cpu_$name" '%s' "$(printf '%s\n' "${cs[@]}" | sort -n | awk '{a[NR]=$1} END {print (NR % 2) ? a[(NR+1)/2] : (a[NR/2] + a[NR/2+1]) / 2}')"
+    printf -v "rss_$name" '%s' "$(printf '%s\n' "${ms[@]}" | sort -n | tail -1 | awk '{printf "%.0f", $1 / 1024}')"
+  done
+}
+
+# A statistics file of the default scene, rendered once and reused (REFRESH=1 renders again).
+stats_file() {  # stats_file PATH WIDTH HEIGHT SPP
+  if [ ! -f "$1" ] || [ "${REFRESH:-0}" = 1 ]; then
+    "$render" --scene default --res "$2" "$3" --spp "$4" --M 21 --seed 3 --quiet -o "$1"
   fi
-done
-echo "== mcstat --ingest of $NSEEDS renders (640x480, plain float EXR) against stock oiiotool averaging them =="
-# The reference: what a user without mcstat does with seed renders, their plain mean in oiiotool.
-addall=("$out/seeds/seed_1.exr")
-for s in $(seq 2 "$NSEEDS"); do addall+=("$out/seeds/seed_$s.exr" --add); done
-meanref=$(measure "oiiotool" oiiotool "${addall[@]}" --divc "$NSEEDS" -o "$out/oiiotool-mean.exr")
-ingest=$(measure "ingest" build/oiiotool-ext/mcstat --ingest "$out/seeds/seed_*.exr" -o "$out/ingested.mcstat")
-ingestm=$(measure "ingest-mean" build/oiiotool-ext/mcstat --ingest "$out/seeds/seed_*.exr" --mean -o "$out/ingested-mean.exr")
-ingestg=$(measure "ingest-gmon" build/oiiotool-ext/mcstat --ingest "$out/seeds/seed_*.exr" --gmon -o "$out/ingested-gmon.exr")
-printf "%-48s %10s %9s %14s\n" "command" "wall" "ratio" "peak RSS"
-printf '%s\n%s\n%s\n%s\n' "$meanref" "$ingest" "$ingestm" "$ingestg" | awk '
-  NR == 1 { base = $2 }
-  { if ($1 == "oiiotool") label = "oiiotool F1 F2 --add ... --divc N -o mean.exr"
-    else if ($1 == "ingest") label = "mcstat --ingest FILES -o f.mcstat"
-    else if ($1 == "ingest-mean") label = "mcstat --ingest FILES --mean -o m.exr"
-    else label = "mcstat --ingest FILES --gmon -o g.exr"
-    printf "%-48s %8.3f s %8.2fx %10.1f MiB\n", label, $2, $2 / base, $3 / 1024 }'
+}
+
+if want estimators; then
+  echo "== Estimator compute: 256x256 synthetic pixels, 1% firefly buffers, one thread =="
+  "$BUILD"/tests/bench/bench_estimators --benchmark_filter='^estimate/' --benchmark_format=csv \
+    2>/dev/null >"$out/estimators.csv"
+  printf "%-22s %4s %12s %22s %14s\n" "estimator/mode" "M" "Mpixel/s" "M pixel-buffers/s" "time / mean's"
+  awk -F, 'NR > 1 {
+      gsub(/"/, "", $1); split($1, a, "/");   # estimate/NAME/MODE/M
+      key = a[2] "/" a[3]; rate[key "@" a[4]] = $7; keys[key "@" a[4]] = 1 }
+    END { for (k in keys) { split(k, b, "@");
+            printf "%-22s %4d %12.2f %22.1f %14.2f\n", b[1], b[2], rate[k] / 1e6, rate[k] * b[2] / 1e6,
+                   rate["mean/lum@" b[2]] / rate[k] } }' "$out/estimators.csv" | sort -k1,1 -k2,2n
+  echo
+fi
+
+if want threads; then
+  echo "== Thread scaling of the estimator image loop: 1920x1080, M = 21, luminance mode =="
+  "$BUILD"/tests/bench/bench_estimators --benchmark_filter='^threads/' --benchmark_format=csv \
+    2>/dev/null >"$out/threads.csv"
+  printf "%-12s %14s %14s %10s\n" "estimator" "1 thread ms" "2 threads ms" "speed-up"
+  awk -F, 'NR > 1 { gsub(/"/, "", $1); split($1, a, "/"); t[a[2] "@" a[4]] = $3; n[a[2]] = 1 }
+    END { for (e in n) if ((e "@1") in t && (e "@2") in t)
+            printf "%-12s %14.1f %14.1f %9.2fx\n", e, t[e "@1"], t[e "@2"], t[e "@1"] / t[e "@2"] }' \
+    "$out/threads.csv" | sort
+  echo
+fi
+
+if want file; then
+  zip=$out/bench-1920x1080-M21.mcstat
+  stats_file "$zip" 1920 1080 64
+  raw=$out/bench-1920x1080-M21-none.mcstat
+  if [ ! -f "$raw" ] || [ "$raw" -ot "$zip" ]; then
+    oiiotool -a "$zip" --compression none -o "$out/none.exr" && mv "$out/none.exr" "$raw"
+  fi
+  for f in "$zip" "$raw"; do
+    echo "== $f ($(du -h "$f" | cut -f1)): wall / stock oiiotool reading the sub-buffer part, 2 cores, medians of $REPS =="
+    cmd_ref=(oiiotool "$f" --subimage 1 --stats)
+    cmd_gmon=("$mcstat" "$f" --gmon -o "$out/o.exr")
+    cmd_mean=("$mcstat" "$f" --mean -o "$out/o.exr")
+    cmd_mon=("$mcstat" "$f" --mon -o "$out/o.exr")
+    cmd_tmpe=("$mcstat" "$f" --tmpe -o "$out/o.exr")
+    cmd_w3d=("$mcstat" "$f" --3dwtmf -o "$out/o.exr")
+    cmd_plug=(env OIIO_LIBRARY_PATH="$BUILD/oiio-plugin" oiiotool "$f" --subimage 0 -o "$out/o.exr")
+    names=(ref gmon mean mon tmpe w3d plug)
+    if [ -n "$BASELINE" ]; then
+      cmd_bgmon=("$BASELINE/mcstat" "$f" --gmon -o "$out/o.exr")
+      cmd_bmean=("$BASELINE/mcstat" "$f" --mean -o "$out/o.exr")
+      cmd_bmon=("$BASELINE/mcstat" "$f" --mon -o "$out/o.exr")
+      cmd_btmpe=("$BASELINE/mcstat" "$f" --tmpe -o "$out/o.exr")
+      cmd_bw3d=("$BASELINE/mcstat" "$f" --3dwtmf -o "$out/o.exr")
+      cmd_bplug=(env OIIO_LIBRARY_PATH="$BASELINE" oiiotool "$f" --subimage 0 -o "$out/o.exr")
+      names+=(bgmon bmean bmon btmpe bw3d bplug)
+    fi
+    run_alternating "${names[@]}"
+    label() {
+      case $1 in
+        ref) echo "oiiotool F --subimage 1 --stats" ;; gmon) echo "mcstat F --gmon -o o.exr" ;;
+        mean) echo "mcstat F --mean -o o.exr" ;; mon) echo "mcstat F --mon -o o.exr" ;;
+        tmpe) echo "mcstat F --tmpe -o o.exr" ;; w3d) echo "mcstat F --3dwtmf -o o.exr" ;;
+        plug) echo "plugin: oiiotool F --subimage 0 -o o.exr" ;;
+      esac
+    }
+    if [ -n "$BASELINE" ]; then
+      printf "%-42s | %8s %7s %9s %8s | %8s %7s %9s\n" "command" "wall s" "ratio" "peak MiB" "CPU/wall" "before s" "ratio" "peak MiB"
+    else
+      printf "%-42s | %8s %7s %9s %8s\n" "command" "wall s" "ratio" "peak MiB" "CPU/wall"
+    fi
+    for n in ref gmon mean mon tmpe w3d plug; do
+      w=med_$n; c=cpu_$n; r=rss_$n
+      line=$(awk -v w="${!w}" -v b="$med_ref" -v c="${!c}" 'BEGIN { printf "%8.2f %6.2fx", w, w / b; cpu = c / w }
+        END { }' </dev/null)
+      cw=$(awk -v w="${!w}" -v c="${!c}" 'BEGIN { printf "%8.2f", c / w }')
+      if [ -n "$BASELINE" ] && [ "$n" != ref ]; then
+        bw=med_b$n; br=rss_b$n
+        bl=$(awk -v w="${!bw}" -v b="$med_ref" 'BEGIN { printf "%8.2f %6.2fx", w, w / b }')
+        printf "%-42s | %s %9s %s | %s %9s\n" "$(label $n)" "$line" "${!r}" "$cw" "$bl" "${!br}"
+      else
+        printf "%-42s | %s %9s %s |\n" "$(label $n)" "$line" "${!r}" "$cw"
+      fi
+    done
+    echo
+  done
+fi
+
+if want height; then
+  echo "== Peak memory against image height: 1920 wide, M = 21, 8 spp (ZIP), medians of $REPS =="
+  for h in 540 1080 2160; do stats_file "$out/height-$h.mcstat" 1920 "$h" 8; done
+  printf "%-44s %10s %10s %10s\n" "command (peak RSS MiB / wall s)" "540 rows" "1080 rows" "2160 rows"
+  for op in gmon 3dwtmf plugin merge; do
+    names=()
+    for h in 540 1080 2160; do
+      f=$out/height-$h.mcstat
+      case $op in
+        plugin) eval "cmd_h$h=(env OIIO_LIBRARY_PATH=$BUILD/oiio-plugin oiiotool $f --subimage 0 -o $out/o.exr)" ;;
+        merge) eval "cmd_h$h=($mcstat $f $f --merge -o $out/merged.mcstat)" ;;
+        *) eval "cmd_h$h=($mcstat $f --$op -o $out/o.exr)" ;;
+      esac
+      names+=("h$h")
+    done
+    run_alternating "${names[@]}"
+    case $op in
+      plugin) label="plugin: oiiotool F --subimage 0 -o o.exr" ;;
+      merge) label="mcstat F F --merge -o m.mcstat" ;;
+      *) label="mcstat F --$op -o o.exr" ;;
+    esac
+    printf "%-44s %10s %10s %10s\n" "$label" "$rss_h540 / $med_h540" "$rss_h1080 / $med_h1080" "$rss_h2160 / $med_h2160"
+  done
+  echo
+fi
+
+if want ingest; then
+  # Renders of one image, one plain EXR per seed (docs/ingest.md), against stock oiiotool
+  # averaging the same files.
+  NSEEDS=${NSEEDS:-21}
+  mkdir -p "$out/seeds"
+  for s in $(seq "$NSEEDS"); do
+    f=$out/seeds/seed_$s.exr
+    if [ ! -f "$f" ] || [ "${REFRESH:-0}" = 1 ]; then
+      "$render" --scene default --res 640 480 --spp 4 --seed "$s" --reference --quiet -o "$f"
+    fi
+  done
+  echo "== mcstat --ingest of $NSEEDS renders (640x480, plain float EXR) against stock oiiotool averaging them =="
+  cmd_ref=(oiiotool "$out/seeds/seed_1.exr")
+  for s in $(seq 2 "$NSEEDS"); do cmd_ref+=("$out/seeds/seed_$s.exr" --add); done
+  cmd_ref+=(--divc "$NSEEDS" -o "$out/oiiotool-mean.exr")
+  cmd_ing=("$mcstat" --ingest "$out/seeds/seed_*.exr" -o "$out/ingested.mcstat")
+  cmd_ingm=("$mcstat" --ingest "$out/seeds/seed_*.exr" --mean -o "$out/ingested-mean.exr")
+  cmd_ingg=("$mcstat" --ingest "$out/seeds/seed_*.exr" --gmon -o "$out/ingested-gmon.exr")
+  run_alternating ref ing ingm ingg
+  printf "%-48s %10s %9s %14s\n" "command" "wall" "ratio" "peak RSS"
+  for n in ref ing ingm ingg; do
+    case $n in
+      ref) l="oiiotool F1 F2 --add ... --divc N -o mean.exr" ;; ing) l="mcstat --ingest FILES -o f.mcstat" ;;
+      ingm) l="mcstat --ingest FILES --mean -o m.exr" ;; ingg) l="mcstat --ingest FILES --gmon -o g.exr" ;;
+    esac
+    w=med_$n; r=rss_$n
+    awk -v l="$l" -v w="${!w}" -v b="$med_ref" -v r="${!r}" 'BEGIN { printf "%-48s %8.3f s %8.2fx %10s MiB\n", l, w, w / b, r }'
+  done
+  echo
+fi
+
+if want render; then
+  if [ -x scripts/bench_render.sh ]; then SKIP_BUILD=1 BUILD="$BUILD" REPS="$REPS" scripts/bench_render.sh; fi
+fi
