@@ -101,25 +101,29 @@ double bufferVariance(const StatsImage& img, size_t p, size_t c, double mean) {
     return filled >= 2 ? ss / double(filled - 1) : std::numeric_limits<double>::quiet_NaN();
 }
 
-bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::string& err) {
-    if (!validateStats(a, "first merge input", err) ||
-        !validateStats(b, "second merge input", err) || !checkCompatible(a.header, b.header, err))
-        return false;
+bool mergeHeaders(const StatsHeader& a, const StatsHeader& b, StatsHeader& out, std::string& err) {
+    if (!checkCompatible(a, b, err)) return false;
+    StatsHeader r = a;
+    r.spp = a.spp + b.spp;
+    if (a.seeds.empty() || b.seeds.empty())
+        r.seeds = a.seeds + b.seeds;
+    else
+        r.seeds = a.seeds + "," + b.seeds;
+    if (a.renderer != b.renderer) r.renderer = a.renderer + " + " + b.renderer;
+    if (a.sources.empty() || b.sources.empty())
+        r.sources = a.sources + b.sources;
+    else
+        r.sources = a.sources + "," + b.sources;
+    r.formatVersion = std::max(a.formatVersion, b.formatVersion);
+    out = std::move(r);
+    return true;
+}
 
+bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::string& err) {
+    if (!validateStats(a, "first merge input", err) || !validateStats(b, "second merge input", err))
+        return false;
     StatsImage r;
-    r.header = a.header;
-    r.header.spp = a.header.spp + b.header.spp;
-    if (a.header.seeds.empty() || b.header.seeds.empty())
-        r.header.seeds = a.header.seeds + b.header.seeds;
-    else
-        r.header.seeds = a.header.seeds + "," + b.header.seeds;
-    if (a.header.renderer != b.header.renderer)
-        r.header.renderer = a.header.renderer + " + " + b.header.renderer;
-    if (a.header.sources.empty() || b.header.sources.empty())
-        r.header.sources = a.header.sources + b.header.sources;
-    else
-        r.header.sources = a.header.sources + "," + b.header.sources;
-    r.header.formatVersion = std::max(a.header.formatVersion, b.header.formatVersion);
+    if (!mergeHeaders(a.header, b.header, r.header, err)) return false;
     const size_t pixels = r.pixelCount();
     if (r.header.adaptiveM) {
         // Buffer j of a pixel holds the samples i = j mod m_p of each input; with different m_p the

@@ -230,20 +230,6 @@ const StatsHeader& StatsFileReader::header() const {
 }
 int StatsFileReader::chunkRows() const { return impl_ ? impl_->chunkRows : 1; }
 
-int StatsFileReader::blockRows(unsigned parts, size_t budgetBytes) const {
-    if (!isOpen()) return 1;
-    const StatsHeader& h = impl_->header;
-    size_t floats = 0;  // per pixel, over the parts read (adaptive M: at M_max, an upper bound)
-    if (parts & kStatsPartBeauty) floats += 3;
-    if (parts & kStatsPartBuffers) floats += 4 * size_t(h.M) + (h.adaptiveM ? 2 : 0);
-    if (parts & kStatsPartMoments) floats += 7;
-    if (parts & kStatsPartFeatures) floats += 11;
-    const size_t rowBytes = std::max<size_t>(1, floats * sizeof(float) * size_t(h.width));
-    const size_t chunk = size_t(impl_->chunkRows);
-    const size_t rows = std::max<size_t>(1, budgetBytes / rowBytes / chunk) * chunk;
-    return int(std::min<size_t>(rows, size_t(h.height)));
-}
-
 bool StatsFileReader::open(const std::string& path, std::string& err, const ReadLimits& limits,
                            int nthreads) {
     impl_.reset();

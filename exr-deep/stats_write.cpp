@@ -12,14 +12,20 @@
 #include <OpenEXR/ImfPartType.h>
 #include <OpenEXR/ImfStandardAttributes.h>
 #include <OpenEXR/ImfStringAttribute.h>
+#include <OpenEXR/ImfThreading.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <functional>
+#include <limits>
+#include <memory>
 #include <random>
+#include <thread>
 
 #include "extra_parts.h"
 #include "fd_stream.h"
@@ -99,11 +105,11 @@ std::string dirOf(const std::string& path) {
     return slash == 0 ? "/" : path.substr(0, slash);
 }
 
-/// Adaptive M: part "vbuffers", one deep sample per sub-buffer (R, G, B, count; Z = buffer index,
-/// A = 1).
-void writeDeepBuffers(Imf::MultiPartOutputFile& out, const StatsImage& img) {
-    const StatsHeader& h = img.header;
-    const size_t pixels = img.pixelCount();
+/// Adaptive M: rows of part "vbuffers" from `blk` (a block of rows, origin at its first row), one
+/// deep sample per sub-buffer (R, G, B, count; Z = buffer index, A = 1).
+void writeDeepBuffers(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
+    const StatsHeader& h = blk.header;
+    const size_t pixels = blk.pixelCount();
     // Z and A are the same for every pixel: j and 1 for sample j, so all pixels point at one row.
     std::vector<float> zs(size_t(h.M)), ones(size_t(h.M), 1.f);
     for (size_t j = 0; j < zs.size(); ++j) zs[j] = float(j);
@@ -111,11 +117,11 @@ void writeDeepBuffers(Imf::MultiPartOutputFile& out, const StatsImage& img) {
     std::vector<const char*> ptr[6];
     for (auto& v : ptr) v.resize(pixels);
     for (size_t p = 0; p < pixels; ++p) {
-        const size_t k = img.bufferBegin(p);
-        m[p] = uint32_t(img.buffersOf(p));
+        const size_t k = blk.bufferBegin(p);
+        m[p] = uint32_t(blk.buffersOf(p));
         for (size_t c = 0; c < 3; ++c)
-            ptr[c][p] = reinterpret_cast<const char*>(img.bufferMean.data() + k * 3 + c);
-        ptr[3][p] = reinterpret_cast<const char*>(img.bufferCount.data() + k);
+            ptr[c][p] = reinterpret_cast<const char*>(blk.bufferMean.data() + k * 3 + c);
+        ptr[3][p] = reinterpret_cast<const char*>(blk.bufferCount.data() + k);
         ptr[4][p] = reinterpret_cast<const char*>(zs.data());
         ptr[5][p] = reinterpret_cast<const char*>(ones.data());
     }
@@ -132,33 +138,176 @@ void writeDeepBuffers(Imf::MultiPartOutputFile& out, const StatsImage& img) {
     op.writePixels(h.height);
 }
 
-/// Writes every part to `os`; throws on failure.
-void writeParts(Imf::OStream& os, const StatsImage& img, const StatsExtras& extras) {
-    const StatsHeader& h = img.header;
-    std::vector<Imf::Header> headers = makeHeaders(h);
-    detail::appendExtraHeaders(headers, h, extras);
-    const Imath::Box2i window = windowOf(h);
-    Imf::MultiPartOutputFile out(os, headers.data(), int(headers.size()));
+/// Writes the rows of `blk` (a block of whole rows) to every one of the four parts; throws on
+/// failure.
+void writeRows(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
+    const StatsHeader& h = blk.header;
     for (int part = 0; part < layout::kPartCount; ++part) {
         if (h.adaptiveM && part == layout::kBuffers) {
-            writeDeepBuffers(out, img);
+            writeDeepBuffers(out, blk);
             continue;
         }
         Imf::FrameBuffer fb;
         for (const layout::ChannelPlace& c : layout::partChannels(part, h.M, h.adaptiveM)) {
-            const float* base = layout::arrayOf(img, c.array).data() + c.offset;
+            const float* data = layout::arrayOf(blk, c.array).data() + c.offset;
             const size_t xStride = c.stride * sizeof(float);
-            fb.insert(c.name, Imf::Slice::Make(Imf::FLOAT, base, window, xStride,
-                                               xStride * size_t(h.width)));
+            fb.insert(c.name, Imf::Slice(Imf::FLOAT, windowBase(data, h, xStride), xStride,
+                                         xStride * size_t(h.width)));
         }
         Imf::OutputPart op(out, part);
         op.setFrameBuffer(fb);
         op.writePixels(h.height);
     }
-    detail::writeExtraParts(out, img, extras);
+}
+
+int threadsFor(int nthreads) {
+    const int n = nthreads > 0 ? nthreads : int(std::max(1u, std::thread::hardware_concurrency()));
+    // OpenEXR compresses on its global pool; a process that never sized it compresses on one
+    // thread. Hosts that sized it keep their choice.
+    if (n > 1 && Imf::globalThreadCount() == 0) Imf::setGlobalThreadCount(n);
+    return n;
 }
 
 }  // namespace
+
+struct StatsFileWriter::Impl {
+    std::string path, tmp;
+    StatsHeader header;
+    detail::Fd fd;
+    std::unique_ptr<detail::FdOStream> os;
+    std::unique_ptr<Imf::MultiPartOutputFile> file;
+    int nextRow = 0;  ///< rows written so far
+    /// Written after the four parts by commit() (writeStatsFile's version-4 extras).
+    std::function<void(Imf::MultiPartOutputFile&)> extraParts;
+    bool failed = false;
+
+    ~Impl() {
+        file.reset();  // OpenEXR writes the offset tables here; the file is removed anyway
+        if (!tmp.empty()) {
+            fd.reset();
+            ::unlink(tmp.c_str());
+        }
+    }
+};
+
+/// writeStatsFile's access to the writer's extra parts.
+struct StatsFileWriterAccess {
+    static bool open(StatsFileWriter& w, const std::string& path, const StatsHeader& h,
+                     const std::vector<Imf::Header>& extraHeaders,
+                     std::function<void(Imf::MultiPartOutputFile&)> extraParts, std::string& err,
+                     int nthreads);
+};
+
+StatsFileWriter::StatsFileWriter() = default;
+StatsFileWriter::~StatsFileWriter() = default;
+
+bool StatsFileWriter::open(const std::string& path, const StatsHeader& header, std::string& err,
+                           int nthreads) {
+    return StatsFileWriterAccess::open(*this, path, header, {}, {}, err, nthreads);
+}
+
+bool StatsFileWriterAccess::open(StatsFileWriter& w, const std::string& path, const StatsHeader& h,
+                                 const std::vector<Imf::Header>& extraHeaders,
+                                 std::function<void(Imf::MultiPartOutputFile&)> extraParts,
+                                 std::string& err, int nthreads) {
+    w.impl_.reset();
+    StatsImage probe;  // header checks without pixels: validateStats over no part
+    probe.header = h;
+    if (!validateStats(probe, 0u, path, err)) return false;
+    if (h.spp > std::numeric_limits<int>::max()) {
+        err = fmt::format("{}: spp {} does not fit the int attribute {}", path, h.spp,
+                          layout::kAttrSpp);
+        return false;
+    }
+    auto impl = std::make_unique<StatsFileWriter::Impl>();
+    impl->path = path;
+    impl->header = h;
+    impl->extraParts = std::move(extraParts);
+    const std::string tmp = detail::tempNameFor(path);
+    impl->fd = detail::Fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666));
+    if (impl->fd.get() < 0) {
+        err = fmt::format("{}: cannot create temporary file {} ({})", path, tmp,
+                          std::strerror(errno));
+        return false;
+    }
+    impl->tmp = tmp;
+    try {
+        std::vector<Imf::Header> headers = makeHeaders(h);
+        headers.insert(headers.end(), extraHeaders.begin(), extraHeaders.end());
+        impl->os = std::make_unique<detail::FdOStream>(impl->fd.get(), tmp);
+        impl->file = std::make_unique<Imf::MultiPartOutputFile>(
+            *impl->os, headers.data(), int(headers.size()), false, threadsFor(nthreads));
+    } catch (const std::exception& e) {
+        err = fmt::format("{}: cannot write ({})", path, e.what());
+        return false;
+    }
+    w.impl_ = std::move(impl);
+    return true;
+}
+
+bool StatsFileWriter::write(const StatsImage& block, std::string& err) {
+    if (!impl_ || impl_->failed) {
+        err =
+            impl_ ? impl_->path + ": an earlier write failed" : "statistics file writer: not open";
+        return false;
+    }
+    Impl& im = *impl_;
+    const StatsHeader& h = im.header;
+    const StatsHeader& b = block.header;
+    if (b.width != h.width || b.originX != h.originX || b.M != h.M || b.adaptiveM != h.adaptiveM ||
+        b.originY != h.originY + im.nextRow || b.height > h.height - im.nextRow) {
+        err = fmt::format(
+            "{}: a block of rows {}..{} ({} wide, M = {}) does not continue the image at row {} "
+            "of {} ({} wide, M = {})",
+            im.path, int64_t(b.originY) - h.originY, int64_t(b.originY) - h.originY + b.height - 1,
+            b.width, b.M, im.nextRow, h.height, h.width, h.M);
+        return false;
+    }
+    if (!validateStats(block, im.path, err)) return false;
+    try {
+        writeRows(*im.file, block);
+        if (!im.os->error().empty()) throw std::runtime_error(im.os->error());
+    } catch (const std::exception& e) {
+        im.failed = true;
+        err = fmt::format("{}: cannot write ({})", im.path, e.what());
+        return false;
+    }
+    im.nextRow += b.height;
+    return true;
+}
+
+bool StatsFileWriter::commit(std::string& err) {
+    if (!impl_ || impl_->failed || impl_->nextRow != impl_->header.height) {
+        err = !impl_ ? "statistics file writer: not open"
+                     : fmt::format("{}: {} of {} rows written", impl_->path, impl_->nextRow,
+                                   impl_->header.height);
+        return false;
+    }
+    Impl& im = *impl_;
+    std::string problem;
+    try {
+        if (im.extraParts) im.extraParts(*im.file);
+        im.file.reset();  // writes the offset tables
+        problem = im.os->error();
+    } catch (const std::exception& e) {
+        problem = e.what();
+    }
+    if (problem.empty() && ::fsync(im.fd.get()) != 0) problem = std::strerror(errno);
+    if (const std::string closeErr = im.fd.close(); problem.empty()) problem = closeErr;
+    if (problem.empty() && std::rename(im.tmp.c_str(), im.path.c_str()) != 0)
+        problem = fmt::format("cannot rename {} onto it ({})", im.tmp, std::strerror(errno));
+    if (!problem.empty()) {
+        err = fmt::format("{}: cannot write ({})", im.path, problem);
+        impl_.reset();  // removes the temporary file
+        return false;
+    }
+    im.tmp.clear();  // renamed: nothing to remove
+    // Make the rename durable; a failure here does not undo the write.
+    detail::Fd dir(::open(dirOf(im.path).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
+    if (dir.get() >= 0) (void)::fsync(dir.get());
+    impl_.reset();
+    return true;
+}
 
 bool writeStatsFile(const std::string& path, const StatsImage& img, std::string& err) {
     return writeStatsFile(path, img, StatsExtras(), err);
@@ -168,39 +317,18 @@ bool writeStatsFile(const std::string& path, const StatsImage& img, const StatsE
                     std::string& err) {
     if (!validateStats(img, path, err)) return false;
     if (!detail::checkExtras(path, img, extras, err)) return false;
-    if (img.header.spp > std::numeric_limits<int>::max()) {
-        err = fmt::format("{}: spp {} does not fit the int attribute {}", path, img.header.spp,
-                          layout::kAttrSpp);
+    // The four parts as one block, then the extras: part after part, as a reader expects them.
+    std::vector<Imf::Header> extraHeaders;
+    detail::appendExtraHeaders(extraHeaders, img.header, extras);
+    StatsFileWriter w;
+    auto extraParts = [&img, &extras](Imf::MultiPartOutputFile& out) {
+        detail::writeExtraParts(out, img, extras);
+    };
+    if (!StatsFileWriterAccess::open(w, path, img.header, extraHeaders,
+                                     extraHeaders.empty() ? nullptr : std::function(extraParts),
+                                     err, 0))
         return false;
-    }
-    const std::string tmp = detail::tempNameFor(path);
-    detail::Fd fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666));
-    if (fd.get() < 0) {
-        err = fmt::format("{}: cannot create temporary file {} ({})", path, tmp,
-                          std::strerror(errno));
-        return false;
-    }
-    std::string problem;
-    try {
-        detail::FdOStream os(fd.get(), tmp);
-        writeParts(os, img, extras);  // the offset table is written when `out` is destroyed
-        problem = os.error();
-    } catch (const std::exception& e) {
-        problem = e.what();
-    }
-    if (problem.empty() && ::fsync(fd.get()) != 0) problem = std::strerror(errno);
-    if (const std::string closeErr = fd.close(); problem.empty()) problem = closeErr;
-    if (problem.empty() && std::rename(tmp.c_str(), path.c_str()) != 0)
-        problem = fmt::format("cannot rename {} onto it ({})", tmp, std::strerror(errno));
-    if (!problem.empty()) {
-        ::unlink(tmp.c_str());
-        err = fmt::format("{}: cannot write ({})", path, problem);
-        return false;
-    }
-    // Make the rename durable; a failure here does not undo the write.
-    detail::Fd dir(::open(dirOf(path).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
-    if (dir.get() >= 0) (void)::fsync(dir.get());
-    return true;
+    return w.write(img, err) && w.commit(err);
 }
 
 }  // namespace mcstat

@@ -1,5 +1,5 @@
-// The image operations of imageops.h over a statistics file streamed by blocks of rows
-// (StatsFileReader): each block is decoded (in parallel by OpenEXR), run through the in-memory
+// The image operations of imageops.h over a statistics image streamed by blocks of rows
+// (StatsBlockSource): each block is decoded (in parallel by OpenEXR), run through the in-memory
 // operation, and its rows copied into the result. Peak memory is one block (plus the neighbourhood
 // operations' halo rows), not the file. Every output pixel is the in-memory operation's pixel: a
 // block carries every row a pixel's window reaches, and each window is clipped to the file's data
@@ -30,7 +30,7 @@ ROI dataWindowOf(const StatsHeader& h) {
 /// spec. Blocks start on multiples of the block height counted from the data window's top, a
 /// multiple of the file's chunk height, so that no chunk is decoded twice apart from the halo.
 template <class BlockOp>
-bool forEachBlock(ImageBuf& dst, StatsFileReader& reader, ROI roi, int halo, unsigned parts,
+bool forEachBlock(ImageBuf& dst, StatsBlockSource& reader, ROI roi, int halo, unsigned parts,
                   size_t budget, const char* what, BlockOp op) {
     const StatsHeader& h = reader.header();
     const ROI full = dataWindowOf(h);
@@ -98,11 +98,11 @@ std::vector<std::string> operationChannels(const Operation& op, const ParamValue
     return names;
 }
 
-bool estimate(ImageBuf& dst, StatsFileReader& src, const EstimatorInfo& est,
+bool estimate(ImageBuf& dst, StatsBlockSource& src, const EstimatorInfo& est,
               const EstimatorParams& params, bool diagnostics, ROI roi, int nthreads) {
     dst.clear();
-    if (!src.isOpen()) {
-        dst.errorfmt("estimate {}: no statistics file open", est.name);
+    if (!src.ready()) {
+        dst.errorfmt("estimate {}: the source holds no image", est.name);
         return false;
     }
     // Per pixel: only the sub-buffers are decoded (the moments' count check needs part moments,
@@ -113,18 +113,18 @@ bool estimate(ImageBuf& dst, StatsFileReader& src, const EstimatorInfo& est,
                         });
 }
 
-ImageBuf estimate(StatsFileReader& src, const EstimatorInfo& est, const EstimatorParams& params,
+ImageBuf estimate(StatsBlockSource& src, const EstimatorInfo& est, const EstimatorParams& params,
                   bool diagnostics, ROI roi, int nthreads) {
     ImageBuf dst;
     estimate(dst, src, est, params, diagnostics, roi, nthreads);
     return dst;
 }
 
-bool filter3D(ImageBuf& dst, StatsFileReader& src, const SpatialParams& params, ROI roi,
+bool filter3D(ImageBuf& dst, StatsBlockSource& src, const SpatialParams& params, ROI roi,
               int nthreads) {
     dst.clear();
-    if (!src.isOpen()) {
-        dst.errorfmt("3D filter: no statistics file open");
+    if (!src.ready()) {
+        dst.errorfmt("3D filter: the source holds no image");
         return false;
     }
     std::string err;
@@ -140,13 +140,13 @@ bool filter3D(ImageBuf& dst, StatsFileReader& src, const SpatialParams& params, 
                         });
 }
 
-ImageBuf filter3D(StatsFileReader& src, const SpatialParams& params, ROI roi, int nthreads) {
+ImageBuf filter3D(StatsBlockSource& src, const SpatialParams& params, ROI roi, int nthreads) {
     ImageBuf dst;
     filter3D(dst, src, params, roi, nthreads);
     return dst;
 }
 
-bool applyOperation(ImageBuf& dst, StatsFileReader& src, const Operation& op,
+bool applyOperation(ImageBuf& dst, StatsBlockSource& src, const Operation& op,
                     const ParamValues& values, const std::array<double, 3>& luma, bool diagnostics,
                     ROI roi, int nthreads) {
     switch (op.input) {

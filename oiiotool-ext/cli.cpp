@@ -118,13 +118,13 @@ bool runEstimator(State& st, const std::string& cmd, const Operation& op, const 
     ParamValues values;
     if (!parseOperationParams(op, estMods, values, err, cmd)) return false;
     applyEstimatorParams(values, params);
-    // A file on disk is streamed by blocks of rows; an item already in memory is used as it is.
-    StatsFileReader reader;
-    bool streamed = false;
-    if (!openStream(st, top, reader, err, streamed)) return false;
+    // A file on disk (or a merge of files) is streamed by blocks of rows; an item already in
+    // memory is used as it is.
+    ItemSource src;
+    if (!top.stats && !openSource(st, top, src, err)) return false;
     auto img = std::make_shared<OIIO::ImageBuf>();
-    if (!(streamed ? estimate(*img, reader, op, params, diag, {}, st.nthreads)
-                   : estimate(*img, *top.stats, op, params, diag, {}, st.nthreads))) {
+    if (!(top.stats ? estimate(*img, *top.stats, op, params, diag, {}, st.nthreads)
+                    : estimate(*img, *src.root, op, params, diag, {}, st.nthreads))) {
         err = format("{}: {}", cmd, img->geterror());
         return false;
     }
@@ -229,16 +229,16 @@ bool cmdMerge(State& st, const std::string& cmd, const std::vector<std::string>&
                      a.isStats() ? b.name : a.name);
         return false;
     }
-    if (!loadStats(st, a, err) || !loadStats(st, b, err)) return false;
-    auto merged = std::make_shared<StatsImage>();
-    if (!mergeStats(*a.stats, *b.stats, *merged, err)) {
+    // The headers are checked now; the pixels are merged block by block when the result is
+    // used (written, estimated), so a merge of large files never holds either image.
+    Item out;
+    if (!mergeHeaders(a.header, b.header, out.header, err)) {
         err = format("{} {} + {}: {}", cmd, a.name, b.name, err);
         return false;
     }
-    Item out;
     out.name = format("merge({}, {})", a.name, b.name);
-    out.header = merged->header;
-    out.stats = merged;
+    out.mergeA = std::make_shared<const Item>(a);
+    out.mergeB = std::make_shared<const Item>(b);
     st.stack.pop_back();
     st.stack.back() = std::move(out);
     return true;

@@ -22,7 +22,9 @@ struct Item {
     std::string name;  ///< what messages call it: the file name or "op(input)"
     std::string path;  ///< source file of a statistics item ("" when computed)
     StatsHeader header;
-    std::shared_ptr<StatsImage> stats;      ///< null until needed (statistics items)
+    std::shared_ptr<StatsImage> stats;  ///< null until needed (statistics items)
+    /// A merge not computed yet (`--merge`): read block by block from these two items when used.
+    std::shared_ptr<const Item> mergeA, mergeB;
     std::shared_ptr<OIIO::ImageBuf> image;  ///< set for image items
     bool isStats() const { return image == nullptr; }
 };
@@ -67,10 +69,14 @@ int run(int argc, const char* const* argv);
 
 // Commands implemented in io.cpp.
 bool pushFile(State& st, const std::string& path, std::string& err);
-/// Opens `item`'s file for streaming when it is a file on disk not loaded whole (`opened` set);
-/// an item in memory leaves `opened` false (use item.stats). False with `err` on a bad file.
-bool openStream(const State& st, const Item& item, StatsFileReader& reader, std::string& err,
-                bool& opened);
+/// The block source of a statistics item and everything it reads from (a merge's inputs).
+struct ItemSource {
+    std::vector<std::unique_ptr<StatsBlockSource>> owned;
+    StatsBlockSource* root = nullptr;
+};
+/// Opens the statistics item `item` as a block source: its file, its image in memory, or the
+/// merge of its two inputs. False with `err` on a bad file or an impossible merge.
+bool openSource(const State& st, const Item& item, ItemSource& src, std::string& err);
 bool loadStats(State& st, Item& item, std::string& err);
 bool cmdOutput(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
                std::string&);

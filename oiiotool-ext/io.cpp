@@ -72,19 +72,36 @@ bool pushFile(State& st, const std::string& path, std::string& err) {
     return true;
 }
 
-bool openStream(const State& st, const Item& item, StatsFileReader& reader, std::string& err,
-                bool& opened) {
-    opened = false;
-    if (item.stats || item.path.empty()) return true;
-    if (!reader.open(item.path, err, ReadLimits(), st.nthreads)) return false;
-    opened = true;
+bool openSource(const State& st, const Item& item, ItemSource& src, std::string& err) {
+    if (item.stats) {
+        src.owned.push_back(std::make_unique<MemoryStatsSource>(item.stats, item.name));
+    } else if (item.mergeA && item.mergeB) {
+        ItemSource a, b;
+        if (!openSource(st, *item.mergeA, a, err) || !openSource(st, *item.mergeB, b, err))
+            return false;
+        auto merged = std::make_unique<MergedStatsSource>();
+        if (!merged->init(*a.root, *b.root, err)) return false;
+        for (ItemSource* s : {&a, &b})
+            for (auto& o : s->owned) src.owned.push_back(std::move(o));
+        src.owned.push_back(std::move(merged));
+    } else {
+        auto reader = std::make_unique<StatsFileReader>();
+        if (!reader->open(item.path, err, ReadLimits(), st.nthreads)) return false;
+        src.owned.push_back(std::move(reader));
+    }
+    src.root = src.owned.back().get();
     return true;
 }
 
-bool loadStats(State&, Item& item, std::string& err) {
+bool loadStats(State& st, Item& item, std::string& err) {
     if (item.stats) return true;
     auto img = std::make_shared<StatsImage>();
-    if (!readStatsFile(item.path, *img, err)) return false;
+    if (item.mergeA) {
+        ItemSource src;
+        if (!openSource(st, item, src, err) || !readAll(*src.root, *img, err)) return false;
+    } else if (!readStatsFile(item.path, *img, err)) {
+        return false;
+    }
     item.stats = img;
     item.header = img->header;
     return true;
@@ -215,8 +232,7 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
                 cmd, path, top.name, kStatsExtension);
             return false;
         }
-        if (!loadStats(st, top, err)) return false;
-        StatsHeader& h = top.stats->header;
+        const StatsHeader& h = top.header;
         if (h.hasPajot || h.hasRecords) {
             // The per-sample parts belong to one render's samples in their order: a merge cannot
             // combine them and this tool holds only the four statistics parts in memory. The file
@@ -225,10 +241,12 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
                          "mcstat: warning: %s: parts pajot, modes and records of %s are not "
                          "written (only the four statistics parts are)\n",
                          path.c_str(), top.name.c_str());
-            h.hasPajot = h.hasRecords = false;
-            h.formatVersion = requiredFormatVersion(h);
         }
-        return writeStatsFile(path, *top.stats, err);
+        // Block by block (a file converted, a merge of files): never the whole image in memory.
+        // writeStatsFile over a source writes the four parts in the lowest version for them.
+        ItemSource src;
+        if (!openSource(st, top, src, err)) return false;
+        return writeStatsFile(path, *src.root, err, st.nthreads);
     }
     if (ext == kStatsExtension) {
         err = format("{} {}: {} is an image, not a statistics file", cmd, path, top.name);

@@ -87,12 +87,11 @@ bool filterBuffers(State& st, const std::string& cmd, const Operation& op, const
     }
     SpatialParams p;
     if (!parseSpatialModifiers(cmd, op, mods, p, err)) return false;
-    StatsFileReader reader;
-    bool streamed = false;
-    if (!openStream(st, top, reader, err, streamed)) return false;
+    ItemSource src;
+    if (!top.stats && !openSource(st, top, src, err)) return false;
     auto img = std::make_shared<OIIO::ImageBuf>();
-    if (!(streamed ? filter3D(*img, reader, p, {}, st.nthreads)
-                   : filter3D(*img, *top.stats, p, {}, st.nthreads))) {
+    if (!(top.stats ? filter3D(*img, *top.stats, p, {}, st.nthreads)
+                    : filter3D(*img, *src.root, p, {}, st.nthreads))) {
         err = format("{}: {}", cmd, img->geterror());
         return false;
     }

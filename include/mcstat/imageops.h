@@ -56,13 +56,13 @@ bool applyOperation(OIIO::ImageBuf& dst, const StatsImage& src, const Operation&
                     const ParamValues& values, const std::array<double, 3>& luma,
                     bool diagnostics = false, OIIO::ROI roi = {}, int nthreads = 0);
 
-// ---- the same operations streamed from a file
-// ---------------------------------------------------- Over a StatsFileReader (stats_file.h) the
-// operations read the file by blocks of rows of about kStreamBlockBytes of decoded sub-buffers (the
-// 3D filters 4x that, plus their window's halo rows) and only the rows `roi` needs; the result
-// equals the in-memory operation's over readStatsFile's image, pixel for pixel. Only the sub-buffer
-// part is decoded: each block's counts are checked, but the cross-part check that they sum to the
-// moments count is left to readStatsFile / --check.
+// ---- the same operations, streamed
+// --------------------------------------------------------------- Over a StatsBlockSource
+// (stats_file.h: a file, a merge, an image in memory) the operations read blocks of rows of about
+// kStreamBlockBytes of decoded sub-buffers (the 3D filters 4x that, plus their window's halo rows)
+// and only the rows `roi` needs; the result equals the in-memory operation's over the whole image,
+// pixel for pixel. From a file only the sub-buffer part is decoded: each block's counts are
+// checked, but the cross-part check that they sum to the moments count is left to readStatsFile.
 
 /// The channels applyOperation gives for `op` with `values`: R, G, B, then, for an estimator over
 /// buffer means with `diagnostics`, "gini", "kept", "excluded" (luminance mode) or "gini.R/G/B",
@@ -73,17 +73,17 @@ std::vector<std::string> operationChannels(const Operation& op, const ParamValue
 /// Decoded bytes per block of a streamed operation.
 inline constexpr size_t kStreamBlockBytes = size_t(64) << 20;
 
-bool estimate(OIIO::ImageBuf& dst, StatsFileReader& src, const EstimatorInfo& est,
+bool estimate(OIIO::ImageBuf& dst, StatsBlockSource& src, const EstimatorInfo& est,
               const EstimatorParams& params, bool diagnostics = false, OIIO::ROI roi = {},
               int nthreads = 0);
-OIIO::ImageBuf estimate(StatsFileReader& src, const EstimatorInfo& est,
+OIIO::ImageBuf estimate(StatsBlockSource& src, const EstimatorInfo& est,
                         const EstimatorParams& params, bool diagnostics = false, OIIO::ROI roi = {},
                         int nthreads = 0);
-bool filter3D(OIIO::ImageBuf& dst, StatsFileReader& src, const SpatialParams& params,
+bool filter3D(OIIO::ImageBuf& dst, StatsBlockSource& src, const SpatialParams& params,
               OIIO::ROI roi = {}, int nthreads = 0);
-OIIO::ImageBuf filter3D(StatsFileReader& src, const SpatialParams& params, OIIO::ROI roi = {},
+OIIO::ImageBuf filter3D(StatsBlockSource& src, const SpatialParams& params, OIIO::ROI roi = {},
                         int nthreads = 0);
-bool applyOperation(OIIO::ImageBuf& dst, StatsFileReader& src, const Operation& op,
+bool applyOperation(OIIO::ImageBuf& dst, StatsBlockSource& src, const Operation& op,
                     const ParamValues& values, const std::array<double, 3>& luma,
                     bool diagnostics = false, OIIO::ROI roi = {}, int nthreads = 0);
 

@@ -180,15 +180,43 @@ enum StatsParts : unsigned {
     kStatsAllParts = 15u
 };
 
-/// Streams a statistics file by blocks of rows, so that memory follows the rows in flight and
-/// not the image height. The headers are validated once by open() (as readStatsFile does); each
-/// read() validates what it decoded (counts, and with buffers and moments both read, that buffer
-/// counts sum to the moments count). OpenEXR decodes each block's chunks on `nthreads` threads.
-/// Not thread-safe: one reader per thread.
-class StatsFileReader {
+/// Anything that hands out a statistics image by blocks of rows: a file (StatsFileReader), the
+/// merge of two sources (MergedStatsSource), an image in memory (MemoryStatsSource). The streamed
+/// operations (imageops.h) and the streaming writer (StatsFileWriter) take any of them, so memory
+/// follows the rows in flight and not the image height.
+class StatsBlockSource {
+  public:
+    virtual ~StatsBlockSource() = default;
+    /// The whole image's header (width 0 until the source is ready).
+    virtual const StatsHeader& header() const = 0;
+    /// What messages call the source (a path, "merge(a, b)").
+    virtual const std::string& name() const = 0;
+    /// Rows per compressed chunk of the sub-buffer part (1 when not a file): blocks that start
+    /// on a multiple of it never decode a chunk twice.
+    virtual int chunkRows() const { return 1; }
+    /// Reads rows [firstRow, firstRow + rows) of the data window (0-based) of the parts in
+    /// `parts` (StatsParts) into `block`: its header is the image's with height = rows and
+    /// originY moved to the first row; the arrays of parts not read are empty. `block`'s
+    /// storage is reused from one call to the next. False with `err` ("<name>: <problem>") on a
+    /// bad range, a bad value or a damaged file.
+    virtual bool read(int firstRow, int rows, unsigned parts, StatsImage& block,
+                      std::string& err) = 0;
+    /// Whether header() describes an image (the source opened or initialised).
+    bool ready() const { return header().width > 0 && header().height > 0; }
+    /// A block height for about `budgetBytes` of decoded parts `parts` per block: a multiple of
+    /// chunkRows(), at least one chunk, at most the image height.
+    int blockRows(unsigned parts = kStatsAllParts, size_t budgetBytes = size_t(64) << 20) const;
+};
+
+/// Streams a statistics file by blocks of rows. The headers are validated once by open() (as
+/// readStatsFile does, including that every chunk lies inside the file); each read() validates
+/// what it decoded (counts, and with buffers and moments both read, that buffer counts sum to the
+/// moments count). OpenEXR decodes each block's chunks on `nthreads` threads. Not thread-safe:
+/// one reader per thread.
+class StatsFileReader final : public StatsBlockSource {
   public:
     StatsFileReader();
-    ~StatsFileReader();
+    ~StatsFileReader() override;
     StatsFileReader(const StatsFileReader&) = delete;
     StatsFileReader& operator=(const StatsFileReader&) = delete;
 
@@ -200,25 +228,86 @@ class StatsFileReader {
               int nthreads = 0);
     bool isOpen() const;
     const std::string& path() const;
-    /// The file's header (valid after open()).
-    const StatsHeader& header() const;
-    /// Rows per compressed chunk of the sub-buffer part (1 uncompressed, 16 ZIP, 32 PIZ, ...):
-    /// blocks that start on a multiple of it never decode a chunk twice.
-    int chunkRows() const;
-    /// A block height for about `budgetBytes` of decoded parts `parts` per block: a multiple of
-    /// chunkRows(), at least one chunk, at most the image height.
-    int blockRows(unsigned parts = kStatsAllParts, size_t budgetBytes = size_t(64) << 20) const;
-    /// Reads rows [firstRow, firstRow + rows) of the data window (0-based) of the parts in
-    /// `parts` into `block`: its header is the file's with height = rows and originY moved to
-    /// the first row; the arrays of parts not read are empty. `block`'s storage is reused from
-    /// one call to the next. False with `err` ("<path>: <problem>") on a bad range, a bad
-    /// value or a damaged file.
-    bool read(int firstRow, int rows, unsigned parts, StatsImage& block, std::string& err);
+    const StatsHeader& header() const override;
+    const std::string& name() const override { return path(); }
+    int chunkRows() const override;
+    bool read(int firstRow, int rows, unsigned parts, StatsImage& block, std::string& err) override;
 
   private:
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };
+
+/// Hands out the rows of an image in memory (e.g. the result of `mcstat --ingest`).
+class MemoryStatsSource final : public StatsBlockSource {
+  public:
+    MemoryStatsSource(std::shared_ptr<const StatsImage> img, std::string name);
+    const StatsHeader& header() const override { return img_->header; }
+    const std::string& name() const override { return name_; }
+    bool read(int firstRow, int rows, unsigned parts, StatsImage& block, std::string& err) override;
+
+  private:
+    std::shared_ptr<const StatsImage> img_;
+    std::string name_;
+};
+
+/// The merge of two sources (mergeStats), block by block: each block of the result equals the
+/// same rows of mergeStats over the whole images, since the merge is per pixel. Reads every part
+/// of both inputs whatever `parts` asks (the merge of one part needs the others' counts). The
+/// inputs must outlive this source.
+class MergedStatsSource final : public StatsBlockSource {
+  public:
+    /// Checks that `a` and `b` can merge (mergeHeaders); false with `err`.
+    bool init(StatsBlockSource& a, StatsBlockSource& b, std::string& err);
+    const StatsHeader& header() const override { return header_; }
+    const std::string& name() const override { return name_; }
+    int chunkRows() const override;
+    bool read(int firstRow, int rows, unsigned parts, StatsImage& block, std::string& err) override;
+
+  private:
+    StatsBlockSource* a_ = nullptr;
+    StatsBlockSource* b_ = nullptr;
+    StatsHeader header_;
+    std::string name_;
+    StatsImage blockA_, blockB_;
+};
+
+/// Writes a statistics file by blocks of rows, in order: open(), write() each block (all four
+/// parts, rows following the previous block's), commit(). The file grows under a temporary name in
+/// the target's folder and is renamed onto the target by commit(); a writer destroyed before
+/// commit() (an error, an interruption) removes the temporary file and leaves the target as it
+/// was. OpenEXR compresses each block's chunks on `nthreads` threads. A whole image written as one
+/// block gives the same bytes as writeStatsFile.
+class StatsFileWriter {
+  public:
+    StatsFileWriter();
+    ~StatsFileWriter();
+    StatsFileWriter(const StatsFileWriter&) = delete;
+    StatsFileWriter& operator=(const StatsFileWriter&) = delete;
+    /// Creates the temporary file for an image described by `header` (checked as validateStats
+    /// checks headers); `nthreads` 0: all cores.
+    bool open(const std::string& path, const StatsHeader& header, std::string& err,
+              int nthreads = 0);
+    /// Appends `block` (a valid image of whole rows: header.originY the next row to write, every
+    /// part present).
+    bool write(const StatsImage& block, std::string& err);
+    /// After the last row: completes the file and renames it onto the target.
+    bool commit(std::string& err);
+
+  private:
+    friend struct StatsFileWriterAccess;
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+/// Streams every row of `src` into the statistics file `path` (StatsFileWriter) by blocks of
+/// about `budgetBytes` decoded bytes: e.g. `mcstat a.mcstat b.mcstat --merge -o m.mcstat` holds
+/// a block of each input and of the result, never the images.
+bool writeStatsFile(const std::string& path, StatsBlockSource& src, std::string& err,
+                    int nthreads = 0, size_t budgetBytes = size_t(64) << 20);
+
+/// Reads every row and part of `src` into memory, validated.
+bool readAll(StatsBlockSource& src, StatsImage& img, std::string& err);
 
 /// Reads only the headers (cheap): what `mcstat --info` shows before loading pixels.
 bool readStatsHeader(const std::string& path, StatsHeader& hdr, std::string& err,
@@ -237,6 +326,11 @@ bool validateStats(const StatsImage& img, unsigned parts, const std::string& wha
 /// buffers, `mean` the pixel's mean; NaN when fewer than two buffers hold samples. Unbiased for
 /// buffers of independent samples (the between-group mean square of a one-way ANOVA).
 double bufferVariance(const StatsImage& img, size_t p, size_t c, double mean);
+
+/// The header of mergeStats(a, b)'s result from the inputs' headers, after checking that they can
+/// merge (same size, origin, M, assignment, variance source, features, colour space; no seed in
+/// both): spp added, seeds, sources and renderer names joined. False with `err` otherwise.
+bool mergeHeaders(const StatsHeader& a, const StatsHeader& b, StatsHeader& out, std::string& err);
 
 /// Combines two renders of the same image (same size, M, assignment) into one, as if a single
 /// render had taken all samples: per-buffer count-weighted sums, Chan's parallel variance.

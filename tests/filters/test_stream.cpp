@@ -10,6 +10,8 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <random>
@@ -224,6 +226,127 @@ TEST_F(Stream, StreamedOperationsEqualTheInMemoryOnesBitForBit) {
             }
         }
     }
+}
+
+/// Whether two images hold the same header size fields and every array bit for bit.
+void expectSameStats(const StatsImage& a, const StatsImage& b, const std::string& what) {
+    EXPECT_EQ(a.header.width, b.header.width) << what;
+    EXPECT_EQ(a.header.height, b.header.height) << what;
+    EXPECT_EQ(a.header.M, b.header.M) << what;
+    EXPECT_EQ(a.header.spp, b.header.spp) << what;
+    EXPECT_EQ(a.header.seeds, b.header.seeds) << what;
+    EXPECT_EQ(a.bufferOffset, b.bufferOffset) << what;
+    const std::vector<float> StatsImage::*arrays[] = {
+        &StatsImage::beauty, &StatsImage::bufferMean, &StatsImage::bufferCount,
+        &StatsImage::count,  &StatsImage::mean,       &StatsImage::variance,
+        &StatsImage::normal, &StatsImage::position,   &StatsImage::albedo,
+        &StatsImage::depth,  &StatsImage::coverage};
+    for (auto arr : arrays) EXPECT_TRUE(sameBits(a.*arr, (b.*arr).data(), (b.*arr).size())) << what;
+}
+
+TEST_F(Stream, TheWriterByBlocksEqualsTheWholeWrite) {
+    for (const bool adaptive : {false, true}) {
+        const StatsImage img = makeImage(11, 53, 4, adaptive, 5, 2, -7);
+        const std::string whole = file("whole.mcstat"), blocks = file("blocks.mcstat");
+        std::string err;
+        ASSERT_TRUE(writeStatsFile(whole, img, err)) << err;
+        auto shared = std::make_shared<const StatsImage>(img);
+        MemoryStatsSource src(shared, "memory");
+        for (const int rows : {1, 7, 16, 53}) {
+            StatsFileWriter w;
+            ASSERT_TRUE(w.open(blocks, img.header, err, 2)) << err;
+            StatsImage block;
+            for (int y = 0; y < 53; y += rows) {
+                ASSERT_TRUE(src.read(y, std::min(rows, 53 - y), kStatsAllParts, block, err)) << err;
+                ASSERT_TRUE(w.write(block, err)) << err;
+            }
+            ASSERT_TRUE(w.commit(err)) << err;
+            StatsImage back;
+            ASSERT_TRUE(readStatsFile(blocks, back, err)) << err;
+            expectSameStats(back, img, "rows " + std::to_string(rows));
+            // One block is the whole write, byte for byte (the parts one after the other).
+            if (rows == 53) {
+                std::ifstream x(whole, std::ios::binary), y(blocks, std::ios::binary);
+                const std::string bx((std::istreambuf_iterator<char>(x)), {});
+                const std::string by((std::istreambuf_iterator<char>(y)), {});
+                EXPECT_TRUE(bx == by) << "one block differs from writeStatsFile";
+            }
+        }
+    }
+}
+
+TEST_F(Stream, AnUnfinishedWriteLeavesTheTargetAndNoTemporaryFile) {
+    const StatsImage img = makeImage(5, 30, 2, false, 6);
+    const std::string target = file("t.mcstat");
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(target, makeImage(5, 30, 2, false, 99), err)) << err;
+    const auto before = fs::file_size(target);
+    auto shared = std::make_shared<const StatsImage>(img);
+    MemoryStatsSource src(shared, "memory");
+    StatsImage block;
+    {
+        StatsFileWriter w;
+        ASSERT_TRUE(w.open(target, img.header, err)) << err;
+        ASSERT_TRUE(src.read(0, 10, kStatsAllParts, block, err)) << err;
+        ASSERT_TRUE(w.write(block, err)) << err;
+        // Rows out of order, and a commit before the last row, are refused.
+        ASSERT_TRUE(src.read(20, 10, kStatsAllParts, block, err)) << err;
+        EXPECT_FALSE(w.write(block, err));
+        EXPECT_NE(err.find("does not continue the image at row 10"), std::string::npos) << err;
+        EXPECT_FALSE(w.commit(err));
+        EXPECT_NE(err.find("10 of 30 rows written"), std::string::npos) << err;
+    }  // abandoned
+    size_t files = 0;
+    for (const auto& e : fs::directory_iterator(dir_)) files += e.is_regular_file() ? 1 : 0;
+    EXPECT_EQ(files, 1u) << "a temporary file was left behind";
+    EXPECT_EQ(fs::file_size(target), before);
+    StatsImage back;
+    EXPECT_TRUE(readStatsFile(target, back, err)) << err;
+}
+
+TEST_F(Stream, AMergeBlockByBlockEqualsTheWholeMerge) {
+    for (const bool adaptive : {false, true}) {
+        StatsImage a = makeImage(9, 45, 3, adaptive, 21), b = makeImage(9, 45, 3, adaptive, 22);
+        a.header.seeds = "1";
+        b.header.seeds = "2";
+        b.header.spp = 100;
+        if (adaptive) {  // the same m_p in every pixel: refill b's buffers on a's layout
+            StatsImage c = makeImage(9, 45, 3, adaptive, 21);
+            for (size_t k = 0; k < c.bufferMean.size(); ++k) c.bufferMean[k] *= 2.f;
+            c.header = b.header;
+            b = c;
+        }
+        const std::string pa = file("a.mcstat"), pb = file("b.mcstat"), pm = file("m.mcstat");
+        std::string err;
+        ASSERT_TRUE(writeStatsFile(pa, a, err)) << err;
+        ASSERT_TRUE(writeStatsFile(pb, b, err)) << err;
+        StatsImage ra, rb, expected;
+        ASSERT_TRUE(readStatsFile(pa, ra, err) && readStatsFile(pb, rb, err)) << err;
+        ASSERT_TRUE(mergeStats(ra, rb, expected, err)) << err;
+        StatsFileReader fa, fb;
+        ASSERT_TRUE(fa.open(pa, err) && fb.open(pb, err)) << err;
+        MergedStatsSource merged;
+        ASSERT_TRUE(merged.init(fa, fb, err)) << err;
+        EXPECT_EQ(merged.header().spp, 164);
+        EXPECT_EQ(merged.header().seeds, "1,2");
+        // Blocks of 16 rows (one ZIP chunk): three blocks for 45 rows.
+        ASSERT_TRUE(writeStatsFile(pm, merged, err, 2, 9 * 16 * (4 * 3 + 2 + 21) * 4)) << err;
+        StatsImage back;
+        ASSERT_TRUE(readStatsFile(pm, back, err)) << err;
+        expectSameStats(back, expected, adaptive ? "adaptive" : "fixed");
+    }
+    // Adaptive inputs with different buffer counts: the pixel is named when its block is read.
+    const StatsImage a = makeImage(4, 20, 3, true, 31), b = makeImage(4, 20, 3, true, 32);
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(file("x.mcstat"), a, err) &&
+                writeStatsFile(file("y.mcstat"), b, err));
+    StatsFileReader fa, fb;
+    ASSERT_TRUE(fa.open(file("x.mcstat"), err) && fb.open(file("y.mcstat"), err)) << err;
+    MergedStatsSource merged;
+    ASSERT_TRUE(merged.init(fa, fb, err)) << err;
+    StatsImage block;
+    EXPECT_FALSE(merged.read(0, 20, kStatsAllParts, block, err));
+    EXPECT_NE(err.find("adaptive M differs at pixel"), std::string::npos) << err;
 }
 
 TEST_F(Stream, ARegionOutsideTheImageIsAnError) {
