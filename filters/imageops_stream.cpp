@@ -8,6 +8,8 @@
 
 #include <algorithm>
 #include <cstring>
+#include <future>
+#include <vector>
 
 #include "mcstat/imageops.h"
 
@@ -41,17 +43,29 @@ bool forEachBlock(ImageBuf& dst, StatsBlockSource& reader, ROI roi, int halo, un
         dst.errorfmt("{}: the region {} lies outside the data window {}", what, roi, full);
         return false;
     }
-    const int blockRows = std::max(1, reader.blockRows(parts, budget));
-    StatsImage block;
-    std::string err;
+    // Half the budget per block: two blocks are in flight, the next one decoding on a helper
+    // thread while this one is computed (the reader is used by one thread at a time).
+    const int blockRows = std::max(1, reader.blockRows(parts, budget / 2));
     const int top = roi.ybegin - h.originY, bottom = roi.yend - h.originY;  // window rows
-    for (int b0 = top - top % blockRows; b0 < bottom; b0 += blockRows) {
-        const int y0 = std::max(b0, top), y1 = std::min(b0 + blockRows, bottom);
+    std::vector<int> starts;
+    for (int b0 = top - top % blockRows; b0 < bottom; b0 += blockRows) starts.push_back(b0);
+    StatsImage blocks[2];
+    std::string errs[2];
+    const auto readBlock = [&](size_t i) {
+        const int y0 = std::max(starts[i], top), y1 = std::min(starts[i] + blockRows, bottom);
         const int r0 = std::max(0, y0 - halo), r1 = std::min(h.height, y1 + halo);
-        if (!reader.read(r0, r1 - r0, parts, block, err)) {
-            dst.errorfmt("{}", err);
+        return reader.read(r0, r1 - r0, parts, blocks[i % 2], errs[i % 2]);
+    };
+    std::future<bool> next = std::async(std::launch::deferred, readBlock, size_t(0));
+    for (size_t i = 0; i < starts.size(); ++i) {
+        if (!next.get()) {
+            dst.errorfmt("{}", errs[i % 2]);
             return false;
         }
+        // Every return below waits for this read first (std::future of std::async).
+        if (i + 1 < starts.size()) next = std::async(std::launch::async, readBlock, i + 1);
+        const StatsImage& block = blocks[i % 2];
+        const int y0 = std::max(starts[i], top), y1 = std::min(starts[i] + blockRows, bottom);
         ImageBuf part;
         const ROI rows(roi.xbegin, roi.xend, h.originY + y0, h.originY + y1);
         if (!op(part, block, rows)) {
