@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 #include <utility>
 #include <vector>
@@ -43,6 +45,24 @@ double saneScale(double scale) {
     return scale;
 }
 
+/// The per-sample terms of one descent step: w k t, w k and w (1 - t^2) k^2 with t = (x_j - beta) /
+/// gamma and k = 1 / (1 + t^2), each the same expression (same operations, same order) as in the
+/// scalar loop they replace. No sums here, so the loop vectorises (the AVX2 clone does four
+/// divisions at once; IEEE division and multiplication are correctly rounded in any width, so the
+/// terms do not depend on the CPU).
+__attribute__((target_clones("avx2", "default"))) void myriadTerms(const double* x, const double* w,
+                                                                   int K, double beta, double gamma,
+                                                                   double* tg, double* tm,
+                                                                   double* tc) {
+    for (int j = 0; j < K; ++j) {
+        const double t = (x[j] - beta) / gamma;
+        const double k = 1.0 / (1.0 + t * t);  // t = inf gives 0: a far sample has no pull
+        tg[j] = w[j] * k * t;
+        tm[j] = w[j] * k;
+        tc[j] = w[j] * (1.0 - t * t) * k * k;
+    }
+}
+
 /// Majorise-minimise (fixed-point) iteration for eq. 4.7 from `beta`: log is concave, so
 /// log(g^2 + d^2) <= log(a) + (g^2 + d^2 - a) / a, and minimising that quadratic bound gives the
 /// weighted mean with weights w_j k_j, k_j = 1 / (1 + (d_j / g)^2); that step never increases the
@@ -51,14 +71,20 @@ double saneScale(double scale) {
 /// or leaving [x_0, x_{K-1}] is replaced by the MM step.
 double myriadDescend(const double* x, const double* w, int K, double gamma, double beta) {
     const double lo = x[0], hi = x[K - 1];
+    thread_local std::vector<double> terms;
+    if (terms.size() < 3 * size_t(K)) terms.resize(3 * size_t(K));
+    double* const tg = terms.data();
+    double* const tm = tg + K;
+    double* const tc = tm + K;
     for (int it = 0; it < 2000; ++it) {
         double grad = 0.0, mm = 0.0, curv = 0.0;  // sums of w k t, w k, w (1 - t^2) k^2
+        // The terms are computed apart (vectorised, two divisions each) and then summed in index
+        // order, so the sums are the ones a single scalar loop gives, bit for bit.
+        myriadTerms(x, w, K, beta, gamma, tg, tm, tc);
         for (int j = 0; j < K; ++j) {
-            const double t = (x[j] - beta) / gamma;
-            const double k = 1.0 / (1.0 + t * t);  // t = inf gives 0: a far sample has no pull
-            grad += w[j] * k * t;
-            mm += w[j] * k;
-            curv += w[j] * (1.0 - t * t) * k * k;
+            grad += tg[j];
+            mm += tm[j];
+            curv += tc[j];
         }
         if (!(mm > 0.0)) break;
         // Step forms (beta + weighted mean of the offsets): exact at the fixed point.
@@ -80,13 +106,37 @@ double myriadDescend(const double* x, const double* w, int K, double gamma, doub
     return beta;
 }
 
+/// Sorts s.order by s.key (ties by buffer index). Up to 64 buffers the position of each is counted
+/// (branch-free, no comparison sort's mispredictions): the same order, as the order is total.
+void sortOrderByKey(EstimatorScratch& s) {
+    const int n = int(s.order.size());
+    if (n > 64 || std::any_of(s.order.begin(), s.order.end(),
+                              [&s](int j) { return std::isnan(s.key[size_t(j)]); })) {
+        std::sort(s.order.begin(), s.order.end(), [&s](int a, int b) {
+            return s.key[a] < s.key[b] || (s.key[a] == s.key[b] && a < b);
+        });
+        return;
+    }
+    double key[64];
+    int idx[64];
+    for (int i = 0; i < n; ++i) {
+        idx[i] = s.order[size_t(i)];
+        key[i] = s.key[size_t(idx[i])];
+    }
+    // s.order may hold the previous channel's order: ties compare buffer indices.
+    for (int i = 0; i < n; ++i) {
+        int r = 0;
+        for (int j = 0; j < n; ++j)
+            r += (key[j] < key[i]) | ((key[j] == key[i]) & (idx[j] < idx[i]));
+        s.order[size_t(r)] = idx[i];
+    }
+}
+
 /// Sorts the valid buffers by key (ties by buffer index) and merges equal keys:
 /// s.sorted = distinct values ascending, s.weight = their summed counts. Returns the distinct
 /// count.
 int distinctValues(const PixelBuffers& px, EstimatorScratch& s) {
-    std::sort(s.order.begin(), s.order.end(), [&s](int a, int b) {
-        return s.key[a] < s.key[b] || (s.key[a] == s.key[b] && a < b);
-    });
+    sortOrderByKey(s);
     s.sorted.clear();
     s.weight.clear();
     for (int j : s.order) {
@@ -132,10 +182,23 @@ double myriadSorted(const double* x, const double* w, int K, double gamma) {
     // a better minimum: they are skipped (this keeps the cost near one descent per pixel).
     thread_local std::vector<std::pair<double, int>> windows;
     windows.clear();
+    // The bound's terms are symmetric in (i, j) (|x_j - x_i| is exactly |x_i - x_j|), and zero
+    // (log1p(0), and w * 0 adds nothing to a sum >= +0) within gamma: each log is taken once, for
+    // i < j, and the sums still run over j in index order, as before.
+    thread_local std::vector<double> term;
+    term.assign(size_t(K) * size_t(K), 0.0);
+    for (int i = 0; i < K; ++i)
+        for (int j = i + 1; j < K; ++j) {
+            const double d = std::max(0.0, std::fabs(x[j] - x[i]) - gamma);
+            if (d == 0.0) continue;
+            const double v = logSquareTerm(d, gamma);
+            term[size_t(i) * size_t(K) + size_t(j)] = v;
+            term[size_t(j) * size_t(K) + size_t(i)] = v;
+        }
     for (int i = 0; i < K; ++i) {
         double bound = 0.0;
-        for (int j = 0; j < K; ++j)
-            bound += w[j] * logSquareTerm(std::max(0.0, std::fabs(x[j] - x[i]) - gamma), gamma);
+        const double* ti = term.data() + size_t(i) * size_t(K);
+        for (int j = 0; j < K; ++j) bound += w[j] * ti[j];
         windows.emplace_back(bound, i);
     }
     std::sort(windows.begin(), windows.end());
@@ -160,9 +223,11 @@ double meridianCost(const double* x, const double* w, int K, double delta, doubl
     return c;
 }
 
-int meridianSorted(const double* x, const double* w, int K, double delta) {
-    if (K <= 1) return 0;
-    // Eq. 4.8: beta is one of the samples; evaluate each and keep the smallest cost (ties: lowest).
+namespace {
+
+/// The scan of eq. 4.8 as first written: every sample's cost, in index order, the smallest kept
+/// (a later sample wins only when clearly less: ties go to the lowest index).
+int meridianScan(const double* x, const double* w, int K, double delta) {
     int best = 0;
     double bestCost = meridianCost(x, w, K, delta, x[0]);
     for (int i = 1; i < K; ++i) {
@@ -173,6 +238,110 @@ int meridianSorted(const double* x, const double* w, int K, double delta) {
         }
     }
     return best;
+}
+
+/// log1p(t) for finite t >= 0 with |error| < 3e-8, against the correctly rounded value and against
+/// libm's log1p alike: s = 1 + t (relative rounding 2^-53, i.e. 1.2e-16 in the log), s = 2^e m
+/// with m in [sqrt(1/2), sqrt(2)] (exact), log m = 2 atanh z, z = (m - 1) / (m + 1), |z| <= 0.1716,
+/// by its series to z^7: the rest is at most 2 |z|^9 / 9 / (1 - z^2) < 2.93e-8. Rounding in the
+/// evaluation adds < 1e-12 for t < 1e300 (e ln 2 <= 710). Used only to *bound* costs (see
+/// meridianSorted), never as a result.
+inline double log1pApprox(double t) {
+    const double s = 1.0 + t;
+    uint64_t bits;
+    std::memcpy(&bits, &s, sizeof bits);
+    // Integer operations only (no branch, no FP compare), so that rows vectorise. s >= 1 is
+    // positive and normal; m > sqrt(2) exactly when the mantissa bits exceed sqrt(2)'s, and then
+    // m / 2 (exponent field - 1) with e + 1. The exponent becomes a double as 2^52 + field minus
+    // 2^52 + 1023, both exact.
+    const uint64_t mant = bits & 0x000fffffffffffffull;
+    const uint64_t high = mant > 0x6a09e667f3bcdull ? 1 : 0;
+    const uint64_t ebits = ((bits >> 52) + high) | 0x4330000000000000ull;
+    const uint64_t mbits = mant | (0x3ff0000000000000ull - (high << 52));
+    double e, m;
+    std::memcpy(&e, &ebits, sizeof e);
+    std::memcpy(&m, &mbits, sizeof m);
+    e -= 4503599627371519.0;
+    const double z = (m - 1.0) / (m + 1.0);
+    const double z2 = z * z;
+    const double lm = 2.0 * z * (1.0 + z2 * (1.0 / 3.0 + z2 * (1.0 / 5.0 + z2 * (1.0 / 7.0))));
+    return e * 0.6931471805599453 + lm;
+}
+
+/// g[j] = log1pApprox((x[j] - xi) * inv) for j < n, every argument below 1e299 (checked by the
+/// caller). Only bounds come out of it, so the clone's arithmetic needs no bit-identity.
+__attribute__((target_clones("avx2", "default"))) void log1pApproxRow(const double* x, double xi,
+                                                                      double inv, int n,
+                                                                      double* g) {
+    for (int j = 0; j < n; ++j) g[j] = log1pApprox((x[j] - xi) * inv);
+}
+
+}  // namespace
+
+int meridianSorted(const double* x, const double* w, int K, double delta) {
+    if (K <= 1) return 0;
+    // Eq. 4.8: beta is one of the samples; the scan (meridianScan) evaluates each and keeps the
+    // smallest cost, a later one only when clearly less (ties: lowest index). Every cost takes K
+    // logarithms, so that is K^2 of them. Here the same answer, bit for bit, from far fewer:
+    // 1. A_i, an approximate cost of every sample from log1pApprox (one log per pair: the terms are
+    //    symmetric). With eps = 3e-8 and W = sum w_j, the cost meridianCost computes is at least
+    //    LB_i = A_i (1 - 1e-12) - 4e-8 W (the factor covers the rounding of two sums of <= 999
+    //    positive terms, < 2.6e-13 relative; 4e-8 > eps covers the rounding of LB_i itself).
+    // 2. U = the exact cost of the sample with the smallest A_i; T = U (1 + 1e-9).
+    // 3. Samples with LB_i >= T are "far": their exact cost is >= T. The others ("near") get their
+    //    exact cost, and each must be < T (1 - 4e-12), else the plain scan decides (never seen,
+    //    kept for rigour). Then the scan over the near samples alone gives the scan's answer:
+    //    before the first near sample the scan's best is far (cost B >= T), and a near cost c <
+    //    T (1 - 4e-12) <= B (1 - 4e-12) is clearly less than B, so the scan takes the first near
+    //    sample too; from then on its best cost is < T and no far sample (cost >= T) is clearly
+    //    less. Near samples are compared with the same clearlyLess as the scan.
+    delta = saneScale(delta);
+    thread_local std::vector<double> approx, row;
+    approx.assign(size_t(K), 0.0);
+    row.resize(size_t(K));
+    double W = 0.0;
+    for (int j = 0; j < K; ++j) W += w[j];
+    const double inv = 1.0 / delta;
+    // t = d * inv is within 2 ulp of d / delta: < 2.3e-16 more error in the log.
+    const bool moderate = (x[K - 1] - x[0]) * inv < 1e299;
+    for (int i = 0; i < K; ++i) {
+        const int n = K - i - 1;  // pairs (i, j > i); d = x_j - x_i > 0 (sorted, distinct)
+        double* g = row.data();
+        if (moderate) {
+            log1pApproxRow(x + i + 1, x[i], inv, n, g);
+        } else {
+            for (int j = 0; j < n; ++j) {
+                const double d = x[i + 1 + j] - x[i];
+                g[j] = d * inv < 1e299 ? log1pApprox(d * inv) : logAbsTerm(d, delta);
+            }
+        }
+        double acc = approx[size_t(i)];
+        for (int j = 0; j < n; ++j) {
+            acc += w[i + 1 + j] * g[j];
+            approx[size_t(i + 1 + j)] += w[i] * g[j];
+        }
+        approx[size_t(i)] = acc;
+    }
+    int u = 0;
+    for (int i = 1; i < K; ++i)
+        if (approx[size_t(i)] < approx[size_t(u)]) u = i;
+    const double U = meridianCost(x, w, K, delta, x[u]);
+    const double T = U * (1.0 + 1e-9);
+    const double nearLimit = T * (1.0 - 4e-12);
+    const double slack = 4e-8 * W;
+    int best = -1;
+    double bestCost = 0.0;
+    for (int i = 0; i < K; ++i) {
+        const double lb = approx[size_t(i)] * (1.0 - 1e-12) - slack;
+        if (lb >= T) continue;  // far
+        const double c = i == u ? U : meridianCost(x, w, K, delta, x[i]);
+        if (!(c < nearLimit)) return meridianScan(x, w, K, delta);
+        if (best < 0 || clearlyLess(c, bestCost)) {
+            best = i;
+            bestCost = c;
+        }
+    }
+    return best < 0 ? meridianScan(x, w, K, delta) : best;
 }
 
 void estimateMyriad(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,

@@ -66,7 +66,8 @@ struct PixelEstimate {
     int excluded = 0;                          ///< buffers left out for NaN/Inf values
 };
 
-/// Per-thread scratch space so the per-pixel functions never allocate after warm-up.
+/// Per-thread scratch space so the per-pixel functions never allocate after warm-up. The rank
+/// estimators (mean, MoN, G-MoN, G-MoN_b, TMPE) use none up to M = 64: they rank on the stack.
 struct EstimatorScratch {
     std::vector<int> order;
     std::vector<double> key;

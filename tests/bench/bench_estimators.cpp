@@ -11,6 +11,7 @@
 #include <map>
 #include <random>
 #include <stdexcept>
+#include <tuple>
 
 #include "mcstat/color.h"
 #include "mcstat/imageops.h"
@@ -24,13 +25,14 @@ namespace {
 constexpr int kWidth = 256, kHeight = 256;
 
 /// Buffer means of a noisy image where 1% of the buffers hold a firefly.
-const StatsImage& syntheticImage(int M) {
-    static std::map<int, StatsImage> cache;
-    auto it = cache.find(M);
+const StatsImage& syntheticImage(int M, int width = kWidth, int height = kHeight) {
+    static std::map<std::tuple<int, int, int>, StatsImage> cache;
+    const auto key = std::make_tuple(M, width, height);
+    auto it = cache.find(key);
     if (it != cache.end()) return it->second;
     StatsImage s;
-    s.header.width = kWidth;
-    s.header.height = kHeight;
+    s.header.width = width;
+    s.header.height = height;
     s.header.M = M;
     std::string err;
     s.allocate(err);
@@ -41,7 +43,7 @@ const StatsImage& syntheticImage(int M) {
         for (int c = 0; c < 3; ++c) s.bufferMean[i * 3 + c] = (0.2f + 0.1f * u(rng)) * firefly;
         s.bufferCount[i] = 64.f;
     }
-    return cache.emplace(M, std::move(s)).first->second;
+    return cache.emplace(key, std::move(s)).first->second;
 }
 
 void BM_Estimator(benchmark::State& state, const EstimatorInfo* est, EstimatorMode mode) {
@@ -58,6 +60,22 @@ void BM_Estimator(benchmark::State& state, const EstimatorInfo* est, EstimatorMo
 }
 
 const std::vector<int64_t> kBufferCounts = {3, 7, 17, 21};
+
+/// Thread scaling of the image loop (issue 11): a 1920x1080 image, M = 21, luminance mode, with
+/// state.range(0) threads; real time, so that 2 threads show as a speed-up. Names:
+/// threads/NAME/1080p/THREADS.
+void BM_EstimatorThreads(benchmark::State& state, const EstimatorInfo* est) {
+    constexpr int W = 1920, H = 1080;
+    const StatsImage& img = syntheticImage(21, W, H);
+    EstimatorParams p;
+    p.luma = lumaCoefficients();
+    OIIO::ImageBuf out;
+    for (auto _ : state) {
+        estimate(out, img, *est, p, false, {}, int(state.range(0)));
+        benchmark::DoNotOptimize(out.localpixels());
+    }
+    state.SetItemsProcessed(int64_t(state.iterations()) * W * H);
+}
 
 /// `op`'s parameters: the registry's defaults with `mode`.
 ParamValues defaults(const Operation& op, EstimatorMode mode) {
@@ -116,6 +134,13 @@ const bool registered = [] {
                     true);
         }
     }
+    for (const char* name : {"mean", "gmon", "mon"})
+        benchmark::RegisterBenchmark((std::string("threads/") + name + "/1080p").c_str(),
+                                     BM_EstimatorThreads, findEstimator(name))
+            ->Arg(1)
+            ->Arg(2)
+            ->UseRealTime()
+            ->Unit(benchmark::kMillisecond);
     return true;
 }();
 

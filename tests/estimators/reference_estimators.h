@@ -1,0 +1,36 @@
+// The pre-issue-11 implementation of the per-pixel estimators (filters/estimators.cpp and
+// filters/jung_estimators.cpp as they were before the speed work), kept unchanged as the oracle for
+// the bit-identity tests (test_bit_identity.cpp). Do not optimise or "fix" this code: its only job
+// is to be the old behaviour. Namespace mcstat::reference; same signatures as the library.
+#pragma once
+
+#include "mcstat/estimators.h"
+
+namespace mcstat::reference {
+
+double giniSorted(const double* values, size_t n);
+int gmonTrim(double G, int M);
+int tmpeTrim(double alpha, int M);
+int collectValidBuffers(const PixelBuffers& px, std::vector<int>& order, int& excluded);
+
+void estimateMean(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
+                  EstimatorScratch& s);
+void estimateMoN(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
+                 EstimatorScratch& s);
+void estimateGMoN(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
+                  EstimatorScratch& s);
+void estimateGMoNb(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
+                   EstimatorScratch& s);
+void estimateTMPE(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
+                  EstimatorScratch& s);
+
+double myriadCost(const double* x, const double* w, int K, double gamma, double beta);
+double myriadSorted(const double* x, const double* w, int K, double gamma);
+double meridianCost(const double* x, const double* w, int K, double delta, double beta);
+int meridianSorted(const double* x, const double* w, int K, double delta);
+void estimateMyriad(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
+                    EstimatorScratch& s);
+void estimateMeridian(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
+                      EstimatorScratch& s);
+
+}  // namespace mcstat::reference
