@@ -18,18 +18,6 @@ using OIIO::TypeDesc;
 
 namespace {
 
-std::vector<std::string> outputChannels(EstimatorMode mode, bool diagnostics) {
-    std::vector<std::string> names = {"R", "G", "B"};
-    if (!diagnostics) return names;
-    if (mode == EstimatorMode::Luminance) {
-        names.insert(names.end(), {"gini", "kept", "excluded"});
-    } else {
-        names.insert(names.end(),
-                     {"gini.R", "gini.G", "gini.B", "kept.R", "kept.G", "kept.B", "excluded"});
-    }
-    return names;
-}
-
 ROI dataWindow(const StatsHeader& h) {
     return ROI(h.originX, h.originX + h.width, h.originY, h.originY + h.height);
 }
@@ -57,6 +45,18 @@ void fillRGB(ImageBuf& dst, ROI roi, int nthreads, PixelFn pixel) {
 
 }  // namespace
 
+std::vector<std::string> estimatorChannels(EstimatorMode mode, bool diagnostics) {
+    std::vector<std::string> names = {"R", "G", "B"};
+    if (!diagnostics) return names;
+    if (mode == EstimatorMode::Luminance) {
+        names.insert(names.end(), {"gini", "kept", "excluded"});
+    } else {
+        names.insert(names.end(),
+                     {"gini.R", "gini.G", "gini.B", "kept.R", "kept.G", "kept.B", "excluded"});
+    }
+    return names;
+}
+
 bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
               const EstimatorParams& params, bool diagnostics, ROI roi, int nthreads) {
     const StatsHeader& h = src.header;
@@ -69,7 +69,7 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
                      why);
         return false;
     }
-    const std::vector<std::string> names = outputChannels(params.mode, diagnostics);
+    const std::vector<std::string> names = estimatorChannels(params.mode, diagnostics);
     ImageSpec spec(roi.width(), roi.height(), int(names.size()), TypeDesc::FLOAT);
     spec.x = roi.xbegin;
     spec.y = roi.ybegin;

@@ -100,16 +100,10 @@ bool forEachBlock(ImageBuf& dst, StatsBlockSource& reader, ROI roi, int halo, un
 std::vector<std::string> operationChannels(const Operation& op, const ParamValues& values,
                                            bool diagnostics) {
     if (op.input == InputKind::Samples) return {};
-    std::vector<std::string> names = {"R", "G", "B"};
-    if (op.input != InputKind::BufferMeans || !diagnostics) return names;
+    if (op.input != InputKind::BufferMeans) return {"R", "G", "B"};
     EstimatorParams params;
     applyEstimatorParams(values, params);
-    if (params.mode == EstimatorMode::Luminance)
-        names.insert(names.end(), {"gini", "kept", "excluded"});
-    else
-        names.insert(names.end(),
-                     {"gini.R", "gini.G", "gini.B", "kept.R", "kept.G", "kept.B", "excluded"});
-    return names;
+    return estimatorChannels(params.mode, diagnostics);
 }
 
 bool estimate(ImageBuf& dst, StatsBlockSource& src, const EstimatorInfo& est,

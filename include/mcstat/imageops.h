@@ -15,6 +15,10 @@
 
 namespace mcstat {
 
+/// The channels estimate() gives: R, G, B, and with `diagnostics` "gini", "kept", "excluded"
+/// (luminance mode) or "gini.R/G/B", "kept.R/G/B", "excluded" (channel mode).
+std::vector<std::string> estimatorChannels(EstimatorMode mode, bool diagnostics);
+
 /// Runs estimator `est` on every pixel of `src` within `roi` (default: the whole data window).
 /// The result has channels R, G, B and, when `diagnostics` is set, the Gini coefficient, the number
 /// of buffers kept and the number excluded for NaN/Inf: "gini", "kept", "excluded" in luminance
@@ -64,9 +68,9 @@ bool applyOperation(OIIO::ImageBuf& dst, const StatsImage& src, const Operation&
 // pixel for pixel. From a file only the sub-buffer part is decoded: each block's counts are
 // checked, but the cross-part check that they sum to the moments count is left to readStatsFile.
 
-/// The channels applyOperation gives for `op` with `values`: R, G, B, then, for an estimator over
-/// buffer means with `diagnostics`, "gini", "kept", "excluded" (luminance mode) or "gini.R/G/B",
-/// "kept.R/G/B", "excluded" (channel mode). Empty for a Samples operation (known once it ran).
+/// The channels applyOperation gives for `op` with `values`: estimatorChannels for an estimator
+/// over buffer means, R, G, B for a neighbourhood operation, nothing for a Samples operation
+/// (known once it ran).
 std::vector<std::string> operationChannels(const Operation& op, const ParamValues& values,
                                            bool diagnostics);
 
