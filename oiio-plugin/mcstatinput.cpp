@@ -22,6 +22,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -205,6 +206,10 @@ class PixelCache {
     size_t m_bytes = 0;
     size_t m_budget = size_t(2048) << 20;
 };
+
+/// Pixel computations run by this process (cache misses): the tests check that reopening a file
+/// computes nothing again (mcstat_imageio_computations below).
+std::atomic<uint64_t> g_computations{0};
 
 /// The identity of the file's content: a file rewritten in place (new size or time) or replaced
 /// (new inode) is a new cache key.
@@ -503,6 +508,7 @@ const Computed* McstatInput::source(Source s) {
 }
 
 bool McstatInput::computeSource(Source s, Computed& out, std::string& err) {
+    ++g_computations;
     const mcstat::StatsHeader& h = m_header;
     const size_t npix = size_t(h.width) * size_t(h.height);
     if (s == kEstimate) {
@@ -708,6 +714,10 @@ OIIO_EXPORT ImageInput* mcstat_input_imageio_create() {
         return nullptr;
     }
 }
+
+/// Number of subimage computations this process ran (not an OIIO entry point: for tests and
+/// diagnostics, found with dlsym).
+OIIO_EXPORT uint64_t mcstat_imageio_computations() { return g_computations.load(); }
 
 OIIO_EXPORT const char* mcstat_input_extensions[] = {mcstat::kStatsExtension, nullptr};
 

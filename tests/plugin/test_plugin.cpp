@@ -5,6 +5,7 @@
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
+#include <dlfcn.h>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
@@ -594,6 +595,62 @@ TEST_F(PluginApi, ReadsChannelSubsetsAndRejectsBadRequests) {
     EXPECT_TRUE(contains(in->geterror(), "no subimage 7"));
     EXPECT_TRUE(in->close());
     EXPECT_FALSE(in->seek_subimage(0, 0));  // closed
+}
+
+TEST_F(PluginApi, EachSubimageIsComputedOncePerProcessAndOnlyWhenRead) {
+    // The plugin counts its computations; OIIO has loaded it into this process by now.
+    auto probe = reader(stats);
+    ASSERT_TRUE(probe);
+    void* so = dlopen((std::string(MCSTAT_PLUGIN_DIR) + "/mcstat.imageio.so").c_str(),
+                      RTLD_NOW | RTLD_NOLOAD);
+    ASSERT_NE(so, nullptr) << "the plugin is not loaded";
+    using Count = uint64_t (*)();
+    const auto computations = reinterpret_cast<Count>(dlsym(so, "mcstat_imageio_computations"));
+    ASSERT_NE(computations, nullptr);
+    // A copy no other test has read (the cache is per process).
+    const std::string file = path("once.mcstat");
+    std::ofstream(file, std::ios::binary) << slurp(stats);
+    const auto readAll = [&](const std::string& name, int subimage, std::vector<float>& px) {
+        auto in = reader(name);
+        OIIO::ImageSpec spec;
+        ASSERT_TRUE(in->open(name, spec)) << in->geterror();
+        ASSERT_TRUE(in->seek_subimage(subimage, 0));
+        const OIIO::ImageSpec s = in->spec();
+        px.resize(size_t(s.image_pixels()) * size_t(s.nchannels));
+        ASSERT_TRUE(in->read_scanlines(subimage, 0, s.y, s.y + s.height, 0, 0, s.nchannels,
+                                       OIIO::TypeDesc::FLOAT, px.data()))
+            << in->geterror();
+    };
+    const uint64_t start = computations();
+    {
+        auto in = reader(file);
+        OIIO::ImageSpec spec;
+        ASSERT_TRUE(in->open(file, spec)) << in->geterror();
+        EXPECT_EQ(spec.nchannels, 3);
+    }
+    EXPECT_EQ(computations(), start) << "open() computed pixels";
+    std::vector<float> a, b;
+    readAll(file, 0, a);
+    EXPECT_EQ(computations(), start + 1);
+    readAll(file, 0, b);  // reopened, read again: served from the cache
+    EXPECT_EQ(computations(), start + 1);
+    EXPECT_EQ(a, b);
+    readAll(file, 1, b);  // the mean: its own computation, once
+    readAll(file, 1, b);
+    EXPECT_EQ(computations(), start + 2);
+    readAll(file + "?estimator=mon", 0, b);  // another operation is another key
+    EXPECT_EQ(computations(), start + 3);
+    // The diagnostics reuse the estimate's pass and add the counts.
+    readAll(file, 2, b);
+    EXPECT_EQ(computations(), start + 4);
+    // A rewritten file is a new key, with the new file's pixels.
+    mcstat::StatsImage img = loadStats();
+    for (float& v : img.bufferMean) v *= 2.f;
+    std::string err;
+    ASSERT_TRUE(mcstat::writeStatsFile(file, img, err)) << err;
+    readAll(file, 0, b);
+    EXPECT_EQ(computations(), start + 5);
+    EXPECT_NE(a, b);
 }
 
 TEST_F(PluginApi, OpenReportsErrorsWithoutThrowing) {
