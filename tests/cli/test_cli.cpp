@@ -210,6 +210,27 @@ TEST_F(Cli, MergeAddsCounts) {
     r = mcstat(path("a.mcstat") + " " + path("a.mcstat") + " --merge -o " + path("x.mcstat"));
     EXPECT_NE(r.code, 0);
     EXPECT_FALSE(OIIO::Filesystem::exists(path("x.mcstat")));
+    // The merge is streamed into whatever uses it: an estimator over `--merge` equals the same
+    // estimator over the merged file written first, and a merge of a merge equals the merge of
+    // the in-memory images.
+    r = mcstat(path("a.mcstat") + " " + path("b.mcstat") + " --merge --gmon -o " +
+               path("direct.exr"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    r = mcstat(path("m.mcstat") + " --gmon -o " + path("via.exr"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(readRGB(path("direct.exr")), readRGB(path("via.exr")));
+    StatsImage c = makeStats();
+    c.header.seeds = "9";
+    ASSERT_TRUE(writeStatsFile(path("c.mcstat"), c, err)) << err;
+    r = mcstat(path("a.mcstat") + " " + path("b.mcstat") + " --merge " + path("c.mcstat") +
+               " --merge -o " + path("abc.mcstat"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    StatsImage ab, abc, got;
+    ASSERT_TRUE(mergeStats(a, b, ab, err) && mergeStats(ab, c, abc, err)) << err;
+    ASSERT_TRUE(readStatsFile(path("abc.mcstat"), got, err)) << err;
+    EXPECT_EQ(got.bufferMean, abc.bufferMean);
+    EXPECT_EQ(got.variance, abc.variance);
+    EXPECT_EQ(got.header.seeds, abc.header.seeds);
 }
 
 TEST_F(Cli, ErrorsAreOneLineAndNonZero) {
