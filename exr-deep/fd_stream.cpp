@@ -1,10 +1,13 @@
 #include "fd_stream.h"
 
 #include <OpenEXR/Iex.h>
+#include <OpenEXR/ImfThreading.h>
 #include <errno.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstring>
+#include <thread>
 
 namespace mcstat::detail {
 
@@ -18,6 +21,14 @@ std::string Fd::close() {
     const int rc = ::close(fd_);
     fd_ = -1;
     return rc == 0 ? std::string() : std::string(std::strerror(errno));
+}
+
+int codecThreads(int nthreads) {
+    const int n =
+        std::min(kMaxCodecThreads,
+                 nthreads > 0 ? nthreads : int(std::max(1u, std::thread::hardware_concurrency())));
+    if (n > 1 && Imf::globalThreadCount() == 0) Imf::setGlobalThreadCount(n);
+    return n;
 }
 
 int64_t preadFull(int fd, void* buf, uint64_t n, uint64_t offset) {

@@ -69,6 +69,14 @@ class FdOStream : public Imf::OStream {
     std::string error_;
 };
 
+/// The number of threads OpenEXR should decode or encode a statistics file with: `nthreads`, or
+/// all cores for 0, at most kMaxCodecThreads (each keeps a compressed and an uncompressed chunk of
+/// every part in memory: about 10 MB each at 1920 pixels wide and M = 21). A process that never
+/// sized OpenEXR's global pool (globalThreadCount() == 0, e.g. `mcstat`) would run every task on
+/// one thread: the pool is then sized to that number; a pool the host sized (OIIO) is left alone.
+int codecThreads(int nthreads);
+inline constexpr int kMaxCodecThreads = 8;
+
 /// Reads `n` bytes at `offset`; returns the number read (short at end of file), -1 on error.
 int64_t preadFull(int fd, void* buf, uint64_t n, uint64_t offset);
 

@@ -238,11 +238,7 @@ bool StatsFileReader::open(const std::string& path, std::string& err, const Read
         impl->path = path;
         impl->limits = limits;
         if (!openAndCheck(path, limits, impl->fd, impl->size, impl->header, err)) return false;
-        const int threads =
-            nthreads > 0 ? nthreads : int(std::max(1u, std::thread::hardware_concurrency()));
-        // OpenEXR decodes a read's chunks on its global pool; a process that never sized it
-        // (globalThreadCount() == 0) decodes on one thread. Hosts that sized it keep their choice.
-        if (threads > 1 && Imf::globalThreadCount() == 0) Imf::setGlobalThreadCount(threads);
+        const int threads = detail::codecThreads(nthreads);
         impl->stream = std::make_unique<detail::FdIStream>(impl->fd.get(), path, impl->size);
         impl->file = std::make_unique<Imf::MultiPartInputFile>(*impl->stream, threads);
         checkSameFile(*impl->file, impl->header);

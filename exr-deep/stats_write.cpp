@@ -160,14 +160,6 @@ void writeRows(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
     }
 }
 
-int threadsFor(int nthreads) {
-    const int n = nthreads > 0 ? nthreads : int(std::max(1u, std::thread::hardware_concurrency()));
-    // OpenEXR compresses on its global pool; a process that never sized it compresses on one
-    // thread. Hosts that sized it keep their choice.
-    if (n > 1 && Imf::globalThreadCount() == 0) Imf::setGlobalThreadCount(n);
-    return n;
-}
-
 }  // namespace
 
 struct StatsFileWriter::Impl {
@@ -236,7 +228,7 @@ bool StatsFileWriterAccess::open(StatsFileWriter& w, const std::string& path, co
         headers.insert(headers.end(), extraHeaders.begin(), extraHeaders.end());
         impl->os = std::make_unique<detail::FdOStream>(impl->fd.get(), tmp);
         impl->file = std::make_unique<Imf::MultiPartOutputFile>(
-            *impl->os, headers.data(), int(headers.size()), false, threadsFor(nthreads));
+            *impl->os, headers.data(), int(headers.size()), false, detail::codecThreads(nthreads));
     } catch (const std::exception& e) {
         err = fmt::format("{}: cannot write ({})", path, e.what());
         return false;
