@@ -18,10 +18,6 @@ using OIIO::TypeDesc;
 
 namespace {
 
-ROI dataWindow(const StatsHeader& h) {
-    return ROI(h.originX, h.originX + h.width, h.originY, h.originY + h.height);
-}
-
 /// Fills `dst` (an RGB float image already reset to `roi`) in parallel: `pixel(x, y, e, scratch)`
 /// computes each output pixel; every chunk of work has its own scratch, so threads share nothing.
 template <class PixelFn>
@@ -60,7 +56,7 @@ std::vector<std::string> estimatorChannels(EstimatorMode mode, bool diagnostics)
 bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
               const EstimatorParams& params, bool diagnostics, ROI roi, int nthreads) {
     const StatsHeader& h = src.header;
-    const ROI full = dataWindow(h);
+    const ROI full = dataWindowROI(h);
     if (!roi.defined()) roi = full;
     roi = OIIO::roi_intersection(roi, full);
     // Fixed or adaptive M: consistent sub-buffer arrays make pixelBuffers(p) safe.
@@ -190,7 +186,7 @@ bool filter3D(ImageBuf& dst, const StatsImage& src, const SpatialParams& params,
         dst.errorfmt("3D filter: statistics image has inconsistent buffer arrays ({})", why);
         return false;
     }
-    const ROI full = dataWindow(h);
+    const ROI full = dataWindowROI(h);
     if (!roi.defined()) roi = full;
     roi = OIIO::roi_intersection(roi, full);
     dst.reset(rgbSpec(roi, full, h.colorSpace), OIIO::InitializePixels::No);

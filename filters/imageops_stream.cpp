@@ -21,10 +21,6 @@ using OIIO::ROI;
 
 namespace {
 
-ROI dataWindowOf(const StatsHeader& h) {
-    return ROI(h.originX, h.originX + h.width, h.originY, h.originY + h.height);
-}
-
 /// Runs `op(block, rows)` for consecutive blocks covering the rows of `roi` (absolute
 /// coordinates, within the data window), where `rows` is the ROI of output rows the block
 /// answers for and `block` holds them plus up to `halo` rows above and below (clipped to the
@@ -35,7 +31,7 @@ template <class BlockOp>
 bool forEachBlock(ImageBuf& dst, StatsBlockSource& reader, ROI roi, int halo, unsigned parts,
                   size_t budget, const char* what, BlockOp op) {
     const StatsHeader& h = reader.header();
-    const ROI full = dataWindowOf(h);
+    const ROI full = dataWindowROI(h);
     if (!roi.defined()) roi = full;
     roi = OIIO::roi_intersection(roi, full);
     roi.zbegin = 0, roi.zend = 1, roi.chbegin = 0, roi.chend = 10000;
@@ -173,7 +169,7 @@ bool applyOperation(ImageBuf& dst, StatsBlockSource& src, const Operation& op,
                 // window), then the median filter over roi: each window sees the same pixels as in
                 // the whole image, since only the file's edges clip it.
                 const StatsHeader& h = src.header();
-                const ROI full = dataWindowOf(h);
+                const ROI full = dataWindowROI(h);
                 if (!roi.defined()) roi = full;
                 roi = OIIO::roi_intersection(roi, full);
                 const int rx = params.windowWidth / 2, ry = params.windowHeight / 2;

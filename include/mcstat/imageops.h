@@ -15,6 +15,11 @@
 
 namespace mcstat {
 
+/// The data window of a statistics image as an OIIO region.
+inline OIIO::ROI dataWindowROI(const StatsHeader& h) {
+    return OIIO::ROI(h.originX, h.originX + h.width, h.originY, h.originY + h.height);
+}
+
 /// The channels estimate() gives: R, G, B, and with `diagnostics` "gini", "kept", "excluded"
 /// (luminance mode) or "gini.R/G/B", "kept.R/G/B", "excluded" (channel mode).
 std::vector<std::string> estimatorChannels(EstimatorMode mode, bool diagnostics);
