@@ -45,65 +45,110 @@ double saneScale(double scale) {
     return scale;
 }
 
-/// The per-sample terms of one descent step: w k t, w k and w (1 - t^2) k^2 with t = (x_j - beta) /
-/// gamma and k = 1 / (1 + t^2), each the same expression (same operations, same order) as in the
-/// scalar loop they replace. No sums here, so the loop vectorises (the AVX2 clone does four
-/// divisions at once; IEEE division and multiplication are correctly rounded in any width, so the
-/// terms do not depend on the CPU).
-__attribute__((target_clones("avx2", "default"))) void myriadTerms(const double* x, const double* w,
-                                                                   int K, double beta, double gamma,
-                                                                   double* tg, double* tm,
-                                                                   double* tc) {
-    for (int j = 0; j < K; ++j) {
-        const double t = (x[j] - beta) / gamma;
-        const double k = 1.0 / (1.0 + t * t);  // t = inf gives 0: a far sample has no pull
-        tg[j] = w[j] * k * t;
-        tm[j] = w[j] * k;
-        tc[j] = w[j] * (1.0 - t * t) * k * k;
-    }
-}
-
 /// Majorise-minimise (fixed-point) iteration for eq. 4.7 from `beta`: log is concave, so
 /// log(g^2 + d^2) <= log(a) + (g^2 + d^2 - a) / a, and minimising that quadratic bound gives the
 /// weighted mean with weights w_j k_j, k_j = 1 / (1 + (d_j / g)^2); that step never increases the
 /// cost. Its convergence is linear, so once the steps are small (< 0.01 gamma) and the cost is
 /// convex there (f'' > 0), Newton steps finish quadratically; a Newton step longer than 8 MM steps
 /// or leaving [x_0, x_{K-1}] is replaced by the MM step.
-double myriadDescend(const double* x, const double* w, int K, double gamma, double beta) {
+///
+/// myriadVisit runs that iteration for eight windows at a time (GCC vector extension, 2 x 4
+/// doubles): lane l runs exactly the scalar loop (as first written) from its window's sample; each
+/// lane's operations are the scalar ones in the same order (the terms, their sums over j in index
+/// order, the step choice, the clamp, the stopping tests and the 2000-iteration cap), IEEE
+/// operations that round the same in any width (no FMA in either clone). A descent is a chain of
+/// dependent additions and divisions, so one descent leaves the CPU mostly waiting; eight
+/// interleaved keep its dividers busy (on the benchmark image a pixel runs ~13 descents, ~300
+/// steps). A lane that stops hands its result over and takes the next window.
+///
+/// The results are then used exactly as the scalar visit in myriadSorted used them: in the
+/// windows' order, each window's bound tested against the best cost of the windows before it
+/// (clearlyLess(bestCost, bound): stop), then its cost and the choice of the best. Descents of
+/// windows after that stop were computed ahead and are not used: the scalar visit would not have
+/// run them.
+__attribute__((target_clones("avx2", "default"))) double myriadVisit(
+    const double* x, const double* w, int K, double gamma, const std::pair<double, int>* windows,
+    int nw) {
+    // Two halves of four lanes: 32-byte vectors are AVX2 registers (SSE2 pairs in the default
+    // clone); lane l is half l / 4, element l % 4.
+    typedef double V __attribute__((vector_size(32)));
+    typedef long long VI __attribute__((vector_size(32)));
+    thread_local std::vector<double> result;
+    thread_local std::vector<unsigned char> ready;
+    result.assign(size_t(nw), 0.0);
+    ready.assign(size_t(nw), 0);
+    V beta[2] = {};
+    VI active[2] = {};
+    int win[8] = {}, iters[8] = {};
+    int assigned = 0, visited = 0;
+    double best = x[0], bestCost = std::numeric_limits<double>::infinity();
     const double lo = x[0], hi = x[K - 1];
-    thread_local std::vector<double> terms;
-    if (terms.size() < 3 * size_t(K)) terms.resize(3 * size_t(K));
-    double* const tg = terms.data();
-    double* const tm = tg + K;
-    double* const tc = tm + K;
-    for (int it = 0; it < 2000; ++it) {
-        double grad = 0.0, mm = 0.0, curv = 0.0;  // sums of w k t, w k, w (1 - t^2) k^2
-        // The terms are computed apart (vectorised, two divisions each) and then summed in index
-        // order, so the sums are the ones a single scalar loop gives, bit for bit.
-        myriadTerms(x, w, K, beta, gamma, tg, tm, tc);
+    const VI absMask = VI{} + 0x7fffffffffffffffll;  // |v| clears the sign bit
+    const double nearStep = 0.01 * gamma, tiny = 1e-10 * gamma;
+    const double ulp2 = 2.0 * std::numeric_limits<double>::epsilon();
+    for (;;) {
+        for (int l = 0; l < 8; ++l)
+            if (!active[l / 4][l % 4] && assigned < nw) {
+                win[l] = assigned;
+                beta[l / 4][l % 4] = x[windows[assigned].second];
+                active[l / 4][l % 4] = -1;
+                iters[l] = 0;
+                ++assigned;
+            }
+        // One step of every active lane (the body of the scalar loop).
+        V grad[2] = {}, mm[2] = {}, curv[2] = {};  // sums of w k t, w k, w (1 - t^2) k^2
         for (int j = 0; j < K; ++j) {
-            grad += tg[j];
-            mm += tm[j];
-            curv += tc[j];
+            const double xj = x[j], wj = w[j];
+            for (int h = 0; h < 2; ++h) {
+                const V t = (xj - beta[h]) / gamma;
+                const V k = 1.0 / (1.0 + t * t);  // t = inf gives 0: a far sample has no pull
+                grad[h] += wj * k * t;
+                mm[h] += wj * k;
+                curv[h] += wj * (1.0 - t * t) * k * k;
+            }
         }
-        if (!(mm > 0.0)) break;
-        // Step forms (beta + weighted mean of the offsets): exact at the fixed point.
-        const double stepMM = gamma * (grad / mm);
-        double step = stepMM;
-        if (std::fabs(stepMM) < 0.01 * gamma && curv > 0.0) {
-            const double stepNewton = gamma * (grad / curv);
-            if (std::fabs(stepNewton) <= 8.0 * std::fabs(stepMM) && beta + stepNewton >= lo &&
-                beta + stepNewton <= hi)
-                step = stepNewton;
+        VI still[2];
+        for (int h = 0; h < 2; ++h) {
+            const VI ok = mm[h] > 0.0;  // else the scalar loop stops with beta unchanged
+            // Step forms (beta + weighted mean of the offsets): exact at the fixed point.
+            const V stepMM = gamma * (grad[h] / mm[h]);
+            const V stepNewton = gamma * (grad[h] / curv[h]);
+            const V absMM = (V)((VI)stepMM & absMask);
+            const VI newton = (absMM < nearStep) & (curv[h] > 0.0) &
+                              ((V)((VI)stepNewton & absMask) <= 8.0 * absMM) &
+                              (beta[h] + stepNewton >= lo) & (beta[h] + stepNewton <= hi);
+            const V step = newton ? stepNewton : stepMM;
+            const V moved0 = beta[h] + step;
+            const V next =
+                moved0 < lo ? V{} + lo : (hi < moved0 ? V{} + hi : moved0);  // std::clamp
+            const V moved = (V)((VI)(next - beta[h]) & absMask);
+            const VI update = active[h] & ok;
+            beta[h] = update ? next : beta[h];
+            const VI stop = (moved <= tiny) | (moved <= ulp2 * (V)((VI)next & absMask));
+            still[h] = update & ~stop;
         }
-        const double next = std::clamp(beta + step, lo, hi);
-        const double moved = std::fabs(next - beta);
-        beta = next;
-        if (moved <= 1e-10 * gamma ||
-            moved <= 2.0 * std::numeric_limits<double>::epsilon() * std::fabs(beta))
-            break;
+        for (int l = 0; l < 8; ++l) {
+            if (!active[l / 4][l % 4]) continue;
+            if (still[l / 4][l % 4] && ++iters[l] < 2000) continue;
+            active[l / 4][l % 4] = 0;  // this descent is over: its result is beta
+            result[size_t(win[l])] = beta[l / 4][l % 4];
+            ready[size_t(win[l])] = 1;
+        }
+        // The scalar visit, as far as the results allow.
+        while (visited < nw) {
+            if (clearlyLess(bestCost, windows[visited].first)) return best;
+            if (!ready[size_t(visited)]) break;
+            const double b = result[size_t(visited)];
+            const double c = myriadCost(x, w, K, gamma, b);
+            if (std::isinf(bestCost) || clearlyLess(c, bestCost) ||
+                (!clearlyLess(bestCost, c) && b < best)) {
+                best = b;
+                bestCost = c;
+            }
+            ++visited;
+        }
+        if (visited == nw) return best;
     }
-    return beta;
 }
 
 /// Sorts s.order by s.key (ties by buffer index). Up to 64 buffers the position of each is counted
@@ -124,12 +169,22 @@ void sortOrderByKey(EstimatorScratch& s) {
         key[i] = s.key[size_t(idx[i])];
     }
     // s.order may hold the previous channel's order: ties compare buffer indices.
-    for (int i = 0; i < n; ++i) {
-        int r = 0;
-        for (int j = 0; j < n; ++j)
-            r += (key[j] < key[i]) | ((key[j] == key[i]) & (idx[j] < idx[i]));
-        s.order[size_t(r)] = idx[i];
+    bool ascending = true;
+    for (int i = 1; i < n; ++i) ascending &= idx[i - 1] < idx[i];
+    if (!ascending) {
+        for (int i = 0; i < n; ++i) {
+            int r = 0;
+            for (int j = 0; j < n; ++j)
+                r += (key[j] < key[i]) | ((key[j] == key[i]) & (idx[j] < idx[i]));
+            s.order[size_t(r)] = idx[i];
+        }
+        return;
     }
+    // In index order (luminance, or the first channel) a lower position is a lower index, so
+    // the rank estimators' ranking (ties by position) gives the same order.
+    int pos[64];
+    detail::rankKeys(key, n, pos);
+    for (int r = 0; r < n; ++r) s.order[size_t(r)] = idx[pos[r]];
 }
 
 /// Sorts the valid buffers by key (ties by buffer index) and merges equal keys:
@@ -202,18 +257,7 @@ double myriadSorted(const double* x, const double* w, int K, double gamma) {
         windows.emplace_back(bound, i);
     }
     std::sort(windows.begin(), windows.end());
-    double best = x[0], bestCost = std::numeric_limits<double>::infinity();
-    for (const auto& [bound, i] : windows) {
-        if (clearlyLess(bestCost, bound)) break;
-        const double b = myriadDescend(x, w, K, gamma, x[i]);
-        const double c = myriadCost(x, w, K, gamma, b);
-        if (std::isinf(bestCost) || clearlyLess(c, bestCost) ||
-            (!clearlyLess(bestCost, c) && b < best)) {
-            best = b;
-            bestCost = c;
-        }
-    }
-    return best;
+    return myriadVisit(x, w, K, gamma, windows.data(), int(windows.size()));
 }
 
 double meridianCost(const double* x, const double* w, int K, double delta, double beta) {
@@ -268,12 +312,29 @@ inline double log1pApprox(double t) {
     return e * 0.6931471805599453 + lm;
 }
 
-/// g[j] = log1pApprox((x[j] - xi) * inv) for j < n, every argument below 1e299 (checked by the
-/// caller). Only bounds come out of it, so the clone's arithmetic needs no bit-identity.
-__attribute__((target_clones("avx2", "default"))) void log1pApproxRow(const double* x, double xi,
-                                                                      double inv, int n,
-                                                                      double* g) {
-    for (int j = 0; j < n; ++j) g[j] = log1pApprox((x[j] - xi) * inv);
+/// The approximate costs of step 1 below for all K samples: approx[i] (zeroed by the caller) +=
+/// w_j log1pApprox(|x_j - x_i| * inv) over j != i, each pair's term computed once (i < j) and added
+/// to both. x, w and approx have 3 more entries: copies of x[K-1] with weight 0, so that every row
+/// runs in whole groups of 4 (no scalar tail); they add w * g = +0 (g is finite) and their own
+/// approx is ignored. Every argument is below 1e299 (checked by the caller). Only bounds come out
+/// of it, so neither the clone's arithmetic nor the order of the sums needs bit-identity: the
+/// rounding bound of a sum of positive terms holds in any order. One call for all rows (not one per
+/// row), and four partial sums per row, keep the loops vectorised and cheap.
+__attribute__((target_clones("avx2", "default"))) void log1pApproxCosts(const double* x,
+                                                                        const double* w, int K,
+                                                                        double inv,
+                                                                        double* approx) {
+    for (int i = 0; i < K; ++i) {
+        const double xi = x[i], wi = w[i];
+        double part[4] = {0.0, 0.0, 0.0, 0.0};
+        for (int j = i + 1; j < K; j += 4)
+            for (int t = 0; t < 4; ++t) {
+                const double g = log1pApprox((x[j + t] - xi) * inv);
+                part[t] += w[j + t] * g;
+                approx[j + t] += wi * g;
+            }
+        approx[i] += (part[0] + part[1]) + (part[2] + part[3]);
+    }
 }
 
 }  // namespace
@@ -304,16 +365,21 @@ int meridianSorted(const double* x, const double* w, int K, double delta) {
     const double inv = 1.0 / delta;
     // t = d * inv is within 2 ulp of d / delta: < 2.3e-16 more error in the log.
     const bool moderate = (x[K - 1] - x[0]) * inv < 1e299;
-    for (int i = 0; i < K; ++i) {
+    if (moderate) {
+        thread_local std::vector<double> xp, wp;
+        xp.assign(x, x + K);
+        xp.resize(size_t(K) + 3, x[K - 1]);
+        wp.assign(w, w + K);
+        wp.resize(size_t(K) + 3, 0.0);
+        approx.resize(size_t(K) + 3, 0.0);
+        log1pApproxCosts(xp.data(), wp.data(), K, inv, approx.data());
+    }
+    for (int i = 0; i < K && !moderate; ++i) {
         const int n = K - i - 1;  // pairs (i, j > i); d = x_j - x_i > 0 (sorted, distinct)
         double* g = row.data();
-        if (moderate) {
-            log1pApproxRow(x + i + 1, x[i], inv, n, g);
-        } else {
-            for (int j = 0; j < n; ++j) {
-                const double d = x[i + 1 + j] - x[i];
-                g[j] = d * inv < 1e299 ? log1pApprox(d * inv) : logAbsTerm(d, delta);
-            }
+        for (int j = 0; j < n; ++j) {
+            const double d = x[i + 1 + j] - x[i];
+            g[j] = d * inv < 1e299 ? log1pApprox(d * inv) : logAbsTerm(d, delta);
         }
         double acc = approx[size_t(i)];
         for (int j = 0; j < n; ++j) {
@@ -325,10 +391,23 @@ int meridianSorted(const double* x, const double* w, int K, double delta) {
     int u = 0;
     for (int i = 1; i < K; ++i)
         if (approx[size_t(i)] < approx[size_t(u)]) u = i;
+    const double slack = 4e-8 * W;
+    if (moderate) {
+        // 2'. The usual case needs no exact cost at all. The computed cost of x_u is at most
+        //     UB = A_u (1 + 1e-12) + 4e-8 W (the bound of step 1 from above). If every other
+        //     sample has LB_i >= T' = UB (1 + 1e-9), its cost exceeds that of x_u by more than a
+        //     relative 1e-9 (>> the 1e-12 of clearlyLess and the rounding of T'), so the scan
+        //     takes x_u when it reaches it (or starts there, u = 0) and nothing after is clearly
+        //     less: the answer is u. Otherwise steps 2 and 3 decide.
+        const double T1 = (approx[size_t(u)] * (1.0 + 1e-12) + slack) * (1.0 + 1e-9);
+        bool alone = true;
+        for (int i = 0; i < K; ++i)
+            alone &= i == u || approx[size_t(i)] * (1.0 - 1e-12) - slack >= T1;
+        if (alone) return u;
+    }
     const double U = meridianCost(x, w, K, delta, x[u]);
     const double T = U * (1.0 + 1e-9);
     const double nearLimit = T * (1.0 - 4e-12);
-    const double slack = 4e-8 * W;
     int best = -1;
     double bestCost = 0.0;
     for (int i = 0; i < K; ++i) {

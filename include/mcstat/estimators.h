@@ -31,7 +31,7 @@ namespace mcstat {
 enum class EstimatorMode {
     PerChannel,  ///< R, G and B ranked and reduced independently (each channel has its own G and c)
     Luminance,   ///< buffers ranked by luminance; the chosen buffers' RGB are returned (hue never
-                ///< mixes across channels of different buffers); G is computed on luminance
+                 ///< mixes across channels of different buffers); G is computed on luminance
 };
 
 struct EstimatorParams {
@@ -90,6 +90,17 @@ int gmonTrim(double G, int M);
 /// Fills `order` with the indices of the valid buffers (count > 0, count and every channel finite),
 /// in index order, and sets `excluded` to the number of NaN/Inf buffers. Returns M_v.
 int collectValidBuffers(const PixelBuffers& px, std::vector<int>& order, int& excluded);
+
+namespace detail {
+/// Test hook: with false, the rank estimators' fast path runs its portable code even on a CPU with
+/// AVX2 (both versions give the same bits; the bit-identity test checks each). true restores the
+/// CPU's choice. Returns the previous setting. Not thread-safe: call it between estimates.
+bool setUseAvx2(bool on);
+/// For jung_estimators.cpp: order[r] = the position of the key of rank r, in the order "key
+/// ascending, ties by position", for n <= 64 keys, none NaN. `key` must have room for n rounded up
+/// to a multiple of 8 (the padding is overwritten). The rank estimators' fast ranking.
+void rankKeys(double* key, int n, int* order);
+}  // namespace detail
 
 // ---- the estimators
 // ------------------------------------------------------------------------------

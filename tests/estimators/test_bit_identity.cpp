@@ -263,6 +263,48 @@ TEST(BitIdentity, Median) { checkEstimator(*findEstimator("median"), 100); }
 TEST(BitIdentity, GMoN) { checkEstimator(*findEstimator("gmon"), 1000); }
 TEST(BitIdentity, GMoNb) { checkEstimator(*findEstimator("gmonb"), 600); }
 TEST(BitIdentity, TMPE) { checkEstimator(*findEstimator("tmpe"), 600); }
+
+// The rank estimators' portable fast path (taken on CPUs without AVX2) against the oracle too.
+TEST(BitIdentity, PortableFastPath) {
+    const bool before = detail::setUseAvx2(false);
+    for (const char* name : {"mon", "gmon", "gmonb", "tmpe"})
+        checkEstimator(*findEstimator(name), 200);
+    detail::setUseAvx2(before);
+}
+
+// Luminances that differ in double but round to the same float: the AVX2 ranking compares rounded
+// keys first and must fall back to the doubles for them (ties in float, an order in double).
+TEST(BitIdentity, KeysEqualInFloat) {
+    std::mt19937 rng(77);
+    EstimatorParams p;
+    p.luma = kLuma;
+    for (int M : {5, 8, 17, 21, 33, 64}) {
+        std::vector<float> mean(size_t(M) * 3), count(size_t(M), 4.f);
+        for (int rep = 0; rep < 200; ++rep) {
+            const float base = std::uniform_real_distribution<float>(0.1f, 10.f)(rng);
+            for (int j = 0; j < M; ++j) {
+                // Red a few ulps apart, green and blue shared: luminances ~0.2 ulp apart.
+                float r = base;
+                for (int u = int(rng() % 4); u > 0; --u) r = std::nextafter(r, 100.f);
+                mean[3 * size_t(j)] = r;
+                mean[3 * size_t(j) + 1] = base;
+                mean[3 * size_t(j) + 2] = base;
+                if (rng() % 8 == 0) mean[3 * size_t(j) + 1] = base * 3.f;  // an outlier
+            }
+            const PixelBuffers px{mean.data(), count.data(), M};
+            for (const char* name : {"mon", "gmon", "gmonb", "tmpe"}) {
+                const EstimatorInfo& op = *findEstimator(name);
+                EstimatorScratch sa, sb;
+                PixelEstimate a, b;
+                op.fn(px, p, a, sa);
+                referenceFor(op.fn)(px, p, b, sb);
+                ASSERT_TRUE(sameBits(a, b))
+                    << name << " M " << M << "\n  new " << describe(a) << "\n  ref " << describe(b);
+            }
+        }
+    }
+}
+
 TEST(BitIdentity, Meridian) { checkEstimator(*findEstimator("meridian"), 250); }
 TEST(BitIdentity, Myriad) { checkEstimator(*findEstimator("myriad"), 60); }
 
