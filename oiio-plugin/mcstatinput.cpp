@@ -102,10 +102,19 @@ bool splitName(const std::string& name, std::string& path, std::map<std::string,
     return Strutil::get_rest_arguments(name, path, kv);
 }
 
-/// Pixels a subimage is served from: `channels` interleaved per pixel, scanline order.
+/// Pixels a subimage is served from: `channels` interleaved per pixel, scanline order, held in
+/// `pixels` or (an operation's result, kept without a copy) in `image`.
 struct Computed {
     std::vector<std::string> channels;
     std::vector<float> pixels;
+    OIIO::ImageBuf image;
+    const float* data() const {
+        return image.initialized() ? static_cast<const float*>(image.localpixels()) : pixels.data();
+    }
+    size_t size() const {
+        return image.initialized() ? size_t(image.spec().image_pixels()) * size_t(image.nchannels())
+                                   : pixels.size();
+    }
 };
 using ComputedPtr = std::shared_ptr<const Computed>;
 
@@ -160,7 +169,7 @@ class PixelCache {
                     m_lru.erase(it->second.lru);
                     m_entries.erase(it);
                 } else {
-                    it->second.bytes = r.pixels->pixels.size() * sizeof(float);
+                    it->second.bytes = std::max<size_t>(1, r.pixels->size() * sizeof(float));
                     m_bytes += it->second.bytes;
                     evict(key);
                 }
@@ -244,7 +253,10 @@ class McstatInput final : public ImageInput {
 
   private:
     /// The cached arrays subimages are served from.
-    enum Source { kEstimate, kCounts, kBeauty, kFeatureArrays, kSourceCount };
+    /// kEstimate: the operation's result (R, G, B; a per-sample operation's every channel);
+    /// kEstimateDiag: an estimator's result with its diagnostics (subimage 2), a second pass so
+    /// that showing the robust image never computes or holds the diagnostics.
+    enum Source { kEstimate, kEstimateDiag, kCounts, kBeauty, kFeatureArrays, kSourceCount };
     /// Channel c of a subimage is channel `index` of source `source`.
     struct ChannelFrom {
         Source source;
@@ -392,7 +404,8 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     // The estimate's channels: R, G, B, then an estimator's diagnostics (gini/kept/excluded).
     // A per-sample operation's extra channels are known only once it ran: it runs now.
     std::vector<std::string> estChannels = mcstat::operationChannels(*est, m_values, true);
-    if (est->input == mcstat::InputKind::Samples) {
+    const bool samples = est->input == mcstat::InputKind::Samples;
+    if (samples) {
         const Computed* c = source(kEstimate);
         if (!c) return false;
         estChannels = c->channels;
@@ -444,7 +457,8 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     // adaptive M the map of buffer counts m_p ("M").
     Sub& d = m_subs[kDiagnostics];
     std::vector<std::string> diagNames(estChannels.begin() + 3, estChannels.end());
-    for (size_t i = 3; i < estChannels.size(); ++i) d.from.push_back({kEstimate, i});
+    for (size_t i = 3; i < estChannels.size(); ++i)
+        d.from.push_back({samples ? kEstimate : kEstimateDiag, i});
     diagNames.push_back("count");
     d.from.push_back({kCounts, 0});
     if (h.adaptiveM) {
@@ -485,7 +499,7 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
 
 std::string McstatInput::cacheKey(Source s) const {
     std::string key = format("{}|{}|{}", m_identity, m_path, int(s));
-    if (s == kEstimate) {
+    if (s == kEstimate || s == kEstimateDiag) {
         key += "|" + m_op->name;
         for (const auto& [k, v] : m_values) key += "|" + k + "=" + v.text;
         key += format("|{:.17g},{:.17g},{:.17g}", m_luma[0], m_luma[1], m_luma[2]);
@@ -511,10 +525,10 @@ bool McstatInput::computeSource(Source s, Computed& out, std::string& err) {
     ++g_computations;
     const mcstat::StatsHeader& h = m_header;
     const size_t npix = size_t(h.width) * size_t(h.height);
-    if (s == kEstimate) {
-        // Subimages 0 and 2 in one pass: every operation returns R, G, B first; an estimator
-        // over buffer means (with diagnostics) its gini/kept/excluded channels after them,
-        // computed by the same per-pixel call as without them.
+    if (s == kEstimate || s == kEstimateDiag) {
+        // Every operation returns R, G, B first; an estimator over buffer means with diagnostics
+        // its gini/kept/excluded channels after them, computed by the same per-pixel call as
+        // without them (so subimages 0 and 2 agree).
         OIIO::ImageBuf img;
         bool ok = false;
         if (m_op->input == mcstat::InputKind::Samples) {
@@ -527,7 +541,8 @@ bool McstatInput::computeSource(Source s, Computed& out, std::string& err) {
                 err = m_path + ": the file changed since it was opened";
                 return false;
             }
-            ok = mcstat::applyOperation(img, reader, *m_op, m_values, m_luma, true, {}, threads());
+            ok = mcstat::applyOperation(img, reader, *m_op, m_values, m_luma, s == kEstimateDiag,
+                                        {}, threads());
         }
         if (!ok) {
             // Messages from the file's reader already start with its path.
@@ -543,8 +558,7 @@ bool McstatInput::computeSource(Source s, Computed& out, std::string& err) {
             return false;
         }
         out.channels = spec.channelnames;
-        const float* px = static_cast<const float*>(img.localpixels());
-        out.pixels.assign(px, px + npix * nch);
+        out.image.swap(img);  // kept as computed, no copy
         return true;
     }
     // The stored parts, streamed by blocks of rows.
@@ -649,11 +663,11 @@ bool McstatInput::copyRows(int subimage, int miplevel, int ybegin, int yend, int
         const Computed* c = source(from.source);
         if (!c) return false;
         stride[i] = c->channels.size();
-        if (from.index >= stride[i] || c->pixels.size() != w * size_t(sp.height) * stride[i]) {
+        if (from.index >= stride[i] || c->size() != w * size_t(sp.height) * stride[i]) {
             errorfmt("{}: subimage {} has an unexpected layout", m_name, subimage);
             return false;
         }
-        base[i] = c->pixels.data() + from.index;
+        base[i] = c->data() + from.index;
     }
     float* out = static_cast<float*>(data);
     for (int y = ybegin; y < yend; ++y) {

@@ -52,9 +52,9 @@ run_alternating() {
 }
 
 # A statistics file of the default scene, rendered once and reused (REFRESH=1 renders again).
-stats_file() {  # stats_file PATH WIDTH HEIGHT SPP
+stats_file() {  # stats_file PATH WIDTH HEIGHT SPP [SEED]
   if [ ! -f "$1" ] || [ "${REFRESH:-0}" = 1 ]; then
-    "$render" --scene default --res "$2" "$3" --spp "$4" --M 21 --seed 3 --quiet -o "$1"
+    "$render" --scene default --res "$2" "$3" --spp "$4" --M 21 --seed "${5:-3}" --quiet -o "$1"
   fi
 }
 
@@ -99,16 +99,20 @@ if want file; then
     cmd_mon=("$mcstat" "$f" --mon -o "$out/o.exr")
     cmd_tmpe=("$mcstat" "$f" --tmpe -o "$out/o.exr")
     cmd_w3d=("$mcstat" "$f" --3dwtmf -o "$out/o.exr")
+    cmd_mer=("$mcstat" "$f" --meridian -o "$out/o.exr")
+    cmd_myr=("$mcstat" "$f" --myriad -o "$out/o.exr")
     cmd_plug=(env OIIO_LIBRARY_PATH="$BUILD/oiio-plugin" oiiotool "$f" --subimage 0 -o "$out/o.exr")
-    names=(ref gmon mean mon tmpe w3d plug)
+    names=(ref gmon mean mon tmpe mer myr w3d plug)
     if [ -n "$BASELINE" ]; then
       cmd_bgmon=("$BASELINE/mcstat" "$f" --gmon -o "$out/o.exr")
       cmd_bmean=("$BASELINE/mcstat" "$f" --mean -o "$out/o.exr")
       cmd_bmon=("$BASELINE/mcstat" "$f" --mon -o "$out/o.exr")
       cmd_btmpe=("$BASELINE/mcstat" "$f" --tmpe -o "$out/o.exr")
       cmd_bw3d=("$BASELINE/mcstat" "$f" --3dwtmf -o "$out/o.exr")
+      cmd_bmer=("$BASELINE/mcstat" "$f" --meridian -o "$out/o.exr")
+      cmd_bmyr=("$BASELINE/mcstat" "$f" --myriad -o "$out/o.exr")
       cmd_bplug=(env OIIO_LIBRARY_PATH="$BASELINE" oiiotool "$f" --subimage 0 -o "$out/o.exr")
-      names+=(bgmon bmean bmon btmpe bw3d bplug)
+      names+=(bgmon bmean bmon btmpe bmer bmyr bw3d bplug)
     fi
     run_alternating "${names[@]}"
     label() {
@@ -116,6 +120,7 @@ if want file; then
         ref) echo "oiiotool F --subimage 1 --stats" ;; gmon) echo "mcstat F --gmon -o o.exr" ;;
         mean) echo "mcstat F --mean -o o.exr" ;; mon) echo "mcstat F --mon -o o.exr" ;;
         tmpe) echo "mcstat F --tmpe -o o.exr" ;; w3d) echo "mcstat F --3dwtmf -o o.exr" ;;
+        mer) echo "mcstat F --meridian -o o.exr" ;; myr) echo "mcstat F --myriad -o o.exr" ;;
         plug) echo "plugin: oiiotool F --subimage 0 -o o.exr" ;;
       esac
     }
@@ -124,10 +129,9 @@ if want file; then
     else
       printf "%-42s | %8s %7s %9s %8s\n" "command" "wall s" "ratio" "peak MiB" "CPU/wall"
     fi
-    for n in ref gmon mean mon tmpe w3d plug; do
+    for n in ref gmon mean mon tmpe mer myr w3d plug; do
       w=med_$n; c=cpu_$n; r=rss_$n
-      line=$(awk -v w="${!w}" -v b="$med_ref" -v c="${!c}" 'BEGIN { printf "%8.2f %6.2fx", w, w / b; cpu = c / w }
-        END { }' </dev/null)
+      line=$(awk -v w="${!w}" -v b="$med_ref" 'BEGIN { printf "%8.2f %6.2fx", w, w / b }')
       cw=$(awk -v w="${!w}" -v c="${!c}" 'BEGIN { printf "%8.2f", c / w }')
       if [ -n "$BASELINE" ] && [ "$n" != ref ]; then
         bw=med_b$n; br=rss_b$n
@@ -143,7 +147,10 @@ fi
 
 if want height; then
   echo "== Peak memory against image height: 1920 wide, M = 21, 8 spp (ZIP), medians of $REPS =="
-  for h in 540 1080 2160; do stats_file "$out/height-$h.mcstat" 1920 "$h" 8; done
+  for h in 540 1080 2160; do
+    stats_file "$out/height-$h.mcstat" 1920 "$h" 8
+    stats_file "$out/height-$h-seed4.mcstat" 1920 "$h" 8 4  # the second render merged
+  done
   printf "%-44s %10s %10s %10s\n" "command (peak RSS MiB / wall s)" "540 rows" "1080 rows" "2160 rows"
   for op in gmon 3dwtmf plugin merge; do
     names=()
@@ -151,7 +158,7 @@ if want height; then
       f=$out/height-$h.mcstat
       case $op in
         plugin) eval "cmd_h$h=(env OIIO_LIBRARY_PATH=$BUILD/oiio-plugin oiiotool $f --subimage 0 -o $out/o.exr)" ;;
-        merge) eval "cmd_h$h=($mcstat $f $f --merge -o $out/merged.mcstat)" ;;
+        merge) eval "cmd_h$h=($mcstat $f ${f%.mcstat}-seed4.mcstat --merge -o $out/merged.mcstat)" ;;
         *) eval "cmd_h$h=($mcstat $f --$op -o $out/o.exr)" ;;
       esac
       names+=("h$h")
@@ -159,7 +166,7 @@ if want height; then
     run_alternating "${names[@]}"
     case $op in
       plugin) label="plugin: oiiotool F --subimage 0 -o o.exr" ;;
-      merge) label="mcstat F F --merge -o m.mcstat" ;;
+      merge) label="mcstat F G --merge -o m.mcstat" ;;
       *) label="mcstat F --$op -o o.exr" ;;
     esac
     printf "%-44s %10s %10s %10s\n" "$label" "$rss_h540 / $med_h540" "$rss_h1080 / $med_h1080" "$rss_h2160 / $med_h2160"
