@@ -230,9 +230,16 @@ ImageBuf filter3D(const StatsImage& src, const SpatialParams& params, ROI roi, i
     return dst;
 }
 
-bool applyOperation(ImageBuf& dst, const StatsImage& src, const Operation& op,
-                    const ParamValues& values, const std::array<double, 3>& luma, bool diagnostics,
-                    ROI roi, int nthreads) {
+namespace {
+
+const StatsHeader& headerOf(const StatsImage& s) { return s.header; }
+const StatsHeader& headerOf(const StatsBlockSource& s) { return s.header(); }
+
+/// applyOperation over an image in memory or a streamed source: the same calls, each with its
+/// own overloads of estimate() and filter3D().
+template <class Source>
+bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const ParamValues& values,
+                      const std::array<double, 3>& luma, bool diagnostics, ROI roi, int nthreads) {
     switch (op.input) {
         case InputKind::BufferMeans: {
             EstimatorParams params;
@@ -245,12 +252,21 @@ bool applyOperation(ImageBuf& dst, const StatsImage& src, const Operation& op,
             if (op.over == Neighbourhood::SubBuffers)
                 return filter3D(dst, src, params, roi, nthreads);
             if (op.over == Neighbourhood::Image) {
-                // The plain mean as the "mean" estimator computes it (`mcstat f --mean --mif`),
-                // over the whole data window: the filter's windows reach outside roi.
+                // The plain mean as the "mean" estimator computes it (`mcstat f --mean --mif`)
+                // over roi grown by the window's radius (clipped to the data window), then the
+                // median filter over roi: each window sees the same pixels as over the whole
+                // image, since only the data window's edges clip it.
+                const ROI full = dataWindowROI(headerOf(src));
+                if (!roi.defined()) roi = full;
+                roi = OIIO::roi_intersection(roi, full);
+                const int rx = params.windowWidth / 2, ry = params.windowHeight / 2;
+                const ROI grown = OIIO::roi_intersection(
+                    ROI(roi.xbegin - rx, roi.xend + rx, roi.ybegin - ry, roi.yend + ry), full);
                 EstimatorParams meanParams;
                 meanParams.luma = luma;
                 ImageBuf mean;
-                if (!estimate(mean, src, *findEstimator("mean"), meanParams, false, {}, nthreads)) {
+                if (!estimate(mean, src, *findEstimator("mean"), meanParams, false, grown,
+                              nthreads)) {
                     dst.errorfmt("{}: {}", op.name, mean.geterror());
                     return false;
                 }
@@ -265,6 +281,20 @@ bool applyOperation(ImageBuf& dst, const StatsImage& src, const Operation& op,
     }
     dst.errorfmt("{}: the registry entry names no input it can run on", op.name);
     return false;
+}
+
+}  // namespace
+
+bool applyOperation(ImageBuf& dst, const StatsImage& src, const Operation& op,
+                    const ParamValues& values, const std::array<double, 3>& luma, bool diagnostics,
+                    ROI roi, int nthreads) {
+    return applyOperationTo(dst, src, op, values, luma, diagnostics, roi, nthreads);
+}
+
+bool applyOperation(ImageBuf& dst, StatsBlockSource& src, const Operation& op,
+                    const ParamValues& values, const std::array<double, 3>& luma, bool diagnostics,
+                    ROI roi, int nthreads) {
+    return applyOperationTo(dst, src, op, values, luma, diagnostics, roi, nthreads);
 }
 
 bool runSamplesOperation(ImageBuf& dst, const std::string& path, const StatsHeader& header,
