@@ -94,26 +94,21 @@ if want file; then
   for f in "$zip" "$raw"; do
     echo "== $f ($(du -h "$f" | cut -f1)): wall / stock oiiotool reading the sub-buffer part, 2 cores, medians of $REPS =="
     cmd_ref=(oiiotool "$f" --subimage 1 --stats)
-    cmd_gmon=("$mcstat" "$f" --gmon -o "$out/o.exr")
-    cmd_mean=("$mcstat" "$f" --mean -o "$out/o.exr")
-    cmd_mon=("$mcstat" "$f" --mon -o "$out/o.exr")
-    cmd_tmpe=("$mcstat" "$f" --tmpe -o "$out/o.exr")
-    cmd_w3d=("$mcstat" "$f" --3dwtmf -o "$out/o.exr")
-    cmd_mer=("$mcstat" "$f" --meridian -o "$out/o.exr")
-    cmd_myr=("$mcstat" "$f" --myriad -o "$out/o.exr")
-    cmd_plug=(env OIIO_LIBRARY_PATH="$BUILD/oiio-plugin" oiiotool "$f" --subimage 0 -o "$out/o.exr")
-    names=(ref gmon mean mon tmpe mer myr w3d plug)
-    if [ -n "$BASELINE" ]; then
-      cmd_bgmon=("$BASELINE/mcstat" "$f" --gmon -o "$out/o.exr")
-      cmd_bmean=("$BASELINE/mcstat" "$f" --mean -o "$out/o.exr")
-      cmd_bmon=("$BASELINE/mcstat" "$f" --mon -o "$out/o.exr")
-      cmd_btmpe=("$BASELINE/mcstat" "$f" --tmpe -o "$out/o.exr")
-      cmd_bw3d=("$BASELINE/mcstat" "$f" --3dwtmf -o "$out/o.exr")
-      cmd_bmer=("$BASELINE/mcstat" "$f" --meridian -o "$out/o.exr")
-      cmd_bmyr=("$BASELINE/mcstat" "$f" --myriad -o "$out/o.exr")
-      cmd_bplug=(env OIIO_LIBRARY_PATH="$BASELINE" oiiotool "$f" --subimage 0 -o "$out/o.exr")
-      names+=(bgmon bmean bmon btmpe bmer bmyr bw3d bplug)
-    fi
+    # file_cmds PREFIX MCSTAT PLUGIN_DIR: today's commands (PREFIX "") or the baseline's ("b").
+    file_cmds() {
+      local op
+      for op in gmon mean mon tmpe mer myr w3d; do
+        local flag=$op
+        case $op in mer) flag=meridian ;; myr) flag=myriad ;; w3d) flag=3dwtmf ;; esac
+        eval "cmd_$1$op=(\"\$2\" \"\$f\" --$flag -o \"\$out/o.exr\")"
+        names+=("$1$op")
+      done
+      eval "cmd_$1plug=(env OIIO_LIBRARY_PATH=\"\$3\" oiiotool \"\$f\" --subimage 0 -o \"\$out/o.exr\")"
+      names+=("$1plug")
+    }
+    names=(ref)
+    file_cmds "" "$mcstat" "$BUILD/oiio-plugin"
+    if [ -n "$BASELINE" ]; then file_cmds b "$BASELINE/mcstat" "$BASELINE"; fi
     run_alternating "${names[@]}"
     label() {
       case $1 in
