@@ -11,7 +11,6 @@
 #include <OpenEXR/ImfInputPart.h>
 #include <OpenEXR/ImfMultiPartInputFile.h>
 #include <OpenEXR/ImfPartType.h>
-#include <OpenEXR/ImfThreading.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <fmt/format.h>
@@ -21,7 +20,6 @@
 #include <cstdint>
 #include <cstring>
 #include <memory>
-#include <thread>
 
 #include "fd_stream.h"
 #include "mcstat/stats_file.h"

@@ -12,7 +12,6 @@
 #include <OpenEXR/ImfPartType.h>
 #include <OpenEXR/ImfStandardAttributes.h>
 #include <OpenEXR/ImfStringAttribute.h>
-#include <OpenEXR/ImfThreading.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <fmt/format.h>
@@ -25,7 +24,6 @@
 #include <limits>
 #include <memory>
 #include <random>
-#include <thread>
 
 #include "extra_parts.h"
 #include "fd_stream.h"
