@@ -10,3 +10,14 @@ if(MCSTAT_SANITIZE)
   add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
   add_link_options(-fsanitize=address,undefined)
 endif()
+
+# Fuzzing (tests/fuzz, scripts/fuzz.sh): every library is compiled with libFuzzer's coverage
+# instrumentation and ASan+UBSan; only the fuzz targets link libFuzzer's main (-fsanitize=fuzzer).
+if(MCSTAT_FUZZ)
+  if(NOT CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
+    message(FATAL_ERROR "MCSTAT_FUZZ needs clang (CXX=clang++): libFuzzer is part of clang")
+  endif()
+  add_compile_options(-fsanitize=fuzzer-no-link,address,undefined -fno-omit-frame-pointer
+                      -fno-sanitize-recover=undefined)
+  add_link_options(-fsanitize=address,undefined)
+endif()

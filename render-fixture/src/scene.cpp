@@ -297,9 +297,9 @@ bool parseScene(const std::string& jsonText, const std::string& source, Scene& s
     try {
         // Comments are allowed: scene files document themselves.
         root = json::parse(jsonText, nullptr, true, true);
-    } catch (const json::parse_error& e) {
-        // e.what() is "[json.exception.parse_error.101] parse error at line L, column C: ...";
-        // keep the part after the bracketed id.
+    } catch (const json::exception& e) {
+        // e.what() is "[json.exception.parse_error.101] parse error at line L, column C: ..." (or
+        // out_of_range.406 for a number beyond double, "1E400"); keep the part after the id.
         std::string what = e.what();
         const size_t close = what.find("] ");
         if (close != std::string::npos) what = what.substr(close + 2);
