@@ -12,8 +12,6 @@
 
 namespace mcstat::detail {
 
-/// A temporary name next to `path`: "<dir>/.<name>.tmp-<pid>-<random>".
-std::string tempNameFor(const std::string& path);
 /// A part header with the attributes every part carries (FORMAT.md "Header attributes").
 Imf::Header commonHeader(const StatsHeader& h, const std::string& name, bool deep);
 /// Checks the extras against the image (sizes, version 4); `err` names `path`.

@@ -26,6 +26,7 @@
 #include <numeric>
 
 #include "extra_parts.h"
+#include "mcstat/temp_file.h"
 #include "stats_layout.h"
 #include "window.h"
 
@@ -159,11 +160,11 @@ bool recordChannelsOf(const std::vector<std::string>& fields, std::vector<std::s
 
 struct SampleRecordsWriter::Impl {
     StatsHeader header;
-    std::string path;
+    std::unique_ptr<TemporaryFile> tmp;  ///< the records file, removed with the writer
+    std::string path;                    ///< tmp's path
     std::vector<std::string> channels;
     std::unique_ptr<Imf::DeepScanLineOutputFile> file;
     int nextRow = 0;
-    bool released = false;
 };
 
 SampleRecordsWriter::SampleRecordsWriter() : impl_(new Impl) {}
@@ -173,7 +174,7 @@ SampleRecordsWriter::~SampleRecordsWriter() {
         impl_->file.reset();
     } catch (...) {
     }
-    if (!impl_->path.empty()) ::unlink(impl_->path.c_str());
+    impl_->tmp.reset();
 }
 
 const std::string& SampleRecordsWriter::path() const { return impl_->path; }
@@ -194,7 +195,9 @@ bool SampleRecordsWriter::open(const std::string& target, const StatsHeader& h, 
         for (const std::string& c : impl_->channels) present = present || c == f.channels[0];
         if (present) list += (list.empty() ? "" : ",") + std::string(f.name);
     }
-    impl_->path = detail::tempNameFor(target) + ".records";
+    if (!checkOutputTarget(target, err)) return false;
+    impl_->tmp = std::make_unique<TemporaryFile>(target, ".records");
+    impl_->path = impl_->tmp->path();
     try {
         impl_->file.reset(new Imf::DeepScanLineOutputFile(impl_->path.c_str(),
                                                           recordsHeader(h, impl_->channels, list)));

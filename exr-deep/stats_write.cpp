@@ -23,12 +23,12 @@
 #include <functional>
 #include <limits>
 #include <memory>
-#include <random>
 
 #include "extra_parts.h"
 #include "fd_stream.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
+#include "mcstat/temp_file.h"
 #include "stats_layout.h"
 #include "window.h"
 
@@ -42,14 +42,6 @@ using detail::windowOf;
 }  // namespace
 
 namespace detail {
-
-std::string tempNameFor(const std::string& path) {
-    const size_t slash = path.rfind('/');
-    const std::string dir = slash == std::string::npos ? std::string() : path.substr(0, slash + 1);
-    const std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
-    std::random_device rd;
-    return fmt::format("{}.{}.tmp-{}-{:08x}", dir, name, long(::getpid()), rd());
-}
 
 Imf::Header commonHeader(const StatsHeader& h, const std::string& name, bool deep) {
     const Imath::Box2i window = windowOf(h);
@@ -161,7 +153,8 @@ void writeRows(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
 }  // namespace
 
 struct StatsFileWriter::Impl {
-    std::string path, tmp;
+    std::string path;
+    std::unique_ptr<TemporaryFile> tmp;  ///< removed when abandoned, on a signal, or renamed
     StatsHeader header;
     detail::Fd fd;
     std::unique_ptr<detail::FdOStream> os;
@@ -173,10 +166,8 @@ struct StatsFileWriter::Impl {
 
     ~Impl() {
         file.reset();  // OpenEXR writes the offset tables here; the file is removed anyway
-        if (!tmp.empty()) {
-            fd.reset();
-            ::unlink(tmp.c_str());
-        }
+        fd.reset();
+        tmp.reset();  // removes the temporary unless it was renamed
     }
 };
 
@@ -209,18 +200,20 @@ bool StatsFileWriterAccess::open(StatsFileWriter& w, const std::string& path, co
                           layout::kAttrSpp);
         return false;
     }
+    if (!checkOutputTarget(path, err)) return false;
     auto impl = std::make_unique<StatsFileWriter::Impl>();
     impl->path = path;
     impl->header = h;
     impl->extraParts = std::move(extraParts);
-    const std::string tmp = detail::tempNameFor(path);
+    impl->tmp = std::make_unique<TemporaryFile>(path);
+    const std::string& tmp = impl->tmp->path();
     impl->fd = detail::Fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666));
     if (impl->fd.get() < 0) {
         err = fmt::format("{}: cannot create temporary file {} ({})", path, tmp,
                           std::strerror(errno));
+        impl->tmp->remove();  // nothing was created; forget the name
         return false;
     }
-    impl->tmp = tmp;
     try {
         std::vector<Imf::Header> headers = makeHeaders(h);
         headers.insert(headers.end(), extraHeaders.begin(), extraHeaders.end());
@@ -284,14 +277,15 @@ bool StatsFileWriter::commit(std::string& err) {
     }
     if (problem.empty() && ::fsync(im.fd.get()) != 0) problem = std::strerror(errno);
     if (const std::string closeErr = im.fd.close(); problem.empty()) problem = closeErr;
-    if (problem.empty() && std::rename(im.tmp.c_str(), im.path.c_str()) != 0)
-        problem = fmt::format("cannot rename {} onto it ({})", im.tmp, std::strerror(errno));
     if (!problem.empty()) {
         err = fmt::format("{}: cannot write ({})", im.path, problem);
         impl_.reset();  // removes the temporary file
         return false;
     }
-    im.tmp.clear();  // renamed: nothing to remove
+    if (!im.tmp->commit(err)) {
+        impl_.reset();
+        return false;
+    }
     // Make the rename durable; a failure here does not undo the write.
     detail::Fd dir(::open(dirOf(im.path).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
     if (dir.get() >= 0) (void)::fsync(dir.get());

@@ -302,9 +302,19 @@ std::vector<Command> buildTable() {
         {"--info",
          0,
          "",
-         "Describe the top of the stack (a statistics file: size, M, spp, parts, counts)",
+         "Describe the top of the stack (a statistics file: size, M, spp, parts; from its headers, "
+         "which are checked, and with -v its counts)",
          {},
          &cmdInfo,
+         ""},
+        {"--check",
+         0,
+         "",
+         "Validate the top statistics file completely, as exrcheck does and more: OpenEXR's own "
+         "checker, then every value of every part decoded by blocks and every count checked; "
+         "exit status 1 with the first problem",
+         {},
+         &cmdCheck,
          ""},
         {"-o",
          1,

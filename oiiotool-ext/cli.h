@@ -82,6 +82,9 @@ bool cmdOutput(State&, const std::string&, const std::vector<std::string>&, cons
                std::string&);
 bool cmdInfo(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
              std::string&);
+/// --check: checkStatsFile on the top item's file.
+bool cmdCheck(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
+              std::string&);
 /// --ingest PATTERN: one statistics file from renders of one image (one EXR per seed).
 bool cmdIngest(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
                std::string&);

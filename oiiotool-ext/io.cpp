@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 
@@ -13,6 +14,7 @@
 #include "mcstat/ingest.h"
 #include "mcstat/pajot.h"
 #include "mcstat/sample_records.h"
+#include "mcstat/temp_file.h"
 
 namespace mcstat::cli {
 
@@ -25,6 +27,14 @@ std::string lowerExtension(const std::string& path) {
     return OIIO::Strutil::lower(ext);
 }
 
+/// A library's message on one line: line breaks become "; ", trailing blanks go.
+std::string oneLineMessage(std::string s) {
+    while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
+    for (size_t at = s.find('\n'); at != std::string::npos; at = s.find('\n', at))
+        s.replace(at, 1, "; ");
+    return s;
+}
+
 bool isStatsPath(const std::string& path) { return lowerExtension(path) == kStatsExtension; }
 
 /// Formats written for the eye: the pixels go through the OCIO display view first.
@@ -35,25 +45,35 @@ bool isDisplayFormat(const std::string& ext) {
     return false;
 }
 
-/// Writes `img` as `path` through a temporary name in the same directory, renamed on success, so a
-/// failed write never leaves a partial file under the target name.
+/// Writes `img` as `path` through a temporary name in the same directory (TemporaryFile), renamed
+/// on success, so a failed or interrupted write never leaves a partial file under the target name.
 bool writeImageAtomically(const OIIO::ImageBuf& img, const std::string& path, OIIO::TypeDesc type,
                           std::string& err) {
+    if (!checkOutputTarget(path, err)) return false;
     const std::string ext = lowerExtension(path);
-    std::string dir = OIIO::Filesystem::parent_path(path);
-    const std::string tmp = (dir.empty() ? std::string() : dir + "/") + "." +
-                            OIIO::Filesystem::filename(path) + format(".tmp-{}", getpid());
-    if (!img.write(tmp, type, ext)) {
-        err = format("{}: {}", path, img.geterror());
-        std::remove(tmp.c_str());
+    if (ext.empty()) {
+        err = format(
+            "{}: no file extension to choose the format by (.exr, .tif, .png, .jpg, ... or "
+            ".{})",
+            path, kStatsExtension);
         return false;
     }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        err = format("{}: cannot rename the temporary file into place", path);
-        std::remove(tmp.c_str());
+    if (!OIIO::ImageOutput::create(ext)) {
+        (void)OIIO::geterror();  // consumed: the message below says it in one line
+        err = format("{}: OpenImageIO has no writer for '.{}' files", path, ext);
         return false;
     }
-    return true;
+    TemporaryFile tmp(path);
+    if (!img.write(tmp.path(), type, ext)) {
+        std::string why = img.geterror();
+        if (why.empty()) why = OIIO::geterror();
+        if (why.empty()) why = "the image writer failed without saying why";
+        // OIIO names the temporary; the user knows the target.
+        err = format("{}: {}", path,
+                     oneLineMessage(OIIO::Strutil::replace(why, tmp.path(), path, true)));
+        return false;  // tmp removes the partial file
+    }
+    return tmp.commit(err);
 }
 
 }  // namespace
@@ -223,6 +243,10 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
     }
     Item& top = st.stack.back();
     const std::string& path = args[0];
+    if (path.empty()) {
+        err = format("{}: an empty file name", cmd);
+        return false;
+    }
     const std::string ext = lowerExtension(path);
     if (top.isStats()) {
         if (ext != kStatsExtension) {
@@ -362,6 +386,9 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
             fields.c_str(), static_cast<long long>(recordBytesOnDisk(records.available().size())));
     }
     if (h.hasPajot && !printPajotSummary(top.path, err)) return false;
+    std::printf(
+        "  checked: the headers and chunk table only; --check reads and validates every "
+        "value\n");
     if (!st.verbose && !h.adaptiveM) return true;
     if (!loadStats(st, top, err)) return false;
     const StatsImage& s = *top.stats;
@@ -392,6 +419,42 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
                 ntotal / double(std::max<size_t>(1, s.pixelCount())));
     std::printf("  empty sub-buffers: %ld of %zu; non-finite sub-buffer values: %ld\n",
                 emptyBuffers, s.bufferCount.size(), nonFinite);
+    return true;
+}
+
+bool cmdCheck(State& st, const std::string& cmd, const std::vector<std::string>&, const Modifiers&,
+              std::string& err) {
+    if (st.stack.empty()) {
+        err = format("{}: nothing on the stack to check", cmd);
+        return false;
+    }
+    const Item& top = st.stack.back();
+    if (!top.isStats() || top.path.empty()) {
+        err =
+            format("{}: {} is not a statistics file read from disk (check the files it came from)",
+                   cmd, top.name);
+        return false;
+    }
+    // Progress on a terminal only: a large file takes as long as decoding it.
+    std::function<void(double)> progress;
+    if (isatty(fileno(stderr)) != 0)
+        progress = [&top](double f) {
+            std::fprintf(stderr, "\r%s: checking %3.0f%%", top.name.c_str(), 100.0 * f);
+        };
+    StatsCheckReport r;
+    const bool ok = checkStatsFile(top.path, r, err, ReadLimits(), st.nthreads, progress);
+    if (progress) std::fprintf(stderr, "\r%*s\r", int(top.name.size()) + 20, "");
+    if (!ok) return false;
+    const StatsHeader& h = r.header;
+    std::printf("%s: valid mcstat statistics file, format %d, %d x %d, %s %d\n", top.name.c_str(),
+                h.formatVersion, h.width, h.height, h.adaptiveM ? "adaptive M, M_max" : "M", h.M);
+    std::printf(
+        "  OpenEXR's checker passed; %lld pixels and %lld sub-buffers decoded, every count "
+        "finite, integral, 0..2^24 and summing to the pixel's; %lld non-finite sub-buffer "
+        "means (allowed)\n",
+        (long long)r.pixels, (long long)r.subBuffers, (long long)r.nonFinite);
+    if (h.hasRecords) std::printf("  records: %lld samples decoded\n", (long long)r.records);
+    if (r.pajot) std::printf("  pajot, modes: decoded and checked\n");
     return true;
 }
 

@@ -1,4 +1,9 @@
 // mcstat: robust images from Monte Carlo statistics files. See `mcstat --help`.
 #include "cli.h"
+#include "mcstat/temp_file.h"
 
-int main(int argc, char** argv) { return mcstat::cli::run(argc, argv); }
+int main(int argc, char** argv) {
+    // Ctrl-C or a kill during a write removes the temporary file (the target is never touched).
+    mcstat::removeTemporariesOnSignals();
+    return mcstat::cli::run(argc, argv);
+}

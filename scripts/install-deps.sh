@@ -13,6 +13,7 @@ packages=(
   libgtest-dev libbenchmark-dev          # tests and benchmarks
   gnuplot-nox                            # mcstat --qualityplot draws its plot with gnuplot (pngcairo)
   fonts-dejavu-core                      # OIIO's render_text needs a font: DejaVuSans labels the review pictures
+  clang libclang-rt-14-dev               # scripts/fuzz.sh: libFuzzer and clang's ASan/UBSan runtimes
 )
 
 missing=()

@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -153,13 +154,18 @@ struct StatsImage {
     bool allocateAdaptive(const std::vector<uint32_t>& buffersPerPixel, std::string& err);
 };
 
-/// Limits for reading untrusted files, passed in (never global).
+/// Limits for reading untrusted files, passed in (never global). The defaults are what a desktop
+/// with 16 GB can afford: 8 GiB of decoded pixel data (a 3840 x 2160 file with M = 59, or
+/// 7680 x 4320 with M = 10; streamed operations hold only blocks of it), 2^28 pixels and 2^30 deep
+/// samples. Before any of it is allocated the reader also checks the claims against the file
+/// itself (FORMAT.md, validation step 10), so a small file cannot claim a large image.
 struct ReadLimits {
     int64_t maxPixels = int64_t(1) << 28;  ///< width * height
     int maxBuffers = kMaxBuffers;          ///< M
-    int64_t maxBytes = int64_t(16) << 30;  ///< total bytes of pixel data to allocate
+    /// Total bytes of decoded pixel data the file's headers claim (whole-file reads allocate it).
+    int64_t maxBytes = int64_t(8) << 30;
     /// Adaptive M: total deep samples (sum of m_p) of part "vbuffers"; also bounded by maxBytes.
-    int64_t maxDeepSamples = int64_t(1) << 32;
+    int64_t maxDeepSamples = int64_t(1) << 30;
 };
 
 /// Writes `img` to `path` atomically: a temporary file in the same directory, renamed on success.
@@ -312,6 +318,28 @@ bool readAll(StatsBlockSource& src, StatsImage& img, std::string& err);
 /// Reads only the headers (cheap): what `mcstat --info` shows before loading pixels.
 bool readStatsHeader(const std::string& path, StatsHeader& hdr, std::string& err,
                      const ReadLimits& limits = ReadLimits());
+
+/// What checkStatsFile looked at.
+struct StatsCheckReport {
+    StatsHeader header;
+    int64_t pixels = 0;
+    int64_t subBuffers = 0;       ///< pixels * M, or with adaptive M the deep samples of vbuffers
+    int64_t nonFinite = 0;        ///< NaN or Inf sub-buffer means (allowed: FORMAT.md)
+    int64_t records = 0;          ///< samples of part records (0 without it)
+    bool pajot = false;           ///< parts pajot and modes were read
+    bool openexrChecked = false;  ///< OpenEXR's own checker (exrcheck's) ran and passed
+};
+
+/// Validates the statistics file `path` completely, as exrcheck does for any OpenEXR file and
+/// more (`mcstat f --check`): the headers and chunk table (as readStatsHeader), OpenEXR's own
+/// checker (Imf::checkOpenEXRFile, in its reduced-memory mode), then every row of every part
+/// decoded by blocks with every count checked (finite, integral, 0..2^24, the buffer counts of a
+/// pixel summing to its count), part records by blocks and parts pajot and modes. Memory follows
+/// the blocks, not the image. `progress` (0..1) is called between blocks when set. False with the
+/// first problem as one line naming the file.
+bool checkStatsFile(const std::string& path, StatsCheckReport& report, std::string& err,
+                    const ReadLimits& limits = ReadLimits(), int nthreads = 0,
+                    const std::function<void(double)>& progress = {});
 
 /// Checks the in-memory invariants (sizes, adaptive buffer offsets, counts finite, non-negative and
 /// integral, buffer counts summing to the moments count). `what` names the source in the message.

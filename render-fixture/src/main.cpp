@@ -22,6 +22,7 @@
 #include "mcstat/render/scene.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
+#include "mcstat/temp_file.h"
 
 namespace {
 
@@ -68,11 +69,9 @@ bool parseSeed(const std::string& text, uint64_t& out, std::string& err,
 bool writeReferenceExr(const std::string& path, int width, int height,
                        const std::vector<float>& rgb, uint64_t seed, int64_t spp,
                        std::string& err) {
-    namespace fs = std::filesystem;
-    const fs::path target(path);
     // OIIO picks the writer by extension, so the temporary keeps ".exr" at the end.
-    const fs::path tmp =
-        target.parent_path() / fmt::format(".{}.tmp{}.exr", target.filename().string(), getpid());
+    if (!mcstat::checkOutputTarget(path, err)) return false;
+    mcstat::TemporaryFile tmp(path, ".exr");
     auto out = OIIO::ImageOutput::create("openexr");
     if (!out) {
         err = path + ": cannot create an OpenEXR writer: " + OIIO::geterror();
@@ -84,20 +83,12 @@ bool writeReferenceExr(const std::string& path, int width, int height,
     spec.attribute("mcstat:seeds", std::to_string(seed));
     spec.attribute("mcstat:spp", std::to_string(spp));
     spec.attribute("oiio:ColorSpace", "lin_rec709");
-    if (!out->open(tmp.string(), spec) || !out->write_image(OIIO::TypeDesc::FLOAT, rgb.data()) ||
+    if (!out->open(tmp.path(), spec) || !out->write_image(OIIO::TypeDesc::FLOAT, rgb.data()) ||
         !out->close()) {
         err = path + ": " + out->geterror();
-        std::error_code ec;
-        fs::remove(tmp, ec);
-        return false;
+        return false;  // tmp removes the partial file
     }
-    std::error_code ec;
-    fs::rename(tmp, target, ec);
-    if (ec) {
-        err = path + ": cannot rename the temporary file: " + ec.message();
-        fs::remove(tmp, ec);
-        return false;
-    }
+    if (!tmp.commit(err)) return false;
     return true;
 }
 
@@ -122,6 +113,8 @@ class Stopwatch {
 }  // namespace
 
 int main(int argc, const char** argv) {
+    // Ctrl-C or a kill removes the temporary files of the output (the target is never touched).
+    mcstat::removeTemporariesOnSignals();
     std::string sceneName = "default", outPath, sppText = "64", mText = "8", seedText = "1",
                 threadsText = "0", resW, resH, mMaxText = std::to_string(kDefaultMaxBuffers),
                 pilotText = "0", checkpointText = "0", strategyText = "grow",
@@ -264,6 +257,12 @@ int main(int argc, const char** argv) {
         return 0;
     }
     if (outPath.empty()) return fail("no output given (-o OUT); see --help");
+    // Before hours of rendering: a target the write would refuse (a directory, /dev/null, a
+    // read-only file, a missing directory) fails now.
+    {
+        std::string err;
+        if (!mcstat::checkOutputTarget(outPath, err)) return fail(err);
+    }
 
     RenderOptions opt;
     std::string err;

@@ -7,6 +7,7 @@
 #include <OpenEXR/ImfTileDescriptionAttribute.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <limits>
 
@@ -338,6 +339,65 @@ TEST_F(Corrupt, AbsurdSizeIsRejectedWithoutAllocating) {
     EXPECT_EQ(err, path +
                        ": truncated or corrupt (header: Invalid data window (0, 0 - 1073741823, "
                        "1073741823))");
+}
+
+/// Reads `path` expecting a rejection that mentions `what`; the message is one line naming the
+/// file, and it comes from the headers (readStatsHeader gives the same), so nothing the claim
+/// sized was allocated.
+void expectHeaderRejection(const std::string& path, const std::string& what) {
+    StatsImage out;
+    std::string err, herr;
+    EXPECT_FALSE(readStatsFile(path, out, err));
+    EXPECT_EQ(err.rfind(path + ": ", 0), 0u) << err;
+    EXPECT_EQ(err.find('\n'), std::string::npos) << err;
+    EXPECT_TRUE(contains(err, what)) << err;
+    EXPECT_TRUE(out.count.empty() && out.bufferMean.empty());
+    StatsHeader hdr;
+    EXPECT_FALSE(readStatsHeader(path, hdr, herr));
+    EXPECT_EQ(herr, err);
+    StatsFileReader reader;
+    EXPECT_FALSE(reader.open(path, herr));
+    EXPECT_EQ(herr, err);
+}
+
+// Issue 12: a 52 KB file claiming 24 x 1,000,001 pixels cost 5.1 GB before it failed. The chunk
+// offset table cannot point inside the file for rows it does not hold.
+TEST_F(Corrupt, TallClaimOfASmallFileIsRejectedBeforeAllocating) {
+    img = renderImage(24, 16, 3, 5, [](int x, int y) { return 1 + (x + y) % 3; });
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path, img, err)) << err;
+    std::vector<unsigned char> bytes = readBytes(path);
+    patchBox(bytes, "dataWindow", 23, 1000000);
+    writeBytes(path, bytes);
+    expectHeaderRejection(
+        path, "no valid offset within the file's " + std::to_string(bytes.size()) + " bytes");
+}
+
+// As wide as the pixel limit allows but still one chunk per 16 rows: every offset is valid, so
+// it is the codec's ratio that gives the claim away (a ZIP chunk of a few hundred bytes cannot
+// hold 16 x 10^6 pixels).
+TEST_F(Corrupt, WideClaimBeyondTheCodecsRatioIsRejectedBeforeAllocating) {
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path, img, err)) << err;
+    std::vector<unsigned char> bytes = readBytes(path);
+    patchBox(bytes, "dataWindow", 999999, 3);
+    writeBytes(path, bytes);
+    expectHeaderRejection(path, "more than ZIP compression gives (1040:1)");
+}
+
+// Found by fuzzing (tests/fuzz/regressions): a string attribute claiming 1.8 GB in a 10 KB file.
+// OpenEXR's C++ reader allocates the claimed size before reading; the reader checks it first.
+TEST_F(Corrupt, AttributeSizeBeyondTheFileIsRejectedBeforeAllocating) {
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path, img, err)) << err;
+    std::vector<unsigned char> bytes = readBytes(path);
+    const std::string key = std::string("mcstat:renderer") + '\0' + "string" + '\0';
+    const auto at = std::search(bytes.begin(), bytes.end(), key.begin(), key.end());
+    ASSERT_NE(at, bytes.end());
+    const int32_t claim = 1828745984;
+    std::memcpy(&*(at + std::ptrdiff_t(key.size())), &claim, 4);  // little endian here
+    writeBytes(path, bytes);
+    expectHeaderRejection(path, "attribute 'mcstat:renderer' claims 1828745984 bytes");
 }
 
 }  // namespace

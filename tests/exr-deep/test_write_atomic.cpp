@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include "mcstat/stats_file.h"
+#include "mcstat/temp_file.h"
 #include "sample_accumulator.h"
 #include "test_support.h"
 
@@ -49,18 +50,34 @@ TEST(AtomicWrite, InvalidImageKeepsOldContentAndLeavesNoTempFile) {
     EXPECT_EQ(dir.entries(), std::vector<std::string>{"keep.mcstat"});
 }
 
-TEST(AtomicWrite, FailedRenameRemovesTheCompleteTempFile) {
-    // The target is a directory: the whole file gets written, then rename() fails (EISDIR).
+TEST(AtomicWrite, TargetThatIsADirectoryIsRefusedBeforeWriting) {
     ScratchDir dir;
     const std::string path = dir.file("sub");
     std::filesystem::create_directory(path);
     writeBytes(path + "/inside", {1, 2, 3});
     std::string err;
     EXPECT_FALSE(writeStatsFile(path, smallImage(), err));
-    EXPECT_EQ(err.rfind(path + ": cannot write (cannot rename ", 0), 0u) << err;
-    EXPECT_TRUE(contains(err, "Is a directory")) << err;
+    EXPECT_EQ(err, path + ": is a directory");
     EXPECT_EQ(dir.entries(), std::vector<std::string>{"sub"});
     EXPECT_EQ(readBytes(path + "/inside"), (std::vector<unsigned char>{1, 2, 3}));
+}
+
+TEST(AtomicWrite, FailedRenameRemovesTheCompleteTempFile) {
+    // The target turns into a directory after the checks: the whole file gets written, then
+    // rename() fails (EISDIR) and the temporary goes.
+    ScratchDir dir;
+    const std::string path = dir.file("late");
+    std::string err;
+    {
+        TemporaryFile tmp(path);
+        writeBytes(tmp.path(), {1, 2, 3});
+        std::filesystem::create_directory(path);
+        writeBytes(path + "/inside", {4});
+        EXPECT_FALSE(tmp.commit(err));
+    }
+    EXPECT_EQ(err.rfind(path + ": cannot rename ", 0), 0u) << err;
+    EXPECT_TRUE(contains(err, "Is a directory")) << err;
+    EXPECT_EQ(dir.entries(), std::vector<std::string>{"late"});
 }
 
 TEST(AtomicWrite, ParentIsAFile) {
@@ -69,7 +86,7 @@ TEST(AtomicWrite, ParentIsAFile) {
     const std::string path = dir.file("plain/x.mcstat");
     std::string err;
     EXPECT_FALSE(writeStatsFile(path, smallImage(), err));
-    EXPECT_EQ(err.rfind(path + ": cannot create temporary file ", 0), 0u) << err;
+    EXPECT_EQ(err.rfind(path + ": cannot write into ", 0), 0u) << err;
     EXPECT_TRUE(contains(err, "Not a directory")) << err;
     EXPECT_EQ(dir.entries(), std::vector<std::string>{"plain"});
 }
