@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # scripts/fuzz.sh [SECONDS] [TARGET...]: builds the libFuzzer targets (tests/fuzz/) with clang under
 # ASan+UBSan in $BUILD (default build-fuzz) and runs each for SECONDS (default 60) of wall time,
-# $JOBS at once (default: the number of cores), starting from the seed corpus tests/fuzz/corpus/T
+# $JOBS at once (default: all of them, sharing the cores), starting from the seed corpus tests/fuzz/corpus/T
 # and the inputs earlier runs kept ($BUILD/corpus/T). Any finding (crash, leak, timeout, out of
 # memory, a broken contract) is saved under $BUILD/findings/T/ and makes the script fail. Each run
 # appends one line to $BUILD/fuzz-ledger.tsv (date, target, wall and CPU seconds, executions,
@@ -15,7 +15,7 @@ shift || true
 targets=("$@")
 [ ${#targets[@]} -eq 0 ] && targets=(stats_file stats_stream records scene plugin)
 build=${BUILD:-build-fuzz}
-jobs=${JOBS:-$(nproc)}
+jobs=${JOBS:-${#targets[@]}}
 
 command -v clang++ >/dev/null || { echo "fuzz: clang++ is missing (scripts/install-deps.sh)" >&2; exit 1; }
 fuzz_names=()
@@ -34,7 +34,7 @@ run_one() {
   ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=0 UBSAN_OPTIONS=print_stacktrace=1 \
     /usr/bin/time -o "$build/logs/$t.time" -f '%U %S' \
     nice -n "${NICE:-0}" "$build/tests/fuzz/fuzz_$t" -max_total_time="$seconds" -timeout=30 \
-    -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$findings/" \
+    -rss_limit_mb="${RSS_MB:-3072}" -malloc_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$findings/" \
     "$corpus" "tests/fuzz/corpus/$t" >"$log" 2>&1 || rc=$?
   local execs cov ft found cpu
   cpu=$(awk '/^[0-9.]+ [0-9.]+$/ { printf "%.0f", $1 + $2 }' "$build/logs/$t.time")

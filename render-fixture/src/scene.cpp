@@ -3,6 +3,7 @@
 #include "mcstat/render/scene.h"
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <initializer_list>
 #include <map>
@@ -291,8 +292,39 @@ bool parseShapes(Reader& r, const json& root, const std::map<std::string, int>& 
 
 }  // namespace
 
+namespace {
+
+bool parseSceneText(const std::string& jsonText, const std::string& source, Scene& scene,
+                    std::string& err);
+
+/// A message on one line: control characters a JSON string may hold (an escaped "\n" in a key
+/// the message quotes) are shown as \xNN. Found by fuzzing.
+std::string escapeControls(const std::string& s) {
+    std::string out;
+    for (const char c : s) {
+        if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {
+            char hex[8];
+            std::snprintf(hex, sizeof hex, "\\x%02x", unsigned(static_cast<unsigned char>(c)));
+            out += hex;
+        } else
+            out += c;
+    }
+    return out;
+}
+
+}  // namespace
+
 bool parseScene(const std::string& jsonText, const std::string& source, Scene& scene,
                 std::string& err) {
+    const bool ok = parseSceneText(jsonText, source, scene, err);
+    if (!ok) err = escapeControls(err);
+    return ok;
+}
+
+namespace {
+
+bool parseSceneText(const std::string& jsonText, const std::string& source, Scene& scene,
+                    std::string& err) {
     json root;
     try {
         // Comments are allowed: scene files document themselves.
@@ -363,6 +395,8 @@ bool parseScene(const std::string& jsonText, const std::string& source, Scene& s
     scene = std::move(s);
     return true;
 }
+
+}  // namespace
 
 std::vector<std::string> builtinSceneNames() {
     std::vector<std::string> names;
