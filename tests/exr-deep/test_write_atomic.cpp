@@ -4,7 +4,11 @@
 #include <signal.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
 
 #include "mcstat/stats_file.h"
 #include "mcstat/temp_file.h"
@@ -131,6 +135,59 @@ TEST(AtomicWrite, DiskFullRemovesTempFileAndKeepsTarget) {
     EXPECT_TRUE(contains(err, "too large")) << err;  // strerror(EFBIG): "File too large"
     EXPECT_EQ(readBytes(path), before);
     EXPECT_EQ(dir.entries(), std::vector<std::string>{"full.mcstat"});
+}
+
+/// The pid of a process that has ended (forked, exited and reaped).
+long deadPid() {
+    const pid_t pid = ::fork();
+    if (pid == 0) ::_exit(0);
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    return long(pid);
+}
+
+// Which leftovers a write removes: ours (this host) of processes that are gone; never another
+// host's, a live process's, another target's, or a recent one of a former naming without a host.
+TEST(AtomicWrite, StaleTemporariesOfThisHostsDeadProcessesAreRemoved) {
+    ScratchDir dir;
+    const std::string target = dir.file("t.exr");
+    std::string host;
+    {
+        const TemporaryFile probe(target);
+        const std::string name = std::filesystem::path(probe.path()).filename().string();
+        // ".t.exr.tmp-<pid>-<hex>-<host>"
+        host = name.substr(name.find('-', name.find('-', name.find(".tmp-") + 5) + 1) + 1);
+    }
+    ASSERT_FALSE(host.empty());
+    const long dead = deadPid(), alive = long(::getpid());
+    auto make = [&](const std::string& name, bool old) {
+        writeBytes(dir.file(name), {1});
+        if (old) {
+            const auto t = std::filesystem::file_time_type::clock::now() - std::chrono::hours(2);
+            std::filesystem::last_write_time(dir.file(name), t);
+        }
+    };
+    const std::string d = std::to_string(dead), a = std::to_string(alive);
+    make(".t.exr.tmp-" + d + "-0badcafe-" + host, false);               // removed
+    make(".t.exr.tmp-" + d + "-0badcafe-" + host + ".records", false);  // removed
+    make(".t.exr.tmp-" + d + "-0badcafe-" + host + "x", false);         // another host
+    make(".t.exr.tmp-" + d + "-0badcafe-otherhost", false);             // another host
+    make(".t.exr.tmp-" + a + "-0badcafe-" + host, false);               // alive
+    make(".u.exr.tmp-" + d + "-0badcafe-" + host, false);               // another target
+    make(".t.exr.tmp-" + d, true);                                      // former, old: removed
+    make(".t.exr.tmp-" + d + "-0badcafe", true);                        // former, old: removed
+    make(".t.exr.tmp" + d + ".exr", true);                              // former renderer's
+    make(".t.exr.tmp-" + d + "-0badcafe.records", false);               // former, recent
+    make("t.exr.tmp-" + d, true);                                       // not hidden: not ours
+    EXPECT_EQ(removeStaleTemporaries(target), 5);
+    const std::vector<std::string> left = {
+        ".t.exr.tmp-" + a + "-0badcafe-" + host,   ".t.exr.tmp-" + d + "-0badcafe-" + host + "x",
+        ".t.exr.tmp-" + d + "-0badcafe-otherhost", ".t.exr.tmp-" + d + "-0badcafe.records",
+        ".u.exr.tmp-" + d + "-0badcafe-" + host,   "t.exr.tmp-" + d,
+    };
+    std::vector<std::string> expected = left;
+    std::sort(expected.begin(), expected.end());
+    EXPECT_EQ(dir.entries(), expected);
 }
 
 }  // namespace
