@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -683,6 +684,67 @@ TEST_F(PluginApi, OpenReportsErrorsWithoutThrowing) {
     // The file name wins over the configuration.
     ASSERT_TRUE(in2->open(stats + "?estimator=mon", spec, config) == false);
     EXPECT_TRUE(contains(in2->geterror(), "estimator 'mon' has no parameter 'gamma'"));
+}
+
+/// Sets the data window's maximum of every part to (maxX, maxY) in the bytes of a file.
+std::string patchDataWindow(std::string bytes, int32_t maxX, int32_t maxY) {
+    const std::string key = std::string("dataWindow") + '\0' + "box2i" + '\0';
+    for (size_t at = bytes.find(key); at != std::string::npos; at = bytes.find(key, at + 1)) {
+        std::memcpy(&bytes[at + key.size() + 4 + 8], &maxX, 4);  // little endian here
+        std::memcpy(&bytes[at + key.size() + 4 + 12], &maxY, 4);
+    }
+    return bytes;
+}
+
+// Issue 12: the plugin meets the malformed files mcstat was tried with. Each is refused, through
+// the API (open or read fails, one line naming the file) and through stock oiiotool (exit status
+// 1, not a crash): the fuzzers' saved findings, claims of sizes the file cannot hold, and cuts.
+TEST_F(PluginApi, MalformedFilesAreRefusedWithOneLineNamingTheFile) {
+    const std::string bytes = slurp(stats);
+    std::vector<std::string> files;
+    for (const char* t : {"stats_file", "records"}) {
+        const std::string regressions =
+            std::string(MCSTAT_SOURCE_DIR) + "/tests/fuzz/regressions/" + t;
+        for (const auto& e : std::filesystem::directory_iterator(regressions)) {
+            const std::string f = path(std::string(t) + "-" + e.path().filename().string());
+            std::filesystem::copy_file(e.path(), f);
+            files.push_back(f);
+        }
+    }
+    auto add = [&](const std::string& name, const std::string& content) {
+        std::ofstream(path(name), std::ios::binary) << content;
+        files.push_back(path(name));
+    };
+    add("tall.mcstat", patchDataWindow(bytes, 15, 1000000));
+    add("wide.mcstat", patchDataWindow(bytes, 999999, 15));
+    for (int k = 1; k < 8; ++k)
+        add("cut" + std::to_string(k) + ".mcstat", bytes.substr(0, bytes.size() * size_t(k) / 8));
+    add("empty.mcstat", "");
+
+    for (const std::string& f : files) {
+        // create() itself refuses what valid_file() rejects (an empty file), with the reason.
+        auto in = OIIO::ImageInput::create(f, false);
+        std::string err;
+        if (!in) {
+            err = OIIO::geterror();
+        } else {
+            EXPECT_STREQ(in->format_name(), "mcstat");
+            OIIO::ImageSpec spec;
+            if (in->open(f, spec)) {  // headers fine: the pixels are not
+                std::vector<float> px(size_t(spec.image_pixels()) * size_t(spec.nchannels));
+                EXPECT_FALSE(in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeFloat, px.data()))
+                    << f;
+            }
+            err = in->geterror();
+        }
+        EXPECT_TRUE(contains(err, f + ": ")) << f << " -> " << err;
+        EXPECT_EQ(err.find('\n'), std::string::npos) << err;
+
+        const Result r = run("oiiotool " + quote(f) + " -o " + quote(path("x.exr")));
+        EXPECT_EQ(r.code, 1) << f << " -> " << r.err;
+        EXPECT_TRUE(contains(r.err, f)) << r.err;
+        EXPECT_FALSE(OIIO::Filesystem::exists(path("x.exr")));
+    }
 }
 
 }  // namespace
