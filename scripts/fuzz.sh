@@ -30,7 +30,9 @@ ledger="$build/fuzz-ledger.tsv"
 run_one() {
   local t=$1 corpus="$build/corpus/$1" findings="$build/findings/$1" log="$build/logs/$1.log"
   mkdir -p "$corpus" "$findings" "$build/logs"
-  local rc=0
+  local rc=0 before start
+  before=$(ls "$findings" | wc -l)
+  start=$(date +%s)
   ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=0 UBSAN_OPTIONS=print_stacktrace=1 \
     /usr/bin/time -o "$build/logs/$t.time" -f '%U %S' \
     nice -n "${NICE:-0}" "$build/tests/fuzz/fuzz_$t" -max_total_time="$seconds" -timeout=30 \
@@ -41,10 +43,11 @@ run_one() {
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
   cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
   ft=$(grep -o 'ft: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
-  found=$([ $rc -eq 0 ] && echo 0 || echo 1)
-  printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$(date -u +%FT%TZ)" "$t" "$seconds" "${cpu:-0}" "${execs:-0}" \
+  # A finding is an input saved; an interrupted run (Ctrl-C) saves none and is not one.
+  found=$(($(ls "$findings" | wc -l) - before))
+  printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$(date -u +%FT%TZ)" "$t" "$(($(date +%s) - start))" "${cpu:-0}" "${execs:-0}" \
     "${cov:-0}" "${ft:-0}" "$found" >>"$ledger"
-  if [ $rc -ne 0 ]; then
+  if [ "$found" -gt 0 ] || { [ $rc -ne 0 ] && [ $rc -ne 130 ] && [ $rc -ne 72 ]; }; then
     echo "fuzz: $t: FINDING (exit $rc); log $log, inputs in $findings/:" >&2
     grep -m5 -E 'ERROR|contract broken|SUMMARY|runtime error' "$log" >&2 || tail -5 "$log" >&2
     return 1
