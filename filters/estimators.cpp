@@ -95,6 +95,17 @@ void weightedAverage(const PixelBuffers& px, const EstimatorScratch& s, int lo, 
     for (int c = c0; c < c1; ++c) out.rgb[c] = float(sum[c] / w);
 }
 
+/// The weights of a luminance-mode estimate that averaged ranks [lo, hi) of s.order with counts as
+/// weights: w_j = n_j / sum n over those buffers, 0 for the others (EstimatorScratch::wantWeights).
+void rankWeights(const PixelBuffers& px, EstimatorScratch& s, int lo, int hi) {
+    s.bufferWeight.assign(size_t(px.M), 0.0);
+    double w = 0.0;
+    for (int r = lo; r < hi; ++r) w += double(px.count[s.order[r]]);
+    if (!(w > 0.0)) return;
+    for (int r = lo; r < hi; ++r)
+        s.bufferWeight[size_t(s.order[r])] = double(px.count[s.order[r]]) / w;
+}
+
 /// gmonTrim for G in [0, 1] (giniSorted's range): there k - (1 - G) k >= 0 (1 - G <= 1 and the
 /// product rounds monotonically), so the conversion to int truncates exactly as floor would, and
 /// the call to floor (not inlined without SSE4.1) is saved. Same value as gmonTrim.
@@ -156,6 +167,7 @@ void reduceGeneral(const PixelBuffers& px, const EstimatorParams& p, PixelEstima
         }
         const int c = trimFor(policy, G, Mv, p);
         weightedAverage(px, s, c, Mv - c, 0, 3, out);
+        if (s.wantWeights) rankWeights(px, s, c, Mv - c);
         out.gini.fill(float(G));
         out.kept.fill(Mv - 2 * c);
         return;
@@ -586,6 +598,28 @@ void meanOnePass(const PixelBuffers& px, PixelEstimate& out) {
 
 void reduce(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
             EstimatorScratch& s, Policy policy) {
+    if (s.wantWeights) {
+        // Weights wanted (AOVs): the general path, which keeps its ranking in s.order. It gives
+        // the fast path's bits (tests/estimators/test_bit_identity.cpp), so the beauty does not
+        // change with AOVs present; the AOVs cost one weighted sum each, not a ranking.
+        s.bufferWeight.clear();
+        if (policy == Policy::Mean) {
+            meanOnePass(px, out);
+            if (out.kept[0] == 0) {
+                s.bufferWeight.assign(size_t(px.M), 0.0);
+                return;
+            }
+            int excluded = 0;
+            const int Mv = collectValidBuffers(px, s.order, excluded);
+            rankWeights(px, s, 0, Mv);
+            return;
+        }
+        reduceGeneral(px, p, out, s, policy);
+        if (p.mode == EstimatorMode::Luminance && s.bufferWeight.empty())
+            s.bufferWeight.assign(size_t(px.M), 0.0);  // no valid buffer: black, no weight
+        if (p.mode != EstimatorMode::Luminance) s.bufferWeight.clear();
+        return;
+    }
     if (policy == Policy::Mean) return meanOnePass(px, out);
     if (px.M <= kSmallM && reduceSmall(px, p, out, policy)) return;
     reduceGeneral(px, p, out, s, policy);

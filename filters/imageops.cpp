@@ -3,9 +3,12 @@
 
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imagebufalgo_util.h>
+#include <OpenImageIO/strutil.h>
 
 #include <algorithm>
+#include <atomic>
 
+#include "mcstat/aov_weights.h"
 #include "mcstat/color.h"
 #include "mcstat/sample_records.h"
 
@@ -41,6 +44,91 @@ void fillRGB(ImageBuf& dst, ROI roi, int nthreads, PixelFn pixel) {
 
 }  // namespace
 
+OIIO::ROI displayWindowROI(const StatsHeader& h) {
+    if (h.displayWidth <= 0 || h.displayHeight <= 0) return dataWindowROI(h);
+    return OIIO::ROI(h.displayX, h.displayX + h.displayWidth, h.displayY,
+                     h.displayY + h.displayHeight);
+}
+
+void setWindows(ImageSpec& spec, ROI roi, const StatsHeader& h) {
+    spec.x = roi.xbegin;
+    spec.y = roi.ybegin;
+    const ROI disp = displayWindowROI(h);
+    spec.full_x = disp.xbegin;
+    spec.full_y = disp.ybegin;
+    spec.full_width = disp.width();
+    spec.full_height = disp.height();
+}
+
+std::vector<std::string> aovOutputChannels(const StatsHeader& h) {
+    std::vector<std::string> names;
+    for (const AovChannel& c : h.aovs) names.push_back(c.name);
+    return names;
+}
+
+int aovAlphaChannel(const StatsHeader& h, size_t firstAov) {
+    for (size_t a = 0; a < h.aovs.size(); ++a)
+        if (h.aovs[a].cls == AovClass::Alpha) return int(firstAov + a);
+    return -1;
+}
+
+void setAovAttributes(ImageSpec& spec, const StatsHeader& h, size_t firstAov) {
+    if (h.aovs.empty()) return;
+    std::string classes;
+    for (const AovChannel& a : h.aovs)
+        classes += (classes.empty() ? "" : ",") + std::string(aovClassName(a.cls));
+    spec.attribute(kAttrFirstAov, int(firstAov));
+    spec.attribute(kAttrAovClasses, classes);
+}
+
+namespace {
+
+/// The AOV channels an image carries (setAovAttributes), or false when it carries none.
+bool imageAovs(const ImageSpec& spec, int& first, std::vector<AovClass>& classes) {
+    first = spec.get_int_attribute(kAttrFirstAov, -1);
+    const std::string text = spec.get_string_attribute(kAttrAovClasses);
+    classes.clear();
+    for (const std::string& t : OIIO::Strutil::splits(text, ",")) {
+        AovClass c;
+        if (!parseAovClass(t, c)) return false;
+        classes.push_back(c);
+    }
+    return first >= 3 && !classes.empty() &&
+           size_t(first) + classes.size() == size_t(spec.nchannels);
+}
+
+/// An AOV-carrying result: `names` (R, G, B, AOVs) and spec attributes for region `roi`.
+ImageSpec aovResultSpec(ROI roi, const StatsHeader& h, const std::string& colorSpace) {
+    std::vector<std::string> names = {"R", "G", "B"};
+    for (const std::string& n : aovOutputChannels(h)) names.push_back(n);
+    ImageSpec spec(roi.width(), roi.height(), int(names.size()), TypeDesc::FLOAT);
+    setWindows(spec, roi, h);
+    spec.channelnames = names;
+    spec.alpha_channel = aovAlphaChannel(h, 3);
+    spec.z_channel = -1;
+    setAovAttributes(spec, h, 3);
+    spec.attribute("oiio:ColorSpace", colorSpace);
+    return spec;
+}
+
+/// Gathers the weighted elements of a filtered pixel into `w`, `values` (A floats each) and
+/// applies them (applyAovWeights). `aovOf(element, buffer)` points at an element's A values.
+template <class AovOf>
+void applyElementWeights(const SpatialScratch& s, size_t A, const AovClass* classes, AovOf aovOf,
+                         std::vector<double>& w, std::vector<float>& values, AovScratch& as,
+                         float* out) {
+    w.clear();
+    values.clear();
+    for (const auto& e : s.weights) {
+        w.push_back(e.weight);
+        const float* v = aovOf(e.element, e.buffer);
+        values.insert(values.end(), v, v + A);
+    }
+    applyAovWeights(w.data(), w.size(), values.data(), A, classes, out, as);
+}
+
+}  // namespace
+
 std::vector<std::string> estimatorChannels(EstimatorMode mode, bool diagnostics) {
     std::vector<std::string> names = {"R", "G", "B"};
     if (!diagnostics) return names;
@@ -65,15 +153,32 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
                      why);
         return false;
     }
-    const std::vector<std::string> names = estimatorChannels(params.mode, diagnostics);
+    // AOVs (docs/aovs.md): the estimator's buffer weights, from the beauty, applied to every AOV.
+    const size_t A = h.aovs.size();
+    if (A > 0) {
+        if (h.adaptiveM || src.aov.size() != src.pixelCount() * size_t(h.M) * A) {
+            dst.errorfmt("estimate {}: statistics image has {} AOV values for {} AOV channels",
+                         est.name, src.aov.size(), A);
+            return false;
+        }
+        if (params.mode != EstimatorMode::Luminance) {
+            dst.errorfmt(
+                "{}: mode=channel ranks R, G and B separately, so no one weight per sub-buffer "
+                "exists to apply to the file's {} AOV channels (they would stop adding up to the "
+                "beauty); use mode=lum (the default)",
+                est.name, A);
+            return false;
+        }
+    }
+    std::vector<std::string> names = estimatorChannels(params.mode, diagnostics);
+    const size_t firstAov = names.size();
+    for (const std::string& n : aovOutputChannels(h)) names.push_back(n);
+    const std::vector<AovClass> classes = aovClasses(h.aovs);
     ImageSpec spec(roi.width(), roi.height(), int(names.size()), TypeDesc::FLOAT);
-    spec.x = roi.xbegin;
-    spec.y = roi.ybegin;
-    spec.full_x = full.xbegin;
-    spec.full_y = full.ybegin;
-    spec.full_width = full.width();
-    spec.full_height = full.height();
+    setWindows(spec, roi, h);
     spec.channelnames = names;
+    spec.alpha_channel = aovAlphaChannel(h, firstAov);
+    setAovAttributes(spec, h, firstAov);
     spec.attribute("mcstat:estimator", est.name);
     spec.attribute("oiio:ColorSpace", h.colorSpace);
     dst.reset(spec, OIIO::InitializePixels::No);
@@ -81,8 +186,11 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
     // Written straight into the local float buffer: ImageBuf::setpixel converts per call.
     float* const base = static_cast<float*>(dst.localpixels());
     const size_t nch = names.size();
+    std::atomic<bool> noWeights{false};
     OIIO::ImageBufAlgo::parallel_image(roi, nthreads, [&](ROI r) {
         EstimatorScratch scratch;
+        scratch.wantWeights = A > 0;
+        AovScratch aovScratch;
         PixelEstimate e;
         for (int y = r.ybegin; y < r.yend; ++y)
             for (int x = r.xbegin; x < r.xend; ++x) {
@@ -91,6 +199,16 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
                 float* px =
                     base +
                     (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
+                if (A > 0) {
+                    if (scratch.bufferWeight.size() != size_t(h.M)) {
+                        noWeights = true;
+                        std::fill(px + firstAov, px + nch, 0.f);
+                    } else {
+                        applyAovWeights(scratch.bufferWeight.data(), size_t(h.M),
+                                        src.aov.data() + p * size_t(h.M) * A, A, classes.data(),
+                                        px + firstAov, aovScratch);
+                    }
+                }
                 px[0] = e.rgb[0];
                 px[1] = e.rgb[1];
                 px[2] = e.rgb[2];
@@ -109,6 +227,11 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
                 }
             }
     });
+    if (noWeights) {
+        dst.errorfmt("estimate {}: the estimator gives no buffer weights, so it cannot carry AOVs",
+                     est.name);
+        return false;
+    }
     return true;
 }
 
@@ -158,10 +281,70 @@ bool medianImageFilter(ImageBuf& dst, const ImageBuf& src, const SpatialParams& 
         return false;
     }
     std::string colorSpace = src.spec().get_string_attribute("oiio:ColorSpace", "lin_rec709");
-    dst.reset(rgbSpec(roi, src.roi_full(), colorSpace), OIIO::InitializePixels::No);
     const RGBImageView view{in.data(), full.width(), full.height()};
-    fillRGB(dst, roi, nthreads, [&](int x, int y, PixelEstimate& e, SpatialScratch& scratch) {
-        wmifPixel(view, x - full.xbegin, y - full.ybegin, params, e, scratch);
+    int firstAov = 0;
+    std::vector<AovClass> classes;
+    if (!imageAovs(src.spec(), firstAov, classes)) {
+        dst.reset(rgbSpec(roi, src.roi_full(), colorSpace), OIIO::InitializePixels::No);
+        fillRGB(dst, roi, nthreads, [&](int x, int y, PixelEstimate& e, SpatialScratch& scratch) {
+            wmifPixel(view, x - full.xbegin, y - full.ybegin, params, e, scratch);
+        });
+        return true;
+    }
+    // AOVs (docs/aovs.md): the window pixels' weights, from the beauty, applied to each.
+    if (params.mode != EstimatorMode::Luminance) {
+        dst.errorfmt(
+            "median image filter: mode=channel keeps different pixels for R, G and B, so no one "
+            "weight per pixel exists for the image's {} AOV channels; use mode=lum",
+            classes.size());
+        return false;
+    }
+    const size_t A = classes.size(), nch = size_t(src.nchannels());
+    std::vector<float> all(size_t(full.width()) * size_t(full.height()) * nch);
+    if (!src.get_pixels(full, TypeDesc::FLOAT, all.data())) {
+        dst.errorfmt("median image filter: {}", src.geterror());
+        return false;
+    }
+    ImageSpec spec = rgbSpec(roi, src.roi_full(), colorSpace);
+    spec.nchannels = int(3 + A);
+    spec.channelnames.resize(3);
+    spec.channelformats.clear();
+    for (size_t a = 0; a < A; ++a)
+        spec.channelnames.push_back(src.spec().channelnames[size_t(firstAov) + a]);
+    spec.alpha_channel = -1;
+    for (size_t a = 0; a < A; ++a)
+        if (classes[a] == AovClass::Alpha) spec.alpha_channel = int(3 + a);
+    spec.z_channel = -1;
+    spec.attribute(kAttrFirstAov, 3);
+    spec.attribute(kAttrAovClasses, src.spec().get_string_attribute(kAttrAovClasses));
+    dst.reset(spec, OIIO::InitializePixels::No);
+    float* const base = static_cast<float*>(dst.localpixels());
+    const size_t onch = 3 + A;
+    OIIO::ImageBufAlgo::parallel_image(roi, nthreads, [&](ROI r) {
+        SpatialScratch scratch;
+        scratch.wantWeights = true;
+        PixelEstimate e;
+        AovScratch as;
+        std::vector<double> w;
+        std::vector<float> values;
+        for (int y = r.ybegin; y < r.yend; ++y)
+            for (int x = r.xbegin; x < r.xend; ++x) {
+                wmifPixel(view, x - full.xbegin, y - full.ybegin, params, e, scratch);
+                float* px =
+                    base +
+                    (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * onch;
+                px[0] = e.rgb[0];
+                px[1] = e.rgb[1];
+                px[2] = e.rgb[2];
+                applyElementWeights(
+                    scratch, A, classes.data(),
+                    [&](int element, int) {
+                        const auto [xx, yy] = scratch.source[size_t(element)];
+                        return all.data() + (size_t(yy) * size_t(full.width()) + size_t(xx)) * nch +
+                               size_t(firstAov);
+                    },
+                    w, values, as, px + 3);
+            }
     });
     return true;
 }
@@ -189,7 +372,27 @@ bool filter3D(ImageBuf& dst, const StatsImage& src, const SpatialParams& params,
     const ROI full = dataWindowROI(h);
     if (!roi.defined()) roi = full;
     roi = OIIO::roi_intersection(roi, full);
-    dst.reset(rgbSpec(roi, full, h.colorSpace), OIIO::InitializePixels::No);
+    const size_t A = h.aovs.size();
+    if (A > 0) {
+        if (h.adaptiveM || src.aov.size() != src.pixelCount() * size_t(h.M) * A) {
+            dst.errorfmt("3D filter: statistics image has {} AOV values for {} AOV channels",
+                         src.aov.size(), A);
+            return false;
+        }
+        if (params.mode != EstimatorMode::Luminance) {
+            dst.errorfmt(
+                "3D filter: mode=channel keeps different sub-buffers for R, G and B, so no one "
+                "weight per sub-buffer exists for the file's {} AOV channels (they would stop "
+                "adding up to the beauty); use mode=lum",
+                A);
+            return false;
+        }
+        dst.reset(aovResultSpec(roi, h, h.colorSpace), OIIO::InitializePixels::No);
+    } else {
+        ImageSpec spec = rgbSpec(roi, full, h.colorSpace);
+        setWindows(spec, roi, h);
+        dst.reset(spec, OIIO::InitializePixels::No);
+    }
     // Adaptive M: a pixel's M_p buffers hold n / M_p samples each next to one-buffer pixels of n,
     // so every sample votes once (BufferVotes::PerSample); fixed M: one vote per buffer (eq. 5.19).
     const BufferView view{
@@ -218,8 +421,43 @@ bool filter3D(ImageBuf& dst, const StatsImage& src, const SpatialParams& params,
                 grid.sortRect(r.xbegin - h.originX, r.ybegin - h.originY, r.xend - h.originX,
                               r.yend - h.originY, scratch);
             });
-    fillRGB(dst, roi, nthreads, [&](int x, int y, PixelEstimate& e, SpatialScratch& scratch) {
-        grid.filterPixel(x - h.originX, y - h.originY, e, scratch);
+    if (A == 0) {
+        fillRGB(dst, roi, nthreads, [&](int x, int y, PixelEstimate& e, SpatialScratch& scratch) {
+            grid.filterPixel(x - h.originX, y - h.originY, e, scratch);
+        });
+        return true;
+    }
+    // AOVs (docs/aovs.md): every (window pixel, sub-buffer) keeps the weight it had in the
+    // beauty's trimmed average.
+    const std::vector<AovClass> classes = aovClasses(h.aovs);
+    float* const base = static_cast<float*>(dst.localpixels());
+    const size_t nch = 3 + A;
+    OIIO::ImageBufAlgo::parallel_image(roi, nthreads, [&](ROI r) {
+        SpatialScratch scratch;
+        scratch.wantWeights = true;
+        PixelEstimate e;
+        AovScratch as;
+        std::vector<double> w;
+        std::vector<float> values;
+        for (int y = r.ybegin; y < r.yend; ++y)
+            for (int x = r.xbegin; x < r.xend; ++x) {
+                grid.filterPixel(x - h.originX, y - h.originY, e, scratch);
+                float* px =
+                    base +
+                    (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
+                px[0] = e.rgb[0];
+                px[1] = e.rgb[1];
+                px[2] = e.rgb[2];
+                applyElementWeights(
+                    scratch, A, classes.data(),
+                    [&](int list, int buffer) {
+                        const auto [xx, yy] = scratch.source[size_t(list)];
+                        const size_t k = (size_t(yy) * size_t(h.width) + size_t(xx)) * size_t(h.M) +
+                                         size_t(buffer);
+                        return src.aov.data() + k * A;
+                    },
+                    w, values, as, px + 3);
+            }
     });
     return true;
 }

@@ -72,10 +72,11 @@ bool forEachBlock(ImageBuf& dst, StatsBlockSource& reader, ROI roi, int halo, un
             ImageSpec spec = part.spec();
             spec.y = roi.ybegin;
             spec.height = roi.height();
-            spec.full_x = full.xbegin;
-            spec.full_y = full.ybegin;
-            spec.full_width = full.width();
-            spec.full_height = full.height();
+            const ROI disp = displayWindowROI(h);  // overscan: the render's display window
+            spec.full_x = disp.xbegin;
+            spec.full_y = disp.ybegin;
+            spec.full_width = disp.width();
+            spec.full_height = disp.height();
             dst.reset(spec, OIIO::InitializePixels::No);
         }
         const ImageSpec& ps = part.spec();
@@ -94,12 +95,20 @@ bool forEachBlock(ImageBuf& dst, StatsBlockSource& reader, ROI roi, int halo, un
 }  // namespace
 
 std::vector<std::string> operationChannels(const Operation& op, const ParamValues& values,
-                                           bool diagnostics) {
+                                           bool diagnostics, const StatsHeader* header) {
     if (op.input == InputKind::Samples) return {};
-    if (op.input != InputKind::BufferMeans) return {"R", "G", "B"};
+    if (op.input != InputKind::BufferMeans) {
+        std::vector<std::string> names = {"R", "G", "B"};
+        if (header)
+            for (const std::string& n : aovOutputChannels(*header)) names.push_back(n);
+        return names;
+    }
     EstimatorParams params;
     applyEstimatorParams(values, params);
-    return estimatorChannels(params.mode, diagnostics);
+    std::vector<std::string> names = estimatorChannels(params.mode, diagnostics);
+    if (header)
+        for (const std::string& n : aovOutputChannels(*header)) names.push_back(n);
+    return names;
 }
 
 bool estimate(ImageBuf& dst, StatsBlockSource& src, const EstimatorInfo& est,
@@ -111,7 +120,9 @@ bool estimate(ImageBuf& dst, StatsBlockSource& src, const EstimatorInfo& est,
     }
     // Per pixel: only the sub-buffers are decoded (the moments' count check needs part moments,
     // which `mcstat --check` reads; every count read here is still checked on its own).
-    return forEachBlock(dst, src, roi, 0, kStatsPartBuffers, kStreamBlockBytes, est.name.c_str(),
+    // With AOVs their part too: the estimator's weights apply to them pixel by pixel.
+    const unsigned parts = kStatsPartBuffers | (src.header().aovs.empty() ? 0u : kStatsPartAovs);
+    return forEachBlock(dst, src, roi, 0, parts, kStreamBlockBytes, est.name.c_str(),
                         [&](ImageBuf& out, const StatsImage& block, ROI rows) {
                             return estimate(out, block, est, params, diagnostics, rows, nthreads);
                         });
@@ -137,9 +148,9 @@ bool filter3D(ImageBuf& dst, StatsBlockSource& src, const SpatialParams& params,
         return false;
     }
     // The halo re-decodes up to two chunks per block: a larger block keeps that small.
-    return forEachBlock(dst, src, roi, params.windowHeight / 2, kStatsPartBuffers,
-                        4 * kStreamBlockBytes, "3D filter",
-                        [&](ImageBuf& out, const StatsImage& block, ROI rows) {
+    const unsigned parts = kStatsPartBuffers | (src.header().aovs.empty() ? 0u : kStatsPartAovs);
+    return forEachBlock(dst, src, roi, params.windowHeight / 2, parts, 4 * kStreamBlockBytes,
+                        "3D filter", [&](ImageBuf& out, const StatsImage& block, ROI rows) {
                             return filter3D(out, block, params, rows, nthreads);
                         });
 }

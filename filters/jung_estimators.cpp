@@ -426,6 +426,9 @@ int meridianSorted(const double* x, const double* w, int K, double delta) {
 void estimateMyriad(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
                     EstimatorScratch& s) {
     out = PixelEstimate{};
+    s.bufferWeight.clear();
+    if (s.wantWeights && p.mode == EstimatorMode::Luminance)
+        s.bufferWeight.assign(size_t(px.M), 0.0);  // stays 0 when no buffer is valid
     const int Mv = collectValidBuffers(px, s.order, out.excluded);
     if (Mv == 0) return;
     s.key.resize(size_t(px.M));
@@ -456,6 +459,17 @@ void estimateMyriad(const PixelBuffers& px, const EstimatorParams& p, PixelEstim
                 const int j = s.order[0];
                 for (int c = 0; c < 3; ++c) out.rgb[c] = px.mean[3 * j + c];
             }
+            if (s.wantWeights) {
+                // The final weights n_j k_j / sum n k (or the one buffer used above).
+                s.bufferWeight.assign(size_t(px.M), 0.0);
+                for (int j : s.order) {
+                    const double t = K == 1 ? 0.0 : (s.key[j] - beta) / saneScale(gamma);
+                    const double k = 1.0 / (1.0 + t * t);
+                    const double nk = double(px.count[j]) * k;
+                    if (wsum > 0.0) s.bufferWeight[size_t(j)] = nk / wsum;
+                }
+                if (!(wsum > 0.0)) s.bufferWeight[size_t(s.order[0])] = 1.0;
+            }
             out.kept.fill(kept);
         } else {
             out.rgb[ch] = float(beta);
@@ -467,6 +481,9 @@ void estimateMyriad(const PixelBuffers& px, const EstimatorParams& p, PixelEstim
 void estimateMeridian(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
                       EstimatorScratch& s) {
     out = PixelEstimate{};
+    s.bufferWeight.clear();
+    if (s.wantWeights && p.mode == EstimatorMode::Luminance)
+        s.bufferWeight.assign(size_t(px.M), 0.0);  // stays 0 when no buffer is valid
     const int Mv = collectValidBuffers(px, s.order, out.excluded);
     if (Mv == 0) return;
     s.key.resize(size_t(px.M));
@@ -483,6 +500,10 @@ void estimateMeridian(const PixelBuffers& px, const EstimatorParams& p, PixelEst
             for (int j : s.order) {
                 if (s.key[j] != value) continue;
                 for (int c = 0; c < 3; ++c) out.rgb[c] = px.mean[3 * j + c];
+                if (s.wantWeights) {  // a selection: the chosen buffer alone
+                    s.bufferWeight.assign(size_t(px.M), 0.0);
+                    s.bufferWeight[size_t(j)] = 1.0;
+                }
                 break;
             }
             out.kept.fill(1);

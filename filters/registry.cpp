@@ -524,4 +524,19 @@ SpatialParams spatialParams(const ParamValues& values, const std::array<double, 
     return p;
 }
 
+int smallestRobustM(const Operation& op, const EstimatorParams& p) {
+    if (op.input != InputKind::BufferMeans) return 1;
+    const std::string& n = op.name;
+    if (n == "mon" || n == "median" || n == "gmonb") return 3;
+    if (n == "gmon") return 4;
+    if (n == "myriad" || n == "meridian") return 2;
+    if (n == "tmpe") {
+        constexpr int kLargestM = 999;  // a statistics file's limit
+        for (int M = 1; M <= kLargestM; ++M)
+            if (tmpeTrim(p.alpha, M) >= 1) return M;
+        return kLargestM + 1;  // alpha = 0: TMPE is the mean at every M
+    }
+    return 1;
+}
+
 }  // namespace mcstat

@@ -49,8 +49,15 @@ void sortRanked(SpatialScratch& s) { std::sort(s.ranked.begin(), s.ranked.end())
 
 /// Walks the sorted elements, keeps the copies with duplicated rank in [lo, hi) and averages
 /// channels [c0, c1) with weights r_i n_i. Returns the number of elements with a kept copy.
+/// Normalises recorded weights by their sum (the average's denominator).
+void normaliseWeights(std::vector<SpatialScratch::WeightedElement>* rec, double wsum) {
+    if (rec == nullptr) return;
+    for (auto& w : *rec) w.weight /= wsum;
+}
+
 int trimmedAverage(const WindowElement* e, const SpatialScratch& s, int64_t lo, int64_t hi, int c0,
-                   int c1, PixelEstimate& out) {
+                   int c1, PixelEstimate& out,
+                   std::vector<SpatialScratch::WeightedElement>* rec = nullptr) {
     double sum[3] = {0.0, 0.0, 0.0}, wsum = 0.0;
     int kept = 0;
     int64_t pos = 0;  // duplicated rank of the element's first copy
@@ -65,9 +72,11 @@ int trimmedAverage(const WindowElement* e, const SpatialScratch& s, int64_t lo, 
         const double w = double(b - a) * el.count;  // r_i n_i
         wsum += w;
         for (int c = c0; c < c1; ++c) sum[c] += w * double(el.rgb[c]);
+        if (rec) rec->push_back({ki.second, -1, w});
         ++kept;
     }
     for (int c = c0; c < c1; ++c) out.rgb[size_t(c)] = float(sum[c] / wsum);
+    normaliseWeights(rec, wsum);
     return kept;
 }
 
@@ -78,6 +87,7 @@ void weightedTrimmedMean(const WindowElement* elems, int n, const SpatialParams&
     out.rgb = {0.f, 0.f, 0.f};
     out.gini = {0.f, 0.f, 0.f};
     out.kept = {0, 0, 0};
+    s.weights.clear();
     if (n <= 0) return;  // no valid element: black
     int64_t total = 0;   // s of eq. 5.6 / 5.19
     for (int i = 0; i < n; ++i) total += elems[i].weight;
@@ -89,7 +99,8 @@ void weightedTrimmedMean(const WindowElement* elems, int n, const SpatialParams&
             s.ranked[size_t(i)] = {p.luma[0] * v[0] + p.luma[1] * v[1] + p.luma[2] * v[2], i};
         }
         sortRanked(s);
-        out.kept.fill(trimmedAverage(elems, s, c, total - c, 0, 3, out));
+        out.kept.fill(trimmedAverage(elems, s, c, total - c, 0, 3, out,
+                                     s.wantWeights ? &s.weights : nullptr));
         return;
     }
     for (int ch = 0; ch < 3; ++ch) {
@@ -108,6 +119,7 @@ void wmifPixel(const RGBImageView& img, int x, int y, const SpatialParams& p, Pi
     const int x0 = std::max(0, x - rx), x1 = std::min(img.width - 1, x + rx);
     const int y0 = std::max(0, y - ry), y1 = std::min(img.height - 1, y + ry);
     s.elems.clear();
+    s.source.clear();
     out.excluded = 0;
     for (int yy = y0; yy <= y1; ++yy)
         for (int xx = x0; xx <= x1; ++xx) {
@@ -118,6 +130,7 @@ void wmifPixel(const RGBImageView& img, int x, int y, const SpatialParams& p, Pi
             }
             // eq. 5.28: w_c at the centre, 1 elsewhere
             s.elems.push_back({v, 1.0, (xx == x && yy == y) ? p.centreWeight : int64_t(1)});
+            if (s.wantWeights) s.source.emplace_back(xx, yy);
         }
     weightedTrimmedMean(s.elems.data(), int(s.elems.size()), p, out, s);
 }
@@ -300,6 +313,7 @@ int mergeTrimmed(const RankedList* lists, int nl, int r, int64_t lo, int64_t hi,
             const double w = double(b - a) * (kPerSample ? 1.0 : double(L.count[j]));
             wsum += w;
             for (int c = c0; c < c1; ++c) sum[c] += w * double(L.mean[3 * j + size_t(c)]);
+            if (kLum && s.wantWeights) s.weights.push_back({l, int(j), w});
             ++kept;
         }
         if (pos >= hi) break;  // every later copy is trimmed
@@ -323,6 +337,7 @@ int mergeTrimmed(const RankedList* lists, int nl, int r, int64_t lo, int64_t hi,
         tl[0] = id;
     }
     for (int c = c0; c < c1; ++c) out.rgb[size_t(c)] = float(sum[c] / wsum);
+    if (kLum && s.wantWeights) normaliseWeights(&s.weights, wsum);
     return kept;
 }
 
@@ -347,6 +362,7 @@ void mergeWindow(const SpatialParams& p, BufferVotes votes, PixelEstimate& out, 
     out.rgb = {0.f, 0.f, 0.f};
     out.gini = {0.f, 0.f, 0.f};
     out.kept = {0, 0, 0};
+    s.weights.clear();
     if (s.lists.empty()) return;  // no valid element: black
     int64_t total = 0;            // s of eq. 5.6 / 5.19: every copy (bounded: see static_assert)
     for (const RankedList& L : s.lists) total += L.votes * L.weight;
@@ -385,6 +401,7 @@ void filter3DPixel(const BufferView& v, int x, int y, const SpatialParams& p, Pi
     s.order.resize(slots * size_t(ranks));
     s.key.resize(lum ? slots : 0);
     s.lists.clear();
+    s.source.clear();
     out.excluded = 0;
     size_t begin = 0;
     for (int yy = y0; yy <= y1; ++yy)
@@ -400,6 +417,7 @@ void filter3DPixel(const BufferView& v, int x, int y, const SpatialParams& p, Pi
             // eq. 5.19 with eq. 5.28: every buffer of the centre pixel carries w_c
             const int64_t w = (xx == x && yy == y) ? p.centreWeight : int64_t(1);
             if (n > 0) s.lists.push_back(rankedList(px, ranks, order, key, n, w, votes));
+            if (n > 0 && s.wantWeights) s.source.emplace_back(xx, yy);
         }
     mergeWindow(p, v.votes, out, s);
 }
@@ -465,6 +483,7 @@ void RankedBufferGrid::filterPixel(int x, int y, PixelEstimate& out, SpatialScra
     const int ranks = rankings(p);
     const bool lum = p.mode == EstimatorMode::Luminance;
     s.lists.clear();
+    s.source.clear();
     out.excluded = 0;
     for (int yy = y0; yy <= y1; ++yy)
         for (int xx = x0; xx <= x1; ++xx) {
@@ -475,6 +494,7 @@ void RankedBufferGrid::filterPixel(int x, int y, PixelEstimate& out, SpatialScra
             s.lists.push_back(
                 rankedList(view_.at(xx, yy), ranks, order_.data() + pr.begin * size_t(ranks),
                            lum ? key_.data() + pr.begin : nullptr, pr.n, w, pr.votes));
+            if (s.wantWeights) s.source.emplace_back(xx, yy);
         }
     mergeWindow(p, view_.votes, out, s);
 }

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cctype>
 #include <map>
 
 namespace mcstat {
@@ -208,6 +209,35 @@ FeatureChannels findFeatures(const std::vector<std::string>& names, const Beauty
         }
     }
     return f;
+}
+
+AovClass classifyAov(const std::string& name, const BeautyChannels& beauty) {
+    std::string layer, comp;
+    splitName(name, layer, comp);
+    // The beauty layer's alpha; a plain A beside a layered beauty (RenderMan's `a` beside Ci).
+    if ((comp == "A" || comp == "a") && (layer == beauty.layer || layer.empty()))
+        return AovClass::Alpha;
+    const auto lower = [](std::string t) {
+        for (char& ch : t) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+        return t;
+    };
+    const std::string lname = lower(name);
+    if (lname.find("crypto") != std::string::npos) return AovClass::Id;
+    const size_t dot = layer.rfind('.');
+    const std::string pass =
+        lower(layer.empty() ? name : layer.substr(dot == std::string::npos ? 0 : dot + 1));
+    for (const char* id : {"indexob", "indexma", "id", "objid", "matid", "objectid", "object_id",
+                           "materialid", "material_id", "object_index", "material_index",
+                           "instanceid", "instance_id", "primid", "elementid", "element_id"})
+        if (pass == id) return AovClass::Id;
+    if (pass.rfind("denoising", 0) == 0) return AovClass::Data;
+    for (const char* d :
+         {"n",        "nn",       "ns",   "p",      "pref",   "z",        "depth",   "normal",
+          "position", "albedo",   "uv",   "vector", "motion", "velocity", "diffcol", "glosscol",
+          "transcol", "variance", "mist", "dzdx",   "dzdy",   "u",        "v",       "nsx",
+          "nsy",      "nsz",      "nx",   "ny",     "nz",     "px",       "py",      "pz"})
+        if (pass == d) return AovClass::Data;
+    return AovClass::Light;
 }
 
 }  // namespace mcstat

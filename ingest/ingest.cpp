@@ -7,6 +7,7 @@
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
 #include <fmt/format.h>
+#include <fnmatch.h>
 #include <glob.h>
 
 #include <algorithm>
@@ -15,6 +16,8 @@
 #include <limits>
 #include <memory>
 #include <set>
+
+#include "mcstat/render_layout.h"
 
 namespace mcstat {
 
@@ -86,6 +89,8 @@ struct InputFile {
     ImageSpec spec;  ///< subimage 0
     std::vector<std::string> names;
     std::vector<std::pair<int, int>> where;
+    /// Per subimage: its part name when the file has several parts ("" for a one-part file).
+    std::vector<std::string> partNames;
     BeautyChannels beauty;
     FeatureChannels features;
     int64_t spp = 0;
@@ -94,12 +99,15 @@ struct InputFile {
 
 /// The channel names of every subimage of `in` (see listChannels); leaves `in` on some subimage.
 void channelsOf(ImageInput& in, std::vector<std::string>& names,
-                std::vector<std::pair<int, int>>& where) {
+                std::vector<std::pair<int, int>>& where,
+                std::vector<std::string>* partNames = nullptr) {
     names.clear();
     where.clear();
+    if (partNames) partNames->clear();
     for (int sub = 0; in.seek_subimage(sub, 0); ++sub) {
         const ImageSpec& s = in.spec();
         const std::string part = s.get_string_attribute("oiio:subimagename");
+        if (partNames) partNames->push_back(part.empty() ? fmt::format("part{}", sub) : part);
         for (int c = 0; c < s.nchannels; ++c) {
             std::string n = s.channel_name(c);
             if (sub > 0 && n.find('.') == std::string::npos && !part.empty()) n = part + "." + n;
@@ -109,6 +117,7 @@ void channelsOf(ImageInput& in, std::vector<std::string>& names,
         }
         if (sub > 4096) break;  // a sane bound on parts
     }
+    if (partNames && partNames->size() == 1) partNames->front().clear();  // one part: no name
 }
 
 bool openInput(const std::string& path, InputFile& f, std::string& err) {
@@ -132,8 +141,35 @@ bool openInput(const std::string& path, InputFile& f, std::string& err) {
         err = path + ": a volume image; ingest reads flat 2D renders";
         return false;
     }
-    channelsOf(*f.in, f.names, f.where);
+    channelsOf(*f.in, f.names, f.where, &f.partNames);
     return true;
+}
+
+bool globMatch(const std::string& pattern, const std::string& text) {
+    return fnmatch(pattern.c_str(), text.c_str(), 0) == 0;
+}
+
+/// Every channel of `f` but the beauty's R, G, B, in the file's order, with class and part.
+std::vector<int> aovChannelsOf(const InputFile& f, const IngestOptions& opt,
+                               std::vector<AovChannel>& aovs) {
+    std::vector<int> index;
+    aovs.clear();
+    for (size_t i = 0; i < f.names.size(); ++i) {
+        if (std::find(f.beauty.index.begin(), f.beauty.index.end(), int(i)) != f.beauty.index.end())
+            continue;
+        AovChannel a;
+        a.name = f.names[i];
+        a.cls = classifyAov(a.name, f.beauty);
+        const size_t dot = a.name.rfind('.');
+        const std::string layer = dot == std::string::npos ? std::string() : a.name.substr(0, dot);
+        for (const auto& [pattern, cls] : opt.classOverrides)
+            if (globMatch(pattern, a.name) || (!layer.empty() && globMatch(pattern, layer)))
+                a.cls = cls;
+        a.part = f.partNames[size_t(f.where[i].first)];
+        aovs.push_back(std::move(a));
+        index.push_back(int(i));
+    }
+    return index;
 }
 
 std::string windowText(int x, int y, int w, int h) {
@@ -376,9 +412,31 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
                           opt.limits.maxPixels);
         return false;
     }
+    // Every channel but the beauty, kept per sub-buffer (docs/aovs.md).
+    std::vector<AovChannel> aovs;
+    std::vector<int> aovIndex;
+    if (opt.aovs) aovIndex = aovChannelsOf(first, opt, aovs);
+    if (aovs.size() > size_t(kMaxAovs)) {
+        err = fmt::format("{}: {} channels besides the beauty; a statistics file holds at most {}",
+                          first.path, aovs.size(), kMaxAovs);
+        return false;
+    }
+    for (const AovChannel& a : aovs)
+        if (a.name.size() > kMaxAovNameBytes) {
+            err = fmt::format("{}: channel name '{}...' is longer than {} bytes", first.path,
+                              a.name.substr(0, 40), kMaxAovNameBytes);
+            return false;
+        }
+    const size_t A = aovs.size();
+    report.aovs = aovs;
+    if (!opt.aovs && first.names.size() > 3)
+        report.warnings.push_back(
+            fmt::format("{}: {} channels besides the beauty's R, G, B left out as asked (:aovs=0)",
+                        first.path, first.names.size() - 3));
     // The statistics image, plus 10 doubles per pixel for the feature sums when there are any.
     const double featureBytes = first.features.present != 0 ? 80.0 : 0.0;
-    const double bytes = double(pixels) * (double(3 + 4 * M + 7 + 11) * 4.0 + featureBytes);
+    const double bytes = double(pixels) * (double(3 + 4 * M + 7 + 11) * 4.0 +
+                                           double(M) * double(A) * 4.0 + featureBytes);
     if (bytes > double(opt.limits.maxBytes)) {
         err = fmt::format("{} renders of {}x{} need {:.0f} bytes, exceeding the limit of {} bytes",
                           M, W, H, bytes, opt.limits.maxBytes);
@@ -424,7 +482,27 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
                  " via mcstat --ingest";
     for (size_t j = 0; j < files.size(); ++j)
         h.sources += (j ? "," : "") + OIIO::Filesystem::filename(files[j].path);
+    // Version 5: what the render looked like, so that a result can replace one input.
+    h.aovs = aovs;
+    for (size_t c = 0; c < 3; ++c) h.beautyNames[c] = first.names[size_t(first.beauty.index[c])];
+    h.beautyPart = first.partNames[size_t(first.where[size_t(first.beauty.index[0])].first)];
+    const ImageSpec& fsp = first.spec;
+    if (fsp.full_x != fsp.x || fsp.full_y != fsp.y || fsp.full_width != fsp.width ||
+        fsp.full_height != fsp.height) {
+        h.displayX = fsp.full_x;
+        h.displayY = fsp.full_y;
+        h.displayWidth = fsp.full_width;
+        h.displayHeight = fsp.full_height;
+    }
+    h.sourceMetadata = sourceMetadataJson(fsp);
+    h.formatVersion = std::max(kStatsFormatVersionProvenance, requiredFormatVersion(h));
     if (!img.allocate(err)) return false;
+    try {
+        img.aov.assign(img.pixelCount() * size_t(M) * A, 0.f);
+    } catch (const std::exception& e) {
+        err = fmt::format("cannot allocate the AOVs of {}x{}: {}", W, H, e.what());
+        return false;
+    }
     const size_t npix = size_t(pixels);
     std::vector<double> featureSum;  // N xyz, P xyz, Albedo rgb, Z; only when a feature exists
     try {
@@ -456,7 +534,9 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
         for (int i : f.features.position) used.push_back(i);
         for (int i : f.features.albedo) used.push_back(i);
         used.push_back(f.features.depth);
+        for (int i : aovIndex) used.push_back(i);
         const std::vector<SubimageRead> reads = readsFor(f, used);
+        int64_t nonFiniteAov = 0;
         // Where each used channel lands in the block read of its subimage.
         uint64_t hash = kFnvBasis;
         int64_t nonFinite = 0, nonFinitePixels = 0;
@@ -520,6 +600,17 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
                 addFeature(f.features.albedo[c], 6 + c);
             }
             addFeature(f.features.depth, 9);
+            // AOVs: file j's values are sub-buffer j's, as the beauty's are.
+            for (size_t a = 0; a < A; ++a) {
+                size_t off = 0, stride = 1;
+                locate(aovIndex[a], off, stride);
+                for (size_t q = 0; q < bpix; ++q) {
+                    const size_t k = (size_t(y0) * size_t(W) + q) * size_t(M) + j;
+                    const float v = rows[off + q * stride];
+                    nonFiniteAov += !std::isfinite(v);
+                    img.aov[k * A + a] = v;
+                }
+            }
             ++blocksDone;
             if (opt.progress) opt.progress(blocksDone, blocksPerFile * int64_t(files.size()));
         }
@@ -537,6 +628,13 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
                 "{}: {} non-finite RGB values (NaN/Inf) in {} pixels: the plain mean there is "
                 "non-finite; the robust estimators leave that sub-buffer out",
                 f.path, nonFinite, nonFinitePixels));
+        }
+        if (nonFiniteAov) {
+            report.nonFiniteAovValues += nonFiniteAov;
+            report.warnings.push_back(fmt::format(
+                "{}: {} non-finite AOV values (NaN/Inf): each is left out of its channel alone, "
+                "the other sub-buffers' weights renormalised (docs/aovs.md)",
+                f.path, nonFiniteAov));
         }
         f.in.reset();  // close each file once read
     }

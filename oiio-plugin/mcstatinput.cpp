@@ -40,6 +40,7 @@
 #include "mcstat/color.h"
 #include "mcstat/imageops.h"
 #include "mcstat/registry.h"
+#include "mcstat/render_layout.h"
 #include "mcstat/stats_file.h"
 
 #ifndef MCSTAT_VERSION
@@ -403,7 +404,9 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
 
     // The estimate's channels: R, G, B, then an estimator's diagnostics (gini/kept/excluded).
     // A per-sample operation's extra channels are known only once it ran: it runs now.
-    std::vector<std::string> estChannels = mcstat::operationChannels(*est, m_values, true);
+    // With AOVs (format version 5) they follow the diagnostics (imageops.h).
+    std::vector<std::string> estChannels = mcstat::operationChannels(*est, m_values, true, &h);
+    const size_t nAovs = est->input != mcstat::InputKind::Samples ? h.aovs.size() : 0;
     const bool samples = est->input == mcstat::InputKind::Samples;
     if (samples) {
         const Computed* c = source(kEstimate);
@@ -418,9 +421,12 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     // Shared specification: data window, float pixels, the file's header attributes.
     auto makeSpec = [&](const std::vector<std::string>& channels, const char* subname) {
         ImageSpec s(h.width, h.height, int(channels.size()), TypeFloat);
-        s.x = s.full_x = h.originX;
-        s.y = s.full_y = h.originY;
+        mcstat::setWindows(s, mcstat::dataWindowROI(h), h);  // overscan: the render's windows
         s.channelnames = channels;
+        // ImageSpec makes channel 3 the alpha of any image of 4 or more channels: none here
+        // unless an AOV of class alpha says so (features' P.X and diagnostics' count are not).
+        s.alpha_channel = -1;
+        s.z_channel = -1;
         s.attribute("oiio:subimagename", subname);
         s.attribute("oiio:subimages", m_nsubs);
         s.attribute("mcstat:formatVersion", h.formatVersion);
@@ -448,16 +454,26 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
 
     // 0: the robust estimate.
     const std::string meanName = est->name == "mean" ? "beauty" : "mean";
+    // Beauty under the input render's names (R, G, B for mcstat's own files), then every AOV:
+    // `oiiotool f.mcstat --subimage 0 -o x.exr` writes a drop-in for one input render.
     Sub& r = m_subs[kRobust];
-    r.spec = makeSpec({"R", "G", "B"}, est->name.c_str());
+    std::vector<std::string> robustNames(h.beautyNames.begin(), h.beautyNames.end());
+    for (size_t a = 0; a < nAovs; ++a) robustNames.push_back(h.aovs[a].name);
+    r.spec = makeSpec(robustNames, est->name.c_str());
+    r.spec.alpha_channel = mcstat::aovAlphaChannel(h, 3);
+    if (nAovs == 0) r.spec.alpha_channel = -1;
     r.spec.attribute("oiio:ColorSpace", h.colorSpace);
     describeEstimator(r.spec);
+    mcstat::describeResult(r.spec, *est, m_values, h);
     r.from = {{kEstimate, 0}, {kEstimate, 1}, {kEstimate, 2}};
+    // kEstimate (no diagnostics) holds R, G, B and then the AOVs.
+    for (size_t a = 0; a < nAovs; ++a) r.from.push_back({kEstimate, 3 + a});
     // 2: diagnostics: the estimator's gini/kept/excluded channels plus the sample count, and with
     // adaptive M the map of buffer counts m_p ("M").
     Sub& d = m_subs[kDiagnostics];
-    std::vector<std::string> diagNames(estChannels.begin() + 3, estChannels.end());
-    for (size_t i = 3; i < estChannels.size(); ++i)
+    std::vector<std::string> diagNames(estChannels.begin() + 3,
+                                       estChannels.end() - std::ptrdiff_t(nAovs));
+    for (size_t i = 3; i < estChannels.size() - nAovs; ++i)
         d.from.push_back({samples ? kEstimate : kEstimateDiag, i});
     diagNames.push_back("count");
     d.from.push_back({kCounts, 0});

@@ -15,6 +15,7 @@
 #include "mcstat/color.h"
 #include "mcstat/imageops.h"
 #include "mcstat/registry.h"
+#include "mcstat/render_layout.h"
 
 namespace mcstat::cli {
 
@@ -129,7 +130,8 @@ bool runEstimator(State& st, const std::string& cmd, const Operation& op, const 
         return false;
     }
     for (const auto& [k, v] : estMods) img->specmod().attribute("mcstat:" + k, v);
-    replaceWithImage(top, op.name, img);
+    describeOperationResult(top, op, values, *img);
+    replaceWithImage(top, op.name, img, true);
     return true;
 }
 
@@ -168,7 +170,8 @@ bool runSamples(State& st, const std::string& cmd, const Operation& op, const Mo
     }
     img->specmod().attribute("mcstat:estimator", op.name);
     for (const auto& [k, v] : mods) img->specmod().attribute("mcstat:" + k, v);
-    replaceWithImage(top, op.name, img);
+    describeOperationResult(top, op, values, *img);
+    replaceWithImage(top, op.name, img, true);
     return true;
 }
 
@@ -347,7 +350,7 @@ std::vector<Command> buildTable() {
                  "FILES",
                  "Push one statistics file built from renders of one image, one EXR per seed "
                  "(glob or comma-separated list; one sub-buffer per file, docs/ingest.md)",
-                 {"layer", "spp"},
+                 {"layer", "spp", "aovs", "alpha", "light", "data", "id"},
                  &cmdIngest,
                  ""});
     t.push_back({"--merge",
@@ -400,7 +403,11 @@ std::string modifierHelp(const Command& c) {
         s += "\n        :layer= (the beauty layer, e.g. ViewLayer.Combined; default: plain R,G,B, "
              "else Blender's <ViewLayer>.Combined, else an AOV named RGBA/beauty/Ci/C)"
              "\n        :spp= (samples per file; default: the files' metadata, mcstat:spp, "
-             "samplesPerPixel, cycles.<ViewLayer>.samples)";
+             "samplesPerPixel, cycles.<ViewLayer>.samples)"
+             "\n        :aovs=0 (leave out every channel but the beauty's R,G,B; default 1: keep "
+             "alpha, light groups, passes, data and ID mattes per sub-buffer, docs/aovs.md)"
+             "\n        :id=GLOB,... :data=... :light=... :alpha=... (class of the matching "
+             "channels or layers, overriding the naming rules)";
     }
     return s;
 }
@@ -439,11 +446,44 @@ bool splitModifiers(const std::string& arg, std::string& name, Modifiers& mods, 
 
 }  // namespace
 
-void replaceWithImage(Item& top, const std::string& op, std::shared_ptr<OIIO::ImageBuf> img) {
+void replaceWithImage(Item& top, const std::string& op, std::shared_ptr<OIIO::ImageBuf> img,
+                      bool keepLayout) {
     Item out;
     out.name = format("{}({})", op, top.name);
     out.image = std::move(img);
+    if (keepLayout)
+        out.layout = top.isStats() ? std::make_shared<const StatsHeader>(top.header) : top.layout;
     top = std::move(out);
+}
+
+void describeOperationResult(const Item& top, const Operation& op, const ParamValues& values,
+                             OIIO::ImageBuf& img) {
+    const StatsHeader& h = top.isStats() ? top.header : *top.layout;
+    std::string warning;
+    describeResult(img.specmod(), op, values, h, &warning);
+    if (!warning.empty())
+        std::fprintf(stderr, "mcstat: warning: %s: %s\n", top.name.c_str(), warning.c_str());
+    if (op.input == InputKind::BufferMeans && !h.adaptiveM) {
+        EstimatorParams params;
+        applyEstimatorParams(values, params);
+        const int minM = smallestRobustM(op, params);
+        if (minM > 1 && h.M < minM)
+            std::fprintf(stderr,
+                         "mcstat: warning: --%s over M = %d sub-buffers is the plain mean (it "
+                         "trims nothing below M = %d); render or ingest at least %d seeds, or see "
+                         "mcstat --plan for the M a target error needs\n",
+                         op.name.c_str(), h.M, minM, minM);
+    }
+    // Operations that do not carry AOVs yet say so rather than drop them silently.
+    const int carried = img.nchannels();
+    size_t missing = 0;
+    for (const AovChannel& a : h.aovs)
+        if (img.spec().channelindex(a.name) < 0) ++missing;
+    if (missing > 0 && carried > 0)
+        std::fprintf(stderr,
+                     "mcstat: warning: --%s does not carry AOVs yet: %zu of the file's %zu AOV "
+                     "channels (alpha, light groups, passes) are not in its result\n",
+                     op.name.c_str(), missing, h.aovs.size());
 }
 
 int run(int argc, const char* const* argv) {

@@ -26,6 +26,9 @@ struct Item {
     /// A merge not computed yet (`--merge`): read block by block from these two items when used.
     std::shared_ptr<const Item> mergeA, mergeB;
     std::shared_ptr<OIIO::ImageBuf> image;  ///< set for image items
+    /// An image computed from a statistics file: that file's header, so that -o writes the result
+    /// laid out as the input render was (names, parts, AOVs; render_layout.h). Null otherwise.
+    std::shared_ptr<const StatsHeader> layout;
     bool isStats() const { return image == nullptr; }
 };
 
@@ -61,8 +64,16 @@ bool parseDiffOptions(const Modifiers& mods, const std::string& cmd, DiffOptions
 /// The one line --diff prints for image `name` (the review commands print the same).
 void printDiffLine(const std::string& name, const DiffMetrics& m);
 
-/// Replaces `top` by the image `img` that operation `op` computed from it, named "op(top)".
-void replaceWithImage(Item& top, const std::string& op, std::shared_ptr<OIIO::ImageBuf> img);
+/// Replaces `top` by the image `img` that operation `op` computed from it, named "op(top)". The
+/// render layout (Item::layout) follows from a statistics item or an image that had one, when
+/// `keepLayout` (a picture made for review has none).
+void replaceWithImage(Item& top, const std::string& op, std::shared_ptr<OIIO::ImageBuf> img,
+                      bool keepLayout = false);
+/// After an operation on the statistics item `top`: its provenance and the source render's
+/// metadata on `img` (describeResult), and the warnings a user must hear: an estimator that
+/// cannot differ from the plain mean at this M, AOVs an operation does not carry.
+void describeOperationResult(const Item& top, const Operation& op, const ParamValues& values,
+                             OIIO::ImageBuf& img);
 
 /// Runs a whole command line; returns the process exit code. Errors print one line to stderr.
 int run(int argc, const char* const* argv);

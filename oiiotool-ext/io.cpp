@@ -13,6 +13,7 @@
 #include "mcstat/imageops.h"
 #include "mcstat/ingest.h"
 #include "mcstat/pajot.h"
+#include "mcstat/render_layout.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/temp_file.h"
 
@@ -194,6 +195,16 @@ bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>
                 return false;
             }
             opt.spp = n;
+        } else if (k == "aovs") {
+            if (v != "0" && v != "1") {
+                err = format("{}: modifier aovs must be 0 or 1, not '{}'", cmd, v);
+                return false;
+            }
+            opt.aovs = v == "1";
+        } else if (AovClass cls; parseAovClass(k, cls)) {
+            // :id=GLOB,GLOB  :data=...  :light=...  :alpha=...  (docs/aovs.md, "Classes")
+            for (const std::string& g : OIIO::Strutil::splits(v, ","))
+                if (!g.empty()) opt.classOverrides.emplace_back(g, cls);
         }
     }
     std::vector<std::string> paths;
@@ -226,6 +237,18 @@ bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>
             report.beauty.rule.c_str(),
             report.features.present ? OIIO::Strutil::join(report.features.sources, "; ").c_str()
                                     : "none");
+        for (const AovChannel& a : report.aovs)
+            std::fprintf(stderr, "mcstat: ingest:   %-6s %s%s%s\n", aovClassName(a.cls),
+                         a.name.c_str(), a.part.empty() ? "" : "  (part ",
+                         a.part.empty() ? "" : (a.part + ")").c_str());
+    }
+    if (st.verbose && !report.aovs.empty()) {
+        size_t count[4] = {0, 0, 0, 0};
+        for (const AovChannel& a : report.aovs) ++count[int(a.cls)];
+        std::fprintf(stderr,
+                     "mcstat: ingest: %zu AOV channels kept (%zu alpha, %zu light, %zu data, %zu "
+                     "id)%s\n",
+                     report.aovs.size(), count[0], count[1], count[2], count[3], "");
     }
     Item item;
     item.name = format("ingest({})", args[0]);
@@ -296,6 +319,10 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
         }
         return writeImageAtomically(disp, path, OIIO::TypeDesc::UINT8, err);
     }
+    // A result computed from a production render: written as that render was laid out (its
+    // channel names, parts and AOVs), a drop-in replacement for one input (docs/aovs.md).
+    if (top.layout && needsRenderLayout(*top.layout))
+        return writeRenderLike(*top.image, *top.layout, path, OIIO::TypeDesc::FLOAT, err);
     return writeImageAtomically(*top.image, path, OIIO::TypeDesc::FLOAT, err);
 }
 

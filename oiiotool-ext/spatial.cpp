@@ -67,7 +67,13 @@ bool filterImage(State& st, const std::string& cmd, const Operation& op, const M
         return false;
     }
     recordParams(*img, cmd, p);
-    replaceWithImage(top, cmd.substr(2), img);
+    if (top.layout) {
+        ParamValues values;
+        if (parseOperationParams(op, mods, values, err, cmd))
+            describeOperationResult(top, op, values, *img);
+        err.clear();
+    }
+    replaceWithImage(top, cmd.substr(2), img, true);
     return true;
 }
 
@@ -96,7 +102,10 @@ bool filterBuffers(State& st, const std::string& cmd, const Operation& op, const
         return false;
     }
     recordParams(*img, cmd, p);
-    replaceWithImage(top, cmd.substr(2), img);
+    ParamValues values;
+    if (!parseOperationParams(op, mods, values, err, cmd)) return false;
+    describeOperationResult(top, op, values, *img);
+    replaceWithImage(top, cmd.substr(2), img, true);
     return true;
 }
 

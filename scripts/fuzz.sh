@@ -6,14 +6,14 @@
 # memory, a broken contract) is saved under $BUILD/findings/T/ and makes the script fail. Each run
 # appends one line to $BUILD/fuzz-ledger.tsv (date, target, wall and CPU seconds, executions,
 # coverage, features, findings) and the script prints the totals: docs/fuzzing.md reports them.
-# Targets: stats_file stats_stream records scene plugin (default: all). NICE=19 runs them at low
+# Targets: stats_file stats_stream records scene plugin ingest (default: all). NICE=19 runs them at low
 # priority (long runs next to other work); SKIP_BUILD=1 runs the targets already built.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-60}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -eq 0 ] && targets=(stats_file stats_stream records scene plugin)
+[ ${#targets[@]} -eq 0 ] && targets=(stats_file stats_stream records scene plugin ingest)
 build=${BUILD:-build-fuzz}
 jobs=${JOBS:-${#targets[@]}}
 

@@ -61,4 +61,22 @@ struct FeatureChannels {
 ///  Z: Denoising Depth.Z, Depth.Z, Z, depth.Z, Depth.V (Cycles), depth.
 FeatureChannels findFeatures(const std::vector<std::string>& names, const BeautyChannels& beauty);
 
+/// The class of a channel that is not the beauty's R, G, B (docs/aovs.md, "Classes"), by name:
+///  alpha: the beauty layer's alpha (`A` beside plain R, G, B; `<layer>.A` or `.a` beside
+///         `<layer>.R/G/B`, e.g. `ViewLayer.Combined.A`, `RGBA.A`), or a plain `A`/`a`
+///         (RenderMan's `a` beside `Ci.*`);
+///  id:    labels: any name containing "crypto" (Cryptomatte rank/coverage pairs and their
+///         manifests), passes named IndexOB, IndexMA, id, objid, matid, objectid, object_id,
+///         materialid, material_id, object_index, material_index, instanceid, primid,
+///         elementid (any case);
+///  data:  normals, positions, depth, albedo and colour filters, UV, motion, variance: passes
+///         named N, Nn, Ns, P, Pref, Z, depth, Normal, Position, Albedo, UV, Vector, motion,
+///         velocity, DiffCol, GlossCol, TransCol, Variance, Mist, any "Denoising ..." pass, and
+///         pbrt-v4's undotted dzdx, dzdy, u, v, Nsx.., Px..; a plain `Z`;
+///  light: everything else (light groups, light-path passes, emission, environment, any AOV a
+///         renderer adds to its beauty).
+/// The pass is the last dot-separated part of the channel's layer (`ViewLayer.IndexOB.X` ->
+/// IndexOB), or the whole name when it has no layer.
+AovClass classifyAov(const std::string& name, const BeautyChannels& beauty);
+
 }  // namespace mcstat

@@ -73,6 +73,16 @@ struct EstimatorScratch {
     std::vector<double> key;
     std::vector<double> sorted;
     std::vector<double> weight;  ///< per distinct value (jung_estimators.cpp)
+    /// Set by the caller before an estimate to also get the estimate's buffer weights (AOVs,
+    /// docs/aovs.md). Every estimator in luminance mode is a convex combination of whole buffers:
+    /// it then fills bufferWeight with px.M weights w_j >= 0 summing to 1 (0 for buffers that did
+    /// not enter, all 0 when no buffer is valid) such that rgb = sum_j w_j mean_j up to float
+    /// rounding. The same weights applied to any other channel of the buffers (applyBufferWeights)
+    /// keep every linear relation the buffers share with the beauty: AOVs that sum to the beauty
+    /// in each buffer sum to the estimate. In channel mode R, G and B are ranked separately and
+    /// no such weights exist: bufferWeight is left empty.
+    bool wantWeights = false;
+    std::vector<double> bufferWeight;
 };
 
 // ---- building blocks (exposed for tests and for later estimators)

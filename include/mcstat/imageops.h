@@ -20,14 +20,38 @@ inline OIIO::ROI dataWindowROI(const StatsHeader& h) {
     return OIIO::ROI(h.originX, h.originX + h.width, h.originY, h.originY + h.height);
 }
 
+/// The display window of a statistics image (the data window unless the header says otherwise,
+/// e.g. an ingested render with overscan).
+OIIO::ROI displayWindowROI(const StatsHeader& h);
+/// Sets spec's data window origin to roi's and its full (display) window to h's.
+void setWindows(OIIO::ImageSpec& spec, OIIO::ROI roi, const StatsHeader& h);
+
 /// The channels estimate() gives: R, G, B, and with `diagnostics` "gini", "kept", "excluded"
-/// (luminance mode) or "gini.R/G/B", "kept.R/G/B", "excluded" (channel mode).
+/// (luminance mode) or "gini.R/G/B", "kept.R/G/B", "excluded" (channel mode). With AOVs in the
+/// statistics image, aovOutputChannels(header) follow.
 std::vector<std::string> estimatorChannels(EstimatorMode mode, bool diagnostics);
+/// The AOV channels an operation's result carries after its own: the input's names, in the
+/// header's order (docs/aovs.md).
+std::vector<std::string> aovOutputChannels(const StatsHeader& h);
+/// The channel index of the AOV of class alpha in a result whose AOVs start at `firstAov`, or -1.
+int aovAlphaChannel(const StatsHeader& h, size_t firstAov);
+/// Spec attributes by which an image says which of its channels are AOVs and of what class, so
+/// that a later image filter (MIF/WMIF over an estimator's result) carries them too: the first
+/// AOV channel (int) and the classes (comma-separated aovClassName), AOVs running to the last
+/// channel.
+inline constexpr const char* kAttrFirstAov = "mcstat:firstAov";
+inline constexpr const char* kAttrAovClasses = "mcstat:aovClasses";
+void setAovAttributes(OIIO::ImageSpec& spec, const StatsHeader& h, size_t firstAov);
 
 /// Runs estimator `est` on every pixel of `src` within `roi` (default: the whole data window).
 /// The result has channels R, G, B and, when `diagnostics` is set, the Gini coefficient, the number
 /// of buffers kept and the number excluded for NaN/Inf: "gini", "kept", "excluded" in luminance
-/// mode; "gini.R/G/B", "kept.R/G/B", "excluded" per channel.
+/// mode; "gini.R/G/B", "kept.R/G/B", "excluded" per channel. When `src` holds AOVs (version 5)
+/// every AOV channel follows, under its input name: the estimator's buffer weights, computed from
+/// the beauty, applied to each (applyAovWeights), so AOVs that summed to the beauty in every
+/// buffer still sum to the result; the AOV of class alpha is the spec's alpha channel. AOVs need
+/// luminance mode (channel mode is refused: it has no one weight per buffer). The display window
+/// is the header's.
 bool estimate(OIIO::ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
               const EstimatorParams& params, bool diagnostics = false, OIIO::ROI roi = {},
               int nthreads = 0);
@@ -38,7 +62,9 @@ OIIO::ImageBuf estimate(const StatsImage& src, const EstimatorInfo& est,
 /// Jung's (weighted) median image filter WMIF / MIF (eq. 5.6-5.8, centre weight eq. 5.28; see
 /// spatial_filters.h) over the R, G, B channels (the first three) of `src`, within `roi` (default:
 /// src's data window). The window is clipped to src's data window, never to `roi`, so a tile's
-/// result equals the same pixels of the whole image. The result has channels R, G, B only.
+/// result equals the same pixels of the whole image. The result has channels R, G, B, and when
+/// `src` carries AOVs (kAttrFirstAov, an estimator's result over a file with AOVs) those AOVs
+/// too, each with the window pixels' weights from the beauty (luminance mode only).
 /// Every output pixel depends on the input alone: identical for any `nthreads`.
 bool medianImageFilter(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, const SpatialParams& params,
                        OIIO::ROI roi = {}, int nthreads = 0);
@@ -48,8 +74,9 @@ OIIO::ImageBuf medianImageFilter(const OIIO::ImageBuf& src, const SpatialParams&
 /// Jung's 3D filters 3DWTMF / 3DWMF / 3DMF (eq. 5.19-5.21, see spatial_filters.h) over the
 /// sub-buffers of `src`, within `roi` (default: the data window; the window is clipped to the data
 /// window). Buffers vote once each (BufferVotes::PerBuffer) in a fixed-M image and with their
-/// sample counts (PerSample) when src.header.adaptiveM. The result has channels R, G, B. Identical
-/// for any `nthreads`.
+/// sample counts (PerSample) when src.header.adaptiveM. The result has channels R, G, B, then the
+/// file's AOVs, each with the weight every (window pixel, sub-buffer) had in the beauty's average
+/// (luminance mode only; channel mode is refused with AOVs). Identical for any `nthreads`.
 bool filter3D(OIIO::ImageBuf& dst, const StatsImage& src, const SpatialParams& params,
               OIIO::ROI roi = {}, int nthreads = 0);
 OIIO::ImageBuf filter3D(const StatsImage& src, const SpatialParams& params, OIIO::ROI roi = {},
@@ -76,8 +103,9 @@ bool applyOperation(OIIO::ImageBuf& dst, const StatsImage& src, const Operation&
 /// The channels applyOperation gives for `op` with `values`: estimatorChannels for an estimator
 /// over buffer means, R, G, B for a neighbourhood operation, nothing for a Samples operation
 /// (known once it ran).
+/// With `header` (the statistics file's), the AOV channels the operation carries follow.
 std::vector<std::string> operationChannels(const Operation& op, const ParamValues& values,
-                                           bool diagnostics);
+                                           bool diagnostics, const StatsHeader* header = nullptr);
 
 /// Decoded bytes per block of a streamed operation.
 inline constexpr size_t kStreamBlockBytes = size_t(64) << 20;

@@ -36,6 +36,13 @@ struct IngestOptions {
     int rowsPerBlock = 128;
     /// Called after each block of rows with (blocks done, blocks in all); may be empty.
     std::function<void(int64_t, int64_t)> progress;
+    /// Keep every channel that is not the beauty's R, G, B as an AOV (docs/aovs.md). false drops
+    /// them, on request only (`--ingest:aovs=0`), and the report says so.
+    bool aovs = true;
+    /// Class overrides, applied in order, the last match winning: a glob (fnmatch) matched
+    /// against a channel's full name and against its layer (e.g. "*.IndexOB" or "mask_*"), and
+    /// the class it gets instead of classifyAov's.
+    std::vector<std::pair<std::string, AovClass>> classOverrides;
 };
 
 /// What ingest found and warns about (the caller prints the warnings).
@@ -44,10 +51,17 @@ struct IngestReport {
     FeatureChannels features;           ///< likewise
     std::vector<int64_t> spp;           ///< per file
     int64_t nonFiniteValues = 0;        ///< NaN/Inf RGB values over every file
+    std::vector<AovChannel> aovs;       ///< every AOV kept, with its class and part
+    int64_t nonFiniteAovValues = 0;     ///< NaN/Inf AOV values over every file
     std::vector<std::string> warnings;  ///< one line each, naming the file where there is one
 };
 
-/// Builds the statistics image of `paths` (one sub-buffer per file, in the order given):
+/// Builds the statistics image of `paths` (one sub-buffer per file, in the order given). Every
+/// other channel of the files (alpha, light groups, light-path passes, data passes, ID mattes, in
+/// every part) is kept per sub-buffer as an AOV (format version 5, part `aovs`) with its class
+/// (classifyAov, IngestOptions::classOverrides), together with the beauty's channel names and
+/// part, the display window (overscan) and the first file's metadata, so that an operation's
+/// result can replace one input render:
 /// buffer j of a pixel is file j's RGB with count = file j's spp; moments count, mean (= beauty)
 /// are the count-weighted combination in double; the variance is estimated from the buffers
 /// (mcstat:variance "buffers"; "unknown" and NaN with one file); features found by name are

@@ -160,6 +160,14 @@ const EstimatorInfo* findEstimator(std::string_view name);
 bool parseOperationParams(const Operation& op, const std::map<std::string, std::string>& kv,
                           ParamValues& out, std::string& err, const std::string& context = "");
 
+/// The smallest number of sub-buffers M at which the BufferMeans operation `op` with parameters
+/// `p` can return something other than the plain mean: MoN and the median average the two middle
+/// means of M = 2 (3); G-MoN trims c = floor(k G) <= floor((M - 1) / 2) with k = floor(M / 2), and
+/// for M = 3 the Gini coefficient of three values stays below 1 (4); G-MoN_b uses MoN (3); TMPE
+/// the first M with tmpeTrim(alpha, M) >= 1; myriad and meridian 2. 1 for the mean and anything
+/// else (no warning is due).
+int smallestRobustM(const Operation& op, const EstimatorParams& p);
+
 /// The estimator's parameters from parsed values (keys the estimator does not have are left as
 /// `out` holds them; the caller sets out.luma).
 void applyEstimatorParams(const ParamValues& values, EstimatorParams& out);

@@ -127,6 +127,20 @@ struct SpatialScratch {
     std::vector<int> treeList, cursor;
     std::vector<int32_t> order;
     std::vector<uint64_t> key;
+    /// AOVs (docs/aovs.md), luminance mode: with wantWeights set by the caller, a filtered pixel
+    /// leaves in `weights` every element that entered its average with its share (the shares sum
+    /// to 1): MIF/WMIF's element i is the window pixel source[i]; a 3D filter's element (list l,
+    /// buffer j) is buffer j of the window pixel source[l]. Empty in channel mode, where R, G and B
+    /// keep different elements. `source` (window pixels, image coordinates of the view) is
+    /// filled whenever wantWeights is set.
+    struct WeightedElement {
+        int element;  ///< MIF: element index; 3D: list index
+        int buffer;   ///< 3D: the buffer j; MIF: -1
+        double weight;
+    };
+    bool wantWeights = false;
+    std::vector<WeightedElement> weights;
+    std::vector<std::pair<int, int>> source;
 };
 
 /// The weighted trimmed mean of eq. 5.6 / 5.19 over elems (rules at the top of this file);

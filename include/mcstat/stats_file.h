@@ -26,7 +26,10 @@ inline constexpr const char* kStatsExtension = "mcstat";
 /// a rendered fixed-M image keeps version 1 (what every reader knows).
 /// Version 4 adds optional parts after the four: per-sample records (`records`) and Pajot's online
 /// state (`pajot`, `modes`); include/mcstat/sample_records.h reads and writes them.
-inline constexpr int kStatsFormatVersion = 4;
+/// Version 5 adds the input render's own layout (files made by `mcstat --ingest` from production
+/// renders): the part `aovs` (every AOV, alpha, light group, data pass and ID matte per
+/// sub-buffer), the input's channel names of the beauty and its metadata (FORMAT.md "Version 5").
+inline constexpr int kStatsFormatVersion = 5;
 /// The version a fixed-M file is written with by default (readable by version-1 readers).
 inline constexpr int kStatsFormatVersionFixed = 1;
 /// The first version that can hold adaptive M.
@@ -36,6 +39,40 @@ inline constexpr int kStatsFormatVersionAdaptive = 2;
 inline constexpr int kStatsFormatVersionProvenance = 3;
 /// The first version that can hold the optional parts records, pajot and modes.
 inline constexpr int kStatsFormatVersionSamples = 4;
+/// The first version that can hold AOVs (part `aovs`), beauty channel names and source metadata.
+inline constexpr int kStatsFormatVersionAovs = 5;
+
+/// What an AOV channel holds, which decides how an operation combines its sub-buffers
+/// (docs/aovs.md). Every operation computes weights from the beauty once per output pixel; the
+/// classes say what those weights do to a channel.
+enum class AovClass {
+    Alpha,  ///< coverage / opacity of the beauty (`A`, `RGBA.A`, `Combined.A`): beauty's weights
+    Light,  ///< additive light (light groups, light-path passes, emission): beauty's weights, so
+            ///< AOVs that summed to the beauty in every input still sum to it
+    Data,   ///< normals, positions, depth, albedo, UV, motion: beauty's weights too (a weighted
+            ///< average of per-buffer data, which is what the mean of a data pass is)
+    Id,     ///< labels (object / material index, Cryptomatte rank and coverage): never averaged;
+            ///< the value of the buffer of largest weight
+};
+/// "alpha", "light", "data", "id".
+const char* aovClassName(AovClass c);
+/// Parses aovClassName's names; false for anything else.
+bool parseAovClass(const std::string& text, AovClass& out);
+
+/// One AOV channel of part `aovs`, as the input render named it.
+struct AovChannel {
+    std::string name;  ///< the input's channel name, e.g. "ViewLayer.Combined_key.R", "diffuse.R"
+    AovClass cls = AovClass::Light;
+    /// The input part it came from ("" for the part that holds the beauty): an output rebuilt as
+    /// a drop-in replacement writes it back into a part of that name.
+    std::string part;
+    bool operator==(const AovChannel& o) const {
+        return name == o.name && cls == o.cls && part == o.part;
+    }
+};
+/// Longest AOV channel name a file may hold (bytes), and most AOV channels.
+inline constexpr size_t kMaxAovNameBytes = 200;
+inline constexpr int kMaxAovs = 4096;
 
 /// Sample-to-buffer rules (FORMAT.md "Sample-to-buffer assignment").
 inline constexpr const char* kAssignmentRoundRobin = "roundrobin";  ///< sample i -> buffer i mod M
@@ -89,9 +126,28 @@ struct StatsHeader {
     // it is given, see sample_records.h).
     bool hasPajot = false;    ///< parts `pajot` and `modes`: Pajot's online state
     bool hasRecords = false;  ///< part `records`: every sample
+    // Version 5: what the input render looked like, so that an output can replace one input.
+    /// Part `aovs`: these channels per sub-buffer, in this order (fixed M only). Empty: no part.
+    std::vector<AovChannel> aovs;
+    /// mcstat:beautyChannels: the input's names of the beauty's R, G, B (e.g.
+    /// "ViewLayer.Combined.R"); the default R, G, B needs no version 5.
+    std::array<std::string, 3> beautyNames{"R", "G", "B"};
+    /// mcstat:beautyPart: the name of the input part that held the beauty ("" single-part).
+    std::string beautyPart;
+    /// mcstat:sourceMetadata: the first input's own header attributes (camera matrices, frame,
+    /// renderer's attributes), as JSON text written and read by the ingest and output code
+    /// (OIIO types); this library stores it and never interprets it. "" for none.
+    std::string sourceMetadata;
+    /// The display window (OpenEXR displayWindow), e.g. smaller than the data window with
+    /// overscan. displayWidth 0: equal to the data window (what mcstat-render writes). Any
+    /// version may hold another one.
+    int displayX = 0, displayY = 0, displayWidth = 0, displayHeight = 0;
+    /// The AOV channel index of `name`, or -1.
+    int aovIndex(const std::string& name) const;
 };
 
-/// The lowest format version that can hold what `h` describes: 4 for the optional parts, 3 for
+/// The lowest format version that can hold what `h` describes: 5 for AOVs, beauty names other
+/// than R, G, B, a beauty part name or source metadata; 4 for the optional parts, 3 for
 /// provenance (assignment perfile, variance not "samples", absent features, sources), 2 for
 /// adaptive M, else 1.
 int requiredFormatVersion(const StatsHeader& h);
@@ -123,6 +179,8 @@ struct StatsImage {
     std::vector<float> albedo;    ///< [p*3 + c] mean first-hit albedo over all samples (miss = 0)
     std::vector<float> depth;     ///< [p] mean first-hit distance over hits (+inf if none)
     std::vector<float> coverage;  ///< [p] fraction of samples whose camera ray hit geometry
+    // part "aovs" (version 5, fixed M): AOV channel a of buffer j of pixel p, k = p * M + j.
+    std::vector<float> aov;  ///< [k * A + a], A = header.aovs.size()
 
     size_t pixelCount() const { return size_t(header.width) * size_t(header.height); }
     /// Index k of pixel p's first buffer in bufferCount (times 3 in bufferMean).
@@ -183,7 +241,8 @@ enum StatsParts : unsigned {
     kStatsPartBuffers = 1u << 1,   ///< bufferMean, bufferCount (and bufferOffset)
     kStatsPartMoments = 1u << 2,   ///< count, mean, variance
     kStatsPartFeatures = 1u << 3,  ///< normal, position, albedo, depth, coverage
-    kStatsAllParts = 15u
+    kStatsPartAovs = 1u << 4,      ///< aov (version 5; empty when the file has no AOVs)
+    kStatsAllParts = 31u
 };
 
 /// Anything that hands out a statistics image by blocks of rows: a file (StatsFileReader), the

@@ -172,7 +172,7 @@ TEST_F(Stream, BadRangesAndUnopenedReadersAreErrors) {
         EXPECT_NE(err.find(path), std::string::npos) << err;
         EXPECT_NE(err.find("cannot read rows"), std::string::npos) << err;
     }
-    EXPECT_FALSE(reader.read(0, 1, 16u, block, err));
+    EXPECT_FALSE(reader.read(0, 1, 32u, block, err));
     EXPECT_FALSE(reader.open(file("missing.mcstat"), err));
     EXPECT_FALSE(reader.isOpen());
     EXPECT_NE(err.find("missing.mcstat"), std::string::npos) << err;

@@ -1,0 +1,264 @@
+// Drop-in outputs: the input render's names, parts, windows and metadata (render_layout.h).
+#include "mcstat/render_layout.h"
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imageio.h>
+#include <OpenImageIO/strutil.h>
+
+#include <algorithm>
+#include <map>
+#include <nlohmann/json.hpp>
+
+#include "mcstat/temp_file.h"
+
+namespace mcstat {
+
+using OIIO::ImageSpec;
+using OIIO::TypeDesc;
+using OIIO::Strutil::fmt::format;
+
+namespace {
+
+/// Attributes that describe the file's encoding or OIIO's bookkeeping, not the render.
+bool isEncodingAttribute(const std::string& name) {
+    namespace SU = OIIO::Strutil;
+    const std::string lower = SU::lower(name);
+    for (const char* prefix : {"oiio:", "openexr:", "mcstat:", "mcstat.", "tiff:", "png:", "jpeg:"})
+        if (SU::starts_with(lower, prefix)) return true;
+    for (const char* n :
+         {"compression", "planarconfig", "tile_width", "tile_height", "tiledesc", "lineorder",
+          "chunkcount", "name", "type", "version", "channels", "datawindow", "displaywindow",
+          "dwacompressionlevel", "zipcompressionlevel", "openexr_chunkcount"})
+        if (lower == n) return true;
+    return false;
+}
+
+std::string oneLine(std::string s) {
+    std::replace(s.begin(), s.end(), '\n', ' ');
+    return s;
+}
+
+}  // namespace
+
+std::string sourceMetadataJson(const ImageSpec& spec) {
+    nlohmann::json list = nlohmann::json::array();
+    for (const OIIO::ParamValue& pv : spec.extra_attribs) {
+        const std::string name = pv.name().string();
+        if (isEncodingAttribute(name)) continue;
+        const TypeDesc t = pv.type();
+        const size_t n = size_t(pv.nvalues()) * t.numelements() * t.aggregate;
+        nlohmann::json values = nlohmann::json::array();
+        switch (t.basetype) {
+            case TypeDesc::STRING: {
+                const auto* u = static_cast<const OIIO::ustring*>(pv.data());
+                for (size_t i = 0; i < n; ++i) values.push_back(u[i].string());
+                break;
+            }
+            case TypeDesc::FLOAT:
+            case TypeDesc::DOUBLE:
+            case TypeDesc::HALF: {
+                // Raw values converted as a whole (ParamValue's indexed getters do not read
+                // aggregates such as matrices).
+                std::vector<float> f(n);
+                TypeDesc one(TypeDesc::BASETYPE(t.basetype));
+                if (!OIIO::convert_type(one, pv.data(), TypeDesc::FLOAT, f.data(), int(n)))
+                    continue;
+                for (float x : f) values.push_back(x);
+                break;
+            }
+            case TypeDesc::INT8:
+            case TypeDesc::UINT8:
+            case TypeDesc::INT16:
+            case TypeDesc::UINT16:
+            case TypeDesc::INT32:
+            case TypeDesc::UINT32: {
+                std::vector<int> v(n);
+                TypeDesc one(TypeDesc::BASETYPE(t.basetype));
+                if (!OIIO::convert_type(one, pv.data(), TypeDesc::INT32, v.data(), int(n)))
+                    continue;
+                for (int x : v) values.push_back(x);
+                break;
+            }
+            default:
+                continue;  // pointers, 64-bit integers: nothing a render's header needs
+        }
+        list.push_back({{"name", name}, {"type", t.c_str()}, {"values", values}});
+    }
+    return list.empty() ? std::string() : list.dump();
+}
+
+bool applySourceMetadata(ImageSpec& spec, const std::string& json, std::string& err) {
+    if (json.empty()) return true;
+    const nlohmann::json list = nlohmann::json::parse(json, nullptr, false);
+    if (list.is_discarded() || !list.is_array()) {
+        err = "source metadata is not a JSON list";
+        return false;
+    }
+    ImageSpec staged;
+    for (const nlohmann::json& a : list) {
+        if (!a.is_object() || !a.contains("name") || !a["name"].is_string() ||
+            !a.contains("type") || !a["type"].is_string() || !a.contains("values") ||
+            !a["values"].is_array()) {
+            err = "source metadata: an entry without name, type and values";
+            return false;
+        }
+        const std::string name = a["name"];
+        const TypeDesc t(a["type"].get<std::string>());
+        const nlohmann::json& v = a["values"];
+        const size_t n = t.numelements() * t.aggregate;
+        if (t.basetype == TypeDesc::UNKNOWN || v.size() != n || n == 0 || n > 4096) {
+            err = format("source metadata: '{}' has {} values for type '{}'", name, v.size(),
+                         a["type"].get<std::string>());
+            return false;
+        }
+        if (t.basetype == TypeDesc::STRING) {
+            std::vector<std::string> s;
+            std::vector<OIIO::ustring> u;
+            for (const auto& e : v) {
+                if (!e.is_string()) {
+                    err = format("source metadata: '{}' holds a non-string", name);
+                    return false;
+                }
+                u.emplace_back(e.get<std::string>());
+            }
+            staged.attribute(name, t, u.data());
+        } else if (t.basetype == TypeDesc::FLOAT || t.basetype == TypeDesc::DOUBLE ||
+                   t.basetype == TypeDesc::HALF) {
+            std::vector<float> f;
+            for (const auto& e : v) {
+                if (!e.is_number()) {
+                    err = format("source metadata: '{}' holds a non-number", name);
+                    return false;
+                }
+                f.push_back(e.get<float>());
+            }
+            TypeDesc ft = t;
+            ft.basetype = TypeDesc::FLOAT;
+            staged.attribute(name, ft, f.data());
+        } else {
+            std::vector<int> i;
+            for (const auto& e : v) {
+                if (!e.is_number_integer()) {
+                    err = format("source metadata: '{}' holds a non-integer", name);
+                    return false;
+                }
+                i.push_back(e.get<int>());
+            }
+            TypeDesc it = t;
+            it.basetype = t.basetype == TypeDesc::UINT32 ? TypeDesc::UINT32 : TypeDesc::INT32;
+            staged.attribute(name, it, i.data());
+        }
+    }
+    for (const OIIO::ParamValue& pv : staged.extra_attribs)
+        spec.attribute(pv.name(), pv.type(), pv.data());
+    return true;
+}
+
+void describeResult(ImageSpec& spec, const Operation& op, const ParamValues& values,
+                    const StatsHeader& h, std::string* warning) {
+    std::string err;
+    if (!applySourceMetadata(spec, h.sourceMetadata, err) && warning) *warning = err;
+    std::string params;
+    for (const auto& [k, v] : values) {
+        const ParamSpec* ps = op.param(k);
+        if (ps && ps->fixed) continue;
+        params += (params.empty() ? "" : ",") + k + "=" + v.text;
+    }
+    const std::string p = kProvenancePrefix;
+    spec.attribute(p + "operation", op.name);
+    spec.attribute(p + "parameters", params);
+    spec.attribute(p + "M", h.M);
+    spec.attribute(p + "spp", int(std::min<int64_t>(h.spp, INT32_MAX)));
+    if (!h.sources.empty()) spec.attribute(p + "sources", h.sources);
+    if (!h.renderer.empty()) spec.attribute(p + "renderer", h.renderer);
+}
+
+bool needsRenderLayout(const StatsHeader& h) {
+    return !h.aovs.empty() || !h.beautyPart.empty() ||
+           h.beautyNames != std::array<std::string, 3>{"R", "G", "B"};
+}
+
+bool writeRenderLike(const OIIO::ImageBuf& img, const StatsHeader& layout, const std::string& path,
+                     TypeDesc type, std::string& err) {
+    if (!checkOutputTarget(path, err)) return false;
+    const ImageSpec& src = img.spec();
+    if (src.nchannels < 3 || src.deep) {
+        err = format("{}: the image has no R, G, B to write as the render's beauty", path);
+        return false;
+    }
+    // Which part each channel goes to (in channel order), and its name there.
+    std::vector<std::string> partOf(size_t(src.nchannels), layout.beautyPart);
+    std::vector<std::string> nameOf(src.channelnames);
+    for (int c = 0; c < 3; ++c) nameOf[size_t(c)] = layout.beautyNames[size_t(c)];
+    for (int c = 3; c < src.nchannels; ++c) {
+        const int a = layout.aovIndex(src.channelnames[size_t(c)]);
+        if (a >= 0) partOf[size_t(c)] = layout.aovs[size_t(a)].part;
+    }
+    std::vector<std::string> parts;  // in order of first channel, the beauty's first
+    for (const std::string& p : partOf)
+        if (std::find(parts.begin(), parts.end(), p) == parts.end()) parts.push_back(p);
+    const std::string ext = OIIO::Strutil::lower(OIIO::Filesystem::extension(path, false));
+    std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(ext);
+    if (!out) {
+        (void)OIIO::geterror();
+        err = format("{}: OpenImageIO has no writer for '.{}' files", path, ext);
+        return false;
+    }
+    if (parts.size() > 1 && !out->supports("multiimage")) {
+        err =
+            format("{}: the render had {} parts ({}...), which a .{} file cannot hold; write .exr",
+                   path, parts.size(), parts[1], ext);
+        return false;
+    }
+    std::vector<ImageSpec> specs;
+    std::vector<std::vector<int>> channelsOf;
+    for (const std::string& part : parts) {
+        std::vector<int> chans;
+        for (int c = 0; c < src.nchannels; ++c)
+            if (partOf[size_t(c)] == part) chans.push_back(c);
+        ImageSpec s = src;
+        s.nchannels = int(chans.size());
+        s.channelnames.clear();
+        s.channelformats.clear();
+        s.alpha_channel = -1;
+        s.z_channel = -1;
+        for (size_t i = 0; i < chans.size(); ++i) {
+            s.channelnames.push_back(nameOf[size_t(chans[i])]);
+            if (chans[i] == src.alpha_channel) s.alpha_channel = int(i);
+        }
+        s.set_format(type);
+        if (parts.size() > 1)
+            s.attribute("oiio:subimagename", part.empty() ? std::string("rgba") : part);
+        specs.push_back(std::move(s));
+        channelsOf.push_back(std::move(chans));
+    }
+    TemporaryFile tmp(path);
+    const auto fail = [&](const std::string& why) {
+        err = format("{}: {}", path,
+                     oneLine(OIIO::Strutil::replace(why.empty() ? "the writer failed" : why,
+                                                    tmp.path(), path, true)));
+        return false;
+    };
+    if (!out->open(tmp.path(), int(specs.size()), specs.data())) return fail(out->geterror());
+    std::vector<float> pixels;
+    for (size_t i = 0; i < specs.size(); ++i) {
+        if (i > 0 && !out->open(tmp.path(), specs[i], OIIO::ImageOutput::AppendSubimage))
+            return fail(out->geterror());
+        const std::vector<int>& chans = channelsOf[i];
+        const size_t npix = size_t(src.width) * size_t(src.height);
+        pixels.assign(npix * chans.size(), 0.f);
+        std::vector<float> one(npix);
+        for (size_t k = 0; k < chans.size(); ++k) {
+            if (!img.get_pixels(OIIO::ROI(src.x, src.x + src.width, src.y, src.y + src.height, 0, 1,
+                                          chans[k], chans[k] + 1),
+                                TypeDesc::FLOAT, one.data()))
+                return fail(img.geterror());
+            for (size_t q = 0; q < npix; ++q) pixels[q * chans.size() + k] = one[q];
+        }
+        if (!out->write_image(TypeDesc::FLOAT, pixels.data())) return fail(out->geterror());
+    }
+    if (!out->close()) return fail(out->geterror());
+    return tmp.commit(err);
+}
+
+}  // namespace mcstat

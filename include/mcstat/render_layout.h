@@ -1,0 +1,52 @@
+// A robust result as a drop-in replacement for one input render (docs/aovs.md): the render's
+// channel names, parts, windows and metadata, plus provenance under names that survive stock
+// OIIO tools. OIIO-facing; the statistics file stores what it needs as plain text
+// (StatsHeader::beautyNames, aovs, beautyPart, sourceMetadata, display window).
+#pragma once
+
+#include <OpenImageIO/imagebuf.h>
+
+#include <string>
+
+#include "mcstat/registry.h"
+#include "mcstat/stats_file.h"
+
+namespace mcstat {
+
+/// The header attributes of `spec` that belong to the render and go to every output made from it
+/// (camera matrices, frame, fps, time code, the renderer's own attributes), as JSON text for
+/// StatsHeader::sourceMetadata: OIIO's names and types. Left out: OIIO's bookkeeping ("oiio:*"),
+/// the file's encoding (compression, tiles, line order, chunk counts, "openexr:*"), and mcstat's
+/// own ("mcstat:*", "mcstat.*"), which each output sets afresh.
+std::string sourceMetadataJson(const OIIO::ImageSpec& spec);
+
+/// Sets the attributes of sourceMetadataJson's text on `spec`. False with a one-line `err` on text
+/// that is not such JSON (nothing is set then).
+bool applySourceMetadata(OIIO::ImageSpec& spec, const std::string& json, std::string& err);
+
+/// Attribute name prefix of provenance. Not "mcstat:": OIIO's writers drop attributes whose prefix
+/// before ':' names another image format, and with the mcstat plugin loaded "mcstat" is one, so
+/// `oiiotool f.mcstat -o x.exr` would lose them.
+inline constexpr const char* kProvenancePrefix = "mcstat.";
+
+/// Describes an operation's result on its spec: the source's metadata (StatsHeader::
+/// sourceMetadata), and provenance: mcstat.operation (e.g. "gmon"), mcstat.parameters
+/// ("mode=lum"), mcstat.M, mcstat.spp, mcstat.sources, mcstat.renderer. A bad metadata text is
+/// skipped with a warning in `warning`.
+void describeResult(OIIO::ImageSpec& spec, const Operation& op, const ParamValues& values,
+                    const StatsHeader& h, std::string* warning = nullptr);
+
+/// Whether writing an operation's result over `h` as a render needs writeRenderLike (beauty
+/// names other than R, G, B, AOVs, or a part name).
+bool needsRenderLayout(const StatsHeader& h);
+
+/// Writes `img` (an operation's result over a statistics file with header `layout`: R, G, B
+/// first, then any channels the operation adds, then the AOVs under their input names) as the
+/// input render was laid out: R, G, B renamed to layout.beautyNames, each AOV in the part it came
+/// from (AovChannel::part; the beauty, alpha and the operation's own channels in
+/// layout.beautyPart), one part when they all came from one. Atomic (a temporary file renamed on
+/// success). A format that holds one image cannot hold several parts: refused, naming the format.
+bool writeRenderLike(const OIIO::ImageBuf& img, const StatsHeader& layout, const std::string& path,
+                     OIIO::TypeDesc type, std::string& err);
+
+}  // namespace mcstat
