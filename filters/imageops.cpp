@@ -523,6 +523,67 @@ bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const Par
 
 }  // namespace
 
+namespace {
+
+/// appendResidual over an image in memory or a streamed source.
+template <class Source>
+bool appendResidualTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
+                      int nthreads) {
+    const StatsHeader& h = headerOf(src);
+    EstimatorParams meanParams;
+    meanParams.luma = luma;
+    ImageBuf mean;
+    if (!estimate(mean, src, *findEstimator("mean"), meanParams, false, robust.roi(), nthreads)) {
+        robust.errorfmt("residual: {}", mean.geterror());
+        return false;
+    }
+    // Which channels: the beauty's and every AOV's but the labels (a label has no residual).
+    std::vector<int> from;
+    std::vector<std::string> names;
+    const ImageSpec& rs = robust.spec();
+    for (int c = 0; c < rs.nchannels; ++c) {
+        const std::string& n = rs.channelnames[size_t(c)];
+        const int a = h.aovIndex(n);
+        if (c >= 3 && (a < 0 || h.aovs[size_t(a)].cls == AovClass::Id)) continue;
+        if (mean.spec().channelindex(n) < 0) continue;
+        from.push_back(c);
+        names.push_back(kResidualPrefix + n);
+    }
+    ImageSpec spec = rs;
+    spec.nchannels = rs.nchannels + int(from.size());
+    spec.channelnames.insert(spec.channelnames.end(), names.begin(), names.end());
+    spec.channelformats.clear();
+    ImageBuf out(spec);
+    const ROI roi = robust.roi();
+    const size_t nin = size_t(rs.nchannels), nout = size_t(spec.nchannels),
+                 nm = size_t(mean.nchannels());
+    const float* rp = static_cast<const float*>(robust.localpixels());
+    const float* mp = static_cast<const float*>(mean.localpixels());
+    float* op = static_cast<float*>(out.localpixels());
+    std::vector<int> meanIndex;
+    for (int c : from) meanIndex.push_back(mean.spec().channelindex(rs.channelnames[size_t(c)]));
+    for (size_t q = 0; q < roi.npixels(); ++q) {
+        std::copy(rp + q * nin, rp + (q + 1) * nin, op + q * nout);
+        for (size_t i = 0; i < from.size(); ++i)
+            op[q * nout + nin + i] = float(double(mp[q * nm + size_t(meanIndex[i])]) -
+                                           double(rp[q * nin + size_t(from[i])]));
+    }
+    robust = std::move(out);
+    return true;
+}
+
+}  // namespace
+
+bool appendResidual(ImageBuf& robust, const StatsImage& src, const std::array<double, 3>& luma,
+                    int nthreads) {
+    return appendResidualTo(robust, src, luma, nthreads);
+}
+
+bool appendResidual(ImageBuf& robust, StatsBlockSource& src, const std::array<double, 3>& luma,
+                    int nthreads) {
+    return appendResidualTo(robust, src, luma, nthreads);
+}
+
 bool applyOperation(ImageBuf& dst, const StatsImage& src, const Operation& op,
                     const ParamValues& values, const std::array<double, 3>& luma, bool diagnostics,
                     ROI roi, int nthreads) {

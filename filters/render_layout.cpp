@@ -191,8 +191,16 @@ bool writeRenderLike(const OIIO::ImageBuf& img, const StatsHeader& layout, const
     std::vector<std::string> nameOf(src.channelnames);
     for (int c = 0; c < 3; ++c) nameOf[size_t(c)] = layout.beautyNames[size_t(c)];
     for (int c = 3; c < src.nchannels; ++c) {
-        const int a = layout.aovIndex(src.channelnames[size_t(c)]);
+        std::string n = src.channelnames[size_t(c)];
+        // A residual (appendResidual) goes beside its channel, named after the render's name.
+        const bool residual = OIIO::Strutil::starts_with(n, "residual.");
+        if (residual) n = n.substr(9);
+        const int a = layout.aovIndex(n);
         if (a >= 0) partOf[size_t(c)] = layout.aovs[size_t(a)].part;
+        if (residual)
+            for (int b = 0; b < 3; ++b)
+                if (n == "RGB"[b] + std::string())
+                    nameOf[size_t(c)] = "residual." + layout.beautyNames[size_t(b)];
     }
     std::vector<std::string> parts;  // in order of first channel, the beauty's first
     for (const std::string& p : partOf)
@@ -227,6 +235,9 @@ bool writeRenderLike(const OIIO::ImageBuf& img, const StatsHeader& layout, const
             if (chans[i] == src.alpha_channel) s.alpha_channel = int(i);
         }
         s.set_format(type);
+        // In-memory bookkeeping of which channels are AOVs (imageops.h), not the render's.
+        s.erase_attribute("mcstat:firstAov");
+        s.erase_attribute("mcstat:aovClasses");
         if (parts.size() > 1)
             s.attribute("oiio:subimagename", part.empty() ? std::string("rgba") : part);
         specs.push_back(std::move(s));

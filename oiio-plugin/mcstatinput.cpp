@@ -465,6 +465,17 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     r.spec.attribute("oiio:ColorSpace", h.colorSpace);
     describeEstimator(r.spec);
     mcstat::describeResult(r.spec, *est, m_values, h);
+    if (est->input == mcstat::InputKind::BufferMeans && !h.adaptiveM) {
+        // iv shows subimage 0 under the estimator's name: say when it cannot differ from the mean.
+        mcstat::EstimatorParams params;
+        mcstat::applyEstimatorParams(m_values, params);
+        const int minM = mcstat::smallestRobustM(*est, params);
+        if (minM > 1 && h.M < minM)
+            r.spec.attribute(std::string(mcstat::kProvenancePrefix) + "warning",
+                             format("{} over M = {} sub-buffers is the plain mean (it trims "
+                                    "nothing below M = {})",
+                                    est->name, h.M, minM));
+    }
     r.from = {{kEstimate, 0}, {kEstimate, 1}, {kEstimate, 2}};
     // kEstimate (no diagnostics) holds R, G, B and then the AOVs.
     for (size_t a = 0; a < nAovs; ++a) r.from.push_back({kEstimate, 3 + a});

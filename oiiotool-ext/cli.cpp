@@ -111,9 +111,11 @@ bool runEstimator(State& st, const std::string& cmd, const Operation& op, const 
     if (!needStatsOnTop(st, cmd, err)) return false;
     Item& top = st.stack.back();
     Modifiers estMods = mods;
-    bool diag = false;
-    if (!flagValue(mods, "diag", diag, err)) return false;
+    bool diag = false, residual = false;
+    if (!flagValue(mods, "diag", diag, err) || !flagValue(mods, "residual", residual, err))
+        return false;
     estMods.erase("diag");
+    estMods.erase("residual");
     EstimatorParams params;
     params.luma = luma();
     ParamValues values;
@@ -128,6 +130,15 @@ bool runEstimator(State& st, const std::string& cmd, const Operation& op, const 
                     : estimate(*img, *src.root, op, params, diag, {}, st.nthreads))) {
         err = format("{}: {}", cmd, img->geterror());
         return false;
+    }
+    if (residual) {
+        ItemSource again;  // a streamed source is read once more, from its first row
+        if (!top.stats && !openSource(st, top, again, err)) return false;
+        if (!(top.stats ? appendResidual(*img, *top.stats, params.luma, st.nthreads)
+                        : appendResidual(*img, *again.root, params.luma, st.nthreads))) {
+            err = format("{}: {}", cmd, img->geterror());
+            return false;
+        }
     }
     for (const auto& [k, v] : estMods) img->specmod().attribute("mcstat:" + k, v);
     describeOperationResult(top, op, values, *img);
@@ -333,7 +344,10 @@ std::vector<Command> buildTable() {
     for (const Operation& op : operationRegistry()) {
         Command c{"--" + op.name, 0, "", op.help, {}, &cmdOperation, op.name};
         for (const ParamSpec* p : op.settable()) c.modifiers.push_back(p->name);
-        if (op.input == InputKind::BufferMeans) c.modifiers.push_back("diag");
+        if (op.input == InputKind::BufferMeans) {
+            c.modifiers.push_back("diag");
+            c.modifiers.push_back("residual");
+        }
         t.push_back(c);
     }
     t.push_back(

@@ -124,6 +124,18 @@ bool applyOperation(OIIO::ImageBuf& dst, StatsBlockSource& src, const Operation&
                     const ParamValues& values, const std::array<double, 3>& luma,
                     bool diagnostics = false, OIIO::ROI roi = {}, int nthreads = 0);
 
+/// Prefix of the residual channels appendResidual adds.
+inline constexpr const char* kResidualPrefix = "residual.";
+/// Appends to `robust`, an operation's result over `src` (R, G, B first; same data window), the
+/// residual of the beauty and of every AOV but the labels (class id): "residual.<channel>" =
+/// plain mean - robust, the mean as the "mean" estimator computes it over `src`. So robust +
+/// residual = mean up to one float rounding: a compositor adds back, where it judges the light
+/// real, what the estimator removed (docs/aovs.md). Errors on `robust`.
+bool appendResidual(OIIO::ImageBuf& robust, const StatsImage& src,
+                    const std::array<double, 3>& luma, int nthreads = 0);
+bool appendResidual(OIIO::ImageBuf& robust, StatsBlockSource& src,
+                    const std::array<double, 3>& luma, int nthreads = 0);
+
 /// Runs a Samples operation on the statistics file `path` (op.samples streams it) and turns its
 /// OperationImage into an ImageBuf with the data window of `header` (the file's). False with the
 /// message on dst. `progress` (0..1), when set, hears from long operations.

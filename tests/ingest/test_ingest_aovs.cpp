@@ -7,6 +7,7 @@
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <random>
@@ -286,6 +287,27 @@ TEST_P(IngestAovs, EveryChannelKeptAndStillSummingAfterEveryEstimator) {
         return e;
     };
     EXPECT_LT(keyError(gmon) * 20, keyError(mean));
+
+    // The residual: robust + residual = mean for the beauty and every AOV but the labels.
+    OIIO::ImageBuf withResidual = gmon;
+    ASSERT_TRUE(appendResidual(withResidual, img, luma)) << withResidual.geterror();
+    const OIIO::ImageSpec& rs = withResidual.spec();
+    EXPECT_EQ(size_t(rs.nchannels), 2 * (3 + h.aovs.size()) - s.ids.size());
+    for (const std::string& id : s.ids) EXPECT_LT(rs.channelindex("residual." + id), 0);
+    for (int c = 0; c < gmon.nchannels(); ++c) {
+        const std::string n = gmon.spec().channelnames[size_t(c)];
+        const int rc = rs.channelindex("residual." + n);
+        if (std::find(s.ids.begin(), s.ids.end(), n) != s.ids.end()) continue;
+        ASSERT_GE(rc, 0) << n;
+        const int mc = mean.spec().channelindex(n);
+        for (int y = -kPad; y < kH + kPad; ++y)
+            for (int x = -kPad; x < kW + kPad; ++x) {
+                const float m = mean.getchannel(x, y, 0, mc);
+                const float sum = withResidual.getchannel(x, y, 0, c) +
+                                  withResidual.getchannel(x, y, 0, rc);
+                ASSERT_NEAR(sum, m, 2e-7f * std::abs(m) + 1e-30f) << n << " " << x << "," << y;
+            }
+    }
 
     // Written back, the result is laid out as an input render: names, parts, windows, metadata,
     // provenance.
