@@ -66,6 +66,12 @@ std::vector<std::string> aovOutputChannels(const StatsHeader& h) {
     return names;
 }
 
+int aovDepthChannel(const StatsHeader& h, size_t firstAov) {
+    for (size_t a = 0; a < h.aovs.size(); ++a)
+        if (h.aovs[a].name == "Z" || h.aovs[a].name == "z") return int(firstAov + a);
+    return -1;
+}
+
 int aovAlphaChannel(const StatsHeader& h, size_t firstAov) {
     for (size_t a = 0; a < h.aovs.size(); ++a)
         if (h.aovs[a].cls == AovClass::Alpha) return int(firstAov + a);
@@ -105,7 +111,7 @@ ImageSpec aovResultSpec(ROI roi, const StatsHeader& h, const std::string& colorS
     setWindows(spec, roi, h);
     spec.channelnames = names;
     spec.alpha_channel = aovAlphaChannel(h, 3);
-    spec.z_channel = -1;
+    spec.z_channel = aovDepthChannel(h, 3);
     setAovAttributes(spec, h, 3);
     spec.attribute("oiio:ColorSpace", colorSpace);
     return spec;
@@ -178,6 +184,7 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
     setWindows(spec, roi, h);
     spec.channelnames = names;
     spec.alpha_channel = aovAlphaChannel(h, firstAov);
+    spec.z_channel = aovDepthChannel(h, firstAov);
     setAovAttributes(spec, h, firstAov);
     spec.attribute("mcstat:estimator", est.name);
     spec.attribute("oiio:ColorSpace", h.colorSpace);

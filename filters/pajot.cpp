@@ -382,10 +382,10 @@ double hybridDistance(float mAdr, float mRot) {
 
 }  // namespace
 
-bool PajotPixel::add(const float rgb[3], const PajotParams& p) {
+bool PajotPixel::add(const float rgb[3], const PajotParams& p, int64_t tag) {
     if (!std::isfinite(rgb[0]) || !std::isfinite(rgb[1]) || !std::isfinite(rgb[2])) return false;
     ++s_.taken;
-    const PajotSample smp{{rgb[0], rgb[1], rgb[2]}, pajotLogLuminance(rgb, p.luma)};
+    const PajotSample smp{{rgb[0], rgb[1], rgb[2]}, pajotLogLuminance(rgb, p.luma), tag};
     if (s_.phase == PajotPhase::Learning) {
         s_.learning.push_back(smp);
         if (int64_t(s_.learning.size()) >= p.learning) finishLearning(p);
@@ -475,6 +475,14 @@ void PajotPixel::offer(const PajotSample& smp, const PajotParams& p) {
 void PajotPixel::splat(const PajotSample& smp) {
     for (int c = 0; c < 3; ++c) s_.sum[size_t(c)] += double(smp.rgb[size_t(c)]);
     ++s_.splatted;
+    if (splatLog_) splatLog_->push_back(smp.tag);
+}
+
+std::vector<int64_t> PajotPixel::splatTags(const std::vector<int64_t>& log) const {
+    if (s_.phase != PajotPhase::Learning) return log;
+    std::vector<int64_t> tags;
+    for (const PajotSample& smp : s_.learning) tags.push_back(smp.tag);
+    return tags;
 }
 
 void PajotPixel::delay(const PajotSample& smp, const PajotParams& p) {

@@ -10,6 +10,7 @@
 #include <thread>
 #include <vector>
 
+#include "mcstat/aov_weights.h"
 #include "mcstat/pajot.h"
 #include "mcstat/sample_records.h"
 
@@ -92,8 +93,29 @@ bool pajotOperation(const SamplesRequest& req, OperationImage& out, std::string&
         return true;
     }
 
-    // Only R, G, B (with Z, always read) of the records: Pajot needs nothing else.
-    if (!src->selectRecordChannels({}, err)) return false;
+    // R, G, B (with Z, always read) of the records, and the per-sample AOVs the records hold
+    // (channels "aov.<name>" for the file's AOVs): the samples the estimate averages carry their
+    // AOVs with the same weights (docs/aovs.md).
+    std::vector<std::string> aovChannels;
+    std::vector<size_t> aovOf;  // index into h.aovs of each AOV carried
+    {
+        const std::vector<std::string> available = src->recordChannels();
+        for (size_t a = 0; a < h.aovs.size(); ++a) {
+            const std::string name = std::string(kRecordAovPrefix) + h.aovs[a].name;
+            if (std::find(available.begin(), available.end(), name) != available.end()) {
+                aovChannels.push_back(name);
+                aovOf.push_back(a);
+            }
+        }
+    }
+    if (!src->selectRecordChannels(aovChannels, err)) return false;
+    const size_t A = aovChannels.size(), nch = 4 + A;
+    if (A > 0) {
+        out.pixels.assign(pixels * nch, 0.f);
+        for (size_t a : aovOf) out.channels.push_back(h.aovs[a].name);
+    }
+    std::vector<AovClass> classes;
+    for (size_t a : aovOf) classes.push_back(h.aovs[a].cls);
     // Blocks of rows of about 128 MiB of samples (the per-pixel counts say how many exactly).
     const double rowBytes = std::max(
         1.0, double(width) * double(std::max<int64_t>(h.spp, 1)) * kRecordFloats * sizeof(float));
@@ -107,17 +129,36 @@ bool pajotOperation(const SamplesRequest& req, OperationImage& out, std::string&
         std::vector<size_t> offset(block.counts.size() + 1, 0);
         for (size_t i = 0; i < block.counts.size(); ++i)
             offset[i + 1] = offset[i] + block.counts[i];
+        std::vector<size_t> aovAt;  // where each carried AOV sits in a sample
+        for (const std::string& c : aovChannels) aovAt.push_back(size_t(block.channel(c)));
         auto work = [&](size_t begin, size_t end) {
+            std::vector<int64_t> log;
+            std::vector<double> w;
+            std::vector<float> values;
+            AovScratch as;
             for (size_t i = begin; i < end; ++i) {
                 PajotPixel px;
-                for (size_t k = offset[i]; k < offset[i + 1]; ++k)
-                    px.add(block.samples.data() + k * block.stride(), p);  // non-finite: refused
+                log.clear();
+                if (A > 0) px.logSplats(&log);
+                for (size_t k = offset[i]; k < offset[i + 1]; ++k)  // non-finite: refused
+                    px.add(block.samples.data() + k * block.stride(), p, int64_t(k - offset[i]));
                 const std::array<float, 3> e = px.estimate();
-                float* o = out.pixels.data() + (size_t(y0) * width + i) * 4;
+                float* o = out.pixels.data() + (size_t(y0) * width + i) * nch;
                 o[0] = e[0];
                 o[1] = e[1];
                 o[2] = e[2];
                 o[3] = float(px.state().delayed.size());
+                if (A == 0) continue;
+                // Every sample the estimate averages, with the same weight.
+                const std::vector<int64_t> tags = px.splatTags(log);
+                w.assign(tags.size(), tags.empty() ? 0.0 : 1.0 / double(tags.size()));
+                values.clear();
+                for (int64_t t : tags) {
+                    const float* smp =
+                        block.samples.data() + (offset[i] + size_t(t)) * block.stride();
+                    for (size_t at : aovAt) values.push_back(smp[at]);
+                }
+                applyAovWeights(w.data(), w.size(), values.data(), A, classes.data(), o + 4, as);
             }
         };
         const int threads = threadCount(req.nthreads, n);

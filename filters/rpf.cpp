@@ -323,7 +323,7 @@ RpfWeights featureWeights(const RpfLayout& layout, const float* xs, size_t dimSt
 /// Algorithm 2 + 3 + 4 for pixel (x, y).
 void filterPixel(const RpfWindow& w, const RpfParams& prm, int pass, const OffsetLaw& law, int x,
                  int y, const std::vector<float>& cIn, std::vector<float>& cOut, Scratch& sc,
-                 RpfPixelReport* report) {
+                 RpfPixelReport* report, const float* aIn, float* aOut) {
     const RpfLayout& L = w.layout;
     const int dims = L.dims(), fBase = 5 + L.randoms;
     const size_t p = size_t(y - w.y0) * size_t(w.width) + size_t(x);
@@ -490,8 +490,28 @@ void filterPixel(const RpfWindow& w, const RpfParams& prm, int pass, const Offse
             o[c] = float(acc[c] / wsum);  // wsum >= w_ii = 1
             mean[c] += double(o[c]);
         }
+        // AOVs (docs/aovs.md): the same weights w_ij, a non-finite value left out of its channel.
+        const size_t A = aIn ? w.aovs : 0;
+        for (size_t a = 0; a < A; ++a) {
+            if (w.aovFixed[a]) continue;  // a label: kept as it is
+            double av = 0, aw = 0;
+            for (size_t j = 0; j < n; ++j) {
+                const float v = aIn[sc.members[j] * A + a];
+                if (!std::isfinite(v)) continue;
+                av += double(d2[j]) * double(v);
+                aw += double(d2[j]);
+            }
+            aOut[(first + i) * A + a] = aw > 0 ? float(av / aw) : 0.f;
+        }
     }
     if (!prm.spikes || s < 2) return;
+    // The AOVs' means over the pixel's samples before any spike is replaced.
+    const size_t A = aIn ? w.aovs : 0;
+    std::vector<double> aovMean(A, 0.0);
+    for (size_t a = 0; a < A; ++a) {
+        for (size_t i = 0; i < s; ++i) aovMean[a] += double(aOut[(first + i) * A + a]);
+        aovMean[a] /= double(s);
+    }
     // Section 6.1 (Algorithm 4 lines 13-20): spikes above mean + one deviation become the mean.
     for (int c = 0; c < 3; ++c) mean[c] /= double(s);
     for (size_t i = 0; i < s; ++i)
@@ -503,7 +523,11 @@ void filterPixel(const RpfWindow& w, const RpfParams& prm, int pass, const Offse
         const double sd = std::sqrt(sq[c] / double(s));
         for (size_t i = 0; i < s; ++i) {
             float& v = cOut[(first + i) * 3 + size_t(c)];
-            if (double(v) - mean[c] > sd) v = float(mean[c]);
+            if (double(v) - mean[c] > sd) {
+                v = float(mean[c]);
+                for (size_t a = 0; a < A; ++a)  // the AOVs that sum to this channel, alike
+                    if (w.aovFollows[a] == c) aOut[(first + i) * A + a] = float(aovMean[a]);
+            }
         }
     }
 }
@@ -562,7 +586,8 @@ bool validateRpfParams(const RpfParams& p, std::string& err) {
 
 void rpfPass(const RpfWindow& w, const RpfParams& params, int pass, const std::vector<float>& cIn,
              std::vector<float>& cOut, int rowBegin, int rowEnd, int nthreads,
-             std::vector<RpfPixelReport>* report, const std::function<void(int)>& rowDone) {
+             std::vector<RpfPixelReport>* report, const std::function<void(int)>& rowDone,
+             const std::vector<float>* aIn, std::vector<float>* aOut) {
     rowBegin = std::max(rowBegin, w.y0);
     rowEnd = std::min(rowEnd, w.y0 + w.rows);
     if (rowEnd <= rowBegin) return;
@@ -576,7 +601,9 @@ void rpfPass(const RpfWindow& w, const RpfParams& params, int pass, const std::v
             for (int x = 0; x < w.width; ++x)
                 filterPixel(w, params, pass, law, x, y, cIn, cOut, sc,
                             report ? &(*report)[size_t(y - rowBegin) * size_t(w.width) + size_t(x)]
-                                   : nullptr);
+                                   : nullptr,
+                            aIn && aOut ? aIn->data() : nullptr,
+                            aIn && aOut ? aOut->data() : nullptr);
             if (rowDone) {
                 std::lock_guard<std::mutex> lock(progressLock);
                 rowDone(y);
@@ -592,7 +619,7 @@ void rpfPass(const RpfWindow& w, const RpfParams& params, int pass, const std::v
 
 void rpfFilterRows(const RpfWindow& w, const RpfParams& params, int outBegin, int outEnd,
                    std::vector<float>& rgb, int nthreads, const std::function<void(int)>& rowDone,
-                   std::vector<RpfPixelReport>* firstPass) {
+                   std::vector<RpfPixelReport>* firstPass, std::vector<float>* aovOut) {
     const int passes = int(params.boxes.size());
     // Rows each pass must filter so that the last pass has what it reads: pass t covers the
     // rows of pass t+1 widened by pass t+1's box/2, clipped to the image.
@@ -606,12 +633,18 @@ void rpfFilterRows(const RpfWindow& w, const RpfParams& params, int outBegin, in
     }
     std::vector<float> cur(w.samples() * 3), nxt;
     for (size_t i = 0; i < w.samples(); ++i) std::copy_n(w.sample(i), 3, cur.data() + i * 3);
+    const size_t A = aovOut ? w.aovs : 0;
+    std::vector<float> aCur, aNxt;
+    if (A > 0) aCur = w.aov;
     for (int t = 0; t < passes; ++t) {
         nxt = cur;  // Algorithm 1 lines 14-16: c' <- c'' after the pass
+        if (A > 0) aNxt = aCur;
         std::vector<RpfPixelReport> report;
         const bool want = t == 0 && firstPass != nullptr;
         rpfPass(w, params, t, cur, nxt, lo[size_t(t)], hi[size_t(t)], nthreads,
-                want ? &report : nullptr, rowDone);
+                want ? &report : nullptr, rowDone, A > 0 ? &aCur : nullptr,
+                A > 0 ? &aNxt : nullptr);
+        if (A > 0) aCur.swap(aNxt);
         if (want) {  // pass 0 covers [lo, hi], which holds the output rows
             const size_t skip = size_t(outBegin - std::max(lo[0], w.y0)) * size_t(w.width);
             firstPass->assign(report.begin() + std::ptrdiff_t(skip),
@@ -632,6 +665,31 @@ void rpfFilterRows(const RpfWindow& w, const RpfParams& params, int outBegin, in
                 for (int c = 0; c < 3; ++c) s[c] += double(cur[i * 3 + size_t(c)]);
             float* o = rgb.data() + (size_t(y - outBegin) * size_t(w.width) + size_t(x)) * 3;
             for (int c = 0; c < 3; ++c) o[c] = float(s[c] / double(e - a));
+        }
+    if (A == 0) return;
+    // The AOVs' box filter: the mean of the pixel's filtered samples (finite values), a label the
+    // first sample's.
+    aovOut->assign(size_t(std::max(0, outEnd - outBegin)) * size_t(w.width) * A, 0.f);
+    for (int y = outBegin; y < outEnd; ++y)
+        for (int x = 0; x < w.width; ++x) {
+            const size_t p = size_t(y - w.y0) * size_t(w.width) + size_t(x);
+            const size_t a0 = size_t(w.offset[p]), e = size_t(w.offset[p + 1]);
+            if (e == a0) continue;
+            float* o = aovOut->data() + (size_t(y - outBegin) * size_t(w.width) + size_t(x)) * A;
+            for (size_t k = 0; k < A; ++k) {
+                if (w.aovFixed[k]) {
+                    o[k] = aCur[a0 * A + k];
+                    continue;
+                }
+                double sum = 0;
+                size_t n = 0;
+                for (size_t i = a0; i < e; ++i)
+                    if (std::isfinite(aCur[i * A + k])) {
+                        sum += double(aCur[i * A + k]);
+                        ++n;
+                    }
+                o[k] = n ? float(sum / double(n)) : 0.f;
+            }
         }
 }
 

@@ -70,11 +70,14 @@ bool planChannels(const std::string& path, const std::vector<std::string>& avail
 /// Packs a block of records into the window's sample vectors (RpfLayout order). Samples with a
 /// non-finite value in any field used are left out (docs/rpf.md, "Extremes"); `dropped` counts
 /// them.
-void pack(const SampleBlock& block, const std::vector<std::string>& channels, int height,
-          RpfWindow& w, int64_t& dropped) {
+void pack(const SampleBlock& block, const std::vector<std::string>& channels,
+          const std::vector<std::string>& aovChannels, int height, RpfWindow& w, int64_t& dropped) {
     const size_t dims = channels.size(), stride = block.stride();
     std::vector<int> from(dims);
     for (size_t d = 0; d < dims; ++d) from[d] = block.channel(channels[d]);
+    std::vector<int> aovFrom;
+    for (const std::string& c : aovChannels) aovFrom.push_back(block.channel(c));
+    w.aov.clear();
     w.width = block.width;
     w.height = height;
     w.y0 = block.y0;
@@ -94,6 +97,7 @@ void pack(const SampleBlock& block, const std::vector<std::string>& channels, in
                 continue;
             }
             for (size_t d = 0; d < dims; ++d) w.x.push_back(s[from[d]]);
+            for (int a : aovFrom) w.aov.push_back(s[a]);  // non-finite ones: left out later
             ++kept;
         }
         w.offset[p + 1] = w.offset[p] + kept;
@@ -136,7 +140,31 @@ bool rpfOperation(const SamplesRequest& req, OperationImage& out, std::string& e
     std::vector<std::string> channels;
     RpfWindow w;
     if (!planChannels(path, src->recordChannels(), channels, w.layout, err)) return false;
-    if (!src->selectRecordChannels(channels, err)) return false;
+    // Per-sample AOVs ("aov.<name>" for the file's AOVs): filtered with the colour's weights.
+    std::vector<std::string> aovChannels, aovNames;
+    {
+        const std::vector<std::string> available = src->recordChannels();
+        for (const AovChannel& a : h.aovs) {
+            const std::string c = std::string(kRecordAovPrefix) + a.name;
+            if (std::find(available.begin(), available.end(), c) == available.end()) continue;
+            aovChannels.push_back(c);
+            aovNames.push_back(a.name);
+            w.aovFixed.push_back(a.cls == AovClass::Id);
+            // Spikes follow the colour channel of the same letter (light and data passes).
+            const char last = a.name.empty() ? 0 : a.name.back();
+            const bool colour = a.cls == AovClass::Light || a.cls == AovClass::Data;
+            w.aovFollows.push_back(!colour || a.name.size() < 2 || a.name[a.name.size() - 2] != '.'
+                                       ? -1
+                                   : last == 'R' || last == 'r' ? 0
+                                   : last == 'G' || last == 'g' ? 1
+                                   : last == 'B' || last == 'b' ? 2
+                                                                : -1);
+        }
+        w.aovs = aovChannels.size();
+    }
+    std::vector<std::string> selected = channels;
+    selected.insert(selected.end(), aovChannels.begin(), aovChannels.end());
+    if (!src->selectRecordChannels(selected, err)) return false;
 
     // Output rows per block: a window of (rows + 2 halo) rows of samples within about 256 MiB
     // (the counts of the file decide exactly; the reader bounds them), or the `rows` asked for.
@@ -155,6 +183,8 @@ bool rpfOperation(const SamplesRequest& req, OperationImage& out, std::string& e
     const bool maps = req.params->at("maps").integer != 0;
     out.channels = {"R", "G", "B"};
     if (maps) out.channels.insert(out.channels.end(), kMapChannels.begin(), kMapChannels.end());
+    const size_t firstAov = out.channels.size();
+    out.channels.insert(out.channels.end(), aovNames.begin(), aovNames.end());
     const size_t nch = out.channels.size();
     out.pixels.assign(size_t(h.width) * size_t(h.height) * nch, 0.f);
     std::vector<int> texture;  // features of the texture value T1 (Fig. 6g)
@@ -176,19 +206,21 @@ bool rpfOperation(const SamplesRequest& req, OperationImage& out, std::string& e
         if (req.progress) req.progress(double(rowsDone) / double(std::max<int64_t>(rowsTotal, 1)));
     };
     SampleBlock block;
-    std::vector<float> rgb;
+    std::vector<float> rgb, aovRows;
     std::vector<RpfPixelReport> report;
     for (int y0 = 0; y0 < h.height; y0 += rows) {
         const int y1 = std::min(h.height, y0 + rows);
         const int a = std::max(0, y0 - halo), e = std::min(h.height, y1 + halo);
         if (!src->readRecords(a, e - a, block, err)) return false;
-        pack(block, channels, h.height, w, dropped);
+        pack(block, channels, aovChannels, h.height, w, dropped);
         block.samples = std::vector<float>();  // the window holds the samples now
-        rpfFilterRows(w, prm, y0, y1, rgb, req.nthreads, rowDone, maps ? &report : nullptr);
+        rpfFilterRows(w, prm, y0, y1, rgb, req.nthreads, rowDone, maps ? &report : nullptr,
+                      w.aovs ? &aovRows : nullptr);
         const size_t pixels = size_t(y1 - y0) * size_t(h.width);
         for (size_t i = 0; i < pixels; ++i) {
             float* o = out.pixels.data() + (size_t(y0) * size_t(h.width) + i) * nch;
             std::copy_n(rgb.data() + i * 3, 3, o);
+            if (w.aovs) std::copy_n(aovRows.data() + i * w.aovs, w.aovs, o + firstAov);
             if (!maps) continue;
             const RpfPixelReport& r = report[i];
             double tr = 0, tb = 0;

@@ -461,7 +461,8 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     for (size_t a = 0; a < nAovs; ++a) robustNames.push_back(h.aovs[a].name);
     r.spec = makeSpec(robustNames, est->name.c_str());
     r.spec.alpha_channel = mcstat::aovAlphaChannel(h, 3);
-    if (nAovs == 0) r.spec.alpha_channel = -1;
+    r.spec.z_channel = mcstat::aovDepthChannel(h, 3);
+    if (nAovs == 0) r.spec.alpha_channel = r.spec.z_channel = -1;
     r.spec.attribute("oiio:ColorSpace", h.colorSpace);
     describeEstimator(r.spec);
     mcstat::describeResult(r.spec, *est, m_values, h);

@@ -35,6 +35,8 @@ std::vector<std::string> estimatorChannels(EstimatorMode mode, bool diagnostics)
 std::vector<std::string> aovOutputChannels(const StatsHeader& h);
 /// The channel index of the AOV of class alpha in a result whose AOVs start at `firstAov`, or -1.
 int aovAlphaChannel(const StatsHeader& h, size_t firstAov);
+/// Likewise the AOV named Z (a depth pass), OIIO's z_channel, or -1.
+int aovDepthChannel(const StatsHeader& h, size_t firstAov);
 /// Spec attributes by which an image says which of its channels are AOVs and of what class, so
 /// that a later image filter (MIF/WMIF over an estimator's result) carries them too: the first
 /// AOV channel (int) and the classes (comma-separated aovClassName), AOVs running to the last

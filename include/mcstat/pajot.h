@@ -79,6 +79,10 @@ struct PajotMode {
 struct PajotSample {
     std::array<float, 3> rgb{0.f, 0.f, 0.f};
     float l = 0;  ///< log-luminance; -infinity for a black sample
+    /// The caller's name for the sample (its index in the pixel), so that it can learn which
+    /// samples the estimate splatted (PajotPixel::logSplats) and weight their AOVs the same
+    /// (docs/aovs.md). Not part of the stored state: -1 for samples read back from a file.
+    int64_t tag = -1;
 };
 
 /// Where a pixel stands.
@@ -125,7 +129,14 @@ class PajotPixel {
 
     /// Adds the next sample of the pixel. Returns false, changing nothing, when a component is
     /// not finite.
-    bool add(const float rgb[3], const PajotParams& p);
+    bool add(const float rgb[3], const PajotParams& p, int64_t tag = -1);
+    /// From now on, appends the tag of every sample splatted to `log` (null: stop). With the
+    /// learning samples (while learning, the estimate is their plain mean) this names exactly the
+    /// samples the estimate averages: splatTags.
+    void logSplats(std::vector<int64_t>* log) { splatLog_ = log; }
+    /// The tags of the samples estimate() averages, each with the same weight: while learning
+    /// every learning sample, after it the splatted ones logged (logSplats from the first add).
+    std::vector<int64_t> splatTags(const std::vector<int64_t>& log) const;
     /// The estimate so far (see the file comment).
     std::array<float, 3> estimate() const;
     /// The current acceptance value m (-inf with no extended mode; learning: -inf).
@@ -141,6 +152,7 @@ class PajotPixel {
     void delay(const PajotSample& smp, const PajotParams& p);
     void retest();  ///< splats delayed samples at or below the current m (m rose)
     PajotState s_;
+    std::vector<int64_t>* splatLog_ = nullptr;
 };
 
 /// log-luminance of a sample as the estimator computes it (-inf when black), for tests and tools.

@@ -64,6 +64,16 @@ struct RpfWindow {
     RpfLayout layout;
     std::vector<uint64_t> offset;  ///< pixels + 1 entries
     std::vector<float> x;          ///< samples * layout.dims(): c, p, r, f
+    /// Per-sample AOVs (docs/aovs.md): `aovs` values per sample, samples * aovs. Every pass gives
+    /// a sample's AOVs the weights w_ij its colour gets (a non-finite value is left out of its
+    /// channel, the others renormalised); a spike (section 6.1) replaced in colour channel c
+    /// replaces the AOVs that follow channel c (aovFollows, 0..2) by their mean over the pixel's
+    /// samples too, so AOVs that sum to the colour keep summing. AOVs in aovFixed (labels) are
+    /// never averaged: a pixel's result is its first sample's.
+    size_t aovs = 0;
+    std::vector<float> aov;
+    std::vector<int> aovFollows;  ///< per AOV: the colour channel its spikes follow, or -1
+    std::vector<bool> aovFixed;   ///< per AOV: a label, never averaged
     size_t samples() const { return offset.empty() ? 0 : size_t(offset.back()); }
     const float* sample(size_t i) const { return x.data() + i * size_t(layout.dims()); }
 };
@@ -111,10 +121,12 @@ RpfWeights rpfFeatureWeights(const RpfLayout& layout, const float* xs, size_t n,
 /// filtered colours of the pixels' own samples into `cOut` (same indexing). The window must hold
 /// every image row within box/2 of the rows filtered. `report`, when given, receives one entry
 /// per pixel of the rows (in scanline order).
+/// `aIn` / `aOut`, when given, are the samples' AOVs (w.aovs per sample), filtered alike.
 void rpfPass(const RpfWindow& w, const RpfParams& params, int pass, const std::vector<float>& cIn,
              std::vector<float>& cOut, int rowBegin, int rowEnd, int nthreads,
              std::vector<RpfPixelReport>* report = nullptr,
-             const std::function<void(int)>& rowDone = {});
+             const std::function<void(int)>& rowDone = {}, const std::vector<float>* aIn = nullptr,
+             std::vector<float>* aOut = nullptr);
 
 /// Rows of halo every side of a block of output rows: sum of box/2 over the passes (55 for the
 /// report's boxes: 27 + 17 + 8 + 3).
@@ -126,10 +138,12 @@ int rpfHalo(const RpfParams& params);
 /// `rowDone` is called (serialised) after each row of each pass.
 /// `firstPass`, when given, receives pass 0's RpfPixelReport of the output rows' pixels (the
 /// dependency maps of the report's Fig. 6).
+/// With w.aovs > 0 and `aovOut`, the pixels' AOVs likewise (w.aovs per pixel).
 void rpfFilterRows(const RpfWindow& w, const RpfParams& params, int outBegin, int outEnd,
                    std::vector<float>& rgb, int nthreads,
                    const std::function<void(int)>& rowDone = {},
-                   std::vector<RpfPixelReport>* firstPass = nullptr);
+                   std::vector<RpfPixelReport>* firstPass = nullptr,
+                   std::vector<float>* aovOut = nullptr);
 
 /// Checks parameters; false with a one-line `err`.
 bool validateRpfParams(const RpfParams& p, std::string& err);

@@ -49,6 +49,9 @@ inline constexpr int kRecordBytesOnDisk = 20;
 /// parameters (the numbers a sample drew, in the form the renderer used them) and scene
 /// features; screen position is `screen.x`, `screen.y`.
 inline constexpr const char* kRandomParameterPrefix = "rand.";
+/// Per-sample AOVs (docs/aovs.md): channel "aov.<name>" holds the sample's value of the file's
+/// AOV <name> (StatsHeader::aovs), so that per-sample operations weight AOVs as the beauty.
+inline constexpr const char* kRecordAovPrefix = "aov.";
 inline constexpr const char* kFeaturePrefix = "feat.";
 
 /// Default limit of `mcstat-render --keep-samples` (uncompressed bytes of the records part).

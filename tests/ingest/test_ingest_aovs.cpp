@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <ostream>
 #include <random>
 #include <set>
 
@@ -36,6 +37,9 @@ struct Style {
     std::vector<std::array<std::string, 3>> groups;  ///< light groups: sum to the beauty
     std::vector<std::string> ids;                    ///< labels
 };
+
+/// GoogleTest prints a style by its name, not its bytes.
+void PrintTo(const Style& s, std::ostream* os) { *os << s.label; }
 
 Style arnold() {
     Style s;
@@ -303,8 +307,8 @@ TEST_P(IngestAovs, EveryChannelKeptAndStillSummingAfterEveryEstimator) {
         for (int y = -kPad; y < kH + kPad; ++y)
             for (int x = -kPad; x < kW + kPad; ++x) {
                 const float m = mean.getchannel(x, y, 0, mc);
-                const float sum = withResidual.getchannel(x, y, 0, c) +
-                                  withResidual.getchannel(x, y, 0, rc);
+                const float sum =
+                    withResidual.getchannel(x, y, 0, c) + withResidual.getchannel(x, y, 0, rc);
                 ASSERT_NEAR(sum, m, 2e-7f * std::abs(m) + 1e-30f) << n << " " << x << "," << y;
             }
     }
