@@ -13,7 +13,7 @@ scene_py="$here/cycles_caustic.py"
 n=21 first=1 spp=64 w=128 h=96 key=1 ior=1.5 threads=0 out=cycles_seeds
 blender=${BLENDER:-blender}
 
-usage() { sed -n '3,9p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,8p' "$0" | sed 's/^# \{0,1\}//'; }
 die() { echo "render_cycles_seeds.sh: $*" >&2; exit 2; }
 need() { [[ $# -ge 2 && -n $2 ]] || die "option $1 needs a value"; }
 
