@@ -491,7 +491,7 @@ void writeExtraParts(Imf::MultiPartOutputFile& out, const StatsImage& img,
                      const StatsExtras& extras) {
     const StatsHeader& h = img.header;
     const Imath::Box2i window = windowOf(h);
-    int part = layout::kPartCount;
+    int part = layout::firstExtraPart(h);  // after the four parts and part aovs
     if (extras.pajot != nullptr) {
         const PajotImage& pj = *extras.pajot;
         const size_t pixels = img.pixelCount();
@@ -584,7 +584,7 @@ bool readPajotParts(const std::string& path, PajotImage& out, std::string& err,
     }
     try {
         Imf::MultiPartInputFile in(path.c_str());
-        const int flatPart = layout::kPartCount, deepPart = layout::kPartCount + 1;
+        const int flatPart = layout::firstExtraPart(h), deepPart = flatPart + 1;
         const Imf::Header& fh = in.header(flatPart);
         const Imf::StringAttribute* pa =
             fh.findTypedAttribute<Imf::StringAttribute>(layout::kAttrPajot);

@@ -115,10 +115,10 @@ class Checker {
     bool intAttr(int part, const char* name, int32_t& out) {
         const exr_attribute_t* a = attr(part, name);
         if (a == nullptr)
-            return fail(fmt::format("part '{}': missing attribute '{}' (int)", names_[part], name));
+            return fail(fmt::format("part '{}': missing attribute '{}' (int)", label(part), name));
         if (a->type != EXR_ATTR_INT)
             return fail(fmt::format("part '{}': attribute '{}' has type {}, expected int",
-                                    names_[part], name, a->type_name));
+                                    label(part), name, a->type_name));
         out = a->i;
         return true;
     }
@@ -127,12 +127,40 @@ class Checker {
         const exr_attribute_t* a = attr(part, name);
         if (a == nullptr)
             return fail(
-                fmt::format("part '{}': missing attribute '{}' (string)", names_[part], name));
+                fmt::format("part '{}': missing attribute '{}' (string)", label(part), name));
         if (a->type != EXR_ATTR_STRING || a->string == nullptr)
             return fail(fmt::format("part '{}': attribute '{}' has type {}, expected string",
-                                    names_[part], name, a->type_name));
+                                    label(part), name, a->type_name));
         out.assign(a->string->str != nullptr ? a->string->str : "", size_t(a->string->length));
         return true;
+    }
+
+    /// A string vector attribute (OpenEXR's stringvector).
+    bool stringVectorAttr(int part, const char* name, std::vector<std::string>& out) {
+        const exr_attribute_t* a = attr(part, name);
+        if (a == nullptr)
+            return fail(fmt::format("part '{}': missing attribute '{}' (string vector)",
+                                    label(part), name));
+        if (a->type != EXR_ATTR_STRING_VECTOR || a->stringvector == nullptr ||
+            a->stringvector->n_strings < 0)
+            return fail(fmt::format("part '{}': attribute '{}' has type {}, expected string vector",
+                                    label(part), name, a->type_name));
+        out.clear();
+        const exr_attr_string_vector_t& v = *a->stringvector;
+        out.reserve(size_t(v.n_strings));
+        for (int32_t i = 0; i < v.n_strings; ++i) {
+            const exr_attr_string_t& e = v.strings[i];
+            out.emplace_back(e.str != nullptr ? e.str : "",
+                             e.str != nullptr && e.length > 0 ? size_t(e.length) : size_t(0));
+        }
+        return true;
+    }
+
+    /// What messages call part `part`: its expected name among the first parts, else its own.
+    std::string label(int part) const {
+        if (part < layout::kPartCount) return names_[part];
+        if (part == layout::kAovs && hasAovs_) return layout::kPartAovs;
+        return partName(part);
     }
 
     bool run(const ReadLimits& limits, StatsHeader& hdr);
@@ -147,6 +175,10 @@ class Checker {
     bool checkParts();
     bool checkAttributes(StatsHeader& hdr);
     bool checkChannels(int part, int M);
+    /// Version 5: the AOV attributes of part `aovs` into hdr.aovs (hasAovs_).
+    bool checkAovAttributes(StatsHeader& hdr);
+    /// Part `aovs` has exactly the channels bNNN.<name> of hdr's M and AOVs.
+    bool checkAovChannels(const StatsHeader& hdr);
 
   public:
     /// Every chunk of every part lies inside the file: its offset table entry, its packed size
@@ -159,7 +191,7 @@ class Checker {
     std::string path_;
     int nparts_ = 0;
     bool adaptive_ = false;
-    bool hasPajot_ = false, hasRecords_ = false;
+    bool hasPajot_ = false, hasRecords_ = false, hasAovs_ = false;
     const char* const* names_ = layout::kPartNames;
 };
 
@@ -201,11 +233,21 @@ bool Checker::checkParts() {
     if (n < layout::kPartCount)
         return fail(fmt::format("missing part '{}' (parts found: {}; expected {})", names_[n],
                                 found, expected));
-    // Version 4: optional parts after the four, in the order pajot, modes, records (pajot and
-    // modes together). Older versions have exactly four parts.
+    // Version 5: part aovs right after the four (fixed M only). Version 4: optional parts after
+    // those, in the order pajot, modes, records (pajot and modes together). Older versions have
+    // exactly four parts.
     int extra = layout::kPartCount;
     const exr_attribute_t* v0 = attr(0, layout::kAttrFormatVersion);
-    if (v0 != nullptr && v0->type == EXR_ATTR_INT && v0->i >= kStatsFormatVersionSamples) {
+    const int version0 = v0 != nullptr && v0->type == EXR_ATTR_INT ? v0->i : 0;
+    if (version0 >= kStatsFormatVersionAovs && extra < n && partName(extra) == layout::kPartAovs) {
+        if (adaptive_)
+            return fail(fmt::format(
+                "part '{}' in a file with adaptive M (AOVs need a fixed M and part '{}')",
+                layout::kPartAovs, layout::kPartNames[layout::kBuffers]));
+        hasAovs_ = true;
+        ++extra;
+    }
+    if (version0 >= kStatsFormatVersionSamples) {
         if (extra < n && partName(extra) == layout::kPartPajot) {
             if (extra + 1 >= n || partName(extra + 1) != layout::kPartModes)
                 return fail(fmt::format("part '{}' at index {} is not followed by part '{}'",
@@ -222,7 +264,9 @@ bool Checker::checkParts() {
         return fail(fmt::format(
             "extra part '{}' at index {} (the file has the 4 parts {}{})", partName(extra), extra,
             expected,
-            v0 != nullptr && v0->type == EXR_ATTR_INT && v0->i >= kStatsFormatVersionSamples
+            version0 >= kStatsFormatVersionAovs
+                ? ", then optionally aovs, then optionally pajot and modes, then records"
+            : version0 >= kStatsFormatVersionSamples
                 ? ", then optionally pajot and modes, then records"
                 : ""));
     exr_attr_box2i_t dw0{}, disp0{};
@@ -257,16 +301,19 @@ bool Checker::checkParts() {
 
 bool Checker::checkAttributes(StatsHeader& hdr) {
     StatsHeader h0;
-    for (int part = 0; part < layout::kPartCount; ++part) {
+    // The four parts and part aovs carry every attribute (the version-4 parts are read by name).
+    const int checked = hasAovs_ ? layout::kAovs + 1 : layout::kPartCount;
+    for (int part = 0; part < checked; ++part) {
         int32_t version = 0, M = 0, spp = 0, adaptive = 0;
         StatsHeader h;
+        const std::string pn = label(part);
         if (!intAttr(part, layout::kAttrFormatVersion, version)) return false;
         // Version 2 on: every part says whether M is adaptive (version 1 has no such attribute).
         if (version >= kStatsFormatVersionAdaptive &&
             !intAttr(part, layout::kAttrAdaptiveM, adaptive))
             return false;
         if (adaptive != 0 && adaptive != 1)
-            return fail(fmt::format("part '{}': {} = {}, expected 0 or 1", names_[part],
+            return fail(fmt::format("part '{}': {} = {}, expected 0 or 1", pn,
                                     layout::kAttrAdaptiveM, adaptive));
         h.adaptiveM = adaptive == 1;
         if (!intAttr(part, layout::kAttrM, M) || !intAttr(part, layout::kAttrSpp, spp) ||
@@ -284,8 +331,18 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
                 return false;
             std::string problem;
             if (!parseFeatureList(features, h.features, problem))
-                return fail(
-                    fmt::format("part '{}': {}: {}", names_[part], layout::kAttrFeatures, problem));
+                return fail(fmt::format("part '{}': {}: {}", pn, layout::kAttrFeatures, problem));
+        }
+        // Version 5 on: the input's beauty channel names and part, on every part.
+        if (version >= kStatsFormatVersionAovs) {
+            std::vector<std::string> beauty;
+            if (!stringVectorAttr(part, layout::kAttrBeautyChannels, beauty) ||
+                !stringAttr(part, layout::kAttrBeautyPart, h.beautyPart))
+                return false;
+            if (beauty.size() != 3)
+                return fail(fmt::format("part '{}': {} has {} names, expected 3 (R, G, B)", pn,
+                                        layout::kAttrBeautyChannels, beauty.size()));
+            for (size_t c = 0; c < 3; ++c) h.beautyNames[c] = beauty[c];
         }
         h.formatVersion = version;
         h.M = M;
@@ -294,7 +351,6 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
             h0 = h;
             continue;
         }
-        const char* pn = names_[part];
         if (h.M != h0.M)
             return fail(fmt::format("M mismatch: part '{}' has {} = {}, part 'beauty' has {}", pn,
                                     layout::kAttrM, h.M, h0.M));
@@ -324,7 +380,17 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
             return differs(layout::kAttrFeatures, featureListText(h.features),
                            featureListText(h0.features));
         if (h.sources != h0.sources) return differs(layout::kAttrSources, h.sources, h0.sources);
+        for (size_t c = 0; c < 3; ++c)
+            if (h.beautyNames[c] != h0.beautyNames[c])
+                return differs(layout::kAttrBeautyChannels, h.beautyNames[c], h0.beautyNames[c]);
+        if (h.beautyPart != h0.beautyPart)
+            return differs(layout::kAttrBeautyPart, h.beautyPart, h0.beautyPart);
     }
+    // Version 5: part 0 carries the source metadata (opaque text), part aovs the AOV list.
+    if (h0.formatVersion >= kStatsFormatVersionAovs &&
+        !stringAttr(0, layout::kAttrSourceMetadata, h0.sourceMetadata))
+        return false;
+    if (hasAovs_ && !checkAovAttributes(h0)) return false;
     if (h0.formatVersion < 1 || h0.formatVersion > kStatsFormatVersion)
         return fail(fmt::format("unsupported {} {} (this reader knows 1..{})",
                                 layout::kAttrFormatVersion, h0.formatVersion, kStatsFormatVersion));
@@ -335,12 +401,81 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
         return fail(fmt::format("{}: {}", layout::kAttrAssignment, problem));
     if (std::string problem; !layout::knownVariance(h0.variance, problem))
         return fail(fmt::format("{}: {}", layout::kAttrVariance, problem));
-    // A version-1 or -2 file cannot claim what only version 3 can say (e.g. "perfile").
+    if (std::string problem; !layout::checkAovFields(h0, problem)) return fail(problem);
+    // A version-1 or -2 file cannot claim what only version 3 can say (e.g. "perfile"); what only
+    // version 5 can say is read from version 5 on only.
     if (h0.formatVersion < requiredFormatVersion(h0))
         return fail(fmt::format("{} = '{}' needs {} >= {} (the file has {})",
                                 layout::kAttrAssignment, h0.assignment, layout::kAttrFormatVersion,
                                 requiredFormatVersion(h0), h0.formatVersion));
     hdr = h0;
+    return true;
+}
+
+bool Checker::checkAovAttributes(StatsHeader& hdr) {
+    const int part = layout::kAovs;
+    const std::string pn = layout::kPartAovs;
+    std::vector<std::string> names, classes, parts;
+    if (!stringVectorAttr(part, layout::kAttrAovNames, names) ||
+        !stringVectorAttr(part, layout::kAttrAovClasses, classes) ||
+        !stringVectorAttr(part, layout::kAttrAovParts, parts))
+        return false;
+    if (names.size() != classes.size() || names.size() != parts.size())
+        return fail(
+            fmt::format("part '{}': {} has {} entries, {} {} and {} {} (expected one each "
+                        "per AOV)",
+                        pn, layout::kAttrAovNames, names.size(), layout::kAttrAovClasses,
+                        classes.size(), layout::kAttrAovParts, parts.size()));
+    if (names.empty())
+        return fail(fmt::format("part '{}': {} is empty (a file without AOVs has no part '{}')", pn,
+                                layout::kAttrAovNames, pn));
+    if (names.size() > size_t(kMaxAovs))
+        return fail(
+            fmt::format("part '{}': {} AOV channels, more than {}", pn, names.size(), kMaxAovs));
+    std::vector<AovChannel> aovs(names.size());
+    for (size_t a = 0; a < names.size(); ++a) {
+        aovs[a].name = std::move(names[a]);
+        aovs[a].part = std::move(parts[a]);
+        if (!parseAovClass(classes[a], aovs[a].cls))
+            return fail(fmt::format(
+                "part '{}': {}: unknown class '{}' of AOV '{}' (known: alpha, light, data, id)", pn,
+                layout::kAttrAovClasses,
+                classes[a].size() > 40 ? classes[a].substr(0, 40) + "..." : classes[a],
+                aovs[a].name.size() > 40 ? aovs[a].name.substr(0, 40) + "..." : aovs[a].name));
+    }
+    hdr.aovs = std::move(aovs);
+    return true;
+}
+
+bool Checker::checkAovChannels(const StatsHeader& hdr) {
+    const std::string pn = layout::kPartAovs;
+    const exr_attr_chlist_t* chlist = nullptr;
+    if (exr_get_channels(c_, layout::kAovs, &chlist) != EXR_ERR_SUCCESS || chlist == nullptr)
+        return fail(fmt::format("part '{}' has no channel list", pn));
+    std::map<std::string, const exr_attr_chlist_entry_t*> inFile;
+    for (int i = 0; i < chlist->num_channels; ++i) {
+        const exr_attr_chlist_entry_t& e = chlist->entries[i];
+        inFile[std::string(e.name.str != nullptr ? e.name.str : "", size_t(e.name.length))] = &e;
+    }
+    // Expected channels in order (buffer by buffer, AOVs in list order): the first missing one is
+    // named; then the first extra one in the file's (sorted) order.
+    for (const layout::ChannelPlace& c : layout::aovChannels(hdr)) {
+        const auto it = inFile.find(c.name);
+        if (it == inFile.end())
+            return fail(fmt::format("part '{}': missing channel '{}' ({} AOVs x M = {})", pn,
+                                    c.name, hdr.aovs.size(), hdr.M));
+        const exr_attr_chlist_entry_t& e = *it->second;
+        if (e.pixel_type != EXR_PIXEL_FLOAT)
+            return fail(fmt::format("part '{}': channel '{}' has wrong type {} (expected FLOAT)",
+                                    pn, c.name, pixelTypeName(e.pixel_type)));
+        if (e.x_sampling != 1 || e.y_sampling != 1)
+            return fail(fmt::format("part '{}': channel '{}' has sampling {}x{} (expected 1x1)", pn,
+                                    c.name, e.x_sampling, e.y_sampling));
+        inFile.erase(it);
+    }
+    if (!inFile.empty())
+        return fail(fmt::format("part '{}': unexpected channel '{}' (not one of {} AOVs x M = {})",
+                                pn, inFile.begin()->first, hdr.aovs.size(), hdr.M));
     return true;
 }
 
@@ -421,17 +556,21 @@ bool Checker::run(const ReadLimits& limits, StatsHeader& hdr) {
         return fail(fmt::format("image size {}x{} ({} pixels) exceeds the limit of {} pixels", w, h,
                                 pixels, limits.maxPixels));
     // Adaptive M: the least a pixel needs (one buffer and its offset); the sample counts are
-    // checked against the limits once read, before the buffers are allocated.
+    // checked against the limits once read, before the buffers are allocated. Fixed M: every
+    // part, part aovs' M * A floats included.
     const int64_t bytesPerPixel =
         hdr.adaptiveM ? int64_t(layout::floatsPerPixel(1) * sizeof(float) + sizeof(uint64_t))
-                      : int64_t(layout::floatsPerPixel(hdr.M) * sizeof(float));
+                      : int64_t(layout::floatsPerPixel(hdr.M, hdr.aovs.size()) * sizeof(float));
     if (pixels > limits.maxBytes / bytesPerPixel)
         return fail(fmt::format(
-            "image {}x{} with {} = {} needs {}{} bytes, exceeding the limit of {} bytes", w, h,
-            hdr.adaptiveM ? "adaptive M, M_max" : "M", hdr.M, hdr.adaptiveM ? "at least " : "",
-            double(pixels) * double(bytesPerPixel), limits.maxBytes));
+            "image {}x{} with {} = {}{} needs {}{} bytes, exceeding the limit of {} bytes", w, h,
+            hdr.adaptiveM ? "adaptive M, M_max" : "M", hdr.M,
+            hdr.aovs.empty() ? std::string() : fmt::format(" and {} AOVs", hdr.aovs.size()),
+            hdr.adaptiveM ? "at least " : "", double(pixels) * double(bytesPerPixel),
+            limits.maxBytes));
     for (int part = 0; part < layout::kPartCount; ++part)
         if (!checkChannels(part, hdr.M)) return false;
+    if (hasAovs_ && !checkAovChannels(hdr)) return false;
 
     hdr.hasPajot = hasPajot_;
     hdr.hasRecords = hasRecords_;
@@ -441,6 +580,22 @@ bool Checker::run(const ReadLimits& limits, StatsHeader& hdr) {
     hdr.height = int(h);
     hdr.originX = dw.min.x;
     hdr.originY = dw.min.y;
+    // The display window (the same in every part, checkParts): kept when it differs from the data
+    // window, so that equal headers round-trip equal.
+    exr_attr_box2i_t disp{};
+    exr_get_display_window(c_, 0, &disp);
+    hdr.displayX = hdr.displayY = hdr.displayWidth = hdr.displayHeight = 0;
+    if (!sameBox(disp, dw)) {
+        const int64_t dispW = int64_t(disp.max.x) - disp.min.x + 1,
+                      dispH = int64_t(disp.max.y) - disp.min.y + 1;
+        if (dispW <= 0 || dispH <= 0 || dispW > std::numeric_limits<int>::max() ||
+            dispH > std::numeric_limits<int>::max())
+            return fail(fmt::format("invalid display window {}", windowText(disp)));
+        hdr.displayX = disp.min.x;
+        hdr.displayY = disp.min.y;
+        hdr.displayWidth = int(dispW);
+        hdr.displayHeight = int(dispH);
+    }
     return true;
 }
 
@@ -573,7 +728,7 @@ bool valueMatchesSize(int fd, const std::string& type, uint64_t at, uint32_t siz
     const bool chlist = type == "chlist", strings = type == "stringvector";
     const bool preview = type == "preview";
     if (!chlist && !strings && !preview) return true;
-    constexpr uint32_t kMaxStructured = uint32_t(16) << 20;
+    constexpr uint32_t kMaxStructured = layout::kMaxStructuredBytes;
     if (size > kMaxStructured) {
         why = fmt::format("{} bytes, more than this reader reads of such a value", size);
         return false;

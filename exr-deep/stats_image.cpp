@@ -44,12 +44,20 @@ bool checkHeader(const StatsHeader& h, std::string& problem) {
         problem = fmt::format("feature bits {:#x} beyond the known features", h.features);
         return false;
     }
+    if (!layout::checkAovFields(h, problem)) return false;
     if (h.formatVersion < requiredFormatVersion(h)) {
+        const bool v5 = requiredFormatVersion(h) >= kStatsFormatVersionAovs;
         problem = fmt::format(
             "format version {} cannot hold this content (assignment '{}', variance '{}', "
-            "features '{}'{}): it needs version {}",
+            "features '{}'{}{}): it needs version {}",
             h.formatVersion, h.assignment, h.variance, featureListText(h.features),
-            h.sources.empty() ? "" : ", sources", requiredFormatVersion(h));
+            h.sources.empty() ? "" : ", sources",
+            v5 ? fmt::format(", {} AOVs, beauty channels '{}', '{}', '{}'{}{}", h.aovs.size(),
+                             h.beautyNames[0], h.beautyNames[1], h.beautyNames[2],
+                             h.beautyPart.empty() ? "" : ", a beauty part",
+                             h.sourceMetadata.empty() ? "" : ", source metadata")
+               : std::string(),
+            requiredFormatVersion(h));
         return false;
     }
     // OpenEXR's dataWindow.max must stay representable.
@@ -82,7 +90,8 @@ bool allocateArrays(StatsImage& img, size_t buffers, std::vector<uint64_t>&& off
     const size_t pixels = size_t(header.width) * size_t(header.height);  // < 2^62
     const size_t maxFloats = std::numeric_limits<size_t>::max() / sizeof(float);
     const size_t perPixel = layout::floatsPerPixel(0);
-    if (pixels > maxFloats / perPixel || buffers > (maxFloats - pixels * perPixel) / 4) {
+    const size_t A = header.aovs.size();  // <= kMaxAovs (checkHeader); 0 with adaptive M
+    if (pixels > maxFloats / perPixel || buffers > (maxFloats - pixels * perPixel) / (4 + A)) {
         err =
             fmt::format("cannot allocate statistics image: {}x{} pixels with {} buffers overflows",
                         header.width, header.height, buffers);
@@ -102,6 +111,7 @@ bool allocateArrays(StatsImage& img, size_t buffers, std::vector<uint64_t>&& off
         t.albedo.assign(pixels * 3, 0.f);
         t.depth.assign(pixels, std::numeric_limits<float>::infinity());
         t.coverage.assign(pixels, 0.f);
+        t.aov.assign(buffers * A, 0.f);
         t.bufferOffset = std::move(offsets);
         img = std::move(t);
     } catch (const std::exception& e) {  // bad_alloc, length_error
@@ -143,6 +153,9 @@ bool resizeParts(StatsImage& img, unsigned parts, size_t buffers, std::vector<ui
         fit(img.albedo, pixels * 3, feat);
         fit(img.depth, pixels, feat);
         fit(img.coverage, pixels, feat);
+        // Part aovs: fixed M only (the header check refuses AOVs with adaptive M).
+        fit(img.aov, h.adaptiveM ? 0 : pixels * size_t(h.M) * h.aovs.size(),
+            (parts & kStatsPartAovs) != 0);
     } catch (const std::exception& e) {  // bad_alloc, length_error
         err = fmt::format("cannot allocate {} rows of {} pixels with {} buffers: {}", h.height,
                           h.width, buffers, e.what());
@@ -257,6 +270,14 @@ bool StatsImage::checkBufferLayout(std::string& why) const {
                           bufferMean.size(), bufferCount.size(), buffers);
         return false;
     }
+    // Part aovs: empty (not read, or no AOVs) or one value per buffer and AOV.
+    const size_t A = h.aovs.size();
+    if (!aov.empty() &&
+        (h.adaptiveM || A == 0 || buffers > aov.max_size() / A || aov.size() != buffers * A)) {
+        why = fmt::format("AOV array holds {} values, expected {} buffers x {} AOVs", aov.size(),
+                          buffers, A);
+        return false;
+    }
     return true;
 }
 
@@ -275,6 +296,16 @@ bool validateStats(const StatsImage& img, unsigned parts, const std::string& wha
     const size_t pixels = img.pixelCount();
     const bool buffers = (parts & kStatsPartBuffers) != 0,
                moments = (parts & kStatsPartMoments) != 0;
+    if (parts & kStatsPartAovs) {
+        const size_t A = h.aovs.size(), m = h.adaptiveM ? 0 : size_t(h.M);
+        if (pixels > img.aov.max_size() / (m * A + 1) || img.aov.size() != pixels * m * A) {
+            err = fmt::format(
+                "{}: array of part '{}' holds {} floats, expected {} ({} pixels x M = {} x {} "
+                "AOVs)",
+                what, layout::kPartAovs, img.aov.size(), pixels * m * A, pixels, h.M, A);
+            return false;
+        }
+    }
     for (int part = 0; part < layout::kPartCount; ++part) {
         if (!(parts & (1u << part))) continue;  // StatsParts bits follow the part order
         for (const layout::ChannelPlace& c : layout::partChannels(part, h.M, h.adaptiveM)) {

@@ -2,6 +2,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <limits>
+#include <set>
+
 namespace mcstat::layout {
 
 std::string bufferChannel(int j, const char* component) {
@@ -81,6 +85,9 @@ bool parseFeatureList(const std::string& text, unsigned& bits, std::string& prob
 }
 
 int requiredFormatVersion(const StatsHeader& h) {
+    if (!h.aovs.empty() || h.beautyNames != std::array<std::string, 3>{"R", "G", "B"} ||
+        !h.beautyPart.empty() || !h.sourceMetadata.empty())
+        return kStatsFormatVersionAovs;
     if (h.hasPajot || h.hasRecords) return kStatsFormatVersionSamples;
     if (h.assignment == kAssignmentPerFile || h.variance != kVarianceSamples ||
         h.features != kAllFeatures || !h.sources.empty())
@@ -128,7 +135,116 @@ std::vector<ChannelPlace> partChannels(int part, int M, bool adaptiveM) {
     }
 }
 
-size_t floatsPerPixel(int M) { return 3 + 4 * size_t(M) + 7 + 11; }
+std::vector<ChannelPlace> aovChannels(const StatsHeader& h) {
+    std::vector<ChannelPlace> ch;
+    if (h.aovs.empty() || h.adaptiveM) return ch;
+    const size_t m = size_t(h.M), A = h.aovs.size();
+    ch.reserve(m * A);
+    for (size_t j = 0; j < m; ++j)
+        for (size_t a = 0; a < A; ++a)
+            ch.push_back(
+                {bufferChannel(int(j), h.aovs[a].name.c_str()), Array::Aov, j * A + a, m * A});
+    return ch;
+}
+
+size_t floatsPerPixel(int M, size_t aovs) { return 3 + 4 * size_t(M) + 7 + 11 + size_t(M) * aovs; }
+
+uint64_t aovChannelListBytes(const StatsHeader& h) {
+    if (h.aovs.empty()) return 0;
+    uint64_t names = 0;  // "bNNN." + name + NUL + 16 bytes, per AOV and buffer
+    for (const AovChannel& a : h.aovs) names += 5 + uint64_t(a.name.size()) + 1 + 16;
+    return names * uint64_t(std::max(h.M, 0)) + 1;
+}
+
+bool checkAovFields(const StatsHeader& h, std::string& problem) {
+    const auto shortName = [](const std::string& s) {
+        return detail::oneLine(s.size() > 40 ? s.substr(0, 40) + "..." : s);
+    };
+    const auto badName = [&](const std::string& name, size_t maxBytes, const char* what) {
+        if (name.empty()) {
+            problem = fmt::format("{} is empty", what);
+            return true;
+        }
+        if (name.size() > maxBytes) {
+            problem = fmt::format("{} '{}' has {} bytes, more than {}", what, shortName(name),
+                                  name.size(), maxBytes);
+            return true;
+        }
+        if (name.find('\0') != std::string::npos) {
+            problem = fmt::format("{} '{}' holds a NUL byte", what, shortName(name));
+            return true;
+        }
+        return false;
+    };
+    for (size_t c = 0; c < 3; ++c) {
+        if (badName(h.beautyNames[c], kMaxAovNameBytes,
+                    c == 0   ? "beauty channel name R"
+                    : c == 1 ? "beauty channel name G"
+                             : "beauty channel name B"))
+            return false;
+        for (size_t d = 0; d < c; ++d)
+            if (h.beautyNames[c] == h.beautyNames[d]) {
+                problem = fmt::format("beauty channel name '{}' given twice",
+                                      shortName(h.beautyNames[c]));
+                return false;
+            }
+    }
+    if (h.beautyPart.size() > kMaxPartNameBytes || h.beautyPart.find('\0') != std::string::npos) {
+        problem = fmt::format("beauty part name '{}' is longer than {} bytes or holds a NUL byte",
+                              shortName(h.beautyPart), kMaxPartNameBytes);
+        return false;
+    }
+    if (h.displayWidth < 0 || h.displayHeight < 0 ||
+        (h.displayWidth == 0) != (h.displayHeight == 0) ||
+        int64_t(h.displayX) + h.displayWidth - 1 > std::numeric_limits<int>::max() ||
+        int64_t(h.displayY) + h.displayHeight - 1 > std::numeric_limits<int>::max()) {
+        problem = fmt::format("invalid display window {}x{} at ({}, {})", h.displayWidth,
+                              h.displayHeight, h.displayX, h.displayY);
+        return false;
+    }
+    if (h.aovs.empty()) return true;
+    if (h.adaptiveM) {
+        problem = fmt::format("{} AOV channels with adaptive M (part 'aovs' needs a fixed M)",
+                              h.aovs.size());
+        return false;
+    }
+    if (h.aovs.size() > size_t(kMaxAovs)) {
+        problem = fmt::format("{} AOV channels, more than {}", h.aovs.size(), kMaxAovs);
+        return false;
+    }
+    std::set<std::string> seen;
+    for (const AovChannel& a : h.aovs) {
+        if (badName(a.name, kMaxAovNameBytes, "AOV name")) return false;
+        if (!seen.insert(a.name).second) {
+            problem = fmt::format("AOV '{}' listed twice", shortName(a.name));
+            return false;
+        }
+        for (const std::string& b : h.beautyNames)
+            if (a.name == b) {
+                problem = fmt::format("AOV '{}' is also a beauty channel name", shortName(a.name));
+                return false;
+            }
+        if (int(a.cls) < int(AovClass::Alpha) || int(a.cls) > int(AovClass::Id)) {
+            problem = fmt::format("AOV '{}' has unknown class {}", shortName(a.name), int(a.cls));
+            return false;
+        }
+        if (a.part.size() > kMaxPartNameBytes || a.part.find('\0') != std::string::npos) {
+            problem = fmt::format(
+                "AOV '{}': part name '{}' is longer than {} bytes or holds a NUL "
+                "byte",
+                shortName(a.name), shortName(a.part), kMaxPartNameBytes);
+            return false;
+        }
+    }
+    if (const uint64_t bytes = aovChannelListBytes(h); bytes > kMaxStructuredBytes) {
+        problem = fmt::format(
+            "{} AOV channels x M = {} need a channel list of {} bytes in part 'aovs', more than "
+            "readers accept ({})",
+            h.aovs.size(), h.M, bytes, kMaxStructuredBytes);
+        return false;
+    }
+    return true;
+}
 
 namespace {
 template <class Img>
@@ -154,6 +270,8 @@ auto& arrayOfImpl(Img& img, Array a) {
             return img.albedo;
         case Array::Depth:
             return img.depth;
+        case Array::Aov:
+            return img.aov;
         case Array::Coverage:
             break;
     }

@@ -24,8 +24,18 @@ inline const char* const* partNames(bool adaptiveM) {
     return adaptiveM ? kPartNamesAdaptive : kPartNames;
 }
 
-/// Version 4: the optional parts after the four, in this order when present (pajot and modes
-/// always together).
+/// Version 5: the optional flat part `aovs` directly after the four (fixed M only), present iff
+/// StatsHeader::aovs is non-empty. Its StatsParts bit (kStatsPartAovs) is 1 << kAovs, and in a
+/// file that has it, it is part number kAovs.
+inline constexpr int kAovs = 4;
+inline constexpr const char* kPartAovs = "aovs";
+/// Number of StatsParts bits: the four parts and `aovs` (bit `part` is kStatsPart* of that part).
+inline constexpr int kPartBits = 5;
+/// Index in the file of the first version-4 part (pajot, or records): after the four and `aovs`.
+inline int firstExtraPart(const StatsHeader& h) { return kPartCount + (h.aovs.empty() ? 0 : 1); }
+
+/// Version 4: the optional parts after the four (and `aovs`), in this order when present (pajot
+/// and modes always together).
 inline constexpr const char* kPartPajot = "pajot";
 inline constexpr const char* kPartModes = "modes";
 inline constexpr const char* kPartRecords = "records";
@@ -58,6 +68,30 @@ inline constexpr const char* kAttrVariance = "mcstat:variance";  // string
 inline constexpr const char* kAttrFeatures = "mcstat:features";  // string
 inline constexpr const char* kAttrSources = "mcstat:sources";    // string
 
+/// Version 5 on, every part: the input's names of the beauty's R, G, B (string vector of 3) and the
+/// input part that held it (string); part 0 only: the input's metadata (string, opaque text).
+inline constexpr const char* kAttrBeautyChannels = "mcstat:beautyChannels";
+inline constexpr const char* kAttrBeautyPart = "mcstat:beautyPart";
+inline constexpr const char* kAttrSourceMetadata = "mcstat:sourceMetadata";
+/// Version 5, part `aovs` only: string vectors of one entry per AOV channel, in StatsHeader::aovs
+/// order: its name, its class (aovClassName) and its input part.
+inline constexpr const char* kAttrAovNames = "mcstat:aovNames";
+inline constexpr const char* kAttrAovClasses = "mcstat:aovClasses";
+inline constexpr const char* kAttrAovParts = "mcstat:aovParts";
+/// Longest part name (mcstat:beautyPart, an entry of mcstat:aovParts) a file may hold: OpenEXR's
+/// limit for names.
+inline constexpr size_t kMaxPartNameBytes = 255;
+/// Largest channel list, string vector or other structured attribute value a reader accepts
+/// (bytes); the writer refuses an `aovs` part whose channel list would be larger.
+inline constexpr uint32_t kMaxStructuredBytes = uint32_t(16) << 20;
+/// Bytes of the channel list of part `aovs` for `h` (OpenEXR's layout: name, NUL, 16 bytes per
+/// channel, a final NUL).
+uint64_t aovChannelListBytes(const StatsHeader& h);
+/// Whether the version-5 fields of `h` are valid (names non-empty, at most kMaxAovNameBytes,
+/// unique, none a beauty name; at most kMaxAovs; known classes; fixed M; beauty names distinct;
+/// part names at most kMaxPartNameBytes; display window); if not, `problem` says why.
+bool checkAovFields(const StatsHeader& h, std::string& problem);
+
 /// The sample-to-buffer rules (FORMAT.md, "Sample assignment"). Round robin is the only rule of
 /// format version 1; least count exists only in adaptive files (format version 2); per file only
 /// in fixed-M files of version 3.
@@ -82,7 +116,8 @@ enum class Array {
     Position,
     Albedo,
     Depth,
-    Coverage
+    Coverage,
+    Aov
 };
 
 /// One FLOAT channel: its name and its place in the pixel-interleaved array
@@ -101,9 +136,15 @@ std::string bufferChannel(int j, const char* component);
 /// "vbuffers" use kDeepChannels (its flat channel list is empty).
 std::vector<ChannelPlace> partChannels(int part, int M, bool adaptiveM = false);
 
-/// Number of floats per pixel over all parts (3 + 4M + 7 + 11). For adaptive M, the floats of
-/// the flat parts plus 4 per buffer is floatsPerPixel(0) + 4 * sum(m_p) / pixels.
-size_t floatsPerPixel(int M);
+/// The channels of part `aovs` for `h` (fixed M): bNNN.<name> of buffer j and AOV a, element
+/// offset j * A + a of the M * A floats per pixel; buffers in order, AOVs in header order. Empty
+/// without AOVs.
+std::vector<ChannelPlace> aovChannels(const StatsHeader& h);
+
+/// Number of floats per pixel over all parts (3 + 4M + 7 + 11, plus M * A for `aovs` AOVs). For
+/// adaptive M (no AOVs), the floats of the flat parts plus 4 per buffer is floatsPerPixel(0) + 4 *
+/// sum(m_p) / pixels.
+size_t floatsPerPixel(int M, size_t aovs = 0);
 
 /// The array of `img` a channel refers to.
 std::vector<float>& arrayOf(StatsImage& img, Array a);

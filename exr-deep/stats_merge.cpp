@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <set>
@@ -71,6 +72,47 @@ bool checkCompatible(const StatsHeader& a, const StatsHeader& b, std::string& er
                                 featureListText(b.features)));
     if (a.colorSpace != b.colorSpace)
         return fail(fmt::format("colour spaces differ ('{}' vs '{}')", a.colorSpace, b.colorSpace));
+    // Version 5: the same render layout (FORMAT.md "Version 5", Merge).
+    const auto shown = [](const std::string& s) { return detail::oneLine(s); };
+    // The display window as a box; displayWidth 0 means the data window (equal in both here).
+    const auto display = [](const StatsHeader& h) {
+        return h.displayWidth > 0
+                   ? std::array<int, 4>{h.displayX, h.displayY, h.displayWidth, h.displayHeight}
+                   : std::array<int, 4>{h.originX, h.originY, h.width, h.height};
+    };
+    const auto displayText = [&](const StatsHeader& h) {
+        const std::array<int, 4> d = display(h);
+        return fmt::format("{}x{} at ({},{})", d[2], d[3], d[0], d[1]);
+    };
+    if (display(a) != display(b))
+        return fail(
+            fmt::format("display windows differ ({} vs {})", displayText(a), displayText(b)));
+    for (size_t c = 0; c < 3; ++c)
+        if (a.beautyNames[c] != b.beautyNames[c])
+            return fail(fmt::format("beauty channel names differ ('{}' vs '{}')",
+                                    shown(a.beautyNames[c]), shown(b.beautyNames[c])));
+    if (a.beautyPart != b.beautyPart)
+        return fail(fmt::format("beauty parts differ ('{}' vs '{}')", shown(a.beautyPart),
+                                shown(b.beautyPart)));
+    for (size_t i = 0; i < std::min(a.aovs.size(), b.aovs.size()); ++i) {
+        const AovChannel &x = a.aovs[i], &y = b.aovs[i];
+        if (x.name != y.name)
+            return fail(
+                fmt::format("AOV {} differs ('{}' vs '{}')", i, shown(x.name), shown(y.name)));
+        if (x.cls != y.cls)
+            return fail(fmt::format("AOV '{}' has class {} in one input, {} in the other",
+                                    shown(x.name), aovClassName(x.cls), aovClassName(y.cls)));
+        if (x.part != y.part)
+            return fail(fmt::format("AOV '{}' comes from part '{}' in one input, '{}' in the other",
+                                    shown(x.name), shown(x.part), shown(y.part)));
+    }
+    if (a.aovs.size() != b.aovs.size()) {
+        const bool aLonger = a.aovs.size() > b.aovs.size();
+        const AovChannel& extra = (aLonger ? a : b).aovs[std::min(a.aovs.size(), b.aovs.size())];
+        return fail(fmt::format("AOV lists differ ({} vs {} AOVs; '{}' is only in the {} input)",
+                                a.aovs.size(), b.aovs.size(), shown(extra.name),
+                                aLonger ? "first" : "second"));
+    }
     if (!a.seeds.empty() && !b.seeds.empty()) {
         const std::vector<std::string> sa = splitSeeds(a.seeds);
         const std::set<std::string> setA(sa.begin(), sa.end());
@@ -148,6 +190,9 @@ bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::
         return false;
     }
 
+    const size_t A = r.header.aovs.size();  // fixed M only (the header checks refuse others)
+    std::vector<bool> isId(A);
+    for (size_t i = 0; i < A; ++i) isId[i] = r.header.aovs[i].cls == AovClass::Id;
     for (size_t p = 0; p < pixels; ++p) {
         // Sub-buffers: count-weighted means, counts add.
         const size_t k0 = r.bufferBegin(p), m = size_t(r.buffersOf(p));
@@ -158,6 +203,14 @@ bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::
                 r.bufferMean[k * 3 + c] =
                     float(weighted(na, a.bufferMean[k * 3 + c], nb, b.bufferMean[k * 3 + c]));
             r.bufferCount[k] = float(na + nb);
+            // AOVs (version 5): as the buffer means, except labels, taken whole from the input
+            // whose buffer holds more samples (the first on ties, the second when the first is
+            // empty).
+            for (size_t i = 0; i < A; ++i) {
+                const float va = a.aov[k * A + i], vb = b.aov[k * A + i];
+                r.aov[k * A + i] =
+                    isId[i] ? (na == 0.0 || nb > na ? vb : va) : float(weighted(na, va, nb, vb));
+            }
         }
         // Moments: Chan et al.'s parallel combination; M2 recovered as variance * (n - 1).
         const double na = a.count[p], nb = b.count[p], n = na + nb;

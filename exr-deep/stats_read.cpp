@@ -58,8 +58,14 @@ using detail::windowOf;
 /// Checks that the file opened by the C++ API is the file the header check saw.
 void checkSameFile(const Imf::MultiPartInputFile& in, const StatsHeader& h) {
     // Same open file as the header check; guard anyway against it changing under us.
-    const int expected = layout::kPartCount + (h.hasPajot ? 2 : 0) + (h.hasRecords ? 1 : 0);
+    const int expected = layout::firstExtraPart(h) + (h.hasPajot ? 2 : 0) + (h.hasRecords ? 1 : 0);
     if (in.parts() != expected) throw std::runtime_error("file changed while reading");
+    if (!h.aovs.empty()) {
+        const Imf::Header& ph = in.header(layout::kAovs);
+        if (ph.dataWindow() != windowOf(h) || !ph.hasName() || ph.name() != layout::kPartAovs ||
+            ph.type() != Imf::SCANLINEIMAGE)
+            throw std::runtime_error("file changed while reading");
+    }
     const char* const* names = layout::partNames(h.adaptiveM);
     for (int part = 0; part < layout::kPartCount; ++part) {
         const Imf::Header& ph = in.header(part);
@@ -96,10 +102,13 @@ int linesPerChunk(Imf::Compression c) {
 /// at its first row) and whose arrays are sized; throws on failure.
 void readFlatParts(Imf::MultiPartInputFile& in, unsigned parts, StatsImage& blk) {
     const StatsHeader& h = blk.header;
-    for (int part = 0; part < layout::kPartCount; ++part) {
+    for (int part = 0; part < layout::kPartBits; ++part) {
         if (!(parts & (1u << part)) || (h.adaptiveM && part == layout::kBuffers)) continue;
+        if (part == layout::kAovs && h.aovs.empty()) continue;  // no part aovs: nothing to read
         Imf::FrameBuffer fb;
-        for (const layout::ChannelPlace& c : layout::partChannels(part, h.M, h.adaptiveM)) {
+        for (const layout::ChannelPlace& c : part == layout::kAovs
+                                                 ? layout::aovChannels(h)
+                                                 : layout::partChannels(part, h.M, h.adaptiveM)) {
             float* data = layout::arrayOf(blk, c.array).data() + c.offset;
             const size_t xStride = c.stride * sizeof(float);
             fb.insert(c.name, Imf::Slice(Imf::FLOAT, windowBase(data, h, xStride), xStride,

@@ -18,6 +18,7 @@ int StatsBlockSource::blockRows(unsigned parts, size_t budgetBytes) const {
     if (parts & kStatsPartBuffers) floats += 4 * size_t(h.M) + (h.adaptiveM ? 2 : 0);
     if (parts & kStatsPartMoments) floats += 7;
     if (parts & kStatsPartFeatures) floats += 11;
+    if ((parts & kStatsPartAovs) && !h.adaptiveM) floats += size_t(h.M) * h.aovs.size();
     const size_t rowBytes = std::max<size_t>(1, floats * sizeof(float) * size_t(h.width));
     const size_t chunk = size_t(std::max(1, chunkRows()));
     const size_t rows = std::max<size_t>(1, budgetBytes / rowBytes / chunk) * chunk;
@@ -83,6 +84,16 @@ bool MemoryStatsSource::read(int firstRow, int rows, unsigned parts, StatsImage&
             std::copy(src.begin() + ptrdiff_t(first), src.begin() + ptrdiff_t(first + dst.size()),
                       dst.begin());
         }
+    }
+    if ((parts & kStatsPartAovs) && !block.aov.empty()) {  // fixed M: M * A values per pixel
+        const size_t per = size_t(img.header.M) * img.header.aovs.size();
+        if (img.aov.size() != img.pixelCount() * per) {
+            err = fmt::format("{}: AOV array holds {} values, expected {}", name_, img.aov.size(),
+                              img.pixelCount() * per);
+            return false;
+        }
+        std::copy(img.aov.begin() + ptrdiff_t(p0 * per),
+                  img.aov.begin() + ptrdiff_t((p0 + np) * per), block.aov.begin());
     }
     if ((parts & kStatsPartBuffers) && img.header.adaptiveM) {
         std::copy(img.bufferMean.begin() + ptrdiff_t(k0 * 3),

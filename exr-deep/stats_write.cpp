@@ -12,6 +12,7 @@
 #include <OpenEXR/ImfPartType.h>
 #include <OpenEXR/ImfStandardAttributes.h>
 #include <OpenEXR/ImfStringAttribute.h>
+#include <OpenEXR/ImfStringVectorAttribute.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <fmt/format.h>
@@ -36,6 +37,7 @@ namespace mcstat {
 
 namespace {
 
+using detail::displayWindowOf;
 using detail::windowBase;
 using detail::windowOf;
 
@@ -46,7 +48,7 @@ namespace detail {
 Imf::Header commonHeader(const StatsHeader& h, const std::string& name, bool deep) {
     const Imath::Box2i window = windowOf(h);
     // Deep parts cannot use ZIP (16 lines); ZIPS (one line) is the deflate they allow.
-    Imf::Header hdr(window, window, 1.f, Imath::V2f(0.f, 0.f), 1.f, Imf::INCREASING_Y,
+    Imf::Header hdr(displayWindowOf(h), window, 1.f, Imath::V2f(0.f, 0.f), 1.f, Imf::INCREASING_Y,
                     deep ? Imf::ZIPS_COMPRESSION : Imf::ZIP_COMPRESSION);
     hdr.zipCompressionLevel() = 4;  // fixed, so equal images give equal bytes
     hdr.setName(name);
@@ -66,6 +68,11 @@ Imf::Header commonHeader(const StatsHeader& h, const std::string& name, bool dee
         hdr.insert(layout::kAttrFeatures, Imf::StringAttribute(featureListText(h.features)));
         hdr.insert(layout::kAttrSources, Imf::StringAttribute(h.sources));
     }
+    if (h.formatVersion >= kStatsFormatVersionAovs) {
+        hdr.insert(layout::kAttrBeautyChannels, Imf::StringVectorAttribute(std::vector<std::string>(
+                                                    h.beautyNames.begin(), h.beautyNames.end())));
+        hdr.insert(layout::kAttrBeautyPart, Imf::StringAttribute(h.beautyPart));
+    }
     return hdr;
 }
 
@@ -84,6 +91,23 @@ std::vector<Imf::Header> makeHeaders(const StatsHeader& h) {
         if (deep)
             for (const char* name : layout::kDeepChannels)
                 hdr.channels().insert(name, Imf::Channel(Imf::FLOAT));
+        if (part == layout::kBeauty && h.formatVersion >= kStatsFormatVersionAovs)
+            hdr.insert(layout::kAttrSourceMetadata, Imf::StringAttribute(h.sourceMetadata));
+        headers.push_back(std::move(hdr));
+    }
+    if (!h.aovs.empty()) {  // version 5, fixed M: part aovs, M * A channels
+        Imf::Header hdr = detail::commonHeader(h, layout::kPartAovs, false);
+        for (const layout::ChannelPlace& c : layout::aovChannels(h))
+            hdr.channels().insert(c.name, Imf::Channel(Imf::FLOAT));
+        std::vector<std::string> names, classes, parts;
+        for (const AovChannel& a : h.aovs) {
+            names.push_back(a.name);
+            classes.emplace_back(aovClassName(a.cls));
+            parts.push_back(a.part);
+        }
+        hdr.insert(layout::kAttrAovNames, Imf::StringVectorAttribute(names));
+        hdr.insert(layout::kAttrAovClasses, Imf::StringVectorAttribute(classes));
+        hdr.insert(layout::kAttrAovParts, Imf::StringVectorAttribute(parts));
         headers.push_back(std::move(hdr));
     }
     return headers;
@@ -128,17 +152,20 @@ void writeDeepBuffers(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
     op.writePixels(h.height);
 }
 
-/// Writes the rows of `blk` (a block of whole rows) to every one of the four parts; throws on
-/// failure.
+/// Writes the rows of `blk` (a block of whole rows) to every one of the four parts and, with AOVs,
+/// part aovs; throws on failure.
 void writeRows(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
     const StatsHeader& h = blk.header;
-    for (int part = 0; part < layout::kPartCount; ++part) {
+    const int parts = h.aovs.empty() ? layout::kPartCount : layout::kAovs + 1;
+    for (int part = 0; part < parts; ++part) {
         if (h.adaptiveM && part == layout::kBuffers) {
             writeDeepBuffers(out, blk);
             continue;
         }
         Imf::FrameBuffer fb;
-        for (const layout::ChannelPlace& c : layout::partChannels(part, h.M, h.adaptiveM)) {
+        for (const layout::ChannelPlace& c : part == layout::kAovs
+                                                 ? layout::aovChannels(h)
+                                                 : layout::partChannels(part, h.M, h.adaptiveM)) {
             const float* data = layout::arrayOf(blk, c.array).data() + c.offset;
             const size_t xStride = c.stride * sizeof(float);
             fb.insert(c.name, Imf::Slice(Imf::FLOAT, windowBase(data, h, xStride), xStride,
@@ -238,13 +265,26 @@ bool StatsFileWriter::write(const StatsImage& block, std::string& err) {
     const StatsHeader& h = im.header;
     const StatsHeader& b = block.header;
     if (b.width != h.width || b.originX != h.originX || b.M != h.M || b.adaptiveM != h.adaptiveM ||
-        b.originY != h.originY + im.nextRow || b.height > h.height - im.nextRow) {
+        b.originY != h.originY + im.nextRow || b.height > h.height - im.nextRow ||
+        b.aovs.size() != h.aovs.size()) {
         err = fmt::format(
-            "{}: a block of rows {}..{} ({} wide, M = {}) does not continue the image at row {} "
-            "of {} ({} wide, M = {})",
+            "{}: a block of rows {}..{} ({} wide, M = {}, {} AOVs) does not continue the image at "
+            "row {} of {} ({} wide, M = {}, {} AOVs)",
             im.path, int64_t(b.originY) - h.originY, int64_t(b.originY) - h.originY + b.height - 1,
-            b.width, b.M, im.nextRow, h.height, h.width, h.M);
+            b.width, b.M, b.aovs.size(), im.nextRow, h.height, h.width, h.M, h.aovs.size());
         return false;
+    }
+    if (b.aovs != h.aovs) {
+        for (size_t a = 0; a < h.aovs.size(); ++a)
+            if (!(b.aovs[a] == h.aovs[a])) {
+                err = fmt::format(
+                    "{}: a block's AOV {} is '{}' ({}, part '{}'), the image's is '{}' ({}, part "
+                    "'{}')",
+                    im.path, a, detail::oneLine(b.aovs[a].name), aovClassName(b.aovs[a].cls),
+                    detail::oneLine(b.aovs[a].part), detail::oneLine(h.aovs[a].name),
+                    aovClassName(h.aovs[a].cls), detail::oneLine(h.aovs[a].part));
+                return false;
+            }
     }
     if (!validateStats(block, im.path, err)) return false;
     try {

@@ -17,6 +17,15 @@ inline Imath::Box2i windowOf(const StatsHeader& h) {
                         Imath::V2i(h.originX + h.width - 1, h.originY + h.height - 1));
 }
 
+/// The display window of `h` as an OpenEXR box: header.display* when displayWidth > 0, else the
+/// data window.
+inline Imath::Box2i displayWindowOf(const StatsHeader& h) {
+    if (h.displayWidth <= 0 || h.displayHeight <= 0) return windowOf(h);
+    return Imath::Box2i(
+        Imath::V2i(h.displayX, h.displayY),
+        Imath::V2i(h.displayX + h.displayWidth - 1, h.displayY + h.displayHeight - 1));
+}
+
 /// `data` shifted so that element (x, y) of the data window, in rows firstRow.. of the window
 /// (0-based), is at data + ((y - originY - firstRow) * width + x - originX) * xStride, as
 /// OpenEXR's slices address it with yStride = xStride * width (integer arithmetic: no

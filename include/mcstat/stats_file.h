@@ -4,6 +4,7 @@
 // file (when there is one) and the problem.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -198,12 +199,13 @@ struct StatsImage {
         return {bufferMean.data() + k * 3, bufferCount.data() + k, buffersOf(p)};
     }
     /// Whether the sub-buffer arrays (and bufferOffset for adaptive M) have the sizes the header
-    /// implies, so that pixelBuffers(p) is safe for every p; cheap, values are not looked at.
-    /// `why` names the problem. validateStats checks this and more.
+    /// implies, so that pixelBuffers(p) is safe for every p, and `aov` is empty (part not read) or
+    /// holds one value per buffer and AOV; cheap, values are not looked at. `why` names the
+    /// problem. validateStats checks this and more.
     bool checkBufferLayout(std::string& why) const;
     /// Allocates every array for header.width x header.height x header.M, zero-filled
-    /// (depth filled with +inf). Fixed M only (header.adaptiveM false). Returns false (and leaves
-    /// *this untouched) on absurd sizes.
+    /// (depth filled with +inf; aov with pixels * M * header.aovs.size() values). Fixed M only
+    /// (header.adaptiveM false). Returns false (and leaves *this untouched) on absurd sizes.
     bool allocate(std::string& err);
     /// Adaptive M: sets header.adaptiveM, builds bufferOffset from `buffersPerPixel` (pixelCount()
     /// values, each in 1..header.M) and allocates every array as allocate() does. Returns false
@@ -234,8 +236,9 @@ bool writeStatsFile(const std::string& path, const StatsImage& img, std::string&
 bool readStatsFile(const std::string& path, StatsImage& img, std::string& err,
                    const ReadLimits& limits = ReadLimits());
 
-/// The four parts of a statistics file as bits, for reading only some of them
-/// (StatsFileReader::read). The sub-buffers are part "buffers" or, with adaptive M, "vbuffers".
+/// The four parts of a statistics file and (version 5) part "aovs" as bits, for reading only some
+/// of them (StatsFileReader::read). The sub-buffers are part "buffers" or, with adaptive M,
+/// "vbuffers".
 enum StatsParts : unsigned {
     kStatsPartBeauty = 1u << 0,    ///< StatsImage::beauty
     kStatsPartBuffers = 1u << 1,   ///< bufferMean, bufferCount (and bufferOffset)
@@ -354,7 +357,7 @@ class StatsFileWriter {
     bool open(const std::string& path, const StatsHeader& header, std::string& err,
               int nthreads = 0);
     /// Appends `block` (a valid image of whole rows: header.originY the next row to write, every
-    /// part present).
+    /// part present, part aovs too when the header has AOVs, the same AOVs as open()'s header).
     bool write(const StatsImage& block, std::string& err);
     /// After the last row: completes the file and renames it onto the target.
     bool commit(std::string& err);
@@ -415,12 +418,15 @@ bool validateStats(const StatsImage& img, unsigned parts, const std::string& wha
 double bufferVariance(const StatsImage& img, size_t p, size_t c, double mean);
 
 /// The header of mergeStats(a, b)'s result from the inputs' headers, after checking that they can
-/// merge (same size, origin, M, assignment, variance source, features, colour space; no seed in
-/// both): spp added, seeds, sources and renderer names joined. False with `err` otherwise.
+/// merge (same size, origin, M, assignment, variance source, features, colour space, display
+/// window, AOVs, beauty channel names and part; no seed in both): spp added, seeds, sources and
+/// renderer names joined, source metadata a's. False with `err` naming the first difference.
 bool mergeHeaders(const StatsHeader& a, const StatsHeader& b, StatsHeader& out, std::string& err);
 
 /// Combines two renders of the same image (same size, M, assignment) into one, as if a single
-/// render had taken all samples: per-buffer count-weighted sums, Chan's parallel variance.
+/// render had taken all samples: per-buffer count-weighted sums, Chan's parallel variance; AOVs
+/// per buffer count-weighted like the buffer means, except class Id: the value of the input whose
+/// buffer count is larger (a on ties, b when a's count is 0).
 /// Adaptive M: both inputs adaptive with the same m_p in every pixel (else refused, naming the
 /// first differing pixel); fixed and adaptive inputs are never merged.
 bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::string& err);

@@ -5,7 +5,9 @@
 #include <OpenEXR/ImfDeepFrameBuffer.h>
 #include <OpenEXR/ImfDeepScanLineOutputPart.h>
 #include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfInputPart.h>
 #include <OpenEXR/ImfIntAttribute.h>
+#include <OpenEXR/ImfMultiPartInputFile.h>
 #include <OpenEXR/ImfMultiPartOutputFile.h>
 #include <OpenEXR/ImfOutputPart.h>
 #include <OpenEXR/ImfPartType.h>
@@ -14,6 +16,7 @@
 #include <OpenEXR/ImfTiledOutputPart.h>
 
 #include <cstdio>
+#include <stdexcept>
 
 namespace mcstat::test {
 
@@ -119,6 +122,30 @@ std::vector<RawPart> rawAdaptivePartsFrom(const StatsImage& img) {
             d.values["Z"].push_back(float(j));
             d.values["A"].push_back(1.f);
         }
+    }
+    return parts;
+}
+
+std::vector<RawPart> readRaw(const std::string& path) {
+    Imf::MultiPartInputFile in(path.c_str());
+    std::vector<RawPart> parts(size_t(in.parts()));
+    for (int i = 0; i < in.parts(); ++i) {
+        RawPart& part = parts[size_t(i)];
+        part.header = in.header(i);
+        if (part.header.type() != Imf::SCANLINEIMAGE)
+            throw std::runtime_error("readRaw: part " + std::to_string(i) + " is not flat");
+        const Imath::Box2i dw = part.header.dataWindow();
+        const size_t w = size_t(dw.max.x - dw.min.x + 1), n = w * size_t(dw.max.y - dw.min.y + 1);
+        Imf::FrameBuffer fb;
+        for (auto it = part.header.channels().begin(); it != part.header.channels().end(); ++it) {
+            std::vector<float>& v = part.values[it.name()];
+            v.assign(n, 0.f);
+            fb.insert(it.name(),
+                      Imf::Slice::Make(Imf::FLOAT, v.data(), dw, sizeof(float), sizeof(float) * w));
+        }
+        Imf::InputPart ip(in, i);
+        ip.setFrameBuffer(fb);
+        ip.readPixels(dw.min.y, dw.max.y);
     }
     return parts;
 }

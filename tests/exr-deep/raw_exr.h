@@ -33,6 +33,11 @@ std::vector<RawPart> rawAdaptivePartsFrom(const StatsImage& img);
 /// parts have deepCounts samples per pixel, or none). Throws on OpenEXR errors.
 void writeRaw(const std::string& path, const std::vector<RawPart>& parts);
 
+/// The parts of a flat multi-part file as they are (headers with every attribute, values of every
+/// channel as FLOAT), e.g. a file the library wrote, to damage and write again with writeRaw.
+/// Throws on OpenEXR errors and on deep or tiled parts.
+std::vector<RawPart> readRaw(const std::string& path);
+
 /// Sets int attribute `name` = v on every part.
 void setIntOnAll(std::vector<RawPart>& parts, const char* name, int v);
 

@@ -178,7 +178,10 @@ TEST_F(Corrupt, NewerVersion) {
     modes.header.setName("modes");
     parts.push_back(modes);
     const std::string err = readError();
-    EXPECT_TRUE(contains(err, "written by a newer mcstat (format 5); this reader knows 4")) << err;
+    EXPECT_TRUE(contains(err, "written by a newer mcstat (format " +
+                                  std::to_string(kStatsFormatVersion + 1) +
+                                  "); this reader knows " + std::to_string(kStatsFormatVersion)))
+        << err;
 }
 
 TEST_F(Corrupt, OlderOrZeroVersion) {
