@@ -21,25 +21,51 @@ using OIIO::TypeDesc;
 
 namespace {
 
-/// Fills `dst` (an RGB float image already reset to `roi`) in parallel: `pixel(x, y, e, scratch)`
-/// computes each output pixel; every chunk of work has its own scratch, so threads share nothing.
-template <class PixelFn>
-void fillRGB(ImageBuf& dst, ROI roi, int nthreads, PixelFn pixel) {
+/// Fills `dst` (an RGB float image already reset to `roi`, then `A` AOV channels) in parallel:
+/// `pixel(x, y, e, scratch)` computes each output pixel; every chunk of work has its own scratch,
+/// so threads share nothing. With A > 0 the filter leaves its weighted elements in the scratch
+/// (SpatialScratch::wantWeights) and `aovOf(scratch, element, buffer)` points at an element's A
+/// values, to which those weights are applied (docs/aovs.md).
+template <class PixelFn, class AovOf>
+void fillFiltered(ImageBuf& dst, ROI roi, int nthreads, size_t A, const AovClass* classes,
+                  PixelFn pixel, AovOf aovOf) {
     float* const base = static_cast<float*>(dst.localpixels());
+    const size_t nch = 3 + A;
     OIIO::ImageBufAlgo::parallel_image(roi, nthreads, [&](ROI r) {
         SpatialScratch scratch;
+        scratch.wantWeights = A > 0;
         PixelEstimate e;
+        AovScratch as;
+        std::vector<double> w;
+        std::vector<float> values;
         for (int y = r.ybegin; y < r.yend; ++y)
             for (int x = r.xbegin; x < r.xend; ++x) {
                 pixel(x, y, e, scratch);
                 float* px =
                     base +
-                    (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * 3;
+                    (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
                 px[0] = e.rgb[0];
                 px[1] = e.rgb[1];
                 px[2] = e.rgb[2];
+                if (A == 0) continue;
+                w.clear();
+                values.clear();
+                for (const auto& el : scratch.weights) {
+                    w.push_back(el.weight);
+                    const float* v = aovOf(scratch, el.element, el.buffer);
+                    values.insert(values.end(), v, v + A);
+                }
+                applyAovWeights(w.data(), w.size(), values.data(), A, classes, px + 3, as);
             }
     });
+}
+
+/// fillFiltered without AOVs (no element is ever looked up).
+template <class PixelFn>
+void fillRGB(ImageBuf& dst, ROI roi, int nthreads, PixelFn pixel) {
+    static const float kNoAov = 0.f;
+    fillFiltered(dst, roi, nthreads, 0, nullptr, pixel,
+                 [](const SpatialScratch&, int, int) { return &kNoAov; });
 }
 
 }  // namespace
@@ -115,22 +141,6 @@ ImageSpec aovResultSpec(ROI roi, const StatsHeader& h, const std::string& colorS
     setAovAttributes(spec, h, 3);
     spec.attribute("oiio:ColorSpace", colorSpace);
     return spec;
-}
-
-/// Gathers the weighted elements of a filtered pixel into `w`, `values` (A floats each) and
-/// applies them (applyAovWeights). `aovOf(element, buffer)` points at an element's A values.
-template <class AovOf>
-void applyElementWeights(const SpatialScratch& s, size_t A, const AovClass* classes, AovOf aovOf,
-                         std::vector<double>& w, std::vector<float>& values, AovScratch& as,
-                         float* out) {
-    w.clear();
-    values.clear();
-    for (const auto& e : s.weights) {
-        w.push_back(e.weight);
-        const float* v = aovOf(e.element, e.buffer);
-        values.insert(values.end(), v, v + A);
-    }
-    applyAovWeights(w.data(), w.size(), values.data(), A, classes, out, as);
 }
 
 }  // namespace
@@ -325,34 +335,16 @@ bool medianImageFilter(ImageBuf& dst, const ImageBuf& src, const SpatialParams& 
     spec.attribute(kAttrFirstAov, 3);
     spec.attribute(kAttrAovClasses, src.spec().get_string_attribute(kAttrAovClasses));
     dst.reset(spec, OIIO::InitializePixels::No);
-    float* const base = static_cast<float*>(dst.localpixels());
-    const size_t onch = 3 + A;
-    OIIO::ImageBufAlgo::parallel_image(roi, nthreads, [&](ROI r) {
-        SpatialScratch scratch;
-        scratch.wantWeights = true;
-        PixelEstimate e;
-        AovScratch as;
-        std::vector<double> w;
-        std::vector<float> values;
-        for (int y = r.ybegin; y < r.yend; ++y)
-            for (int x = r.xbegin; x < r.xend; ++x) {
-                wmifPixel(view, x - full.xbegin, y - full.ybegin, params, e, scratch);
-                float* px =
-                    base +
-                    (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * onch;
-                px[0] = e.rgb[0];
-                px[1] = e.rgb[1];
-                px[2] = e.rgb[2];
-                applyElementWeights(
-                    scratch, A, classes.data(),
-                    [&](int element, int) {
-                        const auto [xx, yy] = scratch.source[size_t(element)];
-                        return all.data() + (size_t(yy) * size_t(full.width()) + size_t(xx)) * nch +
-                               size_t(firstAov);
-                    },
-                    w, values, as, px + 3);
-            }
-    });
+    fillFiltered(
+        dst, roi, nthreads, A, classes.data(),
+        [&](int x, int y, PixelEstimate& e, SpatialScratch& scratch) {
+            wmifPixel(view, x - full.xbegin, y - full.ybegin, params, e, scratch);
+        },
+        [&](const SpatialScratch& scratch, int element, int) {
+            const auto [xx, yy] = scratch.source[size_t(element)];
+            return all.data() + (size_t(yy) * size_t(full.width()) + size_t(xx)) * nch +
+                   size_t(firstAov);
+        });
     return true;
 }
 
@@ -428,44 +420,20 @@ bool filter3D(ImageBuf& dst, const StatsImage& src, const SpatialParams& params,
                 grid.sortRect(r.xbegin - h.originX, r.ybegin - h.originY, r.xend - h.originX,
                               r.yend - h.originY, scratch);
             });
-    if (A == 0) {
-        fillRGB(dst, roi, nthreads, [&](int x, int y, PixelEstimate& e, SpatialScratch& scratch) {
-            grid.filterPixel(x - h.originX, y - h.originY, e, scratch);
-        });
-        return true;
-    }
     // AOVs (docs/aovs.md): every (window pixel, sub-buffer) keeps the weight it had in the
     // beauty's trimmed average.
     const std::vector<AovClass> classes = aovClasses(h.aovs);
-    float* const base = static_cast<float*>(dst.localpixels());
-    const size_t nch = 3 + A;
-    OIIO::ImageBufAlgo::parallel_image(roi, nthreads, [&](ROI r) {
-        SpatialScratch scratch;
-        scratch.wantWeights = true;
-        PixelEstimate e;
-        AovScratch as;
-        std::vector<double> w;
-        std::vector<float> values;
-        for (int y = r.ybegin; y < r.yend; ++y)
-            for (int x = r.xbegin; x < r.xend; ++x) {
-                grid.filterPixel(x - h.originX, y - h.originY, e, scratch);
-                float* px =
-                    base +
-                    (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
-                px[0] = e.rgb[0];
-                px[1] = e.rgb[1];
-                px[2] = e.rgb[2];
-                applyElementWeights(
-                    scratch, A, classes.data(),
-                    [&](int list, int buffer) {
-                        const auto [xx, yy] = scratch.source[size_t(list)];
-                        const size_t k = (size_t(yy) * size_t(h.width) + size_t(xx)) * size_t(h.M) +
-                                         size_t(buffer);
-                        return src.aov.data() + k * A;
-                    },
-                    w, values, as, px + 3);
-            }
-    });
+    fillFiltered(
+        dst, roi, nthreads, A, classes.data(),
+        [&](int x, int y, PixelEstimate& e, SpatialScratch& scratch) {
+            grid.filterPixel(x - h.originX, y - h.originY, e, scratch);
+        },
+        [&](const SpatialScratch& scratch, int list, int buffer) {
+            const auto [xx, yy] = scratch.source[size_t(list)];
+            const size_t k =
+                (size_t(yy) * size_t(h.width) + size_t(xx)) * size_t(h.M) + size_t(buffer);
+            return src.aov.data() + k * A;
+        });
     return true;
 }
 

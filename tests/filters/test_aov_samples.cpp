@@ -107,7 +107,7 @@ MemorySamples scene(int W, int H, int spp, unsigned seed) {
 }
 
 OperationImage runSamples(const char* name, MemorySamples& src,
-                          const std::map<std::string, std::string>& kv) {
+                          const std::map<std::string, std::string>& kv, int nthreads = 2) {
     const Operation* op = findOperation(name);
     ParamValues values;
     std::string err;
@@ -117,7 +117,7 @@ OperationImage runSamples(const char* name, MemorySamples& src,
     req.source = &src;
     req.params = &values;
     req.luma = {0.2126, 0.7152, 0.0722};
-    req.nthreads = 2;
+    req.nthreads = nthreads;
     OperationImage out;
     EXPECT_TRUE(op->samples(req, out, err)) << err;
     return out;
@@ -173,18 +173,7 @@ TEST(AovSamples, RpfGivesAovsTheColoursWeights) {
     // The same result with 1 and 2 threads.
     src.h.aovs.resize(4);
     const OperationImage a = runSamples("rpf", src, {{"passes", "1"}});
-    const Operation* op = findOperation("rpf");
-    ParamValues values;
-    std::string err;
-    ASSERT_TRUE(parseOperationParams(*op, {{"passes", "1"}}, values, err));
-    SamplesRequest req;
-    req.path = src.name;
-    req.source = &src;
-    req.params = &values;
-    req.luma = {0.2126, 0.7152, 0.0722};
-    req.nthreads = 1;
-    OperationImage b;
-    ASSERT_TRUE(op->samples(req, b, err)) << err;
+    const OperationImage b = runSamples("rpf", src, {{"passes", "1"}}, 1);
     EXPECT_EQ(a.pixels, b.pixels);
 }
 
