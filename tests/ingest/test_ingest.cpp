@@ -67,7 +67,9 @@ TEST_F(Ingest, CyclesMultilayerValuesAgainstHandComputed) {
     std::string err;
     ASSERT_TRUE(ingestRenders(paths, IngestOptions(), img, rep, err)) << err;
     const StatsHeader& h = img.header;
-    EXPECT_EQ(h.formatVersion, 3);
+    // Version 5: the AO pass, alpha and the data passes are kept as AOVs under Cycles' names.
+    EXPECT_EQ(h.formatVersion, kStatsFormatVersionAovs);
+    EXPECT_EQ(h.beautyNames[0], "ViewLayer.Combined.R");
     EXPECT_EQ(h.M, 3);
     EXPECT_EQ(h.spp, 192);
     EXPECT_EQ(h.assignment, "perfile");
