@@ -135,11 +135,20 @@ const std::vector<RecordField>& recordFieldTable() {
 }
 
 bool recordChannelsOf(const std::vector<std::string>& fields, std::vector<std::string>& channels,
-                      std::string& err) {
+                      std::string& err, const std::vector<AovChannel>& aovs) {
     const auto& table = recordFieldTable();
     std::vector<bool> want(table.size(), false);
     for (int i = 0; i < kRecordFloats; ++i) want[size_t(i)] = true;
+    bool wantAovs = false;
     for (const std::string& f : fields) {
+        if (f == kRecordFieldAov) {
+            if (aovs.empty()) {
+                err = "record field 'aov' needs AOVs in the header (part aovs)";
+                return false;
+            }
+            wantAovs = true;
+            continue;
+        }
         size_t i = 0;
         while (i < table.size() && f != table[i].name) ++i;
         if (i == table.size()) {
@@ -155,6 +164,8 @@ bool recordChannelsOf(const std::vector<std::string>& fields, std::vector<std::s
     for (size_t i = 0; i < table.size(); ++i)
         if (want[i])
             for (const char* c : table[i].channels) channels.emplace_back(c);
+    if (wantAovs)
+        for (const AovChannel& a : aovs) channels.push_back(kRecordAovPrefix + a.name);
     return true;
 }
 
@@ -184,17 +195,19 @@ bool SampleRecordsWriter::open(const std::string& target, const StatsHeader& h, 
                                const std::vector<std::string>& fields) {
     impl_->header = h;
     std::string why;
-    if (!recordChannelsOf(fields, impl_->channels, why)) {
+    if (!recordChannelsOf(fields, impl_->channels, why, h.aovs)) {
         err = target + ": " + why;
         return false;
     }
-    // mcstat:recordFields: the fields in table order (R, G, B, Z first).
+    // mcstat:recordFields: the fields in table order (R, G, B, Z first), then aov.
     std::string list;
     for (const RecordField& f : recordFieldTable()) {
         bool present = false;
         for (const std::string& c : impl_->channels) present = present || c == f.channels[0];
         if (present) list += (list.empty() ? "" : ",") + std::string(f.name);
     }
+    if (std::find(fields.begin(), fields.end(), kRecordFieldAov) != fields.end())
+        list += std::string(",") + kRecordFieldAov;
     if (!checkOutputTarget(target, err)) return false;
     impl_->tmp = std::make_unique<TemporaryFile>(target, ".records");
     impl_->path = impl_->tmp->path();
@@ -309,6 +322,16 @@ bool SampleRecordsReader::open(const std::string& path, std::string& err,
                                 "part 'records' lists field '{}' but has no FLOAT channel '{}'",
                                 name, c));
                     }
+        if (std::find(impl_->fields.begin(), impl_->fields.end(), kRecordFieldAov) !=
+            impl_->fields.end())
+            for (const AovChannel& a : impl_->header.aovs) {
+                const Imf::Channel* x = ch.findChannel(kRecordAovPrefix + a.name);
+                if (x == nullptr || x->type != Imf::FLOAT)
+                    throw std::runtime_error(
+                        fmt::format("part 'records' lists field 'aov' but has no FLOAT channel "
+                                    "'{}{}'",
+                                    kRecordAovPrefix, a.name));
+            }
         impl_->selected = impl_->available;
     } catch (const std::exception& e) {
         err = fmt::format("{}: {}", path, detail::oneLine(e.what()));

@@ -357,6 +357,48 @@ bool printPajotSummary(const std::string& path, std::string& err) {
     return true;
 }
 
+/// Format version 5 (docs/aovs.md): the beauty's names, the windows and every AOV, grouped by
+/// layer (the channel name before its last dot) with its class and input part.
+void printAovSummary(const StatsHeader& h) {
+    std::printf("  beauty channels %s, %s, %s%s\n", h.beautyNames[0].c_str(),
+                h.beautyNames[1].c_str(), h.beautyNames[2].c_str(),
+                h.beautyPart.empty() ? "" : format(" (part '{}')", h.beautyPart).c_str());
+    if (h.displayWidth > 0)
+        std::printf("  display window %d,%d %d x %d (data window %d,%d %d x %d)\n", h.displayX,
+                    h.displayY, h.displayWidth, h.displayHeight, h.originX, h.originY, h.width,
+                    h.height);
+    if (!h.sourceMetadata.empty())
+        std::printf("  source metadata: %zu bytes (written back into every result)\n",
+                    h.sourceMetadata.size());
+    if (h.aovs.empty()) {
+        std::printf("  aovs: none\n");
+        return;
+    }
+    std::printf("  aovs (%zu channels x %d sub-buffers):\n", h.aovs.size(), h.M);
+    size_t i = 0;
+    while (i < h.aovs.size()) {
+        const AovChannel& a = h.aovs[i];
+        const size_t dot = a.name.rfind('.');
+        const std::string layer = dot == std::string::npos ? a.name : a.name.substr(0, dot);
+        std::string chans = dot == std::string::npos ? a.name : a.name.substr(dot + 1);
+        size_t j = i + 1;
+        for (; j < h.aovs.size(); ++j) {
+            const AovChannel& b = h.aovs[j];
+            const size_t d = b.name.rfind('.');
+            if (d == std::string::npos || dot == std::string::npos ||
+                b.name.substr(0, d) != layer || b.cls != a.cls || b.part != a.part)
+                break;
+            chans += "," + b.name.substr(d + 1);
+        }
+        const std::string what = dot == std::string::npos ? a.name : layer + " (" + chans + ")";
+        std::printf("%s\n", OIIO::Strutil::trimmed_whitespace(
+                                 format("    {:<32} {:<6} {}", what, aovClassName(a.cls),
+                                        a.part.empty() ? "" : "part " + a.part))
+                                 .c_str());
+        i = j;
+    }
+}
+
 bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&, const Modifiers&,
              std::string& err) {
     if (st.stack.empty()) {
@@ -403,6 +445,7 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
             "  parts: beauty (R,G,B)  buffers (%d x b###.R,G,B,count)  moments (count, mean.RGB, "
             "variance.RGB)  features (%s)\n",
             h.M, features.c_str());
+    if (h.formatVersion >= kStatsFormatVersionAovs) printAovSummary(h);
     if (h.hasRecords) {
         SampleRecordsReader records;
         if (!records.open(top.path, err)) return false;

@@ -55,14 +55,17 @@ bool filterImage(State& st, const std::string& cmd, const Operation& op, const M
     }
     SpatialParams p;
     if (!parseSpatialModifiers(cmd, op, mods, p, err)) return false;
-    // The filter works on the first three channels: hand it R, G, B found by name.
+    // The filter works on the first three channels: hand it R, G, B found by name. An
+    // estimator's result over a file with AOVs (R, G, B first, then its AOVs, kAttrFirstAov)
+    // goes whole: the filter gives each window pixel's AOVs the beauty's weights (docs/aovs.md).
     OIIO::ImageBuf rgb;
-    if (!selectRGB(*top.image, "", top.name, rgb, err)) {
+    const bool withAovs = top.image->spec().get_int_attribute(kAttrFirstAov, -1) == 3;
+    if (!withAovs && !selectRGB(*top.image, "", top.name, rgb, err)) {
         err = format("{}: {}", cmd, err);
         return false;
     }
     auto img = std::make_shared<OIIO::ImageBuf>();
-    if (!medianImageFilter(*img, rgb, p, {}, st.nthreads)) {
+    if (!medianImageFilter(*img, withAovs ? *top.image : rgb, p, {}, st.nthreads)) {
         err = format("{}: {}", cmd, img->geterror());
         return false;
     }

@@ -36,10 +36,14 @@ struct RecordField {
 };
 /// Every field this version knows, in the order they are stored (FORMAT.md lists the same).
 const std::vector<RecordField>& recordFieldTable();
-/// The channels of `fields` (names from recordFieldTable, each once; R,G,B,Z always first).
-/// False with `err` naming an unknown field.
+/// The field of per-sample AOVs: channels kRecordAovPrefix + every AOV of the file's header
+/// (StatsHeader::aovs), after the table's fields (FORMAT.md "Per-sample fields").
+inline constexpr const char* kRecordFieldAov = "aov";
+/// The channels of `fields` (names from recordFieldTable, each once; R,G,B,Z always first; field
+/// kRecordFieldAov last, one channel per AOV of `aovs`). False with `err` naming an unknown
+/// field, or field aov without AOVs.
 bool recordChannelsOf(const std::vector<std::string>& fields, std::vector<std::string>& channels,
-                      std::string& err);
+                      std::string& err, const std::vector<AovChannel>& aovs = {});
 /// Bytes one sample costs in the file before compression: its channels plus A, as float32.
 inline int64_t recordBytesOnDisk(size_t channels) { return int64_t(channels + 1) * 4; }
 /// Bytes of a record with only the required fields (R, G, B, Z, A).

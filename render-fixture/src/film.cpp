@@ -52,22 +52,38 @@ void storeBuffer(StatsImage& img, size_t k, const double sum[3], int64_t count) 
         img.bufferMean[k * 3 + c] = count > 0 ? float(sum[c] / double(count)) : 0.0f;
 }
 
-PixelAccumulator::PixelAccumulator(int M) : M_(M), buffers_(size_t(M)) {}
+void fixtureAovValues(const PathSample& s, double out[kFixtureAovFloats]) {
+    out[0] = s.hit ? 1.0 : 0.0;
+    for (int i = 0; i < kLightPathAovs; ++i)
+        for (int c = 0; c < 3; ++c) out[1 + 3 * i + c] = s.lightPath[i][c];
+}
+
+PixelAccumulator::PixelAccumulator(int M, bool aovs)
+    : M_(M), buffers_(size_t(M)), aovSums_(aovs ? size_t(M) * kFixtureAovFloats : 0) {}
 
 void PixelAccumulator::reset(int M) {
     buffers_.resize(size_t(M));
+    if (!aovSums_.empty()) aovSums_.resize(size_t(M) * kFixtureAovFloats);
     M_ = M;
     reset();
 }
 
 void PixelAccumulator::reset() {
     std::fill(buffers_.begin(), buffers_.end(), BufferSum());
+    std::fill(aovSums_.begin(), aovSums_.end(), 0.0);
     moments_ = PixelMoments();
 }
 
 bool PixelAccumulator::add(int64_t index, const PathSample& s) {
-    if (!moments_.add(s)) return false;
-    buffers_[size_t(index % M_)].add(s.L);
+    if (!moments_.add(s)) return false;  // a sample dropped from the beauty: from every AOV too
+    const size_t j = size_t(index % M_);
+    buffers_[j].add(s.L);
+    if (!aovSums_.empty()) {
+        double v[kFixtureAovFloats];
+        fixtureAovValues(s, v);
+        double* sum = &aovSums_[j * kFixtureAovFloats];
+        for (int a = 0; a < kFixtureAovFloats; ++a) sum[a] += v[a];
+    }
     return true;
 }
 
@@ -75,6 +91,13 @@ void PixelAccumulator::store(StatsImage& img, size_t p) const {
     const size_t k0 = img.bufferBegin(p);
     for (size_t j = 0; j < size_t(M_); ++j)
         storeBuffer(img, k0 + j, buffers_[j].sum, buffers_[j].count);
+    if (!aovSums_.empty())
+        for (size_t j = 0; j < size_t(M_); ++j) {
+            const int64_t n = buffers_[j].count;
+            float* out = &img.aov[(k0 + j) * kFixtureAovFloats];
+            for (size_t a = 0; a < size_t(kFixtureAovFloats); ++a)
+                out[a] = n > 0 ? float(aovSums_[j * kFixtureAovFloats + a] / double(n)) : 0.0f;
+        }
     moments_.store(img, p);
 }
 

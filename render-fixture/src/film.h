@@ -75,11 +75,20 @@ struct BufferSum {
 /// Stores buffer j's mean and count at buffer slot k of `img` (0 for an empty buffer).
 void storeBuffer(StatsImage& img, size_t k, const double sum[3], int64_t count);
 
+/// The AOV channels of a render with AOVs (RenderOptions::aovs), in the order of
+/// fixtureAovChannels(): A (the camera ray hit geometry: 1, else 0), then R, G, B of every
+/// light-path AOV (LightPathAov).
+inline constexpr int kFixtureAovFloats = 1 + 3 * kLightPathAovs;
+/// A sample's values of those channels.
+void fixtureAovValues(const PathSample& s, double out[kFixtureAovFloats]);
+
 /// Round robin: sample i goes to buffer i mod M.
 class PixelAccumulator {
   public:
-    /// `M` is the largest buffer count reset() will be given (the storage is reserved once).
-    explicit PixelAccumulator(int M);
+    /// `M` is the largest buffer count reset() will be given (the storage is reserved once);
+    /// with `aovs` each buffer also sums the fixture's AOVs (fixtureAovValues), stored in
+    /// StatsImage::aov.
+    explicit PixelAccumulator(int M, bool aovs = false);
     void reset();
     /// Starts a pixel with `M` buffers (1 .. the constructor's M).
     void reset(int M);
@@ -93,6 +102,7 @@ class PixelAccumulator {
   private:
     int M_;
     std::vector<BufferSum> buffers_;
+    std::vector<double> aovSums_;  ///< [j * kFixtureAovFloats + a]; empty without AOVs
     PixelMoments moments_;
 };
 

@@ -25,6 +25,13 @@ Vec3 texturePoint(const Shape& s, const Vec3& p, double time) {
 
 }  // namespace
 
+const char* lightPathAovName(int aov) {
+    static const char* const kNames[kLightPathAovs] = {
+        "emission",         "background",        "diffuse_direct",
+        "diffuse_indirect", "specular_direct",   "specular_indirect"};
+    return aov >= 0 && aov < kLightPathAovs ? kNames[aov] : "";
+}
+
 Vec3 PathIntegrator::sampleDirect(const Bsdf& m, const Hit& hit, const Vec3& wo, double time,
                                   Pcg32& rng, LightSample& ls) const {
     if (!lights_.sample(rng, ls)) return {};
@@ -59,12 +66,28 @@ PathSample PathIntegrator::trace(const Ray& cameraRay, Pcg32& rng) const {
     double prevPdf = 0;    // solid-angle pdf of the BSDF sample that produced `ray`
     Vec3 prevP;            // the vertex `ray` left (for the light pdf of MIS)
     double etaScale = 1;
+    // Which light-path AOV a contribution found at `depth` belongs to (LightPathAov): the
+    // emitter or background seen first, then by the first hit's lobe, direct for the light
+    // sample at the first hit and what its bounce finds, indirect for everything later. L is
+    // summed exactly as without AOVs, so the beauty does not change.
+    bool specularLobe = false;
+    auto add = [&](const Vec3& c, int depth, bool lightSample, bool background) {
+        out.L += c;
+        int aov = 0;
+        if (depth == 0 && !lightSample)
+            aov = background ? kAovBackground : kAovEmission;
+        else if ((depth == 0 && lightSample) || (depth == 1 && !lightSample))
+            aov = specularLobe ? kAovSpecularDirect : kAovDiffuseDirect;
+        else
+            aov = specularLobe ? kAovSpecularIndirect : kAovDiffuseIndirect;
+        out.lightPath[aov] += c;
+    };
 
     for (int depth = 0;; ++depth) {
         Hit hit;
         if (!accel_.intersect(ray, hit)) {
             // No environment sampling exists, so BSDF sampling is the only strategy: weight 1.
-            out.L += beta * scene_.background;
+            add(beta * scene_.background, depth, false, true);
             break;
         }
         const Shape& shape = scene_.shapes[size_t(hit.shape)];
@@ -78,6 +101,7 @@ PathSample PathIntegrator::trace(const Ray& cameraRay, Pcg32& rng) const {
             out.position = hit.p;
             out.depth = hit.t;
             out.albedo = mat ? featureAlbedo(bsdf) : Vec3();
+            specularLobe = mat && bsdf.type != MaterialType::Diffuse;
         } else if (depth == 1) {
             out.hit2 = true;
             out.normal2 = hit.n;
@@ -88,17 +112,17 @@ PathSample PathIntegrator::trace(const Ray& cameraRay, Pcg32& rng) const {
         const Vec3 Le = lights_.emitted(hit.shape, hit.n, wo);
         if (!isBlack(Le)) {
             if (specular) {
-                out.L += beta * Le;
+                add(beta * Le, depth, false, false);
             } else {
                 const double pdfLight = lights_.pdfSolidAngle(hit.shape, prevP, hit.p, hit.n);
-                out.L += beta * Le * powerHeuristic(prevPdf, pdfLight);
+                add(beta * Le * powerHeuristic(prevPdf, pdfLight), depth, false, false);
             }
         }
         if (depth == scene_.maxDepth || !mat) break;
 
         if (hasSmoothComponent(bsdf)) {
             LightSample ls;
-            out.L += beta * sampleDirect(bsdf, hit, wo, ray.time, rng, ls);
+            add(beta * sampleDirect(bsdf, hit, wo, ray.time, rng, ls), depth, true, false);
             if (depth == 0 && ls.shape >= 0) {
                 out.lightU = ls.u1, out.lightV = ls.u2;
                 out.lightNumbers = 2;

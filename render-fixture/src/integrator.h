@@ -10,11 +10,30 @@
 
 namespace mcstat::render {
 
+/// The fixture renderer's light-path AOVs (mcstat-render --aovs; docs/aovs.md), named as Arnold
+/// names its own. Every contribution to a sample's radiance goes to exactly one of them, so they
+/// sum to the beauty sample by sample (up to the rounding of sums in double). The lobe is the
+/// first hit's material: diffuse, or specular for mirror and glass; "direct" is light arriving at
+/// the first hit straight from an emitter or the background (the light sample there, or the
+/// emitter the first bounce found), "indirect" everything after a second hit.
+enum LightPathAov {
+    kAovEmission,          ///< emitters seen by the camera
+    kAovBackground,        ///< the background seen by the camera
+    kAovDiffuseDirect,     ///< diffuse first hit, light from an emitter or the background
+    kAovDiffuseIndirect,   ///< diffuse first hit, light after more bounces
+    kAovSpecularDirect,    ///< mirror or glass first hit, light from an emitter or background
+    kAovSpecularIndirect,  ///< mirror or glass first hit, light after more bounces
+    kLightPathAovs
+};
+/// The AOV's name (its channels are NAME.R, NAME.G, NAME.B).
+const char* lightPathAovName(int aov);
+
 /// One camera sample: its radiance, the first-hit G-buffer features, and what random parameter
 /// filtering (Sen and Darabi 2011, section 3.1) needs besides: the sample's random parameters and
 /// the second intersection. Recording them changes neither the random numbers drawn nor L.
 struct PathSample {
     Vec3 L;
+    Vec3 lightPath[kLightPathAovs];  ///< L split by light path (LightPathAov); sums to L
     bool hit = false;  ///< the camera ray hit geometry (features below are valid only then)
     Vec3 normal, position;
     Vec3 albedo;       ///< textured albedo at the first hit (the "texture value" feature)

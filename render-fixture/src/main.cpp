@@ -120,6 +120,7 @@ int main(int argc, const char** argv) {
                 pilotText = "0", checkpointText = "0", strategyText = "grow",
                 pilotSeedText = std::to_string(kDefaultPilotSeed);
     bool reference = false, quiet = false, adaptive = false, keepSamples = false, timings = false;
+    bool aovs = false;
     std::string pajotText,
         pajotNText = "50", pajotDelayedText = "64", pajotTText = "2", pajotDeltaText = "0",
         maxSampleBytesText = std::to_string(mcstat::kDefaultMaxRecordBytes), resumePath;
@@ -212,6 +213,14 @@ int main(int argc, const char** argv) {
             "the second (random parameter filtering's inputs; 108-116 bytes per sample before "
             "compression)")
         .action([&](OIIO::cspan<const char*>) { keepSamples = true; });
+    ap.arg("--aovs")
+        .help(
+            "write AOVs (format 5, docs/aovs.md) per sub-buffer: alpha A (the camera ray hit "
+            "geometry) and the beauty split by light path, emission, background, "
+            "diffuse_direct, diffuse_indirect, specular_direct, specular_indirect (R, G, B each; "
+            "they sum to the beauty sample by sample); with --keep-samples per sample too. Fixed "
+            "M only")
+        .action([&](OIIO::cspan<const char*>) { aovs = true; });
     ap.arg("--max-sample-bytes N")
         .help(
             "with --keep-samples: refuse renders whose records exceed N bytes before compression "
@@ -288,6 +297,7 @@ int main(int argc, const char** argv) {
     }
     if (!parseSeed(seedText, opt.seed, err)) return fail(err);
     opt.adaptiveM = adaptive;
+    opt.aovs = aovs;
     if (!parseInt(mMaxText, "--m-max", 1, mcstat::kMaxBuffers, v, err)) return fail(err);
     opt.mMax = int(v);
     if (adaptive && opt.mMax % 2 == 0)
@@ -348,10 +358,10 @@ int main(int argc, const char** argv) {
     Stopwatch renderClock, writeClock;
     double renderWall = 0, renderCpu = 0;
     if (reference) {
-        if (wantPajot || keepSamples || !resumePath.empty())
+        if (wantPajot || keepSamples || !resumePath.empty() || aovs)
             return fail(
-                "--reference writes a plain EXR: --pajot, --keep-samples and --resume do "
-                "not apply");
+                "--reference writes a plain EXR: --pajot, --keep-samples, --aovs and --resume "
+                "do not apply");
         std::vector<float> rgb;
         renderClock = Stopwatch();
         if (!renderReference(scene, opt, rgb, err, &stats)) return fail(err);
@@ -385,6 +395,9 @@ int main(int argc, const char** argv) {
                     fmt::format("--spp {}: the resumed file already has {} samples per "
                                 "pixel; --spp is the total wanted",
                                 totalSpp, ph.spp));
+            if (aovs != !ph.aovs.empty())
+                return fail(resumePath + (aovs ? ": has no AOVs to continue (rendered without --aovs)"
+                                               : ": has AOVs: resume it with --aovs"));
             opt.M = ph.M;
             opt.firstSample = ph.spp;
             opt.spp = totalSpp - ph.spp;
@@ -411,10 +424,12 @@ int main(int argc, const char** argv) {
         recHeader.width = scene.width;
         recHeader.height = scene.height;
         recHeader.formatVersion = mcstat::kStatsFormatVersionSamples;
+        if (aovs) recHeader.aovs = fixtureAovChannels();
         if (keepSamples) {
-            const std::vector<std::string> fields = recordFieldsFor(scene);
+            std::vector<std::string> fields = recordFieldsFor(scene);
+            if (aovs) fields.emplace_back(mcstat::kRecordFieldAov);
             std::vector<std::string> channels;
-            if (!mcstat::recordChannelsOf(fields, channels, err)) return fail(err);
+            if (!mcstat::recordChannelsOf(fields, channels, err, recHeader.aovs)) return fail(err);
             const int64_t perSample = mcstat::recordBytesOnDisk(channels.size());
             const double bytes =
                 double(scene.width) * double(scene.height) * double(opt.spp) * double(perSample);

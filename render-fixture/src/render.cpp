@@ -108,6 +108,10 @@ bool validateOptions(const RenderOptions& opt, std::string& err) {
         err = "threads must be 0 (all cores) or positive (got " + std::to_string(opt.threads) + ")";
         return false;
     }
+    if (opt.aovs && opt.adaptiveM) {
+        err = "AOVs need a fixed M: the statistics file's part aovs holds M buffers per pixel";
+        return false;
+    }
     if (opt.adaptiveM) {
         if (opt.mMax < 1 || opt.mMax > kMaxBuffers || opt.mMax % 2 == 0) {
             err = "m-max must be odd and between 1 and " + std::to_string(kMaxBuffers) +
@@ -243,6 +247,10 @@ StatsImage newStatsImage(const Scene& scene, const RenderOptions& opt, int M) {
     h.colorSpace = "lin_rec709";
     h.seeds = std::to_string(opt.seed);
     if (opt.adaptiveM) h.formatVersion = kStatsFormatVersionAdaptive;
+    if (opt.aovs) {
+        h.aovs = fixtureAovChannels();
+        h.formatVersion = std::max(h.formatVersion, kStatsFormatVersionAovs);
+    }
     return img;
 }
 
@@ -258,6 +266,21 @@ struct PajotPixels {
 };
 
 }  // namespace
+
+std::vector<AovChannel> fixtureAovChannels() {
+    std::vector<AovChannel> out;
+    AovChannel a;
+    a.name = "A";
+    a.cls = AovClass::Alpha;
+    out.push_back(a);
+    for (int i = 0; i < kLightPathAovs; ++i)
+        for (const char* c : {".R", ".G", ".B"}) {
+            a.name = std::string(lightPathAovName(i)) + c;
+            a.cls = AovClass::Light;
+            out.push_back(a);
+        }
+    return out;
+}
 
 std::vector<std::string> recordFieldsFor(const Scene& scene) {
     std::vector<std::string> f{"screen"};
@@ -304,7 +327,8 @@ enum class RecordValue {
     N2z,
     P2x,
     P2y,
-    P2z
+    P2z,
+    Aov0  ///< Aov0 + a: channel a of fixtureAovChannels()
 };
 
 bool recordValueOf(const std::string& channel, RecordValue& v) {
@@ -343,11 +367,22 @@ bool recordValueOf(const std::string& channel, RecordValue& v) {
             v = value;
             return true;
         }
+    const std::string prefix = kRecordAovPrefix;
+    if (channel.compare(0, prefix.size(), prefix) == 0) {
+        const std::vector<AovChannel> aovs = fixtureAovChannels();
+        for (size_t a = 0; a < aovs.size(); ++a)
+            if (channel.substr(prefix.size()) == aovs[a].name) {
+                v = static_cast<RecordValue>(int(RecordValue::Aov0) + int(a));
+                return true;
+            }
+    }
     return false;
 }
 
-/// One sample's value of channel `v`, as float32 (features are 0 where the path has no hit).
-float recordValue(const PathSample& s, RecordValue v) {
+/// One sample's value of channel `v`, as float32 (features are 0 where the path has no hit);
+/// `aov` holds the sample's fixtureAovValues.
+float recordValue(const PathSample& s, RecordValue v, const double* aov) {
+    if (int(v) >= int(RecordValue::Aov0)) return float(aov[int(v) - int(RecordValue::Aov0)]);
     switch (v) {
         case RecordValue::R:
             return float(s.L[0]);
@@ -405,6 +440,8 @@ float recordValue(const PathSample& s, RecordValue v) {
             return s.hit2 ? float(s.position2.y) : 0.f;
         case RecordValue::P2z:
             return s.hit2 ? float(s.position2.z) : 0.f;
+        default:
+            break;
     }
     return 0.f;
 }
@@ -428,8 +465,12 @@ bool renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsI
             err = "per-sample records: the renderer cannot fill channel '" + channels[c] + "'";
             return false;
         }
+    const bool recordAovs = std::any_of(values.begin(), values.end(), [](RecordValue v) {
+        return int(v) >= int(RecordValue::Aov0);
+    });
     auto renderRow = [&](int y, RowRecords* rec) {
-        PixelAccumulator acc(img.header.M);
+        PixelAccumulator acc(img.header.M, !img.header.aovs.empty());
+        double aov[kFixtureAovFloats] = {};
         int64_t rowDropped = 0;
         if (rec) {
             rec->counts.assign(size_t(scene.width), uint32_t(opt.spp));
@@ -444,8 +485,10 @@ bool renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsI
                 const PathSample s = ctx.samplePixel(opt.seed, x, y, i);
                 if (!acc.add(i, s)) ++rowDropped;
                 if (pajot.on()) pajot.add(p, s.L);
-                if (rec)
-                    for (RecordValue v : values) rec->samples.push_back(recordValue(s, v));
+                if (rec) {
+                    if (recordAovs) fixtureAovValues(s, aov);
+                    for (RecordValue v : values) rec->samples.push_back(recordValue(s, v, aov));
+                }
             }
             acc.store(img, p);
         }

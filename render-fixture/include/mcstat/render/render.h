@@ -56,7 +56,19 @@ struct RenderOptions {
     /// firstSample + spp - 1 of the same sequence (sample i still goes to buffer i mod M), so
     /// that with the earlier render it took exactly the samples of one longer render. Fixed M only.
     int64_t firstSample = 0;
+    /// Write AOVs (part aovs, format version 5; docs/aovs.md): alpha "A" (the camera ray hit
+    /// geometry) and a light-path split of the beauty (fixtureAovChannels), per sub-buffer, and
+    /// per sample in the records with --keep-samples. Fixed M only (the part aovs is).
+    bool aovs = false;
 };
+
+/// The AOV channels a render with RenderOptions::aovs writes, in their order: "A" (class
+/// alpha), then NAME.R, NAME.G, NAME.B (class light) for NAME in emission, background,
+/// diffuse_direct, diffuse_indirect, specular_direct, specular_indirect. Their per-sample sum
+/// is the beauty: emitters and the background seen first, then light arriving at the first hit
+/// directly or after more bounces, split by the first hit's lobe (diffuse, or specular for
+/// mirror and glass).
+std::vector<AovChannel> fixtureAovChannels();
 
 /// What a render produces besides the StatsImage (format version 4, docs/pajot.md).
 struct RenderExtras {
@@ -69,7 +81,8 @@ struct RenderExtras {
     /// order, each pixel's samples in the order taken, with `recordChannels` (R, G, B, Z =
     /// first-hit distance or +inf, then the channels of recordFieldsFor's fields). Returning
     /// false stops the render with its message. Not with the Grow strategy (a pixel's samples
-    /// are taken in rounds).
+    /// are taken in rounds). With RenderOptions::aovs the channels may include
+    /// kRecordAovPrefix + each of fixtureAovChannels()' names.
     std::function<bool(const SampleBlock&, std::string&)> records;
     std::vector<std::string> recordChannels{"R", "G", "B", "Z"};
 };
