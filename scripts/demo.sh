@@ -27,7 +27,7 @@ stats=$OUT/default-${SPP}spp-M${M}.mcstat
 ref=$OUT/reference-${REF_SPP}spp.exr
 if stale "$stats"; then
   echo "demo: rendering the default scene, $SPP spp, M = $M"
-  "$render" --scene default --spp "$SPP" --M "$M" --seed 1 -o "$stats"
+  "$render" --scene default --spp "$SPP" --M "$M" --seed 1 --aovs -o "$stats"
 fi
 if stale "$ref"; then
   echo "demo: rendering the reference, $REF_SPP spp (once; later runs reuse it)"
@@ -59,6 +59,32 @@ done
 
 # Pictures for review tools (docs/review.md): contact sheet, heatmaps, quality against spp.
 echo
+echo "AOVs: G-MoN's weights from the beauty applied to alpha and the six light-path AOVs (docs/aovs.md)"
+# gmon.exr holds the beauty, A and every AOV; rebuild the beauty from the AOVs with stock oiiotool
+# and show the parts, their sum and its relative difference from the robust beauty.
+a=$OUT/aovs; mkdir -p "$a"
+g=$OUT/gmon.exr
+layer() { oiiotool "$g" --ch "$1.R,$1.G,$1.B" --chnames R,G,B "$g" --ch "$2.R,$2.G,$2.B" --chnames R,G,B --add -o "$3"; }
+layer emission background "$a/emitted.exr"
+layer diffuse_direct specular_direct "$a/direct.exr"
+layer diffuse_indirect specular_indirect "$a/indirect.exr"
+oiiotool "$a/emitted.exr" "$a/direct.exr" --add "$a/indirect.exr" --add -o "$a/sum.exr"
+oiiotool "$g" --ch R,G,B -o "$a/beauty.exr"
+oiiotool "$a/sum.exr" "$a/beauty.exr" --sub --abs "$a/beauty.exr" --addc 1e-6 --div --ch relres=R \
+  --addc 1e-12 -o "$a/relres.exr"
+font=/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf
+tiles=()
+for t in beauty:"G-MoN beauty" emitted:"emission + background" direct:"direct (diffuse + specular)" \
+         indirect:"indirect (the caustic)" sum:"sum of the six AOVs"; do
+  "$mcstat" "$a/${t%%:*}.exr" -o "$a/${t%%:*}.png"
+  tiles+=("$a/${t%%:*}.png" --text:x=4:y=14:size=11:color=1,1,1:font=$font "${t#*:}")
+done
+oiiotool "${tiles[@]}" --mosaic:pad=2 5x1 -o "$OUT/aovs.png"
+"$mcstat" "$a/relres.exr" --heatmap:channel=relres:log=1 -o "$OUT/aovs-residual.png"
+oiiotool "$a/relres.exr" --mulc 1e9 --printstats |
+  awk '/Stats Max/ { printf "  largest |sum of the AOVs - beauty| / beauty: %.2g (float rounding)\n", $3 * 1e-9 }'
+
+echo
 echo "Review pictures"
 "$mcstat" "$stats" --contactsheet:estimators=mean,gmon "$ref" -o "$OUT/contactsheet.png" >/dev/null
 "$mcstat" "$stats" --gmon --errormap "$ref" --heatmap -o "$OUT/heatmap-relerr.png"
@@ -69,4 +95,5 @@ echo "Review pictures"
   -o "$OUT/quality.png" >/dev/null
 echo
 echo "demo: images in $OUT/ (mean, mon, gmonb, gmon, ingested-gmon, reference; .exr scene-linear, .png sRGB;"
-echo "      contactsheet.png, heatmap-{relerr,fireflies-mean,gini,kept}.png, quality.png + quality.csv)"
+echo "      contactsheet.png, heatmap-{relerr,fireflies-mean,gini,kept}.png, quality.png + quality.csv,"
+echo "      aovs.png and aovs-residual.png: the robust AOVs and how closely they sum to the robust beauty)"
