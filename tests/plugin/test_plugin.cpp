@@ -527,6 +527,48 @@ TEST_F(Plugin, IngestedFileShowsItsProvenanceAndNoFeaturesItDoesNotHave) {
     EXPECT_FALSE(a.data.empty());
 }
 
+TEST_F(Plugin, AovsAlphaAndProvenanceSurviveStockOiiotool) {
+    // A file with AOVs (alpha and the light-path split): subimage 0 holds the robust beauty, A as
+    // OIIO's alpha channel and every AOV, as mcstat's --gmon writes them; stock oiiotool writing
+    // it keeps the provenance (names without the "mcstat:" prefix OIIO would drop on output).
+    const std::string f = path("aovs.mcstat");
+    Result r = run(std::string(MCSTAT_RENDER_EXE) +
+                       " --scene tiny --spp 16 --M 5 --aovs --quiet -o " + quote(f),
+                   false);
+    ASSERT_EQ(r.code, 0) << r.err;
+    ASSERT_EQ(mcstat(quote(f) + " --gmon -o " + quote(path("mcstat-gmon.exr"))).code, 0);
+    r = run("oiiotool " + quote(f) + " --subimage 0 -o " + quote(path("plugin-gmon.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    const Pixels a = readExr(path("plugin-gmon.exr")), b = readExr(path("mcstat-gmon.exr"));
+    EXPECT_EQ(a.channels, b.channels);
+    EXPECT_EQ(a.data, b.data);
+    ASSERT_EQ(a.channels.size(), 22u);
+    auto in = OIIO::ImageInput::open(path("plugin-gmon.exr"));
+    ASSERT_TRUE(in);
+    const OIIO::ImageSpec& spec = in->spec();
+    ASSERT_GE(spec.alpha_channel, 0);
+    EXPECT_EQ(spec.channelnames[size_t(spec.alpha_channel)], "A");
+    EXPECT_EQ(spec.get_string_attribute("mcstat.operation"), "gmon");
+    EXPECT_EQ(spec.get_int_attribute("mcstat.M"), 5);
+    EXPECT_EQ(spec.get_int_attribute("mcstat.spp"), 16);
+    // The plugin's own view: alpha on subimage 0 only; the diagnostics' count and the features'
+    // positions are not alpha.
+    OIIO::attribute("plugin_searchpath", std::string(MCSTAT_PLUGIN_DIR));
+    auto plugin = OIIO::ImageInput::open(f);
+    ASSERT_TRUE(plugin) << OIIO::geterror();
+    for (int si = 0; plugin->seek_subimage(si, 0); ++si) {
+        const OIIO::ImageSpec& s = plugin->spec();
+        const std::string name = s.get_string_attribute("oiio:subimagename");
+        if (si == 0) {
+            EXPECT_EQ(s.channelnames[size_t(std::max(0, s.alpha_channel))], "A") << name;
+        } else if (name != "features") {
+            EXPECT_EQ(s.alpha_channel, -1) << name;
+        } else if (s.alpha_channel >= 0) {
+            EXPECT_EQ(s.channelnames[size_t(s.alpha_channel)], "A") << name;  // coverage
+        }
+    }
+}
+
 TEST_F(Plugin, WithoutThePluginOpenExrShowsTheRawParts) {
     const Result r = run("oiiotool --info -v -a " + quote(stats), false);
     ASSERT_EQ(r.code, 0) << r.err;
