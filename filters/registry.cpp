@@ -48,8 +48,9 @@ ParamSpec realParam(const std::string& name, double lo, double hi, bool loOpen,
 // unit's static initialisation (the benchmarks register from it), before such constants exist.
 ParamSpec modeSpec() {
     return modeParam(
-        "lum: rank buffers by luminance and return the chosen buffers' RGB; channel: R, G, B "
-        "independently");
+        "lum: rank buffers by luminance and return the chosen buffers' RGB, their weights applied "
+        "to every AOV; channel: R, G, B independently, refused with AOVs (no one weight per "
+        "buffer keeps them summing to the beauty)");
 }
 
 ParamSpec scaleSpec() {
@@ -100,8 +101,8 @@ ParamSpec alphaParam(const std::string& def, bool fixed) {
 
 ParamSpec spatialModeSpec() {
     return modeParam(
-        "lum: rank by luminance, return the chosen pixels'/buffers' RGB; channel: R, G, B "
-        "independently");
+        "lum: rank by luminance, return the chosen pixels'/buffers' RGB, their weights applied to "
+        "every AOV; channel: R, G, B independently, refused with AOVs");
 }
 
 Operation estimator(const std::string& name, const std::string& title, const std::string& help,
