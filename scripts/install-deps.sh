@@ -14,6 +14,7 @@ packages=(
   gnuplot-nox                            # mcstat --qualityplot draws its plot with gnuplot (pngcairo)
   fonts-dejavu-core                      # OIIO's render_text needs a font: DejaVuSans labels the review pictures
   clang libclang-rt-14-dev               # scripts/fuzz.sh: libFuzzer and clang's ASan/UBSan runtimes
+  blender python3-numpy python3-openimageio  # tests/aovs: real Cycles renders through ingest, checked in Python
 )
 
 missing=()
