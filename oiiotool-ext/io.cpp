@@ -392,9 +392,9 @@ void printAovSummary(const StatsHeader& h) {
         }
         const std::string what = dot == std::string::npos ? a.name : layer + " (" + chans + ")";
         std::printf("%s\n", OIIO::Strutil::trimmed_whitespace(
-                                 format("    {:<32} {:<6} {}", what, aovClassName(a.cls),
-                                        a.part.empty() ? "" : "part " + a.part))
-                                 .c_str());
+                                format("    {:<32} {:<6} {}", what, aovClassName(a.cls),
+                                       a.part.empty() ? "" : "part " + a.part))
+                                .c_str());
         i = j;
     }
 }

@@ -26,9 +26,9 @@ Vec3 texturePoint(const Shape& s, const Vec3& p, double time) {
 }  // namespace
 
 const char* lightPathAovName(int aov) {
-    static const char* const kNames[kLightPathAovs] = {
-        "emission",         "background",        "diffuse_direct",
-        "diffuse_indirect", "specular_direct",   "specular_indirect"};
+    static const char* const kNames[kLightPathAovs] = {"emission",        "background",
+                                                       "diffuse_direct",  "diffuse_indirect",
+                                                       "specular_direct", "specular_indirect"};
     return aov >= 0 && aov < kLightPathAovs ? kNames[aov] : "";
 }
 

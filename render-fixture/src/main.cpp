@@ -396,8 +396,9 @@ int main(int argc, const char** argv) {
                                 "pixel; --spp is the total wanted",
                                 totalSpp, ph.spp));
             if (aovs != !ph.aovs.empty())
-                return fail(resumePath + (aovs ? ": has no AOVs to continue (rendered without --aovs)"
-                                               : ": has AOVs: resume it with --aovs"));
+                return fail(resumePath +
+                            (aovs ? ": has no AOVs to continue (rendered without --aovs)"
+                                  : ": has AOVs: resume it with --aovs"));
             opt.M = ph.M;
             opt.firstSample = ph.spp;
             opt.spp = totalSpp - ph.spp;

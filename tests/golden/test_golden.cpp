@@ -78,8 +78,7 @@ class Golden : public testing::ToolTest {
         ASSERT_EQ(render(std::string(kRender) + " -o " + path("plain.mcstat")).code, 0);
     }
     Channels apply(const Operation& op, const std::string& input, const std::string& out) {
-        const testing::ToolRun r =
-            mcstat(path(input) + " " + commandOf(op) + " -o " + path(out));
+        const testing::ToolRun r = mcstat(path(input) + " " + commandOf(op) + " -o " + path(out));
         EXPECT_EQ(r.code, 0) << commandOf(op) << ": " << r.err;
         Channels c;
         std::string err;
@@ -114,11 +113,10 @@ TEST_F(Golden, EveryOperationMatchesItsGoldenKeepsTheBeautyAndItsAovsSum) {
             for (const std::string& n : a.names) {
                 size_t differ = 0, first = 0;
                 for (size_t p = 0; p < a.values.at(n).size(); ++p)
-                    if (!sameBits(a.values.at(n)[p], g.values.at(n)[p]) && differ++ == 0)
-                        first = p;
-                EXPECT_EQ(differ, 0u) << "channel " << n << ": first at pixel " << first << ", "
-                                      << a.values.at(n)[first] << " vs golden "
-                                      << g.values.at(n)[first];
+                    if (!sameBits(a.values.at(n)[p], g.values.at(n)[p]) && differ++ == 0) first = p;
+                EXPECT_EQ(differ, 0u)
+                    << "channel " << n << ": first at pixel " << first << ", "
+                    << a.values.at(n)[first] << " vs golden " << g.values.at(n)[first];
             }
         }
 

@@ -69,9 +69,9 @@ TEST_F(RenderAovs, LightPathsSumToTheBeautyInEveryBufferAndAlphaIsTheCoverage) {
                     scale += std::abs(v);
                     total[size_t(i)] += v;
                 }
-                expectSumWithinRounding(sum, img.bufferMean[k * 3 + size_t(c)], scale,
-                                        "pixel " + std::to_string(p) + " buffer " +
-                                            std::to_string(j));
+                expectSumWithinRounding(
+                    sum, img.bufferMean[k * 3 + size_t(c)], scale,
+                    "pixel " + std::to_string(p) + " buffer " + std::to_string(j));
             }
         }
         // Alpha is the coverage: its count-weighted mean over the buffers is the features' A.
@@ -171,9 +171,9 @@ TEST_F(RenderAovs, ByteIdenticalForAnyThreadCount) {
     std::string first;
     for (const char* threads : {"1", "2", "5"}) {
         const std::string f = path(std::string("t") + threads + ".mcstat");
-        const testing::ToolRun r = render(
-            "--scene dof --res 16 34 --spp 5 --M 3 --aovs --keep-samples --threads " +
-            std::string(threads) + " -o " + f);
+        const testing::ToolRun r =
+            render("--scene dof --res 16 34 --spp 5 --M 3 --aovs --keep-samples --threads " +
+                   std::string(threads) + " -o " + f);
         ASSERT_EQ(r.code, 0) << r.err;
         const std::string bytes = testing::slurp(f);
         if (first.empty())
