@@ -391,10 +391,10 @@ void printAovSummary(const StatsHeader& h) {
             chans += "," + b.name.substr(d + 1);
         }
         const std::string what = dot == std::string::npos ? a.name : layer + " (" + chans + ")";
-        std::printf("%s\n", OIIO::Strutil::trimmed_whitespace(
-                                format("    {:<32} {:<6} {}", what, aovClassName(a.cls),
-                                       a.part.empty() ? "" : "part " + a.part))
-                                .c_str());
+        std::printf("    %s\n", OIIO::Strutil::trimmed_whitespace(
+                                    format("{:<32} {:<6} {}", what, aovClassName(a.cls),
+                                           a.part.empty() ? "" : "part " + a.part))
+                                    .c_str());
         i = j;
     }
 }

@@ -2,6 +2,7 @@
 // and per sample. The split must sum to the beauty in every buffer and every sample, alpha must be
 // the hit coverage the features part already stores, and the beauty must not change by a bit.
 #include <cmath>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -103,6 +104,22 @@ TEST_F(RenderAovs, EveryLightPathAndTheBackgroundOutsideAlpha) {
     for (int i = 0; i < 6; ++i) EXPECT_GT(total[size_t(i)], 0.0) << kLightPaths[i];
     EXPECT_GT(uncovered, 0u);
     EXPECT_LT(uncovered, img.bufferCount.size());
+}
+
+TEST_F(RenderAovs, InfoListsTheAovsByLayerWithTheirClass) {
+    const std::string f = path("i.mcstat");
+    ASSERT_EQ(render("--scene tiny --spp 4 --M 3 --aovs -o " + f).code, 0);
+    const std::string out = path("info.txt");
+    ASSERT_EQ(std::system((std::string(MCSTAT_EXE) + " " + f + " --info >" + out).c_str()), 0);
+    const std::string info = testing::slurp(out);
+    EXPECT_NE(info.find("format 5"), std::string::npos) << info;
+    EXPECT_NE(info.find("aovs (19 channels x 3 sub-buffers):"), std::string::npos) << info;
+    EXPECT_NE(info.find("\n    A "), std::string::npos) << info;
+    for (const char* l : kLightPaths)
+        EXPECT_NE(info.find(std::string("\n    ") + l + " (R,G,B)"), std::string::npos) << l << "\n"
+                                                                                        << info;
+    EXPECT_NE(info.find("alpha"), std::string::npos) << info;
+    EXPECT_NE(info.find("light"), std::string::npos) << info;
 }
 
 TEST_F(RenderAovs, TheBeautyAndEverythingElseAreBitIdenticalWithoutAovs) {
