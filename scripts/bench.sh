@@ -8,7 +8,7 @@
 #   SECTIONS="file height" scripts/bench.sh
 #
 # Environment:
-#   SECTIONS  any of: estimators threads file height ingest render   (default: all)
+#   SECTIONS  any of: estimators threads file height ingest aovs render   (default: all)
 #   REPS      runs per command, alternated, medians reported (default 4)
 #   BASELINE  a folder holding an older build's mcstat and mcstat.imageio.so: the file table then
 #             shows its figures beside today's, measured in the same run (docs/benchmarks.md)
@@ -16,7 +16,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 REPS=${REPS:-4}
-SECTIONS=${SECTIONS:-estimators threads file height ingest render}
+SECTIONS=${SECTIONS:-estimators threads file height ingest aovs render}
 BUILD=${BUILD:-build}
 BASELINE=${BASELINE:-}
 if [ "${SKIP_BUILD:-0}" != 1 ]; then
@@ -197,6 +197,50 @@ if want ingest; then
     w=med_$n; r=rss_$n
     awk -v l="$l" -v w="${!w}" -v b="$med_ref" -v r="${!r}" 'BEGIN { printf "%-48s %8.3f s %8.2fx %10s MiB\n", l, w, w / b, r }'
   done
+  echo
+fi
+
+if want aovs; then
+  # G-MoN with 10 light-group layers against the beauty alone (docs/aovs.md): the AOVs cost one
+  # weighted sum per channel, so the time should grow at most as the data read. Seeds as in
+  # "ingest" (640x480, 4 spp), each given 10 layers RGBA_l<i> = beauty * i/55 (they sum to it).
+  NSEEDS=${NSEEDS:-21}
+  mkdir -p "$out/seeds" "$out/aovseeds"
+  for s in $(seq "$NSEEDS"); do
+    f=$out/seeds/seed_$s.exr g=$out/aovseeds/seed_$s.exr
+    if [ ! -f "$f" ] || [ "${REFRESH:-0}" = 1 ]; then
+      "$render" --scene default --res 640 480 --spp 4 --seed "$s" --reference --quiet -o "$f"
+    fi
+    if [ ! -f "$g" ] || [ "$f" -nt "$g" ]; then
+      layers=()
+      for i in $(seq 10); do
+        layers+=("$f" --mulc "$(echo "scale=8; $i / 55" | bc)" --chnames "RGBA_l$i.R,RGBA_l$i.G,RGBA_l$i.B" --chappend)
+      done
+      oiiotool "$f" "${layers[@]}" -o "$g"
+    fi
+  done
+  "$mcstat" --ingest "$out/aovseeds/seed_*.exr" -o "$out/aovs.mcstat" 2>/dev/null
+  "$mcstat" --ingest:aovs=0 "$out/aovseeds/seed_*.exr" -o "$out/beauty.mcstat" 2>/dev/null
+  # Decoded bytes each command reads: parts buffers (R, G, B, count) and aovs (30 channels).
+  data_ratio=$(echo "scale=4; (4 + 30) / 4" | bc)
+  echo "== mcstat --gmon with 10 light-group layers ($NSEEDS seeds, 640x480, M = $NSEEDS; $(du -h "$out/aovs.mcstat" | cut -f1) vs $(du -h "$out/beauty.mcstat" | cut -f1) without AOVs), 2 cores, medians of $REPS =="
+  cmd_ref=(env -u OIIO_LIBRARY_PATH oiiotool "$out/aovs.mcstat" --subimage buffers --printstats --pop
+    "$out/aovs.mcstat" --subimage aovs --printstats)
+  cmd_gb=("$mcstat" "$out/beauty.mcstat" --gmon -o "$out/gmon-beauty.exr")
+  cmd_ga=("$mcstat" "$out/aovs.mcstat" --gmon -o "$out/gmon-aovs.exr")
+  run_alternating ref gb ga
+  printf "%-62s %10s %9s %9s %12s\n" "command" "wall" "/beauty" "/oiiotool" "peak RSS"
+  for n in ref gb ga; do
+    case $n in
+      ref) l="stock oiiotool reading parts buffers + aovs (--printstats)" ;;
+      gb) l="mcstat beauty.mcstat --gmon -o g.exr (beauty alone)" ;;
+      ga) l="mcstat aovs.mcstat --gmon -o g.exr (beauty + 10 layers)" ;;
+    esac
+    w=med_$n; r=rss_$n
+    awk -v l="$l" -v w="${!w}" -v b="$med_gb" -v o="$med_ref" -v r="${!r}" \
+      'BEGIN { printf "%-62s %8.3f s %8.2fx %8.2fx %8s MiB\n", l, w, w / b, w / o, r }'
+  done
+  echo "data read with the AOVs / without: ${data_ratio}x (goal: the time ratio at most this)"
   echo
 fi
 
