@@ -193,7 +193,7 @@ class IngestAovs : public ::testing::TestWithParam<Style> {
     }
 };
 
-TEST_P(IngestAovs, EveryChannelKeptAndStillSummingAfterEveryEstimator) {
+TEST_P(IngestAovs, EveryChannelKeptAndStillSummingAfterEveryOperation) {
     const Style& s = GetParam();
     std::vector<std::string> paths;
     for (int j = 0; j < kSeeds; ++j) paths.push_back(writeSeed(s, j));
@@ -234,8 +234,22 @@ TEST_P(IngestAovs, EveryChannelKeptAndStillSummingAfterEveryEstimator) {
                     std::abs(double(written[size_t(j)].at(s.beauty[size_t(c)])[p]) - sum);
                 band[p * 3 + size_t(c)] = std::max(band[p * 3 + size_t(c)], r);
             }
+    // A window filter mixes the buffers of pixels up to its radius away (3 covers every default
+    // window), so its band is the largest of theirs and its labels come from one of them.
+    const int W = kW + 2 * kPad, H = kH + 2 * kPad, R = 3;
+    std::vector<double> windowBand(npix * 3, 0.0);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+            for (int yy = std::max(0, y - R); yy <= std::min(H - 1, y + R); ++yy)
+                for (int xx = std::max(0, x - R); xx <= std::min(W - 1, x + R); ++xx)
+                    for (size_t c = 0; c < 3; ++c) {
+                        double& b = windowBand[(size_t(y) * size_t(W) + size_t(x)) * 3 + c];
+                        b = std::max(b, band[(size_t(yy) * size_t(W) + size_t(xx)) * 3 + c]);
+                    }
     for (const Operation& op : operationRegistry()) {
-        if (op.input != InputKind::BufferMeans) continue;
+        // Every operation but the per-sample ones (an ingest of flat renders has no samples).
+        if (op.input == InputKind::Samples) continue;
+        const bool window = op.input == InputKind::Neighbourhood;
         ParamValues values;
         ASSERT_TRUE(parseOperationParams(op, {}, values, err)) << err;
         OIIO::ImageBuf out;
@@ -255,19 +269,27 @@ TEST_P(IngestAovs, EveryChannelKeptAndStillSummingAfterEveryEstimator) {
                     sum += px[p * nch + size_t(spec.channelindex(g[size_t(c)]))];
                 const double robust = px[p * nch + size_t(c)];
                 // The inputs' band plus float rounding of a weighted sum of M values.
-                if (std::abs(robust - sum) > band[p * 3 + size_t(c)] + 4e-6 * std::abs(robust))
-                    ++outside;
+                const double b = (window ? windowBand : band)[p * 3 + size_t(c)];
+                if (std::abs(robust - sum) > b + 4e-6 * std::abs(robust)) ++outside;
             }
         EXPECT_EQ(outside, 0) << op.name << ": pixels whose groups left the inputs' band";
-        // Labels are one of the inputs' labels at that pixel, never an average.
+        // Labels are one of the inputs' labels at that pixel (a window filter's: at one of its
+        // window's pixels), never an average.
         for (const std::string& id : s.ids) {
             const int ch = spec.channelindex(id);
-            for (size_t p = 0; p < npix; ++p) {
-                bool found = false;
-                for (int j = 0; j < kSeeds; ++j)
-                    found |= written[size_t(j)].at(id)[p] == px[p * nch + size_t(ch)];
-                ASSERT_TRUE(found) << op.name << " " << id << " pixel " << p;
-            }
+            for (int y = 0; y < H; ++y)
+                for (int x = 0; x < W; ++x) {
+                    const size_t p = size_t(y) * size_t(W) + size_t(x);
+                    const int r = window ? R : 0;
+                    bool found = false;
+                    for (int yy = std::max(0, y - r); yy <= std::min(H - 1, y + r); ++yy)
+                        for (int xx = std::max(0, x - r); xx <= std::min(W - 1, x + r); ++xx)
+                            for (int j = 0; j < kSeeds; ++j)
+                                found |= written[size_t(j)].at(
+                                             id)[size_t(yy) * size_t(W) + size_t(xx)] ==
+                                         px[p * nch + size_t(ch)];
+                    ASSERT_TRUE(found) << op.name << " " << id << " pixel " << p;
+                }
         }
     }
 
