@@ -569,6 +569,46 @@ TEST_F(Plugin, AovsAlphaAndProvenanceSurviveStockOiiotool) {
     }
 }
 
+TEST_F(Plugin, OverscanAndTheRendersMetadataSurviveStockOiiotool) {
+    // Renders with overscan (data window 2 pixels beyond a 12x10 display window) and a frame
+    // number, ingested: subimage 0, written by stock oiiotool, keeps both windows and the frame.
+    std::string list;
+    for (int s = 1; s <= 3; ++s) {
+        const std::string plain = path("plain" + std::to_string(s) + ".exr");
+        const std::string f = path("over" + std::to_string(s) + ".exr");
+        Result r =
+            run(std::string(MCSTAT_RENDER_EXE) + " --scene tiny --res 16 14 --spp 4 --seed " +
+                    std::to_string(s) + " --reference --quiet -o " + quote(plain),
+                false);
+        ASSERT_EQ(r.code, 0) << r.err;
+        r = run("oiiotool " + quote(plain) +
+                    " --origin -2-2 --fullsize 12x10+0+0 --attrib:type=int frame 42 -o " + quote(f),
+                false);
+        ASSERT_EQ(r.code, 0) << r.err;
+        list += (s > 1 ? "," : "") + f;
+    }
+    const std::string ingested = path("over.mcstat");
+    Result r = mcstat("--ingest " + quote(list) + " -o " + quote(ingested));
+    ASSERT_EQ(r.code, 0) << r.err;
+    r = run("oiiotool " + quote(ingested) + " --subimage 0 -o " + quote(path("x.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    auto in = OIIO::ImageInput::open(path("x.exr"));
+    ASSERT_TRUE(in) << OIIO::geterror();
+    const OIIO::ImageSpec& spec = in->spec();
+    EXPECT_EQ(spec.x, -2);
+    EXPECT_EQ(spec.y, -2);
+    EXPECT_EQ(spec.width, 16);
+    EXPECT_EQ(spec.height, 14);
+    EXPECT_EQ(spec.full_x, 0);
+    EXPECT_EQ(spec.full_y, 0);
+    EXPECT_EQ(spec.full_width, 12);
+    EXPECT_EQ(spec.full_height, 10);
+    EXPECT_EQ(spec.get_int_attribute("frame"), 42);
+    EXPECT_EQ(spec.get_string_attribute("mcstat.operation"), "gmon");
+    EXPECT_EQ(spec.get_int_attribute("mcstat.M"), 3);
+    EXPECT_EQ(spec.get_string_attribute("mcstat.sources"), "over1.exr,over2.exr,over3.exr");
+}
+
 TEST_F(Plugin, WithoutThePluginOpenExrShowsTheRawParts) {
     const Result r = run("oiiotool --info -v -a " + quote(stats), false);
     ASSERT_EQ(r.code, 0) << r.err;
