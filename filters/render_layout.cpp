@@ -154,10 +154,32 @@ bool applySourceMetadata(ImageSpec& spec, const std::string& json, std::string& 
     return true;
 }
 
+namespace {
+
+/// The renderers' own sample counts among the first render's attributes (those ingest reads:
+/// pbrt-v4's samplesPerPixel, Cycles' cycles.<ViewLayer>.samples) say the result's samples per
+/// pixel, all renders together, in the attribute's own type: a tool reading them must not take
+/// one seed's count for the result's.
+void setRendererSampleCounts(ImageSpec& spec, int64_t spp) {
+    for (OIIO::ParamValue& pv : spec.extra_attribs) {
+        const std::string n = pv.name().string();
+        const bool count = n == "samplesPerPixel" || (OIIO::Strutil::starts_with(n, "cycles.") &&
+                                                      OIIO::Strutil::ends_with(n, ".samples"));
+        if (!count || pv.type().aggregate != 1 || pv.type().arraylen != 0) continue;
+        if (pv.type() == OIIO::TypeString)
+            pv = OIIO::ParamValue(pv.name(), OIIO::string_view(std::to_string(spp)));
+        else if (pv.type() == OIIO::TypeInt)
+            pv = OIIO::ParamValue(pv.name(), int(std::min<int64_t>(spp, INT32_MAX)));
+    }
+}
+
+}  // namespace
+
 void describeResult(ImageSpec& spec, const Operation& op, const ParamValues& values,
                     const StatsHeader& h, std::string* warning) {
     std::string err;
     if (!applySourceMetadata(spec, h.sourceMetadata, err) && warning) *warning = err;
+    setRendererSampleCounts(spec, h.spp);
     std::string params;
     for (const auto& [k, v] : values) {
         const ParamSpec* ps = op.param(k);

@@ -31,7 +31,9 @@ inline constexpr const char* kProvenancePrefix = "mcstat.";
 
 /// Describes an operation's result on its spec: the source's metadata (StatsHeader::
 /// sourceMetadata), and provenance: mcstat.operation (e.g. "gmon"), mcstat.parameters
-/// ("mode=lum"), mcstat.M, mcstat.spp, mcstat.sources, mcstat.renderer. A bad metadata text is
+/// ("mode=lum"), mcstat.M, mcstat.spp, mcstat.sources, mcstat.renderer. The renderers' own
+/// sample counts among the source's metadata (samplesPerPixel, cycles.<ViewLayer>.samples) are
+/// set to the result's samples per pixel (h.spp, every render together). A bad metadata text is
 /// skipped with a warning in `warning`.
 void describeResult(OIIO::ImageSpec& spec, const Operation& op, const ParamValues& values,
                     const StatsHeader& h, std::string* warning = nullptr);

@@ -8,6 +8,8 @@
 #include <limits>
 
 #include "mcstat/ingest.h"
+#include "mcstat/registry.h"
+#include "mcstat/render_layout.h"
 #include "render_files.h"
 
 namespace mcstat {
@@ -397,6 +399,38 @@ TEST_F(Ingest, MergingDisjointIngestsIsExactAndTheSameFilesTwiceIsRefused) {
     EXPECT_FALSE(mergeStats(a, rr, merged, err));
     EXPECT_NE(err.find("sample assignments differ ('perfile' vs 'roundrobin')"), std::string::npos)
         << err;
+}
+
+}  // namespace
+}  // namespace mcstat
+
+namespace mcstat {
+namespace {
+
+TEST(IngestMetadata, TheRenderersSampleCountsSayTheResultsSamples) {
+    // The first render's attributes go to every result; its own sample counts (pbrt-v4's int
+    // samplesPerPixel, Cycles' string cycles.<ViewLayer>.samples) would then claim one seed's 16
+    // samples for a result of 21 x 16: they are rewritten to the result's, in their own type.
+    OIIO::ImageSpec render(4, 4, 3, OIIO::TypeDesc::FLOAT);
+    render.attribute("samplesPerPixel", 16);
+    render.attribute("cycles.ViewLayer.samples", "16");
+    render.attribute("cycles.ViewLayer.total_time", "00:01.50");
+    render.attribute("frame", 7);
+    StatsHeader h;
+    h.M = 21;
+    h.spp = 336;
+    h.sourceMetadata = sourceMetadataJson(render);
+    ParamValues values;
+    std::string err;
+    const Operation& gmon = *findOperation("gmon");
+    ASSERT_TRUE(parseOperationParams(gmon, {}, values, err)) << err;
+    OIIO::ImageSpec out(4, 4, 3, OIIO::TypeDesc::FLOAT);
+    describeResult(out, gmon, values, h);
+    EXPECT_EQ(out.get_int_attribute("samplesPerPixel"), 336);
+    EXPECT_EQ(out.get_string_attribute("cycles.ViewLayer.samples"), "336");
+    EXPECT_EQ(out.get_string_attribute("cycles.ViewLayer.total_time"), "00:01.50");
+    EXPECT_EQ(out.get_int_attribute("frame"), 7);
+    EXPECT_EQ(out.get_int_attribute("mcstat.spp"), 336);
 }
 
 }  // namespace
