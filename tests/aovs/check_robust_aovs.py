@@ -93,6 +93,14 @@ def main():
     print("   G-MoN from the statistics file identical in every channel: %s" % same_file)
     if not same_file:
         failures.append("G-MoN from the statistics file differs from G-MoN after --ingest")
+    # Cycles' own sample count says the result's samples, every render together.
+    key = "cycles.ViewLayer.samples"
+    seed_spp = oiio.ImageInput.open(seeds[0]).spec().getattribute(key)
+    want = str(int(seed_spp) * len(seeds)) if seed_spp else None
+    print("   %s: %s (renders: %s each, %d renders)" % (key, gspec.getattribute(key), seed_spp,
+                                                       len(seeds)))
+    if want is None or gspec.getattribute(key) != want:
+        failures.append("%s is %s, not %s" % (key, gspec.getattribute(key), want))
     ids = [n for n in names if n in in_names and any(k in n for k in ("Crypto", "IndexOB", "IndexMA"))]
     mixed = 0
     if ids:
