@@ -51,6 +51,22 @@ int64_t positiveInt(const ImageSpec& spec, const std::string& name) {
     return std::stoll(text);
 }
 
+/// Which renderer wrote a file: its Software attribute, else what its own attributes say
+/// (Blender writes no Software but cycles.* statistics and BlenderMultiChannel; Arnold, Karma and
+/// RenderMan prefix theirs), else "unknown renderer".
+std::string rendererOf(const ImageSpec& spec) {
+    for (const char* k : {"Software", "software"})
+        if (std::string s = spec.get_string_attribute(k); !s.empty()) return oneLine(s);
+    static const std::pair<const char*, const char*> kPrefixes[] = {
+        {"cycles.", "Blender/Cycles"}, {"BlenderMultiChannel", "Blender"},
+        {"arnold/", "Arnold"},         {"karma", "Karma"},
+        {"rman", "RenderMan"},         {"renderman", "RenderMan"}};
+    for (const auto& [prefix, name] : kPrefixes)
+        for (const OIIO::ParamValue& pv : spec.extra_attribs)
+            if (OIIO::Strutil::istarts_with(pv.name().string(), prefix)) return name;
+    return "unknown renderer";
+}
+
 /// Samples per pixel from a renderer's metadata (docs/ingest.md): mcstat:spp (mcstat-render's
 /// plain EXRs), samplesPerPixel (pbrt-v4), cycles.<ViewLayer>.samples (Blender/Cycles).
 /// `key` says which attribute was used.
@@ -476,10 +492,7 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
     h.assignment = kAssignmentPerFile;
     h.variance = M >= 2 ? kVarianceBuffers : kVarianceUnknown;
     h.features = features;
-    std::string software = first.spec.get_string_attribute("Software");
-    if (software.empty()) software = first.spec.get_string_attribute("software");
-    h.renderer = (software.empty() ? std::string("unknown renderer") : oneLine(software)) +
-                 " via mcstat --ingest";
+    h.renderer = rendererOf(first.spec) + " via mcstat --ingest";
     for (size_t j = 0; j < files.size(); ++j)
         h.sources += (j ? "," : "") + OIIO::Filesystem::filename(files[j].path);
     // Version 5: what the render looked like, so that a result can replace one input.

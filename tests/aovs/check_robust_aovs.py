@@ -93,6 +93,10 @@ def main():
     print("   G-MoN from the statistics file identical in every channel: %s" % same_file)
     if not same_file:
         failures.append("G-MoN from the statistics file differs from G-MoN after --ingest")
+    renderer = gspec.getattribute("mcstat.renderer")
+    print("   mcstat.renderer: %s" % renderer)
+    if renderer != "Blender/Cycles via mcstat --ingest":
+        failures.append("mcstat.renderer is %s, not Blender/Cycles via mcstat --ingest" % renderer)
     # Cycles' own sample count says the result's samples, every render together.
     key = "cycles.ViewLayer.samples"
     seed_spp = oiio.ImageInput.open(seeds[0]).spec().getattribute(key)
