@@ -220,6 +220,7 @@ struct StatsFileReader::Impl {
     std::unique_ptr<detail::FdIStream> stream;
     std::unique_ptr<Imf::MultiPartInputFile> file;
     int chunkRows = 1;
+    int threads = 1;                   // decoding threads (codecThreads)
     std::vector<uint32_t> deepCounts;  // adaptive M: the block's m_p, reused
 };
 
@@ -236,6 +237,7 @@ const StatsHeader& StatsFileReader::header() const {
     return impl_ ? impl_->header : none;
 }
 int StatsFileReader::chunkRows() const { return impl_ ? impl_->chunkRows : 1; }
+int StatsFileReader::decodeThreads() const { return impl_ ? impl_->threads : 1; }
 
 bool StatsFileReader::open(const std::string& path, std::string& err, const ReadLimits& limits,
                            int nthreads) {
@@ -250,6 +252,7 @@ bool StatsFileReader::open(const std::string& path, std::string& err, const Read
         impl->file = std::make_unique<Imf::MultiPartInputFile>(*impl->stream, threads);
         checkSameFile(*impl->file, impl->header);
         impl->chunkRows = linesPerChunk(impl->file->header(layout::kBuffers).compression());
+        impl->threads = threads;
         impl_ = std::move(impl);
         return true;
     } catch (const std::bad_alloc&) {

@@ -21,7 +21,8 @@ int StatsBlockSource::blockRows(unsigned parts, size_t budgetBytes) const {
     if ((parts & kStatsPartAovs) && !h.adaptiveM) floats += size_t(h.M) * h.aovs.size();
     const size_t rowBytes = std::max<size_t>(1, floats * sizeof(float) * size_t(h.width));
     const size_t chunk = size_t(std::max(1, chunkRows()));
-    const size_t rows = std::max<size_t>(1, budgetBytes / rowBytes / chunk) * chunk;
+    const size_t chunks = size_t(std::max(1, decodeThreads()));
+    const size_t rows = std::max<size_t>(chunks, budgetBytes / rowBytes / chunk) * chunk;
     return int(std::min<size_t>(rows, size_t(h.height)));
 }
 
@@ -123,6 +124,10 @@ bool MergedStatsSource::init(StatsBlockSource& a, StatsBlockSource& b, std::stri
 
 int MergedStatsSource::chunkRows() const {
     return a_ && b_ ? std::max(a_->chunkRows(), b_->chunkRows()) : 1;
+}
+
+int MergedStatsSource::decodeThreads() const {
+    return a_ && b_ ? std::max(a_->decodeThreads(), b_->decodeThreads()) : 1;
 }
 
 bool MergedStatsSource::read(int firstRow, int rows, unsigned parts, StatsImage& block,

@@ -262,6 +262,9 @@ class StatsBlockSource {
     /// Rows per compressed chunk of the sub-buffer part (1 when not a file): blocks that start
     /// on a multiple of it never decode a chunk twice.
     virtual int chunkRows() const { return 1; }
+    /// Threads that decode one block's chunks in parallel (1 when not a file): blockRows gives
+    /// each of them at least one chunk, or wide rows would leave all but one idle.
+    virtual int decodeThreads() const { return 1; }
     /// Reads rows [firstRow, firstRow + rows) of the data window (0-based) of the parts in
     /// `parts` (StatsParts) into `block`: its header is the image's with height = rows and
     /// originY moved to the first row; the arrays of parts not read are empty. `block`'s
@@ -272,7 +275,8 @@ class StatsBlockSource {
     /// Whether header() describes an image (the source opened or initialised).
     bool ready() const { return header().width > 0 && header().height > 0; }
     /// A block height for about `budgetBytes` of decoded parts `parts` per block: a multiple of
-    /// chunkRows(), at least one chunk, at most the image height.
+    /// chunkRows(), at least one chunk per decoding thread (decodeThreads()), at most the image
+    /// height.
     int blockRows(unsigned parts = kStatsAllParts, size_t budgetBytes = size_t(64) << 20) const;
 };
 
@@ -299,6 +303,7 @@ class StatsFileReader final : public StatsBlockSource {
     const StatsHeader& header() const override;
     const std::string& name() const override { return path(); }
     int chunkRows() const override;
+    int decodeThreads() const override;
     bool read(int firstRow, int rows, unsigned parts, StatsImage& block, std::string& err) override;
 
   private:
@@ -330,6 +335,7 @@ class MergedStatsSource final : public StatsBlockSource {
     const StatsHeader& header() const override { return header_; }
     const std::string& name() const override { return name_; }
     int chunkRows() const override;
+    int decodeThreads() const override;
     bool read(int firstRow, int rows, unsigned parts, StatsImage& block, std::string& err) override;
 
   private:

@@ -352,7 +352,7 @@ TEST(AovFile, ReadsOnlyThePartAovs) {
     std::string err;
     ASSERT_TRUE(writeStatsFile(path, img, err)) << err;
     StatsFileReader reader;
-    ASSERT_TRUE(reader.open(path, err)) << err;
+    ASSERT_TRUE(reader.open(path, err, ReadLimits(), 1)) << err;
     const size_t per = 3 * kAovList.size(), w = 6;
     StatsImage block;
     ASSERT_TRUE(reader.read(5, 7, kStatsPartAovs, block, err)) << err;

@@ -183,12 +183,19 @@ TEST_F(Stream, BlockHeightIsAMultipleOfTheChunkWithinTheBudget) {
     std::string err;
     ASSERT_TRUE(writeStatsFile(path, makeImage(100, 300, 21, false, 2), err)) << err;
     StatsFileReader reader;
-    ASSERT_TRUE(reader.open(path, err)) << err;
+    ASSERT_TRUE(reader.open(path, err, ReadLimits(), 1)) << err;  // one decoding thread
     // A row of buffers is 100 x 21 x 4 floats = 33,600 bytes: 1 MiB holds 31 rows -> 16.
     EXPECT_EQ(16, reader.blockRows(kStatsPartBuffers, size_t(1) << 20));
     EXPECT_EQ(16, reader.blockRows(kStatsPartBuffers, 1));                 // at least one chunk
     EXPECT_EQ(300, reader.blockRows(kStatsPartBuffers, size_t(1) << 30));  // at most the image
     EXPECT_EQ(3 * 16 * 2, reader.blockRows(kStatsPartBeauty, 100 * 12 * 100));
+    // Three decoding threads: at least one chunk each, so that wide rows do not leave two idle.
+    StatsFileReader three;
+    ASSERT_TRUE(three.open(path, err, ReadLimits(), 3)) << err;
+    EXPECT_EQ(3, three.decodeThreads());
+    EXPECT_EQ(3 * 16, three.blockRows(kStatsPartBuffers, 1));
+    EXPECT_EQ(3 * 16, three.blockRows(kStatsPartBuffers, size_t(1) << 20));
+    EXPECT_EQ(300, three.blockRows(kStatsPartBuffers, size_t(1) << 30));
 }
 
 TEST_F(Stream, StreamedOperationsEqualTheInMemoryOnesBitForBit) {
