@@ -253,7 +253,8 @@ std::vector<SubimageRead> readsFor(const InputFile& f, const std::vector<int>& u
     std::vector<SubimageRead> reads;
     for (int i : used) {
         if (i < 0) continue;
-        const auto [sub, ch] = f.where[size_t(i)];
+        // Plain variables, not a structured binding: C++17 lambdas cannot capture those (clang).
+        const int sub = f.where[size_t(i)].first, ch = f.where[size_t(i)].second;
         auto it = std::find_if(reads.begin(), reads.end(),
                                [&](const SubimageRead& r) { return r.subimage == sub; });
         if (it == reads.end()) {
