@@ -84,7 +84,10 @@ std::string sourceMetadataJson(const ImageSpec& spec) {
         }
         list.push_back({{"name", name}, {"type", t.c_str()}, {"values", values}});
     }
-    return list.empty() ? std::string() : list.dump();
+    // A renderer's string attribute is bytes, not always UTF-8 (a fuzzed file, a Latin-1 artist
+    // name): invalid sequences become U+FFFD rather than an exception out of ingest.
+    return list.empty() ? std::string()
+                        : list.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 }
 
 bool applySourceMetadata(ImageSpec& spec, const std::string& json, std::string& err) {
