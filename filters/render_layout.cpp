@@ -45,8 +45,13 @@ std::string sourceMetadataJson(const ImageSpec& spec) {
     for (const OIIO::ParamValue& pv : spec.extra_attribs) {
         const std::string name = pv.name().string();
         if (isEncodingAttribute(name)) continue;
-        const TypeDesc t = pv.type();
-        const size_t n = size_t(pv.nvalues()) * t.numelements() * t.aggregate;
+        // The type as it is written: several values of a type are one array of it, and a type
+        // whose name does not parse back to itself (an odd one from a damaged or unusual file)
+        // is left out rather than stored as something applySourceMetadata would read otherwise.
+        TypeDesc t = pv.type();
+        if (pv.nvalues() > 1) t.arraylen = int(t.numelements()) * pv.nvalues();
+        if (TypeDesc(t.c_str()) != t) continue;
+        const size_t n = t.numelements() * t.aggregate;
         nlohmann::json values = nlohmann::json::array();
         switch (t.basetype) {
             case TypeDesc::STRING: {
