@@ -312,26 +312,20 @@ bool SampleRecordsReader::open(const std::string& path, std::string& err,
         // mcstat:recordFields: every field it lists must have its channels (FORMAT.md).
         const auto* f = hdr.findTypedAttribute<Imf::StringAttribute>(layout::kAttrRecordFields);
         impl_->fields = splitList(f != nullptr ? f->value() : std::string(kRecordFieldsBase));
-        for (const std::string& name : impl_->fields)
+        const auto requireFloat = [&](const std::string& field, const std::string& c) {
+            const Imf::Channel* x = ch.findChannel(c);
+            if (x == nullptr || x->type != Imf::FLOAT)
+                throw std::runtime_error(fmt::format(
+                    "part 'records' lists field '{}' but has no FLOAT channel '{}'", field, c));
+        };
+        for (const std::string& name : impl_->fields) {
             for (const RecordField& rf : recordFieldTable())
                 if (name == rf.name)
-                    for (const char* c : rf.channels) {
-                        const Imf::Channel* x = ch.findChannel(c);
-                        if (x == nullptr || x->type != Imf::FLOAT)
-                            throw std::runtime_error(fmt::format(
-                                "part 'records' lists field '{}' but has no FLOAT channel '{}'",
-                                name, c));
-                    }
-        if (std::find(impl_->fields.begin(), impl_->fields.end(), kRecordFieldAov) !=
-            impl_->fields.end())
-            for (const AovChannel& a : impl_->header.aovs) {
-                const Imf::Channel* x = ch.findChannel(kRecordAovPrefix + a.name);
-                if (x == nullptr || x->type != Imf::FLOAT)
-                    throw std::runtime_error(
-                        fmt::format("part 'records' lists field 'aov' but has no FLOAT channel "
-                                    "'{}{}'",
-                                    kRecordAovPrefix, a.name));
-            }
+                    for (const char* c : rf.channels) requireFloat(name, c);
+            if (name == kRecordFieldAov)
+                for (const AovChannel& a : impl_->header.aovs)
+                    requireFloat(name, kRecordAovPrefix + a.name);
+        }
         impl_->selected = impl_->available;
     } catch (const std::exception& e) {
         err = fmt::format("{}: {}", path, detail::oneLine(e.what()));

@@ -89,15 +89,14 @@ bool PixelAccumulator::add(int64_t index, const PathSample& s) {
 
 void PixelAccumulator::store(StatsImage& img, size_t p) const {
     const size_t k0 = img.bufferBegin(p);
-    for (size_t j = 0; j < size_t(M_); ++j)
-        storeBuffer(img, k0 + j, buffers_[j].sum, buffers_[j].count);
-    if (!aovSums_.empty())
-        for (size_t j = 0; j < size_t(M_); ++j) {
-            const int64_t n = buffers_[j].count;
-            float* out = &img.aov[(k0 + j) * kFixtureAovFloats];
-            for (size_t a = 0; a < size_t(kFixtureAovFloats); ++a)
-                out[a] = n > 0 ? float(aovSums_[j * kFixtureAovFloats + a] / double(n)) : 0.0f;
-        }
+    for (size_t j = 0; j < size_t(M_); ++j) {
+        const int64_t n = buffers_[j].count;
+        storeBuffer(img, k0 + j, buffers_[j].sum, n);
+        if (aovSums_.empty()) continue;
+        float* out = &img.aov[(k0 + j) * kFixtureAovFloats];
+        for (size_t a = 0; a < size_t(kFixtureAovFloats); ++a)
+            out[a] = n > 0 ? float(aovSums_[j * kFixtureAovFloats + a] / double(n)) : 0.0f;
+    }
     moments_.store(img, p);
 }
 
