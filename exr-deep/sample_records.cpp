@@ -1,8 +1,8 @@
 // Format version 4's optional parts (FORMAT.md "Version 4: samples and modes"): the per-sample
 // part `records`, written by blocks of rows to a temporary deep file and moved chunk by chunk into
-// the statistics file, read back by blocks of rows; and Pajot's online state, parts `pajot` (flat:
-// the estimate and each pixel's scalars, doubles as their exact 64-bit patterns in two UINT
-// channels) and `modes` (deep: one record per mode, delayed sample or learning sample).
+// the statistics file, read back by blocks of rows; and an operation's per-pixel state, parts
+// `pajot` (flat: FLOAT and UINT channels) and `modes` (deep: FLOAT records), stored as given and
+// read back by name (what they mean: filters/samples/pajot_state.cpp).
 #include "mcstat/sample_records.h"
 
 #include <OpenEXR/ImfChannelList.h>
@@ -395,54 +395,55 @@ bool SampleRecordsReader::read(int y0, int rows, SampleBlock& block, std::string
     return true;
 }
 
-// ---- parts pajot and modes -------------------------------------------------------------------
+// ---- parts pajot and modes: an operation's per-pixel state -------------------------------------
 
 namespace {
 
-/// Flat part `pajot`: FLOAT channels, then UINT pairs holding doubles' bit patterns.
-constexpr const char* kPajotFloats[] = {"R",     "G",     "B",   "delayed", "splatted", "discarded",
-                                        "taken", "phase", "run", "mAdr",    "mRot",     "rotN"};
-constexpr int kPajotFloatCount = 12;
-constexpr const char* kPajotWords[] = {"sum.R.hi", "sum.R.lo", "sum.G.hi",   "sum.G.lo",
-                                       "sum.B.hi", "sum.B.lo", "rotMean.hi", "rotMean.lo",
-                                       "rotM2.hi", "rotM2.lo"};
-constexpr int kPajotWordCount = 10;
-/// Deep part `modes`: one record per mode, ROT single, delayed or learning sample.
-constexpr const char* kModeChannels[] = {"kind", "lo", "hi", "count", "R", "G", "B", "Z", "A"};
-constexpr int kModeFloats = 9;
-enum RecordKind { kAdrMode = 1, kRotSingle = 2, kDelayed = 3, kLearning = 4 };
-
-void putDouble(uint32_t* w, double d) {
-    uint64_t bits = 0;
-    std::memcpy(&bits, &d, sizeof bits);
-    w[0] = uint32_t(bits >> 32);
-    w[1] = uint32_t(bits & 0xffffffffu);
-}
-double getDouble(const uint32_t* w) {
-    const uint64_t bits = (uint64_t(w[0]) << 32) | uint64_t(w[1]);
-    double d = 0;
-    std::memcpy(&d, &bits, sizeof d);
-    return d;
-}
-
-/// Part pajot's frame buffer over pixel-interleaved floats and words.
-Imf::FrameBuffer pajotFrameBuffer(std::vector<float>& fl, std::vector<uint32_t>& words,
-                                  const Imath::Box2i& window) {
+/// The flat part's frame buffer over pixel-interleaved floats and words.
+Imf::FrameBuffer stateFrameBuffer(const PixelStateParts& s, const Imath::Box2i& window) {
     const size_t width = size_t(window.max.x - window.min.x + 1);
+    const size_t nf = s.floatChannels.size(), nu = s.uintChannels.size();
     Imf::FrameBuffer fb;
-    for (int c = 0; c < kPajotFloatCount; ++c)
-        fb.insert(kPajotFloats[c], Imf::Slice::Make(Imf::FLOAT, fl.data() + c, window,
-                                                    kPajotFloatCount * sizeof(float),
-                                                    kPajotFloatCount * sizeof(float) * width));
-    for (int c = 0; c < kPajotWordCount; ++c)
-        fb.insert(kPajotWords[c], Imf::Slice::Make(Imf::UINT, words.data() + c, window,
-                                                   kPajotWordCount * sizeof(uint32_t),
-                                                   kPajotWordCount * sizeof(uint32_t) * width));
+    auto* fl = const_cast<float*>(s.floats.data());
+    auto* words = const_cast<uint32_t*>(s.words.data());
+    for (size_t c = 0; c < nf; ++c)
+        fb.insert(s.floatChannels[c], Imf::Slice::Make(Imf::FLOAT, fl + c, window,
+                                                       nf * sizeof(float), nf * sizeof(float) * width));
+    for (size_t c = 0; c < nu; ++c)
+        fb.insert(s.uintChannels[c],
+                  Imf::Slice::Make(Imf::UINT, words + c, window, nu * sizeof(uint32_t),
+                                   nu * sizeof(uint32_t) * width));
     return fb;
 }
 
-size_t recordCount(const PajotState& s) {
-    return s.modes.size() + s.rotSingles.size() + s.delayed.size() + s.learning.size();
+/// Points `ptr[c][p]` at pixel p's first record's channel c in `s.records` (every pixel's records
+/// contiguous, in scanline order, as `s.recordCounts` says).
+void pointRecords(const PixelStateParts& s, std::vector<std::vector<char*>>& ptr) {
+    if (s.records.empty()) return;  // no records: the pointers stay null
+    auto* rec = const_cast<float*>(s.records.data());
+    const size_t nc = s.recordChannels.size();
+    size_t k = 0;
+    for (size_t p = 0; p < s.recordCounts.size(); ++p) {
+        for (size_t c = 0; c < nc; ++c) ptr[c][p] = reinterpret_cast<char*>(rec + k * nc + c);
+        k += s.recordCounts[p];
+    }
+}
+
+/// The deep part's frame buffer: the counts of `s.recordCounts`, each channel's pointer array in
+/// `ptr` (allocated here, null; pointRecords fills it once the records have room).
+Imf::DeepFrameBuffer stateDeepFrameBuffer(const StatsHeader& h, const PixelStateParts& s,
+                                          std::vector<std::vector<char*>>& ptr) {
+    const size_t pixels = size_t(h.width) * size_t(h.height), nc = s.recordChannels.size();
+    ptr.assign(nc, std::vector<char*>(pixels, nullptr));
+    Imf::DeepFrameBuffer dfb;
+    const size_t xs = sizeof(char*), ys = xs * size_t(h.width);
+    dfb.insertSampleCountSlice(Imf::Slice(
+        Imf::UINT, windowBase(s.recordCounts.data(), h, sizeof(uint32_t)), sizeof(uint32_t),
+        sizeof(uint32_t) * size_t(h.width)));
+    for (size_t c = 0; c < nc; ++c)
+        dfb.insert(s.recordChannels[c], Imf::DeepSlice(Imf::FLOAT, windowBase(ptr[c].data(), h, xs),
+                                                       xs, ys, nc * sizeof(float)));
+    return dfb;
 }
 
 }  // namespace
@@ -452,7 +453,7 @@ namespace detail {
 bool checkExtras(const std::string& path, const StatsImage& img, const StatsExtras& extras,
                  std::string& err) {
     const StatsHeader& h = img.header;
-    const bool any = extras.pajot != nullptr || !extras.recordsFile.empty();
+    const bool any = extras.state != nullptr || !extras.recordsFile.empty();
     if (any && h.formatVersion < kStatsFormatVersionSamples) {
         err = fmt::format(
             "{}: parts pajot, modes and records need format version {} (header "
@@ -460,35 +461,33 @@ bool checkExtras(const std::string& path, const StatsImage& img, const StatsExtr
             path, kStatsFormatVersionSamples, h.formatVersion);
         return false;
     }
-    if (extras.pajot != nullptr) {
-        const PajotImage& pj = *extras.pajot;
-        if (pj.pixels.size() != img.pixelCount() || pj.estimate.size() != img.pixelCount() * 3) {
-            err = path + ": Pajot state does not match the image size";
+    if (extras.state != nullptr) {
+        const PixelStateParts& s = *extras.state;
+        const size_t pixels = img.pixelCount();
+        const uint64_t total = std::accumulate(s.recordCounts.begin(), s.recordCounts.end(),
+                                               uint64_t(0));
+        if (s.floats.size() != pixels * s.floatChannels.size() ||
+            s.words.size() != pixels * s.uintChannels.size() ||
+            s.recordCounts.size() != pixels || s.records.size() != total * s.recordChannels.size()) {
+            err = path + ": the per-pixel state (parts pajot, modes) does not match the image size";
             return false;
         }
-        for (const PajotState& s : pj.pixels)
-            if (double(s.taken) > kMaxExactCount) {
-                err = path +
-                      ": a pixel took more than 2^24 samples, beyond what part 'pajot' "
-                      "stores exactly";
-                return false;
-            }
     }
     return true;
 }
 
 void appendExtraHeaders(std::vector<Imf::Header>& headers, const StatsHeader& h,
                         const StatsExtras& extras) {
-    if (extras.pajot != nullptr) {
-        const std::string params = pajotParamsText(extras.pajot->params);
+    if (extras.state != nullptr) {
+        const PixelStateParts& s = *extras.state;
         Imf::Header flat = commonHeader(h, layout::kPartPajot, false);
-        for (const char* c : kPajotFloats) flat.channels().insert(c, Imf::Channel(Imf::FLOAT));
-        for (const char* c : kPajotWords) flat.channels().insert(c, Imf::Channel(Imf::UINT));
-        flat.insert(layout::kAttrPajot, Imf::StringAttribute(params));
+        for (const std::string& c : s.floatChannels) flat.channels().insert(c, Imf::Channel(Imf::FLOAT));
+        for (const std::string& c : s.uintChannels) flat.channels().insert(c, Imf::Channel(Imf::UINT));
+        flat.insert(layout::kAttrPajot, Imf::StringAttribute(s.params));
         headers.push_back(std::move(flat));
         Imf::Header deep = commonHeader(h, layout::kPartModes, true);
-        for (const char* c : kModeChannels) deep.channels().insert(c, Imf::Channel(Imf::FLOAT));
-        deep.insert(layout::kAttrPajot, Imf::StringAttribute(params));
+        for (const std::string& c : s.recordChannels) deep.channels().insert(c, Imf::Channel(Imf::FLOAT));
+        deep.insert(layout::kAttrPajot, Imf::StringAttribute(s.params));
         headers.push_back(std::move(deep));
     }
     if (!extras.recordsFile.empty()) {
@@ -507,76 +506,16 @@ void appendExtraHeaders(std::vector<Imf::Header>& headers, const StatsHeader& h,
 void writeExtraParts(Imf::MultiPartOutputFile& out, const StatsImage& img,
                      const StatsExtras& extras) {
     const StatsHeader& h = img.header;
-    const Imath::Box2i window = windowOf(h);
     int part = layout::firstExtraPart(h);  // after the four parts and part aovs
-    if (extras.pajot != nullptr) {
-        const PajotImage& pj = *extras.pajot;
-        const size_t pixels = img.pixelCount();
-        std::vector<float> fl(pixels * kPajotFloatCount);
-        std::vector<uint32_t> words(pixels * kPajotWordCount);
-        for (size_t p = 0; p < pixels; ++p) {
-            const PajotState& s = pj.pixels[p];
-            float* f = fl.data() + p * kPajotFloatCount;
-            for (size_t c = 0; c < 3; ++c) f[c] = pj.estimate[p * 3 + c];
-            f[3] = float(s.delayed.size());
-            f[4] = float(s.splatted);
-            f[5] = float(s.discarded);
-            f[6] = float(s.taken);
-            f[7] = float(int(s.phase));
-            f[8] = float(s.run);
-            f[9] = s.mAdr;
-            f[10] = s.mRot;
-            f[11] = float(s.rotN);
-            uint32_t* w = words.data() + p * kPajotWordCount;
-            for (size_t c = 0; c < 3; ++c) putDouble(w + 2 * c, s.sum[c]);
-            putDouble(w + 6, s.rotMean);
-            putDouble(w + 8, s.rotM2);
-        }
-        const Imf::FrameBuffer fb = pajotFrameBuffer(fl, words, window);
+    if (extras.state != nullptr) {
+        const PixelStateParts& s = *extras.state;
         Imf::OutputPart op(out, part++);
-        op.setFrameBuffer(fb);
+        op.setFrameBuffer(stateFrameBuffer(s, windowOf(h)));
         op.writePixels(h.height);
-
-        // Part modes: every pixel's records, contiguous.
-        std::vector<uint32_t> counts(pixels);
-        size_t total = 0;
-        for (size_t p = 0; p < pixels; ++p)
-            total += counts[p] = uint32_t(recordCount(pj.pixels[p]));
-        std::vector<float> rec(std::max<size_t>(total, 1) * kModeFloats, 0.f);
-        std::vector<const char*> ptr[kModeFloats];
-        for (auto& v : ptr) v.assign(pixels, nullptr);
-        size_t k = 0;
-        for (size_t p = 0; p < pixels; ++p) {
-            const PajotState& s = pj.pixels[p];
-            for (int c = 0; c < kModeFloats; ++c)
-                ptr[c][p] = reinterpret_cast<const char*>(rec.data() + k * kModeFloats + size_t(c));
-            size_t index = 0;
-            auto put = [&](int kind, float lo, float hi, float count, const float* rgb) {
-                float* r = rec.data() + k++ * kModeFloats;
-                r[0] = float(kind);
-                r[1] = lo;
-                r[2] = hi;
-                r[3] = count;
-                for (int c = 0; c < 3; ++c) r[4 + c] = rgb ? rgb[c] : 0.f;
-                r[7] = float(index++);
-                r[8] = 1.f;
-            };
-            for (const PajotMode& m : s.modes) put(kAdrMode, m.lo, m.hi, float(m.n), nullptr);
-            for (float l : s.rotSingles) put(kRotSingle, l, l, 1.f, nullptr);
-            for (const PajotSample& d : s.delayed) put(kDelayed, d.l, d.l, 1.f, d.rgb.data());
-            for (const PajotSample& d : s.learning) put(kLearning, d.l, d.l, 1.f, d.rgb.data());
-        }
-        Imf::DeepFrameBuffer dfb;
-        const size_t xs = sizeof(char*), ys = xs * size_t(h.width);
-        dfb.insertSampleCountSlice(
-            Imf::Slice(Imf::UINT, windowBase(counts.data(), h, sizeof(uint32_t)), sizeof(uint32_t),
-                       sizeof(uint32_t) * size_t(h.width)));
-        for (int c = 0; c < kModeFloats; ++c)
-            dfb.insert(kModeChannels[c],
-                       Imf::DeepSlice(Imf::FLOAT, windowBase(ptr[c].data(), h, xs), xs, ys,
-                                      kModeFloats * sizeof(float)));
+        std::vector<std::vector<char*>> ptr;
         Imf::DeepScanLineOutputPart dp(out, part++);
-        dp.setFrameBuffer(dfb);
+        dp.setFrameBuffer(stateDeepFrameBuffer(h, s, ptr));
+        pointRecords(s, ptr);
         dp.writePixels(h.height);
     }
     if (!extras.recordsFile.empty()) {
@@ -589,8 +528,8 @@ void writeExtraParts(Imf::MultiPartOutputFile& out, const StatsImage& img,
 
 }  // namespace detail
 
-bool readPajotParts(const std::string& path, PajotImage& out, std::string& err,
-                    const ReadLimits& limits) {
+bool readPixelStateParts(const std::string& path, PixelStateParts& out, std::string& err,
+                         const ReadLimits& limits) {
     StatsHeader h;
     if (!readStatsHeader(path, h, err, limits)) return false;
     if (!h.hasPajot) {
@@ -603,118 +542,48 @@ bool readPajotParts(const std::string& path, PajotImage& out, std::string& err,
         Imf::MultiPartInputFile in(path.c_str());
         const int flatPart = layout::firstExtraPart(h), deepPart = flatPart + 1;
         const Imf::Header& fh = in.header(flatPart);
-        const Imf::StringAttribute* pa =
-            fh.findTypedAttribute<Imf::StringAttribute>(layout::kAttrPajot);
-        std::string problem;
-        PajotImage r;
-        if (pa == nullptr || !parsePajotParamsText(pa->value(), r.params, problem))
-            throw std::runtime_error(fmt::format("part 'pajot': attribute {}: {}",
-                                                 layout::kAttrPajot, pa ? problem : "missing"));
-        for (const char* c : kPajotFloats)
-            if (!fh.channels().findChannel(c) || fh.channels().findChannel(c)->type != Imf::FLOAT)
-                throw std::runtime_error(fmt::format("part 'pajot' has no FLOAT channel '{}'", c));
-        for (const char* c : kPajotWords)
-            if (!fh.channels().findChannel(c) || fh.channels().findChannel(c)->type != Imf::UINT)
-                throw std::runtime_error(fmt::format("part 'pajot' has no UINT channel '{}'", c));
+        PixelStateParts r;
+        const auto* pa = fh.findTypedAttribute<Imf::StringAttribute>(layout::kAttrPajot);
+        if (pa == nullptr)
+            throw std::runtime_error(
+                fmt::format("part 'pajot': attribute {}: missing", layout::kAttrPajot));
+        r.params = pa->value();
+        for (auto it = fh.channels().begin(); it != fh.channels().end(); ++it) {
+            if (it.channel().type == Imf::FLOAT) r.floatChannels.emplace_back(it.name());
+            if (it.channel().type == Imf::UINT) r.uintChannels.emplace_back(it.name());
+        }
         const size_t pixels = size_t(h.width) * size_t(h.height);
         const Imath::Box2i window = windowOf(h);
-        std::vector<float> fl(pixels * kPajotFloatCount);
-        std::vector<uint32_t> words(pixels * kPajotWordCount);
+        const uint64_t flatBytes =
+            uint64_t(pixels) * (r.floatChannels.size() + r.uintChannels.size()) * 4;
+        if (flatBytes > uint64_t(limits.maxBytes))
+            throw std::runtime_error(fmt::format(
+                "part 'pajot' holds {} channels, beyond the limits",
+                r.floatChannels.size() + r.uintChannels.size()));
+        r.floats.resize(pixels * r.floatChannels.size());
+        r.words.resize(pixels * r.uintChannels.size());
         {
-            const Imf::FrameBuffer fb = pajotFrameBuffer(fl, words, window);
             Imf::InputPart ip(in, flatPart);
-            ip.setFrameBuffer(fb);
+            ip.setFrameBuffer(stateFrameBuffer(r, window));
             ip.readPixels(window.min.y, window.max.y);
         }
         Imf::DeepScanLineInputPart dp(in, deepPart);
-        for (const char* c : kModeChannels)
-            if (!dp.header().channels().findChannel(c))
-                throw std::runtime_error(fmt::format("part 'modes' has no channel '{}'", c));
-        std::vector<uint32_t> counts(pixels);
-        const size_t cys = sizeof(uint32_t) * size_t(h.width);
-        std::vector<char*> ptr[kModeFloats];
-        for (auto& v : ptr) v.assign(pixels, nullptr);
-        Imf::DeepFrameBuffer dfb;
-        const size_t xs = sizeof(char*), ys = xs * size_t(h.width);
-        dfb.insertSampleCountSlice(Imf::Slice(
-            Imf::UINT, windowBase(counts.data(), h, sizeof(uint32_t)), sizeof(uint32_t), cys));
-        for (int c = 0; c < kModeFloats; ++c)
-            dfb.insert(kModeChannels[c],
-                       Imf::DeepSlice(Imf::FLOAT, windowBase(ptr[c].data(), h, xs), xs, ys,
-                                      kModeFloats * sizeof(float)));
-        dp.setFrameBuffer(dfb);
-        dp.readPixelSampleCounts(window.min.y, window.max.y);
-        uint64_t total = 0;
-        for (uint32_t c : counts) total += c;
+        for (auto it = dp.header().channels().begin(); it != dp.header().channels().end(); ++it)
+            if (it.channel().type == Imf::FLOAT) r.recordChannels.emplace_back(it.name());
+        r.recordCounts.assign(pixels, 0);
+        std::vector<std::vector<char*>> ptr;
+        dp.setFrameBuffer(stateDeepFrameBuffer(h, r, ptr));
+        dp.readPixelSampleCounts(window.min.y, window.max.y);  // the counts first, then room
+        const uint64_t total =
+            std::accumulate(r.recordCounts.begin(), r.recordCounts.end(), uint64_t(0));
         if (total > uint64_t(limits.maxDeepSamples) ||
-            total * kModeFloats * sizeof(float) > uint64_t(limits.maxBytes))
+            total * std::max<size_t>(r.recordChannels.size(), 1) * sizeof(float) >
+                uint64_t(limits.maxBytes))
             throw std::runtime_error(
                 fmt::format("part 'modes' holds {} records, beyond the limits", total));
-        std::vector<float> rec(std::max<uint64_t>(total, 1) * kModeFloats);
-        size_t k = 0;
-        for (size_t p = 0; p < pixels; ++p) {
-            for (int c = 0; c < kModeFloats; ++c)
-                ptr[c][p] = reinterpret_cast<char*>(rec.data() + k * kModeFloats + size_t(c));
-            k += counts[p];
-        }
+        r.records.resize(total * r.recordChannels.size());
+        pointRecords(r, ptr);
         dp.readPixels(window.min.y, window.max.y);
-
-        r.pixels.resize(pixels);
-        r.estimate.resize(pixels * 3);
-        k = 0;
-        for (size_t p = 0; p < pixels; ++p) {
-            PajotState& s = r.pixels[p];
-            const float* f = fl.data() + p * kPajotFloatCount;
-            const uint32_t* w = words.data() + p * kPajotWordCount;
-            auto count = [&](float v, const char* what) {
-                if (!(v >= 0.f) || v > float(kMaxExactCount) || v != std::floor(v))
-                    throw std::runtime_error(
-                        fmt::format("pixel ({}, {}): part 'pajot' {} = {} is not a count",
-                                    p % size_t(h.width), p / size_t(h.width), what, v));
-                return int64_t(v);
-            };
-            for (size_t c = 0; c < 3; ++c) r.estimate[p * 3 + c] = f[c];
-            s.splatted = count(f[4], "splatted");
-            s.discarded = count(f[5], "discarded");
-            s.taken = count(f[6], "taken");
-            const int64_t phase = count(f[7], "phase");
-            if (phase > 2)
-                throw std::runtime_error(fmt::format("pixel {}: unknown phase {}", p, phase));
-            s.phase = PajotPhase(phase);
-            s.run = int(count(f[8], "run"));
-            s.mAdr = f[9];
-            s.mRot = f[10];
-            s.rotN = count(f[11], "rotN");
-            for (size_t c = 0; c < 3; ++c) s.sum[c] = getDouble(w + 2 * c);
-            s.rotMean = getDouble(w + 6);
-            s.rotM2 = getDouble(w + 8);
-            for (uint32_t i = 0; i < counts[p]; ++i, ++k) {
-                const float* x = rec.data() + k * kModeFloats;
-                const int64_t kind = count(x[0], "kind");
-                const PajotSample smp{{x[4], x[5], x[6]}, x[1]};
-                switch (kind) {
-                    case kAdrMode:
-                        s.modes.push_back({x[1], x[2], uint32_t(count(x[3], "count"))});
-                        break;
-                    case kRotSingle:
-                        s.rotSingles.push_back(x[1]);
-                        break;
-                    case kDelayed:
-                        s.delayed.push_back(smp);
-                        break;
-                    case kLearning:
-                        s.learning.push_back(smp);
-                        break;
-                    default:
-                        throw std::runtime_error(fmt::format(
-                            "pixel {}: part 'modes' record of unknown kind {}", p, kind));
-                }
-            }
-            if (double(s.delayed.size()) != double(f[3]))
-                throw std::runtime_error(
-                    fmt::format("pixel {}: part 'pajot' says {} delayed, part 'modes' holds {}", p,
-                                f[3], s.delayed.size()));
-        }
         out = std::move(r);
     } catch (const std::bad_alloc&) {
         err = path + ": out of memory while reading the Pajot state";
@@ -755,8 +624,8 @@ class FileSampleSource : public SampleSource {
         }
         return records_.read(y0, rows, block, err);
     }
-    bool readPajot(PajotImage& out, std::string& err) override {
-        return readPajotParts(path_, out, err, limits_);
+    bool readPixelState(PixelStateParts& out, std::string& err) override {
+        return readPixelStateParts(path_, out, err, limits_);
     }
 
   private:

@@ -71,8 +71,10 @@ bool checkStatsFile(const std::string& path, StatsCheckReport& report, std::stri
         done += shareOfParts;
     }
     if (h.hasPajot) {
-        PajotImage pajot;
-        if (!readPajotParts(path, pajot, err, limits)) return false;
+        // The parts' shapes and sizes; what they mean the Pajot operation checks
+        // (readPajotParts, which `mcstat --check` runs too).
+        PixelStateParts state;
+        if (!readPixelStateParts(path, state, err, limits)) return false;
         report.pajot = true;
         if (progress) progress(1.0);
     }

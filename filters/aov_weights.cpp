@@ -1,5 +1,5 @@
-// The shared step that carries AOVs through every operation (include/mcstat/aov_weights.h).
-#include "mcstat/aov_weights.h"
+// The shared step that carries AOVs through every operation (include/mcstat/filters/aov_weights.h).
+#include "mcstat/filters/aov_weights.h"
 
 #include <cmath>
 

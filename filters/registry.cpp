@@ -1,6 +1,6 @@
 // The operation registry: one table feeds the `mcstat` commands and --help, the plugin and the
 // benchmarks; parseParamValue is the one checked parser of parameter values.
-#include "mcstat/registry.h"
+#include "mcstat/filters/registry.h"
 
 #include <cerrno>
 #include <cmath>
@@ -8,9 +8,9 @@
 #include <cstdlib>
 #include <stdexcept>
 
-#include "mcstat/jung_estimators.h"
-#include "pajot_offline.h"
-#include "rpf_offline.h"
+#include "mcstat/filters/pixel/myriad.h"
+#include "mcstat/filters/samples/pajot.h"
+#include "mcstat/filters/samples/rpf.h"
 
 namespace mcstat {
 
@@ -27,20 +27,6 @@ ParamSpec modeParam(const std::string& help) {
     p.choices = {"lum", "channel"};
     p.aliases = {{"luminance", "lum"}, {"rgb", "channel"}};
     p.help = help;
-    return p;
-}
-
-ParamSpec realParam(const std::string& name, double lo, double hi, bool loOpen,
-                    const std::string& def, const std::string& help, bool fixed = false) {
-    ParamSpec p;
-    p.name = name;
-    p.type = ParamType::Real;
-    p.min = lo;
-    p.max = hi;
-    p.minOpen = loOpen;
-    p.defaultValue = def;
-    p.help = help;
-    p.fixed = fixed;
     return p;
 }
 
@@ -132,20 +118,6 @@ Operation neighbourhood(const std::string& name, const std::string& title, const
     return op;
 }
 
-ParamSpec intParam(const std::string& name, double lo, double hi, const std::string& def,
-                   const std::string& help) {
-    ParamSpec p = realParam(name, lo, hi, false, def, help);
-    p.type = ParamType::Int;
-    return p;
-}
-
-/// A 0/1 switch (also true/false, on/off).
-ParamSpec flagParam(const std::string& name, const std::string& def, const std::string& help) {
-    ParamSpec p = intParam(name, 0, 1, def, help);
-    p.type = ParamType::Flag;
-    return p;
-}
-
 // Pajot et al. 2011 (docs/pajot.md): per pixel, its samples in the order taken.
 Operation pajot() {
     Operation op;
@@ -217,130 +189,7 @@ Operation rpf() {
     return op;
 }
 
-std::string numberText(double v, bool integer) {
-    if (v == HUGE_VAL) return "inf";
-    if (v == -HUGE_VAL) return "-inf";
-    char buf[64];
-    if (integer)
-        std::snprintf(buf, sizeof buf, "%lld", static_cast<long long>(v));
-    else
-        std::snprintf(buf, sizeof buf, "%g", v);
-    return buf;
-}
-
-bool inRange(const ParamSpec& s, double v) {
-    return (s.minOpen ? v > s.min : v >= s.min) && v <= s.max;
-}
-
-bool parseBoundedInt(const ParamSpec& s, const std::string& text, int64_t& out) {
-    int64_t v = 0;
-    if (!parseIntegerText(text, v) || !inRange(s, double(v)) || (s.odd && v % 2 == 0)) return false;
-    out = v;
-    return true;
-}
-
 }  // namespace
-
-// ---- the parser ---------------------------------------------------------------------------------
-
-bool parseIntegerText(const std::string& text, int64_t& out) {
-    if (text.empty() || std::isspace(static_cast<unsigned char>(text[0]))) return false;
-    char* end = nullptr;
-    errno = 0;
-    const long long v = std::strtoll(text.c_str(), &end, 10);
-    if (*end != '\0' || errno != 0) return false;
-    out = int64_t(v);
-    return true;
-}
-
-bool parseRealText(const std::string& text, double& out) {
-    if (text.empty() || std::isspace(static_cast<unsigned char>(text[0]))) return false;
-    char* end = nullptr;
-    errno = 0;
-    const double v = std::strtod(text.c_str(), &end);
-    if (*end != '\0' || errno != 0 || !std::isfinite(v)) return false;
-    out = v;
-    return true;
-}
-
-std::string describeParam(const ParamSpec& s) {
-    switch (s.type) {
-        case ParamType::Flag:
-            return "0 or 1";
-        case ParamType::Enum: {
-            std::string t;
-            for (size_t i = 0; i < s.choices.size(); ++i)
-                t += (i == 0                      ? ""
-                      : i + 1 == s.choices.size() ? " or "
-                                                  : ", ") +
-                     ("'" + s.choices[i] + "'");
-            return t;
-        }
-        case ParamType::Size:
-            return std::string("KxL with ") + (s.odd ? "odd " : "") + "K, L in [" +
-                   numberText(s.min, true) + ", " + numberText(s.max, true) + "] (e.g. " +
-                   s.defaultValue + ")";
-        case ParamType::Int:
-            return std::string(s.odd ? "an odd integer" : "an integer") + " in [" +
-                   numberText(s.min, true) + ", " + numberText(s.max, true) + "]";
-        case ParamType::Real:
-            if (s.max == HUGE_VAL) {
-                if (s.min == -HUGE_VAL) return "a finite number";
-                return "a finite number " + std::string(s.minOpen ? "> " : ">= ") +
-                       numberText(s.min, false);
-            }
-            return "a number in " + std::string(s.minOpen ? "(" : "[") + numberText(s.min, false) +
-                   ", " + numberText(s.max, false) + "]";
-    }
-    return "";
-}
-
-bool parseParamValue(const std::string& context, const ParamSpec& s, const std::string& text,
-                     ParamValue& out, std::string& err) {
-    ParamValue v;
-    v.type = s.type;
-    v.text = text;
-    bool ok = false;
-    switch (s.type) {
-        case ParamType::Flag:
-            if (text == "1" || text == "true" || text == "on")
-                v.integer = 1, ok = true;
-            else if (text == "0" || text == "false" || text == "off")
-                v.integer = 0, ok = true;
-            v.real = double(v.integer);
-            break;
-        case ParamType::Enum:
-            for (const std::string& c : s.choices)
-                if (text == c) v.text = c, ok = true;
-            for (const auto& [alias, choice] : s.aliases)
-                if (text == alias) v.text = choice, ok = true;
-            break;
-        case ParamType::Int:
-            ok = parseBoundedInt(s, text, v.integer);
-            v.real = double(v.integer);
-            break;
-        case ParamType::Size: {
-            const size_t x = text.find('x');
-            if (x == std::string::npos) {
-                ok = parseBoundedInt(s, text, v.integer);
-                v.integer2 = v.integer;
-            } else {
-                ok = parseBoundedInt(s, text.substr(0, x), v.integer) &&
-                     parseBoundedInt(s, text.substr(x + 1), v.integer2);
-            }
-            break;
-        }
-        case ParamType::Real:
-            ok = parseRealText(text, v.real) && inRange(s, v.real);
-            break;
-    }
-    if (!ok) {
-        err = context + ": " + s.name + " must be " + describeParam(s) + ", not '" + text + "'";
-        return false;
-    }
-    out = std::move(v);
-    return true;
-}
 
 // ---- the table ----------------------------------------------------------------------------------
 

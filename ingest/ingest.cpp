@@ -17,7 +17,7 @@
 #include <memory>
 #include <set>
 
-#include "mcstat/render_layout.h"
+#include "mcstat/image/render_layout.h"
 
 namespace mcstat {
 
@@ -367,9 +367,12 @@ bool readRenderRGB(const std::string& path, const std::string& layer, OIIO::Imag
     return true;
 }
 
-bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& opt, StatsImage& out,
-                   IngestReport& report, std::string& err) {
-    report = IngestReport();
+namespace {
+
+/// Refuses a request no file can satisfy: no files, more than a statistics file's sub-buffers,
+/// samples per file out of range.
+bool checkRequest(const std::vector<std::string>& paths, const IngestOptions& opt,
+                  std::string& err) {
     if (paths.empty()) {
         err = "no input files";
         return false;
@@ -383,121 +386,176 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
         err = fmt::format("samples per file {} out of range 1..2^24", opt.spp);
         return false;
     }
-    // 1. Every header first: layouts, channels, spp; nothing is allocated before they agree.
-    std::vector<InputFile> files(paths.size());
-    for (size_t j = 0; j < paths.size(); ++j) {
-        InputFile& f = files[j];
-        if (!openInput(paths[j], f, err)) return false;
-        std::string problem;
-        // Every file uses the first file's beauty layer, so a file cannot switch layers.
-        const std::string layer =
-            j == 0 ? opt.layer
-                   : (files[0].beauty.layer.empty() ? std::string(".") : files[0].beauty.layer);
-        if (j > 0 && !sameLayout(files[0], f, err)) return false;
-        if (!findBeauty(f.names, layer, f.beauty, problem)) {
-            err = f.path + ": " + problem;
-            return false;
-        }
-        f.features = findFeatures(f.names, f.beauty);
-        f.spp = opt.spp > 0 ? opt.spp : sppFromMetadata(f.spec, f.beauty, f.sppKey);
-        if (f.spp <= 0) {
-            err = fmt::format(
-                "{}: the file does not say how many samples per pixel it holds (looked for "
-                "mcstat:spp, samplesPerPixel, cycles.<ViewLayer>.samples); give "
-                "--ingest:spp=N",
-                f.path);
-            return false;
-        }
-        if (double(f.spp) > kMaxCount) {
-            err = fmt::format("{}: {} samples per pixel exceeds 2^24", f.path, f.spp);
-            return false;
-        }
-        report.spp.push_back(f.spp);
-        f.in.reset();  // closed until its pixels are read: 999 inputs must not hold 999 files open
-    }
-    const InputFile& first = files[0];
-    report.beauty = first.beauty;
-    report.features = first.features;
-    const int W = first.spec.width, H = first.spec.height, M = int(files.size());
-    const int64_t pixels = int64_t(W) * int64_t(H);
-    if (W <= 0 || H <= 0) {
-        err = fmt::format("{}: empty image {}x{}", first.path, W, H);
-        return false;
-    }
-    if (pixels > opt.limits.maxPixels) {
-        err = fmt::format("{}: image {}x{} exceeds the limit of {} pixels", first.path, W, H,
-                          opt.limits.maxPixels);
-        return false;
-    }
+    return true;
+}
+
+/// What the three phases of ingestRenders share: the files, what their headers settled, the
+/// result being built.
+struct Ingest {
+    Ingest(const IngestOptions& options, IngestReport& rep) : opt(options), report(rep) {}
+
+    const IngestOptions& opt;
+    IngestReport& report;
+    std::vector<InputFile> files;
     // Every channel but the beauty, kept per sub-buffer (docs/aovs.md).
     std::vector<AovChannel> aovs;
-    std::vector<int> aovIndex;
-    if (opt.aovs) aovIndex = aovChannelsOf(first, opt, aovs);
-    if (aovs.size() > size_t(kMaxAovs)) {
-        err = fmt::format("{}: {} channels besides the beauty; a statistics file holds at most {}",
-                          first.path, aovs.size(), kMaxAovs);
+    std::vector<int> aovIndex;  ///< the channel index in every file of each of `aovs`
+    double totalSpp = 0.0;      ///< samples per pixel over every file
+    StatsImage img;
+    std::vector<double> featureSum;  // N xyz, P xyz, Albedo rgb, Z; only when a feature exists
+    // Phase 2: blocks of rows read so far (for opt.progress), the RGB hash of each file read.
+    int64_t blocksDone = 0;
+    std::vector<uint64_t> hashes;
+
+    const InputFile& first() const { return files[0]; }
+    int width() const { return files[0].spec.width; }
+    int height() const { return files[0].spec.height; }
+    int buffers() const { return int(files.size()); }  ///< M: one sub-buffer per file
+};
+
+/// Opens file j and reads its header: its layout against the first file's, its beauty and
+/// feature channels, its samples per pixel.
+bool readHeader(Ingest& s, size_t j, const std::string& path, std::string& err) {
+    InputFile& f = s.files[j];
+    if (!openInput(path, f, err)) return false;
+    std::string problem;
+    // Every file uses the first file's beauty layer, so a file cannot switch layers.
+    const std::string layer =
+        j == 0 ? s.opt.layer
+               : (s.files[0].beauty.layer.empty() ? std::string(".") : s.files[0].beauty.layer);
+    if (j > 0 && !sameLayout(s.files[0], f, err)) return false;
+    if (!findBeauty(f.names, layer, f.beauty, problem)) {
+        err = f.path + ": " + problem;
         return false;
     }
-    for (const AovChannel& a : aovs)
+    f.features = findFeatures(f.names, f.beauty);
+    f.spp = s.opt.spp > 0 ? s.opt.spp : sppFromMetadata(f.spec, f.beauty, f.sppKey);
+    if (f.spp <= 0) {
+        err = fmt::format(
+            "{}: the file does not say how many samples per pixel it holds (looked for "
+            "mcstat:spp, samplesPerPixel, cycles.<ViewLayer>.samples); give "
+            "--ingest:spp=N",
+            f.path);
+        return false;
+    }
+    if (double(f.spp) > kMaxCount) {
+        err = fmt::format("{}: {} samples per pixel exceeds 2^24", f.path, f.spp);
+        return false;
+    }
+    s.report.spp.push_back(f.spp);
+    f.in.reset();  // closed until its pixels are read: 999 inputs must not hold 999 files open
+    return true;
+}
+
+/// Refuses an empty image or one larger than the limit of pixels.
+bool checkImageSize(const Ingest& s, std::string& err) {
+    const int W = s.width(), H = s.height();
+    const int64_t pixels = int64_t(W) * int64_t(H);
+    if (W <= 0 || H <= 0) {
+        err = fmt::format("{}: empty image {}x{}", s.first().path, W, H);
+        return false;
+    }
+    if (pixels > s.opt.limits.maxPixels) {
+        err = fmt::format("{}: image {}x{} exceeds the limit of {} pixels", s.first().path, W, H,
+                          s.opt.limits.maxPixels);
+        return false;
+    }
+    return true;
+}
+
+/// Chooses the AOVs (every channel but the beauty, unless :aovs=0) within the format's limits.
+bool chooseAovs(Ingest& s, std::string& err) {
+    const InputFile& first = s.first();
+    if (s.opt.aovs) s.aovIndex = aovChannelsOf(first, s.opt, s.aovs);
+    if (s.aovs.size() > size_t(kMaxAovs)) {
+        err = fmt::format("{}: {} channels besides the beauty; a statistics file holds at most {}",
+                          first.path, s.aovs.size(), kMaxAovs);
+        return false;
+    }
+    for (const AovChannel& a : s.aovs)
         if (a.name.size() > kMaxAovNameBytes) {
             err = fmt::format("{}: channel name '{}...' is longer than {} bytes", first.path,
                               a.name.substr(0, 40), kMaxAovNameBytes);
             return false;
         }
-    const size_t A = aovs.size();
-    report.aovs = aovs;
-    if (!opt.aovs && first.names.size() > 3)
-        report.warnings.push_back(
+    s.report.aovs = s.aovs;
+    if (!s.opt.aovs && first.names.size() > 3)
+        s.report.warnings.push_back(
             fmt::format("{}: {} channels besides the beauty's R, G, B left out as asked (:aovs=0)",
                         first.path, first.names.size() - 3));
+    return true;
+}
+
+/// Refuses a result larger than the limit of bytes or with more samples than a count holds, and
+/// warns about unequal samples per file and about a single file.
+bool checkTotals(Ingest& s, std::string& err) {
+    const InputFile& first = s.first();
+    const int W = s.width(), H = s.height(), M = s.buffers();
+    const int64_t pixels = int64_t(W) * int64_t(H);
     // The statistics image, plus 10 doubles per pixel for the feature sums when there are any.
     const double featureBytes = first.features.present != 0 ? 80.0 : 0.0;
     const double bytes = double(pixels) * (double(3 + 4 * M + 7 + 11) * 4.0 +
-                                           double(M) * double(A) * 4.0 + featureBytes);
-    if (bytes > double(opt.limits.maxBytes)) {
+                                           double(M) * double(s.aovs.size()) * 4.0 + featureBytes);
+    if (bytes > double(s.opt.limits.maxBytes)) {
         err = fmt::format("{} renders of {}x{} need {:.0f} bytes, exceeding the limit of {} bytes",
-                          M, W, H, bytes, opt.limits.maxBytes);
+                          M, W, H, bytes, s.opt.limits.maxBytes);
         return false;
     }
-    double totalSpp = 0.0;
-    for (int64_t s : report.spp) totalSpp += double(s);
-    if (totalSpp > kMaxCount) {
+    for (int64_t spp : s.report.spp) s.totalSpp += double(spp);
+    if (s.totalSpp > kMaxCount) {
         err = fmt::format("{} samples per pixel in all exceed 2^24 (counts are float32 integers)",
-                          totalSpp);
+                          s.totalSpp);
         return false;
     }
+    const std::vector<InputFile>& files = s.files;
     for (size_t j = 1; j < files.size(); ++j)
         if (files[j].spp != files[0].spp) {
-            report.warnings.push_back(fmt::format(
+            s.report.warnings.push_back(fmt::format(
                 "samples per file differ ({} in {}, {} in {}): sub-buffers of unequal counts; "
                 "median-of-means estimators assume equal ones",
                 files[0].spp, files[0].path, files[j].spp, files[j].path));
             break;
         }
     if (M == 1)
-        report.warnings.push_back(fmt::format(
+        s.report.warnings.push_back(fmt::format(
             "{}: only one file, so M = 1: every robust estimator returns the plain mean, and the "
             "variance is unknown",
             first.path));
-    const unsigned features = first.features.present;
+    return true;
+}
 
-    StatsImage img;
-    StatsHeader& h = img.header;
+/// 1. Every header first: layouts, channels, spp; nothing is allocated before they agree.
+bool readHeaders(const std::vector<std::string>& paths, Ingest& s, std::string& err) {
+    s.files.resize(paths.size());
+    for (size_t j = 0; j < paths.size(); ++j)
+        if (!readHeader(s, j, paths[j], err)) return false;
+    s.report.beauty = s.first().beauty;
+    s.report.features = s.first().features;
+    return checkImageSize(s, err) && chooseAovs(s, err) && checkTotals(s, err);
+}
+
+/// The result's header: its size and buffers, where its samples came from and (version 5) what
+/// the render looked like.
+void fillHeader(Ingest& s) {
+    const InputFile& first = s.first();
+    const std::vector<InputFile>& files = s.files;
+    const int M = s.buffers();
+    StatsHeader& h = s.img.header;
     h.formatVersion = kStatsFormatVersionProvenance;
-    h.width = W;
-    h.height = H;
+    h.width = s.width();
+    h.height = s.height();
     h.originX = first.spec.x;
     h.originY = first.spec.y;
     h.M = M;
-    h.spp = int64_t(totalSpp);
+    h.spp = int64_t(s.totalSpp);
     h.assignment = kAssignmentPerFile;
     h.variance = M >= 2 ? kVarianceBuffers : kVarianceUnknown;
-    h.features = features;
+    h.features = first.features.present;
     h.renderer = rendererOf(first.spec) + " via mcstat --ingest";
     for (size_t j = 0; j < files.size(); ++j)
         h.sources += (j ? "," : "") + OIIO::Filesystem::filename(files[j].path);
     // Version 5: what the render looked like, so that a result can replace one input.
-    h.aovs = aovs;
+    h.aovs = s.aovs;
     for (size_t c = 0; c < 3; ++c) h.beautyNames[c] = first.names[size_t(first.beauty.index[c])];
     h.beautyPart = first.partNames[size_t(first.where[size_t(first.beauty.index[0])].first)];
     const ImageSpec& fsp = first.spec;
@@ -510,158 +568,238 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
     }
     h.sourceMetadata = sourceMetadataJson(fsp);
     h.formatVersion = std::max(kStatsFormatVersionProvenance, requiredFormatVersion(h));
+}
+
+/// Allocates the result's arrays, its AOVs and the feature sums.
+bool allocateResult(Ingest& s, std::string& err) {
+    const int W = s.width(), H = s.height();
+    StatsImage& img = s.img;
     if (!img.allocate(err)) return false;
     try {
-        img.aov.assign(img.pixelCount() * size_t(M) * A, 0.f);
+        img.aov.assign(img.pixelCount() * size_t(s.buffers()) * s.aovs.size(), 0.f);
     } catch (const std::exception& e) {
         err = fmt::format("cannot allocate the AOVs of {}x{}: {}", W, H, e.what());
         return false;
     }
-    const size_t npix = size_t(pixels);
-    std::vector<double> featureSum;  // N xyz, P xyz, Albedo rgb, Z; only when a feature exists
+    const size_t npix = size_t(int64_t(W) * int64_t(H));
     try {
-        if (features != 0) featureSum.assign(npix * 10, 0.0);
+        if (s.first().features.present != 0) s.featureSum.assign(npix * 10, 0.0);
     } catch (const std::exception& e) {
         err = fmt::format("cannot allocate the feature sums for {}x{}: {}", W, H, e.what());
         return false;
     }
+    return true;
+}
 
-    // 2. Pixels, file by file, in blocks of rows (memory: one block per file at a time).
-    const int rowsPerBlock = std::max(1, opt.rowsPerBlock);
-    const int64_t blocksPerFile = (H + rowsPerBlock - 1) / rowsPerBlock;
-    int64_t blocksDone = 0;
-    std::vector<uint64_t> hashes;
-    std::vector<float> rows;
-    for (size_t j = 0; j < files.size(); ++j) {
-        InputFile& f = files[j];
-        f.in = ImageInput::open(f.path);
-        if (!f.in || f.in->spec().x != f.spec.x || f.in->spec().y != f.spec.y ||
-            f.in->spec().width != f.spec.width || f.in->spec().height != f.spec.height ||
-            f.in->spec().nchannels != f.spec.nchannels) {
-            err = f.in ? f.path + ": changed while being ingested"
-                       : fmt::format("{}: {}", f.path, oneLine(OIIO::geterror()));
+/// Reopens `f` for its pixels, refusing it if it changed since its header was read.
+bool reopenInput(InputFile& f, std::string& err) {
+    f.in = ImageInput::open(f.path);
+    if (!f.in || f.in->spec().x != f.spec.x || f.in->spec().y != f.spec.y ||
+        f.in->spec().width != f.spec.width || f.in->spec().height != f.spec.height ||
+        f.in->spec().nchannels != f.spec.nchannels) {
+        err = f.in ? f.path + ": changed while being ingested"
+                   : fmt::format("{}: {}", f.path, oneLine(OIIO::geterror()));
+        return false;
+    }
+    return true;
+}
+
+/// The channels read from `f`: the beauty, the features, the AOVs (-1 for an absent one).
+std::vector<int> usedChannels(const InputFile& f, const std::vector<int>& aovIndex) {
+    std::vector<int> used(f.beauty.index.begin(), f.beauty.index.end());
+    for (int i : f.features.normal) used.push_back(i);
+    for (int i : f.features.position) used.push_back(i);
+    for (int i : f.features.albedo) used.push_back(i);
+    used.push_back(f.features.depth);
+    for (int i : aovIndex) used.push_back(i);
+    return used;
+}
+
+/// One block of rows of file j as read into `rows`: read r (one per subimage) at `base[r]`.
+struct RowBlock {
+    InputFile& f;
+    size_t j;  ///< the file's index, which is its sub-buffer's
+    std::vector<SubimageRead> reads;
+    std::vector<float>& rows;
+    std::vector<size_t> base;
+    int y0 = 0;
+    size_t pixels = 0;  ///< pixels in the block
+};
+
+/// Reads rows [b.y0, y1) of the channels of b.reads into b.rows.
+bool readBlock(RowBlock& b, int y1, int W, std::string& err) {
+    b.pixels = size_t(y1 - b.y0) * size_t(W);
+    // One contiguous read per subimage; `value(i, q)` is channel i at block pixel q.
+    b.base.assign(b.reads.size(), 0);
+    size_t total = 0;
+    for (size_t r = 0; r < b.reads.size(); ++r) {
+        b.base[r] = total;
+        total += b.pixels * size_t(b.reads[r].chend - b.reads[r].chbegin);
+    }
+    b.rows.resize(total);
+    for (size_t r = 0; r < b.reads.size(); ++r)
+        if (!b.f.in->read_scanlines(b.reads[r].subimage, 0, b.f.spec.y + b.y0, b.f.spec.y + y1, 0,
+                                    b.reads[r].chbegin, b.reads[r].chend, TypeDesc::FLOAT,
+                                    b.rows.data() + b.base[r])) {
+            err = fmt::format("{}: {}", b.f.path, oneLine(b.f.in->geterror()));
             return false;
         }
-        const double n = double(f.spp);
-        std::vector<int> used(f.beauty.index.begin(), f.beauty.index.end());
-        for (int i : f.features.normal) used.push_back(i);
-        for (int i : f.features.position) used.push_back(i);
-        for (int i : f.features.albedo) used.push_back(i);
-        used.push_back(f.features.depth);
-        for (int i : aovIndex) used.push_back(i);
-        const std::vector<SubimageRead> reads = readsFor(f, used);
-        int64_t nonFiniteAov = 0;
-        // Where each used channel lands in the block read of its subimage.
-        uint64_t hash = kFnvBasis;
-        int64_t nonFinite = 0, nonFinitePixels = 0;
-        for (int y0 = 0; y0 < H; y0 += rowsPerBlock) {
-            const int y1 = std::min(H, y0 + rowsPerBlock);
-            const size_t bpix = size_t(y1 - y0) * size_t(W);
-            // One contiguous read per subimage; `value(i, q)` is channel i at block pixel q.
-            std::vector<size_t> base(reads.size());
-            size_t total = 0;
-            for (size_t r = 0; r < reads.size(); ++r) {
-                base[r] = total;
-                total += bpix * size_t(reads[r].chend - reads[r].chbegin);
-            }
-            rows.resize(total);
-            for (size_t r = 0; r < reads.size(); ++r)
-                if (!f.in->read_scanlines(reads[r].subimage, 0, f.spec.y + y0, f.spec.y + y1, 0,
-                                          reads[r].chbegin, reads[r].chend, TypeDesc::FLOAT,
-                                          rows.data() + base[r])) {
-                    err = fmt::format("{}: {}", f.path, oneLine(f.in->geterror()));
-                    return false;
-                }
-            const auto locate = [&](int i, size_t& off, size_t& stride) {
-                const auto [sub, ch] = f.where[size_t(i)];
-                for (size_t r = 0; r < reads.size(); ++r)
-                    if (reads[r].subimage == sub) {
-                        stride = size_t(reads[r].chend - reads[r].chbegin);
-                        off = base[r] + size_t(ch - reads[r].chbegin);
-                    }
-            };
-            size_t rgbOff[3], rgbStride[3];
-            for (int c = 0; c < 3; ++c) locate(f.beauty.index[size_t(c)], rgbOff[c], rgbStride[c]);
-            for (size_t q = 0; q < bpix; ++q) {
-                const size_t p = size_t(y0) * size_t(W) + q;
-                float rgb[3];
-                bool finite = true;
-                for (int c = 0; c < 3; ++c) {
-                    rgb[c] = rows[rgbOff[c] + q * rgbStride[c]];
-                    if (!std::isfinite(rgb[c])) {
-                        ++nonFinite;
-                        finite = false;
-                    }
-                }
-                nonFinitePixels += !finite;
-                hash = fnv1a(hash, rgb, sizeof rgb);
-                const size_t k = p * size_t(M) + j;
-                for (int c = 0; c < 3; ++c) img.bufferMean[k * 3 + size_t(c)] = rgb[c];
-                img.bufferCount[k] = float(n);
-            }
-            // Features: count-weighted sums in double (the file's value stands for its n samples).
-            const auto addFeature = [&](int i, size_t slot) {
-                if (i < 0) return;
-                size_t off = 0, stride = 1;
-                locate(i, off, stride);
-                for (size_t q = 0; q < bpix; ++q)
-                    featureSum[(size_t(y0) * size_t(W) + q) * 10 + slot] +=
-                        n * double(rows[off + q * stride]);
-            };
-            for (size_t c = 0; c < 3; ++c) {
-                addFeature(f.features.normal[c], c);
-                addFeature(f.features.position[c], 3 + c);
-                addFeature(f.features.albedo[c], 6 + c);
-            }
-            addFeature(f.features.depth, 9);
-            // AOVs: file j's values are sub-buffer j's, as the beauty's are.
-            for (size_t a = 0; a < A; ++a) {
-                size_t off = 0, stride = 1;
-                locate(aovIndex[a], off, stride);
-                for (size_t q = 0; q < bpix; ++q) {
-                    const size_t k = (size_t(y0) * size_t(W) + q) * size_t(M) + j;
-                    const float v = rows[off + q * stride];
-                    nonFiniteAov += !std::isfinite(v);
-                    img.aov[k * A + a] = v;
-                }
-            }
-            ++blocksDone;
-            if (opt.progress) opt.progress(blocksDone, blocksPerFile * int64_t(files.size()));
-        }
-        for (size_t i = 0; i < hashes.size(); ++i)
-            if (hashes[i] == hash) {
-                err = fmt::format("{}: holds the same RGB pixels as {} (the same render twice?)",
-                                  f.path, files[i].path);
-                return false;
-            }
-        hashes.push_back(hash);
-        h.seeds += fmt::format("{}h{:016x}", j ? "," : "", hash);
-        if (nonFinite) {
-            report.nonFiniteValues += nonFinite;
-            report.warnings.push_back(fmt::format(
-                "{}: {} non-finite RGB values (NaN/Inf) in {} pixels: the plain mean there is "
-                "non-finite; the robust estimators leave that sub-buffer out",
-                f.path, nonFinite, nonFinitePixels));
-        }
-        if (nonFiniteAov) {
-            report.nonFiniteAovValues += nonFiniteAov;
-            report.warnings.push_back(fmt::format(
-                "{}: {} non-finite AOV values (NaN/Inf): each is left out of its channel alone, "
-                "the other sub-buffers' weights renormalised (docs/aovs.md)",
-                f.path, nonFiniteAov));
-        }
-        f.in.reset();  // close each file once read
-    }
+    return true;
+}
 
-    // 3. Moments from the buffers, in double; features normalised; absent ones NaN.
-    const double N = totalSpp;
+/// Where channel i lands in the block read of its subimage: `off` of block pixel 0 and `stride`
+/// from one pixel to the next.
+void locate(const RowBlock& b, int i, size_t& off, size_t& stride) {
+    const auto [sub, ch] = b.f.where[size_t(i)];
+    for (size_t r = 0; r < b.reads.size(); ++r)
+        if (b.reads[r].subimage == sub) {
+            stride = size_t(b.reads[r].chend - b.reads[r].chbegin);
+            off = b.base[r] + size_t(ch - b.reads[r].chbegin);
+        }
+}
+
+/// What one file's pixels showed: the hash of its RGB (the same render twice) and its NaN/Inf.
+struct FileTally {
+    uint64_t hash = kFnvBasis;
+    int64_t nonFinite = 0, nonFinitePixels = 0, nonFiniteAov = 0;
+};
+
+/// Stores a block's RGB as sub-buffer j's mean with the file's count, hashing and tallying it.
+void storeRGB(Ingest& s, const RowBlock& b, FileTally& t) {
+    const size_t W = size_t(s.width()), M = size_t(s.buffers());
+    const double n = double(b.f.spp);
+    size_t rgbOff[3], rgbStride[3];
+    for (int c = 0; c < 3; ++c) locate(b, b.f.beauty.index[size_t(c)], rgbOff[c], rgbStride[c]);
+    for (size_t q = 0; q < b.pixels; ++q) {
+        const size_t p = size_t(b.y0) * W + q;
+        float rgb[3];
+        bool finite = true;
+        for (int c = 0; c < 3; ++c) {
+            rgb[c] = b.rows[rgbOff[c] + q * rgbStride[c]];
+            if (!std::isfinite(rgb[c])) {
+                ++t.nonFinite;
+                finite = false;
+            }
+        }
+        t.nonFinitePixels += !finite;
+        t.hash = fnv1a(t.hash, rgb, sizeof rgb);
+        const size_t k = p * M + b.j;
+        for (int c = 0; c < 3; ++c) s.img.bufferMean[k * 3 + size_t(c)] = rgb[c];
+        s.img.bufferCount[k] = float(n);
+    }
+}
+
+/// Adds a block's features to the sums.
+void addFeatures(Ingest& s, const RowBlock& b) {
+    const size_t W = size_t(s.width());
+    const double n = double(b.f.spp);
+    // Features: count-weighted sums in double (the file's value stands for its n samples).
+    const auto addFeature = [&](int i, size_t slot) {
+        if (i < 0) return;
+        size_t off = 0, stride = 1;
+        locate(b, i, off, stride);
+        for (size_t q = 0; q < b.pixels; ++q)
+            s.featureSum[(size_t(b.y0) * W + q) * 10 + slot] +=
+                n * double(b.rows[off + q * stride]);
+    };
+    const FeatureChannels& features = b.f.features;
+    for (size_t c = 0; c < 3; ++c) {
+        addFeature(features.normal[c], c);
+        addFeature(features.position[c], 3 + c);
+        addFeature(features.albedo[c], 6 + c);
+    }
+    addFeature(features.depth, 9);
+}
+
+/// Stores a block's AOVs in sub-buffer j, tallying their NaN/Inf.
+void storeAovs(Ingest& s, const RowBlock& b, FileTally& t) {
+    const size_t W = size_t(s.width()), M = size_t(s.buffers()), A = s.aovs.size();
+    // AOVs: file j's values are sub-buffer j's, as the beauty's are.
+    for (size_t a = 0; a < A; ++a) {
+        size_t off = 0, stride = 1;
+        locate(b, s.aovIndex[a], off, stride);
+        for (size_t q = 0; q < b.pixels; ++q) {
+            const size_t k = (size_t(b.y0) * W + q) * M + b.j;
+            const float v = b.rows[off + q * stride];
+            t.nonFiniteAov += !std::isfinite(v);
+            s.img.aov[k * A + a] = v;
+        }
+    }
+}
+
+/// Reads file j's pixels, block by block, into sub-buffer j; `rows` is the block's memory.
+bool readFilePixels(Ingest& s, size_t j, std::vector<float>& rows, FileTally& t, std::string& err) {
+    InputFile& f = s.files[j];
+    if (!reopenInput(f, err)) return false;
+    const int W = s.width(), H = s.height();
+    const int rowsPerBlock = std::max(1, s.opt.rowsPerBlock);
+    const int64_t blocksPerFile = (H + rowsPerBlock - 1) / rowsPerBlock;
+    RowBlock b{f, j, readsFor(f, usedChannels(f, s.aovIndex)), rows, {}, 0, 0};
+    for (b.y0 = 0; b.y0 < H; b.y0 += rowsPerBlock) {
+        if (!readBlock(b, std::min(H, b.y0 + rowsPerBlock), W, err)) return false;
+        storeRGB(s, b, t);
+        addFeatures(s, b);
+        storeAovs(s, b, t);
+        ++s.blocksDone;
+        if (s.opt.progress) s.opt.progress(s.blocksDone, blocksPerFile * int64_t(s.files.size()));
+    }
+    return true;
+}
+
+/// After file j's pixels: refuses a second copy of a render, records the file's hash and warns
+/// about its NaN/Inf; closes the file.
+bool finishFile(Ingest& s, size_t j, const FileTally& t, std::string& err) {
+    InputFile& f = s.files[j];
+    for (size_t i = 0; i < s.hashes.size(); ++i)
+        if (s.hashes[i] == t.hash) {
+            err = fmt::format("{}: holds the same RGB pixels as {} (the same render twice?)",
+                              f.path, s.files[i].path);
+            return false;
+        }
+    s.hashes.push_back(t.hash);
+    s.img.header.seeds += fmt::format("{}h{:016x}", j ? "," : "", t.hash);
+    if (t.nonFinite) {
+        s.report.nonFiniteValues += t.nonFinite;
+        s.report.warnings.push_back(fmt::format(
+            "{}: {} non-finite RGB values (NaN/Inf) in {} pixels: the plain mean there is "
+            "non-finite; the robust estimators leave that sub-buffer out",
+            f.path, t.nonFinite, t.nonFinitePixels));
+    }
+    if (t.nonFiniteAov) {
+        s.report.nonFiniteAovValues += t.nonFiniteAov;
+        s.report.warnings.push_back(fmt::format(
+            "{}: {} non-finite AOV values (NaN/Inf): each is left out of its channel alone, "
+            "the other sub-buffers' weights renormalised (docs/aovs.md)",
+            f.path, t.nonFiniteAov));
+    }
+    f.in.reset();  // close each file once read
+    return true;
+}
+
+/// 2. Pixels, file by file, in blocks of rows (memory: one block per file at a time).
+bool readPixels(Ingest& s, std::string& err) {
+    std::vector<float> rows;
+    for (size_t j = 0; j < s.files.size(); ++j) {
+        FileTally t;
+        if (!readFilePixels(s, j, rows, t, err) || !finishFile(s, j, t, err)) return false;
+    }
+    return true;
+}
+
+/// 3. Moments from the buffers, in double; features normalised; absent ones NaN.
+void computeMoments(Ingest& s) {
+    StatsImage& img = s.img;
+    const size_t npix = size_t(int64_t(s.width()) * int64_t(s.height()));
+    const size_t M = size_t(s.buffers());
+    const unsigned features = s.first().features.present;
+    const double N = s.totalSpp;
     const float nan = std::numeric_limits<float>::quiet_NaN();
     for (size_t p = 0; p < npix; ++p) {
         img.count[p] = float(N);
         for (size_t c = 0; c < 3; ++c) {
             double sum = 0.0;
-            for (size_t j = 0; j < size_t(M); ++j) {
-                const size_t k = p * size_t(M) + j;
+            for (size_t j = 0; j < M; ++j) {
+                const size_t k = p * M + j;
                 sum += double(img.bufferCount[k]) * double(img.bufferMean[k * 3 + c]);
             }
             const double mean = sum / N;
@@ -676,7 +814,7 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
             img.depth[p] = nan;
             continue;
         }
-        const double* fs = &featureSum[p * 10];
+        const double* fs = &s.featureSum[p * 10];
         for (size_t c = 0; c < 3; ++c) {
             img.normal[p * 3 + c] = features & kFeatureNormal ? float(fs[c] / N) : nan;
             img.position[p * 3 + c] = features & kFeaturePosition ? float(fs[3 + c] / N) : nan;
@@ -684,7 +822,21 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
         }
         img.depth[p] = features & kFeatureDepth ? float(fs[9] / N) : nan;
     }
-    out = std::move(img);
+}
+
+}  // namespace
+
+bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& opt, StatsImage& out,
+                   IngestReport& report, std::string& err) {
+    report = IngestReport();
+    if (!checkRequest(paths, opt, err)) return false;
+    Ingest s{opt, report};
+    if (!readHeaders(paths, s, err)) return false;
+    fillHeader(s);
+    if (!allocateResult(s, err)) return false;
+    if (!readPixels(s, err)) return false;
+    computeMoments(s);
+    out = std::move(s.img);
     return true;
 }
 

@@ -38,9 +38,9 @@
 #include <vector>
 
 #include "mcstat/color.h"
-#include "mcstat/imageops.h"
-#include "mcstat/registry.h"
-#include "mcstat/render_layout.h"
+#include "mcstat/filters/registry.h"
+#include "mcstat/image/imageops.h"
+#include "mcstat/image/render_layout.h"
 #include "mcstat/stats_file.h"
 
 #ifndef MCSTAT_VERSION
@@ -295,9 +295,32 @@ class McstatInput final : public ImageInput {
         m_spec = ImageSpec();
     }
     bool openImpl(const std::string& name, ImageSpec& newspec, const ImageSpec& config);
+    /// Reads the operation and its parameters (`kv`, as given) from `config` and the file name
+    /// into m_op, m_values, m_path, m_luma; false with errorfmt called.
+    bool readParameters(const std::string& name, const ImageSpec& config,
+                        std::map<std::string, std::string>& kv);
+    /// Reads the file's validated headers into m_header and its identity; false with errorfmt.
+    bool readHeader();
+    /// The channels of the estimate (a per-sample operation runs for them); false with errorfmt.
+    bool estimateChannels(std::vector<std::string>& estChannels);
+    /// Shared specification: data window, float pixels, the file's header attributes.
+    ImageSpec makeSpec(const std::vector<std::string>& channels, const char* subname) const;
+    /// Names the operation and every settable parameter's value in `s`.
+    void describeEstimator(ImageSpec& s, const std::map<std::string, std::string>& kv) const;
+    /// Subimage 0: the operation's result, then the AOVs.
+    void makeRobustSub(const std::map<std::string, std::string>& kv, size_t nAovs);
+    /// Subimage 2: the estimator's diagnostics and the counts.
+    void makeDiagnosticsSub(const std::vector<std::string>& estChannels, size_t nAovs,
+                            const std::map<std::string, std::string>& kv);
+    /// Subimage 1: the stored mean.
+    void makeMeanSub();
+    /// Subimage 3: the features the file holds; none at all lowers m_nsubs.
+    void makeFeaturesSub();
     /// The cached source `s`, computed (once per process) if needed; null with errorfmt called.
     const Computed* source(Source s);
     bool computeSource(Source s, Computed& out, std::string& err);
+    /// computeSource of kEstimate and kEstimateDiag: runs the operation.
+    bool computeEstimate(Source s, Computed& out, std::string& err);
     std::string cacheKey(Source s) const;
     bool copyRows(int subimage, int miplevel, int ybegin, int yend, int chbegin, int chend,
                   void* data);
@@ -350,9 +373,26 @@ bool McstatInput::open(const std::string& name, ImageSpec& newspec, const ImageS
 bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const ImageSpec& config) {
     reset();
     m_name = name;
-
-    // Parameters: the configuration first, then the file name (which wins).
     std::map<std::string, std::string> kv;
+    if (!readParameters(name, config, kv) || !readHeader()) return false;
+    std::vector<std::string> estChannels;
+    if (!estimateChannels(estChannels)) return false;
+    // With AOVs (format version 5) they follow the diagnostics (imageops.h).
+    const size_t nAovs = m_op->input != mcstat::InputKind::Samples ? m_header.aovs.size() : 0;
+    makeRobustSub(kv, nAovs);
+    makeDiagnosticsSub(estChannels, nAovs, kv);
+    makeMeanSub();
+    makeFeaturesSub();
+
+    m_current = kRobust;
+    m_spec = m_subs[kRobust].spec;
+    newspec = m_spec;
+    return true;
+}
+
+bool McstatInput::readParameters(const std::string& name, const ImageSpec& config,
+                                 std::map<std::string, std::string>& kv) {
+    // Parameters: the configuration first, then the file name (which wins).
     const size_t prefixLen = std::strlen(kConfigPrefix);
     for (const ParamValue& p : config.extra_attribs) {
         const std::string attr = p.name().string();
@@ -386,74 +426,84 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     m_op = est;
     m_path = path;
     m_luma = mcstat::lumaCoefficients();
+    return true;
+}
 
+bool McstatInput::readHeader() {
     // The headers, validated (the message names the file); pixels wait for the first read.
     {
+        std::string err;
         mcstat::StatsFileReader reader;
-        if (!reader.open(path, err)) {
+        if (!reader.open(m_path, err)) {
             errorfmt("{}", err);
             return false;
         }
         m_header = reader.header();
     }
-    if (!fileIdentity(path, m_identity)) {
-        errorfmt("{}: cannot stat the file", path);
+    if (!fileIdentity(m_path, m_identity)) {
+        errorfmt("{}: cannot stat the file", m_path);
         return false;
     }
-    const mcstat::StatsHeader& h = m_header;
+    return true;
+}
 
+bool McstatInput::estimateChannels(std::vector<std::string>& estChannels) {
     // The estimate's channels: R, G, B, then an estimator's diagnostics (gini/kept/excluded).
     // A per-sample operation's extra channels are known only once it ran: it runs now.
-    // With AOVs (format version 5) they follow the diagnostics (imageops.h).
-    std::vector<std::string> estChannels = mcstat::operationChannels(*est, m_values, true, &h);
-    const size_t nAovs = est->input != mcstat::InputKind::Samples ? h.aovs.size() : 0;
-    const bool samples = est->input == mcstat::InputKind::Samples;
-    if (samples) {
+    estChannels = mcstat::operationChannels(*m_op, m_values, true, &m_header);
+    if (m_op->input == mcstat::InputKind::Samples) {
         const Computed* c = source(kEstimate);
         if (!c) return false;
         estChannels = c->channels;
     }
     if (estChannels.size() < 3) {
-        errorfmt("{}: the estimate has an unexpected layout", path);
+        errorfmt("{}: the estimate has an unexpected layout", m_path);
         return false;
     }
+    return true;
+}
 
-    // Shared specification: data window, float pixels, the file's header attributes.
-    auto makeSpec = [&](const std::vector<std::string>& channels, const char* subname) {
-        ImageSpec s(h.width, h.height, int(channels.size()), TypeFloat);
-        mcstat::setWindows(s, mcstat::dataWindowROI(h), h);  // overscan: the render's windows
-        s.channelnames = channels;
-        // ImageSpec makes channel 3 the alpha of any image of 4 or more channels: none here
-        // unless an AOV of class alpha says so (features' P.X and diagnostics' count are not).
-        s.alpha_channel = -1;
-        s.z_channel = -1;
-        s.attribute("oiio:subimagename", subname);
-        s.attribute("oiio:subimages", m_nsubs);
-        s.attribute("mcstat:formatVersion", h.formatVersion);
-        s.attribute("mcstat:M", h.M);
-        if (h.adaptiveM) s.attribute("mcstat:adaptiveM", 1);
-        s.attribute("mcstat:spp", int(std::min<int64_t>(h.spp, INT32_MAX)));
-        s.attribute("mcstat:assignment", h.assignment);
-        if (h.formatVersion >= mcstat::kStatsFormatVersionProvenance) {
-            s.attribute("mcstat:variance", h.variance);
-            s.attribute("mcstat:features", mcstat::featureListText(h.features));
-            s.attribute("mcstat:sources", h.sources);
-        }
-        s.attribute("mcstat:renderer", h.renderer);
-        s.attribute("mcstat:colorSpace", h.colorSpace);
-        s.attribute("mcstat:seeds", h.seeds);
-        return s;
-    };
-    auto describeEstimator = [&](ImageSpec& s) {
-        s.attribute("mcstat:estimator", est->name);
-        for (const mcstat::ParamSpec* pi : est->settable()) {
-            auto it = kv.find(pi->name);
-            s.attribute("mcstat:" + pi->name, it != kv.end() ? it->second : pi->defaultValue);
-        }
-    };
+ImageSpec McstatInput::makeSpec(const std::vector<std::string>& channels,
+                                const char* subname) const {
+    const mcstat::StatsHeader& h = m_header;
+    ImageSpec s(h.width, h.height, int(channels.size()), TypeFloat);
+    mcstat::setWindows(s, mcstat::dataWindowROI(h), h);  // overscan: the render's windows
+    s.channelnames = channels;
+    // ImageSpec makes channel 3 the alpha of any image of 4 or more channels: none here
+    // unless an AOV of class alpha says so (features' P.X and diagnostics' count are not).
+    s.alpha_channel = -1;
+    s.z_channel = -1;
+    s.attribute("oiio:subimagename", subname);
+    s.attribute("oiio:subimages", m_nsubs);
+    s.attribute("mcstat:formatVersion", h.formatVersion);
+    s.attribute("mcstat:M", h.M);
+    if (h.adaptiveM) s.attribute("mcstat:adaptiveM", 1);
+    s.attribute("mcstat:spp", int(std::min<int64_t>(h.spp, INT32_MAX)));
+    s.attribute("mcstat:assignment", h.assignment);
+    if (h.formatVersion >= mcstat::kStatsFormatVersionProvenance) {
+        s.attribute("mcstat:variance", h.variance);
+        s.attribute("mcstat:features", mcstat::featureListText(h.features));
+        s.attribute("mcstat:sources", h.sources);
+    }
+    s.attribute("mcstat:renderer", h.renderer);
+    s.attribute("mcstat:colorSpace", h.colorSpace);
+    s.attribute("mcstat:seeds", h.seeds);
+    return s;
+}
 
+void McstatInput::describeEstimator(ImageSpec& s,
+                                    const std::map<std::string, std::string>& kv) const {
+    s.attribute("mcstat:estimator", m_op->name);
+    for (const mcstat::ParamSpec* pi : m_op->settable()) {
+        auto it = kv.find(pi->name);
+        s.attribute("mcstat:" + pi->name, it != kv.end() ? it->second : pi->defaultValue);
+    }
+}
+
+void McstatInput::makeRobustSub(const std::map<std::string, std::string>& kv, size_t nAovs) {
+    const mcstat::StatsHeader& h = m_header;
+    const mcstat::Operation* est = m_op;
     // 0: the robust estimate.
-    const std::string meanName = est->name == "mean" ? "beauty" : "mean";
     // Beauty under the input render's names (R, G, B for mcstat's own files), then every AOV:
     // `oiiotool f.mcstat --subimage 0 -o x.exr` writes a drop-in for one input render.
     Sub& r = m_subs[kRobust];
@@ -464,7 +514,7 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     r.spec.z_channel = mcstat::aovDepthChannel(h, 3);
     if (nAovs == 0) r.spec.alpha_channel = r.spec.z_channel = -1;
     r.spec.attribute("oiio:ColorSpace", h.colorSpace);
-    describeEstimator(r.spec);
+    describeEstimator(r.spec, kv);
     mcstat::describeResult(r.spec, *est, m_values, h);
     if (est->input == mcstat::InputKind::BufferMeans && !h.adaptiveM) {
         // iv shows subimage 0 under the estimator's name: say when it cannot differ from the mean.
@@ -480,6 +530,11 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     r.from = {{kEstimate, 0}, {kEstimate, 1}, {kEstimate, 2}};
     // kEstimate (no diagnostics) holds R, G, B and then the AOVs.
     for (size_t a = 0; a < nAovs; ++a) r.from.push_back({kEstimate, 3 + a});
+}
+
+void McstatInput::makeDiagnosticsSub(const std::vector<std::string>& estChannels, size_t nAovs,
+                                     const std::map<std::string, std::string>& kv) {
+    const bool samples = m_op->input == mcstat::InputKind::Samples;
     // 2: diagnostics: the estimator's gini/kept/excluded channels plus the sample count, and with
     // adaptive M the map of buffer counts m_p ("M").
     Sub& d = m_subs[kDiagnostics];
@@ -489,24 +544,29 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
         d.from.push_back({samples ? kEstimate : kEstimateDiag, i});
     diagNames.push_back("count");
     d.from.push_back({kCounts, 0});
-    if (h.adaptiveM) {
+    if (m_header.adaptiveM) {
         diagNames.push_back("M");
         d.from.push_back({kCounts, 1});
     }
     d.spec = makeSpec(diagNames, "diagnostics");
-    describeEstimator(d.spec);
+    describeEstimator(d.spec, kv);
+}
 
+void McstatInput::makeMeanSub() {
+    const std::string meanName = m_op->name == "mean" ? "beauty" : "mean";
     // 1: the plain mean as stored (part "beauty").
     Sub& m = m_subs[kMean];
     m.spec = makeSpec({"R", "G", "B"}, meanName.c_str());
-    m.spec.attribute("oiio:ColorSpace", h.colorSpace);
+    m.spec.attribute("oiio:ColorSpace", m_header.colorSpace);
     m.from = {{kBeauty, 0}, {kBeauty, 1}, {kBeauty, 2}};
+}
 
+void McstatInput::makeFeaturesSub() {
     // 3: first-hit features, only those the file holds (version 3 records absent ones as NaN).
     std::vector<std::string> featureNames;
     Sub& f = m_subs[kFeatures];
     for (size_t i = 0; i < std::size(kFeatureChannels); ++i)
-        if (h.features & kFeatureChannels[i].feature) {
+        if (m_header.features & kFeatureChannels[i].feature) {
             featureNames.push_back(kFeatureChannels[i].name);
             f.from.push_back({kFeatureArrays, i});
         }
@@ -518,11 +578,6 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     } else {
         f.spec = makeSpec(featureNames, "features");
     }
-
-    m_current = kRobust;
-    m_spec = m_subs[kRobust].spec;
-    newspec = m_spec;
-    return true;
 }
 
 std::string McstatInput::cacheKey(Source s) const {
@@ -549,46 +604,50 @@ const Computed* McstatInput::source(Source s) {
     return m_sources[s].get();
 }
 
-bool McstatInput::computeSource(Source s, Computed& out, std::string& err) {
-    ++g_computations;
+bool McstatInput::computeEstimate(Source s, Computed& out, std::string& err) {
     const mcstat::StatsHeader& h = m_header;
     const size_t npix = size_t(h.width) * size_t(h.height);
-    if (s == kEstimate || s == kEstimateDiag) {
-        // Every operation returns R, G, B first; an estimator over buffer means with diagnostics
-        // its gini/kept/excluded channels after them, computed by the same per-pixel call as
-        // without them (so subimages 0 and 2 agree).
-        OIIO::ImageBuf img;
-        bool ok = false;
-        if (m_op->input == mcstat::InputKind::Samples) {
-            ok = mcstat::runSamplesOperation(img, m_path, h, *m_op, m_values, m_luma, threads());
-        } else {
-            mcstat::StatsFileReader reader;
-            if (!reader.open(m_path, err, mcstat::ReadLimits(), threads())) return false;
-            if (reader.header().width != h.width || reader.header().height != h.height ||
-                reader.header().M != h.M) {
-                err = m_path + ": the file changed since it was opened";
-                return false;
-            }
-            ok = mcstat::applyOperation(img, reader, *m_op, m_values, m_luma, s == kEstimateDiag,
-                                        {}, threads());
-        }
-        if (!ok) {
-            // Messages from the file's reader already start with its path.
-            err = img.geterror();
-            if (err.rfind(m_path, 0) != 0) err = m_path + ": " + err;
+    // Every operation returns R, G, B first; an estimator over buffer means with diagnostics
+    // its gini/kept/excluded channels after them, computed by the same per-pixel call as
+    // without them (so subimages 0 and 2 agree).
+    OIIO::ImageBuf img;
+    bool ok = false;
+    if (m_op->input == mcstat::InputKind::Samples) {
+        ok = mcstat::runSamplesOperation(img, m_path, h, *m_op, m_values, m_luma, threads());
+    } else {
+        mcstat::StatsFileReader reader;
+        if (!reader.open(m_path, err, mcstat::ReadLimits(), threads())) return false;
+        if (reader.header().width != h.width || reader.header().height != h.height ||
+            reader.header().M != h.M) {
+            err = m_path + ": the file changed since it was opened";
             return false;
         }
-        const ImageSpec& spec = img.spec();
-        const size_t nch = size_t(spec.nchannels);
-        if (!img.localpixels() || spec.format != TypeFloat || size_t(spec.image_pixels()) != npix ||
-            nch < 3) {
-            err = m_path + ": the estimate has an unexpected layout";
-            return false;
-        }
-        out.channels = spec.channelnames;
-        out.image.swap(img);  // kept as computed, no copy
-        return true;
+        ok = mcstat::applyOperation(img, reader, *m_op, m_values, m_luma, s == kEstimateDiag, {},
+                                    threads());
     }
+    if (!ok) {
+        // Messages from the file's reader already start with its path.
+        err = img.geterror();
+        if (err.rfind(m_path, 0) != 0) err = m_path + ": " + err;
+        return false;
+    }
+    const ImageSpec& spec = img.spec();
+    const size_t nch = size_t(spec.nchannels);
+    if (!img.localpixels() || spec.format != TypeFloat || size_t(spec.image_pixels()) != npix ||
+        nch < 3) {
+        err = m_path + ": the estimate has an unexpected layout";
+        return false;
+    }
+    out.channels = spec.channelnames;
+    out.image.swap(img);  // kept as computed, no copy
+    return true;
+}
+
+bool McstatInput::computeSource(Source s, Computed& out, std::string& err) {
+    ++g_computations;
+    if (s == kEstimate || s == kEstimateDiag) return computeEstimate(s, out, err);
+    const mcstat::StatsHeader& h = m_header;
+    const size_t npix = size_t(h.width) * size_t(h.height);
     // The stored parts, streamed by blocks of rows.
     unsigned parts = 0;
     switch (s) {

@@ -13,9 +13,9 @@
 #include <functional>
 
 #include "mcstat/color.h"
-#include "mcstat/imageops.h"
-#include "mcstat/registry.h"
-#include "mcstat/render_layout.h"
+#include "mcstat/image/imageops.h"
+#include "mcstat/filters/registry.h"
+#include "mcstat/image/render_layout.h"
 
 namespace mcstat::cli {
 

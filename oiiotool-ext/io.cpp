@@ -10,10 +10,10 @@
 #include <cstdio>
 
 #include "cli.h"
-#include "mcstat/imageops.h"
+#include "mcstat/image/imageops.h"
 #include "mcstat/ingest.h"
-#include "mcstat/pajot.h"
-#include "mcstat/render_layout.h"
+#include "mcstat/filters/samples/pajot_state.h"
+#include "mcstat/image/render_layout.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/temp_file.h"
 
@@ -516,6 +516,10 @@ bool cmdCheck(State& st, const std::string& cmd, const std::vector<std::string>&
     if (progress) std::fprintf(stderr, "\r%*s\r", int(top.name.size()) + 20, "");
     if (!ok) return false;
     const StatsHeader& h = r.header;
+    if (r.pajot) {  // the Pajot operation's own check of what its parts mean
+        PajotImage pajot;
+        if (!readPajotParts(top.path, pajot, err)) return false;
+    }
     std::printf("%s: valid mcstat statistics file, format %d, %d x %d, %s %d\n", top.name.c_str(),
                 h.formatVersion, h.width, h.height, h.adaptiveM ? "adaptive M, M_max" : "M", h.M);
     std::printf(

@@ -1,8 +1,8 @@
 // Pictures for review tools (docs/review.md): --contactsheet, --errormap, --heatmap, --qualityplot.
-// The image operations live in filters/review.cpp (include/mcstat/review.h); this file parses
+// The image operations live in filters/review.cpp (include/mcstat/analysis/review_pictures.h); this file parses
 // modifiers, reads the reference, computes the estimates and metrics, and for the plot writes the
 // CSV and the gnuplot script (plot.cpp runs gnuplot).
-#include "mcstat/review.h"
+#include "mcstat/analysis/review_pictures.h"
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebufalgo.h>
@@ -19,8 +19,8 @@
 
 #include "cli.h"
 #include "mcstat/color.h"
-#include "mcstat/imageops.h"
-#include "mcstat/registry.h"
+#include "mcstat/image/imageops.h"
+#include "mcstat/filters/registry.h"
 
 namespace mcstat::cli {
 

@@ -4,8 +4,10 @@
 //   by nature, so it is written and read by blocks of rows: SampleRecordsWriter streams a render's
 //   rows to a temporary file, which writeStatsFile copies chunk by chunk (no decoding) into the
 //   final file; SampleRecordsReader reads rows [y0, y1) at a time.
-// - `pajot` (flat) and `modes` (deep): Pajot's per-pixel online state (include/mcstat/pajot.h),
-//   exact, so that a render resumed from the file continues bit for bit.
+// - `pajot` (flat) and `modes` (deep): an operation's per-pixel state (PixelStateParts), stored
+//   exactly, so that a render resumed from the file continues bit for bit. The format stores the
+//   parts' channels and checks their shapes; the operation that owns them gives them meaning
+//   (Pajot's online state: include/mcstat/filters/samples/pajot_state.h).
 // No function throws; each returns false with a one-line `err` naming the file.
 #pragma once
 
@@ -14,7 +16,6 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/pajot.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat {
@@ -136,16 +137,25 @@ class SampleRecordsReader {
     std::unique_ptr<Impl> impl_;
 };
 
-/// Pajot's online state of every pixel (parts `pajot` and `modes`).
-struct PajotImage {
-    PajotParams params;              ///< recorded as attribute mcstat:pajot
-    std::vector<PajotState> pixels;  ///< [p]
-    std::vector<float> estimate;     ///< [p*3 + c], PajotPixel::estimate()
+/// Per-pixel state an operation keeps in a statistics file (parts `pajot` and `modes`, FORMAT.md
+/// "Version 4: samples and modes"): a flat part of FLOAT and UINT channels (one value each per
+/// pixel) and a deep part of FLOAT channels (any number of records per pixel), both carrying the
+/// text attribute mcstat:pajot (the operation's parameters). Channels are found by name: the
+/// writer writes the channels listed, the reader returns every FLOAT and UINT channel the file
+/// holds (in the file's order), and the operation looks up the ones it needs.
+struct PixelStateParts {
+    std::string params;  ///< attribute mcstat:pajot
+    std::vector<std::string> floatChannels, uintChannels;  ///< the flat part's channels
+    std::vector<float> floats;                             ///< [p * floatChannels.size() + c]
+    std::vector<uint32_t> words;                           ///< [p * uintChannels.size() + c]
+    std::vector<std::string> recordChannels;  ///< the deep part's channels (FLOAT)
+    std::vector<uint32_t> recordCounts;       ///< [p]: records of pixel p
+    std::vector<float> records;  ///< [k * recordChannels.size() + c], pixels in scanline order
 };
 /// What writeStatsFile adds to the four parts (format version 4).
 struct StatsExtras {
-    const PajotImage* pajot = nullptr;  ///< parts pajot and modes
-    std::string recordsFile;            ///< a closed SampleRecordsWriter's file: part records
+    const PixelStateParts* state = nullptr;  ///< parts pajot and modes
+    std::string recordsFile;                 ///< a closed SampleRecordsWriter's file: part records
 };
 
 /// writeStatsFile with the version-4 parts; img.header.formatVersion must be 4 when any is given.
@@ -166,7 +176,7 @@ class SampleSource {
     virtual bool selectRecordChannels(const std::vector<std::string>& channels,
                                       std::string& err) = 0;
     /// Parts pajot and modes (header().hasPajot).
-    virtual bool readPajot(PajotImage& out, std::string& err) = 0;
+    virtual bool readPixelState(PixelStateParts& out, std::string& err) = 0;
     /// The file name, for messages.
     virtual const std::string& path() const = 0;
 };
@@ -174,8 +184,10 @@ class SampleSource {
 std::unique_ptr<SampleSource> openSampleSource(const std::string& path, std::string& err,
                                                const ReadLimits& limits = ReadLimits());
 
-/// Reads parts `pajot` and `modes` of a statistics file (the whole state: small next to records).
-bool readPajotParts(const std::string& path, PajotImage& out, std::string& err,
-                    const ReadLimits& limits = ReadLimits());
+/// Reads parts `pajot` and `modes` of a statistics file (the whole state: small next to records),
+/// their sizes checked against the limits before anything is allocated. An error names the file;
+/// a file without the parts is one ("render with mcstat-render --pajot").
+bool readPixelStateParts(const std::string& path, PixelStateParts& out, std::string& err,
+                         const ReadLimits& limits = ReadLimits());
 
 }  // namespace mcstat

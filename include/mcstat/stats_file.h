@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/estimators.h"  // PixelBuffers, the per-pixel view estimators take
+#include "mcstat/core/pixel_buffers.h"
 
 namespace mcstat {
 

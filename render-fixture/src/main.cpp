@@ -17,7 +17,7 @@
 #include <thread>
 
 #include "mcstat/color.h"
-#include "mcstat/pajot.h"
+#include "mcstat/filters/samples/pajot_state.h"
 #include "mcstat/render/render.h"
 #include "mcstat/render/scene.h"
 #include "mcstat/sample_records.h"
@@ -110,11 +110,8 @@ class Stopwatch {
     double cpu0_ = cpuNow();
 };
 
-}  // namespace
-
-int main(int argc, const char** argv) {
-    // Ctrl-C or a kill removes the temporary files of the output (the target is never touched).
-    mcstat::removeTemporariesOnSignals();
+/// The command line as typed: every option's text, checked once parsing is over.
+struct CommandLine {
     std::string sceneName = "default", outPath, sppText = "64", mText = "8", seedText = "1",
                 threadsText = "0", resW, resH, mMaxText = std::to_string(kDefaultMaxBuffers),
                 pilotText = "0", checkpointText = "0", strategyText = "grow",
@@ -124,86 +121,83 @@ int main(int argc, const char** argv) {
     std::string pajotText,
         pajotNText = "50", pajotDelayedText = "64", pajotTText = "2", pajotDeltaText = "0",
         maxSampleBytesText = std::to_string(mcstat::kDefaultMaxRecordBytes), resumePath;
+    bool help = false;
+};
 
+/// Declares the options of the scene and of how its samples are taken (fixed or adaptive M).
+void addSamplingOptions(OIIO::ArgParse& ap, CommandLine& cl) {
     std::string names;
     for (const auto& n : builtinSceneNames()) names += (names.empty() ? "" : ", ") + n;
 
-    OIIO::ArgParse ap;
-    ap.intro(
-          "mcstat-render -- the mcstat fixture path tracer (Embree; NEE + MIS, Russian roulette)")
-        .usage("mcstat-render [options] -o OUT")
-        .exit_on_error(false)
-        .add_help(false)
-        .print_defaults(false);
-    bool help = false;
-    ap.arg("--help").help("print this help and exit").action([&](OIIO::cspan<const char*>) {
-        help = true;
-    });
     ap.arg("--scene NAME|FILE")
         .help("built-in scene (" + names +
               ") or a JSON scene file (render-fixture/SCENES.md); "
               "default: default")
-        .action([&](OIIO::cspan<const char*> a) { sceneName = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.sceneName = a[1]; });
     ap.arg("--spp N")
         .help("samples per pixel, >= 1 (default 64)")
-        .action([&](OIIO::cspan<const char*> a) { sppText = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.sppText = a[1]; });
     ap.arg("--M M")
         .help(
             "sub-buffers, 1..999; sample i goes to buffer i mod M; spp < M leaves buffers "
             "empty (default 8; ignored with --reference)")
-        .action([&](OIIO::cspan<const char*> a) { mText = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.mText = a[1]; });
     ap.arg("--adaptive-m")
         .help(
             "adaptive buffer count (Jung eq. 4.15): pixel p gets M_p in 1..M_max buffers (odd) "
             "from its luminance standard deviation against the image's; the file stores them in "
             "a deep part (format 2; docs/adaptive-m.md). --M is ignored")
-        .action([&](OIIO::cspan<const char*>) { adaptive = true; });
+        .action([&](OIIO::cspan<const char*>) { cl.adaptive = true; });
     ap.arg("--m-strategy grow|pilot")
         .help(
             "with --adaptive-m: 'grow' (default) starts every pixel with one buffer and adds "
             "buffers at checkpoints during the render, new buffers catching up with the old; "
             "'pilot' chooses M_p first by a separate pilot pass (extra samples, but renders with "
             "different --seed get the same M_p and can be merged)")
-        .action([&](OIIO::cspan<const char*> a) { strategyText = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.strategyText = a[1]; });
     ap.arg("--m-max N")
         .help("with --adaptive-m: the largest M_p, odd, 1..999 (default 17)")
-        .action([&](OIIO::cspan<const char*> a) { mMaxText = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.mMaxText = a[1]; });
     ap.arg("--checkpoint N")
         .help(
             "with --m-strategy grow: the first checkpoint, in samples per pixel, >= 2; later "
             "ones at 2N, 4N, ... (default max(2, spp / M_max))")
-        .action([&](OIIO::cspan<const char*> a) { checkpointText = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.checkpointText = a[1]; });
     ap.arg("--pilot N")
         .help(
             "with --m-strategy pilot: pilot samples per pixel (default min(spp, max(64, "
             "spp/8))); they only choose M_p and are not part of the image")
-        .action([&](OIIO::cspan<const char*> a) { pilotText = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.pilotText = a[1]; });
     ap.arg("--pilot-seed S")
         .help(
             "with --m-strategy pilot: seed of the pilot, independent of --seed so that renders "
             "with different seeds get the same M_p and can be merged (default " +
             std::to_string(kDefaultPilotSeed) + ")")
-        .action([&](OIIO::cspan<const char*> a) { pilotSeedText = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.pilotSeedText = a[1]; });
+}
+
+/// Declares the options of what the file keeps besides the buffers: Pajot, records, AOVs, resume.
+void addPerSampleOptions(OIIO::ArgParse& ap, CommandLine& cl) {
     ap.arg("--pajot adr|rot|hybrid")
         .help(
             "Pajot et al. 2011 online: every sample updates its pixel's kernel-density modes of "
             "log-luminance; samples above the last extended mode are delayed until it reaches them "
             "(docs/pajot.md). Adds parts pajot and modes (format 4)")
-        .action([&](OIIO::cspan<const char*> a) { pajotText = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.pajotText = a[1]; });
     ap.arg("--pajot-n N")
         .help("with --pajot: samples of the learning phase (section 4.1), >= 1 (default 50)")
-        .action([&](OIIO::cspan<const char*> a) { pajotNText = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.pajotNText = a[1]; });
     ap.arg("--pajot-delayed N")
         .help(
             "with --pajot: bound of each pixel's dubious list; when full, the brightest is "
             "discarded for good (default 64)")
-        .action([&](OIIO::cspan<const char*> a) { pajotDelayedText = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.pajotDelayedText = a[1]; });
     ap.arg("--pajot-t T")
         .help("with --pajot hybrid: successive close maxima before ROT alone (default 2)")
-        .action([&](OIIO::cspan<const char*> a) { pajotTText = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.pajotTText = a[1]; });
     ap.arg("--pajot-delta D")
         .help("with --pajot hybrid: largest |m_rot - m_adr| / |m_adr| counted as close (default 0)")
-        .action([&](OIIO::cspan<const char*> a) { pajotDeltaText = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.pajotDeltaText = a[1]; });
     ap.arg("--keep-samples")
         .help(
             "keep every sample in the deep part records (format 4), written by blocks of rows: "
@@ -212,7 +206,7 @@ int main(int argc, const char** argv) {
             "the normal, position and texture value of the first hit and normal and position of "
             "the second (random parameter filtering's inputs; 108-116 bytes per sample before "
             "compression)")
-        .action([&](OIIO::cspan<const char*>) { keepSamples = true; });
+        .action([&](OIIO::cspan<const char*>) { cl.keepSamples = true; });
     ap.arg("--aovs")
         .help(
             "write AOVs (format 5, docs/aovs.md) per sub-buffer: alpha A (the camera ray hit "
@@ -220,288 +214,438 @@ int main(int argc, const char** argv) {
             "diffuse_direct, diffuse_indirect, specular_direct, specular_indirect (R, G, B each; "
             "they sum to the beauty sample by sample); with --keep-samples per sample too. Fixed "
             "M only")
-        .action([&](OIIO::cspan<const char*>) { aovs = true; });
+        .action([&](OIIO::cspan<const char*>) { cl.aovs = true; });
     ap.arg("--max-sample-bytes N")
         .help(
             "with --keep-samples: refuse renders whose records exceed N bytes before compression "
             "(default " +
             std::to_string(mcstat::kDefaultMaxRecordBytes) + ", 4 GiB)")
-        .action([&](OIIO::cspan<const char*> a) { maxSampleBytesText = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.maxSampleBytesText = a[1]; });
     ap.arg("--resume FILE")
         .help(
             "continue FILE (rendered with fixed M by this renderer) up to --spp samples per pixel: "
             "same scene, size, seed and M; Pajot's state continues bit for bit")
-        .action([&](OIIO::cspan<const char*> a) { resumePath = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.resumePath = a[1]; });
+}
+
+/// Declares the options of the run itself: seed, threads, size, output and what is printed.
+void addRunOptions(OIIO::ArgParse& ap, CommandLine& cl) {
     ap.arg("--seed S")
         .help(
             "seed, a non-negative 64-bit integer; the same seed gives bit-identical output "
             "(default 1)")
-        .action([&](OIIO::cspan<const char*> a) { seedText = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.seedText = a[1]; });
     ap.arg("--threads N")
         .help("worker threads, 0 = all cores (default 0); the output does not depend on it")
-        .action([&](OIIO::cspan<const char*> a) { threadsText = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.threadsText = a[1]; });
     ap.arg("--res W H")
         .help("override the scene's image size (pixels)")
-        .action([&](OIIO::cspan<const char*> a) { resW = a[1], resH = a[2]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.resW = a[1], cl.resH = a[2]; });
     ap.arg("--reference")
         .help(
             "write a plain RGB float EXR of the mean only (no sub-buffers: for high-spp "
             "reference images)")
-        .action([&](OIIO::cspan<const char*>) { reference = true; });
+        .action([&](OIIO::cspan<const char*>) { cl.reference = true; });
     ap.arg("--timings")
         .help(
             "print one line on stderr: wall and CPU seconds of the render and of writing the "
             "output (benchmarks: scripts/bench_render.sh)")
-        .action([&](OIIO::cspan<const char*>) { timings = true; });
+        .action([&](OIIO::cspan<const char*>) { cl.timings = true; });
     ap.arg("--quiet")
         .help("no progress line (it is shown only when stderr is a terminal anyway)")
-        .action([&](OIIO::cspan<const char*>) { quiet = true; });
+        .action([&](OIIO::cspan<const char*>) { cl.quiet = true; });
     ap.arg("-o OUT")
         .help("output: a statistics file (.mcstat), or an .exr with --reference")
-        .action([&](OIIO::cspan<const char*> a) { outPath = a[1]; });
+        .action([&](OIIO::cspan<const char*> a) { cl.outPath = a[1]; });
+}
 
-    if (ap.parse_args(argc, argv) < 0) return fail(ap.geterror());
-    if (help) {
-        ap.print_help();
-        return 0;
+/// Parses the command line into `cl`; false when main must return `exitCode` now (an error, or
+/// --help printed).
+bool parseCommandLine(int argc, const char** argv, CommandLine& cl, int& exitCode) {
+    OIIO::ArgParse ap;
+    ap.intro(
+          "mcstat-render -- the mcstat fixture path tracer (Embree; NEE + MIS, Russian roulette)")
+        .usage("mcstat-render [options] -o OUT")
+        .exit_on_error(false)
+        .add_help(false)
+        .print_defaults(false);
+    ap.arg("--help").help("print this help and exit").action([&](OIIO::cspan<const char*>) {
+        cl.help = true;
+    });
+    addSamplingOptions(ap, cl);
+    addPerSampleOptions(ap, cl);
+    addRunOptions(ap, cl);
+
+    if (ap.parse_args(argc, argv) < 0) {
+        exitCode = fail(ap.geterror());
+        return false;
     }
-    if (outPath.empty()) return fail("no output given (-o OUT); see --help");
+    if (cl.help) {
+        ap.print_help();
+        exitCode = 0;
+        return false;
+    }
+    if (cl.outPath.empty()) {
+        exitCode = fail("no output given (-o OUT); see --help");
+        return false;
+    }
     // Before hours of rendering: a target the write would refuse (a directory, /dev/null, a
     // read-only file, a missing directory) fails now.
-    {
-        std::string err;
-        if (!mcstat::checkOutputTarget(outPath, err)) return fail(err);
-    }
-
-    RenderOptions opt;
     std::string err;
-    long long v = 0;
-    if (!parseInt(sppText, "--spp", 1, (1LL << 40), v, err)) return fail(err);
-    opt.spp = v;
-    if (!parseInt(mText, "--M", 1, mcstat::kMaxBuffers, v, err)) return fail(err);
-    opt.M = int(v);
-    if (!parseInt(threadsText, "--threads", 0, 4096, v, err)) return fail(err);
-    opt.threads = int(v);
+    if (!mcstat::checkOutputTarget(cl.outPath, err)) {
+        exitCode = fail(err);
+        return false;
+    }
+    return true;
+}
+
+/// Sizes OpenEXR's thread pool, which compresses the output, from the render's thread count.
+void setWriteThreads(int renderThreads) {
     // Writing compresses every part with deflate, which at M = 21 costs about a tenth of a 64-spp
     // render's CPU time; OpenEXR compresses blocks of lines on its own pool, with the bytes
     // independent of the thread count (tests/exr-deep/test_roundtrip.cpp). 0 = no pool: the
     // calling thread compresses. At most kWriteThreads: each pool thread keeps two blocks of 16
     // lines of every part alive until the file is closed (measured: 26 MB more peak memory per
     // thread at 1920 pixels wide and M = 21), and a few threads already make the compression short.
-    {
-        constexpr int kWriteThreads = 4;
-        const unsigned hw = std::thread::hardware_concurrency();
-        const int threads =
-            std::min(opt.threads > 0 ? opt.threads : int(hw > 0 ? hw : 1), kWriteThreads);
-        Imf::setGlobalThreadCount(threads > 1 ? threads : 0);
-    }
-    if (!parseSeed(seedText, opt.seed, err)) return fail(err);
-    opt.adaptiveM = adaptive;
-    opt.aovs = aovs;
-    if (!parseInt(mMaxText, "--m-max", 1, mcstat::kMaxBuffers, v, err)) return fail(err);
-    opt.mMax = int(v);
-    if (adaptive && opt.mMax % 2 == 0)
-        return fail(fmt::format("--m-max: must be odd (eq. 4.15 gives odd counts; got {})", v));
-    if (strategyText == "grow")
-        opt.strategy = AdaptiveStrategy::Grow;
-    else if (strategyText == "pilot")
-        opt.strategy = AdaptiveStrategy::Pilot;
-    else
-        return fail(
-            fmt::format("--m-strategy: expected 'grow' or 'pilot', got '{}'", strategyText));
-    if (!parseInt(checkpointText, "--checkpoint", 0, (1LL << 40), v, err)) return fail(err);
-    opt.checkpoint = v;
-    if (!parseInt(pilotText, "--pilot", 0, (1LL << 40), v, err)) return fail(err);
-    opt.pilotSpp = v;
-    if (!parseSeed(pilotSeedText, opt.pilotSeed, err, "--pilot-seed")) return fail(err);
-    opt.progress = !quiet && isatty(STDERR_FILENO);
+    constexpr int kWriteThreads = 4;
+    const unsigned hw = std::thread::hardware_concurrency();
+    const int threads =
+        std::min(renderThreads > 0 ? renderThreads : int(hw > 0 ? hw : 1), kWriteThreads);
+    Imf::setGlobalThreadCount(threads > 1 ? threads : 0);
+}
 
-    Scene scene;
-    if (!loadScene(sceneName, scene, err)) return fail(err);
-    if (!resW.empty()) {
+/// Checks the sampling options into `opt` (and sizes the writer's thread pool).
+bool parseRenderOptions(const CommandLine& cl, RenderOptions& opt, std::string& err) {
+    long long v = 0;
+    if (!parseInt(cl.sppText, "--spp", 1, (1LL << 40), v, err)) return false;
+    opt.spp = v;
+    if (!parseInt(cl.mText, "--M", 1, mcstat::kMaxBuffers, v, err)) return false;
+    opt.M = int(v);
+    if (!parseInt(cl.threadsText, "--threads", 0, 4096, v, err)) return false;
+    opt.threads = int(v);
+    setWriteThreads(opt.threads);
+    if (!parseSeed(cl.seedText, opt.seed, err)) return false;
+    opt.adaptiveM = cl.adaptive;
+    opt.aovs = cl.aovs;
+    if (!parseInt(cl.mMaxText, "--m-max", 1, mcstat::kMaxBuffers, v, err)) return false;
+    opt.mMax = int(v);
+    if (cl.adaptive && opt.mMax % 2 == 0) {
+        err = fmt::format("--m-max: must be odd (eq. 4.15 gives odd counts; got {})", v);
+        return false;
+    }
+    if (cl.strategyText == "grow") {
+        opt.strategy = AdaptiveStrategy::Grow;
+    } else if (cl.strategyText == "pilot") {
+        opt.strategy = AdaptiveStrategy::Pilot;
+    } else {
+        err = fmt::format("--m-strategy: expected 'grow' or 'pilot', got '{}'", cl.strategyText);
+        return false;
+    }
+    if (!parseInt(cl.checkpointText, "--checkpoint", 0, (1LL << 40), v, err)) return false;
+    opt.checkpoint = v;
+    if (!parseInt(cl.pilotText, "--pilot", 0, (1LL << 40), v, err)) return false;
+    opt.pilotSpp = v;
+    if (!parseSeed(cl.pilotSeedText, opt.pilotSeed, err, "--pilot-seed")) return false;
+    opt.progress = !cl.quiet && isatty(STDERR_FILENO);
+    return true;
+}
+
+/// Loads the scene, at the size --res gives if it is given.
+bool loadSizedScene(const CommandLine& cl, Scene& scene, std::string& err) {
+    if (!loadScene(cl.sceneName, scene, err)) return false;
+    if (!cl.resW.empty()) {
         long long w = 0, h = 0;
-        if (!parseInt(resW, "--res width", 1, 16384, w, err) ||
-            !parseInt(resH, "--res height", 1, 16384, h, err))
-            return fail(err);
+        if (!parseInt(cl.resW, "--res width", 1, 16384, w, err) ||
+            !parseInt(cl.resH, "--res height", 1, 16384, h, err))
+            return false;
         scene.width = int(w), scene.height = int(h);
     }
+    return true;
+}
 
-    // Pajot and the records (format version 4).
-    mcstat::PajotImage pajot;
-    const bool wantPajot = !pajotText.empty();
-    if (wantPajot) {
-        if (!mcstat::parsePajotMethod(pajotText, pajot.params.method))
-            return fail(
-                fmt::format("--pajot: expected 'adr', 'rot' or 'hybrid', got '{}'", pajotText));
-        if (!parseInt(pajotNText, "--pajot-n", 1, 1000000, v, err)) return fail(err);
-        pajot.params.learning = int(v);
-        if (!parseInt(pajotDelayedText, "--pajot-delayed", 0, 1000000, v, err)) return fail(err);
-        pajot.params.maxDelayed = int(v);
-        if (!parseInt(pajotTText, "--pajot-t", 1, 1000000, v, err)) return fail(err);
-        pajot.params.T = int(v);
-        char* end = nullptr;
-        pajot.params.delta = std::strtod(pajotDeltaText.c_str(), &end);
-        if (pajotDeltaText.empty() || *end != '\0' || !(pajot.params.delta >= 0) ||
-            !std::isfinite(pajot.params.delta))
-            return fail(fmt::format("--pajot-delta: expected a finite number >= 0, got '{}'",
-                                    pajotDeltaText));
-        std::string warning;
-        pajot.params.luma = mcstat::lumaCoefficients(&warning);
-        if (!warning.empty()) fmt::print(stderr, "mcstat-render: warning: {}\n", warning);
+/// Checks the --pajot options into `params` (with the luma weights; their warning is printed).
+bool parsePajotOptions(const CommandLine& cl, mcstat::PajotParams& params, std::string& err) {
+    if (!mcstat::parsePajotMethod(cl.pajotText, params.method)) {
+        err = fmt::format("--pajot: expected 'adr', 'rot' or 'hybrid', got '{}'", cl.pajotText);
+        return false;
     }
-    if (!parseInt(maxSampleBytesText, "--max-sample-bytes", 0, (1LL << 62), v, err))
-        return fail(err);
-    const int64_t maxSampleBytes = v;
-    RenderStats stats;
-    // --timings: the render (scene setup included) and the writing of the output, measured apart
-    // because the file's cost grows with M while the accumulation's must not.
+    long long v = 0;
+    if (!parseInt(cl.pajotNText, "--pajot-n", 1, 1000000, v, err)) return false;
+    params.learning = int(v);
+    if (!parseInt(cl.pajotDelayedText, "--pajot-delayed", 0, 1000000, v, err)) return false;
+    params.maxDelayed = int(v);
+    if (!parseInt(cl.pajotTText, "--pajot-t", 1, 1000000, v, err)) return false;
+    params.T = int(v);
+    char* end = nullptr;
+    params.delta = std::strtod(cl.pajotDeltaText.c_str(), &end);
+    if (cl.pajotDeltaText.empty() || *end != '\0' || !(params.delta >= 0) ||
+        !std::isfinite(params.delta)) {
+        err = fmt::format("--pajot-delta: expected a finite number >= 0, got '{}'",
+                          cl.pajotDeltaText);
+        return false;
+    }
+    std::string warning;
+    params.luma = mcstat::lumaCoefficients(&warning);
+    if (!warning.empty()) fmt::print(stderr, "mcstat-render: warning: {}\n", warning);
+    return true;
+}
+
+/// A render to do, its options checked.
+struct Job {
+    RenderOptions opt;
+    Scene scene;
+    mcstat::PajotImage pajot;  ///< parameters from --pajot; a resumed file's state
+    bool wantPajot = false;    ///< --pajot given
+    int64_t maxSampleBytes = 0;
+};
+
+/// Checks every option but the output's into `job` and loads the scene.
+bool prepareJob(const CommandLine& cl, Job& job, std::string& err) {
+    if (!parseRenderOptions(cl, job.opt, err)) return false;
+    if (!loadSizedScene(cl, job.scene, err)) return false;
+    // Pajot and the records (format version 4).
+    job.wantPajot = !cl.pajotText.empty();
+    if (job.wantPajot && !parsePajotOptions(cl, job.pajot.params, err)) return false;
+    long long v = 0;
+    if (!parseInt(cl.maxSampleBytesText, "--max-sample-bytes", 0, (1LL << 62), v, err))
+        return false;
+    job.maxSampleBytes = v;
+    return true;
+}
+
+/// --timings: the render (scene setup included) and the writing of the output, measured apart
+/// because the file's cost grows with M while the accumulation's must not.
+struct Timings {
     Stopwatch renderClock, writeClock;
     double renderWall = 0, renderCpu = 0;
-    if (reference) {
-        if (wantPajot || keepSamples || !resumePath.empty() || aovs)
-            return fail(
-                "--reference writes a plain EXR: --pajot, --keep-samples, --aovs and --resume "
-                "do not apply");
-        std::vector<float> rgb;
-        renderClock = Stopwatch();
-        if (!renderReference(scene, opt, rgb, err, &stats)) return fail(err);
+
+    /// Ends the render's measure and starts the write's.
+    void renderDone() {
         renderWall = renderClock.wall(), renderCpu = renderClock.cpu();
         writeClock = Stopwatch();
-        if (!writeReferenceExr(outPath, scene.width, scene.height, rgb, opt.seed, opt.spp, err))
-            return fail(err);
-    } else {
-        mcstat::StatsImage prev;
-        const int64_t totalSpp = opt.spp;
-        if (!resumePath.empty()) {
-            if (keepSamples)
-                return fail(
-                    "--resume with --keep-samples is not supported: the records of the "
-                    "earlier render would have to be interleaved row by row");
-            if (!mcstat::readStatsFile(resumePath, prev, err)) return fail(err);
-            const mcstat::StatsHeader& ph = prev.header;
-            if (ph.renderer != kRendererName || ph.adaptiveM || ph.assignment != "roundrobin")
-                return fail(resumePath + ": only a fixed-M file written by " + kRendererName +
-                            " can be resumed");
-            if (ph.width != scene.width || ph.height != scene.height)
-                return fail(fmt::format("{}: the file is {}x{}, the scene {}x{}", resumePath,
-                                        ph.width, ph.height, scene.width, scene.height));
-            if (!parseSeed(ph.seeds, opt.seed, err, "mcstat:seeds of the resumed file"))
-                return fail(resumePath + ": " + err);
-            for (float c : prev.count)
-                if (double(c) != double(ph.spp))
-                    return fail(resumePath + ": its pixels do not all hold mcstat:spp samples");
-            if (totalSpp <= ph.spp)
-                return fail(
-                    fmt::format("--spp {}: the resumed file already has {} samples per "
-                                "pixel; --spp is the total wanted",
-                                totalSpp, ph.spp));
-            if (aovs != !ph.aovs.empty())
-                return fail(resumePath +
-                            (aovs ? ": has no AOVs to continue (rendered without --aovs)"
-                                  : ": has AOVs: resume it with --aovs"));
-            opt.M = ph.M;
-            opt.firstSample = ph.spp;
-            opt.spp = totalSpp - ph.spp;
-            if (ph.hasPajot) {
-                mcstat::PajotImage stored;
-                if (!mcstat::readPajotParts(resumePath, stored, err)) return fail(err);
-                if (wantPajot &&
-                    mcstat::pajotParamsText(stored.params) != mcstat::pajotParamsText(pajot.params))
-                    return fail(fmt::format("{}: rendered with Pajot {}, not {}", resumePath,
-                                            mcstat::pajotParamsText(stored.params),
-                                            mcstat::pajotParamsText(pajot.params)));
-                pajot = std::move(stored);
-            } else if (wantPajot) {
-                return fail(resumePath +
-                            ": has no Pajot state to continue (rendered without "
-                            "--pajot)");
-            }
-        }
-        const bool pajotOn = wantPajot || prev.header.hasPajot;
-        mcstat::SampleRecordsWriter records;
-        RenderExtras extras;
-        if (pajotOn) extras.pajot = &pajot;
-        mcstat::StatsHeader recHeader;
-        recHeader.width = scene.width;
-        recHeader.height = scene.height;
-        recHeader.formatVersion = mcstat::kStatsFormatVersionSamples;
-        if (aovs) recHeader.aovs = fixtureAovChannels();
-        if (keepSamples) {
-            std::vector<std::string> fields = recordFieldsFor(scene);
-            if (aovs) fields.emplace_back(mcstat::kRecordFieldAov);
-            std::vector<std::string> channels;
-            if (!mcstat::recordChannelsOf(fields, channels, err, recHeader.aovs)) return fail(err);
-            const int64_t perSample = mcstat::recordBytesOnDisk(channels.size());
-            const double bytes =
-                double(scene.width) * double(scene.height) * double(opt.spp) * double(perSample);
-            if (bytes > double(maxSampleBytes))
-                return fail(fmt::format(
-                    "--keep-samples: {}x{} pixels x {} spp x {} bytes = {:.4g} bytes of records "
-                    "exceed --max-sample-bytes {}; raise it or lower --spp or --res",
-                    scene.width, scene.height, opt.spp, perSample, bytes, maxSampleBytes));
-            if (!records.open(outPath, recHeader, err, fields)) return fail(err);
-            extras.recordChannels = records.channels();
-            extras.records = [&records](const mcstat::SampleBlock& b, std::string& e) {
-                return records.write(b, e);
-            };
-        }
-        if (wantPajot && pajot.params.learning > totalSpp)
-            fmt::print(stderr,
-                       "mcstat-render: warning: --pajot-n {} exceeds --spp {}: no pixel ends its "
-                       "learning phase, and the Pajot estimate is the plain mean\n",
-                       pajot.params.learning, totalSpp);
-        mcstat::StatsImage img;
-        renderClock = Stopwatch();
-        if (!render(scene, opt, img, err, &stats, &extras)) return fail(err);
-        if (!resumePath.empty()) {
-            mcstat::StatsImage merged;
-            img.header.seeds.clear();  // the same seed, later samples: no overlap
-            if (!mcstat::mergeStats(prev, img, merged, err)) return fail(err);
-            merged.header.seeds = prev.header.seeds;
-            merged.header.renderer = kRendererName;
-            img = std::move(merged);
-        }
-        renderWall = renderClock.wall(), renderCpu = renderClock.cpu();
-        writeClock = Stopwatch();
-        mcstat::StatsExtras ex;
-        if (pajotOn) ex.pajot = &pajot;
-        if (keepSamples) {
-            if (!records.close(err)) return fail(err);
-            ex.recordsFile = records.path();
-        }
-        img.header.hasPajot = pajotOn;
-        img.header.hasRecords = keepSamples;
-        img.header.formatVersion =
-            std::max(img.header.formatVersion, mcstat::requiredFormatVersion(img.header));
-        if (!mcstat::writeStatsFile(outPath, img, ex, err)) return fail(err);
     }
-    if (timings)
+};
+
+/// --reference: renders the mean alone and writes it as a plain RGB EXR.
+bool renderReferenceOutput(const CommandLine& cl, const Job& job, RenderStats& stats,
+                           Timings& timings, std::string& err) {
+    if (job.wantPajot || cl.keepSamples || !cl.resumePath.empty() || cl.aovs) {
+        err =
+            "--reference writes a plain EXR: --pajot, --keep-samples, --aovs and --resume "
+            "do not apply";
+        return false;
+    }
+    std::vector<float> rgb;
+    timings.renderClock = Stopwatch();
+    if (!renderReference(job.scene, job.opt, rgb, err, &stats)) return false;
+    timings.renderDone();
+    return writeReferenceExr(cl.outPath, job.scene.width, job.scene.height, rgb, job.opt.seed,
+                             job.opt.spp, err);
+}
+
+/// --resume: takes the resumed file's Pajot state into `pajot`, if it has one.
+bool resumePajot(const CommandLine& cl, const mcstat::StatsHeader& ph, bool wantPajot,
+                 mcstat::PajotImage& pajot, std::string& err) {
+    if (ph.hasPajot) {
+        mcstat::PajotImage stored;
+        if (!mcstat::readPajotParts(cl.resumePath, stored, err)) return false;
+        if (wantPajot &&
+            mcstat::pajotParamsText(stored.params) != mcstat::pajotParamsText(pajot.params)) {
+            err = fmt::format("{}: rendered with Pajot {}, not {}", cl.resumePath,
+                              mcstat::pajotParamsText(stored.params),
+                              mcstat::pajotParamsText(pajot.params));
+            return false;
+        }
+        pajot = std::move(stored);
+    } else if (wantPajot) {
+        err = cl.resumePath + ": has no Pajot state to continue (rendered without --pajot)";
+        return false;
+    }
+    return true;
+}
+
+/// --resume: reads the file to continue into `prev` and sets `job` to render the samples it
+/// lacks (same seed and M, from its last sample on).
+bool prepareResume(const CommandLine& cl, Job& job, mcstat::StatsImage& prev, std::string& err) {
+    const std::string& resumePath = cl.resumePath;
+    RenderOptions& opt = job.opt;
+    const Scene& scene = job.scene;
+    const int64_t totalSpp = opt.spp;
+    if (cl.keepSamples) {
+        err =
+            "--resume with --keep-samples is not supported: the records of the "
+            "earlier render would have to be interleaved row by row";
+        return false;
+    }
+    if (!mcstat::readStatsFile(resumePath, prev, err)) return false;
+    const mcstat::StatsHeader& ph = prev.header;
+    if (ph.renderer != kRendererName || ph.adaptiveM || ph.assignment != "roundrobin") {
+        err = resumePath + ": only a fixed-M file written by " + kRendererName + " can be resumed";
+        return false;
+    }
+    if (ph.width != scene.width || ph.height != scene.height) {
+        err = fmt::format("{}: the file is {}x{}, the scene {}x{}", resumePath, ph.width, ph.height,
+                          scene.width, scene.height);
+        return false;
+    }
+    if (!parseSeed(ph.seeds, opt.seed, err, "mcstat:seeds of the resumed file")) {
+        err = resumePath + ": " + err;
+        return false;
+    }
+    for (float c : prev.count)
+        if (double(c) != double(ph.spp)) {
+            err = resumePath + ": its pixels do not all hold mcstat:spp samples";
+            return false;
+        }
+    if (totalSpp <= ph.spp) {
+        err = fmt::format(
+            "--spp {}: the resumed file already has {} samples per "
+            "pixel; --spp is the total wanted",
+            totalSpp, ph.spp);
+        return false;
+    }
+    if (cl.aovs != !ph.aovs.empty()) {
+        err = resumePath + (cl.aovs ? ": has no AOVs to continue (rendered without --aovs)"
+                                    : ": has AOVs: resume it with --aovs");
+        return false;
+    }
+    opt.M = ph.M;
+    opt.firstSample = ph.spp;
+    opt.spp = totalSpp - ph.spp;
+    return resumePajot(cl, ph, job.wantPajot, job.pajot, err);
+}
+
+/// --keep-samples: opens the records next to the output and has the render write them.
+bool openRecords(const CommandLine& cl, const Job& job, mcstat::SampleRecordsWriter& records,
+                 RenderExtras& extras, std::string& err) {
+    const Scene& scene = job.scene;
+    mcstat::StatsHeader recHeader;
+    recHeader.width = scene.width;
+    recHeader.height = scene.height;
+    recHeader.formatVersion = mcstat::kStatsFormatVersionSamples;
+    if (cl.aovs) recHeader.aovs = fixtureAovChannels();
+    std::vector<std::string> fields = recordFieldsFor(scene);
+    if (cl.aovs) fields.emplace_back(mcstat::kRecordFieldAov);
+    std::vector<std::string> channels;
+    if (!mcstat::recordChannelsOf(fields, channels, err, recHeader.aovs)) return false;
+    const int64_t perSample = mcstat::recordBytesOnDisk(channels.size());
+    const double bytes =
+        double(scene.width) * double(scene.height) * double(job.opt.spp) * double(perSample);
+    if (bytes > double(job.maxSampleBytes)) {
+        err = fmt::format(
+            "--keep-samples: {}x{} pixels x {} spp x {} bytes = {:.4g} bytes of records "
+            "exceed --max-sample-bytes {}; raise it or lower --spp or --res",
+            scene.width, scene.height, job.opt.spp, perSample, bytes, job.maxSampleBytes);
+        return false;
+    }
+    if (!records.open(cl.outPath, recHeader, err, fields)) return false;
+    extras.recordChannels = records.channels();
+    extras.records = [&records](const mcstat::SampleBlock& b, std::string& e) {
+        return records.write(b, e);
+    };
+    return true;
+}
+
+/// Renders the statistics file (continuing --resume's file, with Pajot and records when asked)
+/// and writes it.
+bool renderStatsOutput(const CommandLine& cl, Job& job, RenderStats& stats, Timings& timings,
+                       std::string& err) {
+    mcstat::StatsImage prev;
+    const int64_t totalSpp = job.opt.spp;
+    if (!cl.resumePath.empty() && !prepareResume(cl, job, prev, err)) return false;
+    const bool pajotOn = job.wantPajot || prev.header.hasPajot;
+    mcstat::SampleRecordsWriter records;
+    RenderExtras extras;
+    if (pajotOn) extras.pajot = &job.pajot;
+    if (cl.keepSamples && !openRecords(cl, job, records, extras, err)) return false;
+    if (job.wantPajot && job.pajot.params.learning > totalSpp)
+        fmt::print(stderr,
+                   "mcstat-render: warning: --pajot-n {} exceeds --spp {}: no pixel ends its "
+                   "learning phase, and the Pajot estimate is the plain mean\n",
+                   job.pajot.params.learning, totalSpp);
+    mcstat::StatsImage img;
+    timings.renderClock = Stopwatch();
+    if (!render(job.scene, job.opt, img, err, &stats, &extras)) return false;
+    if (!cl.resumePath.empty()) {
+        mcstat::StatsImage merged;
+        img.header.seeds.clear();  // the same seed, later samples: no overlap
+        if (!mcstat::mergeStats(prev, img, merged, err)) return false;
+        merged.header.seeds = prev.header.seeds;
+        merged.header.renderer = kRendererName;
+        img = std::move(merged);
+    }
+    timings.renderDone();
+    mcstat::StatsExtras ex;
+    mcstat::PixelStateParts pajotParts;
+    if (pajotOn) {
+        if (!mcstat::encodePajotState(job.pajot, pajotParts, err)) {
+            err = cl.outPath + ": " + err;
+            return false;
+        }
+        ex.state = &pajotParts;
+    }
+    if (cl.keepSamples) {
+        if (!records.close(err)) return false;
+        ex.recordsFile = records.path();
+    }
+    img.header.hasPajot = pajotOn;
+    img.header.hasRecords = cl.keepSamples;
+    img.header.formatVersion =
+        std::max(img.header.formatVersion, mcstat::requiredFormatVersion(img.header));
+    return mcstat::writeStatsFile(cl.outPath, img, ex, err);
+}
+
+/// Prints what --timings asks for, the dropped samples and, on a terminal, the summary lines.
+void report(const CommandLine& cl, const Job& job, const RenderStats& stats,
+            const Timings& timings) {
+    const RenderOptions& opt = job.opt;
+    const Scene& scene = job.scene;
+    if (cl.timings)
         fmt::print(stderr,
                    "mcstat-render: timings: render wall {:.4f} s cpu {:.4f} s, write wall {:.4f} "
                    "s cpu {:.4f} s\n",
-                   renderWall, renderCpu, writeClock.wall(), writeClock.cpu());
+                   timings.renderWall, timings.renderCpu, timings.writeClock.wall(),
+                   timings.writeClock.cpu());
     if (stats.nonFiniteSamples > 0)
         fmt::print(stderr,
                    "mcstat-render: warning: {} samples with NaN/Inf radiance were dropped\n",
                    stats.nonFiniteSamples);
-    if (!quiet && isatty(STDERR_FILENO)) {
-        fmt::print(stderr, "mcstat-render: {} ({}x{}, {} spp) in {:.2f} s -> {}\n", scene.source,
-                   scene.width, scene.height, opt.spp, stats.seconds, outPath);
-        if (opt.adaptiveM && !reference && opt.strategy == AdaptiveStrategy::Pilot)
+    if (cl.quiet || !isatty(STDERR_FILENO)) return;
+    fmt::print(stderr, "mcstat-render: {} ({}x{}, {} spp) in {:.2f} s -> {}\n", scene.source,
+               scene.width, scene.height, opt.spp, stats.seconds, cl.outPath);
+    if (opt.adaptiveM && !cl.reference && opt.strategy == AdaptiveStrategy::Pilot)
+        fmt::print(stderr,
+                   "mcstat-render: adaptive M: pilot {} spp ({:.2f} s), sigma_image {:.6g}, "
+                   "{:.4f} buffers per pixel (M_max {})\n",
+                   stats.pilotSamples, stats.pilotSeconds, stats.sigmaImage, stats.meanBuffers,
+                   opt.mMax);
+    if (opt.adaptiveM && !cl.reference && opt.strategy == AdaptiveStrategy::Grow) {
+        for (const GrowCheckpoint& cp : stats.checkpoints)
             fmt::print(stderr,
-                       "mcstat-render: adaptive M: pilot {} spp ({:.2f} s), sigma_image {:.6g}, "
-                       "{:.4f} buffers per pixel (M_max {})\n",
-                       stats.pilotSamples, stats.pilotSeconds, stats.sigmaImage, stats.meanBuffers,
-                       opt.mMax);
-        if (opt.adaptiveM && !reference && opt.strategy == AdaptiveStrategy::Grow) {
-            for (const GrowCheckpoint& cp : stats.checkpoints)
-                fmt::print(stderr,
-                           "mcstat-render: adaptive M: checkpoint at {} spp: sigma_image {:.6g}, "
-                           "{} pixels grew, {:.4f} buffers per pixel\n",
-                           cp.samples, cp.sigmaImage, cp.grownPixels, cp.meanBuffers);
-            fmt::print(stderr, "mcstat-render: adaptive M: {:.4f} buffers per pixel (M_max {})\n",
-                       stats.meanBuffers, opt.mMax);
-        }
+                       "mcstat-render: adaptive M: checkpoint at {} spp: sigma_image {:.6g}, "
+                       "{} pixels grew, {:.4f} buffers per pixel\n",
+                       cp.samples, cp.sigmaImage, cp.grownPixels, cp.meanBuffers);
+        fmt::print(stderr, "mcstat-render: adaptive M: {:.4f} buffers per pixel (M_max {})\n",
+                   stats.meanBuffers, opt.mMax);
     }
+}
+
+}  // namespace
+
+int main(int argc, const char** argv) {
+    // Ctrl-C or a kill removes the temporary files of the output (the target is never touched).
+    mcstat::removeTemporariesOnSignals();
+    CommandLine cl;
+    int exitCode = 0;
+    if (!parseCommandLine(argc, argv, cl, exitCode)) return exitCode;
+    Job job;
+    std::string err;
+    if (!prepareJob(cl, job, err)) return fail(err);
+    RenderStats stats;
+    Timings timings;
+    const bool written = cl.reference ? renderReferenceOutput(cl, job, stats, timings, err)
+                                      : renderStatsOutput(cl, job, stats, timings, err);
+    if (!written) return fail(err);
+    report(cl, job, stats, timings);
     return 0;
 }

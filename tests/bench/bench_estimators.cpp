@@ -14,9 +14,9 @@
 #include <tuple>
 
 #include "mcstat/color.h"
-#include "mcstat/imageops.h"
-#include "mcstat/registry.h"
-#include "mcstat/spatial_filters.h"
+#include "mcstat/image/imageops.h"
+#include "mcstat/filters/registry.h"
+#include "mcstat/filters/window/window_rank.h"
 
 using namespace mcstat;
 

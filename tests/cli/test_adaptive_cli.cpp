@@ -10,7 +10,7 @@
 
 #include "cli_support.h"
 #include "mcstat/color.h"
-#include "mcstat/registry.h"
+#include "mcstat/filters/registry.h"
 #include "mcstat/stats_file.h"
 
 using namespace mcstat;

@@ -12,7 +12,7 @@
 #include <string>
 
 #include "cli_support.h"
-#include "mcstat/planner.h"
+#include "mcstat/analysis/planner.h"
 
 using mcstat::testing::Result;
 using mcstat::testing::runMcstat;

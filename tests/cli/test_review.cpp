@@ -16,9 +16,9 @@
 
 #include "cli_support.h"
 #include "mcstat/color.h"
-#include "mcstat/imageops.h"
-#include "mcstat/registry.h"
-#include "mcstat/review.h"
+#include "mcstat/image/imageops.h"
+#include "mcstat/filters/registry.h"
+#include "mcstat/analysis/review_pictures.h"
 #include "mcstat/stats_file.h"
 
 using namespace mcstat;

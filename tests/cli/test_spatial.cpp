@@ -15,8 +15,8 @@
 
 #include "cli_support.h"
 #include "mcstat/color.h"
-#include "mcstat/estimators.h"
-#include "mcstat/spatial_filters.h"
+#include "mcstat/filters/pixel/ranking.h"
+#include "mcstat/filters/window/window_rank.h"
 #include "mcstat/stats_file.h"
 
 using namespace mcstat;

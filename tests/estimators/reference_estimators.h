@@ -4,7 +4,7 @@
 // is to be the old behaviour. Namespace mcstat::reference; same signatures as the library.
 #pragma once
 
-#include "mcstat/estimators.h"
+#include "mcstat/filters/pixel/ranking.h"
 
 namespace mcstat::reference {
 

@@ -16,10 +16,10 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/estimators.h"
-#include "mcstat/imageops.h"
-#include "mcstat/jung_estimators.h"
-#include "mcstat/registry.h"
+#include "mcstat/filters/pixel/ranking.h"
+#include "mcstat/image/imageops.h"
+#include "mcstat/filters/pixel/myriad.h"
+#include "mcstat/filters/registry.h"
 #include "reference_estimators.h"
 
 using namespace mcstat;

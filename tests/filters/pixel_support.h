@@ -7,7 +7,7 @@
 #include <utility>
 #include <vector>
 
-#include "mcstat/estimators.h"
+#include "mcstat/filters/pixel/ranking.h"
 
 namespace mcstat::testing {
 

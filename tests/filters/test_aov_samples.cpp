@@ -8,7 +8,7 @@
 #include <cmath>
 #include <random>
 
-#include "mcstat/registry.h"
+#include "mcstat/filters/registry.h"
 #include "mcstat/sample_records.h"
 
 namespace mcstat {
@@ -48,7 +48,7 @@ class MemorySamples final : public SampleSource {
             }
         return true;
     }
-    bool readPajot(PajotImage&, std::string& err) override {
+    bool readPixelState(PixelStateParts&, std::string& err) override {
         err = name + ": no Pajot state";
         return false;
     }

@@ -1,5 +1,5 @@
 // The estimators' buffer weights and the shared step that applies them to AOVs
-// (include/mcstat/aov_weights.h, docs/aovs.md): weights reproduce the beauty, asking for them
+// (include/mcstat/filters/aov_weights.h, docs/aovs.md): weights reproduce the beauty, asking for them
 // changes no bit of it, and AOVs that sum to the beauty in every buffer sum to the estimate.
 #include <gtest/gtest.h>
 
@@ -7,9 +7,9 @@
 #include <cstring>
 #include <random>
 
-#include "mcstat/aov_weights.h"
-#include "mcstat/registry.h"
-#include "mcstat/spatial_filters.h"
+#include "mcstat/filters/aov_weights.h"
+#include "mcstat/filters/registry.h"
+#include "mcstat/filters/window/window_rank.h"
 #include "pixel_support.h"
 
 namespace mcstat {

@@ -5,7 +5,7 @@
 #include <limits>
 #include <vector>
 
-#include "mcstat/estimators.h"
+#include "mcstat/filters/pixel/ranking.h"
 #include "pixel_support.h"
 
 using namespace mcstat;

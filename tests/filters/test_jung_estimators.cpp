@@ -8,8 +8,8 @@
 #include <random>
 #include <vector>
 
-#include "mcstat/jung_estimators.h"
-#include "mcstat/registry.h"
+#include "mcstat/filters/pixel/myriad.h"
+#include "mcstat/filters/registry.h"
 #include "pixel_support.h"
 
 using namespace mcstat;

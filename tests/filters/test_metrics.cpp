@@ -5,7 +5,7 @@
 #include <limits>
 #include <vector>
 
-#include "mcstat/metrics.h"
+#include "mcstat/analysis/metrics.h"
 
 using namespace mcstat;
 

@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-#include "mcstat/planner.h"
+#include "mcstat/analysis/planner.h"
 
 using namespace mcstat::planner;
 

@@ -1,4 +1,4 @@
-// Review pictures (include/mcstat/review.h): the per-pixel error map against hand-computed values,
+// Review pictures (include/mcstat/analysis/review_pictures.h): the per-pixel error map against hand-computed values,
 // heatmap colours against their colour bar, non-finite pixels, and the contact sheet's layout and
 // pixels.
 #include <OpenImageIO/imagebuf.h>
@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/imageops.h"
-#include "mcstat/metrics.h"
-#include "mcstat/review.h"
+#include "mcstat/image/imageops.h"
+#include "mcstat/analysis/metrics.h"
+#include "mcstat/analysis/review_pictures.h"
 
 using namespace mcstat;
 

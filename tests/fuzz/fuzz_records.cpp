@@ -2,7 +2,8 @@
 // (SampleRecordsReader, by blocks of rows, with every channel and with R, G, B, Z alone), Pajot's
 // parts `pajot` and `modes`, and the per-sample operations (Pajot, RPF) over what was accepted.
 #include "fuzz_support.h"
-#include "mcstat/registry.h"
+#include "mcstat/filters/registry.h"
+#include "mcstat/filters/samples/pajot_state.h"
 #include "mcstat/sample_records.h"
 
 using namespace mcstat;

@@ -3,7 +3,7 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include "fuzz_support.h"
-#include "mcstat/imageops.h"
+#include "mcstat/image/imageops.h"
 
 using namespace mcstat;
 

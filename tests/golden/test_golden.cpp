@@ -22,7 +22,7 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/registry.h"
+#include "mcstat/filters/registry.h"
 #include "tool_test.h"
 
 namespace mcstat {

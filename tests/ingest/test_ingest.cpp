@@ -8,8 +8,8 @@
 #include <limits>
 
 #include "mcstat/ingest.h"
-#include "mcstat/registry.h"
-#include "mcstat/render_layout.h"
+#include "mcstat/filters/registry.h"
+#include "mcstat/image/render_layout.h"
 #include "render_files.h"
 
 namespace mcstat {

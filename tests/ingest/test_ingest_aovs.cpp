@@ -15,9 +15,9 @@
 #include <set>
 
 #include "mcstat/color.h"
-#include "mcstat/imageops.h"
+#include "mcstat/image/imageops.h"
 #include "mcstat/ingest.h"
-#include "mcstat/render_layout.h"
+#include "mcstat/image/render_layout.h"
 
 namespace mcstat {
 namespace {

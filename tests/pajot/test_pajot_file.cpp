@@ -15,7 +15,7 @@
 #include <sstream>
 #include <string>
 
-#include "mcstat/pajot.h"
+#include "mcstat/filters/samples/pajot_state.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
 #include "tool_test.h"

@@ -33,7 +33,7 @@ endfunction()
 run_step("cmake --install" "${CMAKE_COMMAND}" --install "${BUILD_DIR}" --prefix "${_prefix}")
 foreach(_f lib/cmake/mcstat/mcstatConfig.cmake lib/pkgconfig/mcstat.pc
            lib/OpenImageIO-plugins/mcstat.imageio.so bin/mcstat bin/mcstat-render
-           include/mcstat/registry.h lib/libmcstat_filters.a)
+           include/mcstat/filters/registry.h lib/libmcstat_filters.a)
   if(NOT EXISTS "${_prefix}/${_f}")
     message(FATAL_ERROR "cmake --install did not install ${_f}")
   endif()

@@ -23,8 +23,8 @@
 #include <vector>
 
 #include "mcstat/color.h"
-#include "mcstat/imageops.h"
-#include "mcstat/registry.h"
+#include "mcstat/image/imageops.h"
+#include "mcstat/filters/registry.h"
 #include "mcstat/stats_file.h"
 
 namespace {

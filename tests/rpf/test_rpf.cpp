@@ -9,7 +9,7 @@
 #include <random>
 #include <vector>
 
-#include "mcstat/rpf.h"
+#include "mcstat/filters/samples/rpf_filter.h"
 
 namespace mcstat {
 namespace {

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/pajot.h"
+#include "mcstat/filters/samples/pajot_state.h"
 #include "mcstat/render/scene.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"

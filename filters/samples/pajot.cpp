@@ -3,15 +3,16 @@
 // taken, through the same PajotPixel the renderer feeds, so that it equals the online result bit
 // for bit; or, without records, the online result the file stores. Reads through SampleSource
 // (exr-deep opens the file), by blocks of rows: memory holds one block of samples.
-#include "pajot_offline.h"
+#include "mcstat/filters/samples/pajot.h"
 
 #include <algorithm>
 #include <cmath>
 #include <thread>
 #include <vector>
 
-#include "mcstat/aov_weights.h"
-#include "mcstat/pajot.h"
+#include "mcstat/filters/aov_weights.h"
+#include "mcstat/filters/samples/pajot_kde.h"
+#include "mcstat/filters/samples/pajot_state.h"
 #include "mcstat/sample_records.h"
 
 namespace mcstat {
@@ -69,7 +70,7 @@ bool pajotOperation(const SamplesRequest& req, OperationImage& out, std::string&
     }
     PajotImage stored;
     const bool haveStored = h.hasPajot;
-    if (haveStored && !src->readPajot(stored, err)) return false;
+    if (haveStored && !readPajotState(*src, stored, err)) return false;
     PajotParams p;
     if (!requestedParams(req, haveStored ? &stored : nullptr, p, err)) return false;
 

@@ -2,7 +2,7 @@
 // Thesis: ../shared/papers/jung2016-thesis-robust-pixel-estimation.txt, section 4.1.3
 // (M-estimators) and section 4.2 (scale 0.05 x input range, luminance-driven selection). Rules:
 // jung_estimators.h.
-#include "mcstat/jung_estimators.h"
+#include "mcstat/filters/pixel/myriad.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,5 +1,5 @@
-// OIIO adapters over the pure estimators and metrics (see include/mcstat/imageops.h).
-#include "mcstat/imageops.h"
+// OIIO adapters over the pure estimators and metrics (see include/mcstat/image/imageops.h).
+#include "mcstat/image/imageops.h"
 
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imagebufalgo_util.h>
@@ -8,7 +8,7 @@
 #include <algorithm>
 #include <atomic>
 
-#include "mcstat/aov_weights.h"
+#include "mcstat/filters/aov_weights.h"
 #include "mcstat/color.h"
 #include "mcstat/sample_records.h"
 

@@ -1,6 +1,6 @@
 // Random parameter filtering (Sen and Darabi 2011, implementation report; docs/rpf.md). Section
 // and equation numbers below are the report's.
-#include "mcstat/rpf.h"
+#include "mcstat/filters/samples/rpf_filter.h"
 
 #include <algorithm>
 #include <atomic>

@@ -1,5 +1,5 @@
-// Image-comparison metrics (see include/mcstat/metrics.h and docs/metrics.md).
-#include "mcstat/metrics.h"
+// Image-comparison metrics (see include/mcstat/analysis/metrics.h and docs/metrics.md).
+#include "mcstat/analysis/metrics.h"
 
 #include <algorithm>
 #include <cmath>

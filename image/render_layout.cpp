@@ -1,11 +1,13 @@
 // Drop-in outputs: the input render's names, parts, windows and metadata (render_layout.h).
-#include "mcstat/render_layout.h"
+#include "mcstat/image/render_layout.h"
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 
@@ -68,7 +70,14 @@ std::string sourceMetadataJson(const ImageSpec& spec) {
                 TypeDesc one(TypeDesc::BASETYPE(t.basetype));
                 if (!OIIO::convert_type(one, pv.data(), TypeDesc::FLOAT, f.data(), int(n)))
                     continue;
-                for (float x : f) values.push_back(x);
+                // JSON has no NaN or infinity (nlohmann writes null): those are the strings
+                // "nan", "inf" and "-inf", which applySourceMetadata reads back.
+                for (float x : f) {
+                    if (std::isfinite(x))
+                        values.push_back(x);
+                    else
+                        values.push_back(std::isnan(x) ? "nan" : x > 0 ? "inf" : "-inf");
+                }
                 break;
             }
             case TypeDesc::INT8:
@@ -134,11 +143,16 @@ bool applySourceMetadata(ImageSpec& spec, const std::string& json, std::string& 
                    t.basetype == TypeDesc::HALF) {
             std::vector<float> f;
             for (const auto& e : v) {
-                if (!e.is_number()) {
+                if (e.is_number()) {
+                    f.push_back(e.get<float>());
+                } else if (e == "nan" || e == "inf" || e == "-inf") {
+                    f.push_back(e == "nan"   ? std::numeric_limits<float>::quiet_NaN()
+                                : e == "inf" ? std::numeric_limits<float>::infinity()
+                                             : -std::numeric_limits<float>::infinity());
+                } else {
                     err = format("source metadata: '{}' holds a non-number", name);
                     return false;
                 }
-                f.push_back(e.get<float>());
             }
             TypeDesc ft = t;
             ft.basetype = TypeDesc::FLOAT;

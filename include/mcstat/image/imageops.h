@@ -7,10 +7,10 @@
 
 #include <OpenImageIO/imagebuf.h>
 
-#include "mcstat/estimators.h"
-#include "mcstat/metrics.h"
-#include "mcstat/registry.h"
-#include "mcstat/spatial_filters.h"
+#include "mcstat/filters/pixel/ranking.h"
+#include "mcstat/analysis/metrics.h"
+#include "mcstat/filters/registry.h"
+#include "mcstat/filters/window/window_rank.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat {

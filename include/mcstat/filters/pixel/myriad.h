@@ -13,7 +13,7 @@
 // formulas).
 #pragma once
 
-#include "mcstat/estimators.h"
+#include "mcstat/filters/pixel/ranking.h"
 
 namespace mcstat {
 

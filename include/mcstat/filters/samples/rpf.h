@@ -3,8 +3,8 @@
 
 #include <string>
 
-#include "mcstat/registry.h"
-#include "mcstat/rpf.h"
+#include "mcstat/filters/registry.h"
+#include "mcstat/filters/samples/rpf_filter.h"
 
 namespace mcstat {
 

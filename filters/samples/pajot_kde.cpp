@@ -1,7 +1,7 @@
 // Pajot et al. 2011, Algorithm 1 with the learning phase (section 4.1), ADR (section 4.2, eq. 4),
 // ROT (section 4.4, eq. 5) and the hybrid switch (section 4.6). The rules the paper leaves open are
-// listed in include/mcstat/pajot.h; docs/pajot.md explains them.
-#include "mcstat/pajot.h"
+// listed in include/mcstat/filters/samples/pajot_kde.h; docs/pajot.md explains them.
+#include "mcstat/filters/samples/pajot_kde.h"
 
 #include <algorithm>
 #include <cmath>

@@ -3,14 +3,14 @@
 // (55 rows each side for the report's boxes), so memory holds a window of rows, never the image.
 // Channels are found by name (FORMAT.md "Per-sample fields"): colour R, G, B; screen position
 // screen.x, screen.y; random parameters rand.*; scene features N1, P1, T1, N2, P2 (and feat.*).
-#include "rpf_offline.h"
+#include "mcstat/filters/samples/rpf.h"
 
 #include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
 
-#include "mcstat/rpf.h"
+#include "mcstat/filters/samples/rpf_filter.h"
 #include "mcstat/sample_records.h"
 
 namespace mcstat {

@@ -3,7 +3,7 @@
 
 #include <string>
 
-#include "mcstat/registry.h"
+#include "mcstat/filters/registry.h"
 
 namespace mcstat {
 

@@ -25,6 +25,8 @@
 #include <string>
 #include <vector>
 
+#include "mcstat/core/pixel_buffers.h"
+
 namespace mcstat {
 
 /// How an estimator treats colour.
@@ -49,13 +51,6 @@ struct EstimatorParams {
     double gamma = 0.05;
     double delta = 0.05;
     bool scaleRelative = true;
-};
-
-/// One pixel's sub-buffers: M means (RGB interleaved) and M counts.
-struct PixelBuffers {
-    const float* mean = nullptr;   ///< [j*3 + c]
-    const float* count = nullptr;  ///< [j]
-    int M = 0;
 };
 
 /// An estimate and its diagnostics. In Luminance mode the three diagnostic channels are equal.

@@ -2,8 +2,8 @@
 // trimmed mean TMPE (thesis eq. 5.1, ../shared/papers/jung2016-thesis-robust-pixel-estimation.txt).
 // Paper: ../shared/papers/buisine2021-gmon-median-of-means.txt (equations cited inline).
 // The shared rules (valid buffers, weights, negatives, empty pixels) are in
-// include/mcstat/estimators.h.
-#include "mcstat/estimators.h"
+// include/mcstat/filters/pixel/ranking.h.
+#include "mcstat/filters/pixel/ranking.h"
 
 #include <immintrin.h>
 

@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/metrics.h"
+#include "mcstat/analysis/metrics.h"
 
 namespace mcstat {
 

@@ -8,7 +8,7 @@
 
 #include <string>
 
-#include "mcstat/registry.h"
+#include "mcstat/filters/registry.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat {

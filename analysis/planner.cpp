@@ -1,6 +1,6 @@
 // Jung's analytic error rates (thesis eq. 4.10-4.13, 5.3, 5.9, 5.10, 5.16, 5.22) and the planner's
-// design searches (sections 4.1.4 and 5.3.1), in log space. See include/mcstat/planner.h.
-#include "mcstat/planner.h"
+// design searches (sections 4.1.4 and 5.3.1), in log space. See include/mcstat/analysis/planner.h.
+#include "mcstat/analysis/planner.h"
 
 #include <algorithm>
 #include <cmath>

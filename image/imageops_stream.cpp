@@ -11,7 +11,7 @@
 #include <future>
 #include <vector>
 
-#include "mcstat/imageops.h"
+#include "mcstat/image/imageops.h"
 
 namespace mcstat {
 

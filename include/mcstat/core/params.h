@@ -1,0 +1,81 @@
+// Typed parameters: what an operation (or a command) accepts, and the one checked parser of
+// parameter, modifier and option values. A core type: every layer above declares its parameters
+// with it (operations in filters/, the renderer's options), so a value is parsed and
+// range-checked in one place, and error messages and --help describe it the same way.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace mcstat {
+
+enum class ParamType {
+    Int,   ///< an integer in [min, max] (odd when ParamSpec::odd)
+    Real,  ///< a finite number in [min, max] (min excluded when minOpen)
+    Enum,  ///< one of ParamSpec::choices (or an alias of one)
+    Size,  ///< "KxL" or "K" (K x K): integers in [min, max] (odd when ParamSpec::odd)
+    Flag,  ///< 0 or 1 (also true/false, on/off)
+};
+
+struct ParamSpec {
+    std::string name;  ///< modifier / configuration key, e.g. "alpha"
+    ParamType type = ParamType::Real;
+    double min = 0.0, max = 0.0;       ///< Int, Real, Size; +-HUGE_VAL for no bound
+    bool minOpen = false;              ///< Real: min itself is excluded
+    bool odd = false;                  ///< Int, Size: only odd values
+    std::string defaultValue;          ///< as text; parses with parseParamValue
+    std::vector<std::string> choices;  ///< Enum: the accepted values, the canonical ones
+    /// Enum: other spellings, alias -> choice (e.g. "luminance" -> "lum").
+    std::vector<std::pair<std::string, std::string>> aliases;
+    std::string help;
+    /// Fixed by the operation, not a modifier: the value is always defaultValue (e.g. 3DMF's
+    /// centre weight 1). Listed so that the operation's whole configuration is in the registry.
+    bool fixed = false;
+};
+
+/// A parsed parameter value.
+struct ParamValue {
+    ParamType type = ParamType::Real;
+    std::string text;      ///< as given; Enum: the canonical choice
+    double real = 0.0;     ///< Real; Int and Flag: the value too
+    int64_t integer = 0;   ///< Int, Flag; Size: K (width)
+    int64_t integer2 = 0;  ///< Size: L (height)
+};
+
+/// Every parameter of one operation, defaults applied: name -> value.
+using ParamValues = std::map<std::string, ParamValue>;
+
+/// What `spec` accepts, as error messages and --help say it: "a number in [0, 0.5]", "an integer
+/// in [1, 1000000]", "'lum' or 'channel'", "KxL with odd K, L in [1, 255] (e.g. 3x3)", "0 or 1".
+std::string describeParam(const ParamSpec& spec);
+
+/// The one checked parser: the whole of `text` must be a value of `spec` in its range. On failure
+/// `err` is the one line "<context>: <key> must be <describeParam>, not '<text>'".
+bool parseParamValue(const std::string& context, const ParamSpec& spec, const std::string& text,
+                     ParamValue& out, std::string& err);
+
+/// The low-level number syntax parseParamValue uses (and nothing else does): the whole text is a
+/// base-10 integer / a finite number, without surrounding spaces.
+bool parseIntegerText(const std::string& text, int64_t& out);
+bool parseRealText(const std::string& text, double& out);
+
+// ---- declaring parameters: the spellings every operation uses ----------------------------------
+
+/// A finite number in [lo, hi] (lo excluded when loOpen; +-HUGE_VAL: unbounded).
+ParamSpec realParam(const std::string& name, double lo, double hi, bool loOpen,
+                    const std::string& def, const std::string& help, bool fixed = false);
+/// An integer in [lo, hi].
+ParamSpec intParam(const std::string& name, double lo, double hi, const std::string& def,
+                   const std::string& help);
+/// A 0/1 switch (also true/false, on/off).
+ParamSpec flagParam(const std::string& name, const std::string& def, const std::string& help);
+/// One of `choices` (the first is not implied: `def` is the default), with other spellings.
+ParamSpec enumParam(const std::string& name, std::vector<std::string> choices,
+                    const std::string& def, const std::string& help,
+                    std::vector<std::pair<std::string, std::string>> aliases = {});
+
+}  // namespace mcstat

@@ -1,0 +1,14 @@
+// One pixel's sub-buffers as every per-pixel operation takes them: the view the statistics file
+// (exr-deep) hands out and the estimators (filters/pixel) read. A core type: it depends on nothing.
+#pragma once
+
+namespace mcstat {
+
+/// One pixel's sub-buffers: M means (RGB interleaved) and M counts.
+struct PixelBuffers {
+    const float* mean = nullptr;   ///< [j*3 + c]
+    const float* count = nullptr;  ///< [j]
+    int M = 0;
+};
+
+}  // namespace mcstat
