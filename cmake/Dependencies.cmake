@@ -4,7 +4,7 @@ find_package(OpenEXR 3 CONFIG REQUIRED)
 find_package(Imath CONFIG REQUIRED)
 find_package(OpenImageIO CONFIG REQUIRED)
 # Debian's OpenImageIO target lists /usr/include/opencv4 (not installed with it): drop that directory,
-# otherwise generation fails (see ../shared/NOTES.md).
+# otherwise generation fails (checked on Debian 12).
 foreach(_tgt OpenImageIO::OpenImageIO OpenImageIO::OpenImageIO_Util)
   if(TARGET ${_tgt})
     get_target_property(_inc ${_tgt} INTERFACE_INCLUDE_DIRECTORIES)

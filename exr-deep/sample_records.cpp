@@ -407,8 +407,9 @@ Imf::FrameBuffer stateFrameBuffer(const PixelStateParts& s, const Imath::Box2i& 
     auto* fl = const_cast<float*>(s.floats.data());
     auto* words = const_cast<uint32_t*>(s.words.data());
     for (size_t c = 0; c < nf; ++c)
-        fb.insert(s.floatChannels[c], Imf::Slice::Make(Imf::FLOAT, fl + c, window,
-                                                       nf * sizeof(float), nf * sizeof(float) * width));
+        fb.insert(s.floatChannels[c],
+                  Imf::Slice::Make(Imf::FLOAT, fl + c, window, nf * sizeof(float),
+                                   nf * sizeof(float) * width));
     for (size_t c = 0; c < nu; ++c)
         fb.insert(s.uintChannels[c],
                   Imf::Slice::Make(Imf::UINT, words + c, window, nu * sizeof(uint32_t),
@@ -437,9 +438,9 @@ Imf::DeepFrameBuffer stateDeepFrameBuffer(const StatsHeader& h, const PixelState
     ptr.assign(nc, std::vector<char*>(pixels, nullptr));
     Imf::DeepFrameBuffer dfb;
     const size_t xs = sizeof(char*), ys = xs * size_t(h.width);
-    dfb.insertSampleCountSlice(Imf::Slice(
-        Imf::UINT, windowBase(s.recordCounts.data(), h, sizeof(uint32_t)), sizeof(uint32_t),
-        sizeof(uint32_t) * size_t(h.width)));
+    dfb.insertSampleCountSlice(Imf::Slice(Imf::UINT,
+                                          windowBase(s.recordCounts.data(), h, sizeof(uint32_t)),
+                                          sizeof(uint32_t), sizeof(uint32_t) * size_t(h.width)));
     for (size_t c = 0; c < nc; ++c)
         dfb.insert(s.recordChannels[c], Imf::DeepSlice(Imf::FLOAT, windowBase(ptr[c].data(), h, xs),
                                                        xs, ys, nc * sizeof(float)));
@@ -464,11 +465,11 @@ bool checkExtras(const std::string& path, const StatsImage& img, const StatsExtr
     if (extras.state != nullptr) {
         const PixelStateParts& s = *extras.state;
         const size_t pixels = img.pixelCount();
-        const uint64_t total = std::accumulate(s.recordCounts.begin(), s.recordCounts.end(),
-                                               uint64_t(0));
+        const uint64_t total =
+            std::accumulate(s.recordCounts.begin(), s.recordCounts.end(), uint64_t(0));
         if (s.floats.size() != pixels * s.floatChannels.size() ||
-            s.words.size() != pixels * s.uintChannels.size() ||
-            s.recordCounts.size() != pixels || s.records.size() != total * s.recordChannels.size()) {
+            s.words.size() != pixels * s.uintChannels.size() || s.recordCounts.size() != pixels ||
+            s.records.size() != total * s.recordChannels.size()) {
             err = path + ": the per-pixel state (parts pajot, modes) does not match the image size";
             return false;
         }
@@ -481,12 +482,15 @@ void appendExtraHeaders(std::vector<Imf::Header>& headers, const StatsHeader& h,
     if (extras.state != nullptr) {
         const PixelStateParts& s = *extras.state;
         Imf::Header flat = commonHeader(h, layout::kPartPajot, false);
-        for (const std::string& c : s.floatChannels) flat.channels().insert(c, Imf::Channel(Imf::FLOAT));
-        for (const std::string& c : s.uintChannels) flat.channels().insert(c, Imf::Channel(Imf::UINT));
+        for (const std::string& c : s.floatChannels)
+            flat.channels().insert(c, Imf::Channel(Imf::FLOAT));
+        for (const std::string& c : s.uintChannels)
+            flat.channels().insert(c, Imf::Channel(Imf::UINT));
         flat.insert(layout::kAttrPajot, Imf::StringAttribute(s.params));
         headers.push_back(std::move(flat));
         Imf::Header deep = commonHeader(h, layout::kPartModes, true);
-        for (const std::string& c : s.recordChannels) deep.channels().insert(c, Imf::Channel(Imf::FLOAT));
+        for (const std::string& c : s.recordChannels)
+            deep.channels().insert(c, Imf::Channel(Imf::FLOAT));
         deep.insert(layout::kAttrPajot, Imf::StringAttribute(s.params));
         headers.push_back(std::move(deep));
     }
@@ -557,9 +561,9 @@ bool readPixelStateParts(const std::string& path, PixelStateParts& out, std::str
         const uint64_t flatBytes =
             uint64_t(pixels) * (r.floatChannels.size() + r.uintChannels.size()) * 4;
         if (flatBytes > uint64_t(limits.maxBytes))
-            throw std::runtime_error(fmt::format(
-                "part 'pajot' holds {} channels, beyond the limits",
-                r.floatChannels.size() + r.uintChannels.size()));
+            throw std::runtime_error(
+                fmt::format("part 'pajot' holds {} channels, beyond the limits",
+                            r.floatChannels.size() + r.uintChannels.size()));
         r.floats.resize(pixels * r.floatChannels.size());
         r.words.resize(pixels * r.uintChannels.size());
         {

@@ -16,8 +16,7 @@ namespace mcstat {
 
 namespace {
 
-// ---- parameters shared by several operations
-// -----------------------------------------------------
+// ---- parameters shared by several operations ----------------------------------------------------
 
 ParamSpec modeParam(const std::string& help) {
     ParamSpec p;
@@ -235,7 +234,7 @@ const std::vector<Operation>& operationRegistry() {
                              "scale (small: mode-like, large: the median)"),
                    scaleSpec()}),
         // Jung's spatial filters over an image (section 5.1) and 3D filters over the sub-buffers
-        // (section 5.2); spatial_filters.h.
+        // (section 5.2); filters/window/window_rank.h.
         neighbourhood(
             "mif", "MIF",
             "Median image filter MIF(k x l) of the top image (Jung eq. 5.8); after "

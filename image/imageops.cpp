@@ -8,8 +8,8 @@
 #include <algorithm>
 #include <atomic>
 
-#include "mcstat/filters/aov_weights.h"
 #include "mcstat/color.h"
+#include "mcstat/filters/aov_weights.h"
 #include "mcstat/sample_records.h"
 
 namespace mcstat {

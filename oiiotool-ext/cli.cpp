@@ -13,8 +13,8 @@
 #include <functional>
 
 #include "mcstat/color.h"
-#include "mcstat/image/imageops.h"
 #include "mcstat/filters/registry.h"
+#include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
 
 namespace mcstat::cli {
@@ -200,8 +200,7 @@ bool cmdOperation(State& st, const std::string& cmd, const std::vector<std::stri
     return false;
 }
 
-// ---- comparison and merging
-// -----------------------------------------------------------------------
+// ---- comparison and merging ---------------------------------------------------------------------
 
 bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& args,
              const Modifiers& mods, std::string& err) {

@@ -53,7 +53,8 @@ struct Command {
 
 /// Modifier values of the commands outside the registry: the whole text must be an integer in
 /// [lo, hi] / a finite number. Both use the registry's one number parser (parseIntegerText,
-/// parseRealText in mcstat/filters/registry.h); registry operations and --plan parse with parseParamValue.
+/// parseRealText in mcstat/filters/registry.h); registry operations and --plan parse with
+/// parseParamValue.
 bool parseInt(const std::string& s, long lo, long hi, long& out);
 bool parseDouble(const std::string& s, double& out);
 

@@ -10,10 +10,10 @@
 #include <cstdio>
 
 #include "cli.h"
-#include "mcstat/image/imageops.h"
-#include "mcstat/ingest.h"
 #include "mcstat/filters/samples/pajot_state.h"
+#include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
+#include "mcstat/ingest.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/temp_file.h"
 

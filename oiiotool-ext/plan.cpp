@@ -1,6 +1,7 @@
 // `mcstat --plan`: Jung's design questions answered from the analytic error rates (thesis eq. 4.13,
-// 5.3, 5.9, 5.16, 5.22 and section 5.3.1) by the pure planner (include/mcstat/analysis/planner.h). It needs
-// nothing on the stack and prints a table, or JSON with :json=1. docs/planner.md describes it.
+// 5.3, 5.9, 5.16, 5.22 and section 5.3.1) by the pure planner (include/mcstat/analysis/planner.h).
+// It needs nothing on the stack and prints a table, or JSON with :json=1. docs/planner.md describes
+// it.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>

@@ -1,9 +1,8 @@
 // Pictures for review tools (docs/review.md): --contactsheet, --errormap, --heatmap, --qualityplot.
-// The image operations live in filters/review.cpp (include/mcstat/analysis/review_pictures.h); this file parses
-// modifiers, reads the reference, computes the estimates and metrics, and for the plot writes the
-// CSV and the gnuplot script (plot.cpp runs gnuplot).
-#include "mcstat/analysis/review_pictures.h"
-
+// The image operations live in analysis/review_pictures.cpp
+// (include/mcstat/analysis/review_pictures.h); this file parses modifiers, reads the reference,
+// computes the estimates and metrics, and for the plot writes the CSV and the gnuplot script
+// (plot.cpp runs gnuplot).
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/strutil.h>
@@ -18,9 +17,10 @@
 #include <utility>
 
 #include "cli.h"
+#include "mcstat/analysis/review_pictures.h"
 #include "mcstat/color.h"
-#include "mcstat/image/imageops.h"
 #include "mcstat/filters/registry.h"
+#include "mcstat/image/imageops.h"
 
 namespace mcstat::cli {
 

@@ -9,8 +9,8 @@
 
 #include "cli.h"
 #include "mcstat/color.h"
-#include "mcstat/image/imageops.h"
 #include "mcstat/filters/window/window_rank.h"
+#include "mcstat/image/imageops.h"
 
 namespace mcstat::cli {
 

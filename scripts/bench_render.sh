@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Renderer benchmark (issue 11, "Speed and memory"; never part of the test suite). Prints two tables
+# Renderer benchmark (never part of the test suite). Prints two tables
 # for the default scene at 640x480, seed 3:
 #  1. M = 1 against M = 21 at 64 and 256 spp: whole-process wall and CPU time, the render alone and
 #     the file writing alone (mcstat-render --timings), peak RSS, and the overheads of M = 21 in %.

@@ -15,6 +15,7 @@ packages=(
   fonts-dejavu-core                      # OIIO's render_text needs a font: DejaVuSans labels the review pictures
   clang libclang-rt-14-dev               # scripts/fuzz.sh: libFuzzer and clang's ASan/UBSan runtimes
   blender python3-numpy python3-openimageio  # tests/aovs: real Cycles renders through ingest, checked in Python
+  graphviz                               # dot: docs/images/architecture.png is drawn from architecture.dot
 )
 
 missing=()

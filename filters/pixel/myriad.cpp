@@ -1,7 +1,8 @@
 // Myriad (eq. 4.7) and meridian (eq. 4.8) over one pixel's sub-buffer means.
-// Thesis: ../shared/papers/jung2016-thesis-robust-pixel-estimation.txt, section 4.1.3
-// (M-estimators) and section 4.2 (scale 0.05 x input range, luminance-driven selection). Rules:
-// jung_estimators.h.
+// Jung, "Rendering of Teeth and Dental Restorations using Robust Statistical Estimation
+// Techniques", PhD thesis, University of Minnesota, 2016, section 4.1.3 (M-estimators) and
+// section 4.2 (scale 0.05 x input range, luminance-driven selection). Rules:
+// filters/pixel/myriad.h.
 #include "mcstat/filters/pixel/myriad.h"
 
 #include <algorithm>

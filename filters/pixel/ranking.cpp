@@ -1,6 +1,6 @@
 // Median of means, Gini coefficient, G-MoN and G-MoN_b over one pixel's sub-buffers, and Jung's
-// trimmed mean TMPE (thesis eq. 5.1, ../shared/papers/jung2016-thesis-robust-pixel-estimation.txt).
-// Paper: ../shared/papers/buisine2021-gmon-median-of-means.txt (equations cited inline).
+// trimmed mean TMPE (Jung 2016, thesis eq. 5.1).
+// Paper: Buisine, Delepoulle, Renaud, EGSR 2021 (equations cited inline).
 // The shared rules (valid buffers, weights, negatives, empty pixels) are in
 // include/mcstat/filters/pixel/ranking.h.
 #include "mcstat/filters/pixel/ranking.h"
@@ -187,7 +187,7 @@ void reduceGeneral(const PixelBuffers& px, const EstimatorParams& p, PixelEstima
     }
 }
 
-// ---- fast path (issue 11): the same arithmetic on small fixed arrays ----------------------------
+// ---- fast path: the same arithmetic on small fixed arrays -------------------------------------
 // Bit-identity with reduceGeneral (tests/estimators/test_bit_identity.cpp) rests on three facts:
 // the valid buffers are the same ones in the same index order; the ranking is the same total order
 // (key ascending, ties by buffer index), so every sum below adds the same doubles in the same

@@ -301,8 +301,7 @@ bool parsePajotParamsText(const std::string& text, PajotParams& p, std::string& 
     return true;
 }
 
-// ---- the per-pixel estimator
-// ----------------------------------------------------------------------
+// ---- the per-pixel estimator --------------------------------------------------------------------
 
 namespace {
 

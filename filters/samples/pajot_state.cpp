@@ -15,12 +15,12 @@ namespace {
 constexpr double kMaxExactCount = 16777216.0;  // 2^24: counts are float32 in the file
 
 /// Flat part `pajot`: FLOAT channels, then UINT pairs holding doubles' bit patterns.
-const std::vector<std::string> kPajotFloats = {"R",     "G",     "B",   "delayed", "splatted",
-                                               "discarded", "taken", "phase", "run", "mAdr",
-                                               "mRot",  "rotN"};
-const std::vector<std::string> kPajotWords = {"sum.R.hi",   "sum.R.lo",   "sum.G.hi", "sum.G.lo",
-                                              "sum.B.hi",   "sum.B.lo",   "rotMean.hi",
-                                              "rotMean.lo", "rotM2.hi",   "rotM2.lo"};
+const std::vector<std::string> kPajotFloats = {"R",        "G",         "B",     "delayed",
+                                               "splatted", "discarded", "taken", "phase",
+                                               "run",      "mAdr",      "mRot",  "rotN"};
+const std::vector<std::string> kPajotWords = {"sum.R.hi", "sum.R.lo", "sum.G.hi",   "sum.G.lo",
+                                              "sum.B.hi", "sum.B.lo", "rotMean.hi", "rotMean.lo",
+                                              "rotM2.hi", "rotM2.lo"};
 /// Deep part `modes`: one record per mode, ROT single, delayed or learning sample; Z is the
 /// record's index within its pixel and A = 1, for deep tools.
 const std::vector<std::string> kModeChannels = {"kind", "lo", "hi", "count", "R",
@@ -60,8 +60,8 @@ bool channelIndices(const std::vector<std::string>& have, const std::vector<std:
 }
 
 /// One pixel's state from its flat values (in kPajotFloats / kPajotWords order) and records.
-bool decodePixel(const float* f, const uint32_t* w, const float* const* rec, uint32_t n,
-                 size_t p, int width, PajotState& s, float estimate[3], std::string& err) {
+bool decodePixel(const float* f, const uint32_t* w, const float* const* rec, uint32_t n, size_t p,
+                 int width, PajotState& s, float estimate[3], std::string& err) {
     bool ok = true;
     auto count = [&](float v, const char* what) -> int64_t {
         if (ok && (!(v >= 0.f) || v > float(kMaxExactCount) || v != std::floor(v))) {
@@ -162,8 +162,15 @@ bool encodePajotState(const PajotImage& pj, PixelStateParts& out, std::string& e
         r.recordCounts[p] = uint32_t(recordCount(s));
         size_t index = 0;
         auto put = [&](int kind, float lo, float hi, float n, const float* rgb) {
-            const float rec[] = {float(kind),       lo, hi, n, rgb ? rgb[0] : 0.f,
-                                 rgb ? rgb[1] : 0.f, rgb ? rgb[2] : 0.f, float(index++), 1.f};
+            const float rec[] = {float(kind),
+                                 lo,
+                                 hi,
+                                 n,
+                                 rgb ? rgb[0] : 0.f,
+                                 rgb ? rgb[1] : 0.f,
+                                 rgb ? rgb[2] : 0.f,
+                                 float(index++),
+                                 1.f};
             r.records.insert(r.records.end(), std::begin(rec), std::end(rec));
         };
         for (const PajotMode& m : s.modes) put(kAdrMode, m.lo, m.hi, float(m.n), nullptr);
@@ -183,8 +190,8 @@ bool decodePajotState(const PixelStateParts& parts, int width, PajotImage& pj, s
         return false;
     }
     std::vector<size_t> fi, wi, ri;
-    if (!channelIndices(parts.floatChannels, kPajotFloats, "part 'pajot' has no FLOAT channel",
-                        fi, err) ||
+    if (!channelIndices(parts.floatChannels, kPajotFloats, "part 'pajot' has no FLOAT channel", fi,
+                        err) ||
         !channelIndices(parts.uintChannels, kPajotWords, "part 'pajot' has no UINT channel", wi,
                         err) ||
         !channelIndices(parts.recordChannels, kModeChannels, "part 'modes' has no channel", ri,

@@ -1,5 +1,6 @@
 // Jung's spatial and 3D robust filters (thesis chapter 5, eq. 5.6-5.8, 5.14, 5.19-5.21, 5.28):
-// the weighted trimmed mean over a window of elements. Rules: include/mcstat/filters/window/window_rank.h.
+// the weighted trimmed mean over a window of elements. Rules:
+// include/mcstat/filters/window/window_rank.h.
 #include "mcstat/filters/window/window_rank.h"
 
 #include <algorithm>

@@ -144,12 +144,12 @@ class SampleRecordsReader {
 /// writer writes the channels listed, the reader returns every FLOAT and UINT channel the file
 /// holds (in the file's order), and the operation looks up the ones it needs.
 struct PixelStateParts {
-    std::string params;  ///< attribute mcstat:pajot
+    std::string params;                                    ///< attribute mcstat:pajot
     std::vector<std::string> floatChannels, uintChannels;  ///< the flat part's channels
     std::vector<float> floats;                             ///< [p * floatChannels.size() + c]
     std::vector<uint32_t> words;                           ///< [p * uintChannels.size() + c]
-    std::vector<std::string> recordChannels;  ///< the deep part's channels (FLOAT)
-    std::vector<uint32_t> recordCounts;       ///< [p]: records of pixel p
+    std::vector<std::string> recordChannels;               ///< the deep part's channels (FLOAT)
+    std::vector<uint32_t> recordCounts;                    ///< [p]: records of pixel p
     std::vector<float> records;  ///< [k * recordChannels.size() + c], pixels in scanline order
 };
 /// What writeStatsFile adds to the four parts (format version 4).

@@ -14,9 +14,9 @@
 #include <tuple>
 
 #include "mcstat/color.h"
-#include "mcstat/image/imageops.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/filters/window/window_rank.h"
+#include "mcstat/image/imageops.h"
 
 using namespace mcstat;
 
@@ -61,7 +61,7 @@ void BM_Estimator(benchmark::State& state, const EstimatorInfo* est, EstimatorMo
 
 const std::vector<int64_t> kBufferCounts = {3, 7, 17, 21};
 
-/// Thread scaling of the image loop (issue 11): a 1920x1080 image, M = 21, luminance mode, with
+/// Thread scaling of the image loop: a 1920x1080 image, M = 21, luminance mode, with
 /// state.range(0) threads; real time, so that 2 threads show as a speed-up. Names:
 /// threads/NAME/1080p/THREADS.
 void BM_EstimatorThreads(benchmark::State& state, const EstimatorInfo* est) {

@@ -1,4 +1,4 @@
-// Issue 12 from the user's side: outputs the writers refuse with a reason, --info against
+// Untrusted input from the user's side: outputs the writers refuse with a reason, --info against
 // --check on files whose values are bad, and interrupted writes that leave nothing behind.
 #include <OpenImageIO/filesystem.h>
 #include <gtest/gtest.h>
@@ -181,7 +181,7 @@ std::vector<std::string> temporaries(const std::string& dir) {
     return out;
 }
 
-// Issue 12: kills left temporary files. A render keeping every sample writes its records to a
+// Kills must not leave temporary files. A render keeping every sample writes its records to a
 // temporary from the first row on; SIGINT, SIGTERM and SIGHUP there remove it, and the process
 // still ends by the signal (its parent sees what it asked for).
 TEST_F(Untrusted, SignalsDuringAWriteRemoveTheTemporaryFile) {

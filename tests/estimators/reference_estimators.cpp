@@ -1,6 +1,7 @@
-// The pre-issue-11 implementation, kept as the oracle for bit-identity tests: the bodies of
-// filters/estimators.cpp and filters/jung_estimators.cpp copied verbatim (only the namespace
-// changed) before the per-pixel estimators were rewritten for speed. See reference_estimators.h.
+// The straightforward implementation, kept as the oracle for bit-identity tests: the bodies of the
+// rank estimators (now filters/pixel/ranking.cpp) and of myriad and meridian (now
+// filters/pixel/myriad.cpp) copied verbatim (only the namespace changed) before they were
+// rewritten for speed. See reference_estimators.h.
 #include "reference_estimators.h"
 
 #include <algorithm>

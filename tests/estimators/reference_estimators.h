@@ -1,5 +1,5 @@
-// The pre-issue-11 implementation of the per-pixel estimators (filters/estimators.cpp and
-// filters/jung_estimators.cpp as they were before the speed work), kept unchanged as the oracle for
+// The straightforward implementation of the per-pixel estimators (as they were before the speed
+// work on filters/pixel/ranking.cpp and filters/pixel/myriad.cpp), kept unchanged as the oracle for
 // the bit-identity tests (test_bit_identity.cpp). Do not optimise or "fix" this code: its only job
 // is to be the old behaviour. Namespace mcstat::reference; same signatures as the library.
 #pragma once

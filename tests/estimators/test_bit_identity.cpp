@@ -1,9 +1,9 @@
-// Issue 11 (speed): every BufferMeans estimator of the registry, in both modes and with several
-// parameter sets, must return bit for bit what the pre-issue-11 implementation returned
-// (reference_estimators.cpp, the oracle). Pixels are random and adversarial: ties, all-equal sets,
-// NaN/Inf buffers, zero and invalid counts, M = 1, 2, even M, M above the fast paths' fixed sizes,
-// negatives, signed zeros, denormals, values near FLT_MAX, huge counts. The image loop (estimate())
-// is checked with 1 and 2 threads against the oracle run pixel by pixel.
+// Speed work must not change a bit: every BufferMeans estimator of the registry, in both modes and
+// with several parameter sets, must return bit for bit what the straightforward implementation
+// returned (reference_estimators.cpp, the oracle). Pixels are random and adversarial: ties,
+// all-equal sets, NaN/Inf buffers, zero and invalid counts, M = 1, 2, even M, M above the fast
+// paths' fixed sizes, negatives, signed zeros, denormals, values near FLT_MAX, huge counts. The
+// image loop (estimate()) is checked with 1 and 2 threads against the oracle run pixel by pixel.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -16,10 +16,10 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/filters/pixel/ranking.h"
-#include "mcstat/image/imageops.h"
 #include "mcstat/filters/pixel/myriad.h"
+#include "mcstat/filters/pixel/ranking.h"
 #include "mcstat/filters/registry.h"
+#include "mcstat/image/imageops.h"
 #include "reference_estimators.h"
 
 using namespace mcstat;

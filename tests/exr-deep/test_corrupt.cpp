@@ -363,7 +363,7 @@ void expectHeaderRejection(const std::string& path, const std::string& what) {
     EXPECT_EQ(herr, err);
 }
 
-// Issue 12: a 52 KB file claiming 24 x 1,000,001 pixels cost 5.1 GB before it failed. The chunk
+// A 52 KB file claiming 24 x 1,000,001 pixels cost 5.1 GB before it failed. The chunk
 // offset table cannot point inside the file for rows it does not hold.
 TEST_F(Corrupt, TallClaimOfASmallFileIsRejectedBeforeAllocating) {
     img = renderImage(24, 16, 3, 5, [](int x, int y) { return 1 + (x + y) % 3; });

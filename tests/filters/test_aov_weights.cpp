@@ -1,6 +1,6 @@
 // The estimators' buffer weights and the shared step that applies them to AOVs
-// (include/mcstat/filters/aov_weights.h, docs/aovs.md): weights reproduce the beauty, asking for them
-// changes no bit of it, and AOVs that sum to the beauty in every buffer sum to the estimate.
+// (include/mcstat/filters/aov_weights.h, docs/aovs.md): weights reproduce the beauty, asking for
+// them changes no bit of it, and AOVs that sum to the beauty in every buffer sum to the estimate.
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -166,8 +166,7 @@ TEST(Estimators, GMoNWithNoTrimIsExactlyTheMean) {
     EXPECT_EQ(g.rgb[0], m.rgb[0]);
 }
 
-// ---- edges
-// ---------------------------------------------------------------------------------------
+// ---- edges --------------------------------------------------------------------------------------
 
 TEST(Estimators, AllEqualAndAllZeroReturnTheMean) {
     for (auto fn : {estimateMean, estimateMoN, estimateGMoN, estimateGMoNb}) {

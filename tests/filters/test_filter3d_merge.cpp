@@ -21,8 +21,8 @@
 #include <utility>
 #include <vector>
 
-#include "mcstat/image/imageops.h"
 #include "mcstat/filters/window/window_rank.h"
+#include "mcstat/image/imageops.h"
 #include "pixel_support.h"
 
 using namespace mcstat;

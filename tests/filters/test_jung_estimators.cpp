@@ -78,8 +78,7 @@ double bruteMyriad(const std::vector<double>& x, const std::vector<double>& w, d
 
 }  // namespace
 
-// ---- TMPE (eq. 5.1) and MPE (eq. 5.2)
-// --------------------------------------------------------------
+// ---- TMPE (eq. 5.1) and MPE (eq. 5.2) -----------------------------------------------------------
 
 TEST(TMPE, AlphaMapsToATrimCount) {
     EXPECT_EQ(tmpeTrim(0.0, 9), 0);
@@ -319,8 +318,7 @@ TEST(Meridian, LuminanceReturnsOneBuffersColour) {
     EXPECT_EQ(run(estimateMeridian, swapped, o).rgb, (std::array<float, 3>{1, 0, 0}));
 }
 
-// ---- shared edges
-// --------------------------------------------------------------------------------
+// ---- shared edges -------------------------------------------------------------------------------
 
 TEST(JungEstimators, EdgesOfEveryEstimator) {
     for (auto fn : {estimateTMPE, estimateMyriad, estimateMeridian}) {

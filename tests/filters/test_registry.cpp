@@ -4,8 +4,8 @@
 #include <cmath>
 #include <sstream>
 
-#include "mcstat/image/imageops.h"
 #include "mcstat/filters/registry.h"
+#include "mcstat/image/imageops.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
 

@@ -1,6 +1,6 @@
-// Review pictures (include/mcstat/analysis/review_pictures.h): the per-pixel error map against hand-computed values,
-// heatmap colours against their colour bar, non-finite pixels, and the contact sheet's layout and
-// pixels.
+// Review pictures (include/mcstat/analysis/review_pictures.h): the per-pixel error map against
+// hand-computed values, heatmap colours against their colour bar, non-finite pixels, and the
+// contact sheet's layout and pixels.
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
 #include <gtest/gtest.h>
@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/image/imageops.h"
 #include "mcstat/analysis/metrics.h"
 #include "mcstat/analysis/review_pictures.h"
+#include "mcstat/image/imageops.h"
 
 using namespace mcstat;
 

@@ -7,8 +7,8 @@
 #include <random>
 #include <vector>
 
-#include "mcstat/image/imageops.h"
 #include "mcstat/filters/window/window_rank.h"
+#include "mcstat/image/imageops.h"
 #include "pixel_support.h"
 
 using namespace mcstat;

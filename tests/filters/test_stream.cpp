@@ -18,8 +18,8 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/image/imageops.h"
 #include "mcstat/filters/registry.h"
+#include "mcstat/image/imageops.h"
 #include "mcstat/stats_file.h"
 #include "pixel_support.h"
 

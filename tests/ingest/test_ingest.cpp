@@ -7,9 +7,9 @@
 #include <fstream>
 #include <limits>
 
-#include "mcstat/ingest.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/render_layout.h"
+#include "mcstat/ingest.h"
 #include "render_files.h"
 
 namespace mcstat {

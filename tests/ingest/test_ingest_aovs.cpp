@@ -16,8 +16,8 @@
 
 #include "mcstat/color.h"
 #include "mcstat/image/imageops.h"
-#include "mcstat/ingest.h"
 #include "mcstat/image/render_layout.h"
+#include "mcstat/ingest.h"
 
 namespace mcstat {
 namespace {

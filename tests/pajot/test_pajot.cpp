@@ -1,5 +1,6 @@
 // Pajot et al. 2011: the per-pixel estimator against hand-worked distributions and eq. 3-5
-// computed here the slow, obvious way, and every numerical edge of include/mcstat/filters/samples/pajot_kde.h.
+// computed here the slow, obvious way, and every numerical edge of
+// include/mcstat/filters/samples/pajot_kde.h.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -33,8 +34,7 @@ float logOf(double y) {
     return pajotLogLuminance(rgb, {1.0, 0.0, 0.0});
 }
 
-// ---- eq. 3 and eq. 4, the slow way, over explicit values
-// ------------------------------------------
+// ---- eq. 3 and eq. 4, the slow way, over explicit values ----------------------------------------
 
 double kernel(double u) { return std::fabs(u) < 1 ? 0.75 * (1 - u * u) : 0.0; }
 

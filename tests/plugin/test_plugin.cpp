@@ -23,8 +23,8 @@
 #include <vector>
 
 #include "mcstat/color.h"
-#include "mcstat/image/imageops.h"
 #include "mcstat/filters/registry.h"
+#include "mcstat/image/imageops.h"
 #include "mcstat/stats_file.h"
 
 namespace {
@@ -779,7 +779,7 @@ std::string patchDataWindow(std::string bytes, int32_t maxX, int32_t maxY) {
     return bytes;
 }
 
-// Issue 12: the plugin meets the malformed files mcstat was tried with. Each is refused, through
+// The plugin meets the malformed files mcstat was tried with. Each is refused, through
 // the API (open or read fails, one line naming the file) and through stock oiiotool (exit status
 // 1, not a crash): the fuzzers' saved findings, claims of sizes the file cannot hold, and cuts.
 TEST_F(PluginApi, MalformedFilesAreRefusedWithOneLineNamingTheFile) {

@@ -1,5 +1,6 @@
 // Jung's analytic error rates (thesis chapters 4 and 5,
-// ../shared/papers/jung2016-thesis-robust-pixel-estimation.txt): the probability that a sample of
+// Jung, "Rendering of Teeth and Dental Restorations using Robust Statistical Estimation
+// Techniques", PhD thesis, University of Minnesota, 2016): the probability that a sample of
 // probability p reaches the final pixel through MPE(m), MIF(n), MPE(m)+MIF(n) and 3DMF(m x n), and
 // the design questions built on them. Pure functions, no I/O; docs/planner.md has the long form.
 //

@@ -7,8 +7,8 @@
 
 #include <OpenImageIO/imagebuf.h>
 
-#include "mcstat/filters/pixel/ranking.h"
 #include "mcstat/analysis/metrics.h"
+#include "mcstat/filters/pixel/ranking.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/filters/window/window_rank.h"
 #include "mcstat/stats_file.h"
@@ -62,10 +62,10 @@ OIIO::ImageBuf estimate(const StatsImage& src, const EstimatorInfo& est,
                         int nthreads = 0);
 
 /// Jung's (weighted) median image filter WMIF / MIF (eq. 5.6-5.8, centre weight eq. 5.28; see
-/// spatial_filters.h) over the R, G, B channels (the first three) of `src`, within `roi` (default:
-/// src's data window). The window is clipped to src's data window, never to `roi`, so a tile's
-/// result equals the same pixels of the whole image. The result has channels R, G, B, and when
-/// `src` carries AOVs (kAttrFirstAov, an estimator's result over a file with AOVs) those AOVs
+/// filters/window/window_rank.h) over the R, G, B channels (the first three) of `src`, within `roi`
+/// (default: src's data window). The window is clipped to src's data window, never to `roi`, so a
+/// tile's result equals the same pixels of the whole image. The result has channels R, G, B, and
+/// when `src` carries AOVs (kAttrFirstAov, an estimator's result over a file with AOVs) those AOVs
 /// too, each with the window pixels' weights from the beauty (luminance mode only).
 /// Every output pixel depends on the input alone: identical for any `nthreads`.
 bool medianImageFilter(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, const SpatialParams& params,
@@ -73,9 +73,9 @@ bool medianImageFilter(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, const Spa
 OIIO::ImageBuf medianImageFilter(const OIIO::ImageBuf& src, const SpatialParams& params,
                                  OIIO::ROI roi = {}, int nthreads = 0);
 
-/// Jung's 3D filters 3DWTMF / 3DWMF / 3DMF (eq. 5.19-5.21, see spatial_filters.h) over the
-/// sub-buffers of `src`, within `roi` (default: the data window; the window is clipped to the data
-/// window). Buffers vote once each (BufferVotes::PerBuffer) in a fixed-M image and with their
+/// Jung's 3D filters 3DWTMF / 3DWMF / 3DMF (eq. 5.19-5.21, see filters/window/window_rank.h) over
+/// the sub-buffers of `src`, within `roi` (default: the data window; the window is clipped to the
+/// data window). Buffers vote once each (BufferVotes::PerBuffer) in a fixed-M image and with their
 /// sample counts (PerSample) when src.header.adaptiveM. The result has channels R, G, B, then the
 /// file's AOVs, each with the weight every (window pixel, sub-buffer) had in the beauty's average
 /// (luminance mode only; channel mode is refused with AOVs). Identical for any `nthreads`.

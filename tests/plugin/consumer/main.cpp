@@ -11,8 +11,8 @@
 #include <string>
 
 #include "mcstat/color.h"
-#include "mcstat/image/imageops.h"
 #include "mcstat/filters/registry.h"
+#include "mcstat/image/imageops.h"
 
 int main() {
     const float grey[] = {1, 2, 1000, 3, 4};

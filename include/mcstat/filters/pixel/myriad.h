@@ -3,8 +3,8 @@
 // estimators and live with the others in estimators.h.
 //
 // Thesis: Jung, "Robust statistical pixel estimation", 2016, chapters 4 and 5
-// (../shared/papers/jung2016-thesis-robust-pixel-estimation.txt). docs/estimators.md has the long
-// form.
+// (Jung, "Rendering of Teeth and Dental Restorations using Robust Statistical Estimation
+// Techniques", PhD thesis, University of Minnesota, 2016). docs/estimators.md has the long form.
 //
 // Shared rules (estimators.h) hold: only valid buffers enter; no valid buffer gives black; counts
 // are weights. Here a buffer's count n_j is a *sample weight* in the cost: the myriad minimises
@@ -17,8 +17,7 @@
 
 namespace mcstat {
 
-// ---- one-dimensional building blocks (values sorted ascending and distinct, weights > 0)
-// ----------
+// ---- one-dimensional building blocks (values sorted ascending and distinct, weights > 0) --------
 
 /// Myriad cost in the form used for comparisons: sum_j w_j log1p(((x_j - beta) / gamma)^2), which
 /// is eq. 4.7 minus the constant sum_j w_j log(gamma^2). Terms whose ratio would overflow are
@@ -44,8 +43,7 @@ double meridianCost(const double* x, const double* w, int K, double delta, doubl
 /// value).
 int meridianSorted(const double* x, const double* w, int K, double delta);
 
-// ---- the estimators
-// ------------------------------------------------------------------------------
+// ---- the estimators -----------------------------------------------------------------------------
 
 /// Myriad (eq. 4.7) with gamma = p.gamma x (max - min) of the ranked values when p.scaleRelative
 /// (the thesis' 0.05 x input range), else gamma = p.gamma.

@@ -2,7 +2,7 @@
 // shared by the renderer, the command-line tool, the plugin and the tests.
 //
 // Paper: Buisine, Delepoulle, Renaud, "Fireflies removing in Monte Carlo rendering with adaptive
-// Median of meaNs", EGSR 2021 (../shared/papers/buisine2021-gmon-median-of-means.txt).
+// Median of meaNs", EGSR 2021.
 //
 // Rules shared by every estimator (docs/estimators.md has the long form):
 // - A buffer is *valid* when its count is > 0 and all its channels are finite. Buffers with count 0
@@ -67,7 +67,7 @@ struct EstimatorScratch {
     std::vector<int> order;
     std::vector<double> key;
     std::vector<double> sorted;
-    std::vector<double> weight;  ///< per distinct value (jung_estimators.cpp)
+    std::vector<double> weight;  ///< per distinct value (filters/pixel/myriad.cpp)
     /// Set by the caller before an estimate to also get the estimate's buffer weights (AOVs,
     /// docs/aovs.md). Every estimator in luminance mode is a convex combination of whole buffers:
     /// it then fills bufferWeight with px.M weights w_j >= 0 summing to 1 (0 for buffers that did
@@ -80,8 +80,7 @@ struct EstimatorScratch {
     std::vector<double> bufferWeight;
 };
 
-// ---- building blocks (exposed for tests and for later estimators)
-// --------------------------------
+// ---- building blocks (exposed for tests and for later estimators) -------------------------------
 
 /// Gini coefficient of `values` already sorted ascending (eq. 4), computed in double, with the
 /// negative-value and zero-sum rules above. n == 0 or 1 gives 0.
@@ -101,14 +100,13 @@ namespace detail {
 /// AVX2 (both versions give the same bits; the bit-identity test checks each). true restores the
 /// CPU's choice. Returns the previous setting. Not thread-safe: call it between estimates.
 bool setUseAvx2(bool on);
-/// For jung_estimators.cpp: order[r] = the position of the key of rank r, in the order "key
+/// For filters/pixel/myriad.cpp: order[r] = the position of the key of rank r, in the order "key
 /// ascending, ties by position", for n <= 64 keys, none NaN. `key` must have room for n rounded up
 /// to a multiple of 8 (the padding is overwritten). The rank estimators' fast ranking.
 void rankKeys(double* key, int n, int* order);
 }  // namespace detail
 
-// ---- the estimators
-// ------------------------------------------------------------------------------
+// ---- the estimators -----------------------------------------------------------------------------
 
 /// Plain mean of all samples: sum(n_j theta_j) / sum(n_j) over the valid buffers (eq. 1).
 void estimateMean(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
@@ -124,10 +122,11 @@ void estimateGMoNb(const PixelBuffers& px, const EstimatorParams& p, PixelEstima
                    EstimatorScratch& s);
 
 // ---- Jung 2016 thesis, chapters 4 and 5 ---------------------------------------------------------
-// ../shared/papers/jung2016-thesis-robust-pixel-estimation.txt; myriad, meridian: jung_estimators.h
-// The median pixel estimate MPE(m) (eq. 4.6, 5.2) *is* estimateMoN, including the even-M rule: eq.
-// 5.2 with even m trims floor((m-1)/2) = m/2 - 1 per side and averages the two middle means. The
-// registry lists it a second time as `median`.
+// Jung, "Rendering of Teeth and Dental Restorations using Robust Statistical Estimation
+// Techniques", PhD thesis, University of Minnesota, 2016; myriad and meridian:
+// filters/pixel/myriad.h The median pixel estimate MPE(m) (eq. 4.6, 5.2) *is* estimateMoN,
+// including the even-M rule: eq. 5.2 with even m trims floor((m-1)/2) = m/2 - 1 per side and
+// averages the two middle means. The registry lists it a second time as `median`.
 
 /// Number of means TMPE trims from each side (eq. 5.1): c = floor(alpha * M + 1e-9) (the 1e-9
 /// absorbs the rounding of alpha = i/M), clamped to [0, floor((M - 1) / 2)]. alpha = 0 gives 0 (the

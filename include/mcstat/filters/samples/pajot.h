@@ -1,4 +1,4 @@
-// Internal: the registry's per-sample operation "pajot" (filters/pajot_offline.cpp).
+// The registry's per-sample operation "pajot" (filters/samples/pajot.cpp).
 #pragma once
 
 #include <string>

@@ -1,9 +1,8 @@
-// Pajot, Barthe, Paulin, "Sample-Space Bright Spots Removal Using Density Estimation", GI 2011
-// (../shared/papers/pajot2011-bright-spots-density-estimation.txt): a per-pixel average estimator
-// robust to outliers. Every sample of a pixel, in the order it was taken, updates a kernel-density
-// representation of the pixel's log-luminance distribution; a sample is splatted when its
-// log-luminance is at most m, the upper bound of the last extended mode, and delayed otherwise.
-// Delayed samples are splatted later if m rises (Algorithm 1).
+// Pajot, Barthe, Paulin, "Sample-Space Bright Spots Removal Using Density Estimation", GI 2011:
+// a per-pixel average estimator robust to outliers. Every sample of a pixel, in the order it was
+// taken, updates a kernel-density representation of the pixel's log-luminance distribution; a
+// sample is splatted when its log-luminance is at most m, the upper bound of the last extended
+// mode, and delayed otherwise. Delayed samples are splatted later if m rises (Algorithm 1).
 //
 // Pure and deterministic: no I/O, no OIIO types, no threads. The renderer (online), `mcstat
 // --pajot` (offline, from the per-sample records) and the tests share this one implementation, so
@@ -158,8 +157,7 @@ class PajotPixel {
 /// log-luminance of a sample as the estimator computes it (-inf when black), for tests and tools.
 float pajotLogLuminance(const float rgb[3], const std::array<double, 3>& luma);
 
-// ---- building blocks, exposed for the hand-worked tests
-// ------------------------------------------
+// ---- building blocks, exposed for the hand-worked tests -----------------------------------------
 
 /// Mean nearest-neighbour distance of the approximate distribution `modes` (section 4.2: each mode
 /// of n samples stands for n regularly spaced values in [lo, hi]); 0 with fewer than two values.

@@ -1,4 +1,5 @@
-// Internal: the registry's per-sample operation "rpf" (filters/rpf_offline.cpp).
+// The registry's per-sample operation "rpf" (filters/samples/rpf.cpp): random parameter
+// filtering over a statistics file's per-sample records, by blocks of rows.
 #pragma once
 
 #include <string>

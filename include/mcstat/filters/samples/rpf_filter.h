@@ -1,11 +1,11 @@
-// Random parameter filtering (Sen and Darabi 2011, the implementation report
-// ../shared/papers/sen2011-random-parameter-filtering.txt; docs/rpf.md). Every sample carries its
-// colour c, screen position p, the random parameters r it drew and scene features f (normals,
-// world positions, texture values of the first and second hit). Per pixel, a neighbourhood of
-// samples is drawn around it (Algorithm 2), the statistical dependency of colour and features on
-// r and p is measured with mutual information (Algorithm 3, eq. 1-12), and the pixel's samples
-// are filtered with a cross-bilateral filter whose colour and feature weights shrink with that
-// dependency (Algorithm 4, eq. 15-20). Four passes with boxes 55, 35, 17, 7 (Algorithm 1).
+// Random parameter filtering (Sen and Darabi, "Implementation of Random Parameter Filtering",
+// technical report, 2011; docs/rpf.md). Every sample carries its colour c, screen position p, the
+// random parameters r it drew and scene features f (normals, world positions, texture values of the
+// first and second hit). Per pixel, a neighbourhood of samples is drawn around it (Algorithm 2),
+// the statistical dependency of colour and features on r and p is measured with mutual information
+// (Algorithm 3, eq. 1-12), and the pixel's samples are filtered with a cross-bilateral filter whose
+// colour and feature weights shrink with that dependency (Algorithm 4, eq. 15-20). Four passes with
+// boxes 55, 35, 17, 7 (Algorithm 1).
 //
 // Pure functions over in-memory sample windows: no I/O and no OIIO types, so the offline command,
 // the plugin and the tests share them. Deterministic: every random choice comes from a generator
@@ -113,8 +113,7 @@ struct RpfWeights {
 RpfWeights rpfFeatureWeights(const RpfLayout& layout, const float* xs, size_t n, int pass,
                              double epsilon = 1e-10);
 
-// ---- the filter
-// ------------------------------------------------------------------------------------
+// ---- the filter ---------------------------------------------------------------------------------
 
 /// One pass over the pixels of window rows [rowBegin, rowEnd) (absolute image rows): reads the
 /// current colours `cIn` (3 per sample of the window) of the samples within the box and writes the

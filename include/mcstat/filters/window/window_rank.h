@@ -4,8 +4,9 @@
 // arrays, no I/O, no OIIO types; the ImageBuf forms are in imageops.h.
 //
 // Thesis: Jung, "Robust statistical pixel estimation", 2016
-// (../shared/papers/jung2016-thesis-robust-pixel-estimation.txt). docs/spatial_filters.md has the
-// long form. The hybrids are compositions: MPE+MIF (eq. 5.15) = estimateMoN then MIF, TMPE+WMIF
+// (Jung, "Rendering of Teeth and Dental Restorations using Robust Statistical Estimation
+// Techniques", PhD thesis, University of Minnesota, 2016). docs/spatial_filters.md has the long
+// form. The hybrids are compositions: MPE+MIF (eq. 5.15) = estimateMoN then MIF, TMPE+WMIF
 // (eq. 5.14) = estimateTMPE then WMIF.
 //
 // One rule covers every filter here, the weighted trimmed mean of eq. 5.6 / 5.19:
@@ -149,8 +150,7 @@ struct SpatialScratch {
 void weightedTrimmedMean(const WindowElement* elems, int n, const SpatialParams& p,
                          PixelEstimate& out, SpatialScratch& s);
 
-// ---- MIF / WMIF over an RGB image
-// ------------------------------------------------------------------
+// ---- MIF / WMIF over an RGB image ---------------------------------------------------------------
 
 /// An interleaved RGB float image: pixel (x, y) at rgb[(y * width + x) * 3 + c].
 struct RGBImageView {
@@ -165,8 +165,7 @@ void wmifPixel(const RGBImageView& img, int x, int y, const SpatialParams& p, Pi
 /// wmifPixel over every pixel, one thread; `out` holds width * height * 3 floats (not `img.rgb`).
 void wmifImage(const RGBImageView& img, const SpatialParams& p, float* out);
 
-// ---- 3D filters over pixel buffers
-// -----------------------------------------------------------------
+// ---- 3D filters over pixel buffers --------------------------------------------------------------
 
 /// How the buffers of a 3D filter's window vote in the ranking (docs/spatial_filters.md).
 enum class BufferVotes {
