@@ -10,6 +10,8 @@
 
 #include "mcstat/color.h"
 #include "mcstat/filters/aov_weights.h"
+#include "mcstat/filters/window/filter3d.h"
+#include "mcstat/filters/window/mif.h"
 #include "mcstat/sample_records.h"
 
 namespace mcstat {
@@ -157,8 +159,8 @@ std::vector<std::string> estimatorChannels(EstimatorMode mode, bool diagnostics)
     return names;
 }
 
-bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
-              const EstimatorParams& params, bool diagnostics, ROI roi, int nthreads) {
+bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const PixelKernel& kernel,
+              bool diagnostics, ROI roi, int nthreads) {
     const StatsHeader& h = src.header;
     const ROI full = dataWindowROI(h);
     if (!roi.defined()) roi = full;
@@ -177,7 +179,7 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
                          est.name, src.aov.size(), A);
             return false;
         }
-        if (params.mode != EstimatorMode::Luminance) {
+        if (kernel.mode != EstimatorMode::Luminance) {
             dst.errorfmt(
                 "{}: mode=channel ranks R, G and B separately, so no one weight per sub-buffer "
                 "exists to apply to the file's {} AOV channels (they would stop adding up to the "
@@ -186,7 +188,7 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
             return false;
         }
     }
-    std::vector<std::string> names = estimatorChannels(params.mode, diagnostics);
+    std::vector<std::string> names = estimatorChannels(kernel.mode, diagnostics);
     const size_t firstAov = names.size();
     for (const std::string& n : aovOutputChannels(h)) names.push_back(n);
     const std::vector<AovClass> classes = aovClasses(h.aovs);
@@ -212,7 +214,7 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
         for (int y = r.ybegin; y < r.yend; ++y)
             for (int x = r.xbegin; x < r.xend; ++x) {
                 const size_t p = size_t(y - h.originY) * size_t(h.width) + size_t(x - h.originX);
-                est.fn(src.pixelBuffers(p), params, e, scratch);
+                kernel.estimate(src.pixelBuffers(p), e, scratch);
                 float* px =
                     base +
                     (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
@@ -230,7 +232,7 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
                 px[1] = e.rgb[1];
                 px[2] = e.rgb[2];
                 if (diagnostics) {
-                    if (params.mode == EstimatorMode::Luminance) {
+                    if (kernel.mode == EstimatorMode::Luminance) {
                         px[3] = e.gini[0];
                         px[4] = float(e.kept[0]);
                         px[5] = float(e.excluded);
@@ -252,10 +254,10 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
     return true;
 }
 
-ImageBuf estimate(const StatsImage& src, const EstimatorInfo& est, const EstimatorParams& params,
+ImageBuf estimate(const StatsImage& src, const Operation& est, const PixelKernel& kernel,
                   bool diagnostics, ROI roi, int nthreads) {
     ImageBuf dst;
-    estimate(dst, src, est, params, diagnostics, roi, nthreads);
+    estimate(dst, src, est, kernel, diagnostics, roi, nthreads);
     return dst;
 }
 
@@ -448,23 +450,29 @@ namespace {
 const StatsHeader& headerOf(const StatsImage& s) { return s.header; }
 const StatsHeader& headerOf(const StatsBlockSource& s) { return s.header(); }
 
+/// The plain mean of the sub-buffers (the registry's "mean"): what MIF filters when given a
+/// statistics file, and the reference of the residuals.
+template <class Source>
+bool plainMean(ImageBuf& dst, Source& src, const std::array<double, 3>& luma, ROI roi,
+               int nthreads) {
+    const Operation& mean = *findOperation("mean");
+    return estimate(dst, src, mean, mean.bindPixel(ParamValues(), luma), false, roi, nthreads);
+}
+
 /// applyOperation over an image in memory or a streamed source: the same calls, each with its
 /// own overloads of estimate() and filter3D().
 template <class Source>
 bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const ParamValues& values,
                       const std::array<double, 3>& luma, bool diagnostics, ROI roi, int nthreads) {
     switch (op.input) {
-        case InputKind::BufferMeans: {
-            EstimatorParams params;
-            params.luma = luma;
-            applyEstimatorParams(values, params);
-            return estimate(dst, src, op, params, diagnostics, roi, nthreads);
-        }
+        case InputKind::BufferMeans:
+            return estimate(dst, src, op, op.bindPixel(values, luma), diagnostics, roi, nthreads);
         case InputKind::Neighbourhood: {
-            const SpatialParams params = spatialParams(values, luma);
-            if (op.over == Neighbourhood::SubBuffers)
+            const WindowKernel kernel = op.bindWindow(values, luma);
+            const SpatialParams& params = kernel.params;
+            if (kernel.over == Neighbourhood::SubBuffers)
                 return filter3D(dst, src, params, roi, nthreads);
-            if (op.over == Neighbourhood::Image) {
+            if (kernel.over == Neighbourhood::Image) {
                 // The plain mean as the "mean" estimator computes it (`mcstat f --mean --mif`)
                 // over roi grown by the window's radius (clipped to the data window), then the
                 // median filter over roi: each window sees the same pixels as over the whole
@@ -472,14 +480,11 @@ bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const Par
                 const ROI full = dataWindowROI(headerOf(src));
                 if (!roi.defined()) roi = full;
                 roi = OIIO::roi_intersection(roi, full);
-                const int rx = params.windowWidth / 2, ry = params.windowHeight / 2;
+                const int rx = kernel.haloX(), ry = kernel.haloY();
                 const ROI grown = OIIO::roi_intersection(
                     ROI(roi.xbegin - rx, roi.xend + rx, roi.ybegin - ry, roi.yend + ry), full);
-                EstimatorParams meanParams;
-                meanParams.luma = luma;
                 ImageBuf mean;
-                if (!estimate(mean, src, *findEstimator("mean"), meanParams, false, grown,
-                              nthreads)) {
+                if (!plainMean(mean, src, luma, grown, nthreads)) {
                     dst.errorfmt("{}: {}", op.name, mean.geterror());
                     return false;
                 }
@@ -505,10 +510,8 @@ template <class Source>
 bool appendResidualTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
                       int nthreads) {
     const StatsHeader& h = headerOf(src);
-    EstimatorParams meanParams;
-    meanParams.luma = luma;
     ImageBuf mean;
-    if (!estimate(mean, src, *findEstimator("mean"), meanParams, false, robust.roi(), nthreads)) {
+    if (!plainMean(mean, src, luma, robust.roi(), nthreads)) {
         robust.errorfmt("residual: {}", mean.geterror());
         return false;
     }
@@ -569,6 +572,29 @@ bool applyOperation(ImageBuf& dst, StatsBlockSource& src, const Operation& op,
                     const ParamValues& values, const std::array<double, 3>& luma, bool diagnostics,
                     ROI roi, int nthreads) {
     return applyOperationTo(dst, src, op, values, luma, diagnostics, roi, nthreads);
+}
+
+bool applyOperation(ImageBuf& dst, const ImageBuf& src, const Operation& op,
+                    const ParamValues& values, const std::array<double, 3>& luma, ROI roi,
+                    int nthreads) {
+    if (!takesImage(op)) {
+        dst.errorfmt("{} works on a statistics file, not on an image", op.name);
+        return false;
+    }
+    return medianImageFilter(dst, src, op.bindWindow(values, luma).params, roi, nthreads);
+}
+
+bool takesImage(const Operation& op) {
+    return op.input == InputKind::Neighbourhood && op.over == Neighbourhood::Image;
+}
+
+bool readsSamples(const Operation& op) { return op.input == InputKind::Samples; }
+
+bool hasDiagnostics(const Operation& op) { return op.input == InputKind::BufferMeans; }
+
+int smallestRobustM(const Operation& op, const ParamValues& values) {
+    if (op.input != InputKind::BufferMeans) return 1;
+    return op.bindPixel(values, {0.0, 0.0, 0.0}).smallestRobustM;
 }
 
 bool runSamplesOperation(ImageBuf& dst, const std::string& path, const StatsHeader& header,

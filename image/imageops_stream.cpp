@@ -11,6 +11,7 @@
 #include <future>
 #include <vector>
 
+#include "mcstat/filters/window/filter3d.h"
 #include "mcstat/image/imageops.h"
 
 namespace mcstat {
@@ -103,16 +104,15 @@ std::vector<std::string> operationChannels(const Operation& op, const ParamValue
             for (const std::string& n : aovOutputChannels(*header)) names.push_back(n);
         return names;
     }
-    EstimatorParams params;
-    applyEstimatorParams(values, params);
-    std::vector<std::string> names = estimatorChannels(params.mode, diagnostics);
+    std::vector<std::string> names =
+        estimatorChannels(op.bindPixel(values, {0.0, 0.0, 0.0}).mode, diagnostics);
     if (header)
         for (const std::string& n : aovOutputChannels(*header)) names.push_back(n);
     return names;
 }
 
-bool estimate(ImageBuf& dst, StatsBlockSource& src, const EstimatorInfo& est,
-              const EstimatorParams& params, bool diagnostics, ROI roi, int nthreads) {
+bool estimate(ImageBuf& dst, StatsBlockSource& src, const Operation& est, const PixelKernel& kernel,
+              bool diagnostics, ROI roi, int nthreads) {
     dst.clear();
     if (!src.ready()) {
         dst.errorfmt("estimate {}: the source holds no image", est.name);
@@ -124,14 +124,14 @@ bool estimate(ImageBuf& dst, StatsBlockSource& src, const EstimatorInfo& est,
     const unsigned parts = kStatsPartBuffers | (src.header().aovs.empty() ? 0u : kStatsPartAovs);
     return forEachBlock(dst, src, roi, 0, parts, kStreamBlockBytes, est.name.c_str(),
                         [&](ImageBuf& out, const StatsImage& block, ROI rows) {
-                            return estimate(out, block, est, params, diagnostics, rows, nthreads);
+                            return estimate(out, block, est, kernel, diagnostics, rows, nthreads);
                         });
 }
 
-ImageBuf estimate(StatsBlockSource& src, const EstimatorInfo& est, const EstimatorParams& params,
+ImageBuf estimate(StatsBlockSource& src, const Operation& est, const PixelKernel& kernel,
                   bool diagnostics, ROI roi, int nthreads) {
     ImageBuf dst;
-    estimate(dst, src, est, params, diagnostics, roi, nthreads);
+    estimate(dst, src, est, kernel, diagnostics, roi, nthreads);
     return dst;
 }
 

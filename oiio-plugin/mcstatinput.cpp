@@ -518,9 +518,7 @@ void McstatInput::makeRobustSub(const std::map<std::string, std::string>& kv, si
     mcstat::describeResult(r.spec, *est, m_values, h);
     if (est->input == mcstat::InputKind::BufferMeans && !h.adaptiveM) {
         // iv shows subimage 0 under the estimator's name: say when it cannot differ from the mean.
-        mcstat::EstimatorParams params;
-        mcstat::applyEstimatorParams(m_values, params);
-        const int minM = mcstat::smallestRobustM(*est, params);
+        const int minM = est->bindPixel(m_values, {0.0, 0.0, 0.0}).smallestRobustM;
         if (minM > 1 && h.M < minM)
             r.spec.attribute(std::string(mcstat::kProvenancePrefix) + "warning",
                              format("{} over M = {} sub-buffers is the plain mean (it trims "

@@ -105,99 +105,111 @@ bool needStatsOnTop(State& st, const std::string& cmd, std::string& err) {
     return false;
 }
 
-/// BufferMeans: the estimator on every pixel of the top statistics file.
-bool runEstimator(State& st, const std::string& cmd, const Operation& op, const Modifiers& mods,
-                  std::string& err) {
-    if (!needStatsOnTop(st, cmd, err)) return false;
-    Item& top = st.stack.back();
-    Modifiers estMods = mods;
-    bool diag = false, residual = false;
-    if (!flagValue(mods, "diag", diag, err) || !flagValue(mods, "residual", residual, err))
-        return false;
-    estMods.erase("diag");
-    estMods.erase("residual");
-    EstimatorParams params;
-    params.luma = luma();
-    ParamValues values;
-    if (!parseOperationParams(op, estMods, values, err, cmd)) return false;
-    applyEstimatorParams(values, params);
-    // A file on disk (or a merge of files) is streamed by blocks of rows; an item already in
-    // memory is used as it is.
-    ItemSource src;
-    if (!top.stats && !openSource(st, top, src, err)) return false;
-    auto img = std::make_shared<OIIO::ImageBuf>();
-    if (!(top.stats ? estimate(*img, *top.stats, op, params, diag, {}, st.nthreads)
-                    : estimate(*img, *src.root, op, params, diag, {}, st.nthreads))) {
-        err = format("{}: {}", cmd, img->geterror());
+/// The operation's input from the top of the stack: a statistics file (in memory, or streamed by
+/// blocks of rows from disk), or for the operations that filter an image (MIF, WMIF) the top image.
+/// Per-sample operations read the file from disk themselves.
+bool checkOperationInput(State& st, const std::string& cmd, const Operation& op, std::string& err) {
+    if (!needStack(st, 1, cmd, err)) return false;
+    const Item& top = st.stack.back();
+    if (takesImage(op) && top.isStats()) {
+        err = format("{}: {} is a statistics file; apply an estimator first (e.g. --median)", cmd,
+                     top.name);
         return false;
     }
-    if (residual) {
-        ItemSource again;  // a streamed source is read once more, from its first row
-        if (!top.stats && !openSource(st, top, again, err)) return false;
-        if (!(top.stats ? appendResidual(*img, *top.stats, params.luma, st.nthreads)
-                        : appendResidual(*img, *again.root, params.luma, st.nthreads))) {
-            err = format("{}: {}", cmd, img->geterror());
-            return false;
-        }
-    }
-    for (const auto& [k, v] : estMods) img->specmod().attribute("mcstat:" + k, v);
-    describeOperationResult(top, op, values, *img);
-    replaceWithImage(top, op.name, img, true);
-    return true;
-}
-
-/// Samples: the operation streams the top statistics file itself, so it must be a file on disk.
-bool runSamples(State& st, const std::string& cmd, const Operation& op, const Modifiers& mods,
-                std::string& err) {
-    if (!needStatsOnTop(st, cmd, err)) return false;
-    Item& top = st.stack.back();
-    if (top.path.empty()) {
+    if (!takesImage(op) && !needStatsOnTop(st, cmd, err)) return false;
+    if (readsSamples(op) && top.path.empty()) {
         err = format(
             "{} reads the per-sample records of a statistics file on disk; {} was "
             "computed (write it with -o and read it back)",
             cmd, top.name);
         return false;
     }
-    ParamValues values;
-    if (!parseOperationParams(op, mods, values, err, cmd)) return false;
-    auto img = std::make_shared<OIIO::ImageBuf>();
-    // Progress on a terminal only (RPF over a large file takes a while).
-    std::function<void(double)> progress;
-    int shown = -1;
-    if (isatty(STDERR_FILENO) == 1)
-        progress = [&shown, &cmd](double f) {
-            const int pct = int(100 * f);
-            if (pct == shown) return;
-            shown = pct;
-            std::fprintf(stderr, "\rmcstat: %s %3d%%", cmd.c_str(), pct);
-            std::fflush(stderr);
-        };
-    const bool ok =
-        runSamplesOperation(*img, top.path, top.header, op, values, luma(), st.nthreads, progress);
-    if (progress) std::fprintf(stderr, "\r%40s\r", "");
-    if (!ok) {
-        err = format("{}: {}", cmd, img->geterror());
-        return false;
-    }
-    img->specmod().attribute("mcstat:estimator", op.name);
-    for (const auto& [k, v] : mods) img->specmod().attribute("mcstat:" + k, v);
-    describeOperationResult(top, op, values, *img);
-    replaceWithImage(top, op.name, img, true);
     return true;
 }
 
+/// A terminal-only progress line for long operations (RPF over a large file takes a while).
+std::function<void(double)> progressLine(const std::string& cmd, int& shown) {
+    if (isatty(STDERR_FILENO) != 1) return {};
+    return [&shown, cmd](double f) {
+        const int pct = int(100 * f);
+        if (pct == shown) return;
+        shown = pct;
+        std::fprintf(stderr, "\rmcstat: %s %3d%%", cmd.c_str(), pct);
+        std::fflush(stderr);
+    };
+}
+
+/// Runs `op` with `values` on the top of the stack into `img` through the dispatcher.
+bool applyToTop(State& st, const std::string& cmd, const Operation& op, const ParamValues& values,
+                bool diag, OIIO::ImageBuf& img, std::string& err) {
+    Item& top = st.stack.back();
+    bool ok = false;
+    if (takesImage(op)) {
+        // The filter works on the first three channels: hand it R, G, B found by name. An
+        // estimator's result over a file with AOVs (R, G, B first, then its AOVs, kAttrFirstAov)
+        // goes whole: the filter gives each window pixel's AOVs the beauty's weights.
+        OIIO::ImageBuf rgb;
+        const bool withAovs = top.image->spec().get_int_attribute(kAttrFirstAov, -1) == 3;
+        if (!withAovs && !selectRGB(*top.image, "", top.name, rgb, err)) {
+            err = format("{}: {}", cmd, err);
+            return false;
+        }
+        ok = applyOperation(img, withAovs ? *top.image : rgb, op, values, luma(), {}, st.nthreads);
+    } else if (readsSamples(op)) {
+        int shown = -1;
+        const std::function<void(double)> progress = progressLine(cmd, shown);
+        ok = runSamplesOperation(img, top.path, top.header, op, values, luma(), st.nthreads,
+                                 progress);
+        if (progress) std::fprintf(stderr, "\r%40s\r", "");
+    } else {
+        ItemSource src;  // a file on disk (or a merge of files) is streamed by blocks of rows
+        if (!top.stats && !openSource(st, top, src, err)) return false;
+        ok = top.stats ? applyOperation(img, *top.stats, op, values, luma(), diag, {}, st.nthreads)
+                       : applyOperation(img, *src.root, op, values, luma(), diag, {}, st.nthreads);
+    }
+    if (!ok) err = format("{}: {}", cmd, img.geterror());
+    return ok;
+}
+
+/// Appends the residual channels (mean - robust) to `img`, the result of an operation over the
+/// top statistics file.
+bool appendTopResidual(State& st, const std::string& cmd, OIIO::ImageBuf& img, std::string& err) {
+    Item& top = st.stack.back();
+    ItemSource again;  // a streamed source is read once more, from its first row
+    if (!top.stats && !openSource(st, top, again, err)) return false;
+    if (!(top.stats ? appendResidual(img, *top.stats, luma(), st.nthreads)
+                    : appendResidual(img, *again.root, luma(), st.nthreads))) {
+        err = format("{}: {}", cmd, img.geterror());
+        return false;
+    }
+    return true;
+}
+
+/// Every registry operation's command: its parameters from the modifiers, then the dispatcher
+/// over the top of the stack, which the result replaces.
 bool cmdOperation(State& st, const std::string& cmd, const std::vector<std::string>&,
                   const Modifiers& mods, std::string& err) {
-    const Operation* op = findOperation(cmd.substr(2));
-    switch (op->input) {
-        case InputKind::BufferMeans:
-            return runEstimator(st, cmd, *op, mods, err);
-        case InputKind::Neighbourhood:
-            return runNeighbourhood(st, cmd, *op, mods, err);
-        case InputKind::Samples:
-            return runSamples(st, cmd, *op, mods, err);
-    }
-    return false;
+    const Operation& op = *findOperation(cmd.substr(2));
+    if (!checkOperationInput(st, cmd, op, err)) return false;
+    Modifiers opMods = mods;
+    bool diag = false, residual = false;
+    if (!flagValue(mods, "diag", diag, err) || !flagValue(mods, "residual", residual, err))
+        return false;
+    opMods.erase("diag");
+    opMods.erase("residual");
+    ParamValues values;
+    if (!parseOperationParams(op, opMods, values, err, cmd)) return false;
+    auto img = std::make_shared<OIIO::ImageBuf>();
+    if (!applyToTop(st, cmd, op, values, diag, *img, err)) return false;
+    if (residual && !appendTopResidual(st, cmd, *img, err)) return false;
+    // The operation and its parameters as the result's metadata (given or default).
+    img->specmod().attribute("mcstat:estimator", op.name);
+    for (const ParamSpec* p : op.settable())
+        img->specmod().attribute("mcstat:" + p->name, values.at(p->name).text);
+    Item& top = st.stack.back();
+    if (top.isStats() || top.layout) describeOperationResult(top, op, values, *img);
+    replaceWithImage(top, op.name, img, true);
+    return true;
 }
 
 // ---- comparison and merging ---------------------------------------------------------------------
@@ -343,10 +355,8 @@ std::vector<Command> buildTable() {
     for (const Operation& op : operationRegistry()) {
         Command c{"--" + op.name, 0, "", op.help, {}, &cmdOperation, op.name};
         for (const ParamSpec* p : op.settable()) c.modifiers.push_back(p->name);
-        if (op.input == InputKind::BufferMeans) {
-            c.modifiers.push_back("diag");
-            c.modifiers.push_back("residual");
-        }
+        if (hasDiagnostics(op)) c.modifiers.push_back("diag");
+        if (!takesImage(op) && !readsSamples(op)) c.modifiers.push_back("residual");
         t.push_back(c);
     }
     t.push_back(
@@ -402,8 +412,7 @@ std::string modifierHelp(const Command& c) {
     std::string s;
     if (const Operation* op = c.operation.empty() ? nullptr : findOperation(c.operation)) {
         for (const ParamSpec* p : op->settable()) s += paramHelp(*p);
-        if (op->input == InputKind::BufferMeans)
-            s += "\n        :diag=0 (1 appends channels gini, kept, excluded)";
+        if (hasDiagnostics(*op)) s += "\n        :diag=0 (1 appends channels gini, kept, excluded)";
     } else if (c.name == "--plan") {
         for (const ParamSpec& p : planParams()) s += paramHelp(p);
     } else if (c.name == "--diff") {
@@ -476,10 +485,8 @@ void describeOperationResult(const Item& top, const Operation& op, const ParamVa
     describeResult(img.specmod(), op, values, h, &warning);
     if (!warning.empty())
         std::fprintf(stderr, "mcstat: warning: %s: %s\n", top.name.c_str(), warning.c_str());
-    if (op.input == InputKind::BufferMeans && !h.adaptiveM) {
-        EstimatorParams params;
-        applyEstimatorParams(values, params);
-        const int minM = smallestRobustM(op, params);
+    if (!h.adaptiveM) {
+        const int minM = smallestRobustM(op, values);
         if (minM > 1 && h.M < minM)
             std::fprintf(stderr,
                          "mcstat: warning: --%s over M = %d sub-buffers is the plain mean (it "

@@ -122,13 +122,6 @@ bool cmdPlan(State&, const std::string&, const std::vector<std::string>&, const 
 /// --plan's modifiers, typed as registry parameters (m is a comma-separated list of such values).
 const std::vector<ParamSpec>& planParams();
 
-// Implemented in spatial.cpp: the registry's Neighbourhood operations (docs/spatial_filters.md).
-/// `op` over the top of the stack: Neighbourhood::Image operations (--mif, --wmif) filter the top
-/// image (MPE+MIF: --median --mif; TMPE+WMIF: --tmpe --wmif), Neighbourhood::SubBuffers ones
-/// (--3dmf, --3dwmf, --3dwtmf) the sub-buffers of the top statistics file.
-bool runNeighbourhood(State& st, const std::string& cmd, const Operation& op, const Modifiers& mods,
-                      std::string& err);
-
 // Implemented in review.cpp: pictures for review tools (contact sheet, heatmaps, quality plot).
 /// Appends the review commands to the command table.
 void appendReviewCommands(std::vector<Command>& table);

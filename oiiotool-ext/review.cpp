@@ -112,9 +112,9 @@ bool readReference(const std::string& path, const Modifiers& mods, const std::st
 /// Runs `est` with its default parameters (luma from the OCIO config) on `stats`.
 bool runEstimator(const StatsImage& stats, const EstimatorInfo& est, int nthreads,
                   OIIO::ImageBuf& out, const std::string& cmd, std::string& err) {
-    EstimatorParams params;
-    params.luma = lumaCoefficients();
-    if (!estimate(out, stats, est, params, false, {}, nthreads)) {
+    ParamValues defaults;
+    if (!parseOperationParams(est, {}, defaults, err, cmd)) return false;
+    if (!applyOperation(out, stats, est, defaults, lumaCoefficients(), false, {}, nthreads)) {
         err = format("{}: {}: {}", cmd, est.name, out.geterror());
         return false;
     }

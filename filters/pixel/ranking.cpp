@@ -1,8 +1,7 @@
-// Median of means, Gini coefficient, G-MoN and G-MoN_b over one pixel's sub-buffers, and Jung's
-// trimmed mean TMPE (Jung 2016, thesis eq. 5.1).
-// Paper: Buisine, Delepoulle, Renaud, EGSR 2021 (equations cited inline).
-// The shared rules (valid buffers, weights, negatives, empty pixels) are in
-// include/mcstat/filters/pixel/ranking.h.
+// The ranked trimmed mean behind mean, MoN / MPE, G-MoN, G-MoN_b and TMPE (ranking.h): ranking,
+// Gini coefficient (Buisine et al. 2021 eq. 4) and trims (eq. 2, 5, 6; Jung 2016 eq. 5.1), the
+// general path and the fast path for M <= 64. The shared rules (valid buffers, weights, negatives,
+// empty pixels) are in include/mcstat/filters/pixel/pixel_estimate.h.
 #include "mcstat/filters/pixel/ranking.h"
 
 #include <immintrin.h>
@@ -116,40 +115,41 @@ int gmonTrimUnit(double G, int M) {
     return std::clamp(c, 0, (M - 1) / 2);
 }
 
-/// Which trimming policy an estimator applies once G is known.
-enum class Policy { Mean, MoN, GMoN, GMoNb, TMPE };
-
-inline int trimFor(Policy policy, double G, int Mv, const EstimatorParams& p) {
+inline int trimFor(TrimRule rule, double G, int Mv) {
     const int cMax = (Mv - 1) / 2;  // the median (odd) or the two middle means (even)
-    switch (policy) {
-        case Policy::Mean:
+    switch (rule.kind) {
+        case TrimRule::None:
             return 0;
-        case Policy::MoN:
+        case TrimRule::Median:
             return cMax;  // eq. 2
-        case Policy::GMoN:
+        case TrimRule::Gini:
             return gmonTrimUnit(G, Mv);  // eq. 6
-        case Policy::GMoNb:
-            return G <= p.giniThreshold ? 0 : cMax;  // eq. 5
-        case Policy::TMPE:
-            return tmpeTrim(p.alpha, Mv);  // Jung eq. 5.1
+        case TrimRule::GiniThreshold:
+            return G <= rule.value ? 0 : cMax;  // eq. 5
+        case TrimRule::Fraction:
+            return tmpeTrim(rule.value, Mv);  // Jung eq. 5.1
     }
     return 0;
+}
+
+inline bool needsGini(TrimRule rule) {
+    return rule.kind == TrimRule::Gini || rule.kind == TrimRule::GiniThreshold;
 }
 
 /// Shared body: every estimator here is "rank the valid means, trim c from each side, average the
 /// rest with counts as weights", differing only in how c is chosen. This is the general version
 /// (any M, vectors in the scratch); reduceSmall below is the fast path for M <= kSmallM and gives
 /// the same bits.
-void reduceGeneral(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
-                   EstimatorScratch& s, Policy policy) {
+void reduceGeneral(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out,
+                   EstimatorScratch& s, TrimRule policy) {
     out = PixelEstimate{};
     const int Mv = collectValid(px, s, out.excluded);
     if (Mv == 0) return;  // no sample: black, kept = 0
-    const bool needGini = policy == Policy::GMoN || policy == Policy::GMoNb;
+    const bool needGini = needsGini(policy);
     s.key.resize(size_t(px.M));
     s.sorted.resize(size_t(Mv));
 
-    if (policy == Policy::Mean) {
+    if (policy.kind == TrimRule::None) {
         weightedAverage(px, s, 0, Mv, 0, 3, out);
         out.kept = {Mv, Mv, Mv};
         return;
@@ -165,7 +165,7 @@ void reduceGeneral(const PixelBuffers& px, const EstimatorParams& p, PixelEstima
             for (int r = 0; r < Mv; ++r) s.sorted[r] = s.key[s.order[r]];
             G = giniSorted(s.sorted.data(), size_t(Mv));
         }
-        const int c = trimFor(policy, G, Mv, p);
+        const int c = trimFor(policy, G, Mv);
         weightedAverage(px, s, c, Mv - c, 0, 3, out);
         if (s.wantWeights) rankWeights(px, s, c, Mv - c);
         out.gini.fill(float(G));
@@ -180,7 +180,7 @@ void reduceGeneral(const PixelBuffers& px, const EstimatorParams& p, PixelEstima
             for (int r = 0; r < Mv; ++r) s.sorted[r] = s.key[s.order[r]];
             G = giniSorted(s.sorted.data(), size_t(Mv));
         }
-        const int c = trimFor(policy, G, Mv, p);
+        const int c = trimFor(policy, G, Mv);
         weightedAverage(px, s, c, Mv - c, ch, ch + 1, out);
         out.gini[ch] = float(G);
         out.kept[ch] = Mv - 2 * c;
@@ -499,21 +499,21 @@ double giniWithFullAverage(const PixelBuffers& px, const SmallPixel& sp, int c0,
 /// One pixel (luminance, NC = 3) or one channel (NC = 1): G if the policy needs it, the trim, the
 /// average.
 template <int NC>
-void rankedReduce(const PixelBuffers& px, const EstimatorParams& p, SmallPixel& sp, Policy policy,
-                  int c0, PixelEstimate& out, double& G, int& c) {
+void rankedReduce(const PixelBuffers& px, SmallPixel& sp, TrimRule policy, int c0,
+                  PixelEstimate& out, double& G, int& c) {
     const int Mv = sp.n;
     rankSmall(sp);
-    if (policy == Policy::GMoN || policy == Policy::GMoNb) {
+    if (needsGini(policy)) {
         float full[NC];
         G = giniWithFullAverage<NC>(px, sp, c0, full);
-        c = trimFor(policy, G, Mv, p);
+        c = trimFor(policy, G, Mv);
         if (c == 0) {
             for (int ch = 0; ch < NC; ++ch) out.rgb[size_t(c0 + ch)] = full[ch];
             return;
         }
     } else {
         G = 0.0;
-        c = trimFor(policy, G, Mv, p);
+        c = trimFor(policy, G, Mv);
     }
     weightedAverageSmall<NC>(px, sp, c, Mv - c, c0, out);
 }
@@ -521,8 +521,8 @@ void rankedReduce(const PixelBuffers& px, const EstimatorParams& p, SmallPixel& 
 /// The fast path of reduceGeneral for px.M <= kSmallM and every policy but Mean (meanOnePass).
 /// Returns false (nothing written) when a key
 /// is NaN (only possible with non-finite luminance weights): the general path then decides.
-bool reduceSmall(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
-                 Policy policy) {
+bool reduceSmall(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out,
+                 TrimRule policy) {
     SmallPixel sp;
     const bool lum = p.mode == EstimatorMode::Luminance;
     const int M = px.M;
@@ -553,14 +553,14 @@ bool reduceSmall(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate
     double G;
     int c;
     if (lum) {
-        rankedReduce<3>(px, p, sp, policy, 0, out, G, c);
+        rankedReduce<3>(px, sp, policy, 0, out, G, c);
         out.gini.fill(float(G));
         out.kept.fill(Mv - 2 * c);
         return true;
     }
     for (int ch = 0; ch < 3; ++ch) {
         for (int i = 0; i < Mv; ++i) sp.key[i] = px.mean[3 * sp.idx[i] + ch];
-        rankedReduce<1>(px, p, sp, policy, ch, out, G, c);
+        rankedReduce<1>(px, sp, policy, ch, out, G, c);
         out.gini[ch] = float(G);
         out.kept[ch] = Mv - 2 * c;
     }
@@ -596,14 +596,14 @@ void meanOnePass(const PixelBuffers& px, PixelEstimate& out) {
     out.kept = {Mv, Mv, Mv};
 }
 
-void reduce(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
-            EstimatorScratch& s, Policy policy) {
+void reduce(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out, EstimatorScratch& s,
+            TrimRule policy) {
     if (s.wantWeights) {
         // Weights wanted (AOVs): the general path, which keeps its ranking in s.order. It gives
         // the fast path's bits (tests/estimators/test_bit_identity.cpp), so the beauty does not
         // change with AOVs present; the AOVs cost one weighted sum each, not a ranking.
         s.bufferWeight.clear();
-        if (policy == Policy::Mean) {
+        if (policy.kind == TrimRule::None) {
             meanOnePass(px, out);
             if (out.kept[0] == 0) {
                 s.bufferWeight.assign(size_t(px.M), 0.0);
@@ -620,7 +620,7 @@ void reduce(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out
         if (p.mode != EstimatorMode::Luminance) s.bufferWeight.clear();
         return;
     }
-    if (policy == Policy::Mean) return meanOnePass(px, out);
+    if (policy.kind == TrimRule::None) return meanOnePass(px, out);
     if (px.M <= kSmallM && reduceSmall(px, p, out, policy)) return;
     reduceGeneral(px, p, out, s, policy);
 }
@@ -647,25 +647,9 @@ bool setUseAvx2(bool on) {
 }
 }  // namespace detail
 
-void estimateMean(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
-                  EstimatorScratch& s) {
-    reduce(px, p, out, s, Policy::Mean);
-}
-void estimateMoN(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
-                 EstimatorScratch& s) {
-    reduce(px, p, out, s, Policy::MoN);
-}
-void estimateGMoN(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
-                  EstimatorScratch& s) {
-    reduce(px, p, out, s, Policy::GMoN);
-}
-void estimateGMoNb(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
-                   EstimatorScratch& s) {
-    reduce(px, p, out, s, Policy::GMoNb);
-}
-void estimateTMPE(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
-                  EstimatorScratch& s) {
-    reduce(px, p, out, s, Policy::TMPE);
+void rankedTrimmedMean(const PixelBuffers& px, const PixelParams& p, TrimRule rule,
+                       PixelEstimate& out, EstimatorScratch& s) {
+    reduce(px, p, out, s, rule);
 }
 
 }  // namespace mcstat

@@ -46,14 +46,22 @@ const StatsImage& syntheticImage(int M, int width = kWidth, int height = kHeight
     return cache.emplace(key, std::move(s)).first->second;
 }
 
+/// `op`'s parameters: the registry's defaults with `mode`.
+ParamValues defaults(const Operation& op, EstimatorMode mode) {
+    ParamValues v;
+    std::string err;
+    std::map<std::string, std::string> kv;
+    if (op.param("mode")) kv["mode"] = mode == EstimatorMode::Luminance ? "lum" : "channel";
+    if (!parseOperationParams(op, kv, v, err)) throw std::runtime_error(err);
+    return v;
+}
+
 void BM_Estimator(benchmark::State& state, const EstimatorInfo* est, EstimatorMode mode) {
     const StatsImage& img = syntheticImage(int(state.range(0)));
-    EstimatorParams p;
-    p.mode = mode;
-    p.luma = lumaCoefficients();
+    const PixelKernel kernel = est->bindPixel(defaults(*est, mode), lumaCoefficients());
     OIIO::ImageBuf out;
     for (auto _ : state) {
-        estimate(out, img, *est, p, false, {}, 1);
+        estimate(out, img, *est, kernel, false, {}, 1);
         benchmark::DoNotOptimize(out.localpixels());
     }
     state.SetItemsProcessed(int64_t(state.iterations()) * kWidth * kHeight);
@@ -67,24 +75,14 @@ const std::vector<int64_t> kBufferCounts = {3, 7, 17, 21};
 void BM_EstimatorThreads(benchmark::State& state, const EstimatorInfo* est) {
     constexpr int W = 1920, H = 1080;
     const StatsImage& img = syntheticImage(21, W, H);
-    EstimatorParams p;
-    p.luma = lumaCoefficients();
+    const PixelKernel kernel =
+        est->bindPixel(defaults(*est, EstimatorMode::Luminance), lumaCoefficients());
     OIIO::ImageBuf out;
     for (auto _ : state) {
-        estimate(out, img, *est, p, false, {}, int(state.range(0)));
+        estimate(out, img, *est, kernel, false, {}, int(state.range(0)));
         benchmark::DoNotOptimize(out.localpixels());
     }
     state.SetItemsProcessed(int64_t(state.iterations()) * W * H);
-}
-
-/// `op`'s parameters: the registry's defaults with `mode`.
-ParamValues defaults(const Operation& op, EstimatorMode mode) {
-    ParamValues v;
-    std::string err;
-    std::map<std::string, std::string> kv;
-    if (op.param("mode")) kv["mode"] = mode == EstimatorMode::Luminance ? "lum" : "channel";
-    if (!parseOperationParams(op, kv, v, err)) throw std::runtime_error(err);
-    return v;
 }
 
 /// A Neighbourhood operation over the sub-buffers (3D filters) or over an image (MIF, WMIF; with
@@ -92,21 +90,20 @@ ParamValues defaults(const Operation& op, EstimatorMode mode) {
 void BM_Neighbourhood(benchmark::State& state, const Operation* op, EstimatorMode mode,
                       bool withMPE) {
     const StatsImage& img = syntheticImage(int(state.range(0)));
-    const SpatialParams p = spatialParams(defaults(*op, mode), lumaCoefficients());
+    const WindowKernel window = op->bindWindow(defaults(*op, mode), lumaCoefficients());
+    const SpatialParams& p = window.params;
     OIIO::ImageBuf out;
-    if (op->over == Neighbourhood::SubBuffers) {
+    if (window.over == Neighbourhood::SubBuffers) {
         for (auto _ : state) {
             filter3D(out, img, p, {}, 1);
             benchmark::DoNotOptimize(out.localpixels());
         }
     } else {
-        EstimatorParams ep;
-        ep.mode = mode;
-        ep.luma = p.luma;
-        const EstimatorInfo& est = *findEstimator(withMPE ? "median" : "mean");
-        OIIO::ImageBuf src = estimate(img, est, ep, false, {}, 1);
+        const Operation& est = *findOperation(withMPE ? "median" : "mean");
+        const PixelKernel kernel = est.bindPixel(defaults(est, mode), p.luma);
+        OIIO::ImageBuf src = estimate(img, est, kernel, false, {}, 1);
         for (auto _ : state) {
-            if (withMPE) estimate(src, img, est, ep, false, {}, 1);
+            if (withMPE) estimate(src, img, est, kernel, false, {}, 1);
             medianImageFilter(out, src, p, {}, 1);
             benchmark::DoNotOptimize(out.localpixels());
         }

@@ -78,14 +78,16 @@ std::vector<float> readRGB(const std::string& file) {
 
 /// The estimator applied pixel by pixel through the library's one view of the buffers.
 std::vector<float> direct(const StatsImage& s, const EstimatorInfo& e, EstimatorMode mode) {
-    EstimatorParams p;
-    p.mode = mode;
-    p.luma = lumaCoefficients();
+    PixelKernel k;
+    std::string err;
+    std::map<std::string, std::string> kv;
+    if (e.param("mode")) kv["mode"] = mode == EstimatorMode::Luminance ? "lum" : "channel";
+    EXPECT_TRUE(bindPixelKernel(e, kv, lumaCoefficients(), k, err)) << err;
     EstimatorScratch scratch;
     PixelEstimate est;
     std::vector<float> out;
     for (size_t px = 0; px < s.pixelCount(); ++px) {
-        e.fn(s.pixelBuffers(px), p, est, scratch);
+        k.estimate(s.pixelBuffers(px), est, scratch);
         out.insert(out.end(), est.rgb.begin(), est.rgb.end());
     }
     return out;

@@ -71,15 +71,18 @@ std::vector<float> readRGB(const std::string& file, int* nch = nullptr) {
 /// The estimator applied directly, for comparison with the binary's output.
 std::vector<float> direct(const StatsImage& s, const std::string& name, EstimatorMode mode) {
     const EstimatorInfo* e = findEstimator(name);
-    EstimatorParams p;
-    p.mode = mode;
-    p.luma = lumaCoefficients();
+    PixelKernel k;
+    std::string err;
+    std::map<std::string, std::string> kv;
+    if (e->param("mode")) kv["mode"] = mode == EstimatorMode::Luminance ? "lum" : "channel";
+    EXPECT_TRUE(bindPixelKernel(*e, kv, lumaCoefficients(), k, err)) << err;
     EstimatorScratch scratch;
     PixelEstimate est;
     std::vector<float> out;
     for (size_t px = 0; px < s.pixelCount(); ++px) {
-        e->fn({&s.bufferMean[px * s.header.M * 3], &s.bufferCount[px * s.header.M], s.header.M}, p,
-              est, scratch);
+        k.estimate(
+            {&s.bufferMean[px * s.header.M * 3], &s.bufferCount[px * s.header.M], s.header.M}, est,
+            scratch);
         out.insert(out.end(), est.rgb.begin(), est.rgb.end());
     }
     return out;

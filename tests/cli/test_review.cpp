@@ -67,9 +67,10 @@ class ReviewCli : public mcstat::testing::CliFixture {
 };
 
 OIIO::ImageBuf run(const StatsImage& s, const std::string& est) {
-    EstimatorParams p;
-    p.luma = lumaCoefficients();
-    OIIO::ImageBuf img = estimate(s, *findEstimator(est), p);
+    PixelKernel k;
+    std::string err;
+    EXPECT_TRUE(bindPixelKernel(*findEstimator(est), {}, lumaCoefficients(), k, err)) << err;
+    OIIO::ImageBuf img = estimate(s, *findEstimator(est), k);
     EXPECT_FALSE(img.has_error()) << img.geterror();
     return img;
 }

@@ -15,7 +15,10 @@
 
 #include "cli_support.h"
 #include "mcstat/color.h"
-#include "mcstat/filters/pixel/ranking.h"
+#include "mcstat/filters/pixel/median.h"
+#include "mcstat/filters/pixel/tmpe.h"
+#include "mcstat/filters/window/filter3d.h"
+#include "mcstat/filters/window/mif.h"
 #include "mcstat/filters/window/window_rank.h"
 #include "mcstat/stats_file.h"
 
@@ -84,10 +87,9 @@ class Spatial : public mcstat::testing::CliFixture {
         return out;
     }
     /// A registry estimator per pixel, then WMIF: the hybrid computed by the library.
-    std::vector<float> directHybrid(void (*est)(const PixelBuffers&, const EstimatorParams&,
-                                                PixelEstimate&, EstimatorScratch&),
-                                    double estAlpha, const SpatialParams& p) const {
-        EstimatorParams ep;
+    std::vector<float> directHybrid(const char* est, double estAlpha,
+                                    const SpatialParams& p) const {
+        TmpeParams ep;  // MPE takes its PixelParams part
         ep.luma = p.luma;
         ep.mode = p.mode;
         ep.alpha = estAlpha;
@@ -95,7 +97,11 @@ class Spatial : public mcstat::testing::CliFixture {
         PixelEstimate e;
         std::vector<float> img;
         for (size_t px = 0; px < stats.pixelCount(); ++px) {
-            est({&stats.bufferMean[px * 15], &stats.bufferCount[px * 5], 5}, ep, e, s);
+            const PixelBuffers buffers{&stats.bufferMean[px * 15], &stats.bufferCount[px * 5], 5};
+            if (std::string(est) == "tmpe")
+                estimateTMPE(buffers, ep, e, s);
+            else
+                estimateMoN(buffers, ep, e, s);
             img.insert(img.end(), e.rgb.begin(), e.rgb.end());
         }
         std::vector<float> out(img.size());
@@ -140,14 +146,14 @@ TEST_F(Spatial, HybridsAreCommandChains) {
     // MPE+MIF (eq. 5.15)
     Result r = mcstat(path("f.mcstat") + " --median --mif -o " + path("a.exr"));
     ASSERT_EQ(r.code, 0) << r.err;
-    EXPECT_EQ(readRGB(path("a.exr")), directHybrid(&estimateMoN, 0.0, params(3, 3, 1, 0.5, lum)));
+    EXPECT_EQ(readRGB(path("a.exr")), directHybrid("median", 0.0, params(3, 3, 1, 0.5, lum)));
     // TMPE+WMIF (eq. 5.14)
     r = mcstat(path("f.mcstat") + " --tmpe:alpha=0.2 --wmif:w=5:size=3x5 -o " + path("b.exr"));
     ASSERT_EQ(r.code, 0) << r.err;
-    EXPECT_EQ(readRGB(path("b.exr")), directHybrid(&estimateTMPE, 0.2, params(3, 5, 5, 0.5, lum)));
+    EXPECT_EQ(readRGB(path("b.exr")), directHybrid("tmpe", 0.2, params(3, 5, 5, 0.5, lum)));
     r = mcstat(path("f.mcstat") + " --median:mode=channel --mif:mode=channel -o " + path("c.exr"));
     ASSERT_EQ(r.code, 0) << r.err;
-    EXPECT_EQ(readRGB(path("c.exr")), directHybrid(&estimateMoN, 0.0, params(3, 3, 1, 0.5, ch)));
+    EXPECT_EQ(readRGB(path("c.exr")), directHybrid("median", 0.0, params(3, 3, 1, 0.5, ch)));
 }
 
 TEST_F(Spatial, OneByOneWindowsAreThePixelEstimators) {

@@ -4,9 +4,27 @@
 // is to be the old behaviour. Namespace mcstat::reference; same signatures as the library.
 #pragma once
 
-#include "mcstat/filters/pixel/ranking.h"
+#include <array>
+#include <cstddef>
+#include <vector>
+
+#include "mcstat/filters/pixel/pixel_estimate.h"
 
 namespace mcstat::reference {
+
+/// The parameters every estimator took then, in one struct (the library now gives each estimator
+/// its own: PixelParams, GmonbParams, TmpeParams, MyriadParams, MeridianParams).
+struct EstimatorParams {
+    EstimatorMode mode = EstimatorMode::Luminance;
+    std::array<double, 3> luma{0.0, 0.0, 0.0};
+    double giniThreshold = 0.25;
+    double alpha = 0.25;
+    double gamma = 0.05;
+    double delta = 0.05;
+    bool scaleRelative = true;
+};
+using EstimatorFn = void (*)(const PixelBuffers&, const EstimatorParams&, PixelEstimate&,
+                             EstimatorScratch&);
 
 double giniSorted(const double* values, size_t n);
 int gmonTrim(double G, int M);

@@ -9,6 +9,8 @@
 
 #include "mcstat/filters/aov_weights.h"
 #include "mcstat/filters/registry.h"
+#include "mcstat/filters/window/filter3d.h"
+#include "mcstat/filters/window/mif.h"
 #include "mcstat/filters/window/window_rank.h"
 #include "pixel_support.h"
 
@@ -21,10 +23,11 @@ using testing::kLuma;
 using testing::kNaN;
 using testing::Pixel;
 
-EstimatorParams lumParams() {
-    EstimatorParams p;
-    p.luma = kLuma;
-    return p;
+using testing::kernelOf;
+
+/// `est` bound to its defaults in luminance mode (or `mode`), luma kLuma.
+PixelKernel kernel(const EstimatorInfo& est, EstimatorMode mode = EstimatorMode::Luminance) {
+    return kernelOf(est.name, mode);
 }
 
 /// Random pixels with the extremes: fireflies, zero counts (spp < M), NaN/Inf buffers,
@@ -54,12 +57,12 @@ TEST(BufferWeights, EveryEstimatorReproducesItsBeautyAndChangesNoBit) {
         for (int trial = 0; trial < 600; ++trial) {
             const int M = 1 + trial % 40;
             const Pixel px = randomPixel(rng, M);
-            EstimatorParams p = lumParams();
+            const PixelKernel k = kernel(est);
             EstimatorScratch plain, weighted;
             weighted.wantWeights = true;
             PixelEstimate a, b;
-            est.fn(px.view(), p, a, plain);
-            est.fn(px.view(), p, b, weighted);
+            k.estimate(px.view(), a, plain);
+            k.estimate(px.view(), b, weighted);
             for (int c = 0; c < 3; ++c)
                 ASSERT_EQ(std::memcmp(&a.rgb[c], &b.rgb[c], sizeof(float)), 0)
                     << est.name << " M=" << M << " trial " << trial;
@@ -91,12 +94,10 @@ TEST(BufferWeights, ChannelModeGivesNone) {
     // The mean has no mode (every channel is the count-weighted mean): its weights exist.
     const Pixel px = grey({1, 2, 3, 100, 5});
     for (const EstimatorInfo& est : estimatorRegistry()) {
-        EstimatorParams p = lumParams();
-        p.mode = EstimatorMode::PerChannel;
         EstimatorScratch s;
         s.wantWeights = true;
         PixelEstimate e;
-        est.fn(px.view(), p, e, s);
+        kernel(est, EstimatorMode::PerChannel).estimate(px.view(), e, s);
         EXPECT_EQ(s.bufferWeight.empty(), est.name != "mean") << est.name;
         EXPECT_EQ(est.param("mode") == nullptr, est.name == "mean") << est.name;
     }
@@ -109,23 +110,21 @@ TEST(BufferWeights, HandComputed) {
     EstimatorScratch s;
     s.wantWeights = true;
     PixelEstimate e;
-    findEstimator("mon")->fn(px.view(), lumParams(), e, s);
+    kernelOf("mon").estimate(px.view(), e, s);
     EXPECT_EQ(s.bufferWeight, (std::vector<double>{0, 0, 1, 0, 0}));
     // The mean: counts as weights.
     const Pixel counted = grey({1, 2, 4}, {1, 2, 1});
-    findEstimator("mean")->fn(counted.view(), lumParams(), e, s);
+    kernelOf("mean").estimate(counted.view(), e, s);
     EXPECT_EQ(s.bufferWeight, (std::vector<double>{0.25, 0.5, 0.25}));
     EXPECT_FLOAT_EQ(e.rgb[0], 2.25f);
     // TMPE alpha 0.25 over 8 equal-count buffers trims 2 from each side (values 1, 2 in buffers
     // 1, 3 and 8, 7 in buffers 0, 2): buffers 4..7 (values 6, 3, 5, 4) get 1/4 each.
     const Pixel eight = grey({8, 1, 7, 2, 6, 3, 5, 4});
-    EstimatorParams p = lumParams();
-    p.alpha = 0.25;
-    findEstimator("tmpe")->fn(eight.view(), p, e, s);
+    kernelOf("tmpe", EstimatorMode::Luminance, {{"alpha", "0.25"}}).estimate(eight.view(), e, s);
     EXPECT_EQ(s.bufferWeight, (std::vector<double>{0, 0, 0, 0, 0.25, 0.25, 0.25, 0.25}));
     // A buffer holding NaN gets no weight; an empty buffer neither.
     const Pixel broken = grey({1, kNaN, 3}, {1, 1, 0});
-    findEstimator("mean")->fn(broken.view(), lumParams(), e, s);
+    kernelOf("mean").estimate(broken.view(), e, s);
     EXPECT_EQ(s.bufferWeight, (std::vector<double>{1, 0, 0}));
 }
 
@@ -177,7 +176,7 @@ TEST(ApplyAovWeights, LightGroupsKeepSummingToTheBeauty) {
             EstimatorScratch s;
             s.wantWeights = true;
             PixelEstimate e;
-            est.fn(px.view(), lumParams(), e, s);
+            kernel(est).estimate(px.view(), e, s);
             const AovClass cls[3] = {AovClass::Light, AovClass::Light, AovClass::Light};
             float out[3];
             AovScratch as;
@@ -253,19 +252,18 @@ TEST(WindowWeights, ThreeDFiltersAndMedianImageFilterReproduceTheirBeauty) {
 }
 
 TEST(SmallestRobustM, MatchesTheTrimRules) {
-    EstimatorParams p = lumParams();
-    EXPECT_EQ(smallestRobustM(*findOperation("gmon"), p), 4);
-    EXPECT_EQ(smallestRobustM(*findOperation("mon"), p), 3);
-    EXPECT_EQ(smallestRobustM(*findOperation("mean"), p), 1);
-    p.alpha = 0.25;
-    EXPECT_EQ(smallestRobustM(*findOperation("tmpe"), p), 4);  // floor(0.25 * 4) = 1
+    EXPECT_EQ(kernelOf("gmon").smallestRobustM, 4);
+    EXPECT_EQ(kernelOf("mon").smallestRobustM, 3);
+    EXPECT_EQ(kernelOf("mean").smallestRobustM, 1);
+    // floor(0.25 * 4) = 1
+    EXPECT_EQ(kernelOf("tmpe", EstimatorMode::Luminance, {{"alpha", "0.25"}}).smallestRobustM, 4);
     // G-MoN at M = 3 is the mean whatever the values (the Gini coefficient stays below 1).
     for (const auto& v : {std::vector<float>{0, 0, 1000}, {1, 2, 3}, {0, 1e30f, 1e30f}}) {
         const Pixel px = grey(v);
         EstimatorScratch s1, s2;
         PixelEstimate g, m;
-        findEstimator("gmon")->fn(px.view(), p, g, s1);
-        findEstimator("mean")->fn(px.view(), p, m, s2);
+        kernelOf("gmon").estimate(px.view(), g, s1);
+        kernelOf("mean").estimate(px.view(), m, s2);
         EXPECT_EQ(g.rgb[0], m.rgb[0]);
     }
 }

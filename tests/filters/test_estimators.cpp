@@ -3,6 +3,8 @@
 
 #include <cmath>
 #include <limits>
+#include <map>
+#include <string>
 #include <vector>
 
 #include "mcstat/filters/pixel/ranking.h"
@@ -14,19 +16,13 @@ namespace {
 
 using namespace mcstat::testing;
 
-using EstimatorFn = void (*)(const PixelBuffers&, const EstimatorParams&, PixelEstimate&,
-                             EstimatorScratch&);
-
-PixelEstimate run(EstimatorFn fn, const Pixel& px, EstimatorMode mode = EstimatorMode::PerChannel,
-                  double threshold = 0.25) {
-    EstimatorParams p;
-    p.mode = mode;
-    p.luma = kLuma;
-    p.giniThreshold = threshold;
-    EstimatorScratch s;
-    PixelEstimate e;
-    fn(px.view(), p, e, s);
-    return e;
+/// The registry's operation `name` (mean, mon, gmon, gmonb) on one pixel; `threshold` is
+/// G-MoN_b's.
+PixelEstimate run(const std::string& name, const Pixel& px,
+                  EstimatorMode mode = EstimatorMode::PerChannel, double threshold = 0.25) {
+    std::map<std::string, std::string> kv;
+    if (name == "gmonb") kv["threshold"] = std::to_string(threshold);
+    return runKernel(name, px, mode, kv);
 }
 }  // namespace
 
@@ -94,19 +90,19 @@ TEST(GMoNTrim, EvenMKeepsTheTwoMiddleMeans) {
 TEST(Estimators, HandComputedPerChannel) {
     // R = {1,2,3,4,100}, G = 1 everywhere, B = 0 everywhere, equal counts.
     Pixel px({{1, 1, 0}, {2, 1, 0}, {3, 1, 0}, {4, 1, 0}, {100, 1, 0}}, {2, 2, 2, 2, 2});
-    PixelEstimate mean = run(estimateMean, px);
+    PixelEstimate mean = run("mean", px);
     EXPECT_FLOAT_EQ(mean.rgb[0], 22.f);
     EXPECT_FLOAT_EQ(mean.rgb[1], 1.f);
     EXPECT_FLOAT_EQ(mean.rgb[2], 0.f);
 
-    PixelEstimate mon = run(estimateMoN, px);
+    PixelEstimate mon = run("mon", px);
     EXPECT_FLOAT_EQ(mon.rgb[0], 3.f);
     EXPECT_FLOAT_EQ(mon.rgb[1], 1.f);
     EXPECT_FLOAT_EQ(mon.rgb[2], 0.f);  // all-zero channel: 0, never NaN
     EXPECT_EQ(mon.kept[0], 1);
 
     // G_R = 400/550; c = floor(2 - (1 - G) 2) = 1: mean of ranks 2..4 = (2+3+4)/3
-    PixelEstimate g = run(estimateGMoN, px);
+    PixelEstimate g = run("gmon", px);
     EXPECT_FLOAT_EQ(g.rgb[0], 3.f);
     EXPECT_NEAR(g.gini[0], 400.0 / 550.0, 1e-6);
     EXPECT_EQ(g.kept[0], 3);
@@ -115,10 +111,10 @@ TEST(Estimators, HandComputedPerChannel) {
     EXPECT_FLOAT_EQ(g.gini[1], 0.f);
     EXPECT_FLOAT_EQ(g.rgb[2], 0.f);
 
-    PixelEstimate gb = run(estimateGMoNb, px);
+    PixelEstimate gb = run("gmonb", px);
     EXPECT_FLOAT_EQ(gb.rgb[0], 3.f);  // G > 0.25: MoN
     EXPECT_FLOAT_EQ(gb.rgb[1], 1.f);  // G = 0: mean
-    PixelEstimate gbHigh = run(estimateGMoNb, px, EstimatorMode::PerChannel, 0.8);
+    PixelEstimate gbHigh = run("gmonb", px, EstimatorMode::PerChannel, 0.8);
     EXPECT_FLOAT_EQ(gbHigh.rgb[0], 22.f);  // G <= 0.8: mean
 }
 
@@ -137,14 +133,14 @@ TEST(Estimators, GMoNMatchesEquation6Literally) {
     double expected = 0;
     for (int j = c; j < 9 - c; ++j) expected += sorted[j];
     expected /= (9 - 2 * c);
-    PixelEstimate e = run(estimateGMoN, grey(v));
+    PixelEstimate e = run("gmon", grey(v));
     EXPECT_NEAR(e.gini[0], G, 1e-6);
     EXPECT_EQ(e.kept[0], 9 - 2 * c);
     EXPECT_NEAR(e.rgb[0], expected, 1e-6);
 }
 
 TEST(Estimators, MoNEvenMAveragesTheTwoMiddleMeans) {
-    PixelEstimate e = run(estimateMoN, grey({0, 10, 20, 1000}));
+    PixelEstimate e = run("mon", grey({0, 10, 20, 1000}));
     EXPECT_FLOAT_EQ(e.rgb[0], 15.f);
     EXPECT_EQ(e.kept[0], 2);
 }
@@ -152,16 +148,16 @@ TEST(Estimators, MoNEvenMAveragesTheTwoMiddleMeans) {
 TEST(Estimators, CountsAreWeights) {
     // counts {1,1,1,3}: the mean of all 6 samples, and the count-weighted middle pair
     Pixel px = grey({0, 10, 20, 1000}, {1, 1, 1, 3});
-    EXPECT_FLOAT_EQ(run(estimateMean, px).rgb[0], 3030.f / 6.f);
-    EXPECT_FLOAT_EQ(run(estimateMoN, px).rgb[0], 15.f);
+    EXPECT_FLOAT_EQ(run("mean", px).rgb[0], 3030.f / 6.f);
+    EXPECT_FLOAT_EQ(run("mon", px).rgb[0], 15.f);
     Pixel two = grey({0, 4}, {1, 3});
-    EXPECT_FLOAT_EQ(run(estimateMoN, two).rgb[0], 3.f);  // (1*0 + 3*4) / 4
+    EXPECT_FLOAT_EQ(run("mon", two).rgb[0], 3.f);  // (1*0 + 3*4) / 4
 }
 
 TEST(Estimators, GMoNWithNoTrimIsExactlyTheMean) {
     Pixel px = grey({1.f, 1.0001f, 0.9999f, 1.f, 1.00005f}, {3, 3, 2, 2, 2});
-    PixelEstimate g = run(estimateGMoN, px);
-    PixelEstimate m = run(estimateMean, px);
+    PixelEstimate g = run("gmon", px);
+    PixelEstimate m = run("mean", px);
     EXPECT_EQ(g.kept[0], 5);
     EXPECT_EQ(g.rgb[0], m.rgb[0]);
 }
@@ -169,7 +165,7 @@ TEST(Estimators, GMoNWithNoTrimIsExactlyTheMean) {
 // ---- edges --------------------------------------------------------------------------------------
 
 TEST(Estimators, AllEqualAndAllZeroReturnTheMean) {
-    for (auto fn : {estimateMean, estimateMoN, estimateGMoN, estimateGMoNb}) {
+    for (const char* fn : {"mean", "mon", "gmon", "gmonb"}) {
         for (auto mode : {EstimatorMode::PerChannel, EstimatorMode::Luminance}) {
             PixelEstimate e = run(fn, grey({0.7f, 0.7f, 0.7f, 0.7f}), mode);
             EXPECT_FLOAT_EQ(e.rgb[1], 0.7f);
@@ -183,21 +179,21 @@ TEST(Estimators, AllEqualAndAllZeroReturnTheMean) {
 TEST(Estimators, EmptyBuffersAreLeftOut) {
     // spp = 2 < M = 4: two buffers hold a sample, two are empty (mean 0, count 0)
     Pixel px = grey({1, 3, 0, 0}, {1, 1, 0, 0});
-    for (auto fn : {estimateMean, estimateMoN, estimateGMoN, estimateGMoNb}) {
+    for (const char* fn : {"mean", "mon", "gmon", "gmonb"}) {
         PixelEstimate e = run(fn, px);
         EXPECT_FLOAT_EQ(e.rgb[0], 2.f);
         EXPECT_EQ(e.kept[0], 2);
         EXPECT_EQ(e.excluded, 0);
     }
     // no sample at all: black, nothing kept
-    PixelEstimate none = run(estimateGMoN, grey({0, 0, 0}, {0, 0, 0}));
+    PixelEstimate none = run("gmon", grey({0, 0, 0}, {0, 0, 0}));
     EXPECT_EQ(none.rgb[0], 0.f);
     EXPECT_EQ(none.kept[0], 0);
 }
 
 TEST(Estimators, NonFiniteBuffersAreExcludedAndCounted) {
     Pixel px({{1, 1, 1}, {kNaN, 1, 1}, {3, 3, 3}, {2, kInf, 2}, {-kInf, 0, 0}}, {1, 1, 1, 1, 1});
-    for (auto fn : {estimateMean, estimateMoN, estimateGMoN, estimateGMoNb}) {
+    for (const char* fn : {"mean", "mon", "gmon", "gmonb"}) {
         for (auto mode : {EstimatorMode::PerChannel, EstimatorMode::Luminance}) {
             PixelEstimate e = run(fn, px, mode);
             EXPECT_EQ(e.excluded, 3);
@@ -206,18 +202,18 @@ TEST(Estimators, NonFiniteBuffersAreExcludedAndCounted) {
         }
     }
     Pixel bad = grey({kNaN, kInf}, {1, 1});
-    PixelEstimate e = run(estimateGMoN, bad);
+    PixelEstimate e = run("gmon", bad);
     EXPECT_EQ(e.excluded, 2);
     EXPECT_EQ(e.rgb[0], 0.f);
     // a corrupt count is excluded too
     Pixel badCount = grey({1, 5}, {kNaN, 1});
-    EXPECT_FLOAT_EQ(run(estimateMean, badCount).rgb[0], 5.f);
-    EXPECT_EQ(run(estimateMean, badCount).excluded, 1);
+    EXPECT_FLOAT_EQ(run("mean", badCount).rgb[0], 5.f);
+    EXPECT_EQ(run("mean", badCount).excluded, 1);
 }
 
 TEST(Estimators, MEqualsOneGivesTheMean) {
     Pixel px({{0.25f, 5.f, 1e30f}}, {7});
-    for (auto fn : {estimateMoN, estimateGMoN, estimateGMoNb}) {
+    for (const char* fn : {"mon", "gmon", "gmonb"}) {
         PixelEstimate e = run(fn, px);
         EXPECT_EQ(e.rgb[0], 0.25f);
         EXPECT_EQ(e.rgb[2], 1e30f);
@@ -228,25 +224,25 @@ TEST(Estimators, MEqualsOneGivesTheMean) {
 TEST(Estimators, NegativeMeansFollowTheDocumentedRule) {
     // ranks use signed values; G on the shifted set {0,1,2,3,12}: sum (2j-6)x / (5*18) = 52/90
     Pixel px = grey({-2, -1, 0, 1, 10});
-    PixelEstimate g = run(estimateGMoN, px);
+    PixelEstimate g = run("gmon", px);
     EXPECT_NEAR(g.gini[0], 52.0 / 90.0, 1e-6);
     // c = floor(2 - (1 - 52/90) 2) = 1: mean of {-1, 0, 1}
     EXPECT_FLOAT_EQ(g.rgb[0], 0.f);
-    EXPECT_FLOAT_EQ(run(estimateMoN, px).rgb[0], 0.f);
-    EXPECT_FLOAT_EQ(run(estimateMean, px).rgb[0], 1.6f);
+    EXPECT_FLOAT_EQ(run("mon", px).rgb[0], 0.f);
+    EXPECT_FLOAT_EQ(run("mean", px).rgb[0], 1.6f);
 }
 
 TEST(Estimators, ExtremeValuesStayFinite) {
     Pixel huge = grey({3e38f, 3.4e38f, 3.4e38f});
-    EXPECT_FLOAT_EQ(run(estimateMean, huge).rgb[0], float((3e38 + 6.8e38) / 3));
-    EXPECT_TRUE(std::isfinite(run(estimateGMoN, huge).rgb[0]));
+    EXPECT_FLOAT_EQ(run("mean", huge).rgb[0], float((3e38 + 6.8e38) / 3));
+    EXPECT_TRUE(std::isfinite(run("gmon", huge).rgb[0]));
     Pixel denorm = grey({1e-40f, 1e-40f, 1e-40f});
-    EXPECT_EQ(run(estimateGMoN, denorm).rgb[0], 1e-40f);
+    EXPECT_EQ(run("gmon", denorm).rgb[0], 1e-40f);
     Pixel mixed = grey({0, 0, 1e-45f});
-    EXPECT_TRUE(std::isfinite(run(estimateGMoN, mixed).rgb[0]));
+    EXPECT_TRUE(std::isfinite(run("gmon", mixed).rgb[0]));
     // a million samples in one buffer against singles: counts weight without overflow
     Pixel many = grey({1.f, 2.f}, {1e6f, 1.f});
-    EXPECT_NEAR(run(estimateMean, many).rgb[0], (1e6 + 2) / (1e6 + 1), 1e-7);
+    EXPECT_NEAR(run("mean", many).rgb[0], (1e6 + 2) / (1e6 + 1), 1e-7);
 }
 
 // ---- luminance mode --------------------------------------------------------------------------
@@ -254,13 +250,13 @@ TEST(Estimators, ExtremeValuesStayFinite) {
 TEST(Estimators, LuminanceModeReturnsAChosenBuffersColour) {
     // luminances .2126 (red), .7152 (green), .0722 (blue): the median is the red buffer
     Pixel px({{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, {1, 1, 1});
-    PixelEstimate lum = run(estimateMoN, px, EstimatorMode::Luminance);
+    PixelEstimate lum = run("mon", px, EstimatorMode::Luminance);
     EXPECT_EQ(lum.rgb[0], 1.f);
     EXPECT_EQ(lum.rgb[1], 0.f);
     EXPECT_EQ(lum.rgb[2], 0.f);
     EXPECT_EQ(lum.kept[0], 1);
     // per channel, each channel's median is 0: a colour no buffer had
-    PixelEstimate ch = run(estimateMoN, px, EstimatorMode::PerChannel);
+    PixelEstimate ch = run("mon", px, EstimatorMode::PerChannel);
     EXPECT_EQ(ch.rgb[0], 0.f);
     EXPECT_EQ(ch.rgb[1], 0.f);
 }
@@ -268,7 +264,7 @@ TEST(Estimators, LuminanceModeReturnsAChosenBuffersColour) {
 TEST(Estimators, LuminanceGiniIsOnLuminance) {
     // a bright white firefly among dim greys; G on luminances {1,1,1,1,1,1,100}
     std::vector<float> v = {1, 1, 1, 1, 100, 1, 1};
-    PixelEstimate e = run(estimateGMoN, grey(v), EstimatorMode::Luminance);
+    PixelEstimate e = run("gmon", grey(v), EstimatorMode::Luminance);
     const double lumSum = 106.0 * (kLuma[0] + kLuma[1] + kLuma[2]);
     const double weighted = 6.0 * 99.0 * (kLuma[0] + kLuma[1] + kLuma[2]);  // (2*7-8) * (100 - 1)
     EXPECT_NEAR(e.gini[0], weighted / (7 * lumSum), 1e-6);
@@ -282,7 +278,7 @@ TEST(Estimators, TiesAreBrokenByBufferIndex) {
     // equal luminance, different colours: the lower buffer index ranks first, deterministically
     const double w = kLuma[0] / kLuma[1];
     Pixel px({{1, 0, 0}, {0, float(w), 0}, {1, 0, 0}}, {1, 1, 1});
-    PixelEstimate a = run(estimateMoN, px, EstimatorMode::Luminance);
-    PixelEstimate b = run(estimateMoN, px, EstimatorMode::Luminance);
+    PixelEstimate a = run("mon", px, EstimatorMode::Luminance);
+    PixelEstimate b = run("mon", px, EstimatorMode::Luminance);
     EXPECT_EQ(a.rgb, b.rgb);
 }

@@ -21,6 +21,8 @@
 #include <utility>
 #include <vector>
 
+#include "mcstat/filters/window/filter3d.h"
+#include "mcstat/filters/window/mif.h"
 #include "mcstat/filters/window/window_rank.h"
 #include "mcstat/image/imageops.h"
 #include "pixel_support.h"

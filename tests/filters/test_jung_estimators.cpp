@@ -8,7 +8,11 @@
 #include <random>
 #include <vector>
 
+#include "mcstat/filters/pixel/mean.h"
+#include "mcstat/filters/pixel/median.h"
+#include "mcstat/filters/pixel/meridian.h"
 #include "mcstat/filters/pixel/myriad.h"
+#include "mcstat/filters/pixel/tmpe.h"
 #include "mcstat/filters/registry.h"
 #include "pixel_support.h"
 
@@ -25,17 +29,46 @@ struct Opts {
     std::array<double, 3> luma = kLuma;
 };
 
-PixelEstimate run(EstimatorFn fn, const Pixel& px, const Opts& o = {}) {
-    EstimatorParams p;
-    p.mode = o.mode;
-    p.luma = o.luma;
-    p.alpha = o.alpha;
-    p.gamma = o.gamma;
-    p.delta = o.delta;
-    p.scaleRelative = o.relative;
+/// The estimators under test, called directly with their own parameter structs (the registry's
+/// binding is tested in tests/filters/test_registry.cpp): values such as gamma = 1e-300 are
+/// within the kernels' domain even where no command line would write them.
+enum class Est { Mean, MoN, TMPE, Myriad, Meridian };
+
+PixelEstimate run(Est fn, const Pixel& px, const Opts& o = {}) {
+    const PixelParams base{o.mode, o.luma};
     EstimatorScratch s;
     PixelEstimate e;
-    fn(px.view(), p, e, s);
+    switch (fn) {
+        case Est::Mean:
+            estimateMean(px.view(), base, e, s);
+            break;
+        case Est::MoN:
+            estimateMoN(px.view(), base, e, s);
+            break;
+        case Est::TMPE: {
+            TmpeParams p;
+            static_cast<PixelParams&>(p) = base;
+            p.alpha = o.alpha;
+            estimateTMPE(px.view(), p, e, s);
+            break;
+        }
+        case Est::Myriad: {
+            MyriadParams p;
+            static_cast<PixelParams&>(p) = base;
+            p.gamma = o.gamma;
+            p.scaleRelative = o.relative;
+            estimateMyriad(px.view(), p, e, s);
+            break;
+        }
+        case Est::Meridian: {
+            MeridianParams p;
+            static_cast<PixelParams&>(p) = base;
+            p.delta = o.delta;
+            p.scaleRelative = o.relative;
+            estimateMeridian(px.view(), p, e, s);
+            break;
+        }
+    }
     return e;
 }
 
@@ -101,22 +134,22 @@ TEST(TMPE, HandComputedAndEndpoints) {
     Pixel px = grey({100, 2, 4, 1, 3});
     Opts o;
     o.alpha = 0.2;  // c = 1: mean of {2, 3, 4}
-    PixelEstimate t = run(estimateTMPE, px, o);
+    PixelEstimate t = run(Est::TMPE, px, o);
     EXPECT_FLOAT_EQ(t.rgb[0], 3.f);
     EXPECT_EQ(t.kept[0], 3);
     o.alpha = 0.0;
-    EXPECT_FLOAT_EQ(run(estimateTMPE, px, o).rgb[0], 22.f);
+    EXPECT_FLOAT_EQ(run(Est::TMPE, px, o).rgb[0], 22.f);
     // counts as weights, even M: alpha 0.5 -> the count-weighted middle pair, exactly MoN / MPE
     Pixel w = grey({0, 10, 20, 1000}, {1, 3, 1, 1});
     o.alpha = 0.5;
-    EXPECT_FLOAT_EQ(run(estimateTMPE, w, o).rgb[0], 12.5f);  // (3*10 + 20) / 4
+    EXPECT_FLOAT_EQ(run(Est::TMPE, w, o).rgb[0], 12.5f);  // (3*10 + 20) / 4
     for (auto mode : {EstimatorMode::PerChannel, EstimatorMode::Luminance}) {
         o.mode = mode;
         o.alpha = 0.5;
         Pixel c({{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {5, 5, 5}, {0.2f, 0.3f, 0.1f}}, {1, 2, 1, 3, 1});
-        EXPECT_EQ(run(estimateTMPE, c, o).rgb, run(estimateMoN, c, o).rgb);
+        EXPECT_EQ(run(Est::TMPE, c, o).rgb, run(Est::MoN, c, o).rgb);
         o.alpha = 0.0;
-        const auto a = run(estimateTMPE, c, o).rgb, b = run(estimateMean, c, o).rgb;
+        const auto a = run(Est::TMPE, c, o).rgb, b = run(Est::Mean, c, o).rgb;
         for (int ch = 0; ch < 3; ++ch) EXPECT_FLOAT_EQ(a[ch], b[ch]);
     }
 }
@@ -124,8 +157,13 @@ TEST(TMPE, HandComputedAndEndpoints) {
 TEST(MPE, MedianIsRegisteredAsMoN) {
     const EstimatorInfo* e = findEstimator("median");
     ASSERT_NE(e, nullptr);
-    EXPECT_EQ(e->fn, &estimateMoN);
     EXPECT_NE(e->title.find("MPE"), std::string::npos);
+    // The same kernel as MoN: equal results on an even and an odd set, in both modes.
+    for (auto mode : {EstimatorMode::Luminance, EstimatorMode::PerChannel})
+        for (const Pixel& px : {grey({4, 1, 9, 2}), grey({7, 1, 3}, {2, 1, 5})}) {
+            EXPECT_EQ(runKernel("median", px, mode).rgb, runKernel("mon", px, mode).rgb);
+            EXPECT_EQ(runKernel("median", px, mode).rgb, run(Est::MoN, px, {mode}).rgb);
+        }
 }
 
 // ---- myriad (eq. 4.7) ---------------------------------------------------------------------------
@@ -188,17 +226,17 @@ TEST(Myriad, RandomSetsMatchBruteForce) {
 TEST(Myriad, ScaleLimits) {
     // gamma very large: the count-weighted mean (eq. 4.7 -> eq. 4.5)
     Pixel px = grey({1, 2, 3, 50}, {1, 2, 1, 1});
-    EXPECT_NEAR(run(estimateMyriad, px, absScale(1e8)).rgb[0], (1 + 4 + 3 + 50) / 5.0, 1e-5);
+    EXPECT_NEAR(run(Est::Myriad, px, absScale(1e8)).rgb[0], (1 + 4 + 3 + 50) / 5.0, 1e-5);
     Opts rel;
     rel.gamma = 1e6;  // relative: 1e6 x range
-    EXPECT_NEAR(run(estimateMyriad, px, rel).rgb[0], 58.0 / 5.0, 1e-5);
+    EXPECT_NEAR(run(Est::Myriad, px, rel).rgb[0], 58.0 / 5.0, 1e-5);
     // gamma -> 0: the mode (most-weighted value), counts deciding
-    EXPECT_EQ(run(estimateMyriad, grey({3, 1, 2, 1}), absScale(1e-30)).rgb[0], 1.f);
-    EXPECT_EQ(run(estimateMyriad, grey({1, 2, 3}, {1, 5, 1}), absScale(1e-30)).rgb[0], 2.f);
-    EXPECT_EQ(run(estimateMyriad, grey({1, 2, 3}, {1, 1, 5}), absScale(1e-300)).rgb[0], 3.f);
+    EXPECT_EQ(run(Est::Myriad, grey({3, 1, 2, 1}), absScale(1e-30)).rgb[0], 1.f);
+    EXPECT_EQ(run(Est::Myriad, grey({1, 2, 3}, {1, 5, 1}), absScale(1e-30)).rgb[0], 2.f);
+    EXPECT_EQ(run(Est::Myriad, grey({1, 2, 3}, {1, 1, 5}), absScale(1e-300)).rgb[0], 3.f);
     Opts tiny;
     tiny.gamma = 1e-12;
-    EXPECT_EQ(run(estimateMyriad, grey({7, 9, 9, 100}), tiny).rgb[0], 9.f);
+    EXPECT_EQ(run(Est::Myriad, grey({7, 9, 9, 100}), tiny).rgb[0], 9.f);
 }
 
 TEST(Myriad, HugeRangesStayFiniteAndOptimal) {
@@ -215,10 +253,10 @@ TEST(Myriad, HugeRangesStayFiniteAndOptimal) {
             << gamma;
     }
     // the thesis' relative scale on that spread: gamma = 0.05 * 1e6; the three small values win
-    PixelEstimate e = run(estimateMyriad, grey({1e-6f, 1e-3f, 1.f, 1e3f, 1e6f}));
+    PixelEstimate e = run(Est::Myriad, grey({1e-6f, 1e-3f, 1.f, 1e3f, 1e6f}));
     EXPECT_TRUE(std::isfinite(e.rgb[0]));
     EXPECT_LT(e.rgb[0], 2000.f);
-    PixelEstimate big = run(estimateMyriad, grey({3e38f, 3.4e38f, 1.f}));
+    PixelEstimate big = run(Est::Myriad, grey({3e38f, 3.4e38f, 1.f}));
     EXPECT_TRUE(std::isfinite(big.rgb[0]));
 }
 
@@ -228,7 +266,7 @@ TEST(Myriad, TiesGoToTheSmallerValue) {
     const double b = myriadSorted(x.data(), w.data(), 2, 0.1);
     EXPECT_LT(b, 1.0);
     EXPECT_GE(b, 0.0);
-    PixelEstimate e = run(estimateMyriad, grey({10, 0, 0, 10}), absScale(0.1));
+    PixelEstimate e = run(Est::Myriad, grey({10, 0, 0, 10}), absScale(0.1));
     EXPECT_LT(e.rgb[0], 1.f);
 }
 
@@ -242,7 +280,7 @@ TEST(Myriad, LuminanceModeReproducesBetaOnLuminance) {
              {4, 4, 4, 4, 3});
     Opts o;
     o.mode = EstimatorMode::Luminance;
-    PixelEstimate e = run(estimateMyriad, px, o);
+    PixelEstimate e = run(Est::Myriad, px, o);
     std::vector<double> Y;
     for (size_t j = 0; j < 5; ++j)
         Y.push_back(kLuma[0] * px.mean[3 * j] + kLuma[1] * px.mean[3 * j + 1] +
@@ -262,7 +300,7 @@ TEST(Myriad, LuminanceModeReproducesBetaOnLuminance) {
     // count-weighted mean of the colours
     o.luma = {0.5, 0.25, 0.25};
     Pixel same({{1, 0, 0}, {0, 1, 1}}, {1, 3});
-    PixelEstimate s = run(estimateMyriad, same, o);
+    PixelEstimate s = run(Est::Myriad, same, o);
     EXPECT_FLOAT_EQ(s.rgb[0], 0.25f);
     EXPECT_FLOAT_EQ(s.rgb[1], 0.75f);
     EXPECT_EQ(s.kept[0], 2);
@@ -277,7 +315,7 @@ TEST(Meridian, HandComputedCostsAndSelection) {
     EXPECT_NEAR(meridianCost(x.data(), w.data(), 4, 1.0, 1.0), 2 * std::log(2.0) + std::log(10.0),
                 1e-12);
     EXPECT_EQ(meridianSorted(x.data(), w.data(), 4, 1.0), 1);
-    EXPECT_EQ(run(estimateMeridian, grey({10, 2, 0, 1}), absScale(1.0)).rgb[0], 1.f);
+    EXPECT_EQ(run(Est::Meridian, grey({10, 2, 0, 1}), absScale(1.0)).rgb[0], 1.f);
     // the minimum over the real line is at a sample (eq. 4.8's beta in {x_i}): dense scan
     const double best = meridianCost(x.data(), w.data(), 4, 1.0, 1.0);
     for (int i = 0; i <= 100000; ++i)
@@ -286,13 +324,13 @@ TEST(Meridian, HandComputedCostsAndSelection) {
 
 TEST(Meridian, LimitsTiesAndWeights) {
     // delta large: the median (odd count); delta tiny: the mode
-    EXPECT_EQ(run(estimateMeridian, grey({0, 1, 2, 3, 100}), absScale(1e9)).rgb[0], 2.f);
-    EXPECT_EQ(run(estimateMeridian, grey({3, 1, 2, 1}), absScale(1e-30)).rgb[0], 1.f);
+    EXPECT_EQ(run(Est::Meridian, grey({0, 1, 2, 3, 100}), absScale(1e9)).rgb[0], 2.f);
+    EXPECT_EQ(run(Est::Meridian, grey({3, 1, 2, 1}), absScale(1e-30)).rgb[0], 1.f);
     // ties by rank: {0, 1} are symmetric -> the smaller
-    EXPECT_EQ(run(estimateMeridian, grey({1, 0})).rgb[0], 0.f);
+    EXPECT_EQ(run(Est::Meridian, grey({1, 0})).rgb[0], 0.f);
     // counts are sample weights: three samples behind 1 beat one behind 0
-    EXPECT_EQ(run(estimateMeridian, grey({0, 1}, {1, 3})).rgb[0], 1.f);
-    PixelEstimate k = run(estimateMeridian, grey({5, 5, 1, 9}));
+    EXPECT_EQ(run(Est::Meridian, grey({0, 1}, {1, 3})).rgb[0], 1.f);
+    PixelEstimate k = run(Est::Meridian, grey({5, 5, 1, 9}));
     EXPECT_EQ(k.rgb[0], 5.f);
     EXPECT_EQ(k.kept[0], 2);
 }
@@ -302,7 +340,7 @@ TEST(Meridian, LuminanceReturnsOneBuffersColour) {
     o.mode = EstimatorMode::Luminance;
     Pixel px({{0.2f, 0.3f, 0.1f}, {0.22f, 0.31f, 0.1f}, {30, 30, 30}, {0.21f, 0.29f, 0.12f}},
              {1, 1, 1, 1});
-    PixelEstimate e = run(estimateMeridian, px, o);
+    PixelEstimate e = run(Est::Meridian, px, o);
     bool isBuffer = false;
     for (size_t j = 0; j < 4; ++j)
         isBuffer |= e.rgb[0] == px.mean[3 * j] && e.rgb[1] == px.mean[3 * j + 1] &&
@@ -313,15 +351,15 @@ TEST(Meridian, LuminanceReturnsOneBuffersColour) {
     // equal luminance (exactly, with luma 0.5/0.25/0.25): the lowest buffer index
     o.luma = {0.5, 0.25, 0.25};
     Pixel same({{0, 1, 1}, {1, 0, 0}, {3, 3, 3}}, {1, 1, 1});
-    EXPECT_EQ(run(estimateMeridian, same, o).rgb, (std::array<float, 3>{0, 1, 1}));
+    EXPECT_EQ(run(Est::Meridian, same, o).rgb, (std::array<float, 3>{0, 1, 1}));
     Pixel swapped({{1, 0, 0}, {0, 1, 1}, {3, 3, 3}}, {1, 1, 1});
-    EXPECT_EQ(run(estimateMeridian, swapped, o).rgb, (std::array<float, 3>{1, 0, 0}));
+    EXPECT_EQ(run(Est::Meridian, swapped, o).rgb, (std::array<float, 3>{1, 0, 0}));
 }
 
 // ---- shared edges -------------------------------------------------------------------------------
 
 TEST(JungEstimators, EdgesOfEveryEstimator) {
-    for (auto fn : {estimateTMPE, estimateMyriad, estimateMeridian}) {
+    for (Est fn : {Est::TMPE, Est::Myriad, Est::Meridian}) {
         for (auto mode : {EstimatorMode::PerChannel, EstimatorMode::Luminance}) {
             Opts o;
             o.mode = mode;
@@ -358,14 +396,13 @@ TEST(JungEstimators, FireflyIsRemoved) {
     for (auto mode : {EstimatorMode::PerChannel, EstimatorMode::Luminance}) {
         Opts o;
         o.mode = mode;
-        for (auto fn : {estimateTMPE, estimateMeridian})
-            EXPECT_NEAR(run(fn, px, o).rgb[0], 0.2f, 0.02f);
+        for (Est fn : {Est::TMPE, Est::Meridian}) EXPECT_NEAR(run(fn, px, o).rgb[0], 0.2f, 0.02f);
         // The thesis' relative gamma = 0.05 x range = 25 is wide next to the firefly's distance of
         // 500: its weight gamma^2 / (gamma^2 + 500^2) = 1/401 still pulls the myriad to
         // (1.2 + 500/401) / (6 + 1/401) = 0.408 (the mean is 71.6). A smaller gamma removes it.
         const double k = 1.0 / 401.0;
-        EXPECT_NEAR(run(estimateMyriad, px, o).rgb[0], (1.2 + 500 * k) / (6 + k), 2e-3);
+        EXPECT_NEAR(run(Est::Myriad, px, o).rgb[0], (1.2 + 500 * k) / (6 + k), 2e-3);
         o.gamma = 0.001;
-        EXPECT_NEAR(run(estimateMyriad, px, o).rgb[0], 0.2f, 0.02f);
+        EXPECT_NEAR(run(Est::Myriad, px, o).rgb[0], 0.2f, 0.02f);
     }
 }

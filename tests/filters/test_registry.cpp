@@ -2,8 +2,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <sstream>
+#include <string>
+#include <vector>
 
+#include "mcstat/filters/pixel/gmonb.h"
+#include "mcstat/filters/pixel/meridian.h"
+#include "mcstat/filters/pixel/myriad.h"
+#include "mcstat/filters/pixel/tmpe.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/sample_records.h"
@@ -11,67 +18,103 @@
 
 using namespace mcstat;
 
-TEST(Registry, ListsTheEstimatorsOnce) {
-    std::vector<std::string> names;
-    for (const EstimatorInfo& e : estimatorRegistry()) {
-        names.push_back(e.name);
-        EXPECT_NE(e.fn, nullptr);
-        EXPECT_FALSE(e.help.empty());
-    }
-    EXPECT_EQ(names, (std::vector<std::string>{"mean", "mon", "gmon", "gmonb", "median", "tmpe",
-                                               "myriad", "meridian"}));
-    EXPECT_EQ(findEstimator("gmon")->fn, &estimateGMoN);
-    EXPECT_EQ(findEstimator("nope"), nullptr);
+namespace {
+
+/// `op`'s parameters: `kv` over the defaults (the test fails on a parse error).
+ParamValues valuesOf(const char* name, const std::map<std::string, std::string>& kv = {}) {
+    ParamValues v;
+    std::string err;
+    EXPECT_TRUE(parseOperationParams(*findOperation(name), kv, v, err)) << name << ": " << err;
+    return v;
 }
 
-TEST(Registry, ParsesParametersAndDefaults) {
-    EstimatorParams p;
-    p.giniThreshold = 0.9;
-    std::string err;
-    ASSERT_TRUE(parseEstimatorParams(*findEstimator("gmonb"), {{"mode", "channel"}}, p, err));
-    EXPECT_EQ(p.mode, EstimatorMode::PerChannel);
-    EXPECT_DOUBLE_EQ(p.giniThreshold, 0.25);  // the default is applied when not given
-    ASSERT_TRUE(parseEstimatorParams(*findEstimator("gmonb"), {{"threshold", "0.5"}}, p, err));
-    EXPECT_DOUBLE_EQ(p.giniThreshold, 0.5);
-    EXPECT_EQ(p.mode, EstimatorMode::Luminance);
+const std::array<double, 3> kLuma{0.2126, 0.7152, 0.0722};
+
+/// One grey pixel of buffers `v` (counts 1) through `name`'s bound kernel.
+float greyEstimate(const char* name, const std::map<std::string, std::string>& kv,
+                   std::vector<float> v) {
+    std::vector<float> mean, count(v.size(), 1.f);
+    for (float x : v) mean.insert(mean.end(), {x, x, x});
+    const PixelKernel k = findOperation(name)->bindPixel(valuesOf(name, kv), kLuma);
+    EstimatorScratch s;
+    PixelEstimate e;
+    k.estimate({mean.data(), count.data(), int(v.size())}, e, s);
+    return e.rgb[0];
+}
+
+}  // namespace
+
+TEST(Registry, TheEstimatorsAreTheBufferMeansOperations) {
+    std::vector<const Operation*> bufferMeans;
+    for (const Operation& op : operationRegistry())
+        if (op.input == InputKind::BufferMeans) bufferMeans.push_back(&op);
+    ASSERT_EQ(estimatorRegistry().size(), bufferMeans.size());
+    for (size_t i = 0; i < bufferMeans.size(); ++i) {
+        const EstimatorInfo& e = estimatorRegistry()[i];
+        EXPECT_EQ(e.name, bufferMeans[i]->name);  // in registry order
+        EXPECT_NE(e.bindPixel, nullptr) << e.name;
+        EXPECT_EQ(findEstimator(e.name)->name, e.name);
+    }
+    EXPECT_EQ(findEstimator("nope"), nullptr);
+    for (const Operation& op : operationRegistry()) {
+        if (op.input != InputKind::BufferMeans) {
+            EXPECT_EQ(findEstimator(op.name), nullptr);
+        }
+    }
+}
+
+TEST(Registry, ParametersBindToTheKernel) {
+    // {1, 1, 1, 1, 10}: G = (-4 - 2 + 0 + 2 + 40) / (5 * 14) = 0.514 (eq. 4)
+    const std::vector<float> v = {1, 1, 1, 1, 10};
+    EXPECT_EQ(greyEstimate("gmonb", {}, v), 1.f);                                   // G > 0.25: MoN
+    EXPECT_FLOAT_EQ(greyEstimate("gmonb", {{"threshold", "0.6"}}, v), 14.f / 5.f);  // the mean
+    // TMPE: alpha 0.2 trims one of five from each side, 0 none, 0.5 down to the median
+    const std::vector<float> w = {1, 2, 3, 4, 100};
+    EXPECT_FLOAT_EQ(greyEstimate("tmpe", {{"alpha", "0.2"}}, w), 3.f);
+    EXPECT_FLOAT_EQ(greyEstimate("tmpe", {{"alpha", "0"}}, w), 22.f);
+    EXPECT_FLOAT_EQ(greyEstimate("tmpe", {{"alpha", "0.5"}}, w), 3.f);
+    // myriad: an absolute gamma far above the range is the mean; a relative one is scaled
+    EXPECT_NEAR(greyEstimate("myriad", {{"gamma", "1e8"}, {"scale", "abs"}}, {1, 4, 3, 50}),
+                58.f / 4.f, 1e-4);
+    // meridian: a tiny delta selects the most frequent value
+    EXPECT_EQ(greyEstimate("meridian", {{"delta", "1e-9"}, {"scale", "abs"}}, {3, 1, 2, 1}), 1.f);
+    // mode binds the kernel's mode; luminance is the default
+    EXPECT_EQ(findOperation("gmonb")->bindPixel(valuesOf("gmonb"), kLuma).mode,
+              EstimatorMode::Luminance);
+    EXPECT_EQ(
+        findOperation("gmonb")->bindPixel(valuesOf("gmonb", {{"mode", "channel"}}), kLuma).mode,
+        EstimatorMode::PerChannel);
+}
+
+TEST(Registry, SmallestRobustMFollowsTheParameters) {
+    auto minM = [](const char* name, const std::map<std::string, std::string>& kv = {}) {
+        return findOperation(name)->bindPixel(valuesOf(name, kv), kLuma).smallestRobustM;
+    };
+    EXPECT_EQ(minM("mean"), 1);
+    EXPECT_EQ(minM("mon"), 3);
+    EXPECT_EQ(minM("median"), 3);
+    EXPECT_EQ(minM("gmon"), 4);
+    EXPECT_EQ(minM("gmonb"), 3);
+    EXPECT_EQ(minM("tmpe"), 4);                       // floor(0.25 M) >= 1 from M = 4
+    EXPECT_EQ(minM("tmpe", {{"alpha", "0.5"}}), 3);   // the median's
+    EXPECT_EQ(minM("tmpe", {{"alpha", "0.1"}}), 10);  // floor(0.1 M + 1e-9) >= 1
+    EXPECT_GT(minM("tmpe", {{"alpha", "0"}}), 999);   // the mean at every M
+    EXPECT_EQ(minM("myriad"), 2);
+    EXPECT_EQ(minM("meridian"), 2);
 }
 
 TEST(Registry, RejectsUnknownAndBadParameters) {
-    EstimatorParams p;
+    ParamValues p;
     std::string err;
-    EXPECT_FALSE(parseEstimatorParams(*findEstimator("gmon"), {{"treshold", "1"}}, p, err));
+    EXPECT_FALSE(parseOperationParams(*findOperation("gmon"), {{"treshold", "1"}}, p, err));
     EXPECT_NE(err.find("'treshold'"), std::string::npos) << err;
     EXPECT_NE(err.find("accepted: mode"), std::string::npos) << err;
-    EXPECT_FALSE(parseEstimatorParams(*findEstimator("mean"), {{"mode", "lum"}}, p, err));
+    EXPECT_FALSE(parseOperationParams(*findOperation("mean"), {{"mode", "lum"}}, p, err));
     EXPECT_NE(err.find("no parameters"), std::string::npos) << err;
-    EXPECT_FALSE(parseEstimatorParams(*findEstimator("gmon"), {{"mode", "hsv"}}, p, err));
-    EXPECT_FALSE(parseEstimatorParams(*findEstimator("gmonb"), {{"threshold", "1.5"}}, p, err));
-    EXPECT_FALSE(parseEstimatorParams(*findEstimator("gmonb"), {{"threshold", "0.2x"}}, p, err));
-    EXPECT_FALSE(parseEstimatorParams(*findEstimator("gmonb"), {{"threshold", "nan"}}, p, err));
-}
-
-TEST(Registry, JungParameters) {
-    EstimatorParams p;
-    std::string err;
-    ASSERT_TRUE(parseEstimatorParams(*findEstimator("tmpe"), {{"alpha", "0.5"}}, p, err)) << err;
-    EXPECT_DOUBLE_EQ(p.alpha, 0.5);
-    ASSERT_TRUE(parseEstimatorParams(*findEstimator("tmpe"), {}, p, err)) << err;
-    EXPECT_DOUBLE_EQ(p.alpha, 0.25);
-    ASSERT_TRUE(parseEstimatorParams(*findEstimator("myriad"), {{"gamma", "2.5"}, {"scale", "abs"}},
-                                     p, err))
-        << err;
-    EXPECT_DOUBLE_EQ(p.gamma, 2.5);
-    EXPECT_FALSE(p.scaleRelative);
-    ASSERT_TRUE(parseEstimatorParams(*findEstimator("meridian"), {}, p, err)) << err;
-    EXPECT_DOUBLE_EQ(p.delta, 0.05);
-    EXPECT_TRUE(p.scaleRelative);
-    // the struct's defaults are the registry's, so callers that skip parsing get the same estimator
-    const EstimatorParams d;
-    EXPECT_EQ(d.alpha, 0.25);
-    EXPECT_EQ(d.gamma, 0.05);
-    EXPECT_EQ(d.delta, 0.05);
-    EXPECT_TRUE(d.scaleRelative);
-
+    EXPECT_FALSE(parseOperationParams(*findOperation("gmon"), {{"mode", "hsv"}}, p, err));
+    EXPECT_FALSE(parseOperationParams(*findOperation("gmonb"), {{"threshold", "1.5"}}, p, err));
+    EXPECT_FALSE(parseOperationParams(*findOperation("gmonb"), {{"threshold", "0.2x"}}, p, err));
+    EXPECT_FALSE(parseOperationParams(*findOperation("gmonb"), {{"threshold", "nan"}}, p, err));
     struct Bad {
         const char *est, *key, *value, *needle;
     } bad[] = {{"tmpe", "alpha", "0.6", "alpha must be a number in [0, 0.5], not '0.6'"},
@@ -85,10 +128,25 @@ TEST(Registry, JungParameters) {
                {"tmpe", "gamma", "1", "has no parameter 'gamma'"},
                {"myriad", "delta", "1", "has no parameter 'delta'"}};
     for (const Bad& b : bad) {
-        EXPECT_FALSE(parseEstimatorParams(*findEstimator(b.est), {{b.key, b.value}}, p, err))
+        EXPECT_FALSE(parseOperationParams(*findOperation(b.est), {{b.key, b.value}}, p, err))
             << b.est << " " << b.key;
         EXPECT_NE(err.find(b.needle), std::string::npos) << err;
     }
+}
+
+TEST(Registry, TheParameterStructsDefaultsAreTheRegistrys) {
+    // A caller that fills a kernel's struct by hand (tests, benchmarks) gets the registry's
+    // estimator.
+    auto def = [](const char* op, const char* key) {
+        return std::stod(findOperation(op)->param(key)->defaultValue);
+    };
+    EXPECT_EQ(GmonbParams().threshold, def("gmonb", "threshold"));
+    EXPECT_EQ(TmpeParams().alpha, def("tmpe", "alpha"));
+    EXPECT_EQ(MyriadParams().gamma, def("myriad", "gamma"));
+    EXPECT_EQ(MeridianParams().delta, def("meridian", "delta"));
+    EXPECT_TRUE(MyriadParams().scaleRelative);
+    EXPECT_EQ(findOperation("myriad")->param("scale")->defaultValue, "rel");
+    EXPECT_EQ(PixelParams().mode, EstimatorMode::Luminance);
 }
 
 // ---- the operation registry (every kind of operation, typed parameters) ------------------------
@@ -104,11 +162,12 @@ TEST(Operations, EveryOperationIsComplete) {
         EXPECT_EQ(findOperation(op.name), &op);
         switch (op.input) {
             case InputKind::BufferMeans:
-                EXPECT_NE(op.fn, nullptr) << op.name;
+                EXPECT_NE(op.bindPixel, nullptr) << op.name;
                 EXPECT_NE(findEstimator(op.name), nullptr) << op.name;
                 break;
             case InputKind::Neighbourhood:
                 EXPECT_NE(op.over, Neighbourhood::None) << op.name;
+                EXPECT_NE(op.bindWindow, nullptr) << op.name;
                 EXPECT_EQ(findEstimator(op.name), nullptr) << op.name;
                 break;
             case InputKind::Samples:
@@ -121,15 +180,32 @@ TEST(Operations, EveryOperationIsComplete) {
             EXPECT_EQ(op.param(p.name), &p) << op.name << " " << p.name << " twice";
         }
     }
-    for (const char* n : {"mif", "wmif", "3dmf", "3dwmf", "3dwtmf"}) {
-        ASSERT_NE(findOperation(n), nullptr) << n;
-        EXPECT_EQ(findOperation(n)->input, InputKind::Neighbourhood) << n;
+}
+
+TEST(Operations, EveryKernelBindsItsDefaults) {
+    // Every operation binds its own defaults to its kernel: per pixel, a finite estimate of a
+    // finite pixel; over a window, the window the "size" parameter says, centred (halo = size / 2).
+    const std::vector<float> mean = {1, 2, 3, 9, 9, 9, 2, 2, 2, 1e3f, 0, 1}, count = {4, 4, 4, 4};
+    for (const Operation& op : operationRegistry()) {
+        ParamValues v;
+        std::string err;
+        ASSERT_TRUE(parseOperationParams(op, {}, v, err)) << err;
+        if (op.bindPixel) {
+            const PixelKernel k = op.bindPixel(v, kLuma);
+            EstimatorScratch s;
+            PixelEstimate e;
+            k.estimate({mean.data(), count.data(), 4}, e, s);
+            for (float c : e.rgb) EXPECT_TRUE(std::isfinite(c)) << op.name;
+            EXPECT_GE(k.smallestRobustM, 1) << op.name;
+        }
+        if (op.bindWindow) {
+            const WindowKernel k = op.bindWindow(v, kLuma);
+            EXPECT_EQ(k.over, op.over) << op.name;
+            EXPECT_EQ(k.haloX(), int(v.at("size").integer) / 2) << op.name;
+            EXPECT_EQ(k.haloY(), int(v.at("size").integer2) / 2) << op.name;
+            EXPECT_TRUE(validateSpatialParams(k.params, err)) << op.name << ": " << err;
+        }
     }
-    EXPECT_EQ(findOperation("mif")->over, Neighbourhood::Image);
-    EXPECT_EQ(findOperation("3dwtmf")->over, Neighbourhood::SubBuffers);
-    EXPECT_EQ(findOperation("pajot")->input, InputKind::Samples);
-    EXPECT_EQ(findOperation("rpf")->input, InputKind::Samples);
-    EXPECT_EQ(estimatorRegistry().size() + 7, operationRegistry().size());
 }
 
 TEST(Operations, EveryDefaultParsesWithinItsRange) {
@@ -288,36 +364,6 @@ TEST(Operations, SpatialParamsDefaultsAreTheRegistrys) {
         EXPECT_EQ(r.centreWeight, w.w) << w.op;
         EXPECT_EQ(r.alpha, w.alpha) << w.op;
         EXPECT_TRUE(validateSpatialParams(r, err)) << w.op << ": " << err;
-    }
-}
-
-TEST(Operations, EstimatorParamsDefaultsAreTheRegistrys) {
-    const EstimatorParams d;
-    for (const EstimatorInfo& e : estimatorRegistry()) {
-        EstimatorParams p;
-        p.giniThreshold = p.alpha = p.gamma = p.delta = -1.0;
-        p.scaleRelative = false;
-        p.mode = EstimatorMode::PerChannel;
-        std::string err;
-        ASSERT_TRUE(parseEstimatorParams(e, {}, p, err)) << err;
-        if (e.param("mode")) {
-            EXPECT_EQ(p.mode, d.mode) << e.name;
-        }
-        if (e.param("threshold")) {
-            EXPECT_EQ(p.giniThreshold, d.giniThreshold) << e.name;
-        }
-        if (e.param("alpha")) {
-            EXPECT_EQ(p.alpha, d.alpha) << e.name;
-        }
-        if (e.param("gamma")) {
-            EXPECT_EQ(p.gamma, d.gamma) << e.name;
-        }
-        if (e.param("delta")) {
-            EXPECT_EQ(p.delta, d.delta) << e.name;
-        }
-        if (e.param("scale")) {
-            EXPECT_EQ(p.scaleRelative, d.scaleRelative) << e.name;
-        }
     }
 }
 

@@ -7,6 +7,10 @@
 #include <random>
 #include <vector>
 
+#include "mcstat/filters/pixel/median.h"
+#include "mcstat/filters/pixel/tmpe.h"
+#include "mcstat/filters/window/filter3d.h"
+#include "mcstat/filters/window/mif.h"
 #include "mcstat/filters/window/window_rank.h"
 #include "mcstat/image/imageops.h"
 #include "pixel_support.h"
@@ -287,7 +291,7 @@ TEST(SpatialFilters, Filter3DOneByOneIsMPEAndTMPE) {
     const FixedBufferGrid g{s.bufferMean.data(), s.bufferCount.data(), 9, 7, 6};
     EstimatorScratch es;
     for (auto mode : {EstimatorMode::Luminance, EstimatorMode::PerChannel}) {
-        EstimatorParams ep;
+        TmpeParams ep;  // MPE takes its PixelParams part
         ep.luma = kLuma;
         ep.mode = mode;
         for (int y = 0; y < 7; ++y)
@@ -389,7 +393,7 @@ TEST(SpatialFilters, HugeCentreWeightIsMPEOfTheCentre) {
         s.bufferMean[i * 3 + 1] = 0.5f + float(j);
     }
     const FixedBufferGrid g{s.bufferMean.data(), s.bufferCount.data(), 5, 5, 7};
-    EstimatorParams ep;
+    PixelParams ep;
     ep.luma = kLuma;
     EstimatorScratch es;
     PixelEstimate mpe;
@@ -668,7 +672,7 @@ TEST(SpatialFilters, Filter3DOneByOnePerSampleIsTheCountWeightedMedian) {
         {{1, 3}, {2, 2}, 2.f, 2.f},         // 1 1 3 3: (1 + 3) / 2
         {{4, 1, 3, 2, 5}, {5, 5, 6, 5, 5}, 3.f, 3.f},
     };
-    EstimatorParams ep;
+    PixelParams ep;
     ep.luma = kLuma;
     EstimatorScratch es;
     for (const auto& c : cases) {
@@ -705,7 +709,7 @@ TEST(SpatialFilters, Filter3DPerSampleEqualCountsIsMPEOnRandomPixels) {
                 if (u(rng) < 0.05f) rgb.back()[1] = kNaN;
             }
             g.add(rgb, cnt);
-            EstimatorParams ep;
+            PixelParams ep;
             ep.luma = kLuma;
             ep.mode = mode;
             PixelEstimate mpe;

@@ -362,14 +362,13 @@ TEST_F(Stream, ARegionOutsideTheImageIsAnError) {
     ASSERT_TRUE(writeStatsFile(path, makeImage(8, 8, 2, false, 4), err)) << err;
     StatsFileReader reader;
     ASSERT_TRUE(reader.open(path, err)) << err;
-    EstimatorParams params;
-    params.luma = kLuma;
+    const Operation& gmon = *findOperation("gmon");
+    const PixelKernel kernel = gmon.bindPixel(ParamValues(), kLuma);
     OIIO::ImageBuf out;
-    EXPECT_FALSE(
-        estimate(out, reader, *findEstimator("gmon"), params, false, OIIO::ROI(20, 30, 0, 4)));
+    EXPECT_FALSE(estimate(out, reader, gmon, kernel, false, OIIO::ROI(20, 30, 0, 4)));
     EXPECT_NE(out.geterror().find("outside the data window"), std::string::npos);
     StatsFileReader closed;
-    EXPECT_FALSE(estimate(out, closed, *findEstimator("gmon"), params));
+    EXPECT_FALSE(estimate(out, closed, gmon, kernel));
 }
 
 }  // namespace

@@ -123,11 +123,11 @@ class Plugin : public ::testing::Test {
                    bool diag = false) const {
         const mcstat::EstimatorInfo* info = mcstat::findEstimator(est);
         EXPECT_NE(info, nullptr);
-        mcstat::EstimatorParams params;
-        params.luma = mcstat::lumaCoefficients();
+        mcstat::PixelKernel kernel;
         std::string err;
-        EXPECT_TRUE(mcstat::parseEstimatorParams(*info, kv, params, err)) << err;
-        OIIO::ImageBuf b = mcstat::estimate(loadStats(), *info, params, diag);
+        EXPECT_TRUE(mcstat::bindPixelKernel(*info, kv, mcstat::lumaCoefficients(), kernel, err))
+            << err;
+        OIIO::ImageBuf b = mcstat::estimate(loadStats(), *info, kernel, diag);
         Pixels p;
         p.channels = b.spec().channelnames;
         p.width = b.spec().width;

@@ -8,7 +8,6 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include "mcstat/analysis/metrics.h"
-#include "mcstat/filters/pixel/ranking.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/filters/window/window_rank.h"
 #include "mcstat/stats_file.h"
@@ -54,12 +53,11 @@ void setAovAttributes(OIIO::ImageSpec& spec, const StatsHeader& h, size_t firstA
 /// buffer still sum to the result; the AOV of class alpha is the spec's alpha channel. AOVs need
 /// luminance mode (channel mode is refused: it has no one weight per buffer). The display window
 /// is the header's.
-bool estimate(OIIO::ImageBuf& dst, const StatsImage& src, const EstimatorInfo& est,
-              const EstimatorParams& params, bool diagnostics = false, OIIO::ROI roi = {},
+bool estimate(OIIO::ImageBuf& dst, const StatsImage& src, const Operation& est,
+              const PixelKernel& kernel, bool diagnostics = false, OIIO::ROI roi = {},
               int nthreads = 0);
-OIIO::ImageBuf estimate(const StatsImage& src, const EstimatorInfo& est,
-                        const EstimatorParams& params, bool diagnostics = false, OIIO::ROI roi = {},
-                        int nthreads = 0);
+OIIO::ImageBuf estimate(const StatsImage& src, const Operation& est, const PixelKernel& kernel,
+                        bool diagnostics = false, OIIO::ROI roi = {}, int nthreads = 0);
 
 /// Jung's (weighted) median image filter WMIF / MIF (eq. 5.6-5.8, centre weight eq. 5.28; see
 /// filters/window/window_rank.h) over the R, G, B channels (the first three) of `src`, within `roi`
@@ -93,6 +91,26 @@ OIIO::ImageBuf filter3D(const StatsImage& src, const SpatialParams& params, OIIO
 bool applyOperation(OIIO::ImageBuf& dst, const StatsImage& src, const Operation& op,
                     const ParamValues& values, const std::array<double, 3>& luma,
                     bool diagnostics = false, OIIO::ROI roi = {}, int nthreads = 0);
+/// `op` over an image instead of a statistics file: the operations that filter an image (MIF,
+/// WMIF) filter R, G, B of `src` (and the AOVs an estimator's result over a file with AOVs
+/// carries, kAttrFirstAov). Any other operation is an error on dst.
+bool applyOperation(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, const Operation& op,
+                    const ParamValues& values, const std::array<double, 3>& luma,
+                    OIIO::ROI roi = {}, int nthreads = 0);
+
+/// What the dispatcher asks of an operation, so that its callers (the CLI, the plugin, the review
+/// commands) need not look at its kind:
+/// - takesImage: applyOperation over an image is its natural form (over a statistics file it
+///   filters the plain mean);
+bool takesImage(const Operation& op);
+/// - readsSamples: it reads the per-sample records or stored state of a file on disk
+///   (runSamplesOperation), not sub-buffers in memory;
+bool readsSamples(const Operation& op);
+/// - hasDiagnostics: applyOperation's `diagnostics` adds channels (gini, kept, excluded);
+bool hasDiagnostics(const Operation& op);
+/// - smallestRobustM: the smallest M at which its result can differ from the plain mean (1: at
+///   any M, and for operations that are not per-pixel estimators).
+int smallestRobustM(const Operation& op, const ParamValues& values);
 
 // ---- the same operations, streamed
 // --------------------------------------------------------------- Over a StatsBlockSource
@@ -112,12 +130,11 @@ std::vector<std::string> operationChannels(const Operation& op, const ParamValue
 /// Decoded bytes per block of a streamed operation.
 inline constexpr size_t kStreamBlockBytes = size_t(64) << 20;
 
-bool estimate(OIIO::ImageBuf& dst, StatsBlockSource& src, const EstimatorInfo& est,
-              const EstimatorParams& params, bool diagnostics = false, OIIO::ROI roi = {},
+bool estimate(OIIO::ImageBuf& dst, StatsBlockSource& src, const Operation& est,
+              const PixelKernel& kernel, bool diagnostics = false, OIIO::ROI roi = {},
               int nthreads = 0);
-OIIO::ImageBuf estimate(StatsBlockSource& src, const EstimatorInfo& est,
-                        const EstimatorParams& params, bool diagnostics = false, OIIO::ROI roi = {},
-                        int nthreads = 0);
+OIIO::ImageBuf estimate(StatsBlockSource& src, const Operation& est, const PixelKernel& kernel,
+                        bool diagnostics = false, OIIO::ROI roi = {}, int nthreads = 0);
 bool filter3D(OIIO::ImageBuf& dst, StatsBlockSource& src, const SpatialParams& params,
               OIIO::ROI roi = {}, int nthreads = 0);
 OIIO::ImageBuf filter3D(StatsBlockSource& src, const SpatialParams& params, OIIO::ROI roi = {},

@@ -22,26 +22,26 @@ int main() {
 
     const mcstat::EstimatorInfo* gmon = mcstat::findEstimator("gmon");
     if (!gmon) return 1;
-    mcstat::EstimatorParams params;
-    params.luma = mcstat::lumaCoefficients();
+    mcstat::PixelKernel kernel;
+    std::string err;
+    if (!mcstat::bindPixelKernel(*gmon, {}, mcstat::lumaCoefficients(), kernel, err)) return 1;
     mcstat::PixelBuffers px{mean, count, 5};
     mcstat::PixelEstimate out;
     mcstat::EstimatorScratch scratch;
-    mcstat::estimateGMoN(px, params, out, scratch);
+    kernel.estimate(px, out, scratch);
     std::printf("%s pixel %.6f %.6f %.6f kept %d\n", gmon->title.c_str(), double(out.rgb[0]),
                 double(out.rgb[1]), double(out.rgb[2]), out.kept[0]);
 
     mcstat::StatsImage img;
     img.header.width = img.header.height = 1;
     img.header.M = 5;
-    std::string err;
     if (!img.allocate(err)) {
         std::printf("allocate: %s\n", err.c_str());
         return 1;
     }
     img.bufferMean.assign(mean, mean + 15);
     img.bufferCount.assign(count, count + 5);
-    OIIO::ImageBuf buf = mcstat::estimate(img, *gmon, params);
+    OIIO::ImageBuf buf = mcstat::estimate(img, *gmon, kernel);
     float rgb[3] = {0, 0, 0};
     buf.getpixel(0, 0, rgb, 3);
     std::printf("%s image %.6f %.6f %.6f\n", gmon->title.c_str(), double(rgb[0]), double(rgb[1]),

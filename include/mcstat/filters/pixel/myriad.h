@@ -1,19 +1,16 @@
-// M-estimators of Jung's thesis over a pixel's M sub-buffer means: the myriad (eq. 4.7) and the
-// meridian (eq. 4.8). Pure functions, no I/O. TMPE (eq. 5.1) and MPE (eq. 4.6 / 5.2) are rank
-// estimators and live with the others in estimators.h.
+// The myriad (Jung eq. 4.7) over a pixel's M sub-buffer means: an M-estimator of location. Pure
+// functions, no I/O. Jung, "Rendering of Teeth and Dental Restorations using Robust Statistical
+// Estimation Techniques", PhD thesis, University of Minnesota, 2016, sections 4.1.3 and 4.2.
+// docs/estimators.md has the long form.
 //
-// Thesis: Jung, "Robust statistical pixel estimation", 2016, chapters 4 and 5
-// (Jung, "Rendering of Teeth and Dental Restorations using Robust Statistical Estimation
-// Techniques", PhD thesis, University of Minnesota, 2016). docs/estimators.md has the long form.
-//
-// Shared rules (estimators.h) hold: only valid buffers enter; no valid buffer gives black; counts
-// are weights. Here a buffer's count n_j is a *sample weight* in the cost: the myriad minimises
-// sum_j n_j log(gamma^2 + (x_j - beta)^2) and the meridian sum_j n_j log(delta + |x_j - beta|),
-// i.e. a buffer of n_j samples counts as n_j copies of its mean (equal counts give the thesis'
-// formulas).
+// Shared rules (pixel_estimate.h) hold: only valid buffers enter; no valid buffer gives black;
+// counts are weights. Here a buffer's count n_j is a *sample weight* in the cost: the myriad
+// minimises sum_j n_j log(gamma^2 + (x_j - beta)^2), i.e. a buffer of n_j samples counts as n_j
+// copies of its mean (equal counts give the thesis' formulas).
 #pragma once
 
-#include "mcstat/filters/pixel/ranking.h"
+#include "mcstat/filters/operation.h"
+#include "mcstat/filters/pixel/pixel_estimate.h"
 
 namespace mcstat {
 
@@ -35,15 +32,15 @@ double myriadCost(const double* x, const double* w, int K, double gamma, double 
 /// gamma -> 0 gives the most-weighted sample (the mode), gamma -> inf the mean.
 double myriadSorted(const double* x, const double* w, int K, double gamma);
 
-/// Meridian cost: sum_j w_j log1p(|x_j - beta| / delta), eq. 4.8 minus sum_j w_j log(delta).
-double meridianCost(const double* x, const double* w, int K, double delta, double beta);
+// ---- the estimator ------------------------------------------------------------------------------
 
-/// Index of the sample minimising eq. 4.8 (the cost is concave between samples, so the minimum over
-/// the real line is at a sample). Ties (relative 1e-12) go to the lowest index (the smallest
-/// value).
-int meridianSorted(const double* x, const double* w, int K, double delta);
-
-// ---- the estimators -----------------------------------------------------------------------------
+struct MyriadParams : PixelParams {
+    /// Scale gamma > 0 (eq. 4.7). With scaleRelative a factor of the pixel's input range (max - min
+    /// of the valid values the estimator ranks): the thesis used 0.05 x range (section 4.2).
+    /// Otherwise an absolute value.
+    double gamma = 0.05;
+    bool scaleRelative = true;
+};
 
 /// Myriad (eq. 4.7) with gamma = p.gamma x (max - min) of the ranked values when p.scaleRelative
 /// (the thesis' 0.05 x input range), else gamma = p.gamma.
@@ -52,14 +49,12 @@ int meridianSorted(const double* x, const double* w, int K, double delta);
 /// + (Y_j - beta)^2): the luminance of that colour is beta (beta is the fixed point of those
 /// weights). kept = buffers within gamma of beta (k_j >= 1/2). All values equal: their
 /// count-weighted mean.
-void estimateMyriad(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
+void estimateMyriad(const PixelBuffers& px, const MyriadParams& p, PixelEstimate& out,
                     EstimatorScratch& s);
 
-/// Meridian (eq. 4.8), a selection estimator, with delta = p.delta x range (relative) or p.delta.
-/// PerChannel: the selected value per channel. Luminance: the RGB of the selected buffer (among
-/// buffers of equal luminance, the lowest buffer index). kept = 1 (buffers holding the value, per
-/// channel).
-void estimateMeridian(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out,
-                      EstimatorScratch& s);
+/// Parameter "scale" (rel / abs) of the myriad and the meridian.
+ParamSpec scaleParam();
+/// The registry entry "myriad".
+Operation myriadOperation();
 
 }  // namespace mcstat

@@ -3,11 +3,13 @@
 
 #include <string>
 
-#include "mcstat/filters/registry.h"
+#include "mcstat/filters/operation.h"
 
 namespace mcstat {
 
 /// SamplesFn of "pajot": R, G, B and `delayed` (samples still delayed per pixel).
-bool pajotOperation(const SamplesRequest& req, OperationImage& out, std::string& err);
+bool pajotSamples(const SamplesRequest& req, OperationImage& out, std::string& err);
+/// The registry entry "pajot".
+Operation pajotOperation();
 
 }  // namespace mcstat

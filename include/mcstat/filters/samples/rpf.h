@@ -4,13 +4,15 @@
 
 #include <string>
 
-#include "mcstat/filters/registry.h"
+#include "mcstat/filters/operation.h"
 #include "mcstat/filters/samples/rpf_filter.h"
 
 namespace mcstat {
 
 /// SamplesFn of "rpf": R, G, B filtered by random parameter filtering.
-bool rpfOperation(const SamplesRequest& req, OperationImage& out, std::string& err);
+bool rpfSamples(const SamplesRequest& req, OperationImage& out, std::string& err);
+/// The registry entry "rpf".
+Operation rpfOperation();
 
 /// RpfParams from the registry entry's parsed values.
 bool rpfParamsFrom(const ParamValues& values, RpfParams& out, std::string& err);

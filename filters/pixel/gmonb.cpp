@@ -1,0 +1,34 @@
+// G-MoN_b (gmonb.h): the ranked trimmed mean, nothing or all but the middle trimmed.
+#include "mcstat/filters/pixel/gmonb.h"
+
+#include "mcstat/filters/pixel/ranking.h"
+
+namespace mcstat {
+
+void estimateGMoNb(const PixelBuffers& px, const GmonbParams& p, PixelEstimate& out,
+                   EstimatorScratch& s) {
+    rankedTrimmedMean(px, p, {TrimRule::GiniThreshold, p.threshold}, out, s);
+}
+
+namespace {
+
+PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
+    GmonbParams p;
+    static_cast<PixelParams&>(p) = pixelParams(values, luma);
+    p.threshold = values.at("threshold").real;
+    return {[p](const PixelBuffers& px, PixelEstimate& out, EstimatorScratch& s) {
+                estimateGMoNb(px, p, out, s);
+            },
+            p.mode, /*smallestRobustM=*/3};
+}
+
+}  // namespace
+
+Operation gmonbOperation() {
+    return pixelOperation(
+        "gmonb", "G-MoN_b", "Mean when the Gini coefficient G <= threshold, else MoN (eq. 5)",
+        "Buisine et al. eq. 5",
+        {modeParam(), realParam("threshold", 0.0, 1.0, false, "0.25", "Gini threshold")}, &bind);
+}
+
+}  // namespace mcstat

@@ -1,0 +1,31 @@
+// The plain mean (Buisine et al. 2021, eq. 1): the ranked trimmed mean with nothing trimmed.
+#include "mcstat/filters/pixel/mean.h"
+
+#include "mcstat/filters/pixel/ranking.h"
+
+namespace mcstat {
+
+void estimateMean(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out,
+                  EstimatorScratch& s) {
+    rankedTrimmedMean(px, p, {TrimRule::None, 0.0}, out, s);
+}
+
+namespace {
+
+PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
+    const PixelParams p = pixelParams(values, luma);
+    return {[p](const PixelBuffers& px, PixelEstimate& out, EstimatorScratch& s) {
+                estimateMean(px, p, out, s);
+            },
+            p.mode, /*smallestRobustM=*/1};
+}
+
+}  // namespace
+
+Operation meanOperation() {
+    return pixelOperation("mean", "mean",
+                          "Plain mean of every sample (eq. 1), from the sub-buffers",
+                          "Buisine et al. eq. 1", {}, &bind);
+}
+
+}  // namespace mcstat

@@ -1,0 +1,38 @@
+// Median of means / MPE (median.h): the ranked trimmed mean trimming all but the middle.
+#include "mcstat/filters/pixel/median.h"
+
+#include "mcstat/filters/pixel/ranking.h"
+
+namespace mcstat {
+
+void estimateMoN(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out,
+                 EstimatorScratch& s) {
+    rankedTrimmedMean(px, p, {TrimRule::Median, 0.0}, out, s);
+}
+
+namespace {
+
+PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
+    const PixelParams p = pixelParams(values, luma);
+    return {[p](const PixelBuffers& px, PixelEstimate& out, EstimatorScratch& s) {
+                estimateMoN(px, p, out, s);
+            },
+            p.mode, /*smallestRobustM=*/3};
+}
+
+}  // namespace
+
+// The two middle means of M = 2 average to the mean: the first M it can differ at is 3.
+Operation monOperation() {
+    return pixelOperation("mon", "MoN", "Median of the M sub-buffer means (Buisine et al. eq. 2)",
+                          "Buisine et al. eq. 2", {modeParam()}, &bind);
+}
+
+Operation medianOperation() {
+    return pixelOperation("median", "MPE (median)",
+                          "Median pixel estimate MPE (Jung eq. 4.6, 5.2): the same estimator as "
+                          "--mon",
+                          "Jung eq. 4.6, 5.2", {modeParam()}, &bind);
+}
+
+}  // namespace mcstat

@@ -1,0 +1,50 @@
+// TMPE (tmpe.h): the ranked trimmed mean trimming a fraction alpha per side.
+#include "mcstat/filters/pixel/tmpe.h"
+
+#include "mcstat/filters/pixel/ranking.h"
+
+namespace mcstat {
+
+void estimateTMPE(const PixelBuffers& px, const TmpeParams& p, PixelEstimate& out,
+                  EstimatorScratch& s) {
+    rankedTrimmedMean(px, p, {TrimRule::Fraction, p.alpha}, out, s);
+}
+
+namespace {
+
+/// The first M at which tmpeTrim(alpha, M) >= 1; beyond a statistics file's largest M (alpha = 0:
+/// TMPE is the mean at every M).
+int firstTrimmingM(double alpha) {
+    constexpr int kLargestM = 999;
+    for (int M = 1; M <= kLargestM; ++M)
+        if (tmpeTrim(alpha, M) >= 1) return M;
+    return kLargestM + 1;
+}
+
+}  // namespace
+
+namespace {
+
+PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
+    TmpeParams p;
+    static_cast<PixelParams&>(p) = pixelParams(values, luma);
+    p.alpha = values.at("alpha").real;
+    return {[p](const PixelBuffers& px, PixelEstimate& out, EstimatorScratch& s) {
+                estimateTMPE(px, p, out, s);
+            },
+            p.mode, firstTrimmingM(p.alpha)};
+}
+
+}  // namespace
+
+Operation tmpeOperation() {
+    return pixelOperation("tmpe", "TMPE",
+                          "Trimmed mean TMPE(alpha) (Jung eq. 5.1): drops floor(alpha*M) means per "
+                          "side, averages the rest",
+                          "Jung eq. 5.1",
+                          {modeParam(), realParam("alpha", 0.0, 0.5, false, "0.25",
+                                                  "breakdown point: 0 = mean, 0.5 = median (MPE)")},
+                          &bind);
+}
+
+}  // namespace mcstat

@@ -1,0 +1,128 @@
+// What an operation is: its name, its help, the paper equation it implements, the input it needs
+// and its typed parameters, and the function that binds parsed parameter values to its kernel.
+// Each operation defines one Operation in its own file (filters/pixel/gmon.cpp...), and the
+// registry (registry.h) lists them; nothing else names an operation or looks inside its
+// parameters.
+//
+// The kernels, by input kind (docs/architecture.md):
+// - BufferMeans: a PixelKernel estimates one pixel from its M sub-buffer means, and on request
+//   gives the convex weights of the sub-buffers it combined (applied to every AOV).
+// - Neighbourhood: a WindowKernel is a weighted trimmed mean over a window of pixels or of their
+//   sub-buffers (filters/window/window_rank.h), with its halo.
+// - Samples: a SamplesFn reads the per-sample records or the stored per-pixel state through an
+//   opened SampleSource and makes an image.
+#pragma once
+
+#include <array>
+#include <functional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "mcstat/core/params.h"
+#include "mcstat/filters/pixel/pixel_estimate.h"
+#include "mcstat/filters/window/window_rank.h"
+
+namespace mcstat {
+
+/// The input an operation needs, which decides where it can run.
+enum class InputKind {
+    BufferMeans,    ///< per pixel, over its M sub-buffer means (PixelKernel)
+    Neighbourhood,  ///< a window of pixels (WindowKernel)
+    Samples,        ///< per-sample records / the renderer's online state (SamplesFn)
+};
+
+/// What a Neighbourhood operation's window holds.
+enum class Neighbourhood {
+    None,
+    SubBuffers,  ///< the sub-buffers of the window's pixels in a statistics file (3D filters)
+    Image,       ///< the pixels of an RGB image (MIF/WMIF): in `mcstat` the top image, in the
+                 ///< plugin the plain mean of the sub-buffers (as `--mean` computes it)
+};
+
+/// A BufferMeans operation with its parameters bound.
+struct PixelKernel {
+    /// One pixel's estimate; with scratch.wantWeights also its buffer weights (pixel_estimate.h).
+    std::function<void(const PixelBuffers&, PixelEstimate&, EstimatorScratch&)> estimate;
+    /// Luminance: the buffer weights exist (AOVs can follow) and the diagnostics are one channel
+    /// each; PerChannel: R, G, B ranked apart, diagnostics per channel, no weights.
+    EstimatorMode mode = EstimatorMode::Luminance;
+    /// The smallest number of sub-buffers at which the estimate can differ from the plain mean
+    /// (1: at every M). Below it the CLI and the plugin say that the result is the mean.
+    int smallestRobustM = 1;
+};
+/// Binds parsed values (every parameter of the operation, defaults applied) and the luminance
+/// weights (from the colour config) to the operation's own parameter struct and kernel.
+using BindPixelFn = PixelKernel (*)(const ParamValues& values, const std::array<double, 3>& luma);
+
+/// A Neighbourhood operation with its parameters bound: a weighted trimmed mean over the window.
+struct WindowKernel {
+    Neighbourhood over = Neighbourhood::None;
+    SpatialParams params;
+    /// Pixels the window reaches beyond the output pixel, each side: what a tile or a block of
+    /// rows must read around itself.
+    int haloX() const { return params.windowWidth / 2; }
+    int haloY() const { return params.windowHeight / 2; }
+};
+using BindWindowFn = WindowKernel (*)(const ParamValues& values, const std::array<double, 3>& luma);
+
+/// The image a Samples operation makes: the file's data window, scanline order, R, G, B first.
+struct OperationImage {
+    int width = 0, height = 0;
+    std::vector<std::string> channels{"R", "G", "B"};
+    std::vector<float> pixels;  ///< width * height * channels.size()
+};
+
+/// What a Samples operation is given: the statistics file's path (it streams the file by blocks
+/// itself; it reads whatever parts it needs), its parsed parameters and the environment.
+class SampleSource;  // sample_records.h
+
+struct SamplesRequest {
+    std::string path;
+    /// The file, opened by the caller (exr-deep's openSampleSource): the operation reads its parts
+    /// through it, by blocks of rows, and never opens files itself.
+    SampleSource* source = nullptr;
+    const ParamValues* params = nullptr;  ///< every parameter, defaults applied
+    std::array<double, 3> luma{0.0, 0.0, 0.0};
+    int nthreads = 0;  ///< 0: all cores
+    /// Long operations report their progress (0..1) here when set (the CLI sets it on a
+    /// terminal only).
+    std::function<void(double)> progress;
+};
+
+/// A Samples operation: false with a one-line `err` (naming the file) when the file cannot
+/// provide its input (e.g. no per-sample part) or is bad.
+using SamplesFn = bool (*)(const SamplesRequest&, OperationImage& out, std::string& err);
+
+struct Operation {
+    std::string name;      ///< command name without dashes, e.g. "gmon"
+    std::string title;     ///< e.g. "G-MoN"
+    std::string help;      ///< one line for --help
+    std::string equation;  ///< the paper equation(s) it implements, e.g. "Buisine et al. eq. 4, 6"
+    InputKind input = InputKind::BufferMeans;
+    std::vector<ParamSpec> params;
+    BindPixelFn bindPixel = nullptr;           ///< BufferMeans
+    BindWindowFn bindWindow = nullptr;         ///< Neighbourhood
+    Neighbourhood over = Neighbourhood::None;  ///< Neighbourhood: what bindWindow's kernel reads
+    SamplesFn samples = nullptr;               ///< Samples
+
+    /// Parameters a user may set (params without the fixed ones).
+    std::vector<const ParamSpec*> settable() const;
+    const ParamSpec* param(std::string_view key) const;
+};
+
+/// A BufferMeans operation's entry (input, title, help, equation, parameters, bind).
+Operation pixelOperation(const std::string& name, const std::string& title, const std::string& help,
+                         const std::string& equation, std::vector<ParamSpec> params,
+                         BindPixelFn bind);
+/// A Neighbourhood operation's entry.
+Operation windowOperation(const std::string& name, const std::string& title,
+                          const std::string& help, const std::string& equation, Neighbourhood over,
+                          std::vector<ParamSpec> params, BindWindowFn bind);
+
+/// Parameter "mode" of every operation that ranks colours (lum / channel).
+ParamSpec modeParam();
+/// PixelParams (mode, luma) from parsed values that hold "mode" (or not: luminance).
+PixelParams pixelParams(const ParamValues& values, const std::array<double, 3>& luma);
+
+}  // namespace mcstat
