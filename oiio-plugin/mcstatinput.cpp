@@ -378,7 +378,7 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     std::vector<std::string> estChannels;
     if (!estimateChannels(estChannels)) return false;
     // With AOVs (format version 5) they follow the diagnostics (imageops.h).
-    const size_t nAovs = m_op->input != mcstat::InputKind::Samples ? m_header.aovs.size() : 0;
+    const size_t nAovs = !mcstat::readsSamples(*m_op) ? m_header.aovs.size() : 0;
     makeRobustSub(kv, nAovs);
     makeDiagnosticsSub(estChannels, nAovs, kv);
     makeMeanSub();
@@ -451,7 +451,7 @@ bool McstatInput::estimateChannels(std::vector<std::string>& estChannels) {
     // The estimate's channels: R, G, B, then an estimator's diagnostics (gini/kept/excluded).
     // A per-sample operation's extra channels are known only once it ran: it runs now.
     estChannels = mcstat::operationChannels(*m_op, m_values, true, &m_header);
-    if (m_op->input == mcstat::InputKind::Samples) {
+    if (mcstat::readsSamples(*m_op)) {
         const Computed* c = source(kEstimate);
         if (!c) return false;
         estChannels = c->channels;
@@ -516,9 +516,9 @@ void McstatInput::makeRobustSub(const std::map<std::string, std::string>& kv, si
     r.spec.attribute("oiio:ColorSpace", h.colorSpace);
     describeEstimator(r.spec, kv);
     mcstat::describeResult(r.spec, *est, m_values, h);
-    if (est->input == mcstat::InputKind::BufferMeans && !h.adaptiveM) {
+    if (!h.adaptiveM) {
         // iv shows subimage 0 under the estimator's name: say when it cannot differ from the mean.
-        const int minM = est->bindPixel(m_values, {0.0, 0.0, 0.0}).smallestRobustM;
+        const int minM = mcstat::smallestRobustM(*est, m_values);
         if (minM > 1 && h.M < minM)
             r.spec.attribute(std::string(mcstat::kProvenancePrefix) + "warning",
                              format("{} over M = {} sub-buffers is the plain mean (it trims "
@@ -532,7 +532,7 @@ void McstatInput::makeRobustSub(const std::map<std::string, std::string>& kv, si
 
 void McstatInput::makeDiagnosticsSub(const std::vector<std::string>& estChannels, size_t nAovs,
                                      const std::map<std::string, std::string>& kv) {
-    const bool samples = m_op->input == mcstat::InputKind::Samples;
+    const bool samples = mcstat::readsSamples(*m_op);
     // 2: diagnostics: the estimator's gini/kept/excluded channels plus the sample count, and with
     // adaptive M the map of buffer counts m_p ("M").
     Sub& d = m_subs[kDiagnostics];
@@ -610,7 +610,7 @@ bool McstatInput::computeEstimate(Source s, Computed& out, std::string& err) {
     // without them (so subimages 0 and 2 agree).
     OIIO::ImageBuf img;
     bool ok = false;
-    if (m_op->input == mcstat::InputKind::Samples) {
+    if (mcstat::readsSamples(*m_op)) {
         ok = mcstat::runSamplesOperation(img, m_path, h, *m_op, m_values, m_luma, threads());
     } else {
         mcstat::StatsFileReader reader;

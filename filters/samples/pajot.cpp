@@ -34,16 +34,7 @@ bool requestedParams(const SamplesRequest& req, const PajotImage* stored, PajotP
         p.luma = req.luma;
         return true;
     }
-    if (!parsePajotMethod(method, p.method)) {
-        err = "pajot: unknown method '" + method + "'";
-        return false;
-    }
-    p.learning = int(v.at("n").integer);
-    p.maxDelayed = int(v.at("delayed").integer);
-    p.T = int(v.at("t").integer);
-    p.delta = v.at("delta").real;
-    p.luma = req.luma;
-    return validatePajotParams(p, err);
+    return pajotParamsFrom(v, req.luma, p, err);
 }
 
 int threadCount(int requested, int rows) {
@@ -52,6 +43,21 @@ int threadCount(int requested, int rows) {
 }
 
 }  // namespace
+
+bool pajotParamsFrom(const ParamValues& v, const std::array<double, 3>& luma, PajotParams& p,
+                     std::string& err) {
+    const std::string& method = v.at("method").text;
+    if (!parsePajotMethod(method, p.method)) {
+        err = "pajot: method '" + method + "' names no estimator of its own";
+        return false;
+    }
+    p.learning = int(v.at("n").integer);
+    p.maxDelayed = int(v.at("delayed").integer);
+    p.T = int(v.at("t").integer);
+    p.delta = v.at("delta").real;
+    p.luma = luma;
+    return validatePajotParams(p, err);
+}
 
 bool pajotSamples(const SamplesRequest& req, OperationImage& out, std::string& err) {
     SampleSource* src = req.source;

@@ -17,6 +17,8 @@
 #include <thread>
 
 #include "mcstat/color.h"
+#include "mcstat/core/params.h"
+#include "mcstat/filters/samples/pajot.h"
 #include "mcstat/filters/samples/pajot_state.h"
 #include "mcstat/render/render.h"
 #include "mcstat/render/scene.h"
@@ -33,13 +35,12 @@ int fail(const std::string& msg) {
     return 1;
 }
 
-/// Strict integer parsing: the whole text must be a number in [lo, hi].
+/// Strict integer parsing (the one number syntax, core/params.h): the whole text must be a
+/// number in [lo, hi].
 bool parseInt(const std::string& text, const char* what, long long lo, long long hi, long long& out,
               std::string& err) {
-    errno = 0;
-    char* end = nullptr;
-    const long long v = std::strtoll(text.c_str(), &end, 10);
-    if (text.empty() || *end != '\0' || errno == ERANGE) {
+    int64_t v = 0;
+    if (!mcstat::parseIntegerText(text, v)) {
         err = fmt::format("{}: expected an integer, got '{}'", what, text);
         return false;
     }
@@ -365,29 +366,30 @@ bool loadSizedScene(const CommandLine& cl, Scene& scene, std::string& err) {
 
 /// Checks the --pajot options into `params` (with the luma weights; their warning is printed).
 bool parsePajotOptions(const CommandLine& cl, mcstat::PajotParams& params, std::string& err) {
-    if (!mcstat::parsePajotMethod(cl.pajotText, params.method)) {
+    if (cl.pajotText != "adr" && cl.pajotText != "rot" && cl.pajotText != "hybrid") {
         err = fmt::format("--pajot: expected 'adr', 'rot' or 'hybrid', got '{}'", cl.pajotText);
         return false;
     }
-    long long v = 0;
-    if (!parseInt(cl.pajotNText, "--pajot-n", 1, 1000000, v, err)) return false;
-    params.learning = int(v);
-    if (!parseInt(cl.pajotDelayedText, "--pajot-delayed", 0, 1000000, v, err)) return false;
-    params.maxDelayed = int(v);
-    if (!parseInt(cl.pajotTText, "--pajot-t", 1, 1000000, v, err)) return false;
-    params.T = int(v);
-    char* end = nullptr;
-    params.delta = std::strtod(cl.pajotDeltaText.c_str(), &end);
-    if (cl.pajotDeltaText.empty() || *end != '\0' || !(params.delta >= 0) ||
-        !std::isfinite(params.delta)) {
-        err = fmt::format("--pajot-delta: expected a finite number >= 0, got '{}'",
-                          cl.pajotDeltaText);
-        return false;
-    }
+    // The values are the Pajot operation's parameters, parsed and range-checked by its registry
+    // entry as `mcstat --pajot:n=...` parses them.
+    const mcstat::Operation op = mcstat::pajotOperation();
+    struct Given {
+        const char *key, *option;
+        const std::string& text;
+    };
+    const Given given[] = {{"method", "--pajot", cl.pajotText},
+                           {"n", "--pajot-n", cl.pajotNText},
+                           {"delayed", "--pajot-delayed", cl.pajotDelayedText},
+                           {"t", "--pajot-t", cl.pajotTText},
+                           {"delta", "--pajot-delta", cl.pajotDeltaText}};
+    mcstat::ParamValues values;
+    for (const Given& g : given)
+        if (!mcstat::parseParamValue(g.option, *op.param(g.key), g.text, values[g.key], err))
+            return false;
     std::string warning;
-    params.luma = mcstat::lumaCoefficients(&warning);
+    const std::array<double, 3> luma = mcstat::lumaCoefficients(&warning);
     if (!warning.empty()) fmt::print(stderr, "mcstat-render: warning: {}\n", warning);
-    return true;
+    return mcstat::pajotParamsFrom(values, luma, params, err);
 }
 
 /// A render to do, its options checked.

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "mcstat/filters/registry.h"
+#include "mcstat/image/imageops.h"
 #include "tool_test.h"
 
 namespace mcstat {
@@ -35,8 +36,7 @@ const char* const kRender = "--scene default --res 24 18 --spp 64 --M 8 --seed 7
 /// The mcstat arguments that apply `op` to a statistics file: image filters (MIF/WMIF) filter
 /// an estimate, the median's (MPE+MIF, Jung eq. 5.15); everything else reads the file.
 std::string commandOf(const Operation& op) {
-    if (op.input == InputKind::Neighbourhood && op.over == Neighbourhood::Image)
-        return "--median --" + op.name;
+    if (takesImage(op)) return "--median --" + op.name;
     return "--" + op.name;
 }
 
