@@ -404,125 +404,151 @@ std::string qualityScript(const std::vector<const EstimatorInfo*>& ests, bool lo
     return s;
 }
 
-bool cmdQualityPlot(State& st, const std::string& cmd, const std::vector<std::string>& args,
-                    const Modifiers& mods, std::string& err) {
-    // The statistics files at the top of the stack: one gives nested buffer subsets, several one
-    // point each.
-    size_t nfiles = 0;
-    while (nfiles < st.stack.size() && st.stack[st.stack.size() - 1 - nfiles].isStats()) ++nfiles;
-    if (nfiles == 0) return topStats(st, cmd, err);
+/// One --qualityplot run: what it was asked, and the points measured.
+struct QualityPlot {
+    std::string cmd;
+    std::string refName;  ///< the reference as given (the command's argument)
+    size_t nfiles = 0;    ///< statistics files at the top of the stack
     std::vector<const EstimatorInfo*> ests;
-    if (!estimatorList(modifier(mods, "estimators", "mean,mon,gmon"), cmd, ests, err)) return false;
-    const std::string csvPath = modifier(mods, "csv", "");
-    if (nfiles > 1 && mods.count("buffers")) {
+    std::string csvPath;
+    DiffOptions opt;
+    OIIO::ImageBuf ref;
+    std::vector<QualityRow> rows;
+    std::string title;
+};
+
+/// Checks --qualityplot's modifiers into `q` and reads the reference.
+bool parseQualityPlot(const Modifiers& mods, QualityPlot& q, std::string& err) {
+    const std::string& cmd = q.cmd;
+    if (!estimatorList(modifier(mods, "estimators", "mean,mon,gmon"), cmd, q.ests, err))
+        return false;
+    q.csvPath = modifier(mods, "csv", "");
+    if (q.nfiles > 1 && mods.count("buffers")) {
         err = format("{}: modifier buffers applies to a single statistics file; the stack holds {}",
-                     cmd, nfiles);
+                     cmd, q.nfiles);
         return false;
     }
     if (!haveGnuplot(err)) {  // before the work, not after it
         err = format("{}: {}", cmd, err);
         return false;
     }
-    DiffOptions opt;
-    opt.luma = lumaCoefficients();
-    OIIO::ImageBuf ref;
-    if (!readReference(args[0], mods, cmd, ref, err)) return false;
+    q.opt.luma = lumaCoefficients();
+    return readReference(q.refName, mods, cmd, q.ref, err);
+}
 
-    std::vector<QualityRow> rows;
-    auto measure = [&](const StatsImage& s, const std::string& what, double spp, int buffers) {
-        for (const EstimatorInfo* e : ests) {
-            OIIO::ImageBuf img;
-            if (!runEstimator(s, *e, st.nthreads, img, cmd, err)) return false;
-            QualityRow r{spp, buffers, e, {}};
-            if (!diffImages(img, ref, opt, r.m, err)) {
-                err = format("{}: {}({}) vs {}: {}", cmd, e->name, what, args[0], err);
-                return false;
-            }
-            std::printf(
-                "%-10s spp %-10.6g buffers %-3d relMSE %.6g  SSIM %.5f  PSNR %.3f dB  "
-                "fireflies %ld / %ld\n",
-                e->name.c_str(), spp, buffers, r.m.relMSE, r.m.ssim, r.m.psnr, r.m.fireflies,
-                r.m.pixels);
-            rows.push_back(r);
-        }
-        return true;
-    };
-    const size_t first = st.stack.size() - nfiles;
-    std::string title;
-    if (nfiles == 1) {
-        Item& top = st.stack.back();
-        if (top.header.adaptiveM) {
-            err = format(
-                "{}: {} has adaptive M (1..{} buffers per pixel); nested buffer subsets need a "
-                "fixed-M file (or push several files for one point each)",
-                cmd, top.name, top.header.M);
+/// Measures every estimator over `s` against the reference: one printed line and row each.
+bool measureQuality(State& st, QualityPlot& q, const StatsImage& s, const std::string& what,
+                    double spp, int buffers, std::string& err) {
+    for (const EstimatorInfo* e : q.ests) {
+        OIIO::ImageBuf img;
+        if (!runEstimator(s, *e, st.nthreads, img, q.cmd, err)) return false;
+        QualityRow r{spp, buffers, e, {}};
+        if (!diffImages(img, q.ref, q.opt, r.m, err)) {
+            err = format("{}: {}({}) vs {}: {}", q.cmd, e->name, what, q.refName, err);
             return false;
         }
-        const int M = top.header.M;
-        std::vector<long> ks;
-        if (auto it = mods.find("buffers"); it != mods.end()) {
-            for (const std::string& s : OIIO::Strutil::splits(it->second, ",")) {
-                Modifiers one{{"buffers", s}};
-                long k = 0;
-                if (!intModifier(one, "buffers", 1, M, k, cmd, err)) return false;
-                ks.push_back(k);
-            }
-        } else {
-            for (long k = 1; k <= M; k += 2) ks.push_back(k);
-            ks.push_back(M);
+        std::printf(
+            "%-10s spp %-10.6g buffers %-3d relMSE %.6g  SSIM %.5f  PSNR %.3f dB  "
+            "fireflies %ld / %ld\n",
+            e->name.c_str(), spp, buffers, r.m.relMSE, r.m.ssim, r.m.psnr, r.m.fireflies,
+            r.m.pixels);
+        q.rows.push_back(r);
+    }
+    return true;
+}
+
+/// The buffer counts k of the nested subsets: modifier buffers, else 1, 3, 5, ... and M.
+bool subsetSizes(const Modifiers& mods, int M, const std::string& cmd, std::vector<long>& ks,
+                 std::string& err) {
+    if (auto it = mods.find("buffers"); it != mods.end()) {
+        for (const std::string& s : OIIO::Strutil::splits(it->second, ",")) {
+            Modifiers one{{"buffers", s}};
+            long k = 0;
+            if (!intModifier(one, "buffers", 1, M, k, cmd, err)) return false;
+            ks.push_back(k);
         }
-        std::sort(ks.begin(), ks.end());
-        ks.erase(std::unique(ks.begin(), ks.end()), ks.end());
-        if (ks.empty()) {
-            err = format("{}: modifier buffers names no buffer count", cmd);
-            return false;
-        }
-        if (!loadStats(st, top, err)) return false;
-        for (long k : ks) {
-            StatsImage sub;
-            if (!bufferSubset(*top.stats, int(k), sub, err)) {
-                err = format("{}: {}: {}", cmd, top.name, err);
-                return false;
-            }
-            if (!measure(sub, format("{} buffers of {}", k, top.name), meanCount(sub), int(k)))
-                return false;
-        }
-        title = format("{}: first k of {} buffers vs {}", top.name, M, args[0]);
     } else {
-        for (size_t i = first; i < st.stack.size(); ++i) {
-            Item& it = st.stack[i];
-            if (!loadStats(st, it, err)) return false;
-            if (!measure(*it.stats, it.name, meanCount(*it.stats), it.header.M)) return false;
-            it.stats.reset();  // one file in memory at a time
-        }
-        title = format("{} files vs {}", nfiles, args[0]);
+        for (long k = 1; k <= M; k += 2) ks.push_back(k);
+        ks.push_back(M);
     }
-    std::fflush(stdout);
+    std::sort(ks.begin(), ks.end());
+    ks.erase(std::unique(ks.begin(), ks.end()), ks.end());
+    if (ks.empty()) {
+        err = format("{}: modifier buffers names no buffer count", cmd);
+        return false;
+    }
+    return true;
+}
 
-    if (!csvPath.empty()) {
-        std::string csv = "spp,buffers,estimator,relMSE,SSIM,PSNR,fireflies\n";
-        for (const QualityRow& r : rows)
-            csv += format("{:.17g},{},{},{:.17g},{:.17g},{:.17g},{}\n", r.spp, r.buffers,
-                          r.est->name, r.m.relMSE, r.m.ssim, r.m.psnr, r.m.fireflies);
-        std::ofstream f(csvPath, std::ios::binary);
-        f << csv;
-        f.close();
-        if (!f) {
-            err = format("{}: cannot write {}", cmd, csvPath);
+/// One statistics file: a point per nested buffer subset (its first k buffers).
+bool measureSubsets(State& st, const Modifiers& mods, QualityPlot& q, std::string& err) {
+    Item& top = st.stack.back();
+    if (top.header.adaptiveM) {
+        err = format(
+            "{}: {} has adaptive M (1..{} buffers per pixel); nested buffer subsets need a "
+            "fixed-M file (or push several files for one point each)",
+            q.cmd, top.name, top.header.M);
+        return false;
+    }
+    const int M = top.header.M;
+    std::vector<long> ks;
+    if (!subsetSizes(mods, M, q.cmd, ks, err)) return false;
+    if (!loadStats(st, top, err)) return false;
+    for (long k : ks) {
+        StatsImage sub;
+        if (!bufferSubset(*top.stats, int(k), sub, err)) {
+            err = format("{}: {}: {}", q.cmd, top.name, err);
             return false;
         }
+        if (!measureQuality(st, q, sub, format("{} buffers of {}", k, top.name), meanCount(sub),
+                            int(k), err))
+            return false;
     }
+    q.title = format("{}: first k of {} buffers vs {}", top.name, M, q.refName);
+    return true;
+}
 
+/// Several statistics files: a point each.
+bool measureFiles(State& st, QualityPlot& q, std::string& err) {
+    for (size_t i = st.stack.size() - q.nfiles; i < st.stack.size(); ++i) {
+        Item& it = st.stack[i];
+        if (!loadStats(st, it, err)) return false;
+        if (!measureQuality(st, q, *it.stats, it.name, meanCount(*it.stats), it.header.M, err))
+            return false;
+        it.stats.reset();  // one file in memory at a time
+    }
+    q.title = format("{} files vs {}", q.nfiles, q.refName);
+    return true;
+}
+
+/// Writes every point to the CSV file modifier csv names.
+bool writeQualityCsv(const QualityPlot& q, std::string& err) {
+    std::string csv = "spp,buffers,estimator,relMSE,SSIM,PSNR,fireflies\n";
+    for (const QualityRow& r : q.rows)
+        csv += format("{:.17g},{},{},{:.17g},{:.17g},{:.17g},{}\n", r.spp, r.buffers, r.est->name,
+                      r.m.relMSE, r.m.ssim, r.m.psnr, r.m.fireflies);
+    std::ofstream f(q.csvPath, std::ios::binary);
+    f << csv;
+    f.close();
+    if (!f) {
+        err = format("{}: cannot write {}", q.cmd, q.csvPath);
+        return false;
+    }
+    return true;
+}
+
+/// gnuplot's data: one block per estimator; `logRelMSE` says whether a log axis can show relMSE.
+std::string qualityData(const QualityPlot& q, bool& logRelMSE) {
     // One data block per estimator (gnuplot's "index"): spp, relMSE, SSIM, sorted by spp.
     std::string data;
-    bool logRelMSE = true;
-    for (size_t i = 0; i < ests.size(); ++i) {
+    logRelMSE = true;
+    for (size_t i = 0; i < q.ests.size(); ++i) {
         std::vector<const QualityRow*> pts;
-        for (const QualityRow& r : rows)
-            if (r.est == ests[i]) pts.push_back(&r);
+        for (const QualityRow& r : q.rows)
+            if (r.est == q.ests[i]) pts.push_back(&r);
         std::stable_sort(pts.begin(), pts.end(),
                          [](const QualityRow* a, const QualityRow* b) { return a->spp < b->spp; });
-        data += format("# {}\n", ests[i]->name);
+        data += format("# {}\n", q.ests[i]->name);
         for (const QualityRow* r : pts) {
             // gnuplot takes NaN as a missing point; a log axis cannot show relMSE <= 0.
             logRelMSE = logRelMSE && r->m.relMSE > 0.0;
@@ -530,21 +556,47 @@ bool cmdQualityPlot(State& st, const std::string& cmd, const std::vector<std::st
         }
         data += "\n\n";
     }
+    return data;
+}
+
+/// Draws the plot with gnuplot and puts it in place of the statistics files on the stack.
+bool drawQualityPlot(State& st, const QualityPlot& q, std::string& err) {
+    bool logRelMSE = true;
+    const std::string data = qualityData(q, logRelMSE);
     auto plot = std::make_shared<OIIO::ImageBuf>();
-    if (!runGnuplot(qualityScript(ests, logRelMSE, title), {{"data.txt", data}}, "plot.png", *plot,
-                    err)) {
-        err = format("{}: {}", cmd, err);
+    if (!runGnuplot(qualityScript(q.ests, logRelMSE, q.title), {{"data.txt", data}}, "plot.png",
+                    *plot, err)) {
+        err = format("{}: {}", q.cmd, err);
         return false;
     }
     plot->specmod().attribute(kDisplayReferredAttr, 1);
-    plot->specmod().attribute("mcstat:qualityplot:points", int(rows.size()));
+    plot->specmod().attribute("mcstat:qualityplot:points", int(q.rows.size()));
     Item out;
-    out.name =
-        format("qualityplot({})", nfiles == 1 ? st.stack.back().name : format("{} files", nfiles));
+    out.name = format("qualityplot({})",
+                      q.nfiles == 1 ? st.stack.back().name : format("{} files", q.nfiles));
     out.image = plot;
-    st.stack.resize(first);
+    st.stack.resize(st.stack.size() - q.nfiles);
     st.stack.push_back(std::move(out));
     return true;
+}
+
+bool cmdQualityPlot(State& st, const std::string& cmd, const std::vector<std::string>& args,
+                    const Modifiers& mods, std::string& err) {
+    QualityPlot q;
+    q.cmd = cmd;
+    q.refName = args[0];
+    // The statistics files at the top of the stack: one gives nested buffer subsets, several one
+    // point each.
+    while (q.nfiles < st.stack.size() && st.stack[st.stack.size() - 1 - q.nfiles].isStats())
+        ++q.nfiles;
+    if (q.nfiles == 0) return topStats(st, cmd, err);
+    if (!parseQualityPlot(mods, q, err)) return false;
+    const bool measured =
+        q.nfiles == 1 ? measureSubsets(st, mods, q, err) : measureFiles(st, q, err);
+    if (!measured) return false;
+    std::fflush(stdout);
+    if (!q.csvPath.empty() && !writeQualityCsv(q, err)) return false;
+    return drawQualityPlot(st, q, err);
 }
 
 }  // namespace
