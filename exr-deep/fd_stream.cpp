@@ -7,7 +7,8 @@
 
 #include <algorithm>
 #include <cstring>
-#include <thread>
+
+#include "mcstat/core/parallel.h"
 
 namespace mcstat::detail {
 
@@ -24,9 +25,7 @@ std::string Fd::close() {
 }
 
 int codecThreads(int nthreads) {
-    const int n =
-        std::min(kMaxCodecThreads,
-                 nthreads > 0 ? nthreads : int(std::max(1u, std::thread::hardware_concurrency())));
+    const int n = std::min(kMaxCodecThreads, mcstat::threadCount(nthreads));
     if (n > 1 && Imf::globalThreadCount() == 0) Imf::setGlobalThreadCount(n);
     return n;
 }

@@ -13,6 +13,7 @@
 #include <functional>
 
 #include "mcstat/color.h"
+#include "mcstat/core/progress.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
@@ -109,7 +110,11 @@ bool needStatsOnTop(State& st, const std::string& cmd, std::string& err) {
 /// blocks of rows from disk), or for the operations that filter an image (MIF, WMIF) the top image.
 /// Per-sample operations read the file from disk themselves.
 bool checkOperationInput(State& st, const std::string& cmd, const Operation& op, std::string& err) {
-    if (!needStack(st, 1, cmd, err)) return false;
+    if (st.stack.empty()) {
+        err = format("{} needs {} on the stack", cmd,
+                     takesImage(op) ? "an image" : "a statistics file");
+        return false;
+    }
     const Item& top = st.stack.back();
     if (takesImage(op) && top.isStats()) {
         err = format("{}: {} is a statistics file; apply an estimator first (e.g. --median)", cmd,
@@ -125,18 +130,6 @@ bool checkOperationInput(State& st, const std::string& cmd, const Operation& op,
         return false;
     }
     return true;
-}
-
-/// A terminal-only progress line for long operations (RPF over a large file takes a while).
-std::function<void(double)> progressLine(const std::string& cmd, int& shown) {
-    if (isatty(STDERR_FILENO) != 1) return {};
-    return [&shown, cmd](double f) {
-        const int pct = int(100 * f);
-        if (pct == shown) return;
-        shown = pct;
-        std::fprintf(stderr, "\rmcstat: %s %3d%%", cmd.c_str(), pct);
-        std::fflush(stderr);
-    };
 }
 
 /// Runs `op` with `values` on the top of the stack into `img` through the dispatcher.
@@ -156,11 +149,10 @@ bool applyToTop(State& st, const std::string& cmd, const Operation& op, const Pa
         }
         ok = applyOperation(img, withAovs ? *top.image : rgb, op, values, luma(), {}, st.nthreads);
     } else if (readsSamples(op)) {
-        int shown = -1;
-        const std::function<void(double)> progress = progressLine(cmd, shown);
+        // Progress on a terminal only (RPF over a large file takes a while).
+        Progress progress("mcstat: " + cmd, 1000, Progress::onTerminal());
         ok = runSamplesOperation(img, top.path, top.header, op, values, luma(), st.nthreads,
-                                 progress);
-        if (progress) std::fprintf(stderr, "\r%40s\r", "");
+                                 progress.fractionCallback());
     } else {
         ItemSource src;  // a file on disk (or a merge of files) is streamed by blocks of rows
         if (!top.stats && !openSource(st, top, src, err)) return false;

@@ -10,6 +10,7 @@
 #include <cstdio>
 
 #include "cli.h"
+#include "mcstat/core/progress.h"
 #include "mcstat/filters/samples/pajot_state.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
@@ -213,17 +214,15 @@ bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>
         return false;
     }
     // Progress on a terminal only: ingesting many large renders takes a while.
-    const bool tty = isatty(STDERR_FILENO) == 1;
-    if (tty)
-        opt.progress = [](int64_t done, int64_t total) {
-            std::fprintf(stderr, "\rmcstat: ingest %3d%%",
-                         int(100 * done / std::max<int64_t>(1, total)));
-            std::fflush(stderr);
+    Progress progress("mcstat: ingest", 1000, Progress::onTerminal());
+    if (const auto fraction = progress.fractionCallback())
+        opt.progress = [fraction](int64_t done, int64_t total) {
+            fraction(double(done) / double(std::max<int64_t>(1, total)));
         };
     auto stats = std::make_shared<StatsImage>();
     IngestReport report;
     const bool ok = ingestRenders(paths, opt, *stats, report, err);
-    if (tty) std::fprintf(stderr, "\r%24s\r", "");
+    progress.finish();
     if (!ok) {
         err = format("{}: {}", cmd, err);
         return false;
@@ -506,14 +505,11 @@ bool cmdCheck(State& st, const std::string& cmd, const std::vector<std::string>&
         return false;
     }
     // Progress on a terminal only: a large file takes as long as decoding it.
-    std::function<void(double)> progress;
-    if (isatty(fileno(stderr)) != 0)
-        progress = [&top](double f) {
-            std::fprintf(stderr, "\r%s: checking %3.0f%%", top.name.c_str(), 100.0 * f);
-        };
+    Progress progress(top.name + ": checking", 1000, Progress::onTerminal());
     StatsCheckReport r;
-    const bool ok = checkStatsFile(top.path, r, err, ReadLimits(), st.nthreads, progress);
-    if (progress) std::fprintf(stderr, "\r%*s\r", int(top.name.size()) + 20, "");
+    const bool ok =
+        checkStatsFile(top.path, r, err, ReadLimits(), st.nthreads, progress.fractionCallback());
+    progress.finish();
     if (!ok) return false;
     const StatsHeader& h = r.header;
     if (r.pajot) {  // the Pajot operation's own check of what its parts mean

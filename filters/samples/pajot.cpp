@@ -7,9 +7,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <thread>
 #include <vector>
 
+#include "mcstat/core/parallel.h"
 #include "mcstat/filters/aov_weights.h"
 #include "mcstat/filters/samples/pajot_kde.h"
 #include "mcstat/filters/samples/pajot_state.h"
@@ -35,11 +35,6 @@ bool requestedParams(const SamplesRequest& req, const PajotImage* stored, PajotP
         return true;
     }
     return pajotParamsFrom(v, req.luma, p, err);
-}
-
-int threadCount(int requested, int rows) {
-    int n = requested > 0 ? requested : int(std::thread::hardware_concurrency());
-    return std::max(1, std::min(n, rows));
 }
 
 }  // namespace
@@ -168,14 +163,8 @@ bool pajotSamples(const SamplesRequest& req, OperationImage& out, std::string& e
                 applyAovWeights(w.data(), w.size(), values.data(), A, classes.data(), o + 4, as);
             }
         };
-        const int threads = threadCount(req.nthreads, n);
-        const size_t count = block.counts.size();
-        std::vector<std::thread> pool;
-        for (int t = 1; t < threads; ++t)
-            pool.emplace_back(work, count * size_t(t) / size_t(threads),
-                              count * size_t(t + 1) / size_t(threads));
-        work(0, count / size_t(threads));
-        for (std::thread& th : pool) th.join();
+        parallelFor(0, int64_t(block.counts.size()), 0, std::min(threadCount(req.nthreads), n),
+                    [&](int64_t b, int64_t e) { work(size_t(b), size_t(e)); });
     }
     return true;
 }

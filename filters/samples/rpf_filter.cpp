@@ -8,7 +8,8 @@
 #include <cstring>
 #include <limits>
 #include <mutex>
-#include <thread>
+
+#include "mcstat/core/parallel.h"
 
 namespace mcstat {
 
@@ -532,11 +533,6 @@ void filterPixel(const RpfWindow& w, const RpfParams& prm, int pass, const Offse
     }
 }
 
-int threadCount(int requested) {
-    const int n = requested > 0 ? requested : int(std::thread::hardware_concurrency());
-    return std::max(1, n);
-}
-
 }  // namespace
 
 double mutualInformation(const float* a, const float* b, size_t n, int maxBins) {
@@ -593,11 +589,11 @@ void rpfPass(const RpfWindow& w, const RpfParams& params, int pass, const std::v
     if (rowEnd <= rowBegin) return;
     if (report) report->assign(size_t(rowEnd - rowBegin) * size_t(w.width), RpfPixelReport());
     const OffsetLaw law(params.boxes[size_t(pass)]);
-    std::atomic<int> next{rowBegin};
     std::mutex progressLock;
-    auto worker = [&]() {
+    // Rows one at a time, each with a scratch of its own (every pixel depends on the input alone).
+    parallelFor(rowBegin, rowEnd, 1, nthreads, [&](int64_t y0, int64_t y1) {
         Scratch sc;
-        for (int y = next++; y < rowEnd; y = next++) {
+        for (int y = int(y0); y < int(y1); ++y) {
             for (int x = 0; x < w.width; ++x)
                 filterPixel(w, params, pass, law, x, y, cIn, cOut, sc,
                             report ? &(*report)[size_t(y - rowBegin) * size_t(w.width) + size_t(x)]
@@ -609,12 +605,7 @@ void rpfPass(const RpfWindow& w, const RpfParams& params, int pass, const std::v
                 rowDone(y);
             }
         }
-    };
-    const int threads = std::min(threadCount(nthreads), rowEnd - rowBegin);
-    std::vector<std::thread> pool;
-    for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
-    worker();
-    for (std::thread& t : pool) t.join();
+    });
 }
 
 void rpfFilterRows(const RpfWindow& w, const RpfParams& params, int outBegin, int outEnd,

@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "mcstat/color.h"
+#include "mcstat/core/parallel.h"
 #include "mcstat/core/params.h"
 #include "mcstat/filters/samples/pajot.h"
 #include "mcstat/filters/samples/pajot_state.h"
@@ -309,9 +310,7 @@ void setWriteThreads(int renderThreads) {
     // lines of every part alive until the file is closed (measured: 26 MB more peak memory per
     // thread at 1920 pixels wide and M = 21), and a few threads already make the compression short.
     constexpr int kWriteThreads = 4;
-    const unsigned hw = std::thread::hardware_concurrency();
-    const int threads =
-        std::min(renderThreads > 0 ? renderThreads : int(hw > 0 ? hw : 1), kWriteThreads);
+    const int threads = std::min(mcstat::threadCount(renderThreads), kWriteThreads);
     Imf::setGlobalThreadCount(threads > 1 ? threads : 0);
 }
 

@@ -21,18 +21,15 @@
 #include "film.h"
 #include "integrator.h"
 #include "lights.h"
-#include "progress.h"
+#include "mcstat/core/parallel.h"
+#include "mcstat/core/progress.h"
 #include "rng.h"
 
 namespace mcstat::render {
 
-namespace {
+using mcstat::Progress;
 
-int resolveThreads(int requested) {
-    if (requested > 0) return requested;
-    const unsigned hw = std::thread::hardware_concurrency();
-    return hw > 0 ? int(hw) : 1;
-}
+namespace {
 
 /// Everything a render needs besides its output, built once per render.
 struct RenderContext {
@@ -61,29 +58,21 @@ template <typename RowTask>
 double forEachRow(int height, const RenderOptions& opt, Progress& progress, int64_t unitsPerRow,
                   RowTask&& rowTask) {
     const auto start = std::chrono::steady_clock::now();
-    const int threads = resolveThreads(opt.threads);
-    auto task = [&](int64_t y0, int64_t y1) {
+    // Rows are handed out one at a time, which balances rows of very different cost (glass vs.
+    // background).
+    mcstat::parallelFor(0, height, 1, opt.threads, [&](int64_t y0, int64_t y1) {
         for (int64_t y = y0; y < y1; ++y) {
             rowTask(int(y));
             progress.advance(unitsPerRow);
         }
-    };
-    if (threads == 1) {
-        task(0, height);
-    } else {
-        // A private pool sized exactly: the caller plus threads-1 workers. Rows are handed out one
-        // at a time, which balances rows of very different cost (glass vs. background).
-        OIIO::thread_pool pool(threads - 1);
-        OIIO::parallel_for_chunked(0, height, 1, task,
-                                   OIIO::paropt(threads, OIIO::paropt::SplitDir::Y, 1).pool(&pool));
-    }
+    });
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 /// One pass over every row with its own progress line.
 template <typename RowTask>
 double forEachRow(int height, const RenderOptions& opt, RowTask&& rowTask) {
-    Progress progress(height, opt.progress);
+    Progress progress("rendering", height, opt.progress);
     const double seconds = forEachRow(height, opt, progress, 1, rowTask);
     progress.finish();
     return seconds;
@@ -502,8 +491,8 @@ bool renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsI
     const double rowBytes =
         double(scene.width) * double(opt.spp) * double(values.size()) * sizeof(float);
     const int rows = int(std::clamp(std::floor(double(256 << 20) / rowBytes),
-                                    double(resolveThreads(opt.threads)), 64.0));
-    Progress progress(scene.height, opt.progress);
+                                    double(mcstat::threadCount(opt.threads)), 64.0));
+    Progress progress("rendering", scene.height, opt.progress);
     std::vector<RowRecords> block(static_cast<size_t>(rows));
     SampleBlock out;
     const auto start = std::chrono::steady_clock::now();
@@ -546,7 +535,7 @@ bool renderGrowing(const RenderContext& ctx, const RenderOptions& opt, StatsImag
     }
     std::vector<int64_t> ends = growCheckpoints(opt);
     ends.push_back(opt.spp);
-    Progress progress(int64_t(scene.height) * opt.spp, opt.progress);
+    Progress progress("rendering", int64_t(scene.height) * opt.spp, opt.progress);
     int64_t begin = 0;
     for (const int64_t end : ends) {
         stats.seconds += forEachRow(scene.height, opt, progress, end - begin, [&](int y) {

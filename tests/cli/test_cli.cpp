@@ -256,7 +256,7 @@ TEST_F(Cli, ErrorsAreOneLineAndNonZero) {
         {path("f.mcstat") + " --gmonb:threshold=2", "threshold"},
         {path("f.mcstat") + " --mean --gmon", "is an image, not a statistics file"},
         {path("f.mcstat") + " -o " + path("f.exr"), "apply an estimator first"},
-        {"--gmon", "needs 1 image"},
+        {"--gmon", "needs a statistics file on the stack"},
         {"--threads many", "thread count"},
         {path("f.mcstat") + " --mean -o", "needs 1 argument"},
         {path("f.mcstat") + " --mean -o " + path("nodir/o.exr"), "nodir/o.exr"},
