@@ -83,9 +83,7 @@ bool cutRGB(ImageBuf& dst, const ImageBuf& src, ROI roi, int nthreads) {
 bool upscale(ImageBuf& dst, const ImageBuf& src, int s, int nthreads) {
     if (s == 1) return dst.copy(src);
     const ImageSpec& in = src.spec();
-    ImageSpec spec(in.width * s, in.height * s, in.nchannels, TypeDesc::FLOAT);
-    spec.channelnames = in.channelnames;
-    dst.reset(spec);
+    dst.reset(floatSpec(ROI(0, in.width * s, 0, in.height * s), in.channelnames));
     return IBA::resample(dst, src, false, {}, nthreads);
 }
 
@@ -481,14 +479,8 @@ bool errorImage(ImageBuf& dst, const ImageBuf& img, const ImageBuf& ref, const D
         out[2 * p] = relerr[p];
         out[2 * p + 1] = firefly[p];
     }
-    ImageSpec spec(w, h, 2, TypeDesc::FLOAT);
-    spec.x = roi.xbegin;
-    spec.y = roi.ybegin;
-    spec.full_x = img.spec().full_x;
-    spec.full_y = img.spec().full_y;
-    spec.full_width = img.spec().full_width;
-    spec.full_height = img.spec().full_height;
-    spec.channelnames = {"relerr", "firefly"};
+    ImageSpec spec = floatSpec(ROI(roi.xbegin, roi.xbegin + w, roi.ybegin, roi.ybegin + h),
+                               {"relerr", "firefly"}, img.roi_full());
     spec.attribute("mcstat:errormap:eps", TypeDesc::DOUBLE, &opt.relmseEpsilon);
     spec.attribute("mcstat:errormap:ratio", TypeDesc::DOUBLE, &opt.fireflyRatio);
     spec.attribute("mcstat:errormap:floor", TypeDesc::DOUBLE, &opt.fireflyFloor);

@@ -78,14 +78,25 @@ OIIO::ROI displayWindowROI(const StatsHeader& h) {
                      h.displayY + h.displayHeight);
 }
 
-void setWindows(ImageSpec& spec, ROI roi, const StatsHeader& h) {
-    spec.x = roi.xbegin;
-    spec.y = roi.ybegin;
-    const ROI disp = displayWindowROI(h);
-    spec.full_x = disp.xbegin;
-    spec.full_y = disp.ybegin;
-    spec.full_width = disp.width();
-    spec.full_height = disp.height();
+ImageSpec floatSpec(ROI data, const std::vector<std::string>& channels, ROI display,
+                    const std::string& colorSpace) {
+    if (!display.defined()) display = data;
+    ImageSpec spec(data.width(), data.height(), int(channels.size()), TypeDesc::FLOAT);
+    spec.x = data.xbegin;
+    spec.y = data.ybegin;
+    spec.full_x = display.xbegin;
+    spec.full_y = display.ybegin;
+    spec.full_width = display.width();
+    spec.full_height = display.height();
+    spec.channelnames = channels;
+    spec.alpha_channel = -1;
+    spec.z_channel = -1;
+    if (!colorSpace.empty()) spec.attribute("oiio:ColorSpace", colorSpace);
+    return spec;
+}
+
+ImageSpec floatSpec(ROI data, const std::vector<std::string>& channels, const StatsHeader& h) {
+    return floatSpec(data, channels, displayWindowROI(h), h.colorSpace);
 }
 
 std::vector<std::string> aovOutputChannels(const StatsHeader& h) {
@@ -135,13 +146,10 @@ bool imageAovs(const ImageSpec& spec, int& first, std::vector<AovClass>& classes
 ImageSpec aovResultSpec(ROI roi, const StatsHeader& h, const std::string& colorSpace) {
     std::vector<std::string> names = {"R", "G", "B"};
     for (const std::string& n : aovOutputChannels(h)) names.push_back(n);
-    ImageSpec spec(roi.width(), roi.height(), int(names.size()), TypeDesc::FLOAT);
-    setWindows(spec, roi, h);
-    spec.channelnames = names;
+    ImageSpec spec = floatSpec(roi, names, displayWindowROI(h), colorSpace);
     spec.alpha_channel = aovAlphaChannel(h, 3);
     spec.z_channel = aovDepthChannel(h, 3);
     setAovAttributes(spec, h, 3);
-    spec.attribute("oiio:ColorSpace", colorSpace);
     return spec;
 }
 
@@ -192,14 +200,11 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
     const size_t firstAov = names.size();
     for (const std::string& n : aovOutputChannels(h)) names.push_back(n);
     const std::vector<AovClass> classes = aovClasses(h.aovs);
-    ImageSpec spec(roi.width(), roi.height(), int(names.size()), TypeDesc::FLOAT);
-    setWindows(spec, roi, h);
-    spec.channelnames = names;
+    ImageSpec spec = floatSpec(roi, names, h);
     spec.alpha_channel = aovAlphaChannel(h, firstAov);
     spec.z_channel = aovDepthChannel(h, firstAov);
     setAovAttributes(spec, h, firstAov);
     spec.attribute("mcstat:estimator", est.name);
-    spec.attribute("oiio:ColorSpace", h.colorSpace);
     dst.reset(spec, OIIO::InitializePixels::No);
 
     // Written straight into the local float buffer: ImageBuf::setpixel converts per call.
@@ -263,17 +268,9 @@ ImageBuf estimate(const StatsImage& src, const Operation& est, const PixelKernel
 
 namespace {
 
-/// Float RGB destination for `roi` with the full (display) window of `fullSpec`.
+/// Float RGB destination for `roi` with the full (display) window `full`.
 ImageSpec rgbSpec(ROI roi, ROI full, const std::string& colorSpace) {
-    ImageSpec spec(roi.width(), roi.height(), 3, TypeDesc::FLOAT);
-    spec.x = roi.xbegin;
-    spec.y = roi.ybegin;
-    spec.full_x = full.xbegin;
-    spec.full_y = full.ybegin;
-    spec.full_width = full.width();
-    spec.full_height = full.height();
-    spec.attribute("oiio:ColorSpace", colorSpace);
-    return spec;
+    return floatSpec(roi, {"R", "G", "B"}, full, colorSpace);
 }
 
 }  // namespace
@@ -390,9 +387,7 @@ bool filter3D(ImageBuf& dst, const StatsImage& src, const SpatialParams& params,
         }
         dst.reset(aovResultSpec(roi, h, h.colorSpace), OIIO::InitializePixels::No);
     } else {
-        ImageSpec spec = rgbSpec(roi, full, h.colorSpace);
-        setWindows(spec, roi, h);
-        dst.reset(spec, OIIO::InitializePixels::No);
+        dst.reset(floatSpec(roi, {"R", "G", "B"}, h), OIIO::InitializePixels::No);
     }
     // Adaptive M: a pixel's M_p buffers hold n / M_p samples each next to one-buffer pixels of n,
     // so every sample votes once (BufferVotes::PerSample); fixed M: one vote per buffer (eq. 5.19).
@@ -634,22 +629,13 @@ bool runSamplesOperation(ImageBuf& dst, const std::string& path, const StatsHead
             header.height);
         return false;
     }
-    ImageSpec spec(header.width, header.height, int(nch), TypeDesc::FLOAT);
-    spec.x = spec.full_x = header.originX;
-    spec.y = spec.full_y = header.originY;
-    spec.channelnames = out.channels;
-    spec.attribute("oiio:ColorSpace", header.colorSpace);
-    dst.reset(spec);
+    dst.reset(floatSpec(dataWindowROI(header), out.channels, {}, header.colorSpace));
     return dst.set_pixels(dst.roi(), TypeDesc::FLOAT, out.pixels.data());
 }
 
 ImageBuf beautyImage(const StatsImage& src) {
     const StatsHeader& h = src.header;
-    ImageSpec spec(h.width, h.height, 3, TypeDesc::FLOAT);
-    spec.x = spec.full_x = h.originX;
-    spec.y = spec.full_y = h.originY;
-    spec.attribute("oiio:ColorSpace", h.colorSpace);
-    ImageBuf dst(spec);
+    ImageBuf dst(floatSpec(dataWindowROI(h), {"R", "G", "B"}, {}, h.colorSpace));
     if (src.beauty.size() == src.pixelCount() * 3)
         dst.set_pixels(dst.roi(), TypeDesc::FLOAT, src.beauty.data());
     else
@@ -663,10 +649,7 @@ bool displayTransform(ImageBuf& dst, const ImageBuf& src, ROI roi, int nthreads)
         dst.errorfmt("display transform needs R, G, B channels; the image has {}", src.nchannels());
         return false;
     }
-    ImageSpec spec(roi.width(), roi.height(), 3, TypeDesc::FLOAT);
-    spec.x = roi.xbegin;
-    spec.y = roi.ybegin;
-    ImageBuf out(spec);
+    ImageBuf out(floatSpec(roi, {"R", "G", "B"}));
     if (!OIIO::ImageBufAlgo::copy(out, src, TypeDesc::FLOAT,
                                   ROI(roi.xbegin, roi.xend, roi.ybegin, roi.yend, 0, 1, 0, 3),
                                   nthreads)) {

@@ -17,6 +17,7 @@
 #include <memory>
 #include <set>
 
+#include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
 
 namespace mcstat {
@@ -332,15 +333,8 @@ bool readRenderRGB(const std::string& path, const std::string& layer, OIIO::Imag
         err = path + ": " + problem;
         return false;
     }
-    ImageSpec spec(f.spec.width, f.spec.height, 3, TypeDesc::FLOAT);
-    spec.x = f.spec.x;
-    spec.y = f.spec.y;
-    spec.full_x = f.spec.full_x;
-    spec.full_y = f.spec.full_y;
-    spec.full_width = f.spec.full_width;
-    spec.full_height = f.spec.full_height;
-    spec.channelnames = {"R", "G", "B"};
-    OIIO::ImageBuf buf(spec);
+    OIIO::ImageBuf buf(floatSpec(f.spec.roi(), {"R", "G", "B"}, f.spec.roi_full()));
+    const ImageSpec& spec = buf.spec();
     std::vector<float> rows;
     const std::vector<int> used(f.beauty.index.begin(), f.beauty.index.end());
     const auto reads = readsFor(f, used);

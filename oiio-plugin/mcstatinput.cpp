@@ -466,13 +466,10 @@ bool McstatInput::estimateChannels(std::vector<std::string>& estChannels) {
 ImageSpec McstatInput::makeSpec(const std::vector<std::string>& channels,
                                 const char* subname) const {
     const mcstat::StatsHeader& h = m_header;
-    ImageSpec s(h.width, h.height, int(channels.size()), TypeFloat);
-    mcstat::setWindows(s, mcstat::dataWindowROI(h), h);  // overscan: the render's windows
-    s.channelnames = channels;
-    // ImageSpec makes channel 3 the alpha of any image of 4 or more channels: none here
-    // unless an AOV of class alpha says so (features' P.X and diagnostics' count are not).
-    s.alpha_channel = -1;
-    s.z_channel = -1;
+    // Overscan: the render's windows. No alpha unless an AOV of class alpha says so (features'
+    // P.X and diagnostics' count are not).
+    ImageSpec s =
+        mcstat::floatSpec(mcstat::dataWindowROI(h), channels, mcstat::displayWindowROI(h));
     s.attribute("oiio:subimagename", subname);
     s.attribute("oiio:subimages", m_nsubs);
     s.attribute("mcstat:formatVersion", h.formatVersion);

@@ -22,8 +22,14 @@ inline OIIO::ROI dataWindowROI(const StatsHeader& h) {
 /// The display window of a statistics image (the data window unless the header says otherwise,
 /// e.g. an ingested render with overscan).
 OIIO::ROI displayWindowROI(const StatsHeader& h);
-/// Sets spec's data window origin to roi's and its full (display) window to h's.
-void setWindows(OIIO::ImageSpec& spec, OIIO::ROI roi, const StatsHeader& h);
+/// The spec of every float image mcstat makes: data window `data`, full (display) window `display`
+/// (undefined: the data window), `channels` by name, no alpha or depth channel (ImageSpec would
+/// make a fourth channel the alpha; callers that have one say so), and the colour space when given.
+OIIO::ImageSpec floatSpec(OIIO::ROI data, const std::vector<std::string>& channels,
+                          OIIO::ROI display = {}, const std::string& colorSpace = "");
+/// floatSpec for a region of a statistics file's result: its display window and colour space.
+OIIO::ImageSpec floatSpec(OIIO::ROI data, const std::vector<std::string>& channels,
+                          const StatsHeader& h);
 
 /// The channels estimate() gives: R, G, B, and with `diagnostics` "gini", "kept", "excluded"
 /// (luminance mode) or "gini.R/G/B", "kept.R/G/B", "excluded" (channel mode). With AOVs in the
