@@ -25,6 +25,7 @@
 #include <limits>
 #include <numeric>
 
+#include "deep_frame_buffer.h"
 #include "extra_parts.h"
 #include "mcstat/temp_file.h"
 #include "stats_layout.h"
@@ -36,6 +37,7 @@ namespace {
 
 constexpr double kMaxExactCount = 16777216.0;  // 2^24: counts are float32 in the file
 
+using detail::DeepFrameBufferSet;
 using detail::windowBase;
 using detail::windowOf;
 
@@ -61,43 +63,38 @@ std::vector<std::string> splitList(const std::string& text) {
     return out;
 }
 
-/// A deep frame buffer over `block`: per-pixel pointers into its samples, A from `ones`. The
-/// frame buffer refers to the pointer arrays by address, so a reader sets it, reads the counts
-/// into block.counts, allocates the samples and only then calls point() (OpenEXR forgets the
-/// counts when a new frame buffer is set).
+/// The deep frame buffer over `block`: its counts, each channel's per-pixel pointers into its
+/// samples, A from `ones` (written files only). A reader sets it, reads the counts into
+/// block.counts, allocates the samples and only then calls point() (deep_frame_buffer.h).
 struct RecordPointers {
-    std::vector<std::vector<char*>> ptr;  // [channel][pixel], then A
+    DeepFrameBufferSet set;
+    bool withA;
     std::vector<float> ones;
-    Imf::DeepFrameBuffer fb;
-    RecordPointers(const StatsHeader& h, SampleBlock& b, bool withA) {
-        const size_t pixels = b.counts.size(), nc = b.stride();
-        ptr.assign(nc + 1, std::vector<char*>(pixels, nullptr));
-        const size_t xs = sizeof(char*), ys = xs * size_t(b.width);
-        const size_t cys = sizeof(uint32_t) * size_t(b.width);
-        fb.insertSampleCountSlice(Imf::Slice(Imf::UINT,
-                                             windowBase(b.counts.data(), h, sizeof(uint32_t), b.y0),
-                                             sizeof(uint32_t), cys));
-        for (size_t c = 0; c < nc + (withA ? 1 : 0); ++c)
-            fb.insert(c < nc ? b.channels[c].c_str() : "A",
-                      Imf::DeepSlice(Imf::FLOAT, windowBase(ptr[c].data(), h, xs, b.y0), xs, ys,
-                                     c < nc ? nc * sizeof(float) : sizeof(float)));
-        if (withA) point(b);
+    RecordPointers(const StatsHeader& h, SampleBlock& b, bool writeA)
+        : set(h, b.counts.data(), b.y0), withA(writeA) {
+        const size_t nc = b.stride();
+        for (size_t c = 0; c < nc; ++c)
+            set.addChannel(b.channels[c], b.counts.size(), nc * sizeof(float));
+        if (withA) {
+            set.addChannel("A", b.counts.size(), sizeof(float));
+            point(b);
+        }
     }
     /// Points every pixel at its samples (after the counts are known and the samples allocated).
     void point(SampleBlock& b) {
         const size_t nc = b.stride();
         uint32_t most = 0;
         for (uint32_t c : b.counts) most = std::max(most, c);
-        ones.assign(std::max<size_t>(most, 1), 1.f);
+        if (withA) ones.assign(std::max<size_t>(most, 1), 1.f);
         size_t offset = 0;
         for (size_t p = 0; p < b.counts.size(); ++p) {
             float* s = b.samples.data() + offset * nc;
-            for (size_t c = 0; c < nc; ++c)
-                ptr[c][p] = b.counts[p] ? reinterpret_cast<char*>(s + c) : nullptr;
-            ptr[nc][p] = reinterpret_cast<char*>(ones.data());
+            for (size_t c = 0; c < nc; ++c) set.point(c, p, b.counts[p] ? s + c : nullptr);
+            if (withA) set.point(nc, p, ones.data());
             offset += b.counts[p];
         }
     }
+    Imf::DeepFrameBuffer& fb() { return set.frameBuffer(); }
 };
 
 }  // namespace
@@ -237,7 +234,7 @@ bool SampleRecordsWriter::write(const SampleBlock& block, std::string& err) {
     }
     try {
         RecordPointers rp(impl_->header, const_cast<SampleBlock&>(block), true);
-        impl_->file->setFrameBuffer(rp.fb);
+        impl_->file->setFrameBuffer(rp.fb());
         impl_->file->writePixels(block.rows);
     } catch (const std::exception& e) {
         err = fmt::format("{}: cannot write records ({})", impl_->path, detail::oneLine(e.what()));
@@ -361,7 +358,7 @@ bool SampleRecordsReader::read(int y0, int rows, SampleBlock& block, std::string
         const size_t recordBytes = block.stride() * sizeof(float);
         Imf::DeepScanLineInputPart ip(*impl_->file, impl_->part);
         RecordPointers rp(h, block, false);
-        ip.setFrameBuffer(rp.fb);
+        ip.setFrameBuffer(rp.fb());
         ip.readPixelSampleCounts(h.originY + y0, h.originY + y0 + rows - 1);
         // The counts come from the file's own chunks; bound them before allocating.
         uint64_t total = 0;
@@ -417,34 +414,28 @@ Imf::FrameBuffer stateFrameBuffer(const PixelStateParts& s, const Imath::Box2i& 
     return fb;
 }
 
-/// Points `ptr[c][p]` at pixel p's first record's channel c in `s.records` (every pixel's records
+/// The deep part's frame buffer: the counts of `s.recordCounts` and one channel per record
+/// channel (deep_frame_buffer.h: set it, read the counts, allocate, then pointRecords()).
+std::unique_ptr<DeepFrameBufferSet> stateDeepFrameBuffer(const StatsHeader& h,
+                                                         const PixelStateParts& s) {
+    auto set =
+        std::make_unique<DeepFrameBufferSet>(h, const_cast<uint32_t*>(s.recordCounts.data()));
+    const size_t nc = s.recordChannels.size();
+    for (const std::string& c : s.recordChannels)
+        set->addChannel(c, s.recordCounts.size(), nc * sizeof(float));
+    return set;
+}
+
+/// Points every pixel's channels at its first record in `s.records` (every pixel's records
 /// contiguous, in scanline order, as `s.recordCounts` says).
-void pointRecords(const PixelStateParts& s, std::vector<std::vector<char*>>& ptr) {
+void pointRecords(const PixelStateParts& s, DeepFrameBufferSet& set) {
     if (s.records.empty()) return;  // no records: the pointers stay null
-    auto* rec = const_cast<float*>(s.records.data());
     const size_t nc = s.recordChannels.size();
     size_t k = 0;
     for (size_t p = 0; p < s.recordCounts.size(); ++p) {
-        for (size_t c = 0; c < nc; ++c) ptr[c][p] = reinterpret_cast<char*>(rec + k * nc + c);
+        for (size_t c = 0; c < nc; ++c) set.point(c, p, s.records.data() + k * nc + c);
         k += s.recordCounts[p];
     }
-}
-
-/// The deep part's frame buffer: the counts of `s.recordCounts`, each channel's pointer array in
-/// `ptr` (allocated here, null; pointRecords fills it once the records have room).
-Imf::DeepFrameBuffer stateDeepFrameBuffer(const StatsHeader& h, const PixelStateParts& s,
-                                          std::vector<std::vector<char*>>& ptr) {
-    const size_t pixels = size_t(h.width) * size_t(h.height), nc = s.recordChannels.size();
-    ptr.assign(nc, std::vector<char*>(pixels, nullptr));
-    Imf::DeepFrameBuffer dfb;
-    const size_t xs = sizeof(char*), ys = xs * size_t(h.width);
-    dfb.insertSampleCountSlice(Imf::Slice(Imf::UINT,
-                                          windowBase(s.recordCounts.data(), h, sizeof(uint32_t)),
-                                          sizeof(uint32_t), sizeof(uint32_t) * size_t(h.width)));
-    for (size_t c = 0; c < nc; ++c)
-        dfb.insert(s.recordChannels[c], Imf::DeepSlice(Imf::FLOAT, windowBase(ptr[c].data(), h, xs),
-                                                       xs, ys, nc * sizeof(float)));
-    return dfb;
 }
 
 }  // namespace
@@ -516,10 +507,10 @@ void writeExtraParts(Imf::MultiPartOutputFile& out, const StatsImage& img,
         Imf::OutputPart op(out, part++);
         op.setFrameBuffer(stateFrameBuffer(s, windowOf(h)));
         op.writePixels(h.height);
-        std::vector<std::vector<char*>> ptr;
+        const auto set = stateDeepFrameBuffer(h, s);
+        pointRecords(s, *set);
         Imf::DeepScanLineOutputPart dp(out, part++);
-        dp.setFrameBuffer(stateDeepFrameBuffer(h, s, ptr));
-        pointRecords(s, ptr);
+        dp.setFrameBuffer(set->frameBuffer());
         dp.writePixels(h.height);
     }
     if (!extras.recordsFile.empty()) {
@@ -575,8 +566,8 @@ bool readPixelStateParts(const std::string& path, PixelStateParts& out, std::str
         for (auto it = dp.header().channels().begin(); it != dp.header().channels().end(); ++it)
             if (it.channel().type == Imf::FLOAT) r.recordChannels.emplace_back(it.name());
         r.recordCounts.assign(pixels, 0);
-        std::vector<std::vector<char*>> ptr;
-        dp.setFrameBuffer(stateDeepFrameBuffer(h, r, ptr));
+        const auto set = stateDeepFrameBuffer(h, r);
+        dp.setFrameBuffer(set->frameBuffer());
         dp.readPixelSampleCounts(window.min.y, window.max.y);  // the counts first, then room
         const uint64_t total =
             std::accumulate(r.recordCounts.begin(), r.recordCounts.end(), uint64_t(0));
@@ -586,7 +577,7 @@ bool readPixelStateParts(const std::string& path, PixelStateParts& out, std::str
             throw std::runtime_error(
                 fmt::format("part 'modes' holds {} records, beyond the limits", total));
         r.records.resize(total * r.recordChannels.size());
-        pointRecords(r, ptr);
+        pointRecords(r, *set);
         dp.readPixels(window.min.y, window.max.y);
         out = std::move(r);
     } catch (const std::bad_alloc&) {

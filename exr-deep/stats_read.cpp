@@ -21,6 +21,7 @@
 #include <cstring>
 #include <memory>
 
+#include "deep_frame_buffer.h"
 #include "fd_stream.h"
 #include "mcstat/stats_file.h"
 #include "stats_header_check.h"
@@ -52,6 +53,7 @@ bool openAndCheck(const std::string& path, const ReadLimits& limits, detail::Fd&
     return detail::checkStatsHeaders(fd.get(), size, path, limits, hdr, err);
 }
 
+using detail::DeepFrameBufferSet;
 using detail::windowBase;
 using detail::windowOf;
 
@@ -128,10 +130,8 @@ bool readDeepCounts(Imf::MultiPartInputFile& in, const std::string& path, const 
     const size_t pixels = size_t(h.width) * size_t(h.height);
     m.assign(pixels, 0);
     Imf::DeepScanLineInputPart dp(in, layout::kBuffers);
-    Imf::DeepFrameBuffer fb;
-    fb.insertSampleCountSlice(Imf::Slice(Imf::UINT, windowBase(m.data(), h, sizeof(uint32_t)),
-                                         sizeof(uint32_t), sizeof(uint32_t) * size_t(h.width)));
-    dp.setFrameBuffer(fb);
+    DeepFrameBufferSet fb(h, m.data());
+    dp.setFrameBuffer(fb.frameBuffer());
     dp.readPixelSampleCounts(h.originY, h.originY + h.height - 1);
     uint64_t total = 0;
     for (size_t p = 0; p < pixels; ++p) {
@@ -167,24 +167,16 @@ void readDeepBuffers(Imf::MultiPartInputFile& in, StatsImage& blk) {
     const StatsHeader& h = blk.header;
     const size_t pixels = blk.pixelCount();
     std::vector<uint32_t> m(pixels);
-    std::vector<char*> ptr[4];
-    for (auto& v : ptr) v.resize(pixels);
+    DeepFrameBufferSet fb(h, m.data());
+    for (size_t c = 0; c < 4; ++c)
+        fb.addChannel(layout::kDeepChannels[c], pixels, c < 3 ? 3 * sizeof(float) : sizeof(float));
     for (size_t p = 0; p < pixels; ++p) {
         const size_t k = blk.bufferBegin(p);
-        for (size_t c = 0; c < 3; ++c)
-            ptr[c][p] = reinterpret_cast<char*>(blk.bufferMean.data() + k * 3 + c);
-        ptr[3][p] = reinterpret_cast<char*>(blk.bufferCount.data() + k);
+        for (size_t c = 0; c < 3; ++c) fb.point(c, p, blk.bufferMean.data() + k * 3 + c);
+        fb.point(3, p, blk.bufferCount.data() + k);
     }
-    Imf::DeepFrameBuffer fb;
-    const size_t xs = sizeof(char*), ys = xs * size_t(h.width);
-    fb.insertSampleCountSlice(Imf::Slice(Imf::UINT, windowBase(m.data(), h, sizeof(uint32_t)),
-                                         sizeof(uint32_t), sizeof(uint32_t) * size_t(h.width)));
-    for (size_t c = 0; c < 4; ++c)
-        fb.insert(layout::kDeepChannels[c],
-                  Imf::DeepSlice(Imf::FLOAT, windowBase(ptr[c].data(), h, xs), xs, ys,
-                                 c < 3 ? 3 * sizeof(float) : sizeof(float)));
     Imf::DeepScanLineInputPart dp(in, layout::kBuffers);
-    dp.setFrameBuffer(fb);
+    dp.setFrameBuffer(fb.frameBuffer());
     dp.readPixelSampleCounts(h.originY, h.originY + h.height - 1);
     for (size_t p = 0; p < pixels; ++p)
         if (m[p] != uint32_t(blk.buffersOf(p)))

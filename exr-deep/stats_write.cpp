@@ -25,6 +25,7 @@
 #include <limits>
 #include <memory>
 
+#include "deep_frame_buffer.h"
 #include "extra_parts.h"
 #include "fd_stream.h"
 #include "mcstat/sample_records.h"
@@ -37,6 +38,7 @@ namespace mcstat {
 
 namespace {
 
+using detail::DeepFrameBufferSet;
 using detail::displayWindowOf;
 using detail::windowBase;
 using detail::windowOf;
@@ -128,27 +130,19 @@ void writeDeepBuffers(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
     std::vector<float> zs(size_t(h.M)), ones(size_t(h.M), 1.f);
     for (size_t j = 0; j < zs.size(); ++j) zs[j] = float(j);
     std::vector<uint32_t> m(pixels);
-    std::vector<const char*> ptr[6];
-    for (auto& v : ptr) v.resize(pixels);
+    DeepFrameBufferSet fb(h, m.data());
+    for (size_t c = 0; c < 6; ++c)
+        fb.addChannel(layout::kDeepChannels[c], pixels, c < 3 ? 3 * sizeof(float) : sizeof(float));
     for (size_t p = 0; p < pixels; ++p) {
         const size_t k = blk.bufferBegin(p);
         m[p] = uint32_t(blk.buffersOf(p));
-        for (size_t c = 0; c < 3; ++c)
-            ptr[c][p] = reinterpret_cast<const char*>(blk.bufferMean.data() + k * 3 + c);
-        ptr[3][p] = reinterpret_cast<const char*>(blk.bufferCount.data() + k);
-        ptr[4][p] = reinterpret_cast<const char*>(zs.data());
-        ptr[5][p] = reinterpret_cast<const char*>(ones.data());
+        for (size_t c = 0; c < 3; ++c) fb.point(c, p, blk.bufferMean.data() + k * 3 + c);
+        fb.point(3, p, blk.bufferCount.data() + k);
+        fb.point(4, p, zs.data());
+        fb.point(5, p, ones.data());
     }
-    Imf::DeepFrameBuffer fb;
-    const size_t xs = sizeof(char*), ys = xs * size_t(h.width);
-    fb.insertSampleCountSlice(Imf::Slice(Imf::UINT, windowBase(m.data(), h, sizeof(uint32_t)),
-                                         sizeof(uint32_t), sizeof(uint32_t) * size_t(h.width)));
-    for (size_t c = 0; c < 6; ++c)
-        fb.insert(layout::kDeepChannels[c],
-                  Imf::DeepSlice(Imf::FLOAT, windowBase(ptr[c].data(), h, xs), xs, ys,
-                                 c < 3 ? 3 * sizeof(float) : sizeof(float)));
     Imf::DeepScanLineOutputPart op(out, layout::kBuffers);
-    op.setFrameBuffer(fb);
+    op.setFrameBuffer(fb.frameBuffer());
     op.writePixels(h.height);
 }
 
