@@ -9,6 +9,7 @@
 #include <limits>
 #include <set>
 
+#include "mcstat/core/moments.h"
 #include "mcstat/stats_file.h"
 #include "stats_layout.h"
 
@@ -212,7 +213,7 @@ bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::
                     isId[i] ? (na == 0.0 || nb > na ? vb : va) : float(weighted(na, va, nb, vb));
             }
         }
-        // Moments: Chan et al.'s parallel combination; M2 recovered as variance * (n - 1).
+        // Moments: Chan et al.'s pooling (core/moments.h); M2 recovered as variance * (n - 1).
         const double na = a.count[p], nb = b.count[p], n = na + nb;
         r.count[p] = float(n);
         for (size_t c = 0; c < 3; ++c) {
@@ -225,13 +226,10 @@ bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::
                 mean = a.mean[i];
                 var = a.variance[i];
             } else {
-                const double ma = a.mean[i], mb = b.mean[i];
-                const double m2a = na > 1.0 ? double(a.variance[i]) * (na - 1.0) : 0.0;
-                const double m2b = nb > 1.0 ? double(b.variance[i]) * (nb - 1.0) : 0.0;
-                const double delta = mb - ma;
-                mean = ma + delta * (nb / n);
-                const double m2 = m2a + m2b + delta * delta * (na * nb / n);
-                var = n > 1.0 ? m2 / (n - 1.0) : 0.0;
+                RunningMoments pooled = RunningMoments::fromVariance(na, a.mean[i], a.variance[i]);
+                pooled.merge(RunningMoments::fromVariance(nb, b.mean[i], b.variance[i]));
+                mean = pooled.mean;
+                var = pooled.variance();
             }
             if (n == 0.0) mean = var = 0.0;
             // Version 3: a variance estimated from the buffers is re-estimated from the merged

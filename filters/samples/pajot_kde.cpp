@@ -9,6 +9,8 @@
 #include <cstdlib>
 #include <limits>
 
+#include "mcstat/core/moments.h"
+
 namespace mcstat {
 
 namespace {
@@ -360,15 +362,18 @@ float rotRebuild(std::vector<float>& singles, float m, double h) {
     return newM;
 }
 
-double rotSigma(const PajotState& s) {
-    return s.rotN > 1 ? std::sqrt(s.rotM2 / double(s.rotN - 1)) : 0.0;
-}
+/// ROT's statistics as the running moments they are (core/moments.h); the state keeps their
+/// fields, the file stores them exactly.
+RunningMoments rotMoments(const PajotState& s) { return {double(s.rotN), s.rotMean, s.rotM2}; }
+
+double rotSigma(const PajotState& s) { return rotMoments(s).sigma(); }
 
 void welford(PajotState& s, float l) {
+    RunningMoments m = rotMoments(s);
+    m.add(double(l));
     ++s.rotN;
-    const double d = double(l) - s.rotMean;
-    s.rotMean += d / double(s.rotN);
-    s.rotM2 += d * (double(l) - s.rotMean);
+    s.rotMean = m.mean;
+    s.rotM2 = m.m2;
 }
 
 /// Section 4.6's relative distance |m_rot - m_adr| / |m_adr|; equal values (both absent

@@ -11,10 +11,7 @@ bool PixelMoments::add(const PathSample& s) {
     for (int c = 0; c < 3; ++c) {
         const double x = s.L[c];
         sum_[c] += x;
-        // Welford: numerically stable even when the mean dwarfs the spread.
-        const double delta = x - mean_[c];
-        mean_[c] += delta / double(n_);
-        m2_[c] += delta * (x - mean_[c]);
+        rgb_[c].add(x);
     }
     if (s.hit) {
         ++hits_;
@@ -31,8 +28,8 @@ void PixelMoments::store(StatsImage& img, size_t p) const {
     img.count[p] = float(n_);
     for (size_t c = 0; c < 3; ++c) {
         img.beauty[p * 3 + c] = n_ > 0 ? float(sum_[c] / double(n_)) : 0.0f;
-        img.mean[p * 3 + c] = float(mean_[c]);
-        img.variance[p * 3 + c] = n_ > 1 ? float(m2_[c] / double(n_ - 1)) : 0.0f;
+        img.mean[p * 3 + c] = float(rgb_[c].mean);
+        img.variance[p * 3 + c] = float(rgb_[c].variance());
     }
     const double invHits = hits_ > 0 ? 1.0 / double(hits_) : 0.0;
     const double invN = n_ > 0 ? 1.0 / double(n_) : 0.0;

@@ -14,25 +14,15 @@
 #include <vector>
 
 #include "integrator.h"
+#include "mcstat/core/moments.h"
 #include "mcstat/render/render.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat::render {
 
-/// Welford's running mean and M2 of one value: numerically stable even when the mean dwarfs the
-/// spread. The pilot and the growing render share it, so their sigmas agree bit for bit.
-struct RunningVariance {
-    int64_t n = 0;
-    double mean = 0, m2 = 0;
-    void add(double v) {
-        ++n;
-        const double d = v - mean;
-        mean += d / double(n);
-        m2 += d * (v - mean);
-    }
-    /// The unbiased standard deviation; 0 with fewer than two values.
-    double sigma() const { return n > 1 ? std::sqrt(m2 / double(n - 1)) : 0.0; }
-};
+/// Running luminance statistics (core/moments.h): the pilot and the growing render share them, so
+/// their sigmas agree bit for bit.
+using RunningVariance = mcstat::RunningMoments;
 
 /// Eq. 4.15's luminance (weights in render.h).
 inline double sigmaLuma(const Vec3& L) {
@@ -53,8 +43,8 @@ class PixelMoments {
     const RunningVariance& luminance() const { return luma_; }
 
   private:
-    int64_t n_ = 0;  ///< kept samples
-    double mean_[3] = {0, 0, 0}, m2_[3] = {0, 0, 0};
+    int64_t n_ = 0;          ///< kept samples
+    RunningMoments rgb_[3];  ///< mean and M2 of R, G, B
     double sum_[3] = {0, 0, 0};
     int64_t hits_ = 0;
     Vec3 normalSum_, positionSum_, albedoSum_;
