@@ -86,6 +86,16 @@ bool parseIntegerText(const std::string& text, int64_t& out) {
     return true;
 }
 
+bool parseUnsignedText(const std::string& text, uint64_t& out) {
+    if (text.empty() || !std::isdigit(static_cast<unsigned char>(text[0]))) return false;
+    char* end = nullptr;
+    errno = 0;
+    const unsigned long long v = std::strtoull(text.c_str(), &end, 10);
+    if (*end != '\0' || errno != 0) return false;
+    out = uint64_t(v);
+    return true;
+}
+
 bool parseRealText(const std::string& text, double& out) {
     if (text.empty() || std::isspace(static_cast<unsigned char>(text[0]))) return false;
     char* end = nullptr;

@@ -193,9 +193,9 @@ class PixelCache {
     };
     PixelCache() {
         if (const char* mb = std::getenv("MCSTAT_PLUGIN_CACHE_MB")) {
-            char* end = nullptr;
-            const unsigned long long v = std::strtoull(mb, &end, 10);
-            if (end != mb && *end == '\0') m_budget = size_t(std::min(v, 1ull << 40)) << 20;
+            uint64_t v = 0;
+            if (mcstat::parseUnsignedText(mb, v))
+                m_budget = size_t(std::min<uint64_t>(v, 1ull << 40)) << 20;
         }
     }
     /// Drops least recently used finished entries until the budget holds (never `keep`, never

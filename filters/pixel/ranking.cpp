@@ -188,7 +188,7 @@ void reduceGeneral(const PixelBuffers& px, const PixelParams& p, PixelEstimate& 
 }
 
 // ---- fast path: the same arithmetic on small fixed arrays -------------------------------------
-// Bit-identity with reduceGeneral (tests/estimators/test_bit_identity.cpp) rests on three facts:
+// Bit-identity with reduceGeneral (tests/filters/pixel/test_bit_identity.cpp) rests on three facts:
 // the valid buffers are the same ones in the same index order; the ranking is the same total order
 // (key ascending, ties by buffer index), so every sum below adds the same doubles in the same
 // order; and every formula (luminance, Gini via giniSorted, trim, weighted average) is the same
@@ -600,7 +600,7 @@ void reduce(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out, Es
             TrimRule policy) {
     if (s.wantWeights) {
         // Weights wanted (AOVs): the general path, which keeps its ranking in s.order. It gives
-        // the fast path's bits (tests/estimators/test_bit_identity.cpp), so the beauty does not
+        // the fast path's bits (tests/filters/pixel/test_bit_identity.cpp), so the beauty does not
         // change with AOVs present; the AOVs cost one weighted sum each, not a ranking.
         s.bufferWeight.clear();
         if (policy.kind == TrimRule::None) {

@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "mcstat/core/moments.h"
+#include "mcstat/core/params.h"
 
 namespace mcstat {
 
@@ -257,25 +258,23 @@ bool parsePajotParamsText(const std::string& text, PajotParams& p, std::string& 
             return false;
         }
         const std::string k = item.substr(0, eq), v = item.substr(eq + 1);
-        char* end = nullptr;
         if (k == "method") {
             if (!parsePajotMethod(v, out.method)) {
                 problem = "unknown method '" + v + "'";
                 return false;
             }
         } else if (k == "luma") {
-            const char* s = v.c_str();
-            for (int c = 0; c < 3; ++c) {
-                out.luma[size_t(c)] = std::strtod(s, &end);
-                if (end == s || (c < 2 && *end != ':') || (c == 2 && *end != '\0')) {
-                    problem = "bad luma '" + v + "'";
-                    return false;
-                }
-                s = end + 1;
+            // Three numbers separated by ':' (the one number syntax, core/params.h).
+            const size_t a = v.find(':'), b = a == std::string::npos ? a : v.find(':', a + 1);
+            if (b == std::string::npos || !parseRealText(v.substr(0, a), out.luma[0]) ||
+                !parseRealText(v.substr(a + 1, b - a - 1), out.luma[1]) ||
+                !parseRealText(v.substr(b + 1), out.luma[2])) {
+                problem = "bad luma '" + v + "'";
+                return false;
             }
         } else {
-            const double d = std::strtod(v.c_str(), &end);
-            if (v.empty() || *end != '\0') {
+            double d = 0.0;
+            if (!parseRealText(v, d)) {
                 problem = "bad value '" + item + "'";
                 return false;
             }

@@ -55,14 +55,10 @@ bool parseInt(const std::string& text, const char* what, long long lo, long long
 
 bool parseSeed(const std::string& text, uint64_t& out, std::string& err,
                const char* what = "--seed") {
-    errno = 0;
-    char* end = nullptr;
-    const unsigned long long v = std::strtoull(text.c_str(), &end, 10);
-    if (text.empty() || text[0] == '-' || *end != '\0' || errno == ERANGE) {
+    if (!mcstat::parseUnsignedText(text, out)) {
         err = fmt::format("{}: expected a non-negative 64-bit integer, got '{}'", what, text);
         return false;
     }
-    out = v;
     return true;
 }
 

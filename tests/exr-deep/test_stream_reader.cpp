@@ -1,7 +1,7 @@
 // StatsFileReader on damaged files: a block is validated when it is read, so a bad value in a late
 // block fails that block's read with a message naming the file and the pixel, after earlier blocks
 // read fine. (Blocks equal to the whole read, block heights and the streamed operations:
-// tests/filters/test_stream.cpp.)
+// tests/image/test_stream.cpp.)
 #include <gtest/gtest.h>
 
 #include "mcstat/stats_file.h"

@@ -7,12 +7,12 @@
 #include <cstring>
 #include <random>
 
+#include "filters/pixel/pixel_support.h"
 #include "mcstat/filters/aov_weights.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/filters/window/filter3d.h"
 #include "mcstat/filters/window/mif.h"
 #include "mcstat/filters/window/window_rank.h"
-#include "pixel_support.h"
 
 namespace mcstat {
 namespace {

@@ -62,6 +62,8 @@ bool parseParamValue(const std::string& context, const ParamSpec& spec, const st
 /// base-10 integer / a finite number, without surrounding spaces.
 bool parseIntegerText(const std::string& text, int64_t& out);
 bool parseRealText(const std::string& text, double& out);
+/// The whole text is a base-10 integer in [0, 2^64 - 1] (seeds), no sign, no spaces.
+bool parseUnsignedText(const std::string& text, uint64_t& out);
 
 // ---- declaring parameters: the spellings every operation uses ----------------------------------
 

@@ -9,7 +9,7 @@
 // online and offline results are equal bit for bit when they see the same samples in the same
 // order. docs/pajot.md is the long form of every rule below.
 //
-// Conventions chosen where the paper is silent (each tested in tests/pajot/):
+// Conventions chosen where the paper is silent (each tested in tests/filters/samples/):
 // - Luminance Y = luma . rgb in double; a sample is *black* when Y <= 0 (zero, or negative
 //   components summing to <= 0). Black samples are always splatted and never enter the
 //   distribution (they have no log-luminance, section 3). Others have l = float(log(Y)); l is

@@ -28,7 +28,7 @@ using testing::ToolRun;
 
 class PajotFile : public testing::ToolTest {
   protected:
-    PajotFile() : ToolTest("pajot") {}
+    PajotFile() : ToolTest("filters/samples") {}
 };
 
 /// Pixels of an EXR written by mcstat, all channels.

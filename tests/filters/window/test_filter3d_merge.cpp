@@ -21,11 +21,11 @@
 #include <utility>
 #include <vector>
 
+#include "filters/pixel/pixel_support.h"
 #include "mcstat/filters/window/filter3d.h"
 #include "mcstat/filters/window/mif.h"
 #include "mcstat/filters/window/window_rank.h"
 #include "mcstat/image/imageops.h"
-#include "pixel_support.h"
 
 using namespace mcstat;
 using mcstat::testing::kInf;

@@ -27,7 +27,7 @@ using testing::ToolRun;
 
 class RpfFile : public testing::ToolTest {
   protected:
-    RpfFile() : ToolTest("rpf") {}
+    RpfFile() : ToolTest("filters/samples") {}
 };
 
 std::vector<float> rgbOf(const std::string& file, int& width, int& height) {

@@ -18,10 +18,10 @@
 #include <string>
 #include <vector>
 
+#include "filters/pixel/pixel_support.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/stats_file.h"
-#include "pixel_support.h"
 
 using namespace mcstat;
 using mcstat::testing::kLuma;
