@@ -101,6 +101,7 @@ TEST_F(Golden, EveryOperationMatchesItsGoldenKeepsTheBeautyAndItsAovsSum) {
         // The golden file: the same channels, the same values.
         const std::string golden = goldenDir + op.name + ".exr";
         if (update) {
+            OIIO::Filesystem::remove(golden);  // copy() does not overwrite
             ASSERT_TRUE(OIIO::Filesystem::copy(path(op.name + ".exr"), golden)) << golden;
         } else {
             Channels g;
