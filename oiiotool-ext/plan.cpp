@@ -4,7 +4,9 @@
 // it.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -123,14 +125,6 @@ bool parse(const Modifiers& mods, PlanOptions& o, std::string& err) {
     return true;
 }
 
-/// A probability for JSON: its value (0 when it underflows) and its log10 (finite down to
-/// ~1e-308^k).
-std::string jsonProb(const LogProb& r) {
-    char buf[96];
-    std::snprintf(buf, sizeof buf, "{\"p\": %.6g, \"log10p\": %.6f}", r.value(), r.log10());
-    return buf;
-}
-
 /// "1.3e-08" for representable values, "10^-612.3" below the double range.
 std::string textProb(const LogProb& r) {
     char buf[64];
@@ -145,88 +139,126 @@ struct Hybrid {
     int m = 0, kMif = 0, kDmf = 0;
 };
 
-}  // namespace
+/// The planner's answers, shared by the table and the JSON.
+struct PlanAnswers {
+    double pixels = 0.0;  ///< floor(width) x floor(height)
+    double target = 0.0;  ///< the error rate below which fewer than one pixel is expected wrong
+    int bestM = 0;        ///< smallest odd M meeting the target with MPE alone, 0: none
+    std::vector<Hybrid> hybrids;     ///< per buffer count m of the tables: the smallest windows
+    int kMifAlone = 0;               ///< smallest window of MIF alone, 0: none
+    std::vector<Design> sppDesigns;  ///< the recommended designs, for the minimum-spp question
+};
 
-bool cmdPlan(State&, const std::string&, const std::vector<std::string>&, const Modifiers& mods,
-             std::string& err) {
-    PlanOptions o;
-    if (!parse(mods, o, err)) return false;
-    const double pixels = std::floor(o.width) * std::floor(o.height);
-    const double target = 1.0 / std::max(pixels, 1.0);
-    const int bestM = smallestBuffers(o.np, pixels, 101);
-    std::vector<Hybrid> hybrids;
+/// Jung's design questions answered for `o`.
+PlanAnswers answer(const PlanOptions& o) {
+    PlanAnswers a;
+    a.pixels = std::floor(o.width) * std::floor(o.height);
+    a.target = 1.0 / std::max(a.pixels, 1.0);
+    a.bestM = smallestBuffers(o.np, a.pixels, 101);
     for (int m : o.ms)
-        hybrids.push_back({m, smallestWindow(Method::MPEMIF, m, o.np, pixels, o.maxk),
-                           smallestWindow(Method::DMF3, m, o.np, pixels, o.maxk)});
-    const int kMifAlone = smallestWindow(Method::MIF, 1, o.np, pixels, o.maxk);
-    // Designs for the minimum-spp question: the recommended ones.
-    std::vector<Design> sppDesigns;
-    if (bestM) sppDesigns.push_back({Method::MPE, bestM, 1});
-    for (const Hybrid& h : hybrids) {
-        if (h.kMif) sppDesigns.push_back({Method::MPEMIF, h.m, h.kMif * h.kMif});
-        if (h.kDmf) sppDesigns.push_back({Method::DMF3, h.m, h.kDmf * h.kDmf});
+        a.hybrids.push_back({m, smallestWindow(Method::MPEMIF, m, o.np, a.pixels, o.maxk),
+                             smallestWindow(Method::DMF3, m, o.np, a.pixels, o.maxk)});
+    a.kMifAlone = smallestWindow(Method::MIF, 1, o.np, a.pixels, o.maxk);
+    if (a.bestM) a.sppDesigns.push_back({Method::MPE, a.bestM, 1});
+    for (const Hybrid& h : a.hybrids) {
+        if (h.kMif) a.sppDesigns.push_back({Method::MPEMIF, h.m, h.kMif * h.kMif});
+        if (h.kDmf) a.sppDesigns.push_back({Method::DMF3, h.m, h.kDmf * h.kDmf});
     }
+    return a;
+}
 
-    if (o.json) {
-        std::printf(
-            "{\n  \"np\": %.6g, \"width\": %.0f, \"height\": %.0f, \"pixels\": %.0f, "
-            "\"target\": %.6g,\n  \"mpe\": [",
-            o.np, std::floor(o.width), std::floor(o.height), pixels, target);
-        for (int m = 1; m <= o.maxm; m += 2) {
-            const LogProb r = errorRate({Method::MPE, m, 1}, o.np);
-            std::printf("%s\n    {\"m\": %d, \"rate\": %s, \"expectedPixels\": %.6g}",
-                        m > 1 ? "," : "", m, jsonProb(r).c_str(), pixels * r.value());
-        }
-        std::printf("\n  ],\n  \"recommendedM\": %d,\n  \"hybrids\": [", bestM);
-        bool first = true;
-        for (int m : o.ms) {
-            for (int k = 1; k <= o.maxk; k += 2) {
-                std::printf("%s\n    {\"m\": %d, \"k\": %d, \"mpeMif\": %s, \"dmf3\": %s}",
-                            first ? "" : ",", m, k,
-                            jsonProb(errorRate({Method::MPEMIF, m, k * k}, o.np)).c_str(),
-                            jsonProb(errorRate({Method::DMF3, m, k * k}, o.np)).c_str());
-                first = false;
-            }
-        }
-        std::printf("\n  ],\n  \"mif\": [");
+// ---- JSON (docs/planner.md, "JSON fields") ------------------------------------------------------
+
+/// ordered_json keeps the keys in the order written, the order docs/planner.md lists them.
+using Json = nlohmann::ordered_json;
+
+/// A probability: its value (0 when it underflows) and its log10 (finite down to ~1e-308^k).
+Json jsonProb(const LogProb& r) { return Json{{"p", r.value()}, {"log10p", r.log10()}}; }
+
+/// MPE(m), eq. 5.3, for m = 1, 3, ..., maxm: its error rate and the pixels it would spoil.
+Json jsonMpe(const PlanOptions& o, double pixels) {
+    Json rows = Json::array();
+    for (int m = 1; m <= o.maxm; m += 2) {
+        const LogProb r = errorRate({Method::MPE, m, 1}, o.np);
+        rows.push_back({{"m", m}, {"rate", jsonProb(r)}, {"expectedPixels", pixels * r.value()}});
+    }
+    return rows;
+}
+
+/// MPE(m)+MIF(k x k), eq. 5.16, and 3DMF(m x k x k), eq. 5.22, for each m asked and odd k.
+Json jsonHybrids(const PlanOptions& o) {
+    Json rows = Json::array();
+    for (int m : o.ms)
         for (int k = 1; k <= o.maxk; k += 2)
-            std::printf("%s\n    {\"k\": %d, \"rate\": %s}", k > 1 ? "," : "", k,
-                        jsonProb(errorRate({Method::MIF, 1, k * k}, o.np)).c_str());
-        std::printf("\n  ],\n  \"smallestWindows\": [");
-        for (size_t i = 0; i < hybrids.size(); ++i)
-            std::printf("%s\n    {\"m\": %d, \"mpeMif\": %d, \"dmf3\": %d}", i ? "," : "",
-                        hybrids[i].m, hybrids[i].kMif, hybrids[i].kDmf);
-        std::printf(
-            "\n  ],\n  \"smallestMifWindow\": %d,\n  \"minimumSpp\": {\"p\": %.6g, "
-            "\"certainty\": %.6g, \"designs\": [",
-            kMifAlone, o.p, o.certainty);
-        for (size_t i = 0; i < sppDesigns.size(); ++i) {
-            const SppPlan s = minimumSpp(sppDesigns[i], o.p, o.certainty);
-            std::printf(
-                "%s\n    {\"design\": \"%s\", \"feasible\": %s, \"np\": %.6g, "
-                "\"sppLinear\": %.6g, \"sppExact\": %.6g}",
-                i ? "," : "", designName(sppDesigns[i]).c_str(), s.feasible ? "true" : "false",
-                s.np, s.sppLinear, s.sppExact);
-        }
-        std::printf("\n  ]}\n}\n");
-        std::fflush(stdout);
-        return true;
-    }
+            rows.push_back({{"m", m},
+                            {"k", k},
+                            {"mpeMif", jsonProb(errorRate({Method::MPEMIF, m, k * k}, o.np))},
+                            {"dmf3", jsonProb(errorRate({Method::DMF3, m, k * k}, o.np))}});
+    return rows;
+}
 
+/// MIF(k x k) alone, eq. 5.9, for odd k.
+Json jsonMif(const PlanOptions& o) {
+    Json rows = Json::array();
+    for (int k = 1; k <= o.maxk; k += 2)
+        rows.push_back({{"k", k}, {"rate", jsonProb(errorRate({Method::MIF, 1, k * k}, o.np))}});
+    return rows;
+}
+
+/// Section 5.3.1 for each recommended design: the smallest spp including the rare sample.
+Json jsonMinimumSpp(const PlanOptions& o, const std::vector<Design>& designs) {
+    Json list = Json::array();
+    for (const Design& d : designs) {
+        const SppPlan s = minimumSpp(d, o.p, o.certainty);
+        list.push_back({{"design", designName(d)},
+                        {"feasible", s.feasible},
+                        {"np", s.np},
+                        {"sppLinear", s.sppLinear},
+                        {"sppExact", s.sppExact}});
+    }
+    return Json{{"p", o.p}, {"certainty", o.certainty}, {"designs", std::move(list)}};
+}
+
+void printPlanJson(const PlanOptions& o, const PlanAnswers& a) {
+    Json j;
+    j["np"] = o.np;
+    // Whole numbers: integers in JSON (as %.0f printed them), not 1920.0.
+    j["width"] = int64_t(std::floor(o.width));
+    j["height"] = int64_t(std::floor(o.height));
+    j["pixels"] = int64_t(a.pixels);
+    j["target"] = a.target;
+    j["mpe"] = jsonMpe(o, a.pixels);
+    j["recommendedM"] = a.bestM;
+    j["hybrids"] = jsonHybrids(o);
+    j["mif"] = jsonMif(o);
+    Json windows = Json::array();
+    for (const Hybrid& h : a.hybrids)
+        windows.push_back({{"m", h.m}, {"mpeMif", h.kMif}, {"dmf3", h.kDmf}});
+    j["smallestWindows"] = std::move(windows);
+    j["smallestMifWindow"] = a.kMifAlone;
+    j["minimumSpp"] = jsonMinimumSpp(o, a.sppDesigns);
+    std::printf("%s\n", j.dump(2).c_str());
+    std::fflush(stdout);
+}
+
+// ---- the table ----------------------------------------------------------------------------------
+
+/// The error rates: MPE(m) with the recommended M, MPE+MIF and 3DMF, the smallest windows.
+void printRateTables(const PlanOptions& o, const PlanAnswers& a) {
     std::printf("Jung's analytic error rates at N*p = %g (thesis eq. 4.13, 5.3, 5.9, 5.16, 5.22)\n",
                 o.np);
     std::printf(
         "image %.0f x %.0f = %.0f pixels: fewer than one overestimated pixel needs P < %.4g\n\n",
-        std::floor(o.width), std::floor(o.height), pixels, target);
+        std::floor(o.width), std::floor(o.height), a.pixels, a.target);
     std::printf("MPE(m), eq. 5.3: probability that the sample reaches the pixel\n");
     std::printf("  %5s  %-12s %s\n", "m", "P", "expected overestimated pixels");
     for (int m = 1; m <= o.maxm; m += 2) {
         const LogProb r = errorRate({Method::MPE, m, 1}, o.np);
-        std::printf("  %5d  %-12s %.4g%s\n", m, textProb(r).c_str(), pixels * r.value(),
-                    m == bestM ? "   <- recommended" : "");
+        std::printf("  %5d  %-12s %.4g%s\n", m, textProb(r).c_str(), a.pixels * r.value(),
+                    m == a.bestM ? "   <- recommended" : "");
     }
-    if (bestM)
-        std::printf("recommended M (smallest odd m, MPE alone): %d\n\n", bestM);
+    if (a.bestM)
+        std::printf("recommended M (smallest odd m, MPE alone): %d\n\n", a.bestM);
     else
         std::printf("recommended M: none up to 101 meets the target\n\n");
     std::printf("MPE(m)+MIF(k x k), eq. 5.16, and 3DMF(m x k x k), eq. 5.22\n");
@@ -237,20 +269,25 @@ bool cmdPlan(State&, const std::string&, const std::vector<std::string>&, const 
                         textProb(errorRate({Method::MPEMIF, m, k * k}, o.np)).c_str(),
                         textProb(errorRate({Method::DMF3, m, k * k}, o.np)).c_str());
     std::printf("smallest windows meeting the target (k <= %d):\n", o.maxk);
-    for (const Hybrid& h : hybrids) {
+    for (const Hybrid& h : a.hybrids) {
         auto win = [](int k) { return k ? std::to_string(k) + "x" + std::to_string(k) : "none"; };
         std::printf("  m = %d: MPE+MIF %s, 3DMF %s\n", h.m, win(h.kMif).c_str(),
                     win(h.kDmf).c_str());
     }
     std::printf("  MIF alone (eq. 5.9): %s\n\n",
-                kMifAlone ? (std::to_string(kMifAlone) + "x" + std::to_string(kMifAlone)).c_str()
-                          : "none (MIF cannot remove a sample with N*p >= 0.5, eq. 5.11)");
+                a.kMifAlone
+                    ? (std::to_string(a.kMifAlone) + "x" + std::to_string(a.kMifAlone)).c_str()
+                    : "none (MIF cannot remove a sample with N*p >= 0.5, eq. 5.11)");
+}
+
+/// Section 5.3.1: the minimum spp of each recommended design.
+void printSppTable(const PlanOptions& o, const PlanAnswers& a) {
     std::printf(
         "minimum spp to include a sample of probability p = %g with certainty %g "
         "(section 5.3.1)\n",
         o.p, o.certainty);
     std::printf("  %-22s %-10s %-14s %s\n", "design", "N*p", "spp (thesis)", "spp (exact)");
-    for (const Design& d : sppDesigns) {
+    for (const Design& d : a.sppDesigns) {
         const SppPlan s = minimumSpp(d, o.p, o.certainty);
         if (!s.feasible) {
             std::printf("  %-22s unreachable\n", designName(d).c_str());
@@ -260,6 +297,21 @@ bool cmdPlan(State&, const std::string&, const std::vector<std::string>&, const 
                     s.sppExact);
     }
     std::printf("(thesis: N*p/m per buffer, eq. 4.10 linearised; exact: 1 - (1 - p)^(N/m))\n");
+}
+
+}  // namespace
+
+bool cmdPlan(State&, const std::string&, const std::vector<std::string>&, const Modifiers& mods,
+             std::string& err) {
+    PlanOptions o;
+    if (!parse(mods, o, err)) return false;
+    const PlanAnswers a = answer(o);
+    if (o.json) {
+        printPlanJson(o, a);
+        return true;
+    }
+    printRateTables(o, a);
+    printSppTable(o, a);
     std::fflush(stdout);
     return true;
 }

@@ -153,72 +153,95 @@ bool topImage(State& st, const std::string& cmd, std::string& err) {
 
 // ---- --contactsheet -----------------------------------------------------------------------------
 
-bool cmdContactSheet(State& st, const std::string& cmd, const std::vector<std::string>& args,
-                     const Modifiers& mods, std::string& err) {
+/// One --contactsheet run: what it was asked, and the tiles made so far.
+struct ContactSheet {
+    std::string cmd;
+    std::string refName;                       ///< the reference as given (the argument)
+    std::vector<const EstimatorInfo*> listed;  ///< modifier estimators, in order
+    std::vector<const EstimatorInfo*> shown;   ///< the mean, then the listed ones
+    OIIO::ImageBuf ref;
+    DiffOptions opt;
+    SheetOptions layout;  ///< the sheet's tile scale and style
+    std::vector<SheetTile> tiles;
+    std::vector<DiffMetrics> metrics;  ///< per estimator's tile
+    std::vector<std::string> names;    ///< per estimator's tile: "estimator(file)"
+    OIIO::ImageBuf last;               ///< the last listed estimator's image, for the difference
+    std::string lastName;
+};
+
+/// Checks --contactsheet's modifiers into `q`, loads the statistics file on top of the stack and
+/// reads the reference.
+bool parseContactSheet(State& st, const Modifiers& mods, ContactSheet& q, std::string& err) {
+    const std::string& cmd = q.cmd;
     if (!topStats(st, cmd, err)) return false;
     Item& top = st.stack.back();
-    std::vector<const EstimatorInfo*> listed;
-    if (!estimatorList(modifier(mods, "estimators", "gmon"), cmd, listed, err)) return false;
+    if (!estimatorList(modifier(mods, "estimators", "gmon"), cmd, q.listed, err)) return false;
     long scale = defaultReviewScale(top.header.width);
     if (!intModifier(mods, "scale", 1, 64, scale, cmd, err)) return false;
+    q.layout.scale = int(scale);
     if (!loadStats(st, top, err)) return false;
-    OIIO::ImageBuf ref;
-    if (!readReference(args[0], mods, cmd, ref, err)) return false;
-
+    if (!readReference(q.refName, mods, cmd, q.ref, err)) return false;
     // The mean first, then the listed estimators (the mean once even when listed).
     const EstimatorInfo* mean = findEstimator("mean");
-    std::vector<const EstimatorInfo*> shown = {mean};
-    for (const EstimatorInfo* e : listed)
-        if (e != mean) shown.push_back(e);
-    DiffOptions opt;
-    opt.luma = lumaCoefficients();
-    std::vector<SheetTile> tiles;
-    std::vector<DiffMetrics> metrics;
-    std::vector<std::string> names;
-    OIIO::ImageBuf last;  // the last listed estimator's image, for the difference tile
-    std::string lastName;
-    for (const EstimatorInfo* e : shown) {
-        OIIO::ImageBuf img;
-        if (!runEstimator(*top.stats, *e, st.nthreads, img, cmd, err)) return false;
-        DiffMetrics m;
-        if (!diffImages(img, ref, opt, m, err)) {
-            err = format("{}: {}({}) vs {}: {}", cmd, e->name, top.name, args[0], err);
-            return false;
-        }
-        const std::string name = format("{}({})", e->name, top.name);
-        printDiffLine(name, m);  // --diff's line, to check the sheet's numbers against
-        SheetTile t;
-        if (!displayTransform(t.image, img, {}, st.nthreads)) {
-            err = format("{}: {}", cmd, t.image.geterror());
-            return false;
-        }
-        t.title = e->title;
-        t.lines = {format("relMSE {:.4g}", m.relMSE), format("SSIM {:.4f}", m.ssim),
-                   format("fireflies {}", m.fireflies)};
-        tiles.push_back(std::move(t));
-        metrics.push_back(m);
-        names.push_back(name);
-        if (e == listed.back()) {
-            last = std::move(img);
-            lastName = name;
-        }
-    }
-    std::fflush(stdout);
+    q.shown = {mean};
+    for (const EstimatorInfo* e : q.listed)
+        if (e != mean) q.shown.push_back(e);
+    q.opt.luma = lumaCoefficients();
+    return true;
+}
 
+/// Runs `e` on the statistics file and measures it against the reference: prints --diff's line
+/// (to check the sheet's numbers against) and adds its tile, labelled with relMSE, SSIM and
+/// fireflies.
+bool estimatorTile(State& st, const EstimatorInfo& e, ContactSheet& q, std::string& err) {
+    const Item& top = st.stack.back();
+    OIIO::ImageBuf img;
+    if (!runEstimator(*top.stats, e, st.nthreads, img, q.cmd, err)) return false;
+    DiffMetrics m;
+    if (!diffImages(img, q.ref, q.opt, m, err)) {
+        err = format("{}: {}({}) vs {}: {}", q.cmd, e.name, top.name, q.refName, err);
+        return false;
+    }
+    const std::string name = format("{}({})", e.name, top.name);
+    printDiffLine(name, m);
+    SheetTile t;
+    if (!displayTransform(t.image, img, {}, st.nthreads)) {
+        err = format("{}: {}", q.cmd, t.image.geterror());
+        return false;
+    }
+    t.title = e.title;
+    t.lines = {format("relMSE {:.4g}", m.relMSE), format("SSIM {:.4f}", m.ssim),
+               format("fireflies {}", m.fireflies)};
+    q.tiles.push_back(std::move(t));
+    q.metrics.push_back(m);
+    q.names.push_back(name);
+    if (&e == q.listed.back()) {
+        q.last = std::move(img);
+        q.lastName = name;
+    }
+    return true;
+}
+
+/// The reference's tile, labelled with its file name.
+bool referenceTile(State& st, ContactSheet& q, std::string& err) {
     SheetTile refTile;
-    if (!displayTransform(refTile.image, ref, {}, st.nthreads)) {
-        err = format("{}: {}", cmd, refTile.image.geterror());
+    if (!displayTransform(refTile.image, q.ref, {}, st.nthreads)) {
+        err = format("{}: {}", q.cmd, refTile.image.geterror());
         return false;
     }
     refTile.title = "reference";
-    refTile.lines = {OIIO::Filesystem::filename(args[0])};
-    tiles.push_back(std::move(refTile));
+    refTile.lines = {OIIO::Filesystem::filename(q.refName)};
+    q.tiles.push_back(std::move(refTile));
+    return true;
+}
 
-    // The difference: relerr of the last listed estimator, its colour bar under it.
+/// The difference's tile: relerr of the last listed estimator as a heatmap, its colour bar under
+/// it.
+bool differenceTile(State& st, ContactSheet& q, std::string& err) {
     SheetTile diffTile;
     OIIO::ImageBuf errImg;
-    if (!errorImage(errImg, last, ref, opt, {}, st.nthreads)) {
-        err = format("{}: {}", cmd, errImg.geterror());
+    if (!errorImage(errImg, q.last, q.ref, q.opt, {}, st.nthreads)) {
+        err = format("{}: {}", q.cmd, errImg.geterror());
         return false;
     }
     HeatmapOptions hopt;
@@ -228,37 +251,54 @@ bool cmdContactSheet(State& st, const std::string& cmd, const std::vector<std::s
     ColorScale cs;
     if (!resolveColorScale(errImg, hopt, channel, cs, err) ||
         !heatmap(diffTile.image, errImg, hopt, {}, st.nthreads)) {
-        err = format("{}: {}", cmd, err.empty() ? diffTile.image.geterror() : err);
+        err = format("{}: {}", q.cmd, err.empty() ? diffTile.image.geterror() : err);
         return false;
     }
     cs.label = "relerr (log scale)";
-    SheetOptions sopt;
-    sopt.scale = int(scale);
-    if (!colorBar(diffTile.footer, top.header.width * sopt.scale, cs, sopt.style)) {
-        err = format("{}: {}", cmd, diffTile.footer.geterror());
+    const int barWidth = st.stack.back().header.width * q.layout.scale;
+    if (!colorBar(diffTile.footer, barWidth, cs, q.layout.style)) {
+        err = format("{}: {}", q.cmd, diffTile.footer.geterror());
         return false;
     }
-    diffTile.title = "rel. error: " + listed.back()->title;
-    tiles.push_back(std::move(diffTile));
+    diffTile.title = "rel. error: " + q.listed.back()->title;
+    q.tiles.push_back(std::move(diffTile));
+    return true;
+}
 
+/// The sheet's metadata, tile by tile: the estimators' names and metrics, then the reference and
+/// the difference, so that scripts read the numbers the labels show.
+void labelSheet(const ContactSheet& q, OIIO::ImageSpec& spec) {
+    spec.attribute(kDisplayReferredAttr, 1);
+    for (size_t i = 0; i < q.metrics.size(); ++i) {
+        const std::string p = format("mcstat:tile{}:", i + 1);
+        spec.attribute(p + "name", q.names[i]);
+        setDouble(spec, p + "relMSE", q.metrics[i].relMSE);
+        setDouble(spec, p + "SSIM", q.metrics[i].ssim);
+        setDouble(spec, p + "PSNR", q.metrics[i].psnr);
+        spec.attribute(p + "fireflies", int(q.metrics[i].fireflies));
+    }
+    spec.attribute(format("mcstat:tile{}:name", q.metrics.size() + 1), "reference");
+    spec.attribute(format("mcstat:tile{}:name", q.metrics.size() + 2),
+                   "relerr(" + q.lastName + ")");
+}
+
+bool cmdContactSheet(State& st, const std::string& cmd, const std::vector<std::string>& args,
+                     const Modifiers& mods, std::string& err) {
+    ContactSheet q;
+    q.cmd = cmd;
+    q.refName = args[0];
+    if (!parseContactSheet(st, mods, q, err)) return false;
+    for (const EstimatorInfo* e : q.shown)
+        if (!estimatorTile(st, *e, q, err)) return false;
+    std::fflush(stdout);
+    if (!referenceTile(st, q, err) || !differenceTile(st, q, err)) return false;
     auto sheet = std::make_shared<OIIO::ImageBuf>();
-    if (!contactSheet(*sheet, tiles, sopt, {}, st.nthreads)) {
+    if (!contactSheet(*sheet, q.tiles, q.layout, {}, st.nthreads)) {
         err = format("{}: {}", cmd, sheet->geterror());
         return false;
     }
-    OIIO::ImageSpec& spec = sheet->specmod();
-    spec.attribute(kDisplayReferredAttr, 1);
-    for (size_t i = 0; i < metrics.size(); ++i) {
-        const std::string p = format("mcstat:tile{}:", i + 1);
-        spec.attribute(p + "name", names[i]);
-        setDouble(spec, p + "relMSE", metrics[i].relMSE);
-        setDouble(spec, p + "SSIM", metrics[i].ssim);
-        setDouble(spec, p + "PSNR", metrics[i].psnr);
-        spec.attribute(p + "fireflies", int(metrics[i].fireflies));
-    }
-    spec.attribute(format("mcstat:tile{}:name", metrics.size() + 1), "reference");
-    spec.attribute(format("mcstat:tile{}:name", metrics.size() + 2), "relerr(" + lastName + ")");
-    replaceWithImage(top, "contactsheet", sheet);
+    labelSheet(q, sheet->specmod());
+    replaceWithImage(st.stack.back(), "contactsheet", sheet);
     return true;
 }
 

@@ -37,6 +37,117 @@ bool requestedParams(const SamplesRequest& req, const PajotImage* stored, PajotP
     return pajotParamsFrom(v, req.luma, p, err);
 }
 
+/// Without records: the online result the file stores (R, G, B and the delayed count), which
+/// holds for its own parameters only.
+bool storedResult(const std::string& path, const PajotImage& stored, const PajotParams& p,
+                  size_t pixels, OperationImage& out, std::string& err) {
+    if (pajotParamsText(p) != pajotParamsText(stored.params)) {
+        err = path + ": holds the online result for " + pajotParamsText(stored.params) +
+              "; computing " + pajotParamsText(p) +
+              " needs per-sample records (render with --keep-samples), or use method=stored";
+        return false;
+    }
+    for (size_t px = 0; px < pixels; ++px) {
+        for (size_t c = 0; c < 3; ++c) out.pixels[px * 4 + c] = stored.estimate[px * 3 + c];
+        out.pixels[px * 4 + 3] = float(stored.pixels[px].delayed.size());
+    }
+    return true;
+}
+
+/// The per-sample AOVs the records hold (channels "aov.<name>" for the file's AOVs): the samples
+/// the estimate averages carry their AOVs with the same weights (docs/aovs.md).
+struct RecordAovs {
+    std::vector<std::string> channels;  ///< in the records
+    std::vector<std::string> names;     ///< in the output
+    std::vector<AovClass> classes;
+};
+
+RecordAovs recordAovs(const StatsHeader& h, const std::vector<std::string>& available) {
+    RecordAovs aovs;
+    for (const AovChannel& a : h.aovs) {
+        const std::string name = std::string(kRecordAovPrefix) + a.name;
+        if (std::find(available.begin(), available.end(), name) == available.end()) continue;
+        aovs.channels.push_back(name);
+        aovs.names.push_back(a.name);
+        aovs.classes.push_back(a.cls);
+    }
+    return aovs;
+}
+
+/// One thread's buffers, kept from pixel to pixel.
+struct PixelScratch {
+    std::vector<int64_t> log;  ///< the samples the pixel's estimate splatted (logSplats)
+    std::vector<double> weight;
+    std::vector<float> values;  ///< the AOVs of the samples averaged, sample by sample
+    AovScratch aov;
+};
+
+/// The AOVs of a pixel (docs/aovs.md): every sample the estimate averages, with the same weight.
+/// `samples` are the pixel's records (`stride` floats each), `aovAt` where each AOV sits in one.
+void pixelAovs(const PajotPixel& px, const float* samples, size_t stride,
+               const std::vector<size_t>& aovAt, const std::vector<AovClass>& classes, float* out,
+               PixelScratch& sc) {
+    const std::vector<int64_t> tags = px.splatTags(sc.log);
+    sc.weight.assign(tags.size(), tags.empty() ? 0.0 : 1.0 / double(tags.size()));
+    sc.values.clear();
+    for (int64_t t : tags) {
+        const float* smp = samples + size_t(t) * stride;
+        for (size_t at : aovAt) sc.values.push_back(smp[at]);
+    }
+    applyAovWeights(sc.weight.data(), sc.weight.size(), sc.values.data(), aovAt.size(),
+                    classes.data(), out, sc.aov);
+}
+
+/// Algorithm 1 over one pixel's `count` records in the order taken, through the PajotPixel the
+/// renderer feeds, so that it equals the online result bit for bit: R, G, B, the delayed count
+/// and the AOVs into `out`.
+void recomputePixel(const float* samples, size_t count, size_t stride, const PajotParams& p,
+                    const std::vector<size_t>& aovAt, const std::vector<AovClass>& classes,
+                    float* out, PixelScratch& sc) {
+    PajotPixel px;
+    sc.log.clear();
+    if (!aovAt.empty()) px.logSplats(&sc.log);
+    for (size_t k = 0; k < count; ++k)  // non-finite: refused
+        px.add(samples + k * stride, p, int64_t(k));
+    const std::array<float, 3> e = px.estimate();
+    out[0] = e[0];
+    out[1] = e[1];
+    out[2] = e[2];
+    out[3] = float(px.state().delayed.size());
+    if (!aovAt.empty()) pixelAovs(px, samples, stride, aovAt, classes, out + 4, sc);
+}
+
+/// Blocks of rows of about 128 MiB of samples (the per-pixel counts say how many exactly).
+int blockRows(const StatsHeader& h) {
+    const double rowBytes = std::max(
+        1.0, double(h.width) * double(std::max<int64_t>(h.spp, 1)) * kRecordFloats * sizeof(float));
+    return int(std::clamp(std::floor(double(128 << 20) / rowBytes), 1.0, 64.0));
+}
+
+/// Rows [y0, y0 + rows) recomputed from their records into `out`, the pixels on a few threads:
+/// every pixel is one PajotPixel fed in sample order, so the split does not change a bit.
+bool recomputeBlock(SampleSource& src, int y0, int rows, const PajotParams& p,
+                    const RecordAovs& aovs, int nthreads, SampleBlock& block, OperationImage& out,
+                    std::string& err) {
+    if (!src.readRecords(y0, rows, block, err)) return false;
+    std::vector<size_t> offset(block.counts.size() + 1, 0);  // where each pixel's samples start
+    for (size_t i = 0; i < block.counts.size(); ++i) offset[i + 1] = offset[i] + block.counts[i];
+    std::vector<size_t> aovAt;  // where each carried AOV sits in a sample
+    for (const std::string& c : aovs.channels) aovAt.push_back(size_t(block.channel(c)));
+    const size_t width = size_t(out.width), nch = out.channels.size();
+    const size_t stride = block.stride();
+    auto work = [&](size_t begin, size_t end) {
+        PixelScratch sc;
+        for (size_t i = begin; i < end; ++i)
+            recomputePixel(block.samples.data() + offset[i] * stride, offset[i + 1] - offset[i],
+                           stride, p, aovAt, aovs.classes,
+                           out.pixels.data() + (size_t(y0) * width + i) * nch, sc);
+    };
+    parallelFor(0, int64_t(block.counts.size()), 0, std::min(threadCount(nthreads), rows),
+                [&](int64_t b, int64_t e) { work(size_t(b), size_t(e)); });
+    return true;
+}
+
 }  // namespace
 
 bool pajotParamsFrom(const ParamValues& v, const std::array<double, 3>& luma, PajotParams& p,
@@ -75,97 +186,26 @@ bool pajotSamples(const SamplesRequest& req, OperationImage& out, std::string& e
     PajotParams p;
     if (!requestedParams(req, haveStored ? &stored : nullptr, p, err)) return false;
 
-    const size_t width = size_t(h.width), pixels = width * size_t(h.height);
+    const size_t pixels = size_t(h.width) * size_t(h.height);
     out.width = h.width;
     out.height = h.height;
     out.channels = {"R", "G", "B", "delayed"};
     out.pixels.assign(pixels * 4, 0.f);
+    if (!h.hasRecords) return storedResult(path, stored, p, pixels, out, err);
 
-    if (!h.hasRecords) {  // the stored online result, for its own parameters only
-        if (pajotParamsText(p) != pajotParamsText(stored.params)) {
-            err = path + ": holds the online result for " + pajotParamsText(stored.params) +
-                  "; computing " + pajotParamsText(p) +
-                  " needs per-sample records (render with --keep-samples), or use method=stored";
-            return false;
-        }
-        for (size_t px = 0; px < pixels; ++px) {
-            for (size_t c = 0; c < 3; ++c) out.pixels[px * 4 + c] = stored.estimate[px * 3 + c];
-            out.pixels[px * 4 + 3] = float(stored.pixels[px].delayed.size());
-        }
-        return true;
+    // R, G, B (with Z, always read) of the records, and the per-sample AOVs they hold.
+    const RecordAovs aovs = recordAovs(h, src->recordChannels());
+    if (!src->selectRecordChannels(aovs.channels, err)) return false;
+    if (!aovs.channels.empty()) {
+        out.pixels.assign(pixels * (4 + aovs.channels.size()), 0.f);
+        out.channels.insert(out.channels.end(), aovs.names.begin(), aovs.names.end());
     }
-
-    // R, G, B (with Z, always read) of the records, and the per-sample AOVs the records hold
-    // (channels "aov.<name>" for the file's AOVs): the samples the estimate averages carry their
-    // AOVs with the same weights (docs/aovs.md).
-    std::vector<std::string> aovChannels;
-    std::vector<size_t> aovOf;  // index into h.aovs of each AOV carried
-    {
-        const std::vector<std::string> available = src->recordChannels();
-        for (size_t a = 0; a < h.aovs.size(); ++a) {
-            const std::string name = std::string(kRecordAovPrefix) + h.aovs[a].name;
-            if (std::find(available.begin(), available.end(), name) != available.end()) {
-                aovChannels.push_back(name);
-                aovOf.push_back(a);
-            }
-        }
-    }
-    if (!src->selectRecordChannels(aovChannels, err)) return false;
-    const size_t A = aovChannels.size(), nch = 4 + A;
-    if (A > 0) {
-        out.pixels.assign(pixels * nch, 0.f);
-        for (size_t a : aovOf) out.channels.push_back(h.aovs[a].name);
-    }
-    std::vector<AovClass> classes;
-    for (size_t a : aovOf) classes.push_back(h.aovs[a].cls);
-    // Blocks of rows of about 128 MiB of samples (the per-pixel counts say how many exactly).
-    const double rowBytes = std::max(
-        1.0, double(width) * double(std::max<int64_t>(h.spp, 1)) * kRecordFloats * sizeof(float));
-    const int rows = int(std::clamp(std::floor(double(128 << 20) / rowBytes), 1.0, 64.0));
+    const int rows = blockRows(h);
     SampleBlock block;
-    for (int y0 = 0; y0 < h.height; y0 += rows) {
-        const int n = std::min(rows, h.height - y0);
-        if (!src->readRecords(y0, n, block, err)) return false;
-        // Where each pixel's samples start, then the pixels of the block on a few threads: every
-        // pixel is one PajotPixel fed in sample order, so the split does not change a bit.
-        std::vector<size_t> offset(block.counts.size() + 1, 0);
-        for (size_t i = 0; i < block.counts.size(); ++i)
-            offset[i + 1] = offset[i] + block.counts[i];
-        std::vector<size_t> aovAt;  // where each carried AOV sits in a sample
-        for (const std::string& c : aovChannels) aovAt.push_back(size_t(block.channel(c)));
-        auto work = [&](size_t begin, size_t end) {
-            std::vector<int64_t> log;
-            std::vector<double> w;
-            std::vector<float> values;
-            AovScratch as;
-            for (size_t i = begin; i < end; ++i) {
-                PajotPixel px;
-                log.clear();
-                if (A > 0) px.logSplats(&log);
-                for (size_t k = offset[i]; k < offset[i + 1]; ++k)  // non-finite: refused
-                    px.add(block.samples.data() + k * block.stride(), p, int64_t(k - offset[i]));
-                const std::array<float, 3> e = px.estimate();
-                float* o = out.pixels.data() + (size_t(y0) * width + i) * nch;
-                o[0] = e[0];
-                o[1] = e[1];
-                o[2] = e[2];
-                o[3] = float(px.state().delayed.size());
-                if (A == 0) continue;
-                // Every sample the estimate averages, with the same weight.
-                const std::vector<int64_t> tags = px.splatTags(log);
-                w.assign(tags.size(), tags.empty() ? 0.0 : 1.0 / double(tags.size()));
-                values.clear();
-                for (int64_t t : tags) {
-                    const float* smp =
-                        block.samples.data() + (offset[i] + size_t(t)) * block.stride();
-                    for (size_t at : aovAt) values.push_back(smp[at]);
-                }
-                applyAovWeights(w.data(), w.size(), values.data(), A, classes.data(), o + 4, as);
-            }
-        };
-        parallelFor(0, int64_t(block.counts.size()), 0, std::min(threadCount(req.nthreads), n),
-                    [&](int64_t b, int64_t e) { work(size_t(b), size_t(e)); });
-    }
+    for (int y0 = 0; y0 < h.height; y0 += rows)
+        if (!recomputeBlock(*src, y0, std::min(rows, h.height - y0), p, aovs, req.nthreads, block,
+                            out, err))
+            return false;
     return true;
 }
 

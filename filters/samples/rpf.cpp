@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -118,7 +119,58 @@ bool rpfParamsFrom(const ParamValues& v, RpfParams& p, std::string& err) {
     return validateRpfParams(p, err);
 }
 
-bool rpfSamples(const SamplesRequest& req, OperationImage& out, std::string& err) {
+namespace {
+
+/// What rpfSamples reads and writes, decided before the first block.
+struct RpfPlan {
+    RpfParams params;
+    std::vector<std::string> channels;     ///< the records' fields, in RpfLayout order
+    std::vector<std::string> aovChannels;  ///< "aov.<name>" of the AOVs carried
+    std::vector<std::string> aovNames;     ///< their output channels
+    std::vector<int> texture;              ///< features of the texture value T1 (Fig. 6g)
+    int rowsPerBlock = 0;
+    bool maps = false;  ///< maps=1: the dependency maps of the report's Fig. 6, from pass 0
+    size_t firstAov = 0, nch = 0;  ///< where the AOVs start in an output pixel; its channels
+};
+
+/// The colour channel (0..2) whose spikes (section 6.1) an AOV follows: the one of the same
+/// letter for light and data passes ("diffuse.R"), else -1.
+int spikeChannelOf(const AovChannel& a) {
+    const bool colour = a.cls == AovClass::Light || a.cls == AovClass::Data;
+    if (!colour || a.name.size() < 2 || a.name[a.name.size() - 2] != '.') return -1;
+    switch (a.name.back()) {
+        case 'R':
+        case 'r':
+            return 0;
+        case 'G':
+        case 'g':
+            return 1;
+        case 'B':
+        case 'b':
+            return 2;
+        default:
+            return -1;
+    }
+}
+
+/// The per-sample AOVs the records hold ("aov.<name>" for the file's AOVs): filtered with the
+/// colour's weights, a label (AovClass::Id) kept as it is.
+void carriedAovs(const StatsHeader& h, const std::vector<std::string>& available, RpfPlan& plan,
+                 RpfWindow& w) {
+    for (const AovChannel& a : h.aovs) {
+        const std::string c = std::string(kRecordAovPrefix) + a.name;
+        if (std::find(available.begin(), available.end(), c) == available.end()) continue;
+        plan.aovChannels.push_back(c);
+        plan.aovNames.push_back(a.name);
+        w.aovFixed.push_back(a.cls == AovClass::Id);
+        w.aovFollows.push_back(spikeChannelOf(a));
+    }
+    w.aovs = plan.aovChannels.size();
+}
+
+/// Checks the request and the file (records, parameters, the fields RPF needs), decides which
+/// record channels play which role and selects them for reading; false with a one-line `err`.
+bool planRecords(const SamplesRequest& req, RpfPlan& plan, RpfWindow& w, std::string& err) {
     SampleSource* src = req.source;
     if (src == nullptr || req.params == nullptr) {
         err = req.path + ": rpf needs an opened statistics file";
@@ -132,109 +184,133 @@ bool rpfSamples(const SamplesRequest& req, OperationImage& out, std::string& err
               "mcstat-render --keep-samples";
         return false;
     }
-    RpfParams prm;
-    if (!rpfParamsFrom(*req.params, prm, err)) {
+    if (!rpfParamsFrom(*req.params, plan.params, err)) {
         err = path + ": " + err;
         return false;
     }
-    std::vector<std::string> channels;
-    RpfWindow w;
-    if (!planChannels(path, src->recordChannels(), channels, w.layout, err)) return false;
-    // Per-sample AOVs ("aov.<name>" for the file's AOVs): filtered with the colour's weights.
-    std::vector<std::string> aovChannels, aovNames;
-    {
-        const std::vector<std::string> available = src->recordChannels();
-        for (const AovChannel& a : h.aovs) {
-            const std::string c = std::string(kRecordAovPrefix) + a.name;
-            if (std::find(available.begin(), available.end(), c) == available.end()) continue;
-            aovChannels.push_back(c);
-            aovNames.push_back(a.name);
-            w.aovFixed.push_back(a.cls == AovClass::Id);
-            // Spikes follow the colour channel of the same letter (light and data passes).
-            const char last = a.name.empty() ? 0 : a.name.back();
-            const bool colour = a.cls == AovClass::Light || a.cls == AovClass::Data;
-            w.aovFollows.push_back(!colour || a.name.size() < 2 || a.name[a.name.size() - 2] != '.'
-                                       ? -1
-                                   : last == 'R' || last == 'r' ? 0
-                                   : last == 'G' || last == 'g' ? 1
-                                   : last == 'B' || last == 'b' ? 2
-                                                                : -1);
-        }
-        w.aovs = aovChannels.size();
-    }
-    std::vector<std::string> selected = channels;
-    selected.insert(selected.end(), aovChannels.begin(), aovChannels.end());
-    if (!src->selectRecordChannels(selected, err)) return false;
+    const std::vector<std::string> available = src->recordChannels();
+    if (!planChannels(path, available, plan.channels, w.layout, err)) return false;
+    carriedAovs(h, available, plan, w);
+    std::vector<std::string> selected = plan.channels;
+    selected.insert(selected.end(), plan.aovChannels.begin(), plan.aovChannels.end());
+    return src->selectRecordChannels(selected, err);
+}
 
-    // Output rows per block: a window of (rows + 2 halo) rows of samples within about 256 MiB
-    // (the counts of the file decide exactly; the reader bounds them), or the `rows` asked for.
+/// Output rows per block: a window of (rows + 2 halo) rows of samples within about 256 MiB (the
+/// counts of the file decide exactly; the reader bounds them), or the `asked` rows when > 0.
+int blockRows(const StatsHeader& h, const RpfParams& prm, size_t fields, int64_t asked) {
     const int halo = rpfHalo(prm);
     const double rowBytes = std::max(1.0, double(h.width) * double(std::max<int64_t>(h.spp, 1)) *
-                                              double(channels.size() + 1) * sizeof(float) * 2.0);
-    int rows = int(req.params->at("rows").integer);
+                                              double(fields + 1) * sizeof(float) * 2.0);
+    int rows = int(asked);
     if (rows <= 0)
         rows = int(std::clamp(std::floor(double(256 << 20) / rowBytes) - 2.0 * halo, 16.0,
                               double(h.height)));
-    rows = std::min(rows, h.height);
+    return std::min(rows, h.height);
+}
 
+/// The output image, all 0: R, G, B, then the maps when asked, then the AOVs carried.
+void layoutOutput(const StatsHeader& h, RpfPlan& plan, OperationImage& out) {
     out.width = h.width;
     out.height = h.height;
-    // maps=1: the dependency maps of the report's Fig. 6, from the first pass.
-    const bool maps = req.params->at("maps").integer != 0;
     out.channels = {"R", "G", "B"};
-    if (maps) out.channels.insert(out.channels.end(), kMapChannels.begin(), kMapChannels.end());
-    const size_t firstAov = out.channels.size();
-    out.channels.insert(out.channels.end(), aovNames.begin(), aovNames.end());
-    const size_t nch = out.channels.size();
-    out.pixels.assign(size_t(h.width) * size_t(h.height) * nch, 0.f);
-    std::vector<int> texture;  // features of the texture value T1 (Fig. 6g)
-    for (size_t k = 0; k < channels.size(); ++k)
-        if (startsWith(channels[k], "T1.")) texture.push_back(int(k) - 5 - w.layout.randoms);
+    if (plan.maps)
+        out.channels.insert(out.channels.end(), kMapChannels.begin(), kMapChannels.end());
+    plan.firstAov = out.channels.size();
+    out.channels.insert(out.channels.end(), plan.aovNames.begin(), plan.aovNames.end());
+    plan.nch = out.channels.size();
+    out.pixels.assign(size_t(h.width) * size_t(h.height) * plan.nch, 0.f);
+}
+
+/// The rows every pass filters over all the blocks (a block's passes widen it by the later
+/// passes' box/2), the denominator of the progress.
+int64_t rowsToFilter(int height, const RpfParams& prm, int rowsPerBlock) {
     const int passes = int(prm.boxes.size());
-    int64_t dropped = 0, rowsDone = 0, rowsTotal = 0;
-    for (int y0 = 0; y0 < h.height; y0 += rows) {  // rows every pass filters, for progress
-        int lo = y0, hi = std::min(h.height, y0 + rows);
-        rowsTotal += hi - lo;
+    int64_t total = 0;
+    for (int y0 = 0; y0 < height; y0 += rowsPerBlock) {
+        int lo = y0, hi = std::min(height, y0 + rowsPerBlock);
+        total += hi - lo;
         for (int t = passes - 2; t >= 0; --t) {
             lo = std::max(0, lo - prm.boxes[size_t(t + 1)] / 2);
-            hi = std::min(h.height, hi + prm.boxes[size_t(t + 1)] / 2);
-            rowsTotal += hi - lo;
+            hi = std::min(height, hi + prm.boxes[size_t(t + 1)] / 2);
+            total += hi - lo;
         }
     }
+    return total;
+}
+
+/// maps=1's channels of one pixel (kMapChannels) from pass 0's report: W_c^r (eq. 11), W_f^r and
+/// beta averaged over the texture features (eq. 9, 16), alpha averaged over RGB (eq. 15), |N|.
+void storeMaps(const RpfPixelReport& r, const std::vector<int>& texture, float* o) {
+    double tr = 0, tb = 0;
+    for (int k : texture) {
+        tr += r.featureOnRandom.empty() ? 0.0 : r.featureOnRandom[size_t(k)];
+        tb += r.beta.empty() ? 0.0 : r.beta[size_t(k)];
+    }
+    const double nt = std::max<size_t>(texture.size(), 1);
+    o[0] = float(r.colourOnRandom);
+    o[1] = float(tr / nt);
+    o[2] = float((r.alpha[0] + r.alpha[1] + r.alpha[2]) / 3.0);
+    o[3] = float(tb / nt);
+    o[4] = float(r.neighbours);
+}
+
+/// One block's buffers, kept from block to block.
+struct BlockBuffers {
+    SampleBlock records;
+    std::vector<float> rgb, aovs;
+    std::vector<RpfPixelReport> report;
+};
+
+/// Filters output rows [y0, y1) from the records of those rows and their halo, and stores them
+/// (colour, maps, AOVs) in `out`.
+bool filterBlock(SampleSource& src, const RpfPlan& plan, int y0, int y1, int threads,
+                 const std::function<void(int)>& rowDone, RpfWindow& w, BlockBuffers& buf,
+                 int64_t& dropped, OperationImage& out, std::string& err) {
+    const StatsHeader& h = src.header();
+    const int halo = rpfHalo(plan.params);
+    const int a = std::max(0, y0 - halo), e = std::min(h.height, y1 + halo);
+    if (!src.readRecords(a, e - a, buf.records, err)) return false;
+    pack(buf.records, plan.channels, plan.aovChannels, h.height, w, dropped);
+    buf.records.samples = std::vector<float>();  // the window holds the samples now
+    rpfFilterRows(w, plan.params, y0, y1, buf.rgb, threads, rowDone,
+                  plan.maps ? &buf.report : nullptr, w.aovs ? &buf.aovs : nullptr);
+    const size_t pixels = size_t(y1 - y0) * size_t(h.width);
+    for (size_t i = 0; i < pixels; ++i) {
+        float* o = out.pixels.data() + (size_t(y0) * size_t(h.width) + i) * plan.nch;
+        std::copy_n(buf.rgb.data() + i * 3, 3, o);
+        if (w.aovs) std::copy_n(buf.aovs.data() + i * w.aovs, w.aovs, o + plan.firstAov);
+        if (plan.maps) storeMaps(buf.report[i], plan.texture, o + 3);
+    }
+    return true;
+}
+
+}  // namespace
+
+bool rpfSamples(const SamplesRequest& req, OperationImage& out, std::string& err) {
+    RpfPlan plan;
+    RpfWindow w;
+    if (!planRecords(req, plan, w, err)) return false;
+    SampleSource& src = *req.source;
+    const StatsHeader& h = src.header();
+    plan.rowsPerBlock =
+        blockRows(h, plan.params, plan.channels.size(), req.params->at("rows").integer);
+    plan.maps = req.params->at("maps").integer != 0;
+    layoutOutput(h, plan, out);
+    for (size_t k = 0; k < plan.channels.size(); ++k)
+        if (startsWith(plan.channels[k], "T1."))
+            plan.texture.push_back(int(k) - 5 - w.layout.randoms);
+    const int64_t rowsTotal = rowsToFilter(h.height, plan.params, plan.rowsPerBlock);
+    int64_t dropped = 0, rowsDone = 0;
     auto rowDone = [&](int) {
         ++rowsDone;
         if (req.progress) req.progress(double(rowsDone) / double(std::max<int64_t>(rowsTotal, 1)));
     };
-    SampleBlock block;
-    std::vector<float> rgb, aovRows;
-    std::vector<RpfPixelReport> report;
-    for (int y0 = 0; y0 < h.height; y0 += rows) {
-        const int y1 = std::min(h.height, y0 + rows);
-        const int a = std::max(0, y0 - halo), e = std::min(h.height, y1 + halo);
-        if (!src->readRecords(a, e - a, block, err)) return false;
-        pack(block, channels, aovChannels, h.height, w, dropped);
-        block.samples = std::vector<float>();  // the window holds the samples now
-        rpfFilterRows(w, prm, y0, y1, rgb, req.nthreads, rowDone, maps ? &report : nullptr,
-                      w.aovs ? &aovRows : nullptr);
-        const size_t pixels = size_t(y1 - y0) * size_t(h.width);
-        for (size_t i = 0; i < pixels; ++i) {
-            float* o = out.pixels.data() + (size_t(y0) * size_t(h.width) + i) * nch;
-            std::copy_n(rgb.data() + i * 3, 3, o);
-            if (w.aovs) std::copy_n(aovRows.data() + i * w.aovs, w.aovs, o + firstAov);
-            if (!maps) continue;
-            const RpfPixelReport& r = report[i];
-            double tr = 0, tb = 0;
-            for (int k : texture) {
-                tr += r.featureOnRandom.empty() ? 0.0 : r.featureOnRandom[size_t(k)];
-                tb += r.beta.empty() ? 0.0 : r.beta[size_t(k)];
-            }
-            const double nt = std::max<size_t>(texture.size(), 1);
-            o[3] = float(r.colourOnRandom);
-            o[4] = float(tr / nt);
-            o[5] = float((r.alpha[0] + r.alpha[1] + r.alpha[2]) / 3.0);
-            o[6] = float(tb / nt);
-            o[7] = float(r.neighbours);
-        }
+    BlockBuffers buf;
+    for (int y0 = 0; y0 < h.height; y0 += plan.rowsPerBlock) {
+        const int y1 = std::min(h.height, y0 + plan.rowsPerBlock);
+        if (!filterBlock(src, plan, y0, y1, req.nthreads, rowDone, w, buf, dropped, out, err))
+            return false;
     }
     if (req.progress) req.progress(1.0);
     return true;

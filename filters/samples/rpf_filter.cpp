@@ -188,7 +188,11 @@ struct Scratch {
     std::vector<float> z;         // k x |N|: the weighted coordinates of eq. 18, by dimension
     std::vector<float> colour;    // 3 x |N|: the current colours c', by channel
     std::vector<float> d2;        // |N|: squared distances, then weights
-    std::vector<double> mean, sd, threshold;
+    std::vector<double> mean, sd, threshold;  // per feature: clustering (Algorithm 2)
+    std::vector<double> dcfk;                 // 3 x features: eq. 6's terms
+    std::vector<double> scale;                // per coordinate of eq. 18: its factor
+    std::vector<int> source;                  // per coordinate of eq. 18: where it is read
+    std::vector<double> aovMean;              // per AOV: its mean over the pixel (section 6.1)
 };
 
 /// The law, per axis, of a neighbour's pixel offset: round(N(0, sigma_p^2)) with sigma_p = b/4
@@ -259,12 +263,13 @@ void meanAndDeviation(const float* v, size_t stride, size_t n, double& mean, dou
     sd = n > 0 ? std::sqrt(((q[0] + q[1]) + (q[2] + q[3])) / double(n)) : 0.0;
 }
 
-/// Algorithm 3 over |N| = n samples; dimension d of sample i is xs[d * dimStride + i *
-/// sampleStride] (samples by rows or by columns).
-RpfWeights featureWeights(const RpfLayout& layout, const float* xs, size_t dimStride,
-                          size_t sampleStride, size_t n, int pass, double epsilon, Scratch& sc) {
-    const int dims = layout.dims(), nr = layout.randoms, nf = layout.features;
-    const int pBase = 3, rBase = 5, fBase = 5 + nr;
+/// Algorithm 3, eq. 1: the mutual information of every pair the weights use, into sc.mi (dims x
+/// dims), over |N| = n samples; dimension d of sample i is xs[d * dimStride + i * sampleStride]
+/// (samples by rows or by columns).
+void neighbourhoodDependencies(const RpfLayout& layout, const float* xs, size_t dimStride,
+                               size_t sampleStride, size_t n, Scratch& sc) {
+    const int dims = layout.dims(), nf = layout.features;
+    const int fBase = 5 + layout.randoms;
     sc.clogc.ensure(n);
     sc.binned.resize(size_t(dims));
     for (int d = 0; d < dims; ++d)
@@ -279,11 +284,19 @@ RpfWeights featureWeights(const RpfLayout& layout, const float* xs, size_t dimSt
     for (int k = 0; k < nf; ++k)
         mutualInformationRange(sc.binned, fBase + k, 3, fBase, n, sc.joint, sc.offsets, sc.which,
                                sc.clogc, sc.mi.data() + size_t(fBase + k) * size_t(dims) + 3);
+}
+
+/// Algorithm 3, eq. 2-16: the dependencies of sc.mi summed (eq. 2-8), their fractions due to the
+/// random parameters (eq. 9-12), and the filter's weights alpha (eq. 15) and beta (eq. 16).
+RpfWeights dependencyWeights(const RpfLayout& layout, int pass, double epsilon, Scratch& sc) {
+    const int dims = layout.dims(), nr = layout.randoms, nf = layout.features;
+    const int pBase = 3, rBase = 5, fBase = 5 + nr;
     auto mi = [&](int a, int b) { return sc.mi[size_t(a) * size_t(dims) + size_t(b)]; };
     RpfWeights w;
     const double grow = 1.0 + 0.1 * pass;  // the (1 + 0.1 t) of eq. 15 and 16
     double dcr = 0, dcp = 0, dcf = 0;
-    std::vector<double> dcfk(size_t(3 * nf), 0.0);  // D_c,k^f,l, eq. 6 terms
+    std::vector<double>& dcfk = sc.dcfk;  // D_c,k^f,l, eq. 6 terms
+    dcfk.assign(size_t(3 * nf), 0.0);
     for (int k = 0; k < 3; ++k) {
         double r = 0, p = 0, f = 0;
         for (int l = 0; l < nr; ++l) r += mi(k, rBase + l);  // eq. 4
@@ -321,35 +334,27 @@ RpfWeights featureWeights(const RpfLayout& layout, const float* xs, size_t dimSt
     return w;
 }
 
-/// Algorithm 2 + 3 + 4 for pixel (x, y).
-void filterPixel(const RpfWindow& w, const RpfParams& prm, int pass, const OffsetLaw& law, int x,
-                 int y, const std::vector<float>& cIn, std::vector<float>& cOut, Scratch& sc,
-                 RpfPixelReport* report, const float* aIn, float* aOut) {
+/// Algorithm 3 (eq. 1-16) over |N| = n samples laid out as neighbourhoodDependencies reads them.
+RpfWeights featureWeights(const RpfLayout& layout, const float* xs, size_t dimStride,
+                          size_t sampleStride, size_t n, int pass, double epsilon, Scratch& sc) {
+    neighbourhoodDependencies(layout, xs, dimStride, sampleStride, n, sc);
+    return dependencyWeights(layout, pass, epsilon, sc);
+}
+
+/// Algorithm 2 lines 2 and 7 (section 4.2): the mean and deviation of the pixel's features and,
+/// per feature, how far from that mean a neighbour's feature may lie.
+void clusterThresholds(const RpfWindow& w, const RpfParams& prm, size_t first, size_t s,
+                       Scratch& sc) {
     const RpfLayout& L = w.layout;
     const int dims = L.dims(), fBase = 5 + L.randoms;
-    const size_t p = size_t(y - w.y0) * size_t(w.width) + size_t(x);
-    const size_t first = size_t(w.offset[p]), s = size_t(w.offset[p + 1]) - first;
-    if (s == 0) return;
-    const int b = prm.boxes[size_t(pass)], half = b / 2;
-
-    // Mean and standard deviation of the pixel's features, for clustering (line 2).
     sc.mean.assign(size_t(L.features), 0.0);
     sc.sd.assign(size_t(L.features), 0.0);
     for (int k = 0; k < L.features; ++k)
         meanAndDeviation(w.sample(first) + fBase + k, size_t(dims), s, sc.mean[size_t(k)],
                          sc.sd[size_t(k)]);
-
-    // N <- P, then up to M - s neighbours drawn with a Gaussian of sigma_p around the pixel
-    // (section 4.1) and kept when every feature is close to the pixel's (section 4.2).
-    sc.members.clear();
-    for (size_t i = 0; i < s; ++i) sc.members.push_back(first + i);
-    const double M = std::min(std::floor(double(b) * double(b) * double(s) * prm.samplesFactor),
-                              double(prm.maxNeighbourhood));
-    const int64_t draws = std::max<int64_t>(0, int64_t(M) - int64_t(s));
-    PixelRng rng(prm.seed, pass, uint64_t(y) * uint64_t(w.width) + uint64_t(x));
-    // Algorithm 2 line 7 as one threshold per feature: a neighbour is dropped when it lies more
-    // than 3 (world positions: 30) pixel deviations from the pixel's mean, and beyond the 0.1
-    // floor unless the pixel itself varies more than 0.1.
+    // Line 7 as one threshold per feature: a neighbour is dropped when it lies more than 3 (world
+    // positions: 30) pixel deviations from the pixel's mean, and beyond the 0.1 floor unless the
+    // pixel itself varies more than 0.1.
     sc.threshold.resize(size_t(L.features));
     for (int k = 0; k < L.features; ++k) {
         const double sd = sc.sd[size_t(k)];
@@ -357,35 +362,59 @@ void filterPixel(const RpfWindow& w, const RpfParams& prm, int pass, const Offse
             (L.isPosition[size_t(k)] ? prm.positionSigmas : prm.featureSigmas) * sd;
         sc.threshold[size_t(k)] = sd > prm.floor ? limit : std::max(limit, prm.floor);
     }
-    const std::vector<double>& cdf = law.cdf;
-    // Candidates in batches: draw a batch, prefetch the candidates' features (random places in
-    // a window of megabytes), then test them in draw order. The same draws and the same
-    // decisions as one at a time.
+}
+
+/// Algorithm 2's draws (section 4.1): `count` candidates drawn around pixel (x, y), each pixel
+/// offset round(N(0, sigma_p^2)) per axis, one of that pixel's samples picked uniformly. The
+/// candidates that land in the box, outside P, on a pixel with samples go to `batch` (returned:
+/// how many), their features prefetched: they lie at random places in a window of megabytes.
+int drawCandidates(const RpfWindow& w, const OffsetLaw& law, int half, int x, int y, int64_t count,
+                   PixelRng& rng, size_t* batch) {
+    const size_t featureOffset = size_t(5 + w.layout.randoms) * sizeof(float);
+    const long last = long(law.cdf.size());
+    int found = 0;
+    for (int64_t q = 0; q < count; ++q) {
+        // The offset per axis: round(N(0, sigma_p^2)) by inverting its law (section 4.1).
+        const double ux = rng.uniform(), uy = rng.uniform(), pick = rng.uniform();
+        const long ix = long(law.find(ux)), iy = long(law.find(uy));
+        if (ix == 0 || ix == last || iy == 0 || iy == last) continue;  // outside the box
+        const long ox = ix - 1 - half, oy = iy - 1 - half;
+        if (ox == 0 && oy == 0) continue;  // inside P: its samples are in N already
+        const long nx = x + ox, ny = y + oy;
+        if (nx < 0 || nx >= w.width || ny < w.y0 || ny >= w.y0 + w.rows) continue;
+        const size_t pq = size_t(ny - w.y0) * size_t(w.width) + size_t(nx);
+        const size_t cnt = size_t(w.offset[pq + 1] - w.offset[pq]);
+        if (cnt == 0) continue;
+        const size_t j = size_t(w.offset[pq]) + std::min(cnt - 1, size_t(pick * double(cnt)));
+        const char* at = reinterpret_cast<const char*>(w.sample(j)) + featureOffset;
+        __builtin_prefetch(at);
+        __builtin_prefetch(at + size_t(w.layout.features) * sizeof(float) - 1);
+        batch[found++] = j;
+    }
+    return found;
+}
+
+/// Algorithm 2 (sections 4.1-4.2): N <- P, then up to M - s neighbours (M of Algorithm 1 line 8)
+/// drawn with a Gaussian of sigma_p = b/4 around the pixel, each kept when every feature is
+/// within clusterThresholds' bound of the pixel's mean.
+void drawNeighbourhood(const RpfWindow& w, const RpfParams& prm, int pass, const OffsetLaw& law,
+                       int x, int y, size_t first, size_t s, Scratch& sc) {
+    const RpfLayout& L = w.layout;
+    const int fBase = 5 + L.randoms;
+    const int b = prm.boxes[size_t(pass)], half = b / 2;
+    sc.members.clear();
+    for (size_t i = 0; i < s; ++i) sc.members.push_back(first + i);
+    const double M = std::min(std::floor(double(b) * double(b) * double(s) * prm.samplesFactor),
+                              double(prm.maxNeighbourhood));
+    const int64_t draws = std::max<int64_t>(0, int64_t(M) - int64_t(s));
+    PixelRng rng(prm.seed, pass, uint64_t(y) * uint64_t(w.width) + uint64_t(x));
+    // Candidates in batches: draw a batch (prefetching), then test them in draw order. The same
+    // draws and the same decisions as one at a time.
     constexpr int kBatch = 32;
     size_t batch[kBatch];
-    const size_t featureOffset = size_t(fBase) * sizeof(float);
     for (int64_t q0 = 0; q0 < draws; q0 += kBatch) {
         const int64_t qn = std::min<int64_t>(kBatch, draws - q0);
-        int found = 0;
-        for (int64_t q = 0; q < qn; ++q) {
-            // The offset per axis: round(N(0, sigma_p^2)) by inverting its law (section 4.1).
-            const double ux = rng.uniform(), uy = rng.uniform(), pick = rng.uniform();
-            const long ix = long(law.find(ux)), iy = long(law.find(uy));
-            const long last = long(cdf.size());
-            if (ix == 0 || ix == last || iy == 0 || iy == last) continue;  // outside the box
-            const long ox = ix - 1 - half, oy = iy - 1 - half;
-            if (ox == 0 && oy == 0) continue;  // inside P: its samples are in N already
-            const long nx = x + ox, ny = y + oy;
-            if (nx < 0 || nx >= w.width || ny < w.y0 || ny >= w.y0 + w.rows) continue;
-            const size_t pq = size_t(ny - w.y0) * size_t(w.width) + size_t(nx);
-            const size_t cnt = size_t(w.offset[pq + 1] - w.offset[pq]);
-            if (cnt == 0) continue;
-            const size_t j = size_t(w.offset[pq]) + std::min(cnt - 1, size_t(pick * double(cnt)));
-            const char* at = reinterpret_cast<const char*>(w.sample(j)) + featureOffset;
-            __builtin_prefetch(at);
-            __builtin_prefetch(at + size_t(L.features) * sizeof(float) - 1);
-            batch[found++] = j;
-        }
+        const int found = drawCandidates(w, law, half, x, y, qn, rng, batch);
         for (int c = 0; c < found; ++c) {
             const float* f = w.sample(batch[c]) + fBase;
             bool keep = true;
@@ -394,9 +423,13 @@ void filterPixel(const RpfWindow& w, const RpfParams& prm, int pass, const Offse
             if (keep) sc.members.push_back(batch[c]);
         }
     }
-    const size_t n = sc.members.size();
+}
 
-    // Section 4.3: every element normalised over N; the current colours too (eq. 18).
+/// Section 4.3: every element of the samples of N normalised over N (sc.xs, by dimension), and
+/// their current colours c' likewise (sc.cs, by sample) for eq. 18.
+void normaliseNeighbourhood(const RpfWindow& w, const std::vector<float>& cIn, Scratch& sc) {
+    const int dims = w.layout.dims();
+    const size_t n = sc.members.size();
     sc.xs.resize(n * size_t(dims));
     for (size_t i = 0; i < n; ++i) {
         const float* v = w.sample(sc.members[i]);
@@ -419,101 +452,122 @@ void filterPixel(const RpfWindow& w, const RpfParams& prm, int pass, const Offse
         for (size_t i = 0; i < n; ++i)
             sc.cs[i * 3 + size_t(d)] = float((double(sc.cs[i * 3 + size_t(d)]) - m) * inv);
     }
+}
 
-    const RpfWeights wt = featureWeights(L, sc.xs.data(), n, 1, n, pass, prm.epsilon, sc);
-    if (report) {
-        report->neighbours = int(n);
-        report->alpha = wt.alpha;
-        report->beta = wt.beta;
-        report->colourOnRandom = wt.colourOnRandom;
-        report->featureOnRandom = wt.featureOnRandom;
-    }
+/// Fig. 6's intermediate values of the pixel: |N| and Algorithm 3's weights.
+void reportPixel(size_t n, const RpfWeights& wt, RpfPixelReport& report) {
+    report.neighbours = int(n);
+    report.alpha = wt.alpha;
+    report.beta = wt.beta;
+    report.colourOnRandom = wt.colourOnRandom;
+    report.featureOnRandom = wt.featureOnRandom;
+}
 
-    // Algorithm 4 lines 2-3, eq. 19: sigma_c^2 = sigma_f^2 = sigma^2 / (1 - W_c^r)^2.
+/// Algorithm 4 lines 2-3 (eq. 19) and eq. 18 as one squared distance: sc.z holds coordinate k of
+/// every sample of N scaled by sqrt(weight_k / (2 sigma^2)), by dimension (rows of |N|, so that
+/// the loops over N run on contiguous floats), sc.colour N's current colours by channel. Returns
+/// the number of coordinates.
+size_t bilateralCoordinates(const RpfWindow& w, const RpfParams& prm, const RpfWeights& wt,
+                            size_t s, const std::vector<float>& cIn, Scratch& sc) {
+    const int fBase = 5 + w.layout.randoms;
+    const size_t n = sc.members.size();
+    // sigma_c^2 = sigma_f^2 = sigma^2 / (1 - W_c^r)^2.
     const double sigma2 = 8.0 * prm.sigma8sq / double(s);
     const double keepShare = (1.0 - wt.colourOnRandom) * (1.0 - wt.colourOnRandom);
-    // Eq. 18 as one squared distance: coordinate k scaled by sqrt(weight_k / (2 sigma^2)).
-    std::vector<double> scale;
-    std::vector<int> source;  // -1 - k: colour channel k; else the dims index
+    sc.scale.clear();
+    sc.source.clear();  // -1 - k: colour channel k; else the dims index
     for (int k = 0; k < 3; ++k)
         if (wt.alpha[size_t(k)] > 0 && keepShare > 0) {
-            scale.push_back(std::sqrt(wt.alpha[size_t(k)] * keepShare / (2.0 * sigma2)));
-            source.push_back(-1 - k);
+            sc.scale.push_back(std::sqrt(wt.alpha[size_t(k)] * keepShare / (2.0 * sigma2)));
+            sc.source.push_back(-1 - k);
         }
-    for (int k = 0; k < L.features; ++k)
+    for (int k = 0; k < w.layout.features; ++k)
         if (wt.beta[size_t(k)] > 0 && keepShare > 0) {
-            scale.push_back(std::sqrt(wt.beta[size_t(k)] * keepShare / (2.0 * sigma2)));
-            source.push_back(fBase + k);
+            sc.scale.push_back(std::sqrt(wt.beta[size_t(k)] * keepShare / (2.0 * sigma2)));
+            sc.source.push_back(fBase + k);
         }
-    // Coordinates by dimension (rows of n), so that the loops over N run on contiguous floats.
-    const size_t kz = scale.size();
+    const size_t kz = sc.scale.size();
     sc.z.resize(kz * n);
     for (size_t k = 0; k < kz; ++k) {
-        const int src = source[k];
+        const int src = sc.source[k];
         float* zk = sc.z.data() + k * n;
         for (size_t i = 0; i < n; ++i) {
             const float v = src < 0 ? sc.cs[i * 3 + size_t(-1 - src)] : sc.xs[size_t(src) * n + i];
-            zk[i] = float(double(v) * scale[k]);
+            zk[i] = float(double(v) * sc.scale[k]);
         }
     }
     sc.colour.resize(3 * n);
     for (size_t j = 0; j < n; ++j)
         for (size_t c = 0; c < 3; ++c) sc.colour[c * n + j] = cIn[sc.members[j] * 3 + c];
     sc.d2.resize(n);
+    return kz;
+}
 
-    // Eq. 18-20 for every sample of the pixel (the first s members of N).
-    double mean[3] = {0, 0, 0}, sq[3] = {0, 0, 0};
-    for (size_t i = 0; i < s; ++i) {
-        float* d2 = sc.d2.data();
-        std::fill_n(d2, n, 0.f);
-        for (size_t k = 0; k < kz; ++k) {
-            const float* zk = sc.z.data() + k * n;
-            const float zi = zk[i];
-            for (size_t j = 0; j < n; ++j) {
-                const float d = zi - zk[j];
-                d2[j] += d * d;
-            }
-        }
-        for (size_t j = 0; j < n; ++j) d2[j] = expNegative(d2[j]);  // w_ij
-        const float* r = sc.colour.data();
-        const float* g = r + n;
-        const float* bl = g + n;
-        double acc[3] = {0, 0, 0}, wsum = 0;
+/// Eq. 18: sc.d2[j] <- w_ij, the weight of neighbour j for sample i of N, from the kz coordinates.
+void bilateralWeights(size_t i, size_t kz, Scratch& sc) {
+    const size_t n = sc.members.size();
+    float* d2 = sc.d2.data();
+    std::fill_n(d2, n, 0.f);
+    for (size_t k = 0; k < kz; ++k) {
+        const float* zk = sc.z.data() + k * n;
+        const float zi = zk[i];
         for (size_t j = 0; j < n; ++j) {
-            const double wij = d2[j];
-            acc[0] += wij * r[j];
-            acc[1] += wij * g[j];
-            acc[2] += wij * bl[j];
-            wsum += wij;
-        }
-        float* o = cOut.data() + (first + i) * 3;
-        for (int c = 0; c < 3; ++c) {
-            o[c] = float(acc[c] / wsum);  // wsum >= w_ii = 1
-            mean[c] += double(o[c]);
-        }
-        // AOVs (docs/aovs.md): the same weights w_ij, a non-finite value left out of its channel.
-        const size_t A = aIn ? w.aovs : 0;
-        for (size_t a = 0; a < A; ++a) {
-            if (w.aovFixed[a]) continue;  // a label: kept as it is
-            double av = 0, aw = 0;
-            for (size_t j = 0; j < n; ++j) {
-                const float v = aIn[sc.members[j] * A + a];
-                if (!std::isfinite(v)) continue;
-                av += double(d2[j]) * double(v);
-                aw += double(d2[j]);
-            }
-            aOut[(first + i) * A + a] = aw > 0 ? float(av / aw) : 0.f;
+            const float d = zi - zk[j];
+            d2[j] += d * d;
         }
     }
-    if (!prm.spikes || s < 2) return;
-    // The AOVs' means over the pixel's samples before any spike is replaced.
-    const size_t A = aIn ? w.aovs : 0;
-    std::vector<double> aovMean(A, 0.0);
+    for (size_t j = 0; j < n; ++j) d2[j] = expNegative(d2[j]);  // w_ij
+}
+
+/// Eq. 20: the filtered colour c'' of a sample, N's current colours weighted by sc.d2 (in double).
+void filterColour(const Scratch& sc, float* out) {
+    const size_t n = sc.members.size();
+    const float* d2 = sc.d2.data();
+    const float* r = sc.colour.data();
+    const float* g = r + n;
+    const float* bl = g + n;
+    double acc[3] = {0, 0, 0}, wsum = 0;
+    for (size_t j = 0; j < n; ++j) {
+        const double wij = d2[j];
+        acc[0] += wij * r[j];
+        acc[1] += wij * g[j];
+        acc[2] += wij * bl[j];
+        wsum += wij;
+    }
+    for (int c = 0; c < 3; ++c) out[c] = float(acc[c] / wsum);  // wsum >= w_ii = 1
+}
+
+/// The AOVs of a sample (docs/aovs.md) with eq. 20's weights sc.d2: a non-finite value is left
+/// out of its channel, a label kept as it is.
+void filterAovs(const RpfWindow& w, const float* aIn, const Scratch& sc, float* out) {
+    const size_t n = sc.members.size(), A = w.aovs;
     for (size_t a = 0; a < A; ++a) {
-        for (size_t i = 0; i < s; ++i) aovMean[a] += double(aOut[(first + i) * A + a]);
-        aovMean[a] /= double(s);
+        if (w.aovFixed[a]) continue;  // a label: kept as it is
+        double av = 0, aw = 0;
+        for (size_t j = 0; j < n; ++j) {
+            const float v = aIn[sc.members[j] * A + a];
+            if (!std::isfinite(v)) continue;
+            av += double(sc.d2[j]) * double(v);
+            aw += double(sc.d2[j]);
+        }
+        out[a] = aw > 0 ? float(av / aw) : 0.f;
     }
-    // Section 6.1 (Algorithm 4 lines 13-20): spikes above mean + one deviation become the mean.
+}
+
+/// Section 6.1 (Algorithm 4 lines 13-20): a filtered sample of the pixel (samples [first,
+/// first + s)) above the pixel's mean by more than one deviation becomes the mean, per channel;
+/// the A AOVs that sum to that channel become their own means alike.
+void removeSpikes(const RpfWindow& w, size_t first, size_t s, size_t A, std::vector<float>& cOut,
+                  float* aOut, Scratch& sc) {
+    // The AOVs' means over the pixel's samples before any spike is replaced.
+    sc.aovMean.assign(A, 0.0);
+    for (size_t a = 0; a < A; ++a) {
+        for (size_t i = 0; i < s; ++i) sc.aovMean[a] += double(aOut[(first + i) * A + a]);
+        sc.aovMean[a] /= double(s);
+    }
+    double mean[3] = {0, 0, 0}, sq[3] = {0, 0, 0};
+    for (size_t i = 0; i < s; ++i)
+        for (int c = 0; c < 3; ++c) mean[c] += double(cOut[(first + i) * 3 + size_t(c)]);
     for (int c = 0; c < 3; ++c) mean[c] /= double(s);
     for (size_t i = 0; i < s; ++i)
         for (int c = 0; c < 3; ++c) {
@@ -527,10 +581,35 @@ void filterPixel(const RpfWindow& w, const RpfParams& prm, int pass, const Offse
             if (double(v) - mean[c] > sd) {
                 v = float(mean[c]);
                 for (size_t a = 0; a < A; ++a)  // the AOVs that sum to this channel, alike
-                    if (w.aovFollows[a] == c) aOut[(first + i) * A + a] = float(aovMean[a]);
+                    if (w.aovFollows[a] == c) aOut[(first + i) * A + a] = float(sc.aovMean[a]);
             }
         }
     }
+}
+
+/// Algorithm 2, 3 and 4 (and section 6.1 when asked) for pixel (x, y): its samples' filtered
+/// colours (and AOVs) into cOut (and aOut).
+void filterPixel(const RpfWindow& w, const RpfParams& prm, int pass, const OffsetLaw& law, int x,
+                 int y, const std::vector<float>& cIn, std::vector<float>& cOut, Scratch& sc,
+                 RpfPixelReport* report, const float* aIn, float* aOut) {
+    const size_t p = size_t(y - w.y0) * size_t(w.width) + size_t(x);
+    const size_t first = size_t(w.offset[p]), s = size_t(w.offset[p + 1]) - first;
+    if (s == 0) return;
+    clusterThresholds(w, prm, first, s, sc);
+    drawNeighbourhood(w, prm, pass, law, x, y, first, s, sc);
+    normaliseNeighbourhood(w, cIn, sc);
+    const size_t n = sc.members.size();
+    const RpfWeights wt = featureWeights(w.layout, sc.xs.data(), n, 1, n, pass, prm.epsilon, sc);
+    if (report) reportPixel(n, wt, *report);
+    // Algorithm 4, eq. 18-20, for every sample of the pixel (the first s members of N).
+    const size_t kz = bilateralCoordinates(w, prm, wt, s, cIn, sc);
+    const size_t A = aIn ? w.aovs : 0;
+    for (size_t i = 0; i < s; ++i) {
+        bilateralWeights(i, kz, sc);
+        filterColour(sc, cOut.data() + (first + i) * 3);
+        if (A > 0) filterAovs(w, aIn, sc, aOut + (first + i) * A);
+    }
+    if (prm.spikes && s >= 2) removeSpikes(w, first, s, A, cOut, aOut, sc);
 }
 
 }  // namespace
