@@ -194,10 +194,10 @@ bool cmdOperation(State& st, const std::string& cmd, const std::vector<std::stri
     auto img = std::make_shared<OIIO::ImageBuf>();
     if (!applyToTop(st, cmd, op, values, diag, *img, err)) return false;
     if (residual && !appendTopResidual(st, cmd, *img, err)) return false;
-    // The operation and its parameters as the result's metadata (given or default).
+    // The operation and every parameter (given, default or fixed) as the result's metadata.
     img->specmod().attribute("mcstat:estimator", op.name);
-    for (const ParamSpec* p : op.settable())
-        img->specmod().attribute("mcstat:" + p->name, values.at(p->name).text);
+    for (const ParamSpec& p : op.params)
+        img->specmod().attribute("mcstat:" + p.name, values.at(p.name).text);
     Item& top = st.stack.back();
     if (top.isStats() || top.layout) describeOperationResult(top, op, values, *img);
     replaceWithImage(top, op.name, img, true);
