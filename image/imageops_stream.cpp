@@ -3,7 +3,7 @@
 // operation, and its rows copied into the result. Peak memory is one block (plus the neighbourhood
 // operations' halo rows), not the file. Every output pixel is the in-memory operation's pixel: a
 // block carries every row a pixel's window reaches, and each window is clipped to the file's data
-// window exactly as in the whole image (tests/io/test_stream_ops.cpp compares them bit for bit).
+// window exactly as in the whole image (tests/image/test_stream.cpp compares them bit for bit).
 #include <OpenImageIO/imagebufalgo.h>
 
 #include <algorithm>

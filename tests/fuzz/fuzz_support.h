@@ -1,4 +1,4 @@
-// Shared by the libFuzzer targets (tests/fuzz/README.md): the input as a file, the limits a fuzzed
+// Shared by the libFuzzer targets (docs/fuzzing.md): the input as a file, the limits a fuzzed
 // file gets, and the contract every rejection must keep. A broken contract aborts, which libFuzzer
 // (or the replay driver, fuzz_replay.cpp) reports as a finding.
 #pragma once

@@ -23,7 +23,8 @@
 //   from each side, capped at floor((s - 1) / 2). alpha >= that cap over s (e.g. 0.5) is the
 //   weighted median of eq. 5.6 / 5.20: for odd s the middle value, for even s the two middle values
 //   averaged.
-// - Counts weight the final average, not the ranks (as in every estimator of estimators.h): if r_i
+// - Counts weight the final average, not the ranks (as in every estimator of filters/pixel/): if
+// r_i
 //   of element i's copies survive the trimming, the result is sum r_i n_i x_i / sum r_i n_i. With
 //   equal counts this is eq. 5.19's plain average of the kept copies; with a 1 x 1 window it makes
 //   3DMF exactly MPE (estimateMoN) and 3DWTMF(alpha, w = 1) exactly TMPE(alpha), including unequal
