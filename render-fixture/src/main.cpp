@@ -19,8 +19,10 @@
 #include "mcstat/color.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/params.h"
+#include "mcstat/core/progress.h"
 #include "mcstat/filters/samples/pajot.h"
 #include "mcstat/filters/samples/pajot_state.h"
+#include "mcstat/image/imageops.h"
 #include "mcstat/render/render.h"
 #include "mcstat/render/scene.h"
 #include "mcstat/sample_records.h"
@@ -75,12 +77,12 @@ bool writeReferenceExr(const std::string& path, int width, int height,
         err = path + ": cannot create an OpenEXR writer: " + OIIO::geterror();
         return false;
     }
-    OIIO::ImageSpec spec(width, height, 3, OIIO::TypeDesc::FLOAT);
+    OIIO::ImageSpec spec =
+        mcstat::floatSpec(OIIO::ROI(0, width, 0, height), {"R", "G", "B"}, {}, "lin_rec709");
     spec.attribute("compression", "zip");
     spec.attribute("Software", kRendererName);
     spec.attribute("mcstat:seeds", std::to_string(seed));
     spec.attribute("mcstat:spp", std::to_string(spp));
-    spec.attribute("oiio:ColorSpace", "lin_rec709");
     if (!out->open(tmp.path(), spec) || !out->write_image(OIIO::TypeDesc::FLOAT, rgb.data()) ||
         !out->close()) {
         err = path + ": " + out->geterror();
@@ -342,7 +344,7 @@ bool parseRenderOptions(const CommandLine& cl, RenderOptions& opt, std::string& 
     if (!parseInt(cl.pilotText, "--pilot", 0, (1LL << 40), v, err)) return false;
     opt.pilotSpp = v;
     if (!parseSeed(cl.pilotSeedText, opt.pilotSeed, err, "--pilot-seed")) return false;
-    opt.progress = !cl.quiet && isatty(STDERR_FILENO);
+    opt.progress = !cl.quiet && mcstat::Progress::onTerminal();
     return true;
 }
 
@@ -607,7 +609,7 @@ void report(const CommandLine& cl, const Job& job, const RenderStats& stats,
         fmt::print(stderr,
                    "mcstat-render: warning: {} samples with NaN/Inf radiance were dropped\n",
                    stats.nonFiniteSamples);
-    if (cl.quiet || !isatty(STDERR_FILENO)) return;
+    if (cl.quiet || !mcstat::Progress::onTerminal()) return;
     fmt::print(stderr, "mcstat-render: {} ({}x{}, {} spp) in {:.2f} s -> {}\n", scene.source,
                scene.width, scene.height, opt.spp, stats.seconds, cl.outPath);
     if (opt.adaptiveM && !cl.reference && opt.strategy == AdaptiveStrategy::Pilot)
