@@ -1,6 +1,7 @@
 // Typed parameters and the one checked parser of values (include/mcstat/core/params.h).
 #include "mcstat/core/params.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cstdio>
@@ -61,6 +62,15 @@ ParamSpec flagParam(const std::string& name, const std::string& def, const std::
     return p;
 }
 
+ParamSpec textParam(const std::string& name, const std::string& def, const std::string& help) {
+    ParamSpec p;
+    p.name = name;
+    p.type = ParamType::Text;
+    p.defaultValue = def;
+    p.help = help;
+    return p;
+}
+
 ParamSpec enumParam(const std::string& name, std::vector<std::string> choices,
                     const std::string& def, const std::string& help,
                     std::vector<std::pair<std::string, std::string>> aliases) {
@@ -110,6 +120,8 @@ std::string describeParam(const ParamSpec& s) {
     switch (s.type) {
         case ParamType::Flag:
             return "0 or 1";
+        case ParamType::Text:
+            return "text";
         case ParamType::Enum: {
             std::string t;
             for (size_t i = 0; i < s.choices.size(); ++i)
@@ -138,13 +150,17 @@ std::string describeParam(const ParamSpec& s) {
     return "";
 }
 
-bool parseParamValue(const std::string& context, const ParamSpec& s, const std::string& text,
-                     ParamValue& out, std::string& err) {
+namespace {
+bool parseOne(const std::string& context, const ParamSpec& s, const std::string& text,
+              ParamValue& out, std::string& err) {
     ParamValue v;
     v.type = s.type;
     v.text = text;
     bool ok = false;
     switch (s.type) {
+        case ParamType::Text:
+            ok = true;
+            break;
         case ParamType::Flag:
             if (text == "1" || text == "true" || text == "on")
                 v.integer = 1, ok = true;
@@ -182,6 +198,26 @@ bool parseParamValue(const std::string& context, const ParamSpec& s, const std::
         return false;
     }
     out = std::move(v);
+    return true;
+}
+
+}  // namespace
+
+bool parseParamValue(const std::string& context, const ParamSpec& s, const std::string& text,
+                     ParamValue& out, std::string& err) {
+    if (!s.list) return parseOne(context, s, text, out, err);
+    // A list: every element a value of the type; the first one's value, the whole text.
+    size_t start = 0;
+    ParamValue first;
+    do {
+        const size_t comma = std::min(text.find(',', start), text.size());
+        ParamValue v;
+        if (!parseOne(context, s, text.substr(start, comma - start), v, err)) return false;
+        if (start == 0) first = v;
+        start = comma + 1;
+    } while (start <= text.size());
+    first.text = text;
+    out = std::move(first);
     return true;
 }
 

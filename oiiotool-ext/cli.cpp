@@ -32,6 +32,22 @@ bool parseInt(const std::string& s, long lo, long hi, long& out) {
 
 bool parseDouble(const std::string& s, double& out) { return parseRealText(s, out); }
 
+std::vector<ParamSpec> diffModifiers(bool neps) {
+    std::vector<ParamSpec> m = {
+        realParam("ratio", 0.0, HUGE_VAL, false, "2",
+                  "firefly: Y > ratio*Yref and Y - Yref > floor (Y: luminance)"),
+        realParam("floor", 0.0, HUGE_VAL, false, "0.1", "firefly: Y - Yref > floor"),
+        realParam("eps", 0.0, HUGE_VAL, false, "0.01", "relMSE denominator r^2 + eps"),
+    };
+    if (neps)
+        m.push_back(realParam("neps", 0.0, HUGE_VAL, true, "0.01",
+                              "normalised error denominator max(|Yref|, neps)"));
+    m.push_back(textParam("layer", "",
+                          "REF's RGB layer, e.g. ViewLayer.Combined; default: its beauty "
+                          "(docs/ingest.md)"));
+    return m;
+}
+
 bool parseDiffOptions(const Modifiers& mods, const std::string& cmd, DiffOptions& opt,
                       std::string& err) {
     for (const auto& [k, v] : mods) {
@@ -41,16 +57,11 @@ bool parseDiffOptions(const Modifiers& mods, const std::string& cmd, DiffOptions
                          : k == "neps"  ? &opt.normEpsilon
                                         : nullptr;
         if (target == nullptr) continue;  // not a metric's modifier (e.g. layer)
-        double d = 0.0;
-        if (!parseDouble(v, d) || d < 0.0) {
-            err = format("{}: modifier {} must be a non-negative number, not '{}'", cmd, k, v);
+        // Checked against diffModifiers() by the command table (checkModifiers).
+        if (!parseDouble(v, *target)) {
+            err = format("{}: {} is not a number: '{}'", cmd, k, v);
             return false;
         }
-        if (k == "neps" && !(d > 0.0)) {
-            err = format("{}: modifier neps must be > 0, not '{}'", cmd, v);
-            return false;
-        }
-        *target = d;
     }
     return true;
 }
@@ -346,28 +357,25 @@ std::vector<Command> buildTable() {
     // Every registry operation is a command; its modifiers are the operation's parameters.
     for (const Operation& op : operationRegistry()) {
         Command c{"--" + op.name, 0, "", op.help, {}, &cmdOperation, op.name};
-        for (const ParamSpec* p : op.settable()) c.modifiers.push_back(p->name);
-        if (hasDiagnostics(op)) c.modifiers.push_back("diag");
-        if (!takesImage(op) && !readsSamples(op)) c.modifiers.push_back("residual");
+        for (const ParamSpec* p : op.settable()) c.modifiers.push_back(*p);
+        if (hasDiagnostics(op))
+            c.modifiers.push_back(
+                flagParam("diag", "0", "1 appends channels gini, kept, excluded"));
+        if (!takesImage(op) && !readsSamples(op))
+            c.modifiers.push_back(flagParam(
+                "residual", "0",
+                "1 appends residual.<channel> = mean - result for the beauty and every AOV"));
         t.push_back(c);
     }
     t.push_back(
-        {"--diff",
-         1,
-         "REF",
+        {"--diff", 1, "REF",
          "Print relMSE, SSIM, PSNR, the firefly-pixel count and Jung's normalised bias and noise "
          "(eq. 5.25-5.27) of the top image against REF (R, G, B found by name in both)",
-         {"ratio", "floor", "eps", "neps", "layer"},
-         &cmdDiff,
-         ""});
-    t.push_back({"--ingest",
-                 1,
-                 "FILES",
+         diffModifiers(true), &cmdDiff, ""});
+    t.push_back({"--ingest", 1, "FILES",
                  "Push one statistics file built from renders of one image, one EXR per seed "
                  "(glob or comma-separated list; one sub-buffer per file, docs/ingest.md)",
-                 {"layer", "spp", "aovs", "alpha", "light", "data", "id"},
-                 &cmdIngest,
-                 ""});
+                 ingestModifiers(), &cmdIngest, ""});
     t.push_back({"--merge",
                  0,
                  "",
@@ -375,14 +383,10 @@ std::vector<Command> buildTable() {
                  {},
                  &cmdMerge,
                  ""});
-    t.push_back({"--plan",
-                 0,
-                 "",
+    t.push_back({"--plan", 0, "",
                  "Jung's error-rate planner: buffers M, windows and spp for fewer than one "
                  "overestimated pixel (docs/planner.md); needs no input",
-                 {"np", "width", "height", "json", "maxm", "maxk", "m", "p", "certainty"},
-                 &cmdPlan,
-                 ""});
+                 planParams(), &cmdPlan, ""});
     appendReviewCommands(t);  // review.cpp: contact sheet, heatmaps, quality-vs-spp plot
     t.push_back({"--dup", 0, "", "Duplicate the top of the stack", {}, &cmdDup, ""});
     t.push_back({"--pop", 0, "", "Remove the top of the stack", {}, &cmdPop, ""});
@@ -390,39 +394,48 @@ std::vector<Command> buildTable() {
     return t;
 }
 
+/// The one check of a command's modifiers: each must be one it declares, of its type and range
+/// (parseParamValue, the parser of the registry's parameters); then the defaults of those not
+/// given (an empty default: unset) are filled in, so that a command reads every value from `mods`.
+bool checkModifiers(const Command& c, Modifiers& mods, std::string& err) {
+    for (const auto& [key, text] : mods) {
+        const ParamSpec* spec = nullptr;
+        for (const ParamSpec& p : c.modifiers)
+            if (p.name == key && !p.fixed) spec = &p;
+        if (spec == nullptr) {
+            std::vector<std::string> names;
+            for (const ParamSpec& p : c.modifiers)
+                if (!p.fixed) names.push_back(p.name);
+            err = format("{} has no modifier '{}' ({})", c.name, key,
+                         names.empty() ? std::string("it takes none")
+                                       : "accepted: " + OIIO::Strutil::join(names, ", "));
+            return false;
+        }
+        ParamValue value;
+        if (!parseParamValue(c.name, *spec, text, value, err)) return false;
+    }
+    for (const ParamSpec& p : c.modifiers)
+        if (!p.fixed && !p.defaultValue.empty() && !mods.count(p.name))
+            mods[p.name] = p.defaultValue;
+    return true;
+}
+
 const std::vector<Command>& table() {
     static const std::vector<Command> t = buildTable();
     return t;
 }
 
-/// One help line per parameter: ":name=default (what it accepts; help)".
+/// One help line per parameter: ":name=default (what it accepts; help)"; text needs no "what".
 std::string paramHelp(const ParamSpec& p) {
+    if (p.type == ParamType::Text)
+        return format("\n        :{}={} ({})", p.name, p.defaultValue, p.help);
     return format("\n        :{}={} ({}; {})", p.name, p.defaultValue, describeParam(p), p.help);
 }
 
 std::string modifierHelp(const Command& c) {
     std::string s;
-    if (const Operation* op = c.operation.empty() ? nullptr : findOperation(c.operation)) {
-        for (const ParamSpec* p : op->settable()) s += paramHelp(*p);
-        if (hasDiagnostics(*op)) s += "\n        :diag=0 (1 appends channels gini, kept, excluded)";
-    } else if (c.name == "--plan") {
-        for (const ParamSpec& p : planParams()) s += paramHelp(p);
-    } else if (c.name == "--diff") {
-        s += "\n        :ratio=2 :floor=0.1 (firefly: Y > ratio*Yref and Y - Yref > floor)"
-             "\n        :eps=0.01 (relMSE denominator r^2 + eps)"
-             "\n        :neps=0.01 (normalised error denominator max(|Yref|, neps), > 0)"
-             "\n        :layer= (REF's RGB layer, e.g. ViewLayer.Combined; default: its beauty, "
-             "docs/ingest.md)";
-    } else if (c.name == "--ingest") {
-        s += "\n        :layer= (the beauty layer, e.g. ViewLayer.Combined; default: plain R,G,B, "
-             "else Blender's <ViewLayer>.Combined, else an AOV named RGBA/beauty/Ci/C)"
-             "\n        :spp= (samples per file; default: the files' metadata, mcstat:spp, "
-             "samplesPerPixel, cycles.<ViewLayer>.samples)"
-             "\n        :aovs=0 (leave out every channel but the beauty's R,G,B; default 1: keep "
-             "alpha, light groups, passes, data and ID mattes per sub-buffer, docs/aovs.md)"
-             "\n        :id=GLOB,... :data=... :light=... :alpha=... (class of the matching "
-             "channels or layers, overriding the naming rules)";
-    }
+    for (const ParamSpec& p : c.modifiers)
+        if (!p.fixed) s += paramHelp(p);
     return s;
 }
 
@@ -524,18 +537,9 @@ int run(int argc, const char* const* argv) {
                              name.c_str());
                 return 1;
             }
-            for (const auto& kv : mods) {
-                bool known = false;
-                for (const std::string& m : cmd->modifiers) known = known || m == kv.first;
-                if (!known) {
-                    std::string accepted =
-                        cmd->modifiers.empty()
-                            ? std::string("it takes none")
-                            : "accepted: " + OIIO::Strutil::join(cmd->modifiers, ", ");
-                    std::fprintf(stderr, "mcstat: %s has no modifier '%s' (%s)\n", name.c_str(),
-                                 kv.first.c_str(), accepted.c_str());
-                    return 1;
-                }
+            if (!checkModifiers(*cmd, mods, err)) {
+                std::fprintf(stderr, "mcstat: %s\n", err.c_str());
+                return 1;
             }
             if (i + cmd->nargs > argc - 1) {
                 std::fprintf(stderr, "mcstat: %s needs %d argument%s (%s)\n", name.c_str(),

@@ -43,9 +43,11 @@ struct State {
 struct Command {
     std::string name;  ///< with dashes, e.g. "--gmon"
     int nargs = 0;
-    std::string argHelp;                 ///< e.g. "FILE"
-    std::string help;                    ///< one line
-    std::vector<std::string> modifiers;  ///< accepted modifier names (documented in help)
+    std::string argHelp;  ///< e.g. "FILE"
+    std::string help;     ///< one line
+    /// The modifiers it accepts, typed: checked by the one parser (parseParamValue) before the
+    /// command runs, their defaults filled in, and --help generated from them.
+    std::vector<ParamSpec> modifiers;
     bool (*run)(State&, const std::string& cmd, const std::vector<std::string>& args,
                 const Modifiers& mods, std::string& err) = nullptr;
     std::string operation;  ///< for commands generated from the operation registry
@@ -57,6 +59,12 @@ struct Command {
 /// parseParamValue.
 bool parseInt(const std::string& s, long lo, long hi, long& out);
 bool parseDouble(const std::string& s, double& out);
+
+/// The modifiers of the metrics (ratio, floor, eps and, with `neps`, neps) and REF's `layer`, as
+/// --diff and the review commands declare them.
+std::vector<ParamSpec> diffModifiers(bool neps);
+/// --ingest's modifiers (io.cpp).
+std::vector<ParamSpec> ingestModifiers();
 
 /// The metrics' modifiers of --diff and the review commands (ratio, floor, eps, neps; others are
 /// left alone) into `opt`, whose luma the caller sets.

@@ -183,24 +183,38 @@ bool selectRGB(const OIIO::ImageBuf& src, const std::string& layer, const std::s
     return true;
 }
 
+std::vector<ParamSpec> ingestModifiers() {
+    std::vector<ParamSpec> m = {
+        textParam("layer", "",
+                  "the beauty layer, e.g. ViewLayer.Combined; default: plain R,G,B, else "
+                  "Blender's <ViewLayer>.Combined, else an AOV named RGBA/beauty/Ci/C"),
+        intParam("spp", 1, double(1 << 24), "",
+                 "samples per file; default: the files' metadata (mcstat:spp, samplesPerPixel, "
+                 "cycles.<ViewLayer>.samples)"),
+        flagParam("aovs", "1",
+                  "1 keeps alpha, light groups, passes, data and ID mattes per sub-buffer "
+                  "(docs/aovs.md); 0 leaves out every channel but the beauty's R,G,B"),
+    };
+    for (const char* cls : {"alpha", "light", "data", "id"})
+        m.push_back(
+            textParam(cls, "",
+                      std::string("GLOB,...: the matching channels or layers are of class ") + cls +
+                          ", overriding the naming rules"));
+    return m;
+}
+
 bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>& args,
                const Modifiers& mods, std::string& err) {
+    // The values are checked and the defaults filled in by the command table (checkModifiers).
     IngestOptions opt;
     for (const auto& [k, v] : mods) {
         if (k == "layer") {
             opt.layer = v;
         } else if (k == "spp") {
-            long n = 0;
-            if (!parseInt(v, 1, 1 << 24, n)) {
-                err = format("{}: modifier spp must be an integer in 1..2^24, not '{}'", cmd, v);
-                return false;
-            }
+            int64_t n = 0;
+            parseIntegerText(v, n);
             opt.spp = n;
         } else if (k == "aovs") {
-            if (v != "0" && v != "1") {
-                err = format("{}: modifier aovs must be 0 or 1, not '{}'", cmd, v);
-                return false;
-            }
             opt.aovs = v == "1";
         } else if (AovClass cls; parseAovClass(k, cls)) {
             // :id=GLOB,GLOB  :data=...  :light=...  :alpha=...  (docs/aovs.md, "Classes")

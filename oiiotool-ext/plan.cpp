@@ -52,7 +52,12 @@ const std::vector<ParamSpec>& planParams() {
             json,
             oddInt("maxm", "21", "largest buffer count M considered"),
             oddInt("maxk", "15", "largest window side k considered"),
-            oddInt("m", "3,5,7", "buffer counts of the hybrid tables, comma-separated"),
+            [&] {
+                ParamSpec m =
+                    oddInt("m", "3,5,7", "buffer counts of the hybrid tables, comma-separated");
+                m.list = true;
+                return m;
+            }(),
             real("p", 1.0, "0.001", "probability of a rare sample: the minimum spp to include one"),
             real("certainty", 1.0, "0.99", "confidence of including it, below 1"),
         };

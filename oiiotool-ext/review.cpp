@@ -48,18 +48,15 @@ bool intModifier(const Modifiers& mods, const std::string& key, long lo, long hi
     return true;
 }
 
-bool doubleModifier(const Modifiers& mods, const std::string& key, double& out,
-                    const std::string& cmd, std::string& err, bool nonNegative) {
-    auto it = mods.find(key);
-    if (it == mods.end()) return true;
-    double v = 0.0;
-    if (!parseDouble(it->second, v) || (nonNegative && v < 0.0)) {
-        err = format("{}: modifier {} must be a {}number, not '{}'", cmd, key,
-                     nonNegative ? "non-negative " : "finite ", it->second);
-        return false;
-    }
-    out = v;
-    return true;
+/// A modifier the command table has checked against its ParamSpec (checkModifiers): the value
+/// when given, `out` untouched otherwise.
+void checkedReal(const Modifiers& mods, const std::string& key, double& out) {
+    if (auto it = mods.find(key); it != mods.end()) parseRealText(it->second, out);
+}
+void checkedInt(const Modifiers& mods, const std::string& key, long& out) {
+    int64_t v = 0;
+    if (auto it = mods.find(key); it != mods.end() && parseIntegerText(it->second, v))
+        out = long(v);
 }
 
 std::string modifier(const Modifiers& mods, const std::string& key, const std::string& def) {
@@ -177,7 +174,7 @@ bool parseContactSheet(State& st, const Modifiers& mods, ContactSheet& q, std::s
     Item& top = st.stack.back();
     if (!estimatorList(modifier(mods, "estimators", "gmon"), cmd, q.listed, err)) return false;
     long scale = defaultReviewScale(top.header.width);
-    if (!intModifier(mods, "scale", 1, 64, scale, cmd, err)) return false;
+    checkedInt(mods, "scale", scale);
     q.layout.scale = int(scale);
     if (!loadStats(st, top, err)) return false;
     if (!readReference(q.refName, mods, cmd, q.ref, err)) return false;
@@ -332,23 +329,12 @@ bool cmdHeatmap(State& st, const std::string& cmd, const std::vector<std::string
     HeatmapOptions opt;
     opt.channel = modifier(mods, "channel", "");
     opt.map = modifier(mods, "map", opt.map);
-    if (!doubleModifier(mods, "min", opt.min, cmd, err, false) ||
-        !doubleModifier(mods, "max", opt.max, cmd, err, false))
-        return false;
-    if (auto it = mods.find("log"); it != mods.end()) {
-        if (it->second == "1" || it->second == "on")
-            opt.log = 1;
-        else if (it->second == "0" || it->second == "off")
-            opt.log = 0;
-        else if (it->second == "auto")
-            opt.log = -1;
-        else {
-            err = format("{}: modifier log must be 0, 1 or auto, not '{}'", cmd, it->second);
-            return false;
-        }
-    }
+    checkedReal(mods, "min", opt.min);
+    checkedReal(mods, "max", opt.max);
+    const std::string log = modifier(mods, "log", "auto");
+    opt.log = log == "1" || log == "on" ? 1 : log == "0" || log == "off" ? 0 : -1;
     long scale = defaultReviewScale(top.image->spec().width);
-    if (!intModifier(mods, "scale", 1, 64, scale, cmd, err)) return false;
+    checkedInt(mods, "scale", scale);
     opt.scale = int(scale);
     auto out = std::make_shared<OIIO::ImageBuf>();
     if (!heatmap(*out, *top.image, opt, {}, st.nthreads)) {
@@ -641,48 +627,58 @@ bool cmdQualityPlot(State& st, const std::string& cmd, const std::vector<std::st
 
 }  // namespace
 
+/// :scale=N, the integer upscaling of the review pictures.
+ParamSpec scaleModifier() {
+    return intParam("scale", 1, 64, "", "integer tile upscaling; default: tiles >= 256 px wide");
+}
+
+/// :layer=, REF's RGB layer.
+ParamSpec layerModifier() { return diffModifiers(false).back(); }
+
 void appendReviewCommands(std::vector<Command>& t) {
     t.push_back({"--contactsheet",
                  1,
                  "REF",
                  "Contact sheet of the top statistics file: mean | each estimator | REF | "
                  "relative error of the last estimator, labelled, with relMSE, SSIM, fireflies "
-                 "(docs/review.md)"
-                 "\n        :estimators=gmon (registry names, comma-separated) :scale=N (integer "
-                 "tile upscaling; default: tiles >= 256 px wide) :layer= (REF's layer)",
-                 {"estimators", "scale", "layer"},
+                 "(docs/review.md)",
+                 {textParam("estimators", "gmon", "registry names, comma-separated"),
+                  scaleModifier(), layerModifier()},
                  &cmdContactSheet,
                  ""});
-    t.push_back({"--errormap",
-                 1,
-                 "REF",
+    t.push_back({"--errormap", 1, "REF",
                  "Replace the top image by its per-pixel error against REF: channels relerr "
-                 "(relMSE's per-pixel term) and firefly (1/0)"
-                 "\n        :eps=0.01 :ratio=2 :floor=0.1 (as --diff) :layer= (REF's layer)",
-                 {"eps", "ratio", "floor", "layer"},
-                 &cmdErrorMap,
-                 ""});
+                 "(relMSE's per-pixel term) and firefly (1/0)",
+                 diffModifiers(false), &cmdErrorMap, ""});
     t.push_back({"--heatmap",
                  0,
                  "",
                  "Replace the top image by a heatmap of one channel with a colour bar "
-                 "(display-referred; NaN/Inf magenta)"
-                 "\n        :channel= (default: relerr if present, else the first) :map=inferno "
-                 "(OIIO colour map) :min= "
-                 ":max= (default: the data range)"
-                 "\n        :log=auto (auto: log10 for relerr*, else linear; 0, 1) :scale=N "
-                 "(default: >= 256 px wide)",
-                 {"channel", "map", "min", "max", "log", "scale"},
+                 "(display-referred; NaN/Inf magenta)",
+                 {textParam("channel", "", "default: relerr if present, else the first"),
+                  textParam("map", "inferno", "OIIO colour map"),
+                  realParam("min", -HUGE_VAL, HUGE_VAL, false, "", "default: the data range"),
+                  realParam("max", -HUGE_VAL, HUGE_VAL, false, "", "default: the data range"),
+                  enumParam("log", {"auto", "0", "1"}, "auto",
+                            "auto: log10 for relerr*, else linear", {{"on", "1"}, {"off", "0"}}),
+                  scaleModifier()},
                  &cmdHeatmap,
                  ""});
     t.push_back({"--qualityplot",
                  1,
                  "REF",
                  "Plot relMSE and SSIM against spp (gnuplot): the first k buffers of the top "
-                 "statistics file, or one point per statistics file on top of the stack"
-                 "\n        :estimators=mean,mon,gmon :buffers=1,3,...,M (one file: values of k) "
-                 ":csv=FILE (spp,buffers,estimator,relMSE,SSIM,PSNR,fireflies) :layer=",
-                 {"estimators", "buffers", "csv", "layer"},
+                 "statistics file, or one point per statistics file on top of the stack",
+                 {textParam("estimators", "mean,mon,gmon", "registry names, comma-separated"),
+                  [] {
+                      ParamSpec k = intParam("buffers", 1, kMaxBuffers, "",
+                                             "one file: the values of k, comma-separated, each "
+                                             "at most M; default 1,3,...,M");
+                      k.list = true;
+                      return k;
+                  }(),
+                  textParam("csv", "", "FILE: spp,buffers,estimator,relMSE,SSIM,PSNR,fireflies"),
+                  layerModifier()},
                  &cmdQualityPlot,
                  ""});
 }

@@ -334,7 +334,7 @@ TEST_F(ReviewCli, ErrorMapAndHeatmap) {
     EXPECT_NE(g.err.find("no channel 'gini' (channels: R, G, B)"), std::string::npos) << g.err;
     g = mcstat("a.mcstat --gmon --heatmap:log=2");
     EXPECT_EQ(g.code, 1);
-    EXPECT_NE(g.err.find("log must be 0, 1 or auto"), std::string::npos) << g.err;
+    EXPECT_NE(g.err.find("log must be 'auto', '0' or '1', not '2'"), std::string::npos) << g.err;
 }
 
 TEST_F(ReviewCli, QualityPlotCsvMatchesDiff) {
@@ -428,7 +428,12 @@ TEST_F(ReviewCli, QualityPlotSeveralFilesAndChosenBuffers) {
 TEST_F(ReviewCli, QualityPlotRefusals) {
     Result r = mcstat("a.mcstat --qualityplot:buffers=0,3 ref.exr");
     EXPECT_EQ(r.code, 1);
-    EXPECT_NE(r.err.find("buffers must be an integer in 1..5, not '0'"), std::string::npos)
+    EXPECT_NE(r.err.find("--qualityplot: buffers must be an integer in [1, 999], not '0'"),
+              std::string::npos)
+        << r.err;
+    r = mcstat("a.mcstat --qualityplot:buffers=3,6 ref.exr");  // the file has M = 5
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("buffers must be an integer in 1..5, not '6'"), std::string::npos)
         << r.err;
     r = mcstat("a.mcstat a.mcstat --qualityplot:buffers=3 ref.exr");
     EXPECT_EQ(r.code, 1);

@@ -229,7 +229,7 @@ TEST_F(Spatial, DiffPrintsNormalisedBiasAndNoise) {
     ASSERT_NE(b, std::string::npos) << r.out;
     EXPECT_GT(std::stod(r.out.substr(b + 6)), 0.1) << r.out;
     EXPECT_NE(mcstat(path("f.mcstat") + " --mean --diff:neps=0 " + path("f.mcstat"))
-                  .err.find("neps must be > 0"),
+                  .err.find("neps must be a finite number > 0, not '0'"),
               std::string::npos);
 }
 

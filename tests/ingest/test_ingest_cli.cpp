@@ -262,7 +262,7 @@ TEST_F(IngestCli, ErrorsAndWarningsAUserSees) {
     EXPECT_EQ(r.err, "mcstat: --ingest: '" + path("nothing*.exr") + "' matches no file\n");
     r = mcstat("--ingest:spp=0 " + path("only.exr"));
     EXPECT_EQ(r.code, 1);
-    EXPECT_EQ(r.err, "mcstat: --ingest: modifier spp must be an integer in 1..2^24, not '0'\n");
+    EXPECT_EQ(r.err, "mcstat: --ingest: spp must be an integer in [1, 16777216], not '0'\n");
     r = mcstat("--ingest:layer=ViewLayer.Diffuse " + path("only.exr"));
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.err.find(path("only.exr") + ": no channels 'ViewLayer.Diffuse.R'"),

@@ -19,6 +19,7 @@ enum class ParamType {
     Enum,  ///< one of ParamSpec::choices (or an alias of one)
     Size,  ///< "KxL" or "K" (K x K): integers in [min, max] (odd when ParamSpec::odd)
     Flag,  ///< 0 or 1 (also true/false, on/off)
+    Text,  ///< any text (a layer name, a list the command checks itself); empty default: unset
 };
 
 struct ParamSpec {
@@ -35,6 +36,8 @@ struct ParamSpec {
     /// Fixed by the operation, not a modifier: the value is always defaultValue (e.g. 3DMF's
     /// centre weight 1). Listed so that the operation's whole configuration is in the registry.
     bool fixed = false;
+    /// A comma-separated list of such values (e.g. buffer counts "3,5,7"): each is checked.
+    bool list = false;
 };
 
 /// A parsed parameter value.
@@ -75,6 +78,8 @@ ParamSpec intParam(const std::string& name, double lo, double hi, const std::str
                    const std::string& help);
 /// A 0/1 switch (also true/false, on/off).
 ParamSpec flagParam(const std::string& name, const std::string& def, const std::string& help);
+/// Any text; an empty `def` means the parameter is unset unless given.
+ParamSpec textParam(const std::string& name, const std::string& def, const std::string& help);
 /// One of `choices` (the first is not implied: `def` is the default), with other spellings.
 ParamSpec enumParam(const std::string& name, std::vector<std::string> choices,
                     const std::string& def, const std::string& help,
