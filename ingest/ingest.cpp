@@ -137,6 +137,25 @@ void channelsOf(ImageInput& in, std::vector<std::string>& names,
     if (partNames && partNames->size() == 1) partNames->front().clear();  // one part: no name
 }
 
+/// Opens a render with the reader its name says (OpenEXR for .exr) and no other. OIIO's
+/// ImageInput::open tries every format plugin in turn when that reader refuses the file, which
+/// loads dozens of libraries (measured under the fuzzer: 11 s and 2 GB for a damaged 2 KB EXR) only
+/// to report the file as something else; the named reader's own message says what is wrong.
+std::unique_ptr<ImageInput> openRender(const std::string& path, std::string& err) {
+    std::unique_ptr<ImageInput> in = ImageInput::create(path, false);
+    if (!in) {
+        err = fmt::format("{}: {}", path, oneLine(OIIO::geterror()));
+        return nullptr;
+    }
+    ImageSpec spec;
+    if (!in->open(path, spec)) {
+        const std::string why = in->geterror();
+        err = fmt::format("{}: {}", path, oneLine(why.empty() ? OIIO::geterror() : why));
+        return nullptr;
+    }
+    return in;
+}
+
 bool openInput(const std::string& path, InputFile& f, std::string& err) {
     f.path = path;
     if (!OIIO::Filesystem::is_regular(path)) {
@@ -144,11 +163,8 @@ bool openInput(const std::string& path, InputFile& f, std::string& err) {
                           OIIO::Filesystem::exists(path) ? "not a regular file" : "no such file");
         return false;
     }
-    f.in = ImageInput::open(path);
-    if (!f.in) {
-        err = fmt::format("{}: {}", path, oneLine(OIIO::geterror()));
-        return false;
-    }
+    f.in = openRender(path, err);
+    if (!f.in) return false;
     f.spec = f.in->spec();
     if (f.spec.deep) {
         err = path + ": a deep image; ingest reads flat renders (one image per seed)";
@@ -315,11 +331,8 @@ bool expandInputs(const std::string& pattern, std::vector<std::string>& paths, s
 
 bool listChannels(const std::string& path, std::vector<std::string>& names,
                   std::vector<std::pair<int, int>>& where, std::string& err) {
-    auto in = ImageInput::open(path);
-    if (!in) {
-        err = fmt::format("{}: {}", path, oneLine(OIIO::geterror()));
-        return false;
-    }
+    auto in = openRender(path, err);
+    if (!in) return false;
     channelsOf(*in, names, where);
     return true;
 }
@@ -587,12 +600,12 @@ bool allocateResult(Ingest& s, std::string& err) {
 
 /// Reopens `f` for its pixels, refusing it if it changed since its header was read.
 bool reopenInput(InputFile& f, std::string& err) {
-    f.in = ImageInput::open(f.path);
-    if (!f.in || f.in->spec().x != f.spec.x || f.in->spec().y != f.spec.y ||
+    f.in = openRender(f.path, err);
+    if (!f.in) return false;
+    if (f.in->spec().x != f.spec.x || f.in->spec().y != f.spec.y ||
         f.in->spec().width != f.spec.width || f.in->spec().height != f.spec.height ||
         f.in->spec().nchannels != f.spec.nchannels) {
-        err = f.in ? f.path + ": changed while being ingested"
-                   : fmt::format("{}: {}", f.path, oneLine(OIIO::geterror()));
+        err = f.path + ": changed while being ingested";
         return false;
     }
     return true;
