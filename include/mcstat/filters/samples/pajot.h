@@ -13,8 +13,8 @@ bool pajotSamples(const SamplesRequest& req, OperationImage& out, std::string& e
 /// Pajot's parameters from the registry entry's parsed values (method adr, rot or hybrid) and
 /// the luminance weights: what `mcstat --pajot:method=...` and mcstat-render's --pajot options
 /// go through. Method "stored" names a file's own parameters and is refused here.
-bool pajotParamsFrom(const ParamValues& values, const std::array<double, 3>& luma,
-                     PajotParams& p, std::string& err);
+bool pajotParamsFrom(const ParamValues& values, const std::array<double, 3>& luma, PajotParams& p,
+                     std::string& err);
 /// The registry entry "pajot".
 Operation pajotOperation();
 
