@@ -848,6 +848,14 @@ bool checkAttributeSizes(int fd, uint64_t fileSize, const std::string& path, std
 
 }  // namespace
 
+bool checkExrAttributeSizes(int fd, uint64_t size, const std::string& path, std::string& err) {
+    static constexpr unsigned char kMagic[4] = {0x76, 0x2f, 0x31, 0x01};
+    unsigned char magic[4] = {};
+    if (size < 8 || preadFull(fd, magic, 4, 0) != 4 || std::memcmp(magic, kMagic, 4) != 0)
+        return true;  // not OpenEXR: its own reader judges it
+    return checkAttributeSizes(fd, size, path, err);
+}
+
 bool checkStatsHeaders(int fd, uint64_t size, const std::string& path, const ReadLimits& limits,
                        StatsHeader& hdr, std::string& err) {
     static constexpr unsigned char kMagic[4] = {0x76, 0x2f, 0x31, 0x01};

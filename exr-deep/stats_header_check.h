@@ -14,5 +14,7 @@ namespace mcstat::detail {
 /// `fd` of `size` bytes. On success fills `hdr`; on failure `err` is "<path>: <problem>".
 bool checkStatsHeaders(int fd, uint64_t size, const std::string& path, const ReadLimits& limits,
                        StatsHeader& hdr, std::string& err);
+/// checkExrAttributeSizes (stats_file.h) over an open file.
+bool checkExrAttributeSizes(int fd, uint64_t size, const std::string& path, std::string& err);
 
 }  // namespace mcstat::detail

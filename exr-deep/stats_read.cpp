@@ -33,8 +33,7 @@ namespace mcstat {
 namespace {
 
 /// Opens `path` for reading and checks its headers. On success `fd` is open and `size` set.
-bool openAndCheck(const std::string& path, const ReadLimits& limits, detail::Fd& fd, uint64_t& size,
-                  StatsHeader& hdr, std::string& err) {
+bool openRegular(const std::string& path, detail::Fd& fd, uint64_t& size, std::string& err) {
     fd = detail::Fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC));
     if (fd.get() < 0) {
         err = fmt::format("{}: cannot open ({})", path, std::strerror(errno));
@@ -50,7 +49,13 @@ bool openAndCheck(const std::string& path, const ReadLimits& limits, detail::Fd&
         return false;
     }
     size = uint64_t(st.st_size);
-    return detail::checkStatsHeaders(fd.get(), size, path, limits, hdr, err);
+    return true;
+}
+
+bool openAndCheck(const std::string& path, const ReadLimits& limits, detail::Fd& fd, uint64_t& size,
+                  StatsHeader& hdr, std::string& err) {
+    return openRegular(path, fd, size, err) &&
+           detail::checkStatsHeaders(fd.get(), size, path, limits, hdr, err);
 }
 
 using detail::DeepFrameBufferSet;
@@ -315,6 +320,13 @@ bool readStatsFile(const std::string& path, StatsImage& img, std::string& err,
     if (!reader.read(0, reader.header().height, kStatsAllParts, t, err)) return false;
     img = std::move(t);
     return true;
+}
+
+bool checkExrAttributeSizes(const std::string& path, std::string& err) {
+    detail::Fd fd;
+    uint64_t size = 0;
+    return openRegular(path, fd, size, err) &&
+           detail::checkExrAttributeSizes(fd.get(), size, path, err);
 }
 
 }  // namespace mcstat

@@ -398,6 +398,13 @@ struct StatsCheckReport {
     bool openexrChecked = false;  ///< OpenEXR's own checker (exrcheck's) ran and passed
 };
 
+/// Any OpenEXR file (a renderer's render as well as a statistics file): every header attribute's
+/// claimed size against the bytes left in the file, and the structure of the attributes OpenEXR
+/// reads by structure. OpenEXR's C++ reader allocates what a header claims before reading it
+/// (gigabytes for a file of a few KB), so readers of untrusted EXRs call this first. True for a
+/// file that is not OpenEXR (not its business); false with "<path>: <problem>" otherwise.
+bool checkExrAttributeSizes(const std::string& path, std::string& err);
+
 /// Validates the statistics file `path` completely, as exrcheck does for any OpenEXR file and
 /// more (`mcstat f --check`): the headers and chunk table (as readStatsHeader), OpenEXR's own
 /// checker (Imf::checkOpenEXRFile, in its reduced-memory mode), then every row of every part
