@@ -3,16 +3,26 @@
 
 namespace mcstat {
 
-Operation pixelOperation(const std::string& name, const std::string& title, const std::string& help,
-                         const std::string& equation, std::vector<ParamSpec> params,
-                         BindPixelFn bind) {
+namespace {
+
+Operation entry(const std::string& name, const std::string& title, const std::string& help,
+                const std::string& equation, InputKind input, std::vector<ParamSpec> params) {
     Operation op;
     op.name = name;
     op.title = title;
     op.help = help;
     op.equation = equation;
-    op.input = InputKind::BufferMeans;
+    op.input = input;
     op.params = std::move(params);
+    return op;
+}
+
+}  // namespace
+
+Operation pixelOperation(const std::string& name, const std::string& title, const std::string& help,
+                         const std::string& equation, std::vector<ParamSpec> params,
+                         BindPixelFn bind) {
+    Operation op = entry(name, title, help, equation, InputKind::BufferMeans, std::move(params));
     op.bindPixel = bind;
     return op;
 }
@@ -20,24 +30,28 @@ Operation pixelOperation(const std::string& name, const std::string& title, cons
 Operation windowOperation(const std::string& name, const std::string& title,
                           const std::string& help, const std::string& equation, Neighbourhood over,
                           std::vector<ParamSpec> params, BindWindowFn bind) {
-    Operation op;
-    op.name = name;
-    op.title = title;
-    op.help = help;
-    op.equation = equation;
-    op.input = InputKind::Neighbourhood;
+    Operation op = entry(name, title, help, equation, InputKind::Neighbourhood, std::move(params));
     op.over = over;
-    op.params = std::move(params);
     op.bindWindow = bind;
     return op;
 }
 
-ParamSpec modeParam() {
-    return enumParam("mode", {"lum", "channel"}, "lum",
-                     "lum: rank buffers by luminance and return the chosen buffers' RGB, their "
-                     "weights applied to every AOV; channel: R, G, B independently, refused with "
-                     "AOVs (no one weight per buffer keeps them summing to the beauty)",
-                     {{"luminance", "lum"}, {"rgb", "channel"}});
+Operation samplesOperation(const std::string& name, const std::string& title,
+                           const std::string& help, const std::string& equation,
+                           std::vector<ParamSpec> params, SamplesFn fn) {
+    Operation op = entry(name, title, help, equation, InputKind::Samples, std::move(params));
+    op.samples = fn;
+    return op;
+}
+
+ParamSpec modeParam(const std::string& help) {
+    return enumParam(
+        "mode", {"lum", "channel"}, "lum",
+        !help.empty() ? help
+                      : "lum: rank buffers by luminance and return the chosen buffers' RGB, their "
+                        "weights applied to every AOV; channel: R, G, B independently, refused "
+                        "with AOVs (no one weight per buffer keeps them summing to the beauty)",
+        {{"luminance", "lum"}, {"rgb", "channel"}});
 }
 
 PixelParams pixelParams(const ParamValues& values, const std::array<double, 3>& luma) {

@@ -14,10 +14,7 @@ namespace {
 
 PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     const PixelParams p = pixelParams(values, luma);
-    return {[p](const PixelBuffers& px, PixelEstimate& out, EstimatorScratch& s) {
-                estimateGMoN(px, p, out, s);
-            },
-            p.mode, /*smallestRobustM=*/4};
+    return pixelKernel(p, &estimateGMoN, /*smallestRobustM=*/4);
 }
 
 }  // namespace

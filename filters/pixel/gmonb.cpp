@@ -13,13 +13,9 @@ void estimateGMoNb(const PixelBuffers& px, const GmonbParams& p, PixelEstimate& 
 namespace {
 
 PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
-    GmonbParams p;
-    static_cast<PixelParams&>(p) = pixelParams(values, luma);
+    auto p = pixelParamsAs<GmonbParams>(values, luma);
     p.threshold = values.at("threshold").real;
-    return {[p](const PixelBuffers& px, PixelEstimate& out, EstimatorScratch& s) {
-                estimateGMoNb(px, p, out, s);
-            },
-            p.mode, /*smallestRobustM=*/3};
+    return pixelKernel(p, &estimateGMoNb, /*smallestRobustM=*/3);
 }
 
 }  // namespace

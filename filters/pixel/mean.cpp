@@ -14,10 +14,7 @@ namespace {
 
 PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     const PixelParams p = pixelParams(values, luma);
-    return {[p](const PixelBuffers& px, PixelEstimate& out, EstimatorScratch& s) {
-                estimateMean(px, p, out, s);
-            },
-            p.mode, /*smallestRobustM=*/1};
+    return pixelKernel(p, &estimateMean, /*smallestRobustM=*/1);
 }
 
 }  // namespace

@@ -14,10 +14,7 @@ namespace {
 
 PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     const PixelParams p = pixelParams(values, luma);
-    return {[p](const PixelBuffers& px, PixelEstimate& out, EstimatorScratch& s) {
-                estimateMoN(px, p, out, s);
-            },
-            p.mode, /*smallestRobustM=*/3};
+    return pixelKernel(p, &estimateMoN, /*smallestRobustM=*/3);
 }
 
 }  // namespace

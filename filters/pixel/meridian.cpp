@@ -237,14 +237,10 @@ void estimateMeridian(const PixelBuffers& px, const MeridianParams& p, PixelEsti
 namespace {
 
 PixelKernel bindMeridian(const ParamValues& values, const std::array<double, 3>& luma) {
-    MeridianParams p;
-    static_cast<PixelParams&>(p) = pixelParams(values, luma);
+    auto p = pixelParamsAs<MeridianParams>(values, luma);
     p.delta = values.at("delta").real;
     p.scaleRelative = values.at("scale").text == "rel";
-    return {[p](const PixelBuffers& px, PixelEstimate& out, EstimatorScratch& s) {
-                estimateMeridian(px, p, out, s);
-            },
-            p.mode, /*smallestRobustM=*/2};
+    return pixelKernel(p, &estimateMeridian, /*smallestRobustM=*/2);
 }
 
 }  // namespace

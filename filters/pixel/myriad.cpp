@@ -239,14 +239,10 @@ void estimateMyriad(const PixelBuffers& px, const MyriadParams& p, PixelEstimate
 namespace {
 
 PixelKernel bindMyriad(const ParamValues& values, const std::array<double, 3>& luma) {
-    MyriadParams p;
-    static_cast<PixelParams&>(p) = pixelParams(values, luma);
+    auto p = pixelParamsAs<MyriadParams>(values, luma);
     p.gamma = values.at("gamma").real;
     p.scaleRelative = values.at("scale").text == "rel";
-    return {[p](const PixelBuffers& px, PixelEstimate& out, EstimatorScratch& s) {
-                estimateMyriad(px, p, out, s);
-            },
-            p.mode, /*smallestRobustM=*/2};
+    return pixelKernel(p, &estimateMyriad, /*smallestRobustM=*/2);
 }
 
 }  // namespace

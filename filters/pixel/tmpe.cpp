@@ -26,13 +26,9 @@ int firstTrimmingM(double alpha) {
 namespace {
 
 PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
-    TmpeParams p;
-    static_cast<PixelParams&>(p) = pixelParams(values, luma);
+    auto p = pixelParamsAs<TmpeParams>(values, luma);
     p.alpha = values.at("alpha").real;
-    return {[p](const PixelBuffers& px, PixelEstimate& out, EstimatorScratch& s) {
-                estimateTMPE(px, p, out, s);
-            },
-            p.mode, firstTrimmingM(p.alpha)};
+    return pixelKernel(p, &estimateTMPE, firstTrimmingM(p.alpha));
 }
 
 }  // namespace

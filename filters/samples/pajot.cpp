@@ -211,30 +211,22 @@ bool pajotSamples(const SamplesRequest& req, OperationImage& out, std::string& e
 
 // Pajot et al. 2011 (docs/pajot.md): per pixel, its samples in the order taken.
 Operation pajotOperation() {
-    Operation op;
-    op.name = "pajot";
-    op.title = "Pajot (ADR/ROT)";
-    op.help =
-        "Pajot et al.: samples above the last extended kernel-density mode of log-luminance are "
-        "delayed (Algorithm 1); from the per-sample records, or the stored online result";
-    op.equation = "Pajot et al. Algorithm 1, eq. 3-5";
-    op.input = InputKind::Samples;
-    op.samples = &pajotSamples;
-    ParamSpec method;
-    method.name = "method";
-    method.type = ParamType::Enum;
-    method.defaultValue = "stored";
-    method.choices = {"stored", "adr", "rot", "hybrid"};
-    method.help =
+    const ParamSpec method = enumParam(
+        "method", {"stored", "adr", "rot", "hybrid"}, "stored",
         "stored: the parameters of the render's online run (hybrid, n=50 when the file has only "
-        "records), the other keys ignored; adr (eq. 4), rot (eq. 5), hybrid (section 4.6)";
-    op.params = {method, intParam("n", 1, 1e6, "50", "samples of the learning phase (section 4.1)"),
-                 intParam("delayed", 0, 1e6, "64",
-                          "bound of the dubious list; when full the brightest is discarded"),
-                 intParam("t", 1, 1e6, "2", "hybrid: successive close maxima before ROT alone"),
-                 realParam("delta", 0.0, HUGE_VAL, false, "0",
-                           "hybrid: largest |m_rot - m_adr| / |m_adr| counted as close")};
-    return op;
+        "records), the other keys ignored; adr (eq. 4), rot (eq. 5), hybrid (section 4.6)");
+    return samplesOperation(
+        "pajot", "Pajot (ADR/ROT)",
+        "Pajot et al.: samples above the last extended kernel-density mode of log-luminance are "
+        "delayed (Algorithm 1); from the per-sample records, or the stored online result",
+        "Pajot et al. Algorithm 1, eq. 3-5",
+        {method, intParam("n", 1, 1e6, "50", "samples of the learning phase (section 4.1)"),
+         intParam("delayed", 0, 1e6, "64",
+                  "bound of the dubious list; when full the brightest is discarded"),
+         intParam("t", 1, 1e6, "2", "hybrid: successive close maxima before ROT alone"),
+         realParam("delta", 0.0, HUGE_VAL, false, "0",
+                   "hybrid: largest |m_rot - m_adr| / |m_adr| counted as close")},
+        &pajotSamples);
 }
 
 // Sen and Darabi 2011 (docs/rpf.md): every sample's colour, screen position, random parameters

@@ -317,16 +317,6 @@ bool rpfSamples(const SamplesRequest& req, OperationImage& out, std::string& err
 }
 
 Operation rpfOperation() {
-    Operation op;
-    op.name = "rpf";
-    op.title = "RPF";
-    op.help =
-        "random parameter filtering (Sen & Darabi): cross-bilateral filter of the per-sample "
-        "records weighted by the mutual information of colour and features with the random "
-        "parameters; needs mcstat-render --keep-samples";
-    op.equation = "Sen & Darabi Algorithms 1-4, eq. 1-20";
-    op.input = InputKind::Samples;
-    op.samples = &rpfSamples;
     const ParamSpec spikes =
         flagParam("spikes", "0",
                   "section 6.1 (for path-traced scenes with small bright lights, as "
@@ -338,23 +328,29 @@ Operation rpfOperation() {
                   "add the first pass's dependency maps (the report's Fig. 6): channels "
                   "rpf.colourOnRandom (eq. 11), rpf.textureOnRandom (eq. 9), rpf.alpha (eq. 15), "
                   "rpf.textureBeta (eq. 16), rpf.neighbours (|N|)");
-    op.params = {
-        realParam("sigma8", 0.0, 1e6, true, "0.002",
-                  "sigma_8^2 of section 6 (bilateral variance at 8 spp; the report uses 0.02 "
-                  "for noisy indoor path tracing)"),
-        realParam("samples", 0.0, 64.0, true, "0.5",
-                  "at most box^2 x spp x this samples per neighbourhood (Algorithm 1 line 8)"),
-        intParam("max", 1, 1e7, "16384",
-                 "but never more than this many (a pixel costs its samples x |N|)"),
-        intParam("passes", 1, 4, "4", "passes with boxes 55, 35, 17, 7 (section 3.2)"),
-        spikes,
-        intParam("seed", 0, 2147483647, "0", "seed of the neighbourhoods' random draws"),
-        maps,
-        intParam("rows", 0, 1e6, "0",
-                 "output rows per block (0: as many as fit in about 256 MiB of samples); the "
-                 "result does not depend on it"),
-    };
-    return op;
+    return samplesOperation(
+        "rpf", "RPF",
+        "random parameter filtering (Sen & Darabi): cross-bilateral filter of the per-sample "
+        "records weighted by the mutual information of colour and features with the random "
+        "parameters; needs mcstat-render --keep-samples",
+        "Sen & Darabi Algorithms 1-4, eq. 1-20",
+        {
+            realParam("sigma8", 0.0, 1e6, true, "0.002",
+                      "sigma_8^2 of section 6 (bilateral variance at 8 spp; the report uses 0.02 "
+                      "for noisy indoor path tracing)"),
+            realParam("samples", 0.0, 64.0, true, "0.5",
+                      "at most box^2 x spp x this samples per neighbourhood (Algorithm 1 line 8)"),
+            intParam("max", 1, 1e7, "16384",
+                     "but never more than this many (a pixel costs its samples x |N|)"),
+            intParam("passes", 1, 4, "4", "passes with boxes 55, 35, 17, 7 (section 3.2)"),
+            spikes,
+            intParam("seed", 0, 2147483647, "0", "seed of the neighbourhoods' random draws"),
+            maps,
+            intParam("rows", 0, 1e6, "0",
+                     "output rows per block (0: as many as fit in about 256 MiB of samples); the "
+                     "result does not depend on it"),
+        },
+        &rpfSamples);
 }
 
 }  // namespace mcstat

@@ -8,6 +8,8 @@
 #include <cstring>
 #include <limits>
 
+#include "mcstat/filters/operation.h"
+
 namespace mcstat {
 
 bool validateSpatialParams(const SpatialParams& p, std::string& err) {
@@ -146,11 +148,9 @@ ParamSpec breakdownParam(const std::string& def, bool fixed) {
 }
 
 ParamSpec windowModeParam() {
-    return enumParam(
-        "mode", {"lum", "channel"}, "lum",
-        "lum: rank by luminance, return the chosen pixels'/buffers' RGB, their weights "
-        "applied to every AOV; channel: R, G, B independently, refused with AOVs",
-        {{"luminance", "lum"}, {"rgb", "channel"}});
+    return modeParam(
+        "lum: rank by luminance, return the chosen pixels'/buffers' RGB, their weights applied to "
+        "every AOV; channel: R, G, B independently, refused with AOVs");
 }
 
 SpatialParams spatialParams(const ParamValues& values, const std::array<double, 3>& luma) {

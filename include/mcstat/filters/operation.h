@@ -55,6 +55,20 @@ struct PixelKernel {
 /// weights (from the colour config) to the operation's own parameter struct and kernel.
 using BindPixelFn = PixelKernel (*)(const ParamValues& values, const std::array<double, 3>& luma);
 
+/// The kernel of estimator `estimate` (a function of the pixel, `Params` and the output) with
+/// `params` bound: what every BufferMeans operation's bind returns. `Params` derives from
+/// PixelParams (its mode decides the diagnostics and whether weights exist).
+template <class Params>
+PixelKernel pixelKernel(const Params& params,
+                        void (*estimate)(const PixelBuffers&, const Params&, PixelEstimate&,
+                                         EstimatorScratch&),
+                        int smallestRobustM) {
+    return {[params, estimate](const PixelBuffers& px, PixelEstimate& out, EstimatorScratch& s) {
+                estimate(px, params, out, s);
+            },
+            params.mode, smallestRobustM};
+}
+
 /// A Neighbourhood operation with its parameters bound: a weighted trimmed mean over the window.
 struct WindowKernel {
     Neighbourhood over = Neighbourhood::None;
@@ -115,14 +129,27 @@ struct Operation {
 Operation pixelOperation(const std::string& name, const std::string& title, const std::string& help,
                          const std::string& equation, std::vector<ParamSpec> params,
                          BindPixelFn bind);
+/// A Samples operation's entry.
+Operation samplesOperation(const std::string& name, const std::string& title,
+                           const std::string& help, const std::string& equation,
+                           std::vector<ParamSpec> params, SamplesFn fn);
 /// A Neighbourhood operation's entry.
 Operation windowOperation(const std::string& name, const std::string& title,
                           const std::string& help, const std::string& equation, Neighbourhood over,
                           std::vector<ParamSpec> params, BindWindowFn bind);
 
-/// Parameter "mode" of every operation that ranks colours (lum / channel).
-ParamSpec modeParam();
+/// Parameter "mode" of every operation that ranks colours (lum / channel), with the per-pixel
+/// estimators' help unless given another.
+ParamSpec modeParam(const std::string& help = "");
 /// PixelParams (mode, luma) from parsed values that hold "mode" (or not: luminance).
 PixelParams pixelParams(const ParamValues& values, const std::array<double, 3>& luma);
+/// An estimator's own `Params` (derived from PixelParams) with its PixelParams part from `values`;
+/// the caller fills in the rest.
+template <class Params>
+Params pixelParamsAs(const ParamValues& values, const std::array<double, 3>& luma) {
+    Params p;
+    static_cast<PixelParams&>(p) = pixelParams(values, luma);
+    return p;
+}
 
 }  // namespace mcstat
