@@ -39,6 +39,16 @@ class DeepFrameBufferSet {
                                   xs * size_t(h_.width), sampleStride));
         return ptr_.size() - 1;
     }
+    /// Channels 0..nc-1 of every pixel at its first record in `records` (nc floats per record,
+    /// every pixel's records contiguous in scanline order, `counts` of them): the layout of
+    /// records and of an operation's state. A pixel without records points nowhere.
+    void pointContiguous(const float* records, const uint32_t* counts, size_t pixels, size_t nc) {
+        size_t k = 0;
+        for (size_t p = 0; p < pixels; ++p) {
+            for (size_t c = 0; c < nc; ++c) point(c, p, counts[p] ? records + k * nc + c : nullptr);
+            k += counts[p];
+        }
+    }
     /// Pixel p's first sample of channel c is at `at`.
     void point(size_t c, size_t p, const void* at) {
         ptr_[c][p] = static_cast<char*>(const_cast<void*>(at));

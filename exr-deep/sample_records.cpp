@@ -83,16 +83,12 @@ struct RecordPointers {
     /// Points every pixel at its samples (after the counts are known and the samples allocated).
     void point(SampleBlock& b) {
         const size_t nc = b.stride();
+        set.pointContiguous(b.samples.data(), b.counts.data(), b.counts.size(), nc);
+        if (!withA) return;
         uint32_t most = 0;
         for (uint32_t c : b.counts) most = std::max(most, c);
-        if (withA) ones.assign(std::max<size_t>(most, 1), 1.f);
-        size_t offset = 0;
-        for (size_t p = 0; p < b.counts.size(); ++p) {
-            float* s = b.samples.data() + offset * nc;
-            for (size_t c = 0; c < nc; ++c) set.point(c, p, b.counts[p] ? s + c : nullptr);
-            if (withA) set.point(nc, p, ones.data());
-            offset += b.counts[p];
-        }
+        ones.assign(std::max<size_t>(most, 1), 1.f);
+        for (size_t p = 0; p < b.counts.size(); ++p) set.point(nc, p, ones.data());
     }
     Imf::DeepFrameBuffer& fb() { return set.frameBuffer(); }
 };
@@ -430,12 +426,8 @@ std::unique_ptr<DeepFrameBufferSet> stateDeepFrameBuffer(const StatsHeader& h,
 /// contiguous, in scanline order, as `s.recordCounts` says).
 void pointRecords(const PixelStateParts& s, DeepFrameBufferSet& set) {
     if (s.records.empty()) return;  // no records: the pointers stay null
-    const size_t nc = s.recordChannels.size();
-    size_t k = 0;
-    for (size_t p = 0; p < s.recordCounts.size(); ++p) {
-        for (size_t c = 0; c < nc; ++c) set.point(c, p, s.records.data() + k * nc + c);
-        k += s.recordCounts[p];
-    }
+    set.pointContiguous(s.records.data(), s.recordCounts.data(), s.recordCounts.size(),
+                        s.recordChannels.size());
 }
 
 }  // namespace
@@ -524,9 +516,10 @@ void writeExtraParts(Imf::MultiPartOutputFile& out, const StatsImage& img,
 }  // namespace detail
 
 bool readPixelStateParts(const std::string& path, PixelStateParts& out, std::string& err,
-                         const ReadLimits& limits) {
+                         const ReadLimits& limits, StatsHeader* header) {
     StatsHeader h;
     if (!readStatsHeader(path, h, err, limits)) return false;
+    if (header) *header = h;
     if (!h.hasPajot) {
         err = path +
               ": no Pajot state (parts 'pajot' and 'modes'); render with mcstat-render "

@@ -229,8 +229,7 @@ bool readPajotParts(const std::string& path, PajotImage& out, std::string& err,
                     const ReadLimits& limits) {
     StatsHeader h;
     PixelStateParts parts;
-    if (!readStatsHeader(path, h, err, limits) || !readPixelStateParts(path, parts, err, limits))
-        return false;
+    if (!readPixelStateParts(path, parts, err, limits, &h)) return false;
     if (!decodePajotState(parts, h.width, out, err)) {
         err = path + ": " + err;
         return false;

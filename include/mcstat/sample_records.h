@@ -186,8 +186,9 @@ std::unique_ptr<SampleSource> openSampleSource(const std::string& path, std::str
 
 /// Reads parts `pajot` and `modes` of a statistics file (the whole state: small next to records),
 /// their sizes checked against the limits before anything is allocated. An error names the file;
-/// a file without the parts is one ("render with mcstat-render --pajot").
+/// a file without the parts is one ("render with mcstat-render --pajot"). With `header`, the
+/// file's headers (read and checked on the way) too.
 bool readPixelStateParts(const std::string& path, PixelStateParts& out, std::string& err,
-                         const ReadLimits& limits = ReadLimits());
+                         const ReadLimits& limits = ReadLimits(), StatsHeader* header = nullptr);
 
 }  // namespace mcstat
