@@ -11,7 +11,7 @@ set(MCSTAT_INSTALL_PLUGINDIR "${CMAKE_INSTALL_LIBDIR}/OpenImageIO-plugins"
     CACHE STRING "Where mcstat.imageio.so goes; point OIIO_LIBRARY_PATH at it")
 
 set(_mcstat_libs mcstat_core mcstat_filters mcstat_exrdeep mcstat_color mcstat_analysis mcstat_imageops
-                 mcstat_review mcstat_ingest)
+                 mcstat_review mcstat_compare mcstat_ingest)
 foreach(_lib IN LISTS _mcstat_libs)
   string(REPLACE "mcstat_" "" _export_name "${_lib}")
   set_target_properties(${_lib} PROPERTIES EXPORT_NAME ${_export_name})

@@ -372,6 +372,13 @@ std::vector<Command> buildTable() {
          "Print relMSE, SSIM, PSNR, the firefly-pixel count and Jung's normalised bias and noise "
          "(eq. 5.25-5.27) of the top image against REF (R, G, B found by name in both)",
          diffModifiers(true), &cmdDiff, ""});
+    t.push_back({"--compare", 0, "",
+                 "Are the top two renders the same image up to their noise? Per pixel and tile "
+                 "tests on the sub-buffers of two statistics files (or one and a reference "
+                 "image), false discovery rate controlled; prints the verdict and evidence, "
+                 "replaces both by the maps p, z, effect, differs; exit status 2 when they "
+                 "differ (docs/compare.md)",
+                 compareModifiers(), &cmdCompare, ""});
     t.push_back({"--ingest", 1, "FILES",
                  "Push one statistics file built from renders of one image, one EXR per seed "
                  "(glob or comma-separated list; one sub-buffer per file, docs/ingest.md)",
@@ -561,7 +568,7 @@ int run(int argc, const char* const* argv) {
             return 1;
         }
     }
-    return 0;
+    return st.exitStatus;
 }
 
 }  // namespace mcstat::cli

@@ -38,6 +38,9 @@ struct State {
     std::vector<Item> stack;
     int nthreads = 0;  ///< 0: all cores
     bool verbose = false;
+    /// The process's exit status once every command has run: 2 when a --compare found the two
+    /// renders different (idiff's FAILURE), else 0. Errors stop the run with 1 at once.
+    int exitStatus = 0;
 };
 
 struct Command {
@@ -123,6 +126,12 @@ bool selectRGB(const OIIO::ImageBuf& src, const std::string& layer, const std::s
 /// Spec attribute (int 1) marking an image whose pixels are already display-referred (contact
 /// sheets, heatmaps, plots): -o writes them as they are, without the OCIO display view.
 inline constexpr const char* kDisplayReferredAttr = "mcstat:displayReferred";
+
+// Implemented in compare.cpp: the noise-aware comparison (docs/compare.md).
+bool cmdCompare(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
+                std::string&);
+/// --compare's modifiers: the test, its level and control, what is tested, tiles, tolerances.
+const std::vector<ParamSpec>& compareModifiers();
 
 // Implemented in plan.cpp: Jung's error-rate planner (docs/planner.md); needs nothing on the stack.
 bool cmdPlan(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,

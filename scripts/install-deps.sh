@@ -10,6 +10,7 @@ packages=(
   libopencolorio-dev                     # display transforms and luma coefficients
   libembree-dev libtbb-dev               # the fixture renderer's ray tracing
   libfmt-dev nlohmann-json3-dev          # formatting, scene files
+  libboost-math1.74-dev                  # --compare: Student t and normal distributions (header-only Boost.Math)
   libgtest-dev libbenchmark-dev          # tests and benchmarks
   gnuplot-nox                            # mcstat --qualityplot draws its plot with gnuplot (pngcairo)
   fonts-dejavu-core                      # OIIO's render_text needs a font: DejaVuSans labels the review pictures

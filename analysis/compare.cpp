@@ -1,0 +1,781 @@
+// Noise-aware comparison of two renders from their sub-buffers (include/mcstat/analysis/compare.h,
+// docs/compare.md). Both sides are read by the same blocks of rows, aligned to the tiles, so a
+// tile is always whole inside one block; a block's tiles are the parallel tasks, each testing its
+// pixels and then itself. The multiple-testing threshold needs every p-value, so they are kept (4
+// bytes per hypothesis) with the maps; the sub-buffers are not.
+#include "mcstat/analysis/compare.h"
+
+#include <fmt/format.h>
+#include <fnmatch.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <numeric>
+
+#include "mcstat/core/parallel.h"
+#include "mcstat/image/imageops.h"
+
+namespace mcstat {
+
+namespace {
+
+constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
+
+/// What is tested per pixel: the luminance, a colour channel or an AOV channel.
+struct Quantity {
+    enum Kind { Luminance, Channel, Aov } kind = Luminance;
+    int channel = 0;         ///< R, G, B index (Channel)
+    int aovA = 0, aovB = 0;  ///< AOV index in each side's header (Aov)
+    std::string name;        ///< "luminance", "R", the AOV's name
+    std::string suffix;      ///< map channel suffix: "", ".R", ".<aov>"
+};
+
+/// One side of the comparison: a statistics source read by blocks, or a reference image.
+struct Side {
+    StatsBlockSource* src = nullptr;
+    const OIIO::ImageBuf* ref = nullptr;
+    std::vector<float> refRGB;  ///< the reference's R, G, B, row by row from its data window
+    StatsImage block;
+    int aovCount = 0;
+};
+
+/// Buffer values of quantity `q` of pixel p (local to the block) of a statistics side.
+void gatherBuffers(const Side& s, const Quantity& q, bool sideB, size_t p,
+                   const std::array<double, 3>& luma, std::vector<double>& values,
+                   std::vector<double>& counts) {
+    const PixelBuffers pb = s.block.pixelBuffers(p);
+    values.resize(size_t(pb.M));
+    counts.resize(size_t(pb.M));
+    const size_t k0 = s.block.bufferBegin(p);
+    for (int j = 0; j < pb.M; ++j) {
+        const float* m = pb.mean + size_t(j) * 3;
+        double v = 0.0;
+        switch (q.kind) {
+            case Quantity::Luminance:
+                v = luma[0] * double(m[0]) + luma[1] * double(m[1]) + luma[2] * double(m[2]);
+                break;
+            case Quantity::Channel:
+                v = double(m[q.channel]);
+                break;
+            case Quantity::Aov:
+                v = double(s.block.aov[(k0 + size_t(j)) * size_t(s.aovCount) +
+                                       size_t(sideB ? q.aovB : q.aovA)]);
+                break;
+        }
+        values[size_t(j)] = v;
+        counts[size_t(j)] = double(pb.count[j]);
+    }
+}
+
+/// The reference image's value of quantity `q` at pixel (x, y) of the block's rows.
+double referenceValue(const Side& s, const Quantity& q, int x, int y,
+                      const std::array<double, 3>& luma) {
+    const float* rgb = &s.refRGB[(size_t(y) * size_t(s.ref->roi().width()) + size_t(x)) * 3];
+    if (q.kind == Quantity::Channel) return double(rgb[q.channel]);
+    return luma[0] * double(rgb[0]) + luma[1] * double(rgb[1]) + luma[2] * double(rgb[2]);
+}
+
+/// Counts and findings of the tasks, merged under a mutex.
+struct Tally {
+    size_t pixelsTested = 0, nonFiniteOneSide = 0, nonFiniteBoth = 0, constantEqual = 0;
+    size_t tilesTested = 0;
+    bool allZero = true;  ///< every difference tested was exactly 0
+};
+
+class Comparison {
+  public:
+    Comparison(Side& a, Side& b, const CompareOptions& opt, CompareResult& out)
+        : a_(a), b_(b), opt_(opt), out_(out) {}
+
+    bool run(std::string& err);
+
+  private:
+    bool resolveQuantities(std::string& err);
+    bool processBlock(int row0, int rows, std::string& err);
+    void testTile(int tx, int ty, int row0, Tally& tally);
+    SideSummary summarize(const std::vector<double>& v, const std::vector<double>& c) const {
+        return opt_.trimmed ? trimmedSummary(v.data(), c.data(), int(v.size()), opt_.trim)
+                            : meanSummary(v.data(), c.data(), int(v.size()));
+    }
+    double margin(double ea, double eb) const {
+        return std::max(opt_.tol, opt_.reltol * std::fabs(0.5 * (ea + eb)));
+    }
+    /// Folds a one-sample comparison's reference noise into b's variance (see compare.h).
+    void referenceNoise(SideSummary& sb, double samples) const {
+        if (opt_.referenceSpp > 0.0 && samples > 0.0)
+            sb.variance *= 1.0 + samples / opt_.referenceSpp;
+    }
+    void finish();
+    void buildMaps();
+
+    Side& a_;
+    Side& b_;
+    const CompareOptions& opt_;
+    CompareResult& out_;
+    std::vector<Quantity> q_;
+    int tilesX_ = 0, tilesY_ = 0, taskSide_ = 16;
+    size_t P_ = 0, T_ = 0;
+    // Per quantity q: pixel arrays [q * P + p], tile arrays [q * T + t].
+    std::vector<float> p_, z_, effect_, aEst_, tileP_, tileZ_, tileEffect_, tileA_;
+    std::vector<float> tileDf_, pixelDf_;
+    std::vector<uint8_t> pixelNonFinite_;  ///< 1 one side, 2 both
+    Tally tally_;
+    std::mutex mutex_;
+};
+
+bool Comparison::resolveQuantities(std::string& err) {
+    if (opt_.rgb) {
+        const char* names[3] = {"R", "G", "B"};
+        for (int c = 0; c < 3; ++c) {
+            Quantity q;
+            q.kind = Quantity::Channel;
+            q.channel = c;
+            q.name = names[c];
+            q.suffix = std::string(".") + names[c];
+            q_.push_back(q);
+        }
+    } else {
+        Quantity q;
+        q.name = "luminance";
+        q_.push_back(q);
+    }
+    if (opt_.aovs.empty()) return true;
+    if (a_.ref) {
+        err = "AOVs cannot be compared against a reference image (it has no sub-buffers)";
+        return false;
+    }
+    const StatsHeader& ha = a_.src->header();
+    const StatsHeader& hb = b_.src->header();
+    for (const std::string& pattern : opt_.aovs) {
+        bool matched = false;
+        for (size_t i = 0; i < ha.aovs.size(); ++i) {
+            const std::string& name = ha.aovs[i].name;
+            if (fnmatch(pattern.c_str(), name.c_str(), 0) != 0) continue;
+            matched = true;
+            if (std::any_of(q_.begin(), q_.end(), [&](const Quantity& e) {
+                    return e.kind == Quantity::Aov && e.name == name;
+                }))
+                continue;
+            const int ib = hb.aovIndex(name);
+            if (ib < 0) {
+                err = fmt::format("{} has AOV '{}', {} has not", a_.src->name(), name,
+                                  b_.src->name());
+                return false;
+            }
+            Quantity q;
+            q.kind = Quantity::Aov;
+            q.aovA = int(i);
+            q.aovB = ib;
+            q.name = name;
+            q.suffix = "." + name;
+            q_.push_back(q);
+        }
+        if (!matched) {
+            std::vector<std::string> names;
+            for (const AovChannel& c : ha.aovs) names.push_back(c.name);
+            err = fmt::format("AOV '{}' matches none of {}'s AOV channels ({})", pattern,
+                              a_.src->name(),
+                              names.empty() ? std::string("it has none")
+                                            : fmt::format("{}", fmt::join(names, ", ")));
+            return false;
+        }
+    }
+    return true;
+}
+
+void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
+    const int W = out_.width;
+    const int x0 = tx * taskSide_, x1 = std::min(W, x0 + taskSide_);
+    const int y0 = ty * taskSide_, y1 = std::min(out_.height, y0 + taskSide_);
+    const bool tiles = out_.tile > 0;
+    std::vector<double> va, ca, vb, cb;
+    // Tile sums per quantity and buffer: mean values and counts over the tile's pixels.
+    const size_t Ma = size_t(a_.ref ? 0 : out_.Ma), Mb = size_t(out_.Mb);
+    const size_t Q = q_.size();
+    std::vector<double> sumA(Q * Ma, 0.0), cntA(Q * Ma, 0.0), sumB(Q * Mb, 0.0), cntB(Q * Mb, 0.0),
+        refSum(Q, 0.0);
+    std::vector<uint8_t> tileBad(Q, 0);
+    for (int y = y0; y < y1; ++y) {
+        for (int x = x0; x < x1; ++x) {
+            const size_t local = size_t(y - row0) * size_t(W) + size_t(x);
+            const size_t pix = size_t(y) * size_t(W) + size_t(x);
+            uint8_t nonFinite = 0;
+            bool tested = false;
+            for (size_t qi = 0; qi < Q; ++qi) {
+                const Quantity& q = q_[qi];
+                SideSummary sa, sb;
+                gatherBuffers(b_, q, true, local, opt_.luma, vb, cb);
+                sb = summarize(vb, cb);
+                double nb = 0.0;
+                for (double c : cb) nb += c > 0.0 ? c : 0.0;
+                if (a_.ref) {
+                    const double r = referenceValue(a_, q, x, y, opt_.luma);
+                    sa = exactSummary(r);
+                    referenceNoise(sb, nb);
+                    if (tiles) refSum[qi] += r;
+                } else {
+                    gatherBuffers(a_, q, false, local, opt_.luma, va, ca);
+                    sa = summarize(va, ca);
+                }
+                if (tiles) {
+                    if (!sa.finite || !sb.finite) tileBad[qi] = 1;
+                    for (size_t j = 0; j < Ma; ++j) {
+                        sumA[qi * Ma + j] += va[j];
+                        cntA[qi * Ma + j] += ca[j];
+                    }
+                    for (size_t j = 0; j < Mb; ++j) {
+                        sumB[qi * Mb + j] += vb[j];
+                        cntB[qi * Mb + j] += cb[j];
+                    }
+                }
+                const size_t h = qi * P_ + pix;
+                aEst_[h] = float(sa.estimate);
+                if (!sa.finite || !sb.finite) {
+                    // NaN / Inf on one side only: the renderer changed (p = 0); on both: untested.
+                    const bool one = sa.finite != sb.finite;
+                    nonFinite = std::max<uint8_t>(nonFinite, one ? 1 : 2);
+                    p_[h] = one ? 0.f : kNaNf;
+                    z_[h] = kNaNf;
+                    effect_[h] = kNaNf;
+                    if (one) tally.allZero = false;
+                    continue;
+                }
+                const TwoSampleResult r =
+                    welchTest(sa, sb, margin(sa.estimate, sb.estimate), opt_.test);
+                p_[h] = float(r.p);
+                z_[h] = float(r.z);
+                effect_[h] = float(r.difference);
+                pixelDf_[h] = float(r.df);
+                if (std::isnan(r.p)) continue;
+                tested = true;
+                if (r.difference != 0.0) tally.allZero = false;
+                if (r.se == 0.0 && r.difference == 0.0) ++tally.constantEqual;
+            }
+            if (nonFinite == 1) ++tally.nonFiniteOneSide;
+            if (nonFinite == 2) ++tally.nonFiniteBoth;
+            if (nonFinite == 1 || tested) ++tally.pixelsTested;
+            pixelNonFinite_[pix] = nonFinite;
+        }
+    }
+    if (!tiles) return;
+    const size_t t = size_t(ty) * size_t(tilesX_) + size_t(tx);
+    const double n = double(x1 - x0) * double(y1 - y0);
+    bool tested = false;
+    for (size_t qi = 0; qi < Q; ++qi) {
+        const size_t h = qi * T_ + t;
+        tileP_[h] = tileZ_[h] = tileEffect_[h] = tileA_[h] = kNaNf;
+        if (tileBad[qi]) continue;
+        // The tile's value in buffer j: the mean over its pixels of their buffer-j values, with the
+        // mean count; buffers stay independent, so the tile is tested as a pixel is.
+        for (size_t j = 0; j < Ma; ++j) {
+            sumA[qi * Ma + j] /= n;
+            cntA[qi * Ma + j] /= n;
+        }
+        for (size_t j = 0; j < Mb; ++j) {
+            sumB[qi * Mb + j] /= n;
+            cntB[qi * Mb + j] /= n;
+        }
+        vb.assign(sumB.begin() + long(qi * Mb), sumB.begin() + long((qi + 1) * Mb));
+        cb.assign(cntB.begin() + long(qi * Mb), cntB.begin() + long((qi + 1) * Mb));
+        SideSummary sb = summarize(vb, cb), sa;
+        if (a_.ref) {
+            sa = exactSummary(refSum[qi] / n);
+            double nb = 0.0;
+            for (double c : cb) nb += c > 0.0 ? c : 0.0;
+            referenceNoise(sb, nb);
+        } else {
+            va.assign(sumA.begin() + long(qi * Ma), sumA.begin() + long((qi + 1) * Ma));
+            ca.assign(cntA.begin() + long(qi * Ma), cntA.begin() + long((qi + 1) * Ma));
+            sa = summarize(va, ca);
+        }
+        const TwoSampleResult r = welchTest(sa, sb, margin(sa.estimate, sb.estimate), opt_.test);
+        tileP_[h] = float(r.p);
+        tileZ_[h] = float(r.z);
+        tileEffect_[h] = float(r.difference);
+        tileA_[h] = float(sa.estimate);
+        tileDf_[h] = float(r.df);
+        if (!std::isnan(r.p)) tested = true;
+    }
+    if (tested) ++tally.tilesTested;
+}
+
+bool Comparison::processBlock(int row0, int rows, std::string& err) {
+    const bool aovs = std::any_of(q_.begin(), q_.end(),
+                                  [](const Quantity& q) { return q.kind == Quantity::Aov; });
+    const unsigned parts = kStatsPartBuffers | (aovs ? kStatsPartAovs : 0u);
+    if (b_.src && !b_.src->read(row0, rows, parts, b_.block, err)) return false;
+    if (a_.src && !a_.src->read(row0, rows, parts, a_.block, err)) return false;
+    const int ty0 = row0 / taskSide_;
+    const int ty1 = (row0 + rows + taskSide_ - 1) / taskSide_;
+    const int64_t tasks = int64_t(ty1 - ty0) * tilesX_;
+    parallelFor(0, tasks, 1, opt_.nthreads, [&](int64_t begin, int64_t end) {
+        for (int64_t i = begin; i < end; ++i) {
+            Tally t;
+            testTile(int(i % tilesX_), ty0 + int(i / tilesX_), row0, t);
+            const std::lock_guard<std::mutex> lock(mutex_);
+            tally_.pixelsTested += t.pixelsTested;
+            tally_.nonFiniteOneSide += t.nonFiniteOneSide;
+            tally_.nonFiniteBoth += t.nonFiniteBoth;
+            tally_.constantEqual += t.constantEqual;
+            tally_.tilesTested += t.tilesTested;
+            tally_.allZero = tally_.allZero && t.allZero;
+        }
+    });
+    return true;
+}
+
+int gcdInt(int a, int b) { return b == 0 ? a : gcdInt(b, a % b); }
+
+bool Comparison::run(std::string& err) {
+    if (!resolveQuantities(err)) return false;
+    out_.quantities.clear();
+    for (const Quantity& q : q_) out_.quantities.push_back(q.name);
+    taskSide_ = out_.tile > 0 ? out_.tile : 16;
+    tilesX_ = (out_.width + taskSide_ - 1) / taskSide_;
+    tilesY_ = (out_.height + taskSide_ - 1) / taskSide_;
+    P_ = size_t(out_.width) * size_t(out_.height);
+    T_ = out_.tile > 0 ? size_t(tilesX_) * size_t(tilesY_) : 0;
+    const size_t Q = q_.size();
+    p_.assign(Q * P_, kNaNf);
+    z_.assign(Q * P_, kNaNf);
+    effect_.assign(Q * P_, kNaNf);
+    aEst_.assign(Q * P_, kNaNf);
+    pixelDf_.assign(Q * P_, kNaNf);
+    pixelNonFinite_.assign(P_, 0);
+    tileP_.assign(Q * T_, kNaNf);
+    tileZ_.assign(Q * T_, kNaNf);
+    tileEffect_.assign(Q * T_, kNaNf);
+    tileA_.assign(Q * T_, kNaNf);
+    tileDf_.assign(Q * T_, kNaNf);
+
+    // Blocks of rows: whole tiles, whole chunks of both files (no chunk decoded twice), about
+    // 64 MB of decoded buffers per side.
+    int align = taskSide_;
+    for (StatsBlockSource* s : {a_.src, b_.src}) {
+        if (!s) continue;
+        const int c = std::max(1, s->chunkRows());
+        align = align / gcdInt(align, c) * c;
+    }
+    int rows = 0;
+    for (StatsBlockSource* s : {a_.src, b_.src})
+        if (s) rows = std::max(rows, s->blockRows(kStatsPartBuffers));
+    rows = std::max(align, (rows + align - 1) / align * align);
+    for (int row0 = 0; row0 < out_.height; row0 += rows) {
+        const int n = std::min(rows, out_.height - row0);
+        if (!processBlock(row0, n, err)) return false;
+        if (opt_.progress) opt_.progress(double(row0 + n) / out_.height);
+    }
+    finish();
+    buildMaps();
+    return true;
+}
+
+void Comparison::finish() {
+    out_.pixels = P_;
+    out_.tiles = T_;
+    out_.pixelsTested = tally_.pixelsTested;
+    out_.tilesTested = tally_.tilesTested;
+    out_.nonFiniteOneSide = tally_.nonFiniteOneSide;
+    out_.nonFiniteBoth = tally_.nonFiniteBoth;
+    out_.constantEqual = tally_.constantEqual;
+    out_.identical = tally_.allZero && tally_.pixelsTested > 0 && tally_.nonFiniteOneSide == 0;
+
+    const bool equivalence = opt_.test == TwoSampleTest::Equivalence;
+    // The family. Difference: every pixel and tile hypothesis, one control over all of them.
+    // Equivalence: the intersection-union principle (Berger, Statistical Science 17(4), 1996)
+    // shows "all agree" when every hypothesis is rejected at the level itself, with no
+    // correction; the tiles when there are any (a single pixel's noise rarely allows it), else
+    // the pixels.
+    std::vector<float> family;
+    if (!equivalence) {
+        family.reserve(p_.size() + tileP_.size());
+        family.insert(family.end(), p_.begin(), p_.end());
+        family.insert(family.end(), tileP_.begin(), tileP_.end());
+        out_.threshold = rejectionThreshold(family, opt_.level, opt_.control, &out_.hypotheses);
+    } else {
+        const std::vector<float>& f = T_ > 0 ? tileP_ : p_;
+        out_.threshold = rejectionThreshold(f, opt_.level, Multiplicity::None, &out_.hypotheses);
+    }
+    const double thr = out_.threshold;
+    auto rejected = [&](float p) { return !std::isnan(p) && double(p) <= thr; };
+
+    // Per pixel and tile: rejected in any quantity. The strongest finding: the rejected hypothesis
+    // of largest |z| (difference; none rejected: the largest |z| tested), the tested one of
+    // largest p (equivalence).
+    const size_t Q = q_.size();
+    auto better = [&](float p, float z, const CompareFinding& f) {
+        if (!f.valid) return true;
+        if (equivalence) return double(p) > f.result.p;
+        const bool rp = rejected(p), rf = rejected(float(f.result.p));
+        if (rp != rf) return rp;
+        return std::fabs(double(z)) > std::fabs(f.result.z);
+    };
+    auto fill = [&](CompareFinding& f, bool tile, size_t index, size_t qi, float p, float z,
+                    float d, float a, float df) {
+        f.valid = true;
+        f.tile = tile;
+        const size_t W = tile ? size_t(tilesX_) : size_t(out_.width);
+        const int scale = tile ? out_.tile : 1;
+        f.x = out_.originX + int(index % W) * scale;
+        f.y = out_.originY + int(index / W) * scale;
+        f.quantity = q_[qi].name;
+        f.a = a;
+        f.b = double(a) + double(d);
+        f.result.p = p;
+        f.result.z = z;
+        f.result.difference = d;
+        f.result.df = df;
+        f.result.se = std::isfinite(z) && z != 0.f ? double(d) / double(z) : 0.0;
+        f.result.margin = margin(f.a, f.b);
+    };
+    size_t pixRejected = 0;
+    for (size_t p = 0; p < P_; ++p) {
+        bool any = false;
+        for (size_t qi = 0; qi < Q; ++qi) {
+            const size_t h = qi * P_ + p;
+            const float pv = p_[h];
+            if (std::isnan(pv)) continue;
+            if (rejected(pv)) any = true;
+            if (pixelNonFinite_[p] == 0 && better(pv, z_[h], out_.strongest))
+                fill(out_.strongest, false, p, qi, pv, z_[h], effect_[h], aEst_[h], pixelDf_[h]);
+        }
+        if (any) ++pixRejected;
+    }
+    size_t tileRejected = 0;
+    for (size_t t = 0; t < T_; ++t) {
+        bool any = false;
+        for (size_t qi = 0; qi < Q; ++qi) {
+            const size_t h = qi * T_ + t;
+            if (std::isnan(tileP_[h])) continue;
+            if (rejected(tileP_[h])) any = true;
+            if (better(tileP_[h], tileZ_[h], out_.strongestTile))
+                fill(out_.strongestTile, true, t, qi, tileP_[h], tileZ_[h], tileEffect_[h],
+                     tileA_[h], tileDf_[h]);
+        }
+        if (any) ++tileRejected;
+    }
+    if (!equivalence) {
+        out_.pixelsRejected = pixRejected;
+        out_.tilesRejected = tileRejected;
+        out_.fail = pixRejected + tileRejected > 0;
+    } else {
+        // Rejected means "shown equivalent": what counts is what was not.
+        size_t pixNot = 0, tileNot = 0;
+        for (size_t p = 0; p < P_; ++p)
+            for (size_t qi = 0; qi < Q; ++qi) {
+                const float pv = p_[qi * P_ + p];
+                if (!std::isnan(pv) && !rejected(pv)) {
+                    ++pixNot;
+                    break;
+                }
+            }
+        for (size_t t = 0; t < T_; ++t)
+            for (size_t qi = 0; qi < Q; ++qi) {
+                const float pv = tileP_[qi * T_ + t];
+                if (!std::isnan(pv) && !rejected(pv)) {
+                    ++tileNot;
+                    break;
+                }
+            }
+        out_.pixelsRejected = pixNot;
+        out_.tilesRejected = tileNot;
+        out_.fail =
+            (T_ > 0 ? tileNot : pixNot) > 0 || out_.hypotheses == 0 || out_.nonFiniteOneSide > 0;
+    }
+    if (out_.identical) out_.fail = false;
+}
+
+void Comparison::buildMaps() {
+    const bool tiles = T_ > 0;
+    const bool equivalence = opt_.test == TwoSampleTest::Equivalence;
+    std::vector<std::string> names;
+    for (const Quantity& q : q_) {
+        for (const char* m : {"p", "z", "effect", "differs"}) names.push_back(m + q.suffix);
+        if (tiles)
+            for (const char* m : {"tile.p", "tile.z", "tile.differs"})
+                names.push_back(m + q.suffix);
+    }
+    const OIIO::ROI data(out_.originX, out_.originX + out_.width, out_.originY,
+                         out_.originY + out_.height, 0, 1, 0, int(names.size()));
+    const OIIO::ImageSpec spec = floatSpec(data, names);
+    out_.maps.reset(spec, OIIO::InitializePixels::No);
+    const size_t C = names.size(), W = size_t(out_.width);
+    const double thr = out_.threshold;
+    auto flag = [&](float p) {
+        if (std::isnan(p)) return kNaNf;
+        const bool rejected = double(p) <= thr;
+        return (equivalence ? !rejected : rejected) ? 1.f : 0.f;
+    };
+    std::vector<float> row(W * C);
+    for (int y = 0; y < out_.height; ++y) {
+        for (size_t x = 0; x < W; ++x) {
+            const size_t p = size_t(y) * W + x;
+            const size_t t =
+                tiles ? size_t(y / out_.tile) * size_t(tilesX_) + x / size_t(out_.tile) : 0;
+            float* o = &row[x * C];
+            for (size_t qi = 0; qi < q_.size(); ++qi) {
+                const size_t h = qi * P_ + p;
+                *o++ = p_[h];
+                *o++ = z_[h];
+                *o++ = effect_[h];
+                *o++ = flag(p_[h]);
+                if (tiles) {
+                    const size_t ht = qi * T_ + t;
+                    *o++ = tileP_[ht];
+                    *o++ = tileZ_[ht];
+                    *o++ = flag(tileP_[ht]);
+                }
+            }
+        }
+        const OIIO::ROI r(out_.originX, out_.originX + out_.width, out_.originY + y,
+                          out_.originY + y + 1, 0, 1, 0, int(C));
+        out_.maps.set_pixels(r, OIIO::TypeFloat, row.data());
+    }
+}
+
+bool checkOptions(const CompareOptions& opt, std::string& err) {
+    if (!(opt.level > 0.0 && opt.level < 1.0)) {
+        err = fmt::format("level {} is not in (0, 1)", opt.level);
+        return false;
+    }
+    if (!(opt.trim >= 0.0 && opt.trim < 0.5)) {
+        err = fmt::format("trim {} is not in [0, 0.5)", opt.trim);
+        return false;
+    }
+    if (!(opt.tol >= 0.0) || !(opt.reltol >= 0.0) || !std::isfinite(opt.tol) ||
+        !std::isfinite(opt.reltol)) {
+        err = "tolerances must be finite and >= 0";
+        return false;
+    }
+    if (opt.test == TwoSampleTest::Equivalence && opt.tol == 0.0 && opt.reltol == 0.0) {
+        err =
+            "an equivalence test needs a tolerance (tol or reltol > 0): no data shows that two "
+            "renders agree exactly";
+        return false;
+    }
+    if (opt.tile < 0 || opt.tile > 4096) {
+        err = fmt::format("tile {} is not in 0..4096", opt.tile);
+        return false;
+    }
+    if (!(opt.referenceSpp >= 0.0) || !std::isfinite(opt.referenceSpp)) {
+        err = "the reference's samples per pixel must be finite and >= 0";
+        return false;
+    }
+    return true;
+}
+
+/// The M a side's buffers give, or an error when they give no variance.
+bool sideBuffers(const StatsBlockSource& s, int& M, std::string& err) {
+    const StatsHeader& h = s.header();
+    M = h.M;
+    if (h.M < 2) {
+        err = fmt::format(
+            "{} has M = {} sub-buffer{}: no variance to test against (render with "
+            "--M 2 or more, or ingest two or more seeds)",
+            s.name(), h.M, h.M == 1 ? "" : "s");
+        return false;
+    }
+    return true;
+}
+
+}  // namespace
+
+bool compareStats(StatsBlockSource& a, StatsBlockSource& b, const CompareOptions& opt,
+                  CompareResult& out, std::string& err) {
+    out = CompareResult();
+    if (!checkOptions(opt, err)) return false;
+    const StatsHeader& ha = a.header();
+    const StatsHeader& hb = b.header();
+    if (ha.width != hb.width || ha.height != hb.height || ha.originX != hb.originX ||
+        ha.originY != hb.originY) {
+        err = fmt::format(
+            "{} ({}x{} at {},{}) and {} ({}x{} at {},{}) have different data "
+            "windows: not renders of one image",
+            a.name(), ha.width, ha.height, ha.originX, ha.originY, b.name(), hb.width, hb.height,
+            hb.originX, hb.originY);
+        return false;
+    }
+    if (!sideBuffers(a, out.Ma, err) || !sideBuffers(b, out.Mb, err)) return false;
+    out.width = ha.width;
+    out.height = ha.height;
+    out.originX = ha.originX;
+    out.originY = ha.originY;
+    // Tiles average a buffer index over pixels: with adaptive M the indices do not line up.
+    out.tile = ha.adaptiveM || hb.adaptiveM ? 0 : opt.tile;
+    Side sa, sb;
+    sa.src = &a;
+    sb.src = &b;
+    sa.aovCount = int(ha.aovs.size());
+    sb.aovCount = int(hb.aovs.size());
+    Comparison c(sa, sb, opt, out);
+    return c.run(err);
+}
+
+bool compareStatsToImage(const OIIO::ImageBuf& ref, const std::string& refName, StatsBlockSource& b,
+                         const CompareOptions& opt, CompareResult& out, std::string& err) {
+    out = CompareResult();
+    if (!checkOptions(opt, err)) return false;
+    const StatsHeader& hb = b.header();
+    const OIIO::ROI win = ref.roi();
+    if (ref.nchannels() < 3) {
+        err = fmt::format("{} has {} channel(s); R, G, B are needed", refName, ref.nchannels());
+        return false;
+    }
+    if (win.width() != hb.width || win.height() != hb.height) {
+        err = fmt::format("{} is {}x{}, {} is {}x{}: not the same image", refName, win.width(),
+                          win.height(), b.name(), hb.width, hb.height);
+        return false;
+    }
+    if (!sideBuffers(b, out.Mb, err)) return false;
+    out.oneSample = true;
+    out.width = hb.width;
+    out.height = hb.height;
+    out.originX = hb.originX;
+    out.originY = hb.originY;
+    out.tile = hb.adaptiveM ? 0 : opt.tile;
+    Side sa, sb;
+    sa.ref = &ref;
+    sa.refRGB.resize(size_t(win.width()) * size_t(win.height()) * 3);
+    OIIO::ROI rgb = win;
+    rgb.chbegin = 0;
+    rgb.chend = 3;
+    if (!ref.get_pixels(rgb, OIIO::TypeFloat, sa.refRGB.data())) {
+        err = fmt::format("{}: {}", refName, ref.geterror());
+        return false;
+    }
+    sb.src = &b;
+    sb.aovCount = int(hb.aovs.size());
+    Comparison c(sa, sb, opt, out);
+    return c.run(err);
+}
+
+namespace {
+
+std::string percentText(double v) { return fmt::format("{:g}%", v * 100.0); }
+
+std::string controlText(const CompareOptions& opt) {
+    if (opt.test == TwoSampleTest::Equivalence)
+        return fmt::format("each at level {}", percentText(opt.level));
+    switch (opt.control) {
+        case Multiplicity::FDR:
+            return fmt::format("false discovery rate {}", percentText(opt.level));
+        case Multiplicity::FWER:
+            return fmt::format("family-wise error rate {} (Holm)", percentText(opt.level));
+        case Multiplicity::None:
+            return fmt::format("each at level {}, uncorrected", percentText(opt.level));
+    }
+    return "";
+}
+
+std::string testText(const CompareResult& r, const CompareOptions& opt) {
+    const std::string t = opt.trimmed
+                              ? fmt::format("Yuen's trimmed t ({} per end)", percentText(opt.trim))
+                              : std::string("Welch's t");
+    const std::string m = r.oneSample
+                              ? fmt::format("M = {} sub-buffers against the reference", r.Mb)
+                              : fmt::format("M = {} + {} sub-buffers", r.Ma, r.Mb);
+    return fmt::format("{} on {}", t, m);
+}
+
+std::string toleranceText(const CompareOptions& opt) {
+    if (opt.tol == 0.0 && opt.reltol == 0.0) return "";
+    std::string s = " within ";
+    if (opt.reltol > 0.0) s += percentText(opt.reltol);
+    if (opt.reltol > 0.0 && opt.tol > 0.0) s += " or ";
+    if (opt.tol > 0.0) s += fmt::format("{:g}", opt.tol);
+    return s;
+}
+
+std::string quantitiesText(const CompareResult& r) {
+    if (r.quantities.size() <= 3) return fmt::format("{}", fmt::join(r.quantities, ", "));
+    return fmt::format("{} and {} more",
+                       fmt::join(r.quantities.begin(), r.quantities.begin() + 3, ", "),
+                       r.quantities.size() - 3);
+}
+
+std::string findingText(const CompareFinding& f, const CompareResult& r) {
+    const double rel = f.a != 0.0 ? f.result.difference / std::fabs(f.a) : 0.0;
+    std::string where = f.tile ? fmt::format("tile {}x{} at ({}, {})", r.tile, r.tile, f.x, f.y)
+                               : fmt::format("pixel ({}, {})", f.x, f.y);
+    std::string size = std::isfinite(f.result.z)
+                           ? fmt::format("{:+.2f} standard errors", f.result.z)
+                           : std::string("exact (no noise on either side)");
+    return fmt::format("{} {}: {:.6g} -> {:.6g} ({:+.4g}{}, {}), p = {:.3g}", where, f.quantity,
+                       f.a, f.b, f.result.difference,
+                       f.a != 0.0 ? fmt::format(", {:+.2f}%", rel * 100.0) : std::string(), size,
+                       f.result.p);
+}
+
+}  // namespace
+
+std::string compareVerdict(const CompareResult& r, const CompareOptions& opt) {
+    const std::string how = fmt::format("{}, {}", testText(r, opt), controlText(opt));
+    if (r.identical)
+        return fmt::format(
+            "IDENTICAL: every pixel's {} is the same on both sides (two copies of "
+            "one render test nothing; {})",
+            quantitiesText(r), how);
+    const std::string tiles =
+        r.tile > 0 ? fmt::format(" and {} of {} tiles", r.tilesRejected, r.tilesTested) : "";
+    if (opt.test == TwoSampleTest::Equivalence) {
+        if (!r.fail)
+            return fmt::format("EQUIVALENT{}: every {} agrees in {} ({})", toleranceText(opt),
+                               r.tile > 0 ? "tile" : "pixel", quantitiesText(r), how);
+        return fmt::format("NOT SHOWN EQUIVALENT{}: {} of {} {} not shown to agree in {} ({})",
+                           toleranceText(opt), r.tile > 0 ? r.tilesRejected : r.pixelsRejected,
+                           r.tile > 0 ? r.tilesTested : r.pixelsTested,
+                           r.tile > 0 ? "tiles" : "pixels", quantitiesText(r), how);
+    }
+    if (r.fail)
+        return fmt::format("DIFFERENT: {} of {} pixels{} differ{} in {} ({})", r.pixelsRejected,
+                           r.pixelsTested, tiles,
+                           opt.tol > 0 || opt.reltol > 0
+                               ? " by more than" + toleranceText(opt).substr(7)
+                               : std::string(),
+                           quantitiesText(r), how);
+    return fmt::format(
+        "SAME: no pixel{} differs{} in {} beyond the noise ({})", r.tile > 0 ? " or tile" : "",
+        opt.tol > 0 || opt.reltol > 0 ? " by more than" + toleranceText(opt).substr(7)
+                                      : std::string(),
+        quantitiesText(r), how);
+}
+
+std::vector<std::string> compareEvidence(const CompareResult& r, const CompareOptions& opt) {
+    std::vector<std::string> lines;
+    const bool equivalence = opt.test == TwoSampleTest::Equivalence;
+    lines.push_back(fmt::format(
+        "pixels: {} tested of {}, {} {}{}", r.pixelsTested, r.pixels, r.pixelsRejected,
+        equivalence ? "not shown equivalent" : "differ",
+        r.tile > 0
+            ? fmt::format("; tiles {}x{}: {} tested of {}, {} {}", r.tile, r.tile, r.tilesTested,
+                          r.tiles, r.tilesRejected, equivalence ? "not shown equivalent" : "differ")
+            : std::string("; no tile tests")));
+    lines.push_back(
+        fmt::format("family: {} hypotheses, largest p-value rejected {}", r.hypotheses,
+                    r.threshold < 0 ? std::string("none") : fmt::format("{:.3g}", r.threshold)));
+    const char* label = equivalence ? "least equivalent" : (r.fail ? "strongest" : "largest |z|");
+    if (r.strongest.valid)
+        lines.push_back(fmt::format("{}: {}", label, findingText(r.strongest, r)));
+    if (r.strongestTile.valid)
+        lines.push_back(fmt::format("{} tile: {}", label, findingText(r.strongestTile, r)));
+    if (r.nonFiniteOneSide > 0)
+        lines.push_back(
+            fmt::format("{} pixels hold NaN or Inf on one side only (counted as "
+                        "differing)",
+                        r.nonFiniteOneSide));
+    if (r.nonFiniteBoth > 0)
+        lines.push_back(
+            fmt::format("{} pixels hold NaN or Inf on both sides (not tested)", r.nonFiniteBoth));
+    if (r.constantEqual > 0)
+        lines.push_back(
+            fmt::format("{} pixel tests had no noise and no difference (e.g. black "
+                        "background)",
+                        r.constantEqual));
+    if (r.tile == 0 && opt.tile > 0)
+        lines.push_back("no tile tests: adaptive M (buffer indices differ from pixel to pixel)");
+    return lines;
+}
+
+}  // namespace mcstat

@@ -1,0 +1,213 @@
+// Two-sample tests on sub-buffer means (include/mcstat/analysis/two_sample.h): the summaries of
+// one side, Welch's test with a tolerance, and the multiple-testing thresholds.
+#include "mcstat/analysis/two_sample.h"
+
+#include <algorithm>
+#include <boost/math/distributions/normal.hpp>
+#include <boost/math/distributions/students_t.hpp>
+#include <cmath>
+#include <limits>
+
+namespace mcstat {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Boost.Math's default policy throws on domain errors and overflow; every argument reaching it is
+// checked first (finite t, df > 0), and these policies make any that slips through a NaN or a
+// saturated value instead of an exception.
+using Policy = boost::math::policies::policy<
+    boost::math::policies::domain_error<boost::math::policies::ignore_error>,
+    boost::math::policies::overflow_error<boost::math::policies::ignore_error>,
+    boost::math::policies::evaluation_error<boost::math::policies::ignore_error>>;
+
+}  // namespace
+
+SideSummary meanSummary(const double* values, const double* counts, int M) {
+    SideSummary s;
+    double n = 0.0, sum = 0.0;
+    for (int j = 0; j < M; ++j) {
+        const double w = counts ? counts[j] : 1.0;
+        if (!(w > 0.0)) continue;
+        if (!std::isfinite(values[j])) s.finite = false;
+        n += w;
+        sum += w * values[j];
+        ++s.buffers;
+    }
+    if (s.buffers == 0 || !s.finite) {
+        s.estimate = s.buffers == 0 ? kNaN : sum / n;
+        return s;
+    }
+    s.estimate = sum / n;
+    if (s.buffers < 2) return s;
+    // Second pass about the mean: no cancellation for values far from 0.
+    double ss = 0.0;
+    for (int j = 0; j < M; ++j) {
+        const double w = counts ? counts[j] : 1.0;
+        if (!(w > 0.0)) continue;
+        const double d = values[j] - s.estimate;
+        ss += w * d * d;
+    }
+    s.df = s.buffers - 1;
+    s.variance = ss / s.df / n;
+    return s;
+}
+
+SideSummary trimmedSummary(const double* values, const double* counts, int M, double trim) {
+    SideSummary s;
+    std::vector<double> y;
+    y.reserve(size_t(std::max(M, 0)));
+    for (int j = 0; j < M; ++j) {
+        if (counts && !(counts[j] > 0.0)) continue;
+        if (!std::isfinite(values[j])) s.finite = false;
+        y.push_back(values[j]);
+    }
+    s.buffers = int(y.size());
+    if (y.empty() || !s.finite) {
+        s.estimate = kNaN;
+        return s;
+    }
+    std::sort(y.begin(), y.end());
+    const int m = s.buffers;
+    const int g = int(std::floor(std::clamp(trim, 0.0, 0.4999) * m));
+    const int h = m - 2 * g;
+    double sum = 0.0;
+    for (int j = g; j < m - g; ++j) sum += y[size_t(j)];
+    s.estimate = sum / h;
+    if (h < 2) return s;
+    // Winsorized values: the g smallest become y[g], the g largest y[m - g - 1].
+    auto wins = [&](int j) { return y[size_t(std::clamp(j, g, m - g - 1))]; };
+    double wsum = 0.0;
+    for (int j = 0; j < m; ++j) wsum += wins(j);
+    const double wmean = wsum / m;
+    double ss = 0.0;
+    for (int j = 0; j < m; ++j) {
+        const double d = wins(j) - wmean;
+        ss += d * d;
+    }
+    // (M' - 1) s_w^2 / (h (h - 1)) with s_w^2 = ss / (M' - 1).
+    s.variance = ss / (double(h) * (h - 1));
+    s.df = h - 1;
+    return s;
+}
+
+SideSummary exactSummary(double value) {
+    SideSummary s;
+    s.estimate = value;
+    s.variance = 0.0;
+    s.df = kInf;
+    s.buffers = 1;
+    s.finite = std::isfinite(value);
+    return s;
+}
+
+double studentTail(double t, double df) {
+    if (std::isnan(t) || std::isnan(df) || !(df > 0.0)) return kNaN;
+    if (t == kInf) return 0.0;
+    if (t == -kInf) return 1.0;
+    // Beyond ~1e7 degrees of freedom the t distribution is the normal to double precision, and
+    // Boost's t with df = Inf is not defined in every version: use the normal.
+    if (!(df < 1e7)) {
+        const boost::math::normal_distribution<double, Policy> n;
+        return boost::math::cdf(boost::math::complement(n, t));
+    }
+    const boost::math::students_t_distribution<double, Policy> dist(df);
+    return boost::math::cdf(boost::math::complement(dist, t));
+}
+
+TwoSampleResult welchTest(const SideSummary& a, const SideSummary& b, double margin,
+                          TwoSampleTest test) {
+    TwoSampleResult r;
+    r.margin = margin;
+    r.difference = b.estimate - a.estimate;
+    const double var = a.variance + b.variance;
+    r.se = std::sqrt(var);
+    if (!a.finite || !b.finite || !std::isfinite(r.difference) || !(margin >= 0.0)) {
+        r.z = kNaN;
+        r.p = kNaN;
+        r.df = kNaN;
+        return r;
+    }
+    const double absd = std::fabs(r.difference);
+    if (var == 0.0) {
+        // Both sides are constant (or one is exact and the other constant): the difference is
+        // known exactly, unless a side simply had no second buffer to show its spread.
+        r.df = kInf;
+        r.z = r.difference == 0.0 ? 0.0 : std::copysign(kInf, r.difference);
+        if (a.df == 0.0 || b.df == 0.0) {
+            r.p = kNaN;
+            return r;
+        }
+        // Equivalence: an exact difference inside the margin, or exactly none (black on both
+        // sides), is shown.
+        if (test == TwoSampleTest::Difference)
+            r.p = absd > margin ? 0.0 : 1.0;
+        else
+            r.p = absd < margin || absd == 0.0 ? 0.0 : 1.0;
+        return r;
+    }
+    // Each side needs degrees of freedom for its variance; one buffer has none.
+    if (a.df == 0.0 || b.df == 0.0) {
+        r.z = r.difference / r.se;
+        r.df = kNaN;
+        r.p = kNaN;
+        return r;
+    }
+    double denom = 0.0;
+    if (a.variance > 0.0 && std::isfinite(a.df)) denom += a.variance * a.variance / a.df;
+    if (b.variance > 0.0 && std::isfinite(b.df)) denom += b.variance * b.variance / b.df;
+    r.df = denom > 0.0 ? var * var / denom : kInf;
+    r.z = r.difference / r.se;
+    if (test == TwoSampleTest::Difference) {
+        // At the boundary |b - a| = margin: P(|D| >= |d|) for D ~ margin + se T (and its mirror).
+        r.p = studentTail((absd - margin) / r.se, r.df) + studentTail((absd + margin) / r.se, r.df);
+    } else {
+        const double lower = studentTail((r.difference + margin) / r.se, r.df);  // H0: d <= -m
+        const double upper = studentTail((margin - r.difference) / r.se, r.df);  // H0: d >= m
+        r.p = margin > 0.0 ? std::max(lower, upper) : 1.0;
+    }
+    r.p = std::min(r.p, 1.0);
+    return r;
+}
+
+double rejectionThreshold(const std::vector<float>& p, double q, Multiplicity control,
+                          size_t* tested) {
+    // Only p-values <= q can be rejected by any of the three rules, and under a true null they are
+    // a fraction q of the family: sort those, count the rest.
+    std::vector<float> small;
+    size_t m = 0;
+    for (float v : p) {
+        if (std::isnan(v)) continue;
+        ++m;
+        if (double(v) <= q) small.push_back(v);
+    }
+    if (tested) *tested = m;
+    if (small.empty()) return -1.0;
+    std::sort(small.begin(), small.end());
+    double threshold = -1.0;
+    switch (control) {
+        case Multiplicity::None:
+            threshold = small.back();
+            break;
+        case Multiplicity::FDR:
+            // Step-up: the largest k with p_(k) <= k q / m rejects p_(1..k).
+            for (size_t k = small.size(); k >= 1; --k)
+                if (double(small[k - 1]) <= double(k) * q / double(m)) {
+                    threshold = small[k - 1];
+                    break;
+                }
+            break;
+        case Multiplicity::FWER:
+            // Step-down: reject while p_(k) <= q / (m - k + 1).
+            for (size_t k = 1; k <= small.size(); ++k) {
+                if (double(small[k - 1]) > q / double(m - k + 1)) break;
+                threshold = small[k - 1];
+            }
+            break;
+    }
+    return threshold;
+}
+
+}  // namespace mcstat

@@ -1,0 +1,113 @@
+// Noise-aware comparison of two renders from their sub-buffers (`mcstat --compare`,
+// docs/compare.md): are the two the same image, up to their Monte Carlo noise?
+//
+// Per pixel, and per tile where averaging gains power for diffuse changes, a two-sample test on
+// the sub-buffer means of both sides (two_sample.h: Welch's t, or Yuen's trimmed t against
+// fireflies), on the luminance by default, on R, G, B or named AOV channels on request; then one
+// multiple-testing control over every pixel and tile tested (Benjamini-Hochberg by default). The
+// result is a verdict, the evidence behind it and maps (p-values, effects in standard errors and
+// in the image's units) for review tools.
+//
+// Both sides are read by blocks of rows (StatsBlockSource); what grows with the image is one
+// p-value per hypothesis and the maps (4 bytes per pixel and channel), never the sub-buffers.
+#pragma once
+
+#include <OpenImageIO/imagebuf.h>
+
+#include <array>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "mcstat/analysis/two_sample.h"
+#include "mcstat/stats_file.h"
+
+namespace mcstat {
+
+struct CompareOptions {
+    std::array<double, 3> luma{0.2126, 0.7152, 0.0722};  ///< luminance weights of R, G, B
+    /// Yuen's trimmed test (trimmedSummary) instead of Welch's on the means (meanSummary).
+    bool trimmed = false;
+    double trim = 0.2;  ///< Yuen's trimming fraction per end, [0, 0.5)
+    TwoSampleTest test = TwoSampleTest::Difference;
+    double level = 0.01;  ///< q: false discovery rate, family-wise error rate or per-test level
+    Multiplicity control = Multiplicity::FDR;
+    bool rgb = false;  ///< test R, G, B (three hypotheses per pixel) instead of the luminance
+    /// AOV channels of both files to test as well, each by itself: exact names or globs
+    /// (fnmatch, e.g. "*_key.*"); empty: none.
+    std::vector<std::string> aovs;
+    int tile = 16;  ///< tile side in pixels for the tile tests; 0: pixels only
+    /// Tolerance of the test: delta = max(tol, reltol * |(a + b) / 2|) per hypothesis.
+    double tol = 0.0, reltol = 0.0;
+    /// One-sample comparison against a reference image: its samples per pixel, when it is a
+    /// render itself (its noise is then modelled with the statistics file's per-sample variance);
+    /// 0: the reference is taken as exact.
+    double referenceSpp = 0.0;
+    int nthreads = 0;
+    std::function<void(double)> progress;  ///< fraction done, or empty
+};
+
+/// One hypothesis worth reporting: where, on what, and what was found.
+struct CompareFinding {
+    bool valid = false;
+    bool tile = false;        ///< a tile test (x, y its first pixel; size CompareResult::tile)
+    int x = 0, y = 0;         ///< image coordinates (the data window's, origin included)
+    std::string quantity;     ///< "luminance", "R", an AOV channel name
+    double a = 0.0, b = 0.0;  ///< the two estimates
+    TwoSampleResult result;
+};
+
+struct CompareResult {
+    /// Difference test: some hypothesis was rejected (they differ). Equivalence test: not every
+    /// hypothesis was rejected (equivalence not shown).
+    bool fail = false;
+    /// Every difference tested was exactly zero with zero variance on both sides: two copies of
+    /// one render.
+    bool identical = false;
+    std::vector<std::string> quantities;  ///< what was tested per pixel, e.g. {"luminance"}
+    int width = 0, height = 0, originX = 0, originY = 0;
+    int Ma = 0, Mb = 0;  ///< buffers per pixel of each side (Mb only for a reference image: 0)
+    bool oneSample = false;
+    int tile = 0;  ///< tile side used (0: no tile tests)
+    size_t pixels = 0, pixelsTested = 0, pixelsRejected = 0;
+    size_t tiles = 0, tilesTested = 0, tilesRejected = 0;
+    /// Pixels with NaN / Inf in some buffer of one side only: counted as differing (p = 0), since
+    /// a renderer that starts making NaNs has changed. Both sides: left untested.
+    size_t nonFiniteOneSide = 0, nonFiniteBoth = 0;
+    /// Pixels constant (zero variance) and equal on both sides: nothing to test, counted as
+    /// agreeing.
+    size_t constantEqual = 0;
+    size_t hypotheses = 0;    ///< p-values in the family
+    double threshold = -1.0;  ///< the largest rejected p-value (-1: none)
+    double medianDf = 0.0;    ///< median Welch-Satterthwaite df of the pixel tests
+    /// Difference test: the rejected hypothesis with the largest |z| (none rejected: the largest
+    /// |z| tested). Equivalence test: the hypothesis with the largest p (the least equivalent).
+    CompareFinding strongest;
+    CompareFinding strongestTile;
+    /// Maps over the data window: per quantity suffix s ("" for the luminance, ".R", ".<aov>")
+    /// channels p<s>, z<s>, effect<s> (b - a), differs<s> (1 rejected, 0 not, NaN untested), and
+    /// with tiles tile.p<s>, tile.z<s>, tile.differs<s> (each pixel its tile's). Differences test:
+    /// "differs" means rejected; equivalence test: not shown equivalent.
+    OIIO::ImageBuf maps;
+};
+
+/// Compares `b` against `a` (b - a), both statistics sources of one image (same data window; M
+/// may differ). False with `err` naming the sources for: different windows, M < 2 on a side (no
+/// variance), AOVs asked for that a side lacks, a bad option, a read failure.
+bool compareStats(StatsBlockSource& a, StatsBlockSource& b, const CompareOptions& opt,
+                  CompareResult& out, std::string& err);
+
+/// One-sample comparison of `b` against a reference image `ref` (R, G, B: its first three
+/// channels, pixels paired by their place in each data window, same size), exact or with
+/// opt.referenceSpp samples per pixel. AOVs cannot be asked for.
+bool compareStatsToImage(const OIIO::ImageBuf& ref, const std::string& refName, StatsBlockSource& b,
+                         const CompareOptions& opt, CompareResult& out, std::string& err);
+
+/// The verdict in one line, e.g. "DIFFERENT: 9576 of 16384 pixels and 61 of 64 tiles differ in
+/// luminance (Welch's t on M = 21 + 21 sub-buffers, false discovery rate 1%)".
+std::string compareVerdict(const CompareResult& r, const CompareOptions& opt);
+/// The evidence, one line per item (counts, the strongest finding with its place and size, the
+/// untested pixels).
+std::vector<std::string> compareEvidence(const CompareResult& r, const CompareOptions& opt);
+
+}  // namespace mcstat

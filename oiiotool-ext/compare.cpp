@@ -1,0 +1,168 @@
+// `--compare`: are the top two renders on the stack the same image, up to their Monte Carlo noise?
+// Two statistics files: two-sample tests on their sub-buffers; a statistics file and an image: a
+// one-sample test against the image as the reference (docs/compare.md). The verdict and its
+// evidence go to stdout, the maps replace the two items, and the process exits 2 when they differ
+// (idiff's FAILURE) once every command has run.
+#include "mcstat/analysis/compare.h"
+
+#include <OpenImageIO/strutil.h>
+
+#include <cstdio>
+
+#include "cli.h"
+#include "mcstat/color.h"
+#include "mcstat/core/progress.h"
+#include "mcstat/image/render_layout.h"
+
+namespace mcstat::cli {
+
+using OIIO::Strutil::fmt::format;
+
+const std::vector<ParamSpec>& compareModifiers() {
+    static const std::vector<ParamSpec> m = [] {
+        ParamSpec aovs = textParam("aovs", "",
+                                   "AOV channels to test too, each by itself: names or globs, "
+                                   "comma-separated (e.g. *_key.*)");
+        aovs.list = true;
+        return std::vector<ParamSpec>{
+            realParam("level", 0.0, 0.5, true, "0.01",
+                      "false discovery rate (or error rate, see control) of the verdict"),
+            enumParam("test", {"welch", "yuen"}, "welch",
+                      "welch: means; yuen: trimmed means, robust to fireflies"),
+            realParam("trim", 0.0, 0.45, false, "0.2", "yuen: fraction trimmed from each end"),
+            enumParam("control", {"fdr", "fwer", "none"}, "fdr",
+                      "fdr: Benjamini-Hochberg; fwer: Holm; none: each test alone"),
+            enumParam("channels", {"luminance", "rgb"}, "luminance", "what a pixel is tested on",
+                      {{"lum", "luminance"}, {"y", "luminance"}}),
+            aovs,
+            intParam("tile", 0, 4096, "16", "tile side for the tile tests; 0: pixels only"),
+            realParam("tol", 0.0, HUGE_VAL, false, "0", "absolute tolerance (image units)"),
+            realParam("reltol", 0.0, HUGE_VAL, false, "0",
+                      "relative tolerance (fraction of the pixel's value)"),
+            flagParam("equivalence", "0",
+                      "1: show agreement within the tolerance (two one-sided tests per tile)"),
+            realParam("refspp", 0.0, HUGE_VAL, false, "0",
+                      "image reference: its samples per pixel (0: exact)"),
+            textParam("layer", "", "image reference: its RGB layer (default: its beauty)"),
+        };
+    }();
+    return m;
+}
+
+namespace {
+
+/// The value of modifier `name` (checkModifiers filled in its default).
+ParamValue modifierValue(const Modifiers& mods, const std::string& name) {
+    ParamValue v;
+    std::string ignored;
+    for (const ParamSpec& p : compareModifiers())
+        if (p.name == name) parseParamValue("--compare", p, mods.at(name), v, ignored);
+    return v;
+}
+
+bool compareOptions(const Modifiers& mods, CompareOptions& opt) {
+    opt.level = modifierValue(mods, "level").real;
+    opt.trimmed = modifierValue(mods, "test").text == "yuen";
+    opt.trim = modifierValue(mods, "trim").real;
+    const std::string control = modifierValue(mods, "control").text;
+    opt.control = control == "fwer"   ? Multiplicity::FWER
+                  : control == "none" ? Multiplicity::None
+                                      : Multiplicity::FDR;
+    opt.rgb = modifierValue(mods, "channels").text == "rgb";
+    const auto aovs = mods.find("aovs");
+    if (aovs != mods.end() && !aovs->second.empty())
+        opt.aovs = OIIO::Strutil::splits(aovs->second, ",");
+    opt.tile = int(modifierValue(mods, "tile").integer);
+    opt.tol = modifierValue(mods, "tol").real;
+    opt.reltol = modifierValue(mods, "reltol").real;
+    opt.test = modifierValue(mods, "equivalence").integer ? TwoSampleTest::Equivalence
+                                                          : TwoSampleTest::Difference;
+    opt.referenceSpp = modifierValue(mods, "refspp").real;
+    return true;
+}
+
+}  // namespace
+
+bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string>&,
+                const Modifiers& mods, std::string& err) {
+    if (st.stack.size() < 2) {
+        err = format(
+            "{} compares the top two items of the stack (statistics files, or one and a "
+            "reference image); there {} {}",
+            cmd, st.stack.size() == 1 ? "is" : "are", st.stack.size());
+        return false;
+    }
+    Item& a = st.stack[st.stack.size() - 2];
+    Item& b = st.stack.back();
+    if (!a.isStats() && !b.isStats()) {
+        err = format(
+            "{}: {} and {} are images: a noise-aware comparison needs the sub-buffers of "
+            "at least one statistics file (for two images use --diff)",
+            cmd, a.name, b.name);
+        return false;
+    }
+    CompareOptions opt;
+    opt.luma = lumaCoefficients();
+    opt.nthreads = st.nthreads;
+    compareOptions(mods, opt);
+    const auto refspp = mods.find("refspp");
+    if (a.isStats() && b.isStats() && refspp != mods.end() && refspp->second != "0") {
+        err = format("{}: refspp is for an image reference; {} and {} are statistics files", cmd,
+                     a.name, b.name);
+        return false;
+    }
+    Progress progress("compare", 1000, Progress::onTerminal());
+    opt.progress = progress.fractionCallback();
+    CompareResult r;
+    bool ok = false;
+    std::string what;
+    if (a.isStats() && b.isStats()) {
+        ItemSource sa, sb;
+        if (!openSource(st, a, sa, err) || !openSource(st, b, sb, err)) return false;
+        ok = compareStats(*sa.root, *sb.root, opt, r, err);
+        what = format("{} vs {}", a.name, b.name);
+    } else {
+        // One statistics file and a reference image, in either order: the image is the reference.
+        Item& stats = a.isStats() ? a : b;
+        Item& image = a.isStats() ? b : a;
+        OIIO::ImageBuf rgb;
+        const auto layer = mods.find("layer");
+        if (!selectRGB(*image.image, layer == mods.end() ? std::string() : layer->second,
+                       image.name, rgb, err)) {
+            err = format("{}: {}", cmd, err);
+            return false;
+        }
+        ItemSource src;
+        if (!openSource(st, stats, src, err)) return false;
+        ok = compareStatsToImage(rgb, image.name, *src.root, opt, r, err);
+        what = format("{} vs reference {}", stats.name, image.name);
+    }
+    progress.finish();
+    if (!ok) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
+    const std::string verdict = compareVerdict(r, opt);
+    std::printf("%s: %s\n", what.c_str(), verdict.c_str());
+    for (const std::string& line : compareEvidence(r, opt)) std::printf("  %s\n", line.c_str());
+    std::fflush(stdout);
+    if (r.fail) st.exitStatus = 2;
+
+    auto maps = std::make_shared<OIIO::ImageBuf>(std::move(r.maps));
+    OIIO::ImageSpec& spec = maps->specmod();
+    spec.attribute(std::string(kProvenancePrefix) + "compare.verdict", verdict);
+    spec.attribute(std::string(kProvenancePrefix) + "compare.fail", r.fail ? 1 : 0);
+    spec.attribute(std::string(kProvenancePrefix) + "compare.a", a.name);
+    spec.attribute(std::string(kProvenancePrefix) + "compare.b", b.name);
+    for (const ParamSpec& p : compareModifiers())
+        if (mods.count(p.name))
+            spec.attribute(std::string(kProvenancePrefix) + "compare." + p.name, mods.at(p.name));
+    Item out;
+    out.name = format("compare({}, {})", a.name, b.name);
+    out.image = std::move(maps);
+    st.stack.pop_back();
+    st.stack.back() = std::move(out);
+    return true;
+}
+
+}  // namespace mcstat::cli
