@@ -383,32 +383,37 @@ void Comparison::finish() {
     out_.identical = tally_.allZero && tally_.pixelsTested > 0 && tally_.nonFiniteOneSide == 0;
 
     const bool equivalence = opt_.test == TwoSampleTest::Equivalence;
-    // The family. Difference: every pixel and tile hypothesis, one control over all of them.
-    // Equivalence: the intersection-union principle (Berger, Statistical Science 17(4), 1996)
-    // shows "all agree" when every hypothesis is rejected at the level itself, with no
-    // correction; the tiles when there are any (a single pixel's noise rarely allows it), else
-    // the pixels.
-    std::vector<float> family;
+    size_t mp = 0, mt = 0;
     if (!equivalence) {
-        family.reserve(p_.size() + tileP_.size());
-        family.insert(family.end(), p_.begin(), p_.end());
-        family.insert(family.end(), tileP_.begin(), tileP_.end());
-        out_.threshold = rejectionThreshold(family, opt_.level, opt_.control, &out_.hypotheses);
+        // Two families, pixels and tiles, each at half the level (Bonferroni over the two), so
+        // that the verdict's error rate stays at the level: one family would drown a few hundred
+        // tiles among millions of pixels, whose count sets the step-up's slope.
+        const double q = T_ > 0 ? opt_.level / 2.0 : opt_.level;
+        out_.threshold = rejectionThreshold(p_, q, opt_.control, &mp);
+        out_.tileThreshold = T_ > 0 ? rejectionThreshold(tileP_, q, opt_.control, &mt) : -1.0;
+        out_.hypotheses = mp + mt;
     } else {
-        const std::vector<float>& f = T_ > 0 ? tileP_ : p_;
-        out_.threshold = rejectionThreshold(f, opt_.level, Multiplicity::None, &out_.hypotheses);
+        // Equivalence: the intersection-union principle (Berger, Statistical Science 17(4), 1996)
+        // shows "all agree" when every hypothesis is rejected at the level itself, with no
+        // correction. It is decided on the tiles when there are any (a single pixel's noise rarely
+        // allows showing it), else on the pixels.
+        out_.threshold = rejectionThreshold(p_, opt_.level, Multiplicity::None, &mp);
+        out_.tileThreshold =
+            T_ > 0 ? rejectionThreshold(tileP_, opt_.level, Multiplicity::None, &mt) : -1.0;
+        out_.hypotheses = T_ > 0 ? mt : mp;
     }
-    const double thr = out_.threshold;
-    auto rejected = [&](float p) { return !std::isnan(p) && double(p) <= thr; };
+    auto rejectedAt = [](float p, double thr) { return !std::isnan(p) && double(p) <= thr; };
+    auto rejected = [&](float p) { return rejectedAt(p, out_.threshold); };
+    auto tileRejected_ = [&](float p) { return rejectedAt(p, out_.tileThreshold); };
 
     // Per pixel and tile: rejected in any quantity. The strongest finding: the rejected hypothesis
     // of largest |z| (difference; none rejected: the largest |z| tested), the tested one of
     // largest p (equivalence).
     const size_t Q = q_.size();
-    auto better = [&](float p, float z, const CompareFinding& f) {
+    auto better = [&](float p, float z, const CompareFinding& f, double thr) {
         if (!f.valid) return true;
         if (equivalence) return double(p) > f.result.p;
-        const bool rp = rejected(p), rf = rejected(float(f.result.p));
+        const bool rp = rejectedAt(p, thr), rf = rejectedAt(float(f.result.p), thr);
         if (rp != rf) return rp;
         return std::fabs(double(z)) > std::fabs(f.result.z);
     };
@@ -438,7 +443,7 @@ void Comparison::finish() {
             const float pv = p_[h];
             if (std::isnan(pv)) continue;
             if (rejected(pv)) any = true;
-            if (pixelNonFinite_[p] == 0 && better(pv, z_[h], out_.strongest))
+            if (pixelNonFinite_[p] == 0 && better(pv, z_[h], out_.strongest, out_.threshold))
                 fill(out_.strongest, false, p, qi, pv, z_[h], effect_[h], aEst_[h], pixelDf_[h]);
         }
         if (any) ++pixRejected;
@@ -449,8 +454,8 @@ void Comparison::finish() {
         for (size_t qi = 0; qi < Q; ++qi) {
             const size_t h = qi * T_ + t;
             if (std::isnan(tileP_[h])) continue;
-            if (rejected(tileP_[h])) any = true;
-            if (better(tileP_[h], tileZ_[h], out_.strongestTile))
+            if (tileRejected_(tileP_[h])) any = true;
+            if (better(tileP_[h], tileZ_[h], out_.strongestTile, out_.tileThreshold))
                 fill(out_.strongestTile, true, t, qi, tileP_[h], tileZ_[h], tileEffect_[h],
                      tileA_[h], tileDf_[h]);
         }
@@ -474,7 +479,7 @@ void Comparison::finish() {
         for (size_t t = 0; t < T_; ++t)
             for (size_t qi = 0; qi < Q; ++qi) {
                 const float pv = tileP_[qi * T_ + t];
-                if (!std::isnan(pv) && !rejected(pv)) {
+                if (!std::isnan(pv) && !tileRejected_(pv)) {
                     ++tileNot;
                     break;
                 }
@@ -502,8 +507,7 @@ void Comparison::buildMaps() {
     const OIIO::ImageSpec spec = floatSpec(data, names);
     out_.maps.reset(spec, OIIO::InitializePixels::No);
     const size_t C = names.size(), W = size_t(out_.width);
-    const double thr = out_.threshold;
-    auto flag = [&](float p) {
+    auto flag = [&](float p, double thr) {
         if (std::isnan(p)) return kNaNf;
         const bool rejected = double(p) <= thr;
         return (equivalence ? !rejected : rejected) ? 1.f : 0.f;
@@ -520,12 +524,12 @@ void Comparison::buildMaps() {
                 *o++ = p_[h];
                 *o++ = z_[h];
                 *o++ = effect_[h];
-                *o++ = flag(p_[h]);
+                *o++ = flag(p_[h], out_.threshold);
                 if (tiles) {
                     const size_t ht = qi * T_ + t;
                     *o++ = tileP_[ht];
                     *o++ = tileZ_[ht];
-                    *o++ = flag(tileP_[ht]);
+                    *o++ = flag(tileP_[ht], out_.tileThreshold);
                 }
             }
         }
@@ -752,9 +756,10 @@ std::vector<std::string> compareEvidence(const CompareResult& r, const CompareOp
             ? fmt::format("; tiles {}x{}: {} tested of {}, {} {}", r.tile, r.tile, r.tilesTested,
                           r.tiles, r.tilesRejected, equivalence ? "not shown equivalent" : "differ")
             : std::string("; no tile tests")));
-    lines.push_back(
-        fmt::format("family: {} hypotheses, largest p-value rejected {}", r.hypotheses,
-                    r.threshold < 0 ? std::string("none") : fmt::format("{:.3g}", r.threshold)));
+    auto thr = [](double t) { return t < 0 ? std::string("none") : fmt::format("{:.3g}", t); };
+    lines.push_back(fmt::format("tested: {} hypotheses; largest p-value rejected: pixels {}{}",
+                                r.hypotheses, thr(r.threshold),
+                                r.tile > 0 ? ", tiles " + thr(r.tileThreshold) : std::string()));
     const char* label = equivalence ? "least equivalent" : (r.fail ? "strongest" : "largest |z|");
     if (r.strongest.valid)
         lines.push_back(fmt::format("{}: {}", label, findingText(r.strongest, r)));

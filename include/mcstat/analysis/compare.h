@@ -77,9 +77,10 @@ struct CompareResult {
     /// Pixels constant (zero variance) and equal on both sides: nothing to test, counted as
     /// agreeing.
     size_t constantEqual = 0;
-    size_t hypotheses = 0;    ///< p-values in the family
-    double threshold = -1.0;  ///< the largest rejected p-value (-1: none)
-    double medianDf = 0.0;    ///< median Welch-Satterthwaite df of the pixel tests
+    size_t hypotheses = 0;  ///< p-values tested (pixels and tiles)
+    /// The largest rejected p-value of the pixels' and of the tiles' family (-1: none). The two
+    /// families are controlled at half the level each (Bonferroni over the two).
+    double threshold = -1.0, tileThreshold = -1.0;
     /// Difference test: the rejected hypothesis with the largest |z| (none rejected: the largest
     /// |z| tested). Equivalence test: the hypothesis with the largest p (the least equivalent).
     CompareFinding strongest;
