@@ -100,7 +100,10 @@ bool compareStats(StatsBlockSource& a, StatsBlockSource& b, const CompareOptions
 
 /// One-sample comparison of `b` against a reference image `ref` (R, G, B: its first three
 /// channels, pixels paired by their place in each data window, same size), exact or with
-/// opt.referenceSpp samples per pixel. AOVs cannot be asked for.
+/// opt.referenceSpp samples per pixel. AOVs cannot be asked for, nor Yuen's test (a trimmed mean
+/// is not the mean a reference holds). Anti-conservative on heavy-tailed pixels: a render that has
+/// not yet seen a pixel's rare paths has a lower mean and a smaller spread there than the converged
+/// reference (docs/compare.md); prefer compareStats against a stored statistics file.
 bool compareStatsToImage(const OIIO::ImageBuf& ref, const std::string& refName, StatsBlockSource& b,
                          const CompareOptions& opt, CompareResult& out, std::string& err);
 

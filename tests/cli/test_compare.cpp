@@ -1,0 +1,230 @@
+// `mcstat A B --compare` end to end on the fixture renderer's scenes (docs/compare.md): renders of
+// one scene with other seeds pass; changes a user must not miss fail (a light 2 % brighter, an
+// albedo 3 % darker on one box, the glass's IOR moved the caustic, bounces missing); the exit
+// status, the verdict, the maps; the extremes and the refusals. Every render has a fixed seed, so
+// the outcomes (and the false-alarm count over seed pairs) are fixed: nothing here can flake.
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imagebuf.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "cli_support.h"
+
+namespace {
+
+using mcstat::testing::Result;
+
+class CompareCli : public mcstat::testing::CliFixture {
+  protected:
+    /// Writes built-in scene `scene` with `edit` applied to `name`.json and returns its path.
+    template <class F>
+    std::string sceneVariant(const std::string& scene, const std::string& name, F edit) {
+        std::ifstream in(std::string(MCSTAT_SOURCE_DIR) + "/render-fixture/scenes/" + scene +
+                         ".json");
+        std::stringstream text;
+        text << in.rdbuf();
+        nlohmann::json j = nlohmann::json::parse(text.str(), nullptr, true, /*comments*/ true);
+        edit(j);
+        const std::string p = path(name + ".json");
+        std::ofstream(p) << j.dump(1);
+        return p;
+    }
+    /// Renders `scene` (a built-in name or a JSON file) to `out` at 64 x 48.
+    void render(const std::string& scene, const std::string& out, int seed, int spp = 256,
+                int M = 16, const std::string& extra = "") {
+        const std::string cmd = std::string(MCSTAT_RENDER_EXE) + " --quiet --scene " + scene +
+                                " --res 64 48 --spp " + std::to_string(spp) + " --M " +
+                                std::to_string(M) + " --seed " + std::to_string(seed) + " " +
+                                extra + " -o " + path(out) + " >/dev/null 2>&1";
+        ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    }
+    Result compare(const std::string& a, const std::string& b, const std::string& mods = "") {
+        return mcstat(path(a) + " " + path(b) + " --compare" + mods);
+    }
+};
+
+std::string firstLine(const std::string& s) { return s.substr(0, s.find('\n')); }
+
+TEST_F(CompareCli, SameSceneOtherSeedsPassesAndChangesAUserMustNotMissFail) {
+    render("arealight", "a.mcstat", 1);
+    render("arealight", "same.mcstat", 2);
+    render(sceneVariant("arealight", "light",
+                        [](nlohmann::json& j) {
+                            // The area light is the last shape: 2 % more radiance.
+                            j["shapes"].back()["emission"] = {10.71, 10.71, 10.71};
+                        }),
+           "light.mcstat", 2);
+    render(
+        sceneVariant(
+            "arealight", "albedo",
+            [](nlohmann::json& j) {
+                // The tall box (shape 5) 3 % darker: a small region of the image.
+                j["materials"]["box"] = {{"type", "diffuse"}, {"albedo", {0.7081, 0.7081, 0.7081}}};
+                j["shapes"][5]["material"] = "box";
+            }),
+        "albedo.mcstat", 2);
+    render(sceneVariant("arealight", "bounce",
+                        [](nlohmann::json& j) { j["integrator"]["maxDepth"] = 3; }),
+           "bounce.mcstat", 2);
+    render("caustic", "ca.mcstat", 1);
+    render("caustic", "ca_same.mcstat", 2);
+    render(sceneVariant("caustic", "ior",
+                        [](nlohmann::json& j) { j["materials"]["glass"]["ior"] = 1.45; }),
+           "ca_ior.mcstat", 2);
+
+    Result r = compare("a.mcstat", "same.mcstat", " -o " + path("same.exr"));
+    EXPECT_EQ(r.code, 0) << r.out << r.err;
+    EXPECT_NE(firstLine(r.out).find("SAME"), std::string::npos) << r.out;
+    r = compare("ca.mcstat", "ca_same.mcstat");
+    EXPECT_EQ(r.code, 0) << r.out << r.err;
+    for (const char* changed : {"light.mcstat", "albedo.mcstat", "bounce.mcstat"}) {
+        r = compare("a.mcstat", changed);
+        EXPECT_EQ(r.code, 2) << changed << "\n" << r.out << r.err;
+        EXPECT_NE(firstLine(r.out).find("DIFFERENT"), std::string::npos) << r.out;
+    }
+    r = compare("ca.mcstat", "ca_ior.mcstat", " -o " + path("ior.exr"));
+    EXPECT_EQ(r.code, 2) << r.out << r.err;
+    // The maps say where: the caustic, a small spot, and nothing of the floor around it. Every
+    // pixel flagged lies within a box of at most 5 % of the image.
+    OIIO::ImageBuf maps(path("ior.exr"));
+    ASSERT_TRUE(maps.read()) << maps.geterror();
+    const int differs = maps.spec().channelindex("differs");
+    ASSERT_GE(differs, 0);
+    int flagged = 0, x0 = 64, x1 = -1, y0 = 48, y1 = -1;
+    for (int y = 0; y < 48; ++y)
+        for (int x = 0; x < 64; ++x)
+            if (maps.getchannel(x, y, 0, differs) == 1.f) {
+                ++flagged;
+                x0 = std::min(x0, x);
+                x1 = std::max(x1, x);
+                y0 = std::min(y0, y);
+                y1 = std::max(y1, y);
+            }
+    EXPECT_GT(flagged, 3);
+    EXPECT_LE((x1 - x0 + 1) * (y1 - y0 + 1), 64 * 48 / 20)
+        << x0 << ".." << x1 << ", " << y0 << ".." << y1;
+    // Provenance on the maps; the verdict too.
+    EXPECT_EQ(maps.spec().get_int_attribute("mcstat.compare.fail"), 1);
+    EXPECT_NE(maps.spec().get_string_attribute("mcstat.compare.verdict").find("DIFFERENT"),
+              std::string::npos);
+}
+
+TEST_F(CompareCli, FalseAlarmsOverSeedPairsStayNearTheLevel) {
+    // Ten pairs of renders of one scene with other seeds, at level 0.05 (a false alarm in about
+    // one pair of twenty): at most two of ten is far outside what a calibrated test gives (the
+    // chance of three or more is 1.2 %), and a variance too small by a factor of two (the classic
+    // error: samples taken as independent of the buffers) alarms in nearly every pair.
+    int alarms = 0;
+    for (int i = 0; i < 10; ++i) {
+        const int s = 100 + 2 * i;
+        render("arealight", "x.mcstat", s, 64, 8);
+        render("arealight", "y.mcstat", s + 1, 64, 8);
+        const Result r = compare("x.mcstat", "y.mcstat", ":level=0.05");
+        ASSERT_TRUE(r.code == 0 || r.code == 2) << r.err;
+        if (r.code == 2) ++alarms;
+    }
+    EXPECT_LE(alarms, 2);
+}
+
+TEST_F(CompareCli, IdenticalFilesReferenceImagesAndRefusals) {
+    render("arealight", "a.mcstat", 1, 64, 8);
+    render("arealight", "b.mcstat", 2, 64, 8);
+    Result r = compare("a.mcstat", "a.mcstat");
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(firstLine(r.out).find("IDENTICAL"), std::string::npos) << r.out;
+
+    // A high-spp reference image (no sub-buffers): a one-sample test, in either stack order. A
+    // render that has not yet seen a pixel's rare paths has a lower mean and a smaller spread
+    // there, so against a converged reference a few heavy-tailed pixels are flagged
+    // (docs/compare.md, "Against a reference image"): under 1 % of them; a 10 % brighter light
+    // is flagged in most tiles.
+    auto reference = [&](const std::string& scene, const std::string& out) {
+        const std::string cmd = std::string(MCSTAT_RENDER_EXE) + " --quiet --scene " + scene +
+                                " --res 64 48 --spp 2048 --seed 9 --reference -o " + path(out);
+        ASSERT_EQ(std::system(cmd.c_str()), 0);
+    };
+    reference("arealight", "ref.exr");
+    reference(sceneVariant("arealight", "bright",
+                           [](nlohmann::json& j) {
+                               j["shapes"].back()["emission"] = {11.55, 11.55, 11.55};
+                           }),
+              "bright.exr");
+    auto flaggedPixels = [](const std::string& out) {
+        const size_t at = out.find("pixels: ");
+        if (at == std::string::npos) return -1L;
+        const size_t comma = out.find(", ", at);
+        return std::stol(out.substr(comma + 2));
+    };
+    auto flaggedTiles = [](const std::string& out) {
+        const size_t at = out.find("tiles 16x16: ");
+        if (at == std::string::npos) return -1L;
+        const size_t comma = out.find(", ", at);
+        return std::stol(out.substr(comma + 2));
+    };
+    r = mcstat(path("ref.exr") + " " + path("b.mcstat") + " --compare:refspp=2048");
+    EXPECT_NE(r.out.find("against the reference"), std::string::npos) << r.out;
+    const long sameFlagged = flaggedPixels(r.out);
+    EXPECT_GE(sameFlagged, 0) << r.out;
+    EXPECT_LT(sameFlagged, 64 * 48 / 100) << r.out;
+    r = mcstat(path("b.mcstat") + " " + path("bright.exr") + " --compare:refspp=2048");
+    EXPECT_EQ(r.code, 2) << r.out << r.err;
+    EXPECT_GE(flaggedTiles(r.out), 9) << r.out;  // of 12
+    // Yuen's trimmed mean is not the mean a reference image holds.
+    r = mcstat(path("ref.exr") + " " + path("b.mcstat") + " --compare:test=yuen");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("yuen"), std::string::npos) << r.err;
+
+    // M = 1: no variance. One line naming the file, exit 1.
+    render("arealight", "one.mcstat", 3, 16, 1);
+    r = compare("a.mcstat", "one.mcstat");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("one.mcstat"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("M = 1"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    // Different sizes.
+    const std::string small = std::string(MCSTAT_RENDER_EXE) +
+                              " --quiet --scene arealight --res 32 24 --spp 16 --M 4 -o " +
+                              path("small.mcstat");
+    ASSERT_EQ(std::system(small.c_str()), 0);
+    r = compare("a.mcstat", "small.mcstat");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("data windows"), std::string::npos) << r.err;
+    // Two images: that is --diff's job.
+    r = mcstat(path("ref.exr") + " " + path("ref.exr") + " --compare");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("--diff"), std::string::npos) << r.err;
+    // One item only, a bad modifier, an equivalence test without a tolerance.
+    EXPECT_EQ(mcstat(path("a.mcstat") + " --compare").code, 1);
+    r = compare("a.mcstat", "b.mcstat", ":level=2");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("level"), std::string::npos) << r.err;
+    r = compare("a.mcstat", "b.mcstat", ":equivalence=1");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("tolerance"), std::string::npos) << r.err;
+    r = compare("a.mcstat", "b.mcstat", ":refspp=100");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("refspp"), std::string::npos) << r.err;
+}
+
+TEST_F(CompareCli, ExitStatusOutlivesLaterCommandsAndTheMapsAreWritten) {
+    render("arealight", "a.mcstat", 1, 64, 8);
+    render(sceneVariant("arealight", "bounce",
+                        [](nlohmann::json& j) { j["integrator"]["maxDepth"] = 1; }),
+           "b.mcstat", 2, 64, 8);
+    const Result r = compare(
+        "a.mcstat", "b.mcstat",
+        ":channels=rgb -o " + path("maps.exr") + " --heatmap:channel=z.G -o " + path("z.png"));
+    EXPECT_EQ(r.code, 2) << r.err;
+    OIIO::ImageBuf maps(path("maps.exr"));
+    ASSERT_TRUE(maps.init_spec(path("maps.exr"), 0, 0)) << maps.geterror();
+    for (const char* c : {"p.R", "z.G", "effect.B", "differs.R", "tile.p.G", "tile.differs.B"})
+        EXPECT_GE(maps.spec().channelindex(c), 0) << c;
+    EXPECT_EQ(maps.spec().width, 64);
+    EXPECT_TRUE(OIIO::Filesystem::exists(path("z.png")));
+}
+
+}  // namespace
