@@ -59,6 +59,25 @@ std::string fitText(const std::string& text, int width, int fontSize) {
     return "";
 }
 
+/// `text` broken at spaces into lines at most `width` pixels wide (a word wider than that is cut
+/// with "..."); empty text gives no lines.
+std::vector<std::string> wrapText(const std::string& text, int width, int fontSize) {
+    std::vector<std::string> lines;
+    std::string line;
+    for (const std::string& word : OIIO::Strutil::splits(text, " ")) {
+        if (word.empty()) continue;
+        const std::string longer = line.empty() ? word : line + " " + word;
+        if (line.empty() || textWidth(longer, fontSize) <= width) {
+            line = longer;
+            continue;
+        }
+        lines.push_back(fitText(line, width, fontSize));
+        line = word;
+    }
+    if (!line.empty()) lines.push_back(fitText(line, width, fontSize));
+    return lines;
+}
+
 /// Draws `text` with its top at `top` (baseline at top + ascent) and its left edge at `x`.
 bool drawText(ImageBuf& dst, int x, int top, const std::string& text, const ReviewStyle& st) {
     if (text.empty()) return true;
@@ -126,11 +145,24 @@ std::vector<double> tickValues(const ColorScale& s) {
 
 std::string tickLabel(double v) { return format("{:.3g}", v); }
 
+/// OIIO's colour maps plus "cool-warm", a diverging map with a neutral grey at its middle
+/// (Moreland, "Diverging Color Maps for Scientific Visualization", ISVC 2009: its end points and a
+/// grey centre, as scene-linear knots) for signed data such as --compare's z-scores: OIIO's
+/// "blue-red" is purple at 0, where nothing happened.
+bool colorMap(ImageBuf& dst, const ImageBuf& src, const std::string& map, int nthreads = 0) {
+    if (map == "cool-warm") {
+        static const float knots[] = {0.0437f, 0.0730f, 0.527f,   0.723f, 0.723f,
+                                      0.723f,  0.456f,  0.00121f, 0.0194f};
+        return IBA::color_map(dst, src, 0, 3, 3, knots, {}, nthreads);
+    }
+    return IBA::color_map(dst, src, 0, map, {}, nthreads);
+}
+
 bool knownMap(const std::string& map) {
     ImageBuf one(ImageSpec(1, 1, 1, TypeDesc::FLOAT));
     IBA::zero(one);
     ImageBuf out;
-    const bool ok = IBA::color_map(out, one, 0, map);
+    const bool ok = colorMap(out, one, map);
     (void)out.geterror();  // consumed: an unknown name is reported by the caller
     return ok;
 }
@@ -174,8 +206,8 @@ bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& chan
     }
     if (!knownMap(opt.map)) {
         err = format(
-            "unknown colour map '{}' (OIIO knows inferno, viridis, magma, plasma, turbo, "
-            "blue-red, spectrum, heat)",
+            "unknown colour map '{}' (known: inferno, viridis, magma, plasma, turbo, blue-red, "
+            "spectrum, heat, and cool-warm, diverging)",
             opt.map);
         return false;
     }
@@ -208,6 +240,11 @@ bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& chan
         hi = s.log ? 10.0 : 1.0;
     }
     const bool userMin = !std::isnan(opt.min), userMax = !std::isnan(opt.max);
+    if (opt.symmetric && !s.log && lo <= hi) {
+        const double m = std::max(std::fabs(lo), std::fabs(hi));
+        lo = -m;
+        hi = m;
+    }
     if (userMin) lo = opt.min;
     if (userMax) hi = opt.max;
     if (!std::isfinite(lo) || !std::isfinite(hi)) {
@@ -253,7 +290,7 @@ bool colorBar(ImageBuf& dst, int width, const ColorScale& scale, const ReviewSty
         t.set_pixels(t.roi(), TypeDesc::FLOAT, row.data());
     }
     ImageBuf mapped, disp;
-    if (!IBA::color_map(mapped, t, 0, scale.map)) {
+    if (!colorMap(mapped, t, scale.map)) {
         dst.errorfmt("colour bar: {}", mapped.geterror());
         return false;
     }
@@ -343,6 +380,10 @@ bool heatmap(ImageBuf& dst, const ImageBuf& src, const HeatmapOptions& opt, ROI 
     if (!checkCanvas(dst, mapW + 2 * m + barW, mapH + 3 * m + 4 * opt.style.lineHeight(),
                      "heatmap"))
         return false;
+    // The caption's lines, wrapped to the width of the picture (at least the colour bar's).
+    const int textW = int(std::max<long long>(mapW, barW));
+    const std::vector<std::string> caption = wrapText(opt.caption, textW, opt.style.fontSize);
+    const int captionH = caption.empty() ? 0 : int(caption.size()) * opt.style.lineHeight() + m / 2;
 
     // Data: each pixel's position on the scale, and which pixels are NaN / Inf (3 channels, to
     // mask the RGB below).
@@ -371,7 +412,7 @@ bool heatmap(ImageBuf& dst, const ImageBuf& src, const HeatmapOptions& opt, ROI 
     // OIIO's colour maps are scene-linear; the display view makes them display-referred (with the
     // built-in config, the maps' published sRGB values), as the contact sheet's image tiles are.
     ImageBuf mapped, disp, magenta, map;
-    if (!IBA::color_map(mapped, t, 0, cs.map, {}, nthreads) || !displayTransform(disp, mapped) ||
+    if (!colorMap(mapped, t, cs.map, nthreads) || !displayTransform(disp, mapped) ||
         !IBA::mul(magenta, nf, OIIO::cspan<float>(kNonFiniteColor), {}, nthreads) ||
         !IBA::mad(map, disp, keep, magenta, {}, nthreads)) {
         std::string e = mapped.geterror() + disp.geterror() + magenta.geterror() + map.geterror();
@@ -385,8 +426,16 @@ bool heatmap(ImageBuf& dst, const ImageBuf& src, const HeatmapOptions& opt, ROI 
     }
     ImageBuf out;
     int mapX = 0, mapY = 0, barX = 0, barY = 0, barH = 0;
-    if (!opt.colorBar) {
+    if (!opt.colorBar && caption.empty()) {
         out = std::move(scaled);
+    } else if (!opt.colorBar) {
+        out = canvas(int(mapW) + 2 * m, m + captionH + int(mapH) + m, opt.style.background);
+        mapX = m;
+        mapY = m + captionH;
+        if (!IBA::paste(out, mapX, mapY, 0, 0, scaled, {}, nthreads)) {
+            dst.errorfmt("heatmap: {}", out.geterror());
+            return false;
+        }
     } else {
         ImageBuf bar;
         if (!colorBar(bar, barW, cs, opt.style)) {
@@ -394,12 +443,12 @@ bool heatmap(ImageBuf& dst, const ImageBuf& src, const HeatmapOptions& opt, ROI 
             return false;
         }
         const int cw = int(std::max<long long>(mapW, barW)) + 2 * m;
-        const int chh = m + int(mapH) + m + bar.spec().height + m;
+        const int chh = m + captionH + int(mapH) + m + bar.spec().height + m;
         out = canvas(cw, chh, opt.style.background);
         mapX = m;
-        mapY = m;
+        mapY = m + captionH;
         barX = m;
-        barY = m + int(mapH) + m;
+        barY = mapY + int(mapH) + m;
         barH = bar.spec().get_int_attribute("mcstat:colorbar:height");
         if (!IBA::paste(out, mapX, mapY, 0, 0, scaled, {}, nthreads) ||
             !IBA::paste(out, barX, barY, 0, 0, bar, {}, nthreads)) {
@@ -407,6 +456,11 @@ bool heatmap(ImageBuf& dst, const ImageBuf& src, const HeatmapOptions& opt, ROI 
             return false;
         }
     }
+    for (size_t i = 0; i < caption.size(); ++i)
+        if (!drawText(out, m, m + int(i) * opt.style.lineHeight(), caption[i], opt.style)) {
+            dst.errorfmt("heatmap: {}", out.geterror());
+            return false;
+        }
     ImageSpec& spec = out.specmod();
     spec.channelnames = {"R", "G", "B"};
     spec.attribute("mcstat:heatmap:channel", src.spec().channel_name(ch));

@@ -21,6 +21,7 @@
 #include "mcstat/color.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
+#include "mcstat/image/render_layout.h"
 
 namespace mcstat::cli {
 
@@ -328,6 +329,25 @@ bool cmdHeatmap(State& st, const std::string& cmd, const std::vector<std::string
     Item& top = st.stack.back();
     HeatmapOptions opt;
     opt.channel = modifier(mods, "channel", "");
+    // The maps of --compare: the signed effect in standard errors on a diverging map centred on
+    // 0, the verdict written above it.
+    const OIIO::ImageSpec& src = top.image->spec();
+    const std::string verdict =
+        src.get_string_attribute(std::string(kProvenancePrefix) + "compare.verdict");
+    if (!verdict.empty()) {
+        opt.caption = verdict;
+        if (opt.channel.empty()) {
+            for (const std::string& c : src.channelnames)
+                if (c == "z" || (opt.channel.empty() && OIIO::Strutil::starts_with(c, "z.")))
+                    opt.channel = c;
+        }
+        const std::string& c = opt.channel;
+        if (OIIO::Strutil::starts_with(c, "z") || OIIO::Strutil::starts_with(c, "tile.z") ||
+            OIIO::Strutil::starts_with(c, "effect")) {
+            opt.map = "cool-warm";
+            opt.symmetric = true;
+        }
+    }
     opt.map = modifier(mods, "map", opt.map);
     checkedReal(mods, "min", opt.min);
     checkedReal(mods, "max", opt.max);
@@ -656,7 +676,9 @@ void appendReviewCommands(std::vector<Command>& t) {
                  "Replace the top image by a heatmap of one channel with a colour bar "
                  "(display-referred; NaN/Inf magenta)",
                  {textParam("channel", "", "default: relerr if present, else the first"),
-                  textParam("map", "inferno", "OIIO colour map"),
+                  textParam("map", "",
+                            "OIIO colour map or cool-warm (diverging); default inferno, "
+                            "cool-warm for the signed maps of --compare (z, effect)"),
                   realParam("min", -HUGE_VAL, HUGE_VAL, false, "", "default: the data range"),
                   realParam("max", -HUGE_VAL, HUGE_VAL, false, "", "default: the data range"),
                   enumParam("log", {"auto", "0", "1"}, "auto",

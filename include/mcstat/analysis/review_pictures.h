@@ -36,7 +36,7 @@ struct ReviewStyle {
 
 /// How values map to colours: value v -> position t in [0, 1] -> map(t).
 struct ColorScale {
-    std::string map = "inferno";  ///< an OIIO colour map name (ImageBufAlgo::color_map)
+    std::string map = "inferno";  ///< an OIIO colour map name, or "cool-warm"
     double lo = 0.0, hi = 1.0;    ///< values at t = 0 and t = 1 (lo < hi; lo > 0 when log)
     bool log = false;             ///< t linear in log10(v) instead of v
     std::string label;            ///< what the colour bar says under its numbers
@@ -50,14 +50,19 @@ double colorScalePosition(const ColorScale& scale, double v);
 /// What a heatmap shows and how.
 struct HeatmapOptions {
     std::string channel;          ///< channel name; empty: "relerr" if present, else the first
-    std::string map = "inferno";  ///< OIIO colour map name
+    std::string map = "inferno";  ///< OIIO colour map name, or "cool-warm" (diverging)
     /// Range: NaN means the data range over the finite values (on a log scale: the positive ones).
     double min = std::numeric_limits<double>::quiet_NaN();
     double max = std::numeric_limits<double>::quiet_NaN();
     /// -1: log10 scale for channels named "relerr*" (errors span decades), linear otherwise.
     int log = -1;
-    int scale = 1;          ///< integer upscaling of the map (nearest pixel), 1..64
-    bool colorBar = true;   ///< false: only the mapped pixels (a contact-sheet tile)
+    /// A default range (min and max unset) symmetric about 0, [-m, m] with m the largest finite
+    /// |value|: signed data (effects, z-scores) with a diverging map keep 0 in the middle.
+    bool symmetric = false;
+    int scale = 1;         ///< integer upscaling of the map (nearest pixel), 1..64
+    bool colorBar = true;  ///< false: only the mapped pixels (a contact-sheet tile)
+    /// Text drawn above the map (e.g. a comparison's verdict), word-wrapped to the picture's width.
+    std::string caption;
     int minBarWidth = 256;  ///< the colour bar is at least this wide (room for its numbers)
     ReviewStyle style;
 };
@@ -80,7 +85,8 @@ OIIO::ImageBuf colorBar(int width, const ColorScale& scale, const ReviewStyle& s
 /// Heatmap of one channel of `src` within `roi`: colour_map of the position on the resolved scale,
 /// through the OCIO display view (OIIO's maps are scene-linear; the built-in config's view gives
 /// their published sRGB values), NaN / Inf pixels kNonFiniteColor, upscaled `opt.scale` times,
-/// with a colour bar under it unless opt.colorBar is false. Spec attributes:
+/// with a colour bar under it unless opt.colorBar is false and opt.caption above it. Spec
+/// attributes:
 /// mcstat:heatmap:channel, map, min, max, log, nonFinite, scale; mcstat:heatmap:x, y, width, height
 /// (the map's rectangle) and mcstat:colorbar:x, y, width, height (the gradient's), in dst's pixel
 /// coordinates.
