@@ -442,7 +442,13 @@ void Comparison::finish() {
             const size_t h = qi * P_ + p;
             const float pv = p_[h];
             if (std::isnan(pv)) continue;
-            if (rejected(pv)) any = true;
+            if (rejected(pv)) {
+                any = true;
+                if (std::isfinite(z_[h])) {
+                    ++out_.rejectedNoisy;
+                    if (z_[h] < 0.f) ++out_.rejectedDarker;
+                }
+            }
             if (pixelNonFinite_[p] == 0 && better(pv, z_[h], out_.strongest, out_.threshold))
                 fill(out_.strongest, false, p, qi, pv, z_[h], effect_[h], aEst_[h], pixelDf_[h]);
         }
@@ -787,6 +793,13 @@ std::vector<std::string> compareEvidence(const CompareResult& r, const CompareOp
             fmt::format("{} pixel tests had no noise and no difference (e.g. black "
                         "background)",
                         r.constantEqual));
+    if (r.oneSample && !equivalence && r.rejectedNoisy >= 10 &&
+        r.rejectedDarker * 10 >= r.rejectedNoisy * 9)
+        lines.push_back(fmt::format(
+            "warning: {} of the {} noisy pixels that differ are darker than the reference: the "
+            "signature of rare paths (fireflies, caustics) this render has not seen yet, not of a "
+            "change; compare against a statistics file of the reference instead (docs/compare.md)",
+            r.rejectedDarker, r.rejectedNoisy));
     if (r.tile == 0 && opt.tile > 0)
         lines.push_back("no tile tests: adaptive M (buffer indices differ from pixel to pixel)");
     return lines;

@@ -93,7 +93,25 @@ echo "Review pictures"
 "$mcstat" "$stats" --gmon:diag=1 --heatmap:channel=kept -o "$OUT/heatmap-kept.png"
 "$mcstat" "$stats" --qualityplot:estimators=mean,mon,gmon:csv="$OUT/quality.csv" "$ref" \
   -o "$OUT/quality.png" >/dev/null
+
+# Noise-aware comparison (docs/compare.md): two renders of the default scene with other seeds are
+# the same image up to their noise (exit status 0); the light 2 % brighter is found (exit 2).
+echo
+echo "Compare: the default scene, 256 spp, M = 16: other seeds, then the light 2 % brighter"
+c=$OUT/compare; mkdir -p "$c"
+for v in a:default:11 b:default:12 light:render-fixture/examples/default-light-1.02.json:12; do
+  IFS=: read -r name scene seed <<<"$v"
+  f=$c/$name.mcstat
+  if stale "$f" || [ "$scene" -nt "$f" ]; then
+    "$render" --scene "$scene" --spp 256 --M 16 --seed "$seed" --quiet -o "$f"
+  fi
+done
+"$mcstat" "$c/a.mcstat" "$c/b.mcstat" --compare:test=yuen --heatmap -o "$OUT/compare-same.png"
+"$mcstat" "$c/a.mcstat" "$c/light.mcstat" --compare:test=yuen -o "$c/maps.exr" \
+  --heatmap:channel=tile.z -o "$OUT/compare-light.png" || [ $? -eq 2 ]
+
 echo
 echo "demo: images in $OUT/ (mean, mon, gmonb, gmon, ingested-gmon, reference; .exr scene-linear, .png sRGB;"
 echo "      contactsheet.png, heatmap-{relerr,fireflies-mean,gini,kept}.png, quality.png + quality.csv,"
-echo "      aovs.png and aovs-residual.png: the robust AOVs and how closely they sum to the robust beauty)"
+echo "      aovs.png and aovs-residual.png: the robust AOVs and how closely they sum to the robust beauty;"
+echo "      compare-{same,light}.png: --compare's z-score maps with their verdicts)"

@@ -2,17 +2,25 @@
 # Runs every shell block of README.md verbatim, in order, in one shell (as a user pasting them into
 # a terminal), except the block holding the two set-up commands (scripts/demo.sh, scripts/test.sh),
 # which is what this build already did. The scratch folder stands in for the repository's root:
-# build/ is this build tree, out/demo/ holds the demo's reference (rendered here with fewer samples:
-# the commands need a reference of the same scene and size, not a converged one).
+# build/ is this build tree, render-fixture/ the source's (example scenes), out/demo/ holds the demo's
+# reference and seed renders (rendered here with fewer samples: the commands need renders of the
+# same scene and size, not converged ones).
 # Usage: run_readme.sh SOURCE_DIR BUILD_DIR WORK_DIR
 set -euo pipefail
 src=$1 build=$2 work=$3
 [ -n "${KEEP:-}" ] || rm -rf "$work"
 mkdir -p "$work/out/demo"
 ln -s "$build" "$work/build"
+ln -s "$src/render-fixture" "$work/render-fixture"  # example scenes the README renders
 cd "$work"
 build/render-fixture/mcstat-render --scene default --spp 256 --seed 4242 --reference --quiet \
   -o out/demo/reference-65536spp.exr
+# The demo's seed renders (fewer samples).
+mkdir -p out/demo/seeds
+for s in $(seq 9); do
+  build/render-fixture/mcstat-render --scene default --spp 16 --seed $((100 + s)) --reference \
+    --quiet -o "out/demo/seeds/default_s${s}_64spp.exr"
+done
 
 # The ```sh blocks of the README, minus the set-up block.
 awk '/^```sh$/ { inblock = 1; block = ""; next }

@@ -74,6 +74,10 @@ struct CompareResult {
     /// Pixels with NaN / Inf in some buffer of one side only: counted as differing (p = 0), since
     /// a renderer that starts making NaNs has changed. Both sides: left untested.
     size_t nonFiniteOneSide = 0, nonFiniteBoth = 0;
+    /// One-sample: of the pixels declared different with a finite z, how many are darker than the
+    /// reference (b < a). Nearly all of them is the signature of rare paths the statistics file has
+    /// not seen yet, not of a change (docs/compare.md, "Against a reference image").
+    size_t rejectedNoisy = 0, rejectedDarker = 0;
     /// Pixels constant (zero variance) and equal on both sides: nothing to test, counted as
     /// agreeing.
     size_t constantEqual = 0;
