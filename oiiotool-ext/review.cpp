@@ -17,6 +17,7 @@
 #include <utility>
 
 #include "cli.h"
+#include "mcstat/analysis/compare.h"
 #include "mcstat/analysis/review_pictures.h"
 #include "mcstat/color.h"
 #include "mcstat/filters/registry.h"
@@ -263,6 +264,53 @@ bool differenceTile(State& st, ContactSheet& q, std::string& err) {
     return true;
 }
 
+/// With :compare=FILE, the last tile: --compare of FILE (a) against the top statistics file (b),
+/// its z-scores on a diverging map with their colour bar, titled with the verdict's first word. The
+/// verdict line is printed as --compare prints it; the exit status is --compare's to give.
+bool compareTile(State& st, ContactSheet& q, const std::string& other, std::string& err) {
+    const Item& top = st.stack.back();
+    StatsFileReader reader;
+    if (!reader.open(other, err, ReadLimits(), st.nthreads)) {
+        err = format("{}: {}", q.cmd, err);
+        return false;
+    }
+    MemoryStatsSource mine(top.stats, top.name);
+    CompareOptions opt;
+    opt.luma = q.opt.luma;
+    opt.nthreads = st.nthreads;
+    CompareResult r;
+    if (!compareStats(reader, mine, opt, r, err)) {
+        err = format("{}: compare: {}", q.cmd, err);
+        return false;
+    }
+    std::printf("%s vs %s: %s\n", other.c_str(), top.name.c_str(), compareVerdict(r, opt).c_str());
+    HeatmapOptions hopt;
+    hopt.channel = "z";
+    hopt.map = "cool-warm";
+    hopt.symmetric = true;
+    hopt.colorBar = false;
+    int channel = 0;
+    ColorScale cs;
+    SheetTile tile;
+    if (!resolveColorScale(r.maps, hopt, channel, cs, err) ||
+        !heatmap(tile.image, r.maps, hopt, {}, st.nthreads)) {
+        err = format("{}: {}", q.cmd, err.empty() ? tile.image.geterror() : err);
+        return false;
+    }
+    cs.label = "z (standard errors)";
+    if (!colorBar(tile.footer, top.header.width * q.layout.scale, cs, q.layout.style)) {
+        err = format("{}: {}", q.cmd, tile.footer.geterror());
+        return false;
+    }
+    tile.title = std::string("compare: ") + (r.identical ? "IDENTICAL"
+                                             : r.fail    ? "DIFFERENT"
+                                                         : "SAME");
+    tile.lines = {format("{} px, {} tiles differ", r.pixelsRejected, r.tilesRejected),
+                  "vs " + OIIO::Filesystem::filename(other)};
+    q.tiles.push_back(std::move(tile));
+    return true;
+}
+
 /// The sheet's metadata, tile by tile: the estimators' names and metrics, then the reference and
 /// the difference, so that scripts read the numbers the labels show.
 void labelSheet(const ContactSheet& q, OIIO::ImageSpec& spec) {
@@ -290,6 +338,8 @@ bool cmdContactSheet(State& st, const std::string& cmd, const std::vector<std::s
         if (!estimatorTile(st, *e, q, err)) return false;
     std::fflush(stdout);
     if (!referenceTile(st, q, err) || !differenceTile(st, q, err)) return false;
+    const std::string other = modifier(mods, "compare", "");
+    if (!other.empty() && !compareTile(st, q, other, err)) return false;
     auto sheet = std::make_shared<OIIO::ImageBuf>();
     if (!contactSheet(*sheet, q.tiles, q.layout, {}, st.nthreads)) {
         err = format("{}: {}", cmd, sheet->geterror());
@@ -663,7 +713,10 @@ void appendReviewCommands(std::vector<Command>& t) {
                  "relative error of the last estimator, labelled, with relMSE, SSIM, fireflies "
                  "(docs/review.md)",
                  {textParam("estimators", "gmon", "registry names, comma-separated"),
-                  scaleModifier(), layerModifier()},
+                  scaleModifier(), layerModifier(),
+                  textParam("compare", "",
+                            "FILE.mcstat: a last tile, --compare of FILE against the top file "
+                            "(z-scores, verdict)")},
                  &cmdContactSheet,
                  ""});
     t.push_back({"--errormap", 1, "REF",

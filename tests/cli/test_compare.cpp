@@ -225,6 +225,21 @@ TEST_F(CompareCli, ExitStatusOutlivesLaterCommandsAndTheMapsAreWritten) {
         EXPECT_GE(maps.spec().channelindex(c), 0) << c;
     EXPECT_EQ(maps.spec().width, 64);
     EXPECT_TRUE(OIIO::Filesystem::exists(path("z.png")));
+
+    // The contact sheet's last tile: the comparison against another file, with its verdict.
+    const Result s = mcstat(path("b.mcstat") + " --contactsheet:compare=" + path("a.mcstat") + " " +
+                            path("a.mcstat") + " -o " + path("sheet.png"));
+    EXPECT_EQ(s.code, 0) << s.err;
+    EXPECT_NE(s.out.find("DIFFERENT"), std::string::npos) << s.out;
+    ASSERT_EQ(mcstat(path("b.mcstat") + " --contactsheet " + path("a.mcstat") + " -o " +
+                     path("sheet4.png"))
+                  .code,
+              0);
+    OIIO::ImageBuf five(path("sheet.png")), four(path("sheet4.png"));
+    ASSERT_TRUE(five.init_spec(path("sheet.png"), 0, 0)) << five.geterror();
+    ASSERT_TRUE(four.init_spec(path("sheet4.png"), 0, 0)) << four.geterror();
+    // One more tile (64 px at the default scale 4) and its margin (8 px).
+    EXPECT_EQ(five.spec().width - four.spec().width, 64 * 4 + 8);
 }
 
 }  // namespace
