@@ -80,6 +80,7 @@ double referenceValue(const Side& s, const Quantity& q, int x, int y,
 /// Counts and findings of the tasks, merged under a mutex.
 struct Tally {
     size_t pixelsTested = 0, nonFiniteOneSide = 0, nonFiniteBoth = 0, constantEqual = 0;
+    size_t fewBuffers = 0;
     size_t tilesTested = 0;
     bool allZero = true;  ///< every difference tested was exactly 0
 };
@@ -256,6 +257,7 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
             if (nonFinite == 1) ++tally.nonFiniteOneSide;
             if (nonFinite == 2) ++tally.nonFiniteBoth;
             if (nonFinite == 1 || tested) ++tally.pixelsTested;
+            if (nonFinite == 0 && !tested) ++tally.fewBuffers;
             pixelNonFinite_[pix] = nonFinite;
         }
     }
@@ -319,6 +321,7 @@ bool Comparison::processBlock(int row0, int rows, std::string& err) {
             tally_.nonFiniteOneSide += t.nonFiniteOneSide;
             tally_.nonFiniteBoth += t.nonFiniteBoth;
             tally_.constantEqual += t.constantEqual;
+            tally_.fewBuffers += t.fewBuffers;
             tally_.tilesTested += t.tilesTested;
             tally_.allZero = tally_.allZero && t.allZero;
         }
@@ -380,6 +383,7 @@ void Comparison::finish() {
     out_.nonFiniteOneSide = tally_.nonFiniteOneSide;
     out_.nonFiniteBoth = tally_.nonFiniteBoth;
     out_.constantEqual = tally_.constantEqual;
+    out_.fewBuffers = tally_.fewBuffers;
     out_.identical = tally_.allZero && tally_.pixelsTested > 0 && tally_.nonFiniteOneSide == 0;
 
     const bool equivalence = opt_.test == TwoSampleTest::Equivalence;
@@ -613,7 +617,8 @@ bool compareStats(StatsBlockSource& a, StatsBlockSource& b, const CompareOptions
     out.originX = ha.originX;
     out.originY = ha.originY;
     // Tiles average a buffer index over pixels: with adaptive M the indices do not line up.
-    out.tile = ha.adaptiveM || hb.adaptiveM ? 0 : opt.tile;
+    out.adaptive = ha.adaptiveM || hb.adaptiveM;
+    out.tile = out.adaptive ? 0 : opt.tile;
     Side sa, sb;
     sa.src = &a;
     sb.src = &b;
@@ -653,7 +658,8 @@ bool compareStatsToImage(const OIIO::ImageBuf& ref, const std::string& refName, 
     out.height = hb.height;
     out.originX = hb.originX;
     out.originY = hb.originY;
-    out.tile = hb.adaptiveM ? 0 : opt.tile;
+    out.adaptive = hb.adaptiveM;
+    out.tile = out.adaptive ? 0 : opt.tile;
     Side sa, sb;
     sa.ref = &ref;
     sa.refRGB.resize(size_t(win.width()) * size_t(win.height()) * 3);
@@ -692,9 +698,10 @@ std::string testText(const CompareResult& r, const CompareOptions& opt) {
     const std::string t = opt.trimmed
                               ? fmt::format("Yuen's trimmed t ({} per end)", percentText(opt.trim))
                               : std::string("Welch's t");
+    const char* M = r.adaptive ? "M_max" : "M";
     const std::string m = r.oneSample
-                              ? fmt::format("M = {} sub-buffers against the reference", r.Mb)
-                              : fmt::format("M = {} + {} sub-buffers", r.Ma, r.Mb);
+                              ? fmt::format("{} = {} sub-buffers against the reference", M, r.Mb)
+                              : fmt::format("{} = {} + {} sub-buffers", M, r.Ma, r.Mb);
     return fmt::format("{} on {}", t, m);
 }
 
@@ -800,6 +807,13 @@ std::vector<std::string> compareEvidence(const CompareResult& r, const CompareOp
             "signature of rare paths (fireflies, caustics) this render has not seen yet, not of a "
             "change; compare against a statistics file of the reference instead (docs/compare.md)",
             r.rejectedDarker, r.rejectedNoisy));
+    if (r.fewBuffers > 0)
+        lines.push_back(
+            fmt::format("{} pixels not tested: fewer than two non-empty buffers on a "
+                        "side ({})",
+                        r.fewBuffers,
+                        r.adaptive ? "adaptive M gives smooth pixels one buffer"
+                                   : "fewer samples than buffers"));
     if (r.tile == 0 && opt.tile > 0)
         lines.push_back("no tile tests: adaptive M (buffer indices differ from pixel to pixel)");
     return lines;

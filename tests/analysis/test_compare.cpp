@@ -3,6 +3,7 @@
 #include <OpenImageIO/imagebufalgo.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -211,6 +212,23 @@ TEST(Compare, NonFiniteOnOneSideDiffersOnBothIsUntested) {
     EXPECT_TRUE(std::isnan(mapValue(r, "differs", 2, 9)));
     EXPECT_TRUE(std::isnan(mapValue(r, "tile.p", 0, 0)));  // the tile holding them is untested
     EXPECT_EQ(r.pixelsTested, 255u);
+}
+
+TEST(Compare, PixelsWithOneNonEmptyBufferAreLeftUntestedAndCounted) {
+    auto a = makeImage(16, 16, 4, 40, 0.1, [](int, int) { return 1.0; });
+    auto b = makeImage(16, 16, 4, 41, 0.1, [](int, int) { return 1.0; });
+    for (int j = 1; j < 4; ++j) b->bufferCount[(size_t(2) * 16 + 7) * 4 + j] = 0.f;  // (7, 2)
+    CompareResult r;
+    std::string err;
+    ASSERT_TRUE(compare(a, b, options(), r, err)) << err;
+    EXPECT_EQ(r.fewBuffers, 1u);
+    EXPECT_EQ(r.pixelsTested, 255u);
+    EXPECT_TRUE(std::isnan(mapValue(r, "p", 7, 2)));
+    EXPECT_TRUE(std::isnan(mapValue(r, "differs", 7, 2)));
+    const std::vector<std::string> lines = compareEvidence(r, options());
+    EXPECT_TRUE(std::any_of(lines.begin(), lines.end(), [](const std::string& l) {
+        return l.find("1 pixels not tested: fewer than two non-empty buffers") == 0;
+    }));
 }
 
 TEST(Compare, IdenticalBlackAndExtremeInputs) {

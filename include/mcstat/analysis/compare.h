@@ -78,6 +78,10 @@ struct CompareResult {
     /// reference (b < a). Nearly all of them is the signature of rare paths the statistics file has
     /// not seen yet, not of a change (docs/compare.md, "Against a reference image").
     size_t rejectedNoisy = 0, rejectedDarker = 0;
+    /// Pixels left untested because a side has fewer than two non-empty buffers there (adaptive M
+    /// gives smooth pixels one buffer; spp < M leaves buffers empty).
+    size_t fewBuffers = 0;
+    bool adaptive = false;  ///< a side has adaptive M (Ma, Mb are then the largest m_p)
     /// Pixels constant (zero variance) and equal on both sides: nothing to test, counted as
     /// agreeing.
     size_t constantEqual = 0;
