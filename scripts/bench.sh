@@ -2,14 +2,14 @@
 # Benchmarks (never part of the test suite); prints the tables of docs/benchmarks.md. Every speed
 # figure is a ratio against a reference measured in the same run: the plain mean (estimators),
 # stock oiiotool reading the same file's sub-buffer part (statistics files), stock oiiotool
-# averaging the same renders (ingest), the beauty alone and stock oiiotool reading the same parts
-# (AOVs), M = 1 (renderer).
+# reading both files' sub-buffer parts (compare), stock oiiotool averaging the same renders
+# (ingest), the beauty alone and stock oiiotool reading the same parts (AOVs), M = 1 (renderer).
 #
 #   scripts/bench.sh                 all sections
 #   SECTIONS="file height" scripts/bench.sh
 #
 # Environment:
-#   SECTIONS  any of: estimators threads file height ingest aovs render   (default: all)
+#   SECTIONS  any of: estimators threads file height compare ingest aovs render   (default: all)
 #   REPS      runs per command, alternated, medians reported (default 4)
 #   BASELINE  a folder holding an older build's mcstat and mcstat.imageio.so: the file table then
 #             shows its figures beside today's, measured in the same run (docs/benchmarks.md)
@@ -22,7 +22,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 REPS=${REPS:-4}
-SECTIONS=${SECTIONS:-estimators threads file height ingest aovs render}
+SECTIONS=${SECTIONS:-estimators threads file height compare ingest aovs render}
 BUILD=${BUILD:-build}
 BASELINE=${BASELINE:-}
 if [ "${SKIP_BUILD:-0}" != 1 ]; then
@@ -172,6 +172,61 @@ if want height; then
     esac
     printf "%-44s %10s %10s %10s\n" "$label" "$rss_h540 / $med_h540" "$rss_h1080 / $med_h1080" "$rss_h2160 / $med_h2160"
   done
+  echo
+fi
+
+if want compare; then
+  # mcstat --compare (docs/compare.md) of two renders of one image with different seeds: the file
+  # section's render (seed 3) and the same with seed 4, against stock oiiotool reading both files'
+  # sub-buffer parts (subimage 1, "buffers", as in the file section), one after the other in one
+  # measured command (its peak RSS is the larger of the two processes'). --compare exits 2 when
+  # the two differ: a verdict, not a failure, so the timed commands accept it.
+  cmpa=$out/bench-1920x1080-M21.mcstat cmpb=$out/bench-1920x1080-M21-seed4.mcstat
+  stats_file "$cmpa" 1920 1080 64
+  stats_file "$cmpb" 1920 1080 64 4
+  verdict_ok=(sh -c '"$@"; s=$?; [ "$s" = 0 ] || [ "$s" = 2 ]' sh)
+  echo "== mcstat A B --compare: two 1920x1080 renders, 64 spp, M = 21, seeds 3 and 4 (ZIP, $(du -h "$cmpa" | cut -f1) and $(du -h "$cmpb" | cut -f1)) against stock oiiotool reading both files' sub-buffer parts, 2 cores, medians of $REPS =="
+  for op in --compare --compare:test=yuen; do  # the verdicts, once, outside the table
+    s=0; "$mcstat" "$cmpa" "$cmpb" "$op" >"$out/compare.txt" 2>"$out/err.txt" || s=$?
+    if [ "$s" != 0 ] && [ "$s" != 2 ]; then
+      echo "bench: $mcstat $cmpa $cmpb $op failed" >&2; cat "$out/err.txt" >&2; exit 1
+    fi
+    echo "   $op (exit $s): $(head -1 "$out/compare.txt" | sed 's/^.* vs [^ ]*: //')"
+  done
+  cmd_ref=(env -u OIIO_LIBRARY_PATH sh -c 'oiiotool "$1" --subimage 1 --stats && oiiotool "$2" --subimage 1 --stats' sh "$cmpa" "$cmpb")
+  cmd_cw=("${verdict_ok[@]}" "$mcstat" "$cmpa" "$cmpb" --compare)
+  cmd_cy=("${verdict_ok[@]}" "$mcstat" "$cmpa" "$cmpb" --compare:test=yuen)
+  run_alternating ref cw cy
+  printf "%-58s | %8s %7s %8s %7s %9s %8s\n" "command" "wall s" "ratio" "CPU s" "ratio" "peak MiB" "CPU/wall"
+  for n in ref cw cy; do
+    case $n in
+      ref) l="oiiotool A --subimage 1 --stats; the same for B" ;;
+      cw) l="mcstat A B --compare" ;; cy) l="mcstat A B --compare:test=yuen" ;;
+    esac
+    w=med_$n c=cpu_$n r=rss_$n
+    awk -v l="$l" -v w="${!w}" -v c="${!c}" -v bw="$med_ref" -v bc="$cpu_ref" -v r="${!r}" \
+      'BEGIN { printf "%-58s | %8.2f %6.2fx %8.2f %6.2fx %9s %8.2f\n", l, w, w / bw, c, c / bc, r, c / w }'
+  done
+  echo
+
+  # Peak memory against the height: the height section's twins (8 spp, seeds 3 and 4), 540 and
+  # 1080 rows. Both sides are read by blocks of rows; what grows with the image is per pixel: the
+  # tests' p, z, effect, first side's estimate and df (5 floats) and a flag, then the maps p, z,
+  # effect, differs, tile.p, tile.z, tile.differs (7 floats) built while those are still held.
+  echo "== mcstat A B --compare: peak memory against image height: 1920 wide, M = 21, 8 spp (ZIP), seeds 3 and 4, medians of $REPS =="
+  for h in 540 1080; do
+    stats_file "$out/height-$h.mcstat" 1920 "$h" 8
+    stats_file "$out/height-$h-seed4.mcstat" 1920 "$h" 8 4
+    eval "cmd_c$h=(\"\${verdict_ok[@]}\" \"\$mcstat\" \"\$out/height-$h.mcstat\" \"\$out/height-$h-seed4.mcstat\" --compare)"
+  done
+  run_alternating c540 c1080
+  printf "%-44s %18s %18s %14s\n" "command (peak RSS MiB / wall s)" "540 rows" "1080 rows" "bytes/pixel"
+  awk -v a="$rss_c540" -v b="$rss_c1080" -v ta="$med_c540" -v tb="$med_c1080" 'BEGIN {
+    printf "%-44s %18s %18s %14.1f\n", "mcstat A B --compare", a " / " ta, b " / " tb,
+      (b - a) * 1048576 / (1920 * 540) }'
+  echo "(bytes/pixel: the growth in peak RSS from 540 to 1080 rows over the 1920x540 pixels added. Per pixel, for"
+  echo " the default luminance test, --compare keeps the pixel tests' p, z, effect, A's estimate and df (5 floats)"
+  echo " and a flag, and builds the maps (7 floats) while it holds them: 49 bytes; the sub-buffers are read by blocks)"
   echo
 fi
 
