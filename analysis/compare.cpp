@@ -120,7 +120,6 @@ class Comparison {
     size_t P_ = 0, T_ = 0;
     // Per quantity q: pixel arrays [q * P + p], tile arrays [q * T + t].
     std::vector<float> p_, z_, effect_, aEst_, tileP_, tileZ_, tileEffect_, tileA_;
-    std::vector<float> tileDf_, pixelDf_;
     std::vector<uint8_t> pixelNonFinite_;  ///< 1 one side, 2 both
     Tally tally_;
     std::mutex mutex_;
@@ -248,7 +247,6 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
                 p_[h] = float(r.p);
                 z_[h] = float(r.z);
                 effect_[h] = float(r.difference);
-                pixelDf_[h] = float(r.df);
                 if (std::isnan(r.p)) continue;
                 tested = true;
                 if (r.difference != 0.0) tally.allZero = false;
@@ -297,7 +295,6 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
         tileZ_[h] = float(r.z);
         tileEffect_[h] = float(r.difference);
         tileA_[h] = float(sa.estimate);
-        tileDf_[h] = float(r.df);
         if (!std::isnan(r.p)) tested = true;
     }
     if (tested) ++tally.tilesTested;
@@ -345,13 +342,11 @@ bool Comparison::run(std::string& err) {
     z_.assign(Q * P_, kNaNf);
     effect_.assign(Q * P_, kNaNf);
     aEst_.assign(Q * P_, kNaNf);
-    pixelDf_.assign(Q * P_, kNaNf);
     pixelNonFinite_.assign(P_, 0);
     tileP_.assign(Q * T_, kNaNf);
     tileZ_.assign(Q * T_, kNaNf);
     tileEffect_.assign(Q * T_, kNaNf);
     tileA_.assign(Q * T_, kNaNf);
-    tileDf_.assign(Q * T_, kNaNf);
 
     // Blocks of rows: whole tiles, whole chunks of both files (no chunk decoded twice), about
     // 64 MB of decoded buffers per side.
@@ -422,7 +417,7 @@ void Comparison::finish() {
         return std::fabs(double(z)) > std::fabs(f.result.z);
     };
     auto fill = [&](CompareFinding& f, bool tile, size_t index, size_t qi, float p, float z,
-                    float d, float a, float df) {
+                    float d, float a) {
         f.valid = true;
         f.tile = tile;
         const size_t W = tile ? size_t(tilesX_) : size_t(out_.width);
@@ -435,7 +430,6 @@ void Comparison::finish() {
         f.result.p = p;
         f.result.z = z;
         f.result.difference = d;
-        f.result.df = df;
         f.result.se = std::isfinite(z) && z != 0.f ? double(d) / double(z) : 0.0;
         f.result.margin = margin(f.a, f.b);
     };
@@ -454,7 +448,7 @@ void Comparison::finish() {
                 }
             }
             if (pixelNonFinite_[p] == 0 && better(pv, z_[h], out_.strongest, out_.threshold))
-                fill(out_.strongest, false, p, qi, pv, z_[h], effect_[h], aEst_[h], pixelDf_[h]);
+                fill(out_.strongest, false, p, qi, pv, z_[h], effect_[h], aEst_[h]);
         }
         if (any) ++pixRejected;
     }
@@ -467,7 +461,7 @@ void Comparison::finish() {
             if (tileRejected_(tileP_[h])) any = true;
             if (better(tileP_[h], tileZ_[h], out_.strongestTile, out_.tileThreshold))
                 fill(out_.strongestTile, true, t, qi, tileP_[h], tileZ_[h], tileEffect_[h],
-                     tileA_[h], tileDf_[h]);
+                     tileA_[h]);
         }
         if (any) ++tileRejected;
     }

@@ -211,7 +211,7 @@ if want compare; then
 
   # Peak memory against the height: the height section's twins (8 spp, seeds 3 and 4), 540 and
   # 1080 rows. Both sides are read by blocks of rows; what grows with the image is per pixel: the
-  # tests' p, z, effect, first side's estimate and df (5 floats) and a flag, then the maps p, z,
+  # tests' p, z, effect, first side's estimate (4 floats) and a flag, then the maps p, z,
   # effect, differs, tile.p, tile.z, tile.differs (7 floats) built while those are still held.
   echo "== mcstat A B --compare: peak memory against image height: 1920 wide, M = 21, 8 spp (ZIP), seeds 3 and 4, medians of $REPS =="
   for h in 540 1080; do
@@ -225,8 +225,8 @@ if want compare; then
     printf "%-44s %18s %18s %14.1f\n", "mcstat A B --compare", a " / " ta, b " / " tb,
       (b - a) * 1048576 / (1920 * 540) }'
   echo "(bytes/pixel: the growth in peak RSS from 540 to 1080 rows over the 1920x540 pixels added. Per pixel, for"
-  echo " the default luminance test, --compare keeps the pixel tests' p, z, effect, A's estimate and df (5 floats)"
-  echo " and a flag, and builds the maps (7 floats) while it holds them: 49 bytes; the sub-buffers are read by blocks)"
+  echo " the default luminance test, --compare keeps the pixel tests' p, z, effect, A's estimate (4 floats)"
+  echo " and a flag, and builds the maps (7 floats) while it holds them: 45 bytes; the sub-buffers are read by blocks)"
   echo
 fi
 

@@ -54,7 +54,7 @@ struct CompareFinding {
     int x = 0, y = 0;         ///< image coordinates (the data window's, origin included)
     std::string quantity;     ///< "luminance", "R", an AOV channel name
     double a = 0.0, b = 0.0;  ///< the two estimates
-    TwoSampleResult result;
+    TwoSampleResult result;   ///< p, z, difference, se and margin (df is not kept per pixel)
 };
 
 struct CompareResult {
