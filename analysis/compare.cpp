@@ -574,6 +574,17 @@ bool checkOptions(const CompareOptions& opt, std::string& err) {
     return true;
 }
 
+/// The result's data window (the statistics file's) and whether tiles are tested: a tile averages
+/// a buffer index over its pixels, and with adaptive M the indices do not line up.
+void setWindow(CompareResult& out, const StatsHeader& h, bool adaptive, const CompareOptions& opt) {
+    out.width = h.width;
+    out.height = h.height;
+    out.originX = h.originX;
+    out.originY = h.originY;
+    out.adaptive = adaptive;
+    out.tile = adaptive ? 0 : opt.tile;
+}
+
 /// The M a side's buffers give, or an error when they give no variance.
 bool sideBuffers(const StatsBlockSource& s, int& M, std::string& err) {
     const StatsHeader& h = s.header();
@@ -606,13 +617,7 @@ bool compareStats(StatsBlockSource& a, StatsBlockSource& b, const CompareOptions
         return false;
     }
     if (!sideBuffers(a, out.Ma, err) || !sideBuffers(b, out.Mb, err)) return false;
-    out.width = ha.width;
-    out.height = ha.height;
-    out.originX = ha.originX;
-    out.originY = ha.originY;
-    // Tiles average a buffer index over pixels: with adaptive M the indices do not line up.
-    out.adaptive = ha.adaptiveM || hb.adaptiveM;
-    out.tile = out.adaptive ? 0 : opt.tile;
+    setWindow(out, ha, ha.adaptiveM || hb.adaptiveM, opt);
     Side sa, sb;
     sa.src = &a;
     sb.src = &b;
@@ -648,12 +653,7 @@ bool compareStatsToImage(const OIIO::ImageBuf& ref, const std::string& refName, 
         return false;
     }
     out.oneSample = true;
-    out.width = hb.width;
-    out.height = hb.height;
-    out.originX = hb.originX;
-    out.originY = hb.originY;
-    out.adaptive = hb.adaptiveM;
-    out.tile = out.adaptive ? 0 : opt.tile;
+    setWindow(out, hb, hb.adaptiveM, opt);
     Side sa, sb;
     sa.ref = &ref;
     sa.refRGB.resize(size_t(win.width()) * size_t(win.height()) * 3);
