@@ -316,9 +316,23 @@ bool cmdVerbose(State& st, const std::string&, const std::vector<std::string>&, 
 bool cmdHelp(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
              std::string&);
 
+bool cmdVersion(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
+                std::string&) {
+    std::printf("mcstat %s\n", MCSTAT_VERSION);
+    std::exit(0);
+}
+
 std::vector<Command> buildTable() {
     std::vector<Command> t = {
-        {"--help", 0, "", "Print this help and exit", {}, &cmdHelp, ""},
+        {"--help",
+         0,
+         "",
+         "Print this help and exit; --help COMMAND (or COMMAND --help) prints that command's",
+         {},
+         &cmdHelp,
+         ""},
+        {"-h", 0, "", "Same as --help", {}, &cmdHelp, ""},
+        {"--version", 0, "", "Print the version and exit", {}, &cmdVersion, ""},
         {"-v", 0, "", "Verbose: report each command and its time on stderr", {}, &cmdVerbose, ""},
         {"--threads",
          1,
@@ -401,6 +415,27 @@ std::vector<Command> buildTable() {
     return t;
 }
 
+/// The name among `candidates` nearest to `name` by edit distance, if near enough to be a slip of
+/// the keyboard (at most 2 edits, or a third of the name for long ones); "" otherwise.
+std::string nearestName(const std::string& name, const std::vector<std::string>& candidates) {
+    std::string best;
+    size_t bestDistance = std::max<size_t>(2, name.size() / 3) + 1;
+    for (const std::string& c : candidates) {
+        const size_t d = OIIO::Strutil::edit_distance(name, c);
+        if (d < bestDistance) {
+            bestDistance = d;
+            best = c;
+        }
+    }
+    return best;
+}
+
+/// " (did you mean X?)" when a candidate is near `name`, else "".
+std::string didYouMean(const std::string& name, const std::vector<std::string>& candidates) {
+    const std::string n = nearestName(name, candidates);
+    return n.empty() ? std::string() : format(" (did you mean {}?)", n);
+}
+
 /// The one check of a command's modifiers: each must be one it declares, of its type and range
 /// (parseParamValue, the parser of the registry's parameters); then the defaults of those not
 /// given (an empty default: unset) are filled in, so that a command reads every value from `mods`.
@@ -413,7 +448,7 @@ bool checkModifiers(const Command& c, Modifiers& mods, std::string& err) {
             std::vector<std::string> names;
             for (const ParamSpec& p : c.modifiers)
                 if (!p.fixed) names.push_back(p.name);
-            err = format("{} has no modifier '{}' ({})", c.name, key,
+            err = format("{} has no modifier '{}'{} ({})", c.name, key, didYouMean(key, names),
                          names.empty() ? std::string("it takes none")
                                        : "accepted: " + OIIO::Strutil::join(names, ", "));
             return false;
@@ -446,6 +481,52 @@ std::string modifierHelp(const Command& c) {
     return s;
 }
 
+void printCommandHelp(const Command& c) {
+    std::string head = c.name + (c.argHelp.empty() ? "" : " " + c.argHelp);
+    std::printf("  %-16s %s%s\n", head.c_str(), c.help.c_str(), modifierHelp(c).c_str());
+}
+
+std::vector<std::string> commandNames() {
+    std::vector<std::string> names;
+    for (const Command& c : table()) names.push_back(c.name);
+    return names;
+}
+
+/// The command a help topic names: "gmon", "--gmon", "--gmon:mode=channel"; null if none.
+const Command* helpTopic(std::string topic) {
+    topic = topic.substr(0, topic.find(':'));
+    for (const Command& c : table())
+        if (c.name == topic || c.name == "--" + topic || c.name == "-" + topic) return &c;
+    return nullptr;
+}
+
+/// `--help` anywhere on the command line: the whole help, or one command's when it names one
+/// (`--help gmon`, `--gmon --help`). Runs before any other argument, as oiiotool's does. Returns
+/// -1 when the line asks for no help, else the exit status.
+int helpRequest(int argc, const char* const* argv) {
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a != "--help" && a != "-h") continue;
+        std::string topic;
+        if (i + 1 < argc && argv[i + 1][0] != '\0') topic = argv[i + 1];
+        if (!topic.empty() && !helpTopic(topic) && topic[0] != '-' &&
+            topic.find('.') == std::string::npos && topic.find('/') == std::string::npos) {
+            std::fprintf(stderr, "mcstat: --help %s: no such command%s (see mcstat --help)\n",
+                         topic.c_str(), didYouMean("--" + topic, commandNames()).c_str());
+            return 1;
+        }
+        if (!helpTopic(topic) && i > 1 && argv[i - 1][0] == '-') topic = argv[i - 1];
+        if (const Command* c = helpTopic(topic)) {
+            printCommandHelp(*c);
+            return 0;
+        }
+        State st;
+        std::string err;
+        cmdHelp(st, a, {}, {}, err);
+    }
+    return -1;
+}
+
 bool cmdHelp(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
              std::string&) {
     std::printf(
@@ -456,10 +537,7 @@ bool cmdHelp(State&, const std::string&, const std::vector<std::string>&, const 
         "Example: mcstat scene.%s --gmon -o gmon.exr -o gmon.png --diff ref.exr\n\n"
         "Commands:\n",
         MCSTAT_VERSION, kStatsExtension, kStatsExtension);
-    for (const Command& c : table()) {
-        std::string head = c.name + (c.argHelp.empty() ? "" : " " + c.argHelp);
-        std::printf("  %-16s %s%s\n", head.c_str(), c.help.c_str(), modifierHelp(c).c_str());
-    }
+    for (const Command& c : table()) printCommandHelp(c);
     std::exit(0);
 }
 
@@ -525,6 +603,7 @@ int run(int argc, const char* const* argv) {
         std::fprintf(stderr, "mcstat: no arguments; try 'mcstat --help'\n");
         return 2;
     }
+    if (const int help = helpRequest(argc, argv); help >= 0) return help;
     for (int i = 1; i < argc; ++i) {
         const std::string arg = argv[i];
         OIIO::Timer timer;
@@ -540,8 +619,8 @@ int run(int argc, const char* const* argv) {
             for (const Command& c : table())
                 if (c.name == name) cmd = &c;
             if (!cmd) {
-                std::fprintf(stderr, "mcstat: unknown command '%s' (see mcstat --help)\n",
-                             name.c_str());
+                std::fprintf(stderr, "mcstat: unknown command '%s'%s (see mcstat --help)\n",
+                             name.c_str(), didYouMean(name, commandNames()).c_str());
                 return 1;
             }
             if (!checkModifiers(*cmd, mods, err)) {
