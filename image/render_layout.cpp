@@ -222,8 +222,68 @@ bool needsRenderLayout(const StatsHeader& h) {
            h.beautyNames != std::array<std::string, 3>{"R", "G", "B"};
 }
 
+bool parseWriteType(const std::string& text, TypeDesc& out) {
+    if (text == "half")
+        out = TypeDesc::HALF;
+    else if (text == "float")
+        out = TypeDesc::FLOAT;
+    else
+        return false;
+    return true;
+}
+
+bool applyWriteOptions(ImageSpec& spec, const ImageWriteOptions& opt, const std::string& ext,
+                       std::string& err) {
+    spec.set_format(opt.type);
+    spec.channelformats.clear();
+    if (!opt.channelTypes.empty()) {
+        for (const auto& [name, type] : opt.channelTypes)
+            if (spec.channelindex(name) < 0) {
+                err = format("-d {}=...: the image has no channel '{}' (channels: {})", name, name,
+                             OIIO::Strutil::join(spec.channelnames, ", "));
+                return false;
+            }
+        for (int c = 0; c < spec.nchannels; ++c) {
+            const auto it = opt.channelTypes.find(spec.channel_name(c));
+            spec.channelformats.push_back(it == opt.channelTypes.end() ? opt.type : it->second);
+        }
+    }
+    spec.erase_attribute("compression");
+    if (opt.compression.empty()) return true;
+    if (ext == "exr" || ext == "sxr" || ext == "mxr") {
+        const std::string name = opt.compression.substr(0, opt.compression.find(':'));
+        static const char* known[] = {"none",  "rle", "zips", "zip",  "piz",
+                                      "pxr24", "b44", "b44a", "dwaa", "dwab"};
+        if (std::find(std::begin(known), std::end(known), name) == std::end(known)) {
+            err = format(
+                "compression '{}' is not one of OpenEXR's (none, rle, zips, zip, piz, "
+                "pxr24, b44, b44a, dwaa, dwab)",
+                name);
+            return false;
+        }
+    }
+    spec.attribute("compression", opt.compression);
+    return true;
+}
+
+size_t halfOverflow(const OIIO::ImageBuf& img, const ImageSpec& spec) {
+    size_t n = 0;
+    const ImageSpec& src = img.spec();
+    std::vector<float> v(size_t(src.width) * size_t(src.height));
+    for (int c = 0; c < spec.nchannels && c < src.nchannels; ++c) {
+        if (spec.channelformat(c) != TypeDesc::HALF) continue;
+        if (!img.get_pixels(
+                OIIO::ROI(src.x, src.x + src.width, src.y, src.y + src.height, 0, 1, c, c + 1),
+                TypeDesc::FLOAT, v.data()))
+            continue;
+        for (float x : v)
+            if (std::isfinite(x) && std::fabs(x) > 65504.f) ++n;
+    }
+    return n;
+}
+
 bool writeRenderLike(const OIIO::ImageBuf& img, const StatsHeader& layout, const std::string& path,
-                     TypeDesc type, std::string& err) {
+                     const ImageWriteOptions& opt, std::string& err, size_t* overflow) {
     if (!checkOutputTarget(path, err)) return false;
     const ImageSpec& src = img.spec();
     if (src.nchannels < 3 || src.deep) {
@@ -278,7 +338,10 @@ bool writeRenderLike(const OIIO::ImageBuf& img, const StatsHeader& layout, const
             s.channelnames.push_back(nameOf[size_t(chans[i])]);
             if (chans[i] == src.alpha_channel) s.alpha_channel = int(i);
         }
-        s.set_format(type);
+        if (!applyWriteOptions(s, opt, ext, err)) {
+            err = format("{}: {}", path, err);
+            return false;
+        }
         // In-memory bookkeeping of which channels are AOVs (imageops.h), not the render's.
         s.erase_attribute("mcstat:firstAov");
         s.erase_attribute("mcstat:aovClasses");
@@ -309,6 +372,14 @@ bool writeRenderLike(const OIIO::ImageBuf& img, const StatsHeader& layout, const
                                 TypeDesc::FLOAT, one.data()))
                 return fail(img.geterror());
             for (size_t q = 0; q < npix; ++q) pixels[q * chans.size() + k] = one[q];
+        }
+        if (overflow) {
+            // The part's channels (float, as gathered) against the part's formats.
+            ImageSpec asFloat = specs[i];
+            asFloat.set_format(TypeDesc::FLOAT);
+            asFloat.channelformats.clear();
+            const OIIO::ImageBuf part(asFloat, pixels.data());
+            *overflow += halfOverflow(part, specs[i]);
         }
         if (!out->write_image(TypeDesc::FLOAT, pixels.data())) return fail(out->geterror());
     }

@@ -316,6 +316,43 @@ bool cmdVerbose(State& st, const std::string&, const std::vector<std::string>&, 
 bool cmdHelp(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
              std::string&);
 
+bool cmdDataType(State& st, const std::string& cmd, const std::vector<std::string>& args,
+                 const Modifiers&, std::string& err) {
+    const std::string& a = args[0];
+    const size_t eq = a.find('=');
+    OIIO::TypeDesc type;
+    if (!parseWriteType(eq == std::string::npos ? a : a.substr(eq + 1), type) || eq == 0) {
+        err =
+            format("{}: TYPE must be half or float, or CH=TYPE for one channel, not '{}'", cmd, a);
+        return false;
+    }
+    if (eq == std::string::npos) {
+        st.write.type = type;
+        st.write.channelTypes.clear();
+    } else {
+        st.write.channelTypes[a.substr(0, eq)] = type;
+    }
+    st.writeOptionsSet = true;
+    return true;
+}
+
+bool cmdCompression(State& st, const std::string& cmd, const std::vector<std::string>& args,
+                    const Modifiers&, std::string& err) {
+    if (args[0].empty()) {
+        err = format("{}: an empty compression name", cmd);
+        return false;
+    }
+    st.write.compression = args[0];
+    st.writeOptionsSet = true;
+    return true;
+}
+
+bool cmdNoClobber(State& st, const std::string&, const std::vector<std::string>&, const Modifiers&,
+                  std::string&) {
+    st.noClobber = true;
+    return true;
+}
+
 bool cmdVersion(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
                 std::string&) {
     std::printf("mcstat %s\n", MCSTAT_VERSION);
@@ -361,11 +398,35 @@ std::vector<Command> buildTable() {
         {"-o",
          1,
          "FILE",
-         "Write the top image: EXR/TIFF as scene-linear float; PNG/JPEG through the OCIO display "
-         "view; a statistics file as ." +
+         "Write the top image: EXR/TIFF as scene-linear float (or as -d says); PNG/JPEG through "
+         "the OCIO display view; a statistics file as ." +
              std::string(kStatsExtension),
-         {},
+         {enumParam("type", {"half", "float"}, "", "this output's data type (as -d)"),
+          textParam("compression", "", "this output's compression (as --compression)")},
          &cmdOutput,
+         ""},
+        {"-d",
+         1,
+         "TYPE",
+         "Data type of every later image output: half or float; CH=TYPE for one channel "
+         "(e.g. -d half -d Z=float); half warns when values exceed 65504",
+         {},
+         &cmdDataType,
+         ""},
+        {"--compression",
+         1,
+         "NAME[:QUALITY]",
+         "Compression of every later image output (EXR: none, rle, zips, zip, piz, pxr24, b44, "
+         "b44a, dwaa, dwab; e.g. dwaa:45)",
+         {},
+         &cmdCompression,
+         ""},
+        {"--no-clobber",
+         0,
+         "",
+         "Keep existing files: -o skips a target that exists, with a warning",
+         {},
+         &cmdNoClobber,
          ""},
     };
     // Every registry operation is a command; its modifiers are the operation's parameters.

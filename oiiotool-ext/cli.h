@@ -12,6 +12,7 @@
 
 #include "mcstat/analysis/metrics.h"
 #include "mcstat/filters/registry.h"
+#include "mcstat/image/render_layout.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat::cli {
@@ -41,6 +42,10 @@ struct State {
     /// The process's exit status once every command has run: 2 when a --compare found the two
     /// renders different (idiff's FAILURE), else 0. Errors stop the run with 1 at once.
     int exitStatus = 0;
+    /// Image encoding of every later -o (-d, --compression); writeOptionsSet once either is given.
+    ImageWriteOptions write;
+    bool writeOptionsSet = false;
+    bool noClobber = false;  ///< --no-clobber: -o keeps an existing file
 };
 
 struct Command {

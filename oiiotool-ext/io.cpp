@@ -49,8 +49,9 @@ bool isDisplayFormat(const std::string& ext) {
 
 /// Writes `img` as `path` through a temporary name in the same directory (TemporaryFile), renamed
 /// on success, so a failed or interrupted write never leaves a partial file under the target name.
-bool writeImageAtomically(const OIIO::ImageBuf& img, const std::string& path, OIIO::TypeDesc type,
-                          std::string& err) {
+bool writeImageAtomically(const OIIO::ImageBuf& img, const std::string& path,
+                          const ImageWriteOptions& opt, std::string& err,
+                          size_t* overflow = nullptr) {
     if (!checkOutputTarget(path, err)) return false;
     const std::string ext = lowerExtension(path);
     if (ext.empty()) {
@@ -65,9 +66,17 @@ bool writeImageAtomically(const OIIO::ImageBuf& img, const std::string& path, OI
         err = format("{}: OpenImageIO has no writer for '.{}' files", path, ext);
         return false;
     }
+    OIIO::ImageSpec spec = img.spec();
+    if (!applyWriteOptions(spec, opt, ext, err)) {
+        err = format("{}: {}", path, err);
+        return false;
+    }
+    if (overflow) *overflow = halfOverflow(img, spec);
     TemporaryFile tmp(path);
-    if (!img.write(tmp.path(), type, ext)) {
-        std::string why = img.geterror();
+    auto out = OIIO::ImageOutput::create(ext);
+    if (!out || !out->open(tmp.path(), spec) || !img.write(out.get()) || !out->close()) {
+        std::string why = out ? out->geterror() : std::string();
+        if (why.empty()) why = img.geterror();
         if (why.empty()) why = OIIO::geterror();
         if (why.empty()) why = "the image writer failed without saying why";
         // OIIO names the temporary; the user knows the target.
@@ -272,7 +281,7 @@ bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>
 }
 
 bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>& args,
-               const Modifiers&, std::string& err) {
+               const Modifiers& mods, std::string& err) {
     if (st.stack.empty()) {
         err = format("{} {}: nothing on the stack to write", cmd, args[0]);
         return false;
@@ -283,7 +292,53 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
         err = format("{}: an empty file name", cmd);
         return false;
     }
+    if (st.noClobber && OIIO::Filesystem::exists(path)) {
+        // oiiotool's --no-clobber: an existing output is kept, and the run goes on.
+        std::fprintf(stderr, "mcstat: warning: %s exists; not overwritten (--no-clobber)\n",
+                     path.c_str());
+        return true;
+    }
     const std::string ext = lowerExtension(path);
+    // -d and --compression for every output, -o:type= and :compression= for this one.
+    ImageWriteOptions opt = st.write;
+    const auto type = mods.find("type");
+    const auto compression = mods.find("compression");
+    if (type != mods.end()) {
+        opt.channelTypes.clear();
+        if (!parseWriteType(type->second, opt.type)) {
+            err = format("{}:type= must be half or float, not '{}'", cmd, type->second);
+            return false;
+        }
+    }
+    if (compression != mods.end()) opt.compression = compression->second;
+    if (top.isStats() && (type != mods.end() || compression != mods.end())) {
+        err = format(
+            "{} {}: a statistics file is written as its format says (float32, ZIP; "
+            "exr-deep/FORMAT.md): -o:type= and :compression= apply to images",
+            cmd, path);
+        return false;
+    }
+    if (top.isStats() && st.writeOptionsSet)
+        std::fprintf(stderr,
+                     "mcstat: note: %s is a statistics file, written as float32 ZIP whatever -d "
+                     "and --compression say (they apply to images)\n",
+                     path.c_str());
+    if (isDisplayFormat(ext) && (opt.type != OIIO::TypeDesc::FLOAT || !opt.channelTypes.empty())) {
+        err = format(
+            "{} {}: .{} is written as 8-bit display values; -d half applies to EXR and "
+            "TIFF",
+            cmd, path, ext);
+        return false;
+    }
+    size_t overflow = 0;
+    auto written = [&](bool ok) {
+        if (ok && overflow > 0)
+            std::fprintf(stderr,
+                         "mcstat: warning: %s: %zu values exceed half's largest, 65504, and "
+                         "were written as Inf (write them as float: -d float, or -d CH=float)\n",
+                         path.c_str(), overflow);
+        return ok;
+    };
     if (top.isStats()) {
         if (ext != kStatsExtension) {
             err = format(
@@ -314,9 +369,8 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
     }
     if (top.image->spec().get_int_attribute(kDisplayReferredAttr, 0) == 1) {
         // Already display-referred (a contact sheet, heatmap or plot): written as it is.
-        return writeImageAtomically(
-            *top.image, path, isDisplayFormat(ext) ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT,
-            err);
+        if (isDisplayFormat(ext)) opt.type = OIIO::TypeDesc::UINT8;
+        return written(writeImageAtomically(*top.image, path, opt, err, &overflow));
     }
     if (isDisplayFormat(ext)) {
         // The display view of the image's R, G, B found by name (a multilayer file's AO pass
@@ -330,13 +384,14 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
             err = format("{} {}: {}", cmd, path, disp.geterror());
             return false;
         }
-        return writeImageAtomically(disp, path, OIIO::TypeDesc::UINT8, err);
+        opt.type = OIIO::TypeDesc::UINT8;
+        return writeImageAtomically(disp, path, opt, err);
     }
     // A result computed from a production render: written as that render was laid out (its
     // channel names, parts and AOVs), a drop-in replacement for one input (docs/aovs.md).
     if (top.layout && needsRenderLayout(*top.layout))
-        return writeRenderLike(*top.image, *top.layout, path, OIIO::TypeDesc::FLOAT, err);
-    return writeImageAtomically(*top.image, path, OIIO::TypeDesc::FLOAT, err);
+        return written(writeRenderLike(*top.image, *top.layout, path, opt, err, &overflow));
+    return written(writeImageAtomically(*top.image, path, opt, err, &overflow));
 }
 
 /// Pajot's online state in numbers (docs/pajot.md): what the benchmark's tables report.

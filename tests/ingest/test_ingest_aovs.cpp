@@ -340,7 +340,7 @@ TEST_P(IngestAovs, EveryChannelKeptAndStillSummingAfterEveryOperation) {
     OIIO::ImageBuf withMeta = gmon;
     describeResult(withMeta.specmod(), *findOperation("gmon"), gv, h);
     const std::string outPath = dir + "/gmon.exr";
-    ASSERT_TRUE(writeRenderLike(withMeta, h, outPath, OIIO::TypeDesc::FLOAT, err)) << err;
+    ASSERT_TRUE(writeRenderLike(withMeta, h, outPath, ImageWriteOptions(), err)) << err;
     auto in = OIIO::ImageInput::open(outPath);
     ASSERT_TRUE(in);
     int nparts = 0;

@@ -6,6 +6,7 @@
 
 #include <OpenImageIO/imagebuf.h>
 
+#include <map>
 #include <string>
 
 #include "mcstat/filters/registry.h"
@@ -38,6 +39,27 @@ inline constexpr const char* kProvenancePrefix = "mcstat.";
 void describeResult(OIIO::ImageSpec& spec, const Operation& op, const ParamValues& values,
                     const StatsHeader& h, std::string* warning = nullptr);
 
+/// How an image is encoded when written, as oiiotool's -d, --compression and -o:type= set it.
+struct ImageWriteOptions {
+    OIIO::TypeDesc type = OIIO::TypeDesc::FLOAT;         ///< every channel's, unless named below
+    std::map<std::string, OIIO::TypeDesc> channelTypes;  ///< by the channel's name in the file
+    std::string compression;  ///< e.g. "zip", "dwaa:45"; "": the writer's default
+};
+
+/// Parses oiiotool's data type names mcstat writes: "half", "float". False otherwise.
+bool parseWriteType(const std::string& text, OIIO::TypeDesc& out);
+
+/// Applies `opt` to the spec of a file about to be written: its format, per-channel formats (by
+/// the names in `spec`) and compression. False with `err` for a channel type naming no channel
+/// of the image or an EXR compression OpenEXR does not know.
+bool applyWriteOptions(OIIO::ImageSpec& spec, const ImageWriteOptions& opt, const std::string& ext,
+                       std::string& err);
+
+/// The finite values of `img`'s channels that `spec` (applyWriteOptions' result, the same channels
+/// in the same order) stores as half and that exceed half's largest value, 65504: written, they
+/// become Inf. Counted so that the writer can say so.
+size_t halfOverflow(const OIIO::ImageBuf& img, const OIIO::ImageSpec& spec);
+
 /// Whether writing an operation's result over `h` as a render needs writeRenderLike (beauty
 /// names other than R, G, B, AOVs, or a part name).
 bool needsRenderLayout(const StatsHeader& h);
@@ -48,7 +70,8 @@ bool needsRenderLayout(const StatsHeader& h);
 /// from (AovChannel::part; the beauty, alpha and the operation's own channels in
 /// layout.beautyPart), one part when they all came from one. Atomic (a temporary file renamed on
 /// success). A format that holds one image cannot hold several parts: refused, naming the format.
+/// `opt` encodes it (channel types by the written names); `overflow` receives halfOverflow's count.
 bool writeRenderLike(const OIIO::ImageBuf& img, const StatsHeader& layout, const std::string& path,
-                     OIIO::TypeDesc type, std::string& err);
+                     const ImageWriteOptions& opt, std::string& err, size_t* overflow = nullptr);
 
 }  // namespace mcstat
