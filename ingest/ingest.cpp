@@ -15,6 +15,7 @@
 #include <cstring>
 #include <limits>
 #include <memory>
+#include <regex>
 #include <set>
 
 #include "mcstat/image/imageops.h"
@@ -533,6 +534,50 @@ bool checkTotals(Ingest& s, std::string& err) {
     return true;
 }
 
+/// The frame a render belongs to, by its name (`name.0042.exr`: the number between the last two
+/// dots) and by its metadata (Blender's `Frame`, a `frame` attribute); -1 in `name` / `meta` when
+/// it does not say.
+void frameOf(const InputFile& f, long long& name, long long& meta) {
+    name = meta = -1;
+    static const std::regex numbered(R"(.*\.(-?[0-9]+)\.[^.]+$)");
+    std::smatch m;
+    const std::string file = OIIO::Filesystem::filename(f.path);
+    if (std::regex_match(file, m, numbered)) name = std::stoll(m[1].str());
+    for (const char* key : {"Frame", "frame"}) {
+        const OIIO::ParamValue* p = f.spec.find_attribute(key);
+        if (!p) continue;
+        const std::string text = p->get_string();
+        char* end = nullptr;
+        const long long v = std::strtoll(text.c_str(), &end, 10);
+        if (end != text.c_str() && *end == '\0') meta = v;
+    }
+}
+
+/// Renders of one image are one frame: a glob that matched several frames (by name or by
+/// metadata) would merge them into one image. Refused, naming the frames found.
+bool checkOneFrame(const Ingest& s, std::string& err) {
+    std::set<long long> byName, byMeta;
+    for (const InputFile& f : s.files) {
+        long long name = -1, meta = -1;
+        frameOf(f, name, meta);
+        if (name >= 0) byName.insert(name);
+        if (meta >= 0) byMeta.insert(meta);
+    }
+    for (const auto& [frames, how] :
+         {std::pair(&byName, "by their names"), std::pair(&byMeta, "by their Frame metadata")}) {
+        if (frames->size() < 2) continue;
+        std::vector<std::string> list;
+        for (long long v : *frames) list.push_back(std::to_string(v));
+        err = fmt::format(
+            "the {} files are renders of {} frames ({}: {}), not of one image: "
+            "ingest each frame by itself, e.g. --ingest 'shot_s*.#.exr' -o "
+            "'shot.#.mcstat' (docs/ingest.md)",
+            s.files.size(), frames->size(), how, fmt::join(list, ", "));
+        return false;
+    }
+    return true;
+}
+
 /// 1. Every header first: layouts, channels, spp; nothing is allocated before they agree.
 bool readHeaders(const std::vector<std::string>& paths, Ingest& s, std::string& err) {
     s.files.resize(paths.size());
@@ -540,7 +585,8 @@ bool readHeaders(const std::vector<std::string>& paths, Ingest& s, std::string& 
         if (!readHeader(s, j, paths[j], err)) return false;
     s.report.beauty = s.first().beauty;
     s.report.features = s.first().features;
-    return checkImageSize(s, err) && chooseAovs(s, err) && checkTotals(s, err);
+    return checkOneFrame(s, err) && checkImageSize(s, err) && chooseAovs(s, err) &&
+           checkTotals(s, err);
 }
 
 /// The result's header: its size and buffers, where its samples came from and (version 5) what

@@ -347,6 +347,14 @@ bool cmdCompression(State& st, const std::string& cmd, const std::vector<std::st
     return true;
 }
 
+/// The frame options reach no command: runFrames takes them out of a command line with a frame
+/// pattern, so here they stand alone.
+bool cmdFrameOption(State&, const std::string& cmd, const std::vector<std::string>&,
+                    const Modifiers&, std::string& err) {
+    err = format("{}: no file name holds a frame pattern (#, @, %0Nd; e.g. shot.#.exr)", cmd);
+    return false;
+}
+
 bool cmdNoClobber(State& st, const std::string&, const std::vector<std::string>&, const Modifiers&,
                   std::string&) {
     st.noClobber = true;
@@ -427,6 +435,37 @@ std::vector<Command> buildTable() {
          "Keep existing files: -o skips a target that exists, with a warning",
          {},
          &cmdNoClobber,
+         ""},
+        {"--frames",
+         1,
+         "RANGE",
+         "Frames of a sequence: N, A-B, A-BxSTEP, comma-separated (default: the frames whose "
+         "files exist for the first input pattern); file names hold # (4 digits), @ (1 digit) "
+         "or %0Nd, and the command line runs once per frame",
+         {},
+         &cmdFrameOption,
+         ""},
+        {"--framepadding",
+         1,
+         "N",
+         "Digits of # in frame patterns (default 4)",
+         {},
+         &cmdFrameOption,
+         ""},
+        {"--parallel-frames",
+         0,
+         "",
+         "Run the frames as processes in parallel on the cores (output printed in frame order, "
+         "files identical to a serial run)",
+         {},
+         &cmdFrameOption,
+         ""},
+        {"--skip-bad-frames",
+         0,
+         "",
+         "Go on past a frame that fails (the exit status is still 1, naming the frames)",
+         {},
+         &cmdFrameOption,
          ""},
     };
     // Every registry operation is a command; its modifiers are the operation's parameters.
@@ -657,43 +696,33 @@ void describeOperationResult(const Item& top, const Operation& op, const ParamVa
                      op.name.c_str(), missing, h.aovs.size());
 }
 
-int run(int argc, const char* const* argv) {
+int runOnce(const std::vector<std::string>& argv, const std::string& context) {
     State st;
     std::string err;
-    if (argc < 2) {
-        std::fprintf(stderr, "mcstat: no arguments; try 'mcstat --help'\n");
-        return 2;
-    }
-    if (const int help = helpRequest(argc, argv); help >= 0) return help;
-    for (int i = 1; i < argc; ++i) {
-        const std::string arg = argv[i];
+    const int argc = int(argv.size());
+    auto fail = [&](const std::string& message) {
+        std::fprintf(stderr, "mcstat: %s%s\n", context.c_str(), message.c_str());
+        return 1;
+    };
+    for (int i = 0; i < argc; ++i) {
+        const std::string& arg = argv[size_t(i)];
         OIIO::Timer timer;
         bool ok = true;
         if (arg.size() > 1 && arg[0] == '-') {
             std::string name;
             Modifiers mods;
-            if (!splitModifiers(arg, name, mods, err)) {
-                std::fprintf(stderr, "mcstat: %s\n", err.c_str());
-                return 1;
-            }
+            if (!splitModifiers(arg, name, mods, err)) return fail(err);
             const Command* cmd = nullptr;
             for (const Command& c : table())
                 if (c.name == name) cmd = &c;
-            if (!cmd) {
-                std::fprintf(stderr, "mcstat: unknown command '%s'%s (see mcstat --help)\n",
-                             name.c_str(), didYouMean(name, commandNames()).c_str());
-                return 1;
-            }
-            if (!checkModifiers(*cmd, mods, err)) {
-                std::fprintf(stderr, "mcstat: %s\n", err.c_str());
-                return 1;
-            }
-            if (i + cmd->nargs > argc - 1) {
-                std::fprintf(stderr, "mcstat: %s needs %d argument%s (%s)\n", name.c_str(),
-                             cmd->nargs, cmd->nargs > 1 ? "s" : "", cmd->argHelp.c_str());
-                return 1;
-            }
-            std::vector<std::string> args(argv + i + 1, argv + i + 1 + cmd->nargs);
+            if (!cmd)
+                return fail(format("unknown command '{}'{} (see mcstat --help)", name,
+                                   didYouMean(name, commandNames())));
+            if (!checkModifiers(*cmd, mods, err)) return fail(err);
+            if (i + cmd->nargs > argc - 1)
+                return fail(format("{} needs {} argument{} ({})", name, cmd->nargs,
+                                   cmd->nargs > 1 ? "s" : "", cmd->argHelp));
+            std::vector<std::string> args(argv.begin() + i + 1, argv.begin() + i + 1 + cmd->nargs);
             i += cmd->nargs;
             ok = cmd->run(st, name, args, mods, err);
             if (ok && st.verbose)
@@ -703,12 +732,21 @@ int run(int argc, const char* const* argv) {
             if (ok && st.verbose)
                 std::fprintf(stderr, "mcstat: read %s in %.3f s\n", arg.c_str(), timer());
         }
-        if (!ok) {
-            std::fprintf(stderr, "mcstat: %s\n", err.c_str());
-            return 1;
-        }
+        if (!ok) return fail(err);
     }
     return st.exitStatus;
+}
+
+int run(int argc, const char* const* argv) {
+    if (argc < 2) {
+        std::fprintf(stderr, "mcstat: no arguments; try 'mcstat --help'\n");
+        return 2;
+    }
+    if (const int help = helpRequest(argc, argv); help >= 0) return help;
+    const std::vector<std::string> args(argv + 1, argv + argc);
+    // A frame pattern in a file name (or --frames): the command line once per frame.
+    if (hasFramePattern(args)) return runFrames(args);
+    return runOnce(args, "");
 }
 
 }  // namespace mcstat::cli

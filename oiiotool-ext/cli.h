@@ -94,6 +94,16 @@ void describeOperationResult(const Item& top, const Operation& op, const ParamVa
 
 /// Runs a whole command line; returns the process exit code. Errors print one line to stderr.
 int run(int argc, const char* const* argv);
+/// Runs the arguments (without the program name) once: the process exit code; an error prints
+/// one line to stderr, after `context` (e.g. "frame 3: ").
+int runOnce(const std::vector<std::string>& args, const std::string& context);
+
+// Implemented in frames.cpp: frame sequences (#, @, %0Nd, --frames, --parallel-frames).
+/// Whether the arguments hold a frame pattern or a frame option that needs one.
+bool hasFramePattern(const std::vector<std::string>& args);
+/// Runs the command line once per frame; the exit status: 1 when a frame failed, else 2 when a
+/// frame's --compare found a difference, else 0.
+int runFrames(const std::vector<std::string>& args);
 
 // Commands implemented in io.cpp.
 bool pushFile(State& st, const std::string& path, std::string& err);

@@ -1,0 +1,367 @@
+// Frame sequences with oiiotool's syntax and semantics: an argument holding a frame pattern (`#`,
+// `@`, `%0Nd`) makes the whole command line run once per frame, the pattern replaced by that
+// frame's number. `--frames 1-10x2,15` names the frames; without it they are the frames whose
+// files exist for the first input pattern. `--framepadding N` sets the digits of `#` (4),
+// `--skip-bad-frames` goes on past a frame that fails, and `--parallel-frames` runs frames as
+// separate processes on the cores, their output printed in frame order (each frame's files are the
+// same bytes as a serial run's: every command's result is independent of its thread count).
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/strutil.h>
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <regex>
+#include <set>
+
+#include "cli.h"
+#include "mcstat/core/parallel.h"
+#include "mcstat/core/params.h"
+#include "mcstat/temp_file.h"
+
+extern char** environ;
+
+namespace mcstat::cli {
+
+using OIIO::Strutil::fmt::format;
+
+namespace {
+
+/// Most frames one command line may name (a typo such as 1-10000000 is refused, not run).
+constexpr int64_t kMaxFrames = 1000000;
+
+/// One frame token in an argument: [begin, end) and its digits (0: as many as the number has).
+struct FrameToken {
+    size_t begin = 0, end = 0;
+    int digits = 0;
+};
+
+/// The frame tokens of `arg`: runs of '#' (`padding` digits each), runs of '@' (one digit each),
+/// `%d` and `%0Nd`.
+std::vector<FrameToken> frameTokens(const std::string& arg, int padding) {
+    std::vector<FrameToken> out;
+    for (size_t i = 0; i < arg.size();) {
+        const char c = arg[i];
+        if (c == '#' || c == '@') {
+            size_t j = i;
+            while (j < arg.size() && arg[j] == c) ++j;
+            out.push_back({i, j, int(j - i) * (c == '#' ? padding : 1)});
+            i = j;
+        } else if (c == '%') {
+            size_t j = i + 1;
+            int digits = 0;
+            if (j < arg.size() && arg[j] == '0') {
+                ++j;
+                while (j < arg.size() && std::isdigit(static_cast<unsigned char>(arg[j])) &&
+                       digits < 100)
+                    digits = digits * 10 + (arg[j++] - '0');
+            }
+            if (j < arg.size() && arg[j] == 'd') {
+                out.push_back({i, j + 1, digits});
+                i = j + 1;
+            } else {
+                ++i;
+            }
+        } else {
+            ++i;
+        }
+    }
+    return out;
+}
+
+std::string formatFrame(int64_t frame, int digits) {
+    const std::string n = std::to_string(frame < 0 ? -frame : frame);
+    const std::string pad(n.size() < size_t(digits) ? size_t(digits) - n.size() : 0, '0');
+    return (frame < 0 ? "-" : "") + pad + n;
+}
+
+std::string expand(const std::string& arg, int64_t frame, int padding) {
+    std::string out;
+    size_t at = 0;
+    for (const FrameToken& t : frameTokens(arg, padding)) {
+        out += arg.substr(at, t.begin - at) + formatFrame(frame, t.digits);
+        at = t.end;
+    }
+    return out + arg.substr(at);
+}
+
+/// oiiotool's frame ranges: comma-separated N, A-B and A-BxS (every S-th frame), in the order
+/// given, each frame once.
+bool parseFrameRange(const std::string& text, std::vector<int64_t>& frames, std::string& err) {
+    frames.clear();
+    std::set<int64_t> seen;
+    for (const std::string& item : OIIO::Strutil::splits(text, ",")) {
+        // A-B: the dash after the first character (the first may be a minus sign).
+        const size_t dash = item.find('-', 1);
+        int64_t a = 0, b = 0, step = 1;
+        bool ok = true;
+        if (dash == std::string::npos) {
+            ok = parseIntegerText(item, a);
+            b = a;
+        } else {
+            const std::string rest = item.substr(dash + 1);
+            const size_t x = rest.find('x');
+            ok = parseIntegerText(item.substr(0, dash), a) &&
+                 parseIntegerText(rest.substr(0, x), b) &&
+                 (x == std::string::npos || parseIntegerText(rest.substr(x + 1), step));
+        }
+        if (!ok || step < 1 || item.empty()) {
+            err = format("--frames: '{}' is not a frame range (N, A-B, A-BxSTEP, comma-separated)",
+                         item);
+            return false;
+        }
+        const int64_t dir = b >= a ? 1 : -1;
+        for (int64_t f = a; dir * (b - f) >= 0; f += dir * step) {
+            if (seen.insert(f).second) frames.push_back(f);
+            if (int64_t(frames.size()) > kMaxFrames) {
+                err = format("--frames {}: more than {} frames", text, kMaxFrames);
+                return false;
+            }
+        }
+    }
+    if (frames.empty()) {
+        err = format("--frames '{}': no frame", text);
+        return false;
+    }
+    return true;
+}
+
+/// The frames whose files exist for `pattern` (an input argument): its directory listed, the
+/// file name matched with the frame tokens as numbers and globs as globs.
+bool framesOnDisk(const std::string& pattern, int padding, std::vector<int64_t>& frames,
+                  std::string& err) {
+    const std::string dir = OIIO::Filesystem::parent_path(pattern);
+    const std::string name = OIIO::Filesystem::filename(pattern);
+    if (!frameTokens(dir, padding).empty() || dir.find_first_of("*?[") != std::string::npos) {
+        err = format(
+            "{}: the frames cannot be found on disk when the folder varies; give "
+            "--frames",
+            pattern);
+        return false;
+    }
+    std::string re;
+    size_t at = 0;
+    auto literal = [&](const std::string& s) {
+        for (char c : s) {
+            if (c == '*')
+                re += "[^/]*";
+            else if (c == '?')
+                re += "[^/]";
+            else if (std::string("\\^$.|+()[]{}").find(c) != std::string::npos)
+                re += std::string("\\") + c;
+            else
+                re += c;
+        }
+    };
+    for (const FrameToken& t : frameTokens(name, padding)) {
+        literal(name.substr(at, t.begin - at));
+        re += t.digits > 0 ? format("(-?[0-9]{{{},}})", t.digits) : std::string("(-?[0-9]+)");
+        at = t.end;
+    }
+    literal(name.substr(at));
+    std::vector<std::string> entries;
+    OIIO::Filesystem::get_directory_entries(dir.empty() ? "." : dir, entries, false);
+    const std::regex rx(re);
+    std::set<int64_t> found;
+    for (const std::string& e : entries) {
+        std::smatch m;
+        const std::string file = OIIO::Filesystem::filename(e);
+        int64_t f = 0;
+        if (std::regex_match(file, m, rx) && parseIntegerText(m[1].str(), f)) found.insert(f);
+    }
+    if (found.empty()) {
+        err = format("{}: no file of this frame sequence exists (give --frames to name them)",
+                     pattern);
+        return false;
+    }
+    frames.assign(found.begin(), found.end());
+    return true;
+}
+
+struct FrameRun {
+    std::vector<std::string> args;  ///< the command line without the frame options
+    std::vector<int64_t> frames;
+    std::string range;  ///< --frames' text, "" when not given
+    int padding = 4;
+    bool parallel = false, skipBad = false;
+};
+
+/// Takes the frame options out of `args`. False with `err` for a bad value.
+bool takeFrameOptions(const std::vector<std::string>& args, FrameRun& run, std::string& err) {
+    for (size_t i = 0; i < args.size(); ++i) {
+        const std::string& a = args[i];
+        if (a == "--frames" || a == "--framepadding") {
+            if (i + 1 >= args.size()) {
+                err = format("{} needs an argument", a);
+                return false;
+            }
+            const std::string& v = args[++i];
+            int64_t n = 0;
+            if (a == "--frames") {
+                run.range = v;
+            } else if (!parseIntegerText(v, n) || n < 1 || n > 20) {
+                err = format("--framepadding: expected 1..20 digits, not '{}'", v);
+                return false;
+            } else {
+                run.padding = int(n);
+            }
+        } else if (a == "--parallel-frames") {
+            run.parallel = true;
+        } else if (a == "--skip-bad-frames") {
+            run.skipBad = true;
+        } else {
+            run.args.push_back(a);
+        }
+    }
+    return true;
+}
+
+/// Runs one frame as a child process (the same program), its stdout and stderr into files.
+pid_t spawnFrame(const std::vector<std::string>& args, const std::string& out,
+                 const std::string& errPath) {
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    posix_spawn_file_actions_addopen(&fa, 2, errPath.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    std::vector<char*> argv;
+    std::string self = "/proc/self/exe";
+    argv.push_back(self.data());
+    std::vector<std::string> copy = args;
+    for (std::string& a : copy) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    pid_t pid = -1;
+    if (posix_spawn(&pid, "/proc/self/exe", &fa, nullptr, argv.data(), environ) != 0) pid = -1;
+    posix_spawn_file_actions_destroy(&fa);
+    return pid;
+}
+
+void copyFile(const std::string& path, std::FILE* to) {
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (!f) return;
+    char buf[65536];
+    size_t n;
+    while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) std::fwrite(buf, 1, n, to);
+    std::fclose(f);
+    std::fflush(to);
+}
+
+/// --parallel-frames: up to one process per core, output printed in frame order. Returns each
+/// frame's exit status (-1: not run, after a failure without --skip-bad-frames).
+std::vector<int> runParallel(const FrameRun& run) {
+    const size_t n = run.frames.size();
+    const int jobs = int(std::min<size_t>(n, size_t(threadCount(0))));
+    // Each frame gets its share of the cores unless the command line says otherwise.
+    const bool hasThreads =
+        std::find(run.args.begin(), run.args.end(), "--threads") != run.args.end();
+    const std::string stem =
+        format("{}/mcstat-frames-{}-", OIIO::Filesystem::temp_directory_path(), getpid());
+    auto outPath = [&](size_t i) { return stem + std::to_string(i) + ".out"; };
+    auto errPath = [&](size_t i) { return stem + std::to_string(i) + ".err"; };
+    std::vector<int> status(n, -1);
+    std::vector<pid_t> pids(n, -1);
+    size_t next = 0;
+    int running = 0;
+    bool stop = false;
+    for (size_t i = 0; i < n; ++i) {
+        while (!stop && running < jobs && next < n) {
+            std::vector<std::string> args;
+            if (!hasThreads)
+                args = {"--threads", std::to_string(std::max(1, threadCount(0) / jobs))};
+            for (const std::string& a : run.args)
+                args.push_back(expand(a, run.frames[next], run.padding));
+            pids[next] = spawnFrame(args, outPath(next), errPath(next));
+            if (pids[next] >= 0) ++running;
+            ++next;
+        }
+        if (i >= next) break;  // stopped: frame i was never started
+        if (pids[i] < 0) {
+            std::fprintf(stderr, "mcstat: frame %lld: could not start a process\n",
+                         (long long)run.frames[i]);
+            status[i] = 1;
+        } else {
+            int ws = 0;
+            waitpid(pids[i], &ws, 0);
+            status[i] = WIFEXITED(ws) ? WEXITSTATUS(ws) : 128 + WTERMSIG(ws);
+            --running;
+        }
+        copyFile(outPath(i), stdout);
+        copyFile(errPath(i), stderr);
+        OIIO::Filesystem::remove(outPath(i));
+        OIIO::Filesystem::remove(errPath(i));
+        if (!run.skipBad && status[i] != 0 && status[i] != 2) stop = true;
+    }
+    return status;
+}
+
+}  // namespace
+
+bool hasFramePattern(const std::vector<std::string>& args) {
+    for (const std::string& a : args)
+        if (a == "--frames" || a == "--parallel-frames" || !frameTokens(a, 4).empty()) return true;
+    return false;
+}
+
+int runFrames(const std::vector<std::string>& all) {
+    FrameRun run;
+    std::string err;
+    if (!takeFrameOptions(all, run, err)) {
+        std::fprintf(stderr, "mcstat: %s\n", err.c_str());
+        return 1;
+    }
+    // The first argument with a frame pattern that is not an output names the frames on disk.
+    std::string input;
+    bool anyPattern = false;
+    for (size_t i = 0; i < run.args.size(); ++i) {
+        if (frameTokens(run.args[i], run.padding).empty()) continue;
+        anyPattern = true;
+        const bool output = i > 0 && OIIO::Strutil::starts_with(run.args[i - 1], "-o") &&
+                            (run.args[i - 1].size() == 2 || run.args[i - 1][2] == ':');
+        if (!output && input.empty()) input = run.args[i];
+    }
+    if (!anyPattern) {
+        std::fprintf(stderr,
+                     "mcstat: --frames and --parallel-frames need a frame pattern in a file name "
+                     "(#, @, %%0Nd; e.g. shot.#.exr)\n");
+        return 1;
+    }
+    if (!run.range.empty()) {
+        if (!parseFrameRange(run.range, run.frames, err)) {
+            std::fprintf(stderr, "mcstat: %s\n", err.c_str());
+            return 1;
+        }
+    } else if (input.empty() || !framesOnDisk(input, run.padding, run.frames, err)) {
+        if (input.empty()) err = "only output names hold a frame pattern: give --frames";
+        std::fprintf(stderr, "mcstat: %s\n", err.c_str());
+        return 1;
+    }
+    std::vector<int> status;
+    if (run.parallel && run.frames.size() > 1) {
+        status = runParallel(run);
+    } else {
+        for (int64_t f : run.frames) {
+            std::vector<std::string> args;
+            for (const std::string& a : run.args) args.push_back(expand(a, f, run.padding));
+            const int s = runOnce(args, format("frame {}: ", f));
+            status.push_back(s);
+            if (!run.skipBad && s != 0 && s != 2) break;
+        }
+    }
+    int worst = 0;
+    std::vector<std::string> failed;
+    for (size_t i = 0; i < status.size(); ++i) {
+        if (status[i] == 2) worst = std::max(worst, 2);
+        if (status[i] > 0 && status[i] != 2) failed.push_back(std::to_string(run.frames[i]));
+    }
+    if (!failed.empty()) {
+        std::fprintf(stderr, "mcstat: %zu of %zu frames failed: %s%s\n", failed.size(),
+                     run.frames.size(), OIIO::Strutil::join(failed, ", ").c_str(),
+                     run.skipBad ? "" : " (--skip-bad-frames goes on past a failed frame)");
+        return 1;
+    }
+    return worst;
+}
+
+}  // namespace mcstat::cli
