@@ -557,17 +557,18 @@ bool Checker::run(const ReadLimits& limits, StatsHeader& hdr) {
                                 pixels, limits.maxPixels));
     // Adaptive M: the least a pixel needs (one buffer and its offset); the sample counts are
     // checked against the limits once read, before the buffers are allocated. Fixed M: every
-    // part, part aovs' M * A floats included.
+    // part, part aovs' M * A floats included. A reader holds what one read asks for (a block of
+    // rows when streamed, every row when read whole: StatsFileReader::read checks that), so here
+    // the limit only refuses an image whose single row cannot be read.
     const int64_t bytesPerPixel =
         hdr.adaptiveM ? int64_t(layout::floatsPerPixel(1) * sizeof(float) + sizeof(uint64_t))
                       : int64_t(layout::floatsPerPixel(hdr.M, hdr.aovs.size()) * sizeof(float));
-    if (pixels > limits.maxBytes / bytesPerPixel)
+    if (w > limits.maxBytes / bytesPerPixel)
         return fail(fmt::format(
-            "image {}x{} with {} = {}{} needs {}{} bytes, exceeding the limit of {} bytes", w, h,
-            hdr.adaptiveM ? "adaptive M, M_max" : "M", hdr.M,
+            "a row of image {}x{} with {} = {}{} needs {}{} bytes, exceeding the limit of {} bytes",
+            w, h, hdr.adaptiveM ? "adaptive M, M_max" : "M", hdr.M,
             hdr.aovs.empty() ? std::string() : fmt::format(" and {} AOVs", hdr.aovs.size()),
-            hdr.adaptiveM ? "at least " : "", double(pixels) * double(bytesPerPixel),
-            limits.maxBytes));
+            hdr.adaptiveM ? "at least " : "", double(w) * double(bytesPerPixel), limits.maxBytes));
     for (int part = 0; part < layout::kPartCount; ++part)
         if (!checkChannels(part, hdr.M)) return false;
     if (hasAovs_ && !checkAovChannels(hdr)) return false;
@@ -854,6 +855,37 @@ bool checkExrAttributeSizes(int fd, uint64_t size, const std::string& path, std:
     if (size < 8 || preadFull(fd, magic, 4, 0) != 4 || std::memcmp(magic, kMagic, 4) != 0)
         return true;  // not OpenEXR: its own reader judges it
     return checkAttributeSizes(fd, size, path, err);
+}
+
+bool readExrPartNames(int fd, uint64_t size, const std::string& path,
+                      std::vector<std::string>& names, bool& newerStats, std::string& err) {
+    if (!checkAttributeSizes(fd, size, path, err)) return false;
+    CoreIo io{fd, int64_t(size), {}};
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = &coreError;
+    init.user_data = &io;
+    init.read_fn = &coreRead;
+    init.size_fn = &coreSize;
+    init.flags = EXR_CONTEXT_FLAG_DISABLE_CHUNK_RECONSTRUCTION;
+    CoreContext ctx;
+    const exr_result_t rv = exr_start_read(&ctx.ctxt, path.c_str(), &init);
+    int n = 0;
+    if (rv != EXR_ERR_SUCCESS || exr_get_count(ctx.ctxt, &n) != EXR_ERR_SUCCESS) {
+        const std::string what =
+            io.firstError.empty() ? exr_get_default_error_message(rv) : io.firstError;
+        err = fmt::format("{}: truncated or corrupt (header: {})", path, oneLine(what));
+        return false;
+    }
+    Checker checker(ctx.ctxt, path);
+    names.clear();
+    newerStats = false;
+    for (int part = 0; part < n; ++part) {
+        names.push_back(checker.partName(part));
+        const exr_attribute_t* v = checker.attr(part, layout::kAttrFormatVersion);
+        if (v != nullptr && v->type == EXR_ATTR_INT && v->i > kStatsFormatVersion)
+            newerStats = true;
+    }
+    return true;
 }
 
 bool checkStatsHeaders(int fd, uint64_t size, const std::string& path, const ReadLimits& limits,

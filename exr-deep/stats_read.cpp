@@ -279,6 +279,22 @@ bool StatsFileReader::read(int firstRow, int rows, unsigned parts, StatsImage& b
         block.header.originY = fh.originY + firstRow;
         const StatsHeader& h = block.header;
         const size_t pixels = size_t(h.width) * size_t(rows);
+        // The byte limit applies to what this read holds (ReadLimits::maxBytes): a whole read
+        // (rows = height) to the image, a streamed one to its block, so a file streamed a block
+        // at a time is not refused for its whole size. Adaptive M: checked on the counts below.
+        if (!h.adaptiveM) {
+            const double bytes =
+                double(pixels) * double(layout::floatsPerPixel(h.M, h.aovs.size()) * sizeof(float));
+            if (bytes > double(im.limits.maxBytes)) {
+                err = fmt::format(
+                    "{}: rows {}..{} ({}x{} with M = {}{}) need {} bytes, exceeding "
+                    "the limit of {} bytes",
+                    im.path, firstRow, int64_t(firstRow) + rows - 1, h.width, rows, h.M,
+                    h.aovs.empty() ? std::string() : fmt::format(" and {} AOVs", h.aovs.size()),
+                    bytes, im.limits.maxBytes);
+                return false;
+            }
+        }
         std::vector<uint64_t> offsets;
         size_t buffers = 0;
         if (parts & kStatsPartBuffers) {
@@ -327,6 +343,57 @@ bool checkExrAttributeSizes(const std::string& path, std::string& err) {
     uint64_t size = 0;
     return openRegular(path, fd, size, err) &&
            detail::checkExrAttributeSizes(fd.get(), size, path, err);
+}
+
+std::string FileContent::partsText() const {
+    if (partNames.size() == 1)
+        return partNames[0].empty() ? "one unnamed part" : fmt::format("part '{}'", partNames[0]);
+    std::string list;
+    for (size_t i = 0; i < partNames.size() && i < 8; ++i)
+        list += fmt::format("{}'{}'", i ? ", " : "", partNames[i]);
+    if (partNames.size() > 8) list += ", ...";
+    return fmt::format("parts {}", list);
+}
+
+bool probeFileContent(const std::string& path, FileContent& out, std::string& err) {
+    out = FileContent();
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0) {
+        if (errno == ENOENT || errno == ENOTDIR) return true;  // Missing
+        err = fmt::format("{}: cannot stat ({})", path, std::strerror(errno));
+        return false;
+    }
+    if (S_ISDIR(st.st_mode)) {
+        out.kind = FileContent::Directory;
+        return true;
+    }
+    if (!S_ISREG(st.st_mode)) {
+        out.kind = FileContent::Special;
+        return true;
+    }
+    detail::Fd fd;
+    uint64_t size = 0;
+    if (!openRegular(path, fd, size, err)) return false;
+    static constexpr unsigned char kMagic[4] = {0x76, 0x2f, 0x31, 0x01};
+    unsigned char magic[4] = {};
+    if (size < 8 || detail::preadFull(fd.get(), magic, 4, 0) != 4 ||
+        std::memcmp(magic, kMagic, 4) != 0) {
+        out.kind = FileContent::NotExr;
+        return true;
+    }
+    bool newer = false;
+    std::vector<std::string> names;
+    if (!detail::readExrPartNames(fd.get(), size, path, names, newer, err)) return false;
+    // The sub-buffers make a statistics file; part 0 alone is an image (its mean). A file from a
+    // newer mcstat is one too, so that its reader says so (checkStatsHeaders).
+    const bool subBuffers =
+        std::any_of(names.begin(), names.end(), [](const std::string& n) {
+            return n == layout::kPartNames[layout::kBuffers] ||
+                   n == layout::kPartNamesAdaptive[layout::kBuffers];
+        });
+    out.kind = subBuffers || newer ? FileContent::Stats : FileContent::PlainExr;
+    out.partNames = std::move(names);
+    return true;
 }
 
 }  // namespace mcstat

@@ -215,14 +215,16 @@ struct StatsImage {
 };
 
 /// Limits for reading untrusted files, passed in (never global). The defaults are what a desktop
-/// with 16 GB can afford: 8 GiB of decoded pixel data (a 3840 x 2160 file with M = 59, or
-/// 7680 x 4320 with M = 10; streamed operations hold only blocks of it), 2^28 pixels and 2^30 deep
-/// samples. Before any of it is allocated the reader also checks the claims against the file
-/// itself (FORMAT.md, validation step 10), so a small file cannot claim a large image.
+/// with 16 GB can afford: 8 GiB of decoded pixel data in one read (a whole 3840 x 2160 file with
+/// M = 59, or 7680 x 4320 with M = 10; a streamed read holds a block of rows), 2^28 pixels and
+/// 2^30 deep samples. Before any of it is allocated the reader also checks the claims against the
+/// file itself (FORMAT.md, validation step 10), so a small file cannot claim a large image.
 struct ReadLimits {
     int64_t maxPixels = int64_t(1) << 28;  ///< width * height
     int maxBuffers = kMaxBuffers;          ///< M
-    /// Total bytes of decoded pixel data the file's headers claim (whole-file reads allocate it).
+    /// Bytes of decoded pixel data one read may hold (StatsFileReader::read): the whole image for
+    /// a whole read, a block of rows for a streamed one, so a file streamed a block at a time is
+    /// not refused for its whole size. The headers are refused when one row exceeds it.
     int64_t maxBytes = int64_t(8) << 30;
     /// Adaptive M: total deep samples (sum of m_p) of part "vbuffers"; also bounded by maxBytes.
     int64_t maxDeepSamples = int64_t(1) << 30;
@@ -404,6 +406,29 @@ struct StatsCheckReport {
 /// (gigabytes for a file of a few KB), so readers of untrusted EXRs call this first. True for a
 /// file that is not OpenEXR (not its business); false with "<path>: <problem>" otherwise.
 bool checkExrAttributeSizes(const std::string& path, std::string& err);
+
+/// What a file holds, judged by its content and never by its name: a statistics file may be named
+/// x.exr (OIIO's plugin needs .mcstat, nothing else does) and a plain EXR may be named x.mcstat.
+struct FileContent {
+    enum Kind {
+        Missing,    ///< no such file
+        Directory,  ///< a directory
+        Special,    ///< neither a regular file nor a directory (a pipe, a device)
+        NotExr,     ///< a regular file without OpenEXR's magic number (another format, or none)
+        PlainExr,   ///< an OpenEXR file without the sub-buffers: an image
+        Stats,      ///< an OpenEXR file with part `buffers` or `vbuffers`, or one that declares a
+                    ///< newer mcstat:formatVersion: a statistics file (readStatsHeader checks it)
+    } kind = Missing;
+    /// OpenEXR files: every part's name, in order ("" for a part without one).
+    std::vector<std::string> partNames;
+    /// "part 'beauty'", "parts 'rgba', 'depth'", "one unnamed part": for messages.
+    std::string partsText() const;
+};
+/// Decides FileContent from the file's magic number and, for OpenEXR, its headers only (every
+/// attribute size checked against the file first, as checkExrAttributeSizes does, then parsed by
+/// OpenEXR's Core API, which sizes nothing by the image); no pixel is read. False with
+/// "<path>: <problem>" when an OpenEXR file's headers are damaged or the file cannot be read.
+bool probeFileContent(const std::string& path, FileContent& out, std::string& err);
 
 /// Validates the statistics file `path` completely, as exrcheck does for any OpenEXR file and
 /// more (`mcstat f --check`): the headers and chunk table (as readStatsHeader), OpenEXR's own

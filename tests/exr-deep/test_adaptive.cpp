@@ -292,10 +292,11 @@ TEST(AdaptiveFile, LimitsOnDeepSamplesAndBytes) {
     lim.maxBytes = bytes - 1;
     EXPECT_FALSE(readStatsFile(path, none, err, lim));
     EXPECT_TRUE(contains(err, "exceeding the limit")) << err;
-    // Headers alone: at least one buffer per pixel must fit.
-    lim.maxBytes = int64_t(img.pixelCount()) * (25 * 4 + 8) - 1;
+    // Headers alone: a row with at least one buffer per pixel must fit.
+    lim.maxBytes = int64_t(img.header.width) * (25 * 4 + 8) - 1;
     StatsHeader hdr;
     EXPECT_FALSE(readStatsHeader(path, hdr, err, lim));
+    EXPECT_TRUE(contains(err, "a row of image")) << err;
     EXPECT_TRUE(contains(err, "adaptive M, M_max = 17 needs at least")) << err;
 }
 

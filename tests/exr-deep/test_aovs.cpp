@@ -837,19 +837,32 @@ TEST_F(AovCorrupt, MoreAovsThanTheFormatAllows) {
 }
 
 TEST_F(AovCorrupt, AovBytesCountAgainstTheLimit) {
-    // 20 pixels x (21 + 4 M + M A) floats: the AOVs are most of it.
+    // 20 pixels x (21 + 4 M + M A) floats: the AOVs are most of it. The limit holds for what one
+    // read holds: the whole image for a whole read, a block of rows for a streamed one.
     const int64_t need = 20 * (21 + 4 * 3 + 3 * 6) * 4;
     ReadLimits limits;
     limits.maxBytes = need - 1;
-    const std::string err = readError(limits);
+    writeRaw(path, parts);
+    StatsImage out;
+    std::string err;
+    EXPECT_FALSE(readStatsFile(path, out, err, limits));
     EXPECT_TRUE(contains(err,
-                         "image 5x4 with M = 3 and 6 AOVs needs 4080 bytes, exceeding the "
+                         "rows 0..3 (5x4 with M = 3 and 6 AOVs) need 4080 bytes, exceeding the "
                          "limit of 4079 bytes"))
         << err;
+    EXPECT_TRUE(out.count.empty());
+    StatsFileReader reader;
+    ASSERT_TRUE(reader.open(path, err, limits)) << err;  // a row (1,020 bytes) fits
+    StatsImage block;
+    EXPECT_TRUE(reader.read(0, 3, kStatsAllParts, block, err)) << err;  // so do three
     limits.maxBytes = need;
-    StatsImage out;
     std::string ok;
     EXPECT_TRUE(readStatsFile(path, out, ok, limits)) << ok;
+    // A row that cannot fit is refused by the headers alone.
+    limits.maxBytes = need / 4 - 1;
+    EXPECT_TRUE(contains(readError(limits),
+                         "a row of image 5x4 with M = 3 and 6 AOVs needs 1020 bytes, exceeding the "
+                         "limit of 1019 bytes"));
 }
 
 TEST_F(AovCorrupt, AbsurdAovCountWithASmallFileIsRejectedBeforeAllocating) {
@@ -860,7 +873,7 @@ TEST_F(AovCorrupt, AbsurdAovCountWithASmallFileIsRejectedBeforeAllocating) {
     setStrings("aovs", "mcstat:aovClasses", classes);
     setStrings("aovs", "mcstat:aovParts", where);
     ReadLimits limits;
-    limits.maxBytes = int64_t(1) << 19;  // 20 pixels x 3 x 4000 x 4 bytes is 0.96 MB
+    limits.maxBytes = int64_t(1) << 17;  // a row: 5 pixels x 3 x 4000 x 4 bytes is 240 KB
     const std::string err = readError(limits);
     EXPECT_TRUE(contains(err, "with M = 3 and 4000 AOVs needs")) << err;
     // Within the limits, the channel list gives it away.
