@@ -144,6 +144,30 @@ bool checkOperationInput(State& st, const std::string& cmd, const Operation& op,
 }
 
 /// Runs `op` with `values` on the top of the stack into `img` through the dispatcher.
+/// A streamed source that reports the rows read to a progress line: a streamed operation reads
+/// every row once (plus a window filter's halo rows), so the rows read are its progress.
+class ProgressSource final : public StatsBlockSource {
+  public:
+    ProgressSource(StatsBlockSource& src, Progress& progress) : src_(src), progress_(progress) {}
+    const StatsHeader& header() const override { return src_.header(); }
+    const std::string& name() const override { return src_.name(); }
+    int chunkRows() const override { return src_.chunkRows(); }
+    int decodeThreads() const override { return src_.decodeThreads(); }
+    bool read(int firstRow, int rows, unsigned parts, StatsImage& block,
+              std::string& err) override {
+        if (!src_.read(firstRow, rows, parts, block, err)) return false;
+        rowsRead_ += rows;
+        const int h = std::max(1, header().height);
+        progress_.set(std::min(1.0, double(rowsRead_) / h));
+        return true;
+    }
+
+  private:
+    StatsBlockSource& src_;
+    Progress& progress_;
+    int64_t rowsRead_ = 0;
+};
+
 bool applyToTop(State& st, const std::string& cmd, const Operation& op, const ParamValues& values,
                 bool diag, OIIO::ImageBuf& img, std::string& err) {
     Item& top = st.stack.back();
@@ -167,8 +191,14 @@ bool applyToTop(State& st, const std::string& cmd, const Operation& op, const Pa
     } else {
         ItemSource src;  // a file on disk (or a merge of files) is streamed by blocks of rows
         if (!top.stats && !openSource(st, top, src, err)) return false;
-        ok = top.stats ? applyOperation(img, *top.stats, op, values, luma(), diag, {}, st.nthreads)
-                       : applyOperation(img, *src.root, op, values, luma(), diag, {}, st.nthreads);
+        if (top.stats) {
+            ok = applyOperation(img, *top.stats, op, values, luma(), diag, {}, st.nthreads);
+        } else {
+            // Progress on a terminal only: a large file takes seconds.
+            Progress progress("mcstat: " + cmd, 1000, Progress::onTerminal());
+            ProgressSource shown(*src.root, progress);
+            ok = applyOperation(img, shown, op, values, luma(), diag, {}, st.nthreads);
+        }
     }
     if (!ok) err = format("{}: {}", cmd, img.geterror());
     return ok;

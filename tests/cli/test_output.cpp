@@ -90,6 +90,19 @@ TEST_F(OutputCli, NoClobberKeepsWhatExists) {
     EXPECT_TRUE(OIIO::Filesystem::exists(path("new.exr")));  // the run went on
 }
 
+TEST_F(OutputCli, StreamedEstimateShowsProgressOnATerminalOnly) {
+    // Not on a terminal (this test's stderr is a file): not a byte.
+    auto r = mcstat(path("aov.mcstat") + " --gmon -o " + path("g.exr"));
+    ASSERT_EQ(r.code, 0);
+    EXPECT_EQ(r.err, "");
+    // On a terminal (util-linux's script gives the command a pseudo-terminal): the progress line.
+    const std::string cmd = "script -qec '" + std::string(MCSTAT_EXE) + " " + path("aov.mcstat") +
+                            " --gmon -o " + path("g2.exr") + "' /dev/null > " + path("tty.txt");
+    ASSERT_EQ(std::system(cmd.c_str()), 0);
+    const std::string tty = mcstat::testing::slurp(path("tty.txt"));
+    EXPECT_NE(tty.find("mcstat: --gmon 100.0%"), std::string::npos) << tty;
+}
+
 TEST_F(OutputCli, RefusalsNameWhatIsWrong) {
     const std::string in = path("aov.mcstat") + " --gmon ";
     auto r = mcstat(in + "-d hlf -o " + path("x.exr"));
