@@ -2,6 +2,7 @@
 #include "mcstat/color.h"
 
 #include <OpenColorIO/OpenColorIO.h>
+#include <strings.h>
 
 #include <cstdlib>
 #include <mutex>
@@ -72,6 +73,45 @@ bool applyDisplayTransform(float* rgb, long npixels, std::string& err, const std
         return true;
     } catch (const std::exception& e) {
         err = std::string("OCIO display transform failed: ") + e.what();
+        return false;
+    }
+}
+
+namespace {
+/// What toSceneLinear converts to: kSceneLinear (every statistics file's colour space) when the
+/// config has it (the built-in one does; ACES configs alias it), else the scene_linear role.
+const char* sceneLinearTarget(const OCIO::ConstConfigRcPtr& cfg) {
+    return cfg->getColorSpace(kSceneLinear) ? kSceneLinear : OCIO::ROLE_SCENE_LINEAR;
+}
+}  // namespace
+
+std::string sceneLinearName() {
+    const OCIO::ConstConfigRcPtr& cfg = activeConfig().config;
+    const OCIO::ConstColorSpaceRcPtr cs = cfg->getColorSpace(sceneLinearTarget(cfg));
+    return cs ? cs->getName() : std::string(sceneLinearTarget(cfg));
+}
+
+bool toSceneLinear(float* rgb, long npixels, const std::string& from, bool& converted,
+                   std::string& err) {
+    converted = false;
+    // OIIO names linear data "Linear" (OpenEXR, HDR) whatever the config calls it.
+    for (const char* linear : {"linear", "lin_srgb", "lin_rec709", "scene_linear"})
+        if (strcasecmp(from.c_str(), linear) == 0) return true;
+    try {
+        const OCIO::ConstConfigRcPtr& cfg = activeConfig().config;
+        if (!cfg->getColorSpace(from.c_str())) {
+            err = "colour space '" + from + "' is not in the OCIO config" +
+                  (std::getenv("OCIO") ? std::string(" ($OCIO)") : std::string(" (mcstat's own)"));
+            return false;
+        }
+        OCIO::ConstProcessorRcPtr proc = cfg->getProcessor(from.c_str(), sceneLinearTarget(cfg));
+        if (proc->isNoOp()) return true;
+        OCIO::PackedImageDesc desc(rgb, npixels, 1, 3);
+        proc->getDefaultCPUProcessor()->apply(desc);
+        converted = true;
+        return true;
+    } catch (const std::exception& e) {
+        err = "OCIO conversion from '" + from + "' to scene-linear failed: " + e.what();
         return false;
     }
 }

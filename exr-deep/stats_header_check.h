@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "mcstat/stats_file.h"
 
@@ -16,5 +17,11 @@ bool checkStatsHeaders(int fd, uint64_t size, const std::string& path, const Rea
                        StatsHeader& hdr, std::string& err);
 /// checkExrAttributeSizes (stats_file.h) over an open file.
 bool checkExrAttributeSizes(int fd, uint64_t size, const std::string& path, std::string& err);
+/// The OpenEXR file open as `fd` (`size` bytes, magic number already seen): every part's name
+/// ("" without one) and whether a part declares an mcstat:formatVersion newer than this reader's,
+/// from its headers only (checkExrAttributeSizes first, then OpenEXR's Core API). False with
+/// "<path>: <problem>" on damaged headers.
+bool readExrPartNames(int fd, uint64_t size, const std::string& path,
+                      std::vector<std::string>& names, bool& newerStats, std::string& err);
 
 }  // namespace mcstat::detail

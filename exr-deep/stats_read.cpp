@@ -386,11 +386,10 @@ bool probeFileContent(const std::string& path, FileContent& out, std::string& er
     if (!detail::readExrPartNames(fd.get(), size, path, names, newer, err)) return false;
     // The sub-buffers make a statistics file; part 0 alone is an image (its mean). A file from a
     // newer mcstat is one too, so that its reader says so (checkStatsHeaders).
-    const bool subBuffers =
-        std::any_of(names.begin(), names.end(), [](const std::string& n) {
-            return n == layout::kPartNames[layout::kBuffers] ||
-                   n == layout::kPartNamesAdaptive[layout::kBuffers];
-        });
+    const bool subBuffers = std::any_of(names.begin(), names.end(), [](const std::string& n) {
+        return n == layout::kPartNames[layout::kBuffers] ||
+               n == layout::kPartNamesAdaptive[layout::kBuffers];
+    });
     out.kind = subBuffers || newer ? FileContent::Stats : FileContent::PlainExr;
     out.partNames = std::move(names);
     return true;

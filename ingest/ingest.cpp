@@ -427,6 +427,14 @@ struct Ingest {
 /// feature channels, its samples per pixel.
 bool readHeader(Ingest& s, size_t j, const std::string& path, std::string& err) {
     InputFile& f = s.files[j];
+    // A statistics file (by its content, whatever its name) is not one render: read as an image,
+    // it is its mean, and its sub-buffers would be lost (two files of M = 21 gave M = 2).
+    FileContent content;
+    std::string damaged;  // left to openInput, whose checks say what is wrong
+    if (probeFileContent(path, content, damaged) && content.kind == FileContent::Stats) {
+        err = path + " is a statistics file: combine statistics files with --merge";
+        return false;
+    }
     if (!openInput(path, f, err)) return false;
     std::string problem;
     // Every file uses the first file's beauty layer, so a file cannot switch layers.

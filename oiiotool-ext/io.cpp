@@ -8,8 +8,11 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <set>
 
 #include "cli.h"
+#include "mcstat/color.h"
 #include "mcstat/core/progress.h"
 #include "mcstat/filters/samples/pajot_state.h"
 #include "mcstat/image/imageops.h"
@@ -38,6 +41,126 @@ std::string oneLineMessage(std::string s) {
 }
 
 bool isStatsPath(const std::string& path) { return lowerExtension(path) == kStatsExtension; }
+
+/// Prints "mcstat: note: TEXT" on stderr, once per process for the same text (a reference used
+/// by several commands is read several times).
+void noteOnce(const std::string& text) {
+    static std::set<std::string> said;
+    if (said.insert(text).second) std::fprintf(stderr, "mcstat: note: %s\n", text.c_str());
+}
+
+/// Whether `path` is read as a statistics file: decided by its content (probeFileContent: the
+/// magic number and the OpenEXR part names, headers only), never by its name. A name that says
+/// otherwise gets a note. False with `err` for a directory or damaged OpenEXR headers (checked
+/// before any OpenEXR reader sees them). When the content cannot tell (no such file, a pipe, not
+/// OpenEXR) the name decides, and the reader it picks says what is wrong, as it always did.
+bool readsAsStats(const std::string& path, bool& stats, std::string& err) {
+    FileContent c;
+    if (!probeFileContent(path, c, err)) return false;
+    const bool named = isStatsPath(path);
+    stats = named;
+    switch (c.kind) {
+        case FileContent::Directory:
+            err = format("{} is a directory", path);
+            return false;
+        case FileContent::Stats:
+            stats = true;
+            if (!named)
+                noteOnce(
+                    format("{} is a statistics file (by its content) and is read as one; name it "
+                           ".{} for OIIO's mcstat plugin, which OIIO chooses by the name",
+                           path, kStatsExtension));
+            return true;
+        case FileContent::PlainExr:
+            // Read as the image it is, with a note, rather than refused: oiiotool reads a file by
+            // its content when its name's reader refuses it (so `oiiotool x.mcstat` shows this
+            // image), and --info, --diff x.mcstat or -o x.exr then work; a command that needs a
+            // statistics file still refuses the image, after this note has said why.
+            stats = false;
+            if (named)
+                noteOnce(
+                    format("{} is a plain EXR image, not a statistics file (no part 'buffers' or "
+                           "'vbuffers'; it has {}); read as an image",
+                           path, c.partsText()));
+            return true;
+        case FileContent::Missing:
+        case FileContent::Special:
+        case FileContent::NotExr:
+            return true;
+    }
+    return true;
+}
+
+/// A reference read for a comparison is made scene-linear, as renders are: one in a display
+/// encoding (an sRGB PNG or JPEG: OIIO's "oiio:ColorSpace", which OIIO sets to sRGB for those;
+/// integer data without one is taken as sRGB) goes through OCIO to the scene-linear colour space,
+/// with a note; one in a colour space the OCIO config does not know is refused. Compared as if
+/// linear, an sRGB reference gives other metrics and nothing says so (relMSE 0.27 instead of
+/// 0.037: ContentCli.SrgbPngReferenceIsMadeSceneLinearBeforeComparing).
+bool makeSceneLinear(const std::string& path, OIIO::ImageBuf& rgb, std::string& err) {
+    // The header again (readRenderRGB read it; the channels it returns carry no colour space),
+    // with the same checks first.
+    if (!checkExrAttributeSizes(path, err)) return false;
+    std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::create(path, false);
+    OIIO::ImageSpec spec;
+    if (!in || !in->open(path, spec)) {
+        const std::string why = in ? in->geterror() : OIIO::geterror();
+        err = format("{}: {}", path, oneLineMessage(why));
+        return false;
+    }
+    in->close();
+    std::string space = spec.get_string_attribute("oiio:ColorSpace");
+    const bool integer = !spec.format.is_floating_point();
+    const bool assumed = space.empty() && integer;
+    if (assumed) space = "sRGB";
+    if (space.empty()) return true;  // float data that names no colour space: scene-linear
+    const OIIO::ImageSpec& rs = rgb.spec();
+    if (rs.nchannels != 3 || rs.format != OIIO::TypeDesc::FLOAT || !rgb.localpixels()) {
+        err = format("{}: internal: the RGB read is not 3 float channels in memory", path);
+        return false;
+    }
+    bool converted = false;
+    std::string why;
+    if (!toSceneLinear(static_cast<float*>(rgb.localpixels()), long(rs.image_pixels()), space,
+                       converted, why)) {
+        err = format(
+            "{}: {} (its oiio:ColorSpace): cannot make it scene-linear to compare with a render; "
+            "convert it to a scene-linear EXR first",
+            path, why);
+        return false;
+    }
+    if (converted)
+        noteOnce(
+            format("{} is display-encoded ({}{}); converted to scene-linear {} through OCIO "
+                   "before comparing{}",
+                   path, space, assumed ? ", assumed: integer pixels naming no colour space" : "",
+                   sceneLinearName(),
+                   integer ? " (its integer pixels are quantised and clipped at 1: a float "
+                             "EXR reference is better)"
+                           : ""));
+    return true;
+}
+
+/// Reads `path` as a statistics file's beauty (`stats`) or as an image through OIIO.
+bool readImageAs(const std::string& path, bool stats, OIIO::ImageBuf& out, std::string& err) {
+    if (stats) {
+        StatsImage img;
+        if (!readStatsFile(path, img, err)) return false;
+        out = beautyImage(img);
+        return true;
+    }
+    if (!OIIO::Filesystem::exists(path)) {
+        err = format("{}: no such file", path);
+        return false;
+    }
+    OIIO::ImageBuf in(path);
+    if (!in.read(0, 0, true, OIIO::TypeDesc::FLOAT)) {
+        err = format("{}: {}", path, OIIO::Strutil::replace(in.geterror(), "\n", " "));
+        return false;
+    }
+    out = std::move(in);
+    return true;
+}
 
 /// Formats written for the eye: the pixels go through the OCIO display view first.
 bool isDisplayFormat(const std::string& ext) {
@@ -92,12 +215,14 @@ bool writeImageAtomically(const OIIO::ImageBuf& img, const std::string& path,
 bool pushFile(State& st, const std::string& path, std::string& err) {
     Item item;
     item.name = path;
-    if (isStatsPath(path)) {
+    bool stats = false;
+    if (!readsAsStats(path, stats, err)) return false;
+    if (stats) {
         item.path = path;
         if (!readStatsHeader(path, item.header, err)) return false;
     } else {
         item.image = std::make_shared<OIIO::ImageBuf>();
-        if (!readImage(path, *item.image, err)) return false;
+        if (!readImageAs(path, false, *item.image, err)) return false;
     }
     st.stack.push_back(std::move(item));
     return true;
@@ -139,28 +264,15 @@ bool loadStats(State& st, Item& item, std::string& err) {
 }
 
 bool readImage(const std::string& path, OIIO::ImageBuf& out, std::string& err) {
-    if (isStatsPath(path)) {
-        StatsImage stats;
-        if (!readStatsFile(path, stats, err)) return false;
-        out = beautyImage(stats);
-        return true;
-    }
-    if (!OIIO::Filesystem::exists(path)) {
-        err = format("{}: no such file", path);
-        return false;
-    }
-    OIIO::ImageBuf in(path);
-    if (!in.read(0, 0, true, OIIO::TypeDesc::FLOAT)) {
-        err = format("{}: {}", path, OIIO::Strutil::replace(in.geterror(), "\n", " "));
-        return false;
-    }
-    out = std::move(in);
-    return true;
+    bool stats = false;
+    return readsAsStats(path, stats, err) && readImageAs(path, stats, out, err);
 }
 
 bool readRGB(const std::string& path, const std::string& layer, OIIO::ImageBuf& out,
              std::string& err) {
-    if (isStatsPath(path)) {
+    bool stats = false;
+    if (!readsAsStats(path, stats, err)) return false;
+    if (stats) {
         if (!layer.empty() && layer != ".") {
             err = format(
                 "{}: a statistics file has one RGB layer (its beauty); :layer={} does not "
@@ -168,9 +280,13 @@ bool readRGB(const std::string& path, const std::string& layer, OIIO::ImageBuf& 
                 path, layer);
             return false;
         }
-        return readImage(path, out, err);
+        return readImageAs(path, true, out, err);
     }
-    return readRenderRGB(path, layer, out, nullptr, err);
+    OIIO::ImageBuf rgb;
+    if (!readRenderRGB(path, layer, rgb, nullptr, err) || !makeSceneLinear(path, rgb, err))
+        return false;
+    out = std::move(rgb);
+    return true;
 }
 
 bool selectRGB(const OIIO::ImageBuf& src, const std::string& layer, const std::string& what,
@@ -394,6 +510,25 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
     return written(writeImageAtomically(*top.image, path, opt, err, &overflow));
 }
 
+/// pajotParamsText for the eye: each number as the shortest text that reads back as the same
+/// double ("luma=0.2126:0.7152:0.0722"); the attribute keeps 17 significant digits
+/// ("0.21260000000000001") so that the text gives the parameters back exactly.
+std::string pajotParamsDisplay(const PajotParams& p) {
+    std::string out;
+    for (const std::string& item : OIIO::Strutil::splits(pajotParamsText(p), ",")) {
+        const size_t eq = item.find('=');
+        std::string values;
+        for (const std::string& v : OIIO::Strutil::splits(item.substr(eq + 1), ":")) {
+            char* end = nullptr;
+            const double d = std::strtod(v.c_str(), &end);
+            values +=
+                (values.empty() ? "" : ":") + (!v.empty() && *end == '\0' ? format("{}", d) : v);
+        }
+        out += (out.empty() ? "" : ",") + item.substr(0, eq + 1) + values;
+    }
+    return out;
+}
+
 /// Pajot's online state in numbers (docs/pajot.md): what the benchmark's tables report.
 bool printPajotSummary(const std::string& path, std::string& err) {
     PajotImage pj;
@@ -415,7 +550,7 @@ bool printPajotSummary(const std::string& path, std::string& err) {
     std::printf(
         "  pajot (online, %s): modes per pixel %.3f single, %.3f extended; %.2f bytes per "
         "pixel (%.3f image buffers of 12 bytes)\n",
-        pajotParamsText(pj.params).c_str(), double(single) / n, double(extended) / n,
+        pajotParamsDisplay(pj.params).c_str(), double(single) / n, double(extended) / n,
         double(bytes) / n, double(bytes) / n / 12.0);
     std::printf(
         "  pajot: samples delayed %.4f %% (%lld of %lld), discarded %lld; pixels still "

@@ -25,4 +25,16 @@ const char* builtinOcioConfig();
 bool applyDisplayTransform(float* rgb, long npixels, std::string& err,
                            const std::string& display = "", const std::string& view = "");
 
+/// The colour space toSceneLinear converts to, as the active config names it: kSceneLinear (the
+/// colour space of every statistics file) when the config has it, else its scene_linear role.
+std::string sceneLinearName();
+
+/// Converts interleaved RGB pixels in place from colour space `from` (a name of the active config,
+/// or OIIO's "oiio:ColorSpace" names for linear data: "Linear", "linear", "lin_srgb",
+/// "lin_rec709", "scene_linear") to sceneLinearName()'s colour space. `converted` is false when
+/// nothing had to change (already scene-linear, or a data space). Returns false with `err` when
+/// the config has no colour space `from` or the transform cannot be built.
+bool toSceneLinear(float* rgb, long npixels, const std::string& from, bool& converted,
+                   std::string& err);
+
 }  // namespace mcstat
