@@ -5,6 +5,7 @@
 // mask.
 #include "mcstat/analysis/review_pictures.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imagebufalgo_util.h>
 #include <OpenImageIO/strutil.h>
@@ -13,7 +14,9 @@
 #include <cmath>
 #include <vector>
 
+#include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
+#include "mcstat/image/render_layout.h"
 
 namespace mcstat {
 
@@ -61,7 +64,7 @@ std::string fitText(const std::string& text, int width, int fontSize) {
 
 /// `text` broken at spaces into lines at most `width` pixels wide (a word wider than that is cut
 /// with "..."); empty text gives no lines.
-std::vector<std::string> wrapText(const std::string& text, int width, int fontSize) {
+std::vector<std::string> wrapWords(const std::string& text, int width, int fontSize) {
     std::vector<std::string> lines;
     std::string line;
     for (const std::string& word : OIIO::Strutil::splits(text, " ")) {
@@ -75,6 +78,31 @@ std::vector<std::string> wrapText(const std::string& text, int width, int fontSi
         line = word;
     }
     if (!line.empty()) lines.push_back(fitText(line, width, fontSize));
+    return lines;
+}
+
+/// `text` in lines at most `width` pixels wide, broken preferably where it has a newline: its
+/// newline-separated clauses are packed onto lines (joined by a space) as long as they fit, and a
+/// clause wider than a line is broken at its spaces (wrapWords).
+std::vector<std::string> wrapText(const std::string& text, int width, int fontSize) {
+    std::vector<std::string> lines;
+    std::string line;
+    for (const std::string& clause : OIIO::Strutil::splits(text, "\n")) {
+        if (clause.empty()) continue;
+        const std::string longer = line.empty() ? clause : line + " " + clause;
+        if (textWidth(longer, fontSize) <= width) {
+            line = longer;
+            continue;
+        }
+        if (!line.empty()) lines.push_back(line);
+        line.clear();
+        std::vector<std::string> parts = wrapWords(clause, width, fontSize);
+        if (parts.empty()) continue;
+        line = parts.back();  // the clause's last line may take the next clause
+        parts.pop_back();
+        lines.insert(lines.end(), parts.begin(), parts.end());
+    }
+    if (!line.empty()) lines.push_back(line);
     return lines;
 }
 
@@ -169,6 +197,14 @@ bool knownMap(const std::string& map) {
 
 }  // namespace
 
+std::array<std::string, 2> binaryNames(const std::string& channel) {
+    for (const std::string& part : OIIO::Strutil::splits(channel, ".")) {
+        if (part == "firefly") return {"no firefly", "firefly"};
+        if (part == "differs") return {"same", "differs"};
+    }
+    return {"0", "1"};
+}
+
 int defaultReviewScale(int width, int minWidth) {
     if (width <= 0) return 1;
     return std::clamp((minWidth + width - 1) / width, 1, kMaxScale);
@@ -226,11 +262,13 @@ bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& chan
         return false;
     }
     double lo = INFINITY, hi = -INFINITY;
+    bool zeroOne = true;  // every finite value 0 or 1: a mask
     for (float x : v) {
         if (!std::isfinite(x)) {
             ++s.nonFinite;
             continue;
         }
+        zeroOne = zeroOne && (x == 0.f || x == 1.f);
         if (s.log && !(x > 0.f)) continue;  // zeros sit at the bottom of a log scale
         lo = std::min(lo, double(x));
         hi = std::max(hi, double(x));
@@ -240,6 +278,22 @@ bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& chan
         hi = s.log ? 10.0 : 1.0;
     }
     const bool userMin = !std::isnan(opt.min), userMax = !std::isnan(opt.max);
+    // A 0/1 mask (a firefly mask, --compare's differs) has two values, not a range: [0, 1] on a
+    // linear scale, shown with a two-swatch legend, unless a log scale or another range is asked.
+    const std::array<std::string, 2> names = binaryNames(name);
+    const bool named = names[1] != "1";
+    const bool anyFinite = s.nonFinite < long(v.size());
+    if ((anyFinite ? zeroOne : named) && opt.log != 1 && (!userMin || opt.min == 0.0) &&
+        (!userMax || opt.max == 1.0)) {
+        s.binary = true;
+        s.binaryNames = names;
+        s.log = false;
+        s.lo = 0.0;
+        s.hi = 1.0;
+        s.label = name;
+        scale = s;
+        return true;
+    }
     if (opt.symmetric && !s.log && lo <= hi) {
         const double m = std::max(std::fabs(lo), std::fabs(hi));
         lo = -m;
@@ -272,11 +326,82 @@ bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& chan
     return true;
 }
 
+namespace {
+
+/// The colour bar's label at `top`, and after it, when the data has NaN / Inf, a magenta swatch
+/// and their pixel count.
+bool drawScaleLabel(ImageBuf& out, int width, int top, const ColorScale& scale,
+                    const ReviewStyle& st) {
+    const std::string label = fitText(scale.label, width, st.fontSize);
+    if (!drawText(out, 0, top, label, st)) return false;
+    if (scale.nonFinite > 0) {
+        const int sw = std::max(6, st.fontSize * 3 / 4);
+        const int x = textWidth(label, st.fontSize) + st.fontSize;
+        if (x + sw < width) {
+            const int y = top + ascent(st) - sw;
+            IBA::fill(out, kNonFiniteColor, ROI(x, x + sw, y, y + sw));
+            const std::string what = fitText(format("NaN/Inf: {} px", scale.nonFinite),
+                                             width - (x + sw + 4), st.fontSize);
+            if (!drawText(out, x + sw + 4, top, what, st)) return false;
+        }
+    }
+    return true;
+}
+
+/// A 0/1 mask's legend, as tall as a colour bar: two swatches in the colours the heatmap gives 0
+/// and 1 (t = 0 and t = 1 through the same colour map and display view), each followed by its
+/// name, and the label under them.
+bool binaryLegend(ImageBuf& dst, int width, const ColorScale& scale, const ReviewStyle& st) {
+    const int barH = std::max(10, st.fontSize), tickH = 4, lineH = st.lineHeight();
+    const int height = barH + tickH + 2 * lineH + 2;
+    ImageBuf out = canvas(width, height, st.background);
+    ImageBuf t(ImageSpec(2, 1, 1, TypeDesc::FLOAT)), mapped, disp;
+    const float ends[2] = {0.f, 1.f};
+    t.set_pixels(t.roi(), TypeDesc::FLOAT, ends);
+    if (!colorMap(mapped, t, scale.map) || !displayTransform(disp, mapped)) {
+        dst.errorfmt("legend: {}{}", mapped.geterror(), disp.geterror());
+        return false;
+    }
+    ImageSpec& spec = out.specmod();
+    const int sw = 2 * barH, gap = 4;
+    int x = 0;
+    for (int i = 0; i < 2 && x + sw <= width; ++i) {
+        std::array<float, 3> c{};
+        disp.getpixel(i, 0, c.data(), 3);
+        // A frame in the text colour, so a swatch as dark as the background still shows.
+        IBA::fill(out, st.text, ROI(x, x + sw, 0, barH));
+        IBA::fill(out, c, ROI(x + 1, x + sw - 1, 1, barH - 1));
+        const std::string p = format("mcstat:legend:swatch{}:", i);
+        spec.attribute(p + "x", x + 1);
+        spec.attribute(p + "y", 1);
+        spec.attribute(p + "width", sw - 2);
+        spec.attribute(p + "height", barH - 2);
+        const std::string& n = scale.binaryNames[size_t(i)];
+        const std::string text = fitText(n == std::to_string(i) ? n : format("{} = {}", i, n),
+                                         std::max(0, width - (x + sw + gap)), st.fontSize);
+        if (!drawText(out, x + sw + gap, (barH - st.fontSize) / 2, text, st)) {
+            dst.errorfmt("legend: {}", out.geterror());
+            return false;
+        }
+        x += sw + gap + textWidth(text, st.fontSize) + 2 * st.fontSize;
+    }
+    if (!drawScaleLabel(out, width, barH + tickH, scale, st)) {
+        dst.errorfmt("legend: {}", out.geterror());
+        return false;
+    }
+    spec.attribute("mcstat:legend:binary", 1);
+    dst = std::move(out);
+    return true;
+}
+
+}  // namespace
+
 bool colorBar(ImageBuf& dst, int width, const ColorScale& scale, const ReviewStyle& st) {
     if (width < 2 || width > 1 << 16) {
         dst.errorfmt("colour bar: width {} out of range", width);
         return false;
     }
+    if (scale.binary) return binaryLegend(dst, width, scale, st);
     const int barH = std::max(10, st.fontSize), tickH = 4, lineH = st.lineHeight();
     const int height = barH + tickH + 2 * lineH + 2;
     ImageBuf out = canvas(width, height, st.background);
@@ -319,26 +444,10 @@ bool colorBar(ImageBuf& dst, int width, const ColorScale& scale, const ReviewSty
         }
         prevRight = left + w;
     }
-    const int labelTop = barH + tickH + lineH;
-    const std::string label = fitText(scale.label, width, st.fontSize);
-    if (!drawText(out, 0, labelTop, label, st)) {
+    // The label, and the legend of the non-finite colour after it.
+    if (!drawScaleLabel(out, width, barH + tickH + lineH, scale, st)) {
         dst.errorfmt("colour bar: {}", out.geterror());
         return false;
-    }
-    if (scale.nonFinite > 0) {
-        // The legend of the non-finite colour, after the label: a swatch and the pixel count.
-        const int sw = std::max(6, st.fontSize * 3 / 4);
-        const int x = textWidth(label, st.fontSize) + st.fontSize;
-        if (x + sw < width) {
-            const int y = labelTop + ascent(st) - sw;
-            IBA::fill(out, kNonFiniteColor, ROI(x, x + sw, y, y + sw));
-            const std::string what = fitText(format("NaN/Inf: {} px", scale.nonFinite),
-                                             width - (x + sw + 4), st.fontSize);
-            if (!drawText(out, x + sw + 4, labelTop, what, st)) {
-                dst.errorfmt("colour bar: {}", out.geterror());
-                return false;
-            }
-        }
     }
     ImageSpec& spec = out.specmod();
     spec.attribute("mcstat:colorbar:x", 0);
@@ -424,7 +533,7 @@ bool heatmap(ImageBuf& dst, const ImageBuf& src, const HeatmapOptions& opt, ROI 
         dst.errorfmt("heatmap: {}", scaled.geterror());
         return false;
     }
-    ImageBuf out;
+    ImageBuf out, bar;
     int mapX = 0, mapY = 0, barX = 0, barY = 0, barH = 0;
     if (!opt.colorBar && caption.empty()) {
         out = std::move(scaled);
@@ -437,7 +546,6 @@ bool heatmap(ImageBuf& dst, const ImageBuf& src, const HeatmapOptions& opt, ROI 
             return false;
         }
     } else {
-        ImageBuf bar;
         if (!colorBar(bar, barW, cs, opt.style)) {
             dst.errorfmt("heatmap: {}", bar.geterror());
             return false;
@@ -468,13 +576,27 @@ bool heatmap(ImageBuf& dst, const ImageBuf& src, const HeatmapOptions& opt, ROI 
     spec.attribute("mcstat:heatmap:min", TypeDesc::DOUBLE, &cs.lo);
     spec.attribute("mcstat:heatmap:max", TypeDesc::DOUBLE, &cs.hi);
     spec.attribute("mcstat:heatmap:log", cs.log ? 1 : 0);
+    spec.attribute("mcstat:heatmap:binary", cs.binary ? 1 : 0);
+    if (!opt.caption.empty())
+        spec.attribute("mcstat:heatmap:caption",
+                       OIIO::Strutil::replace(opt.caption, "\n", " ", true));
     spec.attribute("mcstat:heatmap:nonFinite", int(std::min<long>(cs.nonFinite, 0x7fffffff)));
     spec.attribute("mcstat:heatmap:scale", opt.scale);
     spec.attribute("mcstat:heatmap:x", mapX);
     spec.attribute("mcstat:heatmap:y", mapY);
     spec.attribute("mcstat:heatmap:width", int(mapW));
     spec.attribute("mcstat:heatmap:height", int(mapH));
-    if (opt.colorBar) {
+    if (opt.colorBar && cs.binary) {
+        spec.attribute("mcstat:legend:binary", 1);
+        for (const char* sw : {"swatch0", "swatch1"}) {
+            const std::string p = format("mcstat:legend:{}:", sw);
+            if (bar.spec().get_int_attribute(p + "width") <= 0) continue;
+            spec.attribute(p + "x", barX + bar.spec().get_int_attribute(p + "x"));
+            spec.attribute(p + "y", barY + bar.spec().get_int_attribute(p + "y"));
+            spec.attribute(p + "width", bar.spec().get_int_attribute(p + "width"));
+            spec.attribute(p + "height", bar.spec().get_int_attribute(p + "height"));
+        }
+    } else if (opt.colorBar) {
         spec.attribute("mcstat:colorbar:x", barX);
         spec.attribute("mcstat:colorbar:y", barY);
         spec.attribute("mcstat:colorbar:width", barW);
@@ -488,6 +610,35 @@ ImageBuf heatmap(const ImageBuf& src, const HeatmapOptions& opt, ROI roi, int nt
     ImageBuf dst;
     heatmap(dst, src, opt, roi, nthreads);
     return dst;
+}
+
+std::string provenanceCaption(const ImageSpec& spec, const std::string& file) {
+    const std::string p = kProvenancePrefix;
+    const std::string opName = spec.get_string_attribute(p + "operation");
+    std::string text;
+    if (!opName.empty()) {
+        const Operation* op = findOperation(opName);
+        text = op ? op->title : opName;
+        const std::string params = spec.get_string_attribute(p + "parameters");
+        if (!params.empty()) text += " (" + OIIO::Strutil::replace(params, ",", ", ", true) + ")";
+    }
+    // Clauses on lines of their own where a caption may break (wrapText).
+    const char* nl = "\n";
+    if (!file.empty()) text += (text.empty() ? "" : nl) + std::string("of ") + file;
+    std::vector<std::string> samples;
+    const int M = spec.get_int_attribute(p + "M", 0), spp = spec.get_int_attribute(p + "spp", 0);
+    if (M > 0) samples.push_back(format("M = {}", M));
+    if (spp > 0) samples.push_back(format("{} spp", spp));
+    const std::string sources = spec.get_string_attribute(p + "sources");
+    if (!sources.empty()) {
+        const size_t n = OIIO::Strutil::splits(sources, ",").size();
+        samples.push_back(format("{} source file{}", n, n == 1 ? "" : "s"));
+    }
+    if (!samples.empty())
+        text += (text.empty() ? "" : nl) + ("(" + OIIO::Strutil::join(samples, ", ") + ")");
+    const std::string ref = spec.get_string_attribute(p + "errormap.reference");
+    if (!ref.empty()) text += (text.empty() ? "" : nl) + ("vs " + OIIO::Filesystem::filename(ref));
+    return text;
 }
 
 bool errorImage(ImageBuf& dst, const ImageBuf& img, const ImageBuf& ref, const DiffOptions& opt,
@@ -538,6 +689,10 @@ bool errorImage(ImageBuf& dst, const ImageBuf& img, const ImageBuf& ref, const D
     spec.attribute("mcstat:errormap:eps", TypeDesc::DOUBLE, &opt.relmseEpsilon);
     spec.attribute("mcstat:errormap:ratio", TypeDesc::DOUBLE, &opt.fireflyRatio);
     spec.attribute("mcstat:errormap:floor", TypeDesc::DOUBLE, &opt.fireflyFloor);
+    // What the error is of: the estimate's provenance (operation, M, spp, sources).
+    for (const OIIO::ParamValue& pv : img.spec().extra_attribs)
+        if (OIIO::Strutil::starts_with(pv.name(), kProvenancePrefix))
+            spec.attribute(pv.name(), pv.type(), pv.data());
     ImageBuf result(spec);
     result.set_pixels(result.roi(), TypeDesc::FLOAT, out.data());
     dst = std::move(result);

@@ -102,7 +102,7 @@ bool flagValue(const Modifiers& mods, const std::string& key, bool& out, std::st
 std::array<double, 3> luma() {
     std::string warning;
     const std::array<double, 3> l = lumaCoefficients(&warning);
-    if (!warning.empty()) std::fprintf(stderr, "mcstat: warning: %s\n", warning.c_str());
+    if (!warning.empty()) cli::warning(warning);
     return l;
 }
 
@@ -185,7 +185,7 @@ bool applyToTop(State& st, const std::string& cmd, const Operation& op, const Pa
         ok = applyOperation(img, withAovs ? *top.image : rgb, op, values, luma(), {}, st.nthreads);
     } else if (readsSamples(op)) {
         // Progress on a terminal only (RPF over a large file takes a while).
-        Progress progress("mcstat: " + cmd, 1000, Progress::onTerminal());
+        Progress progress("mcstat: " + cmd, 1000, showProgress());
         ok = runSamplesOperation(img, top.path, top.header, op, values, luma(), st.nthreads,
                                  progress.fractionCallback());
     } else {
@@ -195,7 +195,7 @@ bool applyToTop(State& st, const std::string& cmd, const Operation& op, const Pa
             ok = applyOperation(img, *top.stats, op, values, luma(), diag, {}, st.nthreads);
         } else {
             // Progress on a terminal only: a large file takes seconds.
-            Progress progress("mcstat: " + cmd, 1000, Progress::onTerminal());
+            Progress progress("mcstat: " + cmd, 1000, showProgress());
             ProgressSource shown(*src.root, progress);
             ok = applyOperation(img, shown, op, values, luma(), diag, {}, st.nthreads);
         }
@@ -391,6 +391,12 @@ bool cmdNoClobber(State& st, const std::string&, const std::vector<std::string>&
     return true;
 }
 
+/// -q is read before the commands run (run()); here it has nothing left to do.
+bool cmdQuiet(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
+              std::string&) {
+    return true;
+}
+
 bool cmdVersion(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
                 std::string&) {
     std::printf("mcstat %s\n", MCSTAT_VERSION);
@@ -408,6 +414,13 @@ std::vector<Command> buildTable() {
          ""},
         {"-h", 0, "", "Same as --help", {}, &cmdHelp, ""},
         {"--version", 0, "", "Print the version and exit", {}, &cmdVersion, ""},
+        {"-q",
+         0,
+         "",
+         "Quiet: no warnings, notes or progress lines (errors and results still print)",
+         {},
+         &cmdQuiet,
+         ""},
         {"-v", 0, "", "Verbose: report each command and its time on stderr", {}, &cmdVerbose, ""},
         {"--threads",
          1,
@@ -701,18 +714,17 @@ void replaceWithImage(Item& top, const std::string& op, std::shared_ptr<OIIO::Im
 void describeOperationResult(const Item& top, const Operation& op, const ParamValues& values,
                              OIIO::ImageBuf& img) {
     const StatsHeader& h = top.isStats() ? top.header : *top.layout;
-    std::string warning;
-    describeResult(img.specmod(), op, values, h, &warning);
-    if (!warning.empty())
-        std::fprintf(stderr, "mcstat: warning: %s: %s\n", top.name.c_str(), warning.c_str());
+    std::string said;
+    describeResult(img.specmod(), op, values, h, &said);
+    if (!said.empty()) warning(format("{}: {}", top.name, said));
     if (!h.adaptiveM) {
         const int minM = smallestRobustM(op, values);
         if (minM > 1 && h.M < minM)
-            std::fprintf(stderr,
-                         "mcstat: warning: --%s over M = %d sub-buffers is the plain mean (it "
-                         "trims nothing below M = %d); render or ingest at least %d seeds, or see "
-                         "mcstat --plan for the M a target error needs\n",
-                         op.name.c_str(), h.M, minM, minM);
+            warning(
+                format("--{} over M = {} sub-buffers is the plain mean (it trims nothing "
+                       "below M = {}); render or ingest at least {} seeds, or see mcstat "
+                       "--plan for the M a target error needs",
+                       op.name, h.M, minM, minM));
     }
     // Operations that do not carry AOVs yet say so rather than drop them silently.
     const int carried = img.nchannels();
@@ -720,11 +732,27 @@ void describeOperationResult(const Item& top, const Operation& op, const ParamVa
     for (const AovChannel& a : h.aovs)
         if (img.spec().channelindex(a.name) < 0) ++missing;
     if (missing > 0 && carried > 0)
-        std::fprintf(stderr,
-                     "mcstat: warning: --%s does not carry AOVs yet: %zu of the file's %zu AOV "
-                     "channels (alpha, light groups, passes) are not in its result\n",
-                     op.name.c_str(), missing, h.aovs.size());
+        warning(
+            format("--{} does not carry AOVs yet: {} of the file's {} AOV channels (alpha, "
+                   "light groups, passes) are not in its result",
+                   op.name, missing, h.aovs.size()));
 }
+
+namespace {
+bool quietMode = false;
+}
+
+bool quiet() { return quietMode; }
+
+void warning(const std::string& text) {
+    if (!quietMode) std::fprintf(stderr, "mcstat: warning: %s\n", text.c_str());
+}
+
+void note(const std::string& text) {
+    if (!quietMode) std::fprintf(stderr, "mcstat: note: %s\n", text.c_str());
+}
+
+bool showProgress() { return !quietMode && Progress::onTerminal(); }
 
 int runOnce(const std::vector<std::string>& argv, const std::string& context) {
     State st;
@@ -774,6 +802,9 @@ int run(int argc, const char* const* argv) {
     }
     if (const int help = helpRequest(argc, argv); help >= 0) return help;
     const std::vector<std::string> args(argv + 1, argv + argc);
+    // -q holds for the whole line wherever it stands (frames run as processes inherit it: it
+    // stays among their arguments, where its command does nothing).
+    quietMode = std::find(args.begin(), args.end(), "-q") != args.end();
     // A frame pattern in a file name (or --frames): the command line once per frame.
     if (hasFramePattern(args)) return runFrames(args);
     return runOnce(args, "");

@@ -92,6 +92,15 @@ void replaceWithImage(Item& top, const std::string& op, std::shared_ptr<OIIO::Im
 void describeOperationResult(const Item& top, const Operation& op, const ParamValues& values,
                              OIIO::ImageBuf& img);
 
+/// -q anywhere on the command line (oiiotool's quiet mode): no warnings, notes or progress lines;
+/// errors and what a command prints on stdout (--diff, --compare) remain.
+bool quiet();
+/// "mcstat: warning: TEXT" / "mcstat: note: TEXT" on stderr, unless quiet().
+void warning(const std::string& text);
+void note(const std::string& text);
+/// Whether a progress line belongs on stderr: a terminal, and not quiet().
+bool showProgress();
+
 /// Runs a whole command line; returns the process exit code. Errors print one line to stderr.
 int run(int argc, const char* const* argv);
 /// Runs the arguments (without the program name) once: the process exit code; an error prints

@@ -111,7 +111,7 @@ bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string
                      a.name, b.name);
         return false;
     }
-    Progress progress("compare", 1000, Progress::onTerminal());
+    Progress progress("compare", 1000, showProgress());
     opt.progress = progress.fractionCallback();
     CompareResult r;
     bool ok = false;

@@ -46,7 +46,7 @@ bool isStatsPath(const std::string& path) { return lowerExtension(path) == kStat
 /// by several commands is read several times).
 void noteOnce(const std::string& text) {
     static std::set<std::string> said;
-    if (said.insert(text).second) std::fprintf(stderr, "mcstat: note: %s\n", text.c_str());
+    if (said.insert(text).second) note(text);
 }
 
 /// Whether `path` is read as a statistics file: decided by its content (probeFileContent: the
@@ -353,7 +353,7 @@ bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>
         return false;
     }
     // Progress on a terminal only: ingesting many large renders takes a while.
-    Progress progress("mcstat: ingest", 1000, Progress::onTerminal());
+    Progress progress("mcstat: ingest", 1000, showProgress());
     if (const auto fraction = progress.fractionCallback())
         opt.progress = [fraction](int64_t done, int64_t total) {
             fraction(double(done) / double(std::max<int64_t>(1, total)));
@@ -366,8 +366,7 @@ bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>
         err = format("{}: {}", cmd, err);
         return false;
     }
-    for (const std::string& w : report.warnings)
-        std::fprintf(stderr, "mcstat: warning: %s\n", w.c_str());
+    for (const std::string& w : report.warnings) warning(w);
     if (st.verbose) {
         std::fprintf(
             stderr, "mcstat: ingest: %zu files, beauty %s (%s), features %s\n", paths.size(),
@@ -410,8 +409,7 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
     }
     if (st.noClobber && OIIO::Filesystem::exists(path)) {
         // oiiotool's --no-clobber: an existing output is kept, and the run goes on.
-        std::fprintf(stderr, "mcstat: warning: %s exists; not overwritten (--no-clobber)\n",
-                     path.c_str());
+        warning(path + " exists; not overwritten (--no-clobber)");
         return true;
     }
     const std::string ext = lowerExtension(path);
@@ -435,10 +433,9 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
         return false;
     }
     if (top.isStats() && st.writeOptionsSet)
-        std::fprintf(stderr,
-                     "mcstat: note: %s is a statistics file, written as float32 ZIP whatever -d "
-                     "and --compression say (they apply to images)\n",
-                     path.c_str());
+        note(path +
+             " is a statistics file, written as float32 ZIP whatever -d and "
+             "--compression say (they apply to images)");
     if (isDisplayFormat(ext) && (opt.type != OIIO::TypeDesc::FLOAT || !opt.channelTypes.empty())) {
         err = format(
             "{} {}: .{} is written as 8-bit display values; -d half applies to EXR and "
@@ -449,10 +446,10 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
     size_t overflow = 0;
     auto written = [&](bool ok) {
         if (ok && overflow > 0)
-            std::fprintf(stderr,
-                         "mcstat: warning: %s: %zu values exceed half's largest, 65504, and "
-                         "were written as Inf (write them as float: -d float, or -d CH=float)\n",
-                         path.c_str(), overflow);
+            warning(
+                format("{}: {} values exceed half's largest, 65504, and were written as Inf "
+                       "(write them as float: -d float, or -d CH=float)",
+                       path, overflow));
         return ok;
     };
     if (top.isStats()) {
@@ -468,10 +465,10 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
             // The per-sample parts belong to one render's samples in their order: a merge cannot
             // combine them and this tool holds only the four statistics parts in memory. The file
             // written is the lowest version that holds what remains.
-            std::fprintf(stderr,
-                         "mcstat: warning: %s: parts pajot, modes and records of %s are not "
-                         "written (only the four statistics parts are)\n",
-                         path.c_str(), top.name.c_str());
+            warning(
+                format("{}: parts pajot, modes and records of {} are not written (only the "
+                       "four statistics parts are)",
+                       path, top.name));
         }
         // Block by block (a file converted, a merge of files): never the whole image in memory.
         // writeStatsFile over a source writes the four parts in the lowest version for them.
@@ -709,7 +706,7 @@ bool cmdCheck(State& st, const std::string& cmd, const std::vector<std::string>&
         return false;
     }
     // Progress on a terminal only: a large file takes as long as decoding it.
-    Progress progress(top.name + ": checking", 1000, Progress::onTerminal());
+    Progress progress(top.name + ": checking", 1000, showProgress());
     StatsCheckReport r;
     const bool ok =
         checkStatsFile(top.path, r, err, ReadLimits(), st.nthreads, progress.fractionCallback());

@@ -369,8 +369,24 @@ bool cmdErrorMap(State& st, const std::string& cmd, const std::vector<std::strin
         err = format("{}: {} vs {}: {}", cmd, top.name, args[0], out->geterror());
         return false;
     }
+    // errorImage kept the estimate's provenance; what it was measured against, and the item it
+    // was made from (naming the statistics file), go with it for a heatmap's caption.
+    const std::string p = kProvenancePrefix;
+    out->specmod().attribute(p + "errormap.reference", args[0]);
+    out->specmod().attribute(p + "errormap.image", top.name);
     replaceWithImage(top, "errormap", out);
     return true;
+}
+
+/// The file an item was made from: the innermost name of "op(op(file))" (items are named
+/// "op(input)" as they are computed).
+std::string innermostName(std::string name) {
+    while (!name.empty() && name.back() == ')') {
+        const size_t open = name.find('(');
+        if (open == std::string::npos || open == 0) break;
+        name = name.substr(open + 1, name.size() - open - 2);
+    }
+    return name;
 }
 
 bool cmdHeatmap(State& st, const std::string& cmd, const std::vector<std::string>&,
@@ -397,6 +413,12 @@ bool cmdHeatmap(State& st, const std::string& cmd, const std::vector<std::string
             opt.map = "cool-warm";
             opt.symmetric = true;
         }
+    } else {
+        // What the picture is of, from the image's provenance: the operation, the statistics file
+        // (an error map names the item it was made from), M and spp, the reference.
+        const std::string of =
+            src.get_string_attribute(std::string(kProvenancePrefix) + "errormap.image", top.name);
+        opt.caption = provenanceCaption(src, OIIO::Filesystem::filename(innermostName(of)));
     }
     opt.map = modifier(mods, "map", opt.map);
     checkedReal(mods, "min", opt.min);

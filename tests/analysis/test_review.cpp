@@ -297,6 +297,140 @@ TEST(ReviewOps, HeatmapDefaultsAndErrors) {
     EXPECT_NE(dst.geterror().find("must be below max"), std::string::npos);
 }
 
+TEST(ReviewOps, BinaryChannelsGetATwoSwatchLegend) {
+    // A firefly mask: 0, 1 and a NaN pixel.
+    const OIIO::ImageBuf src = channelImage("firefly", 4, 1, {0.f, 1.f, kNaN, 0.f});
+    HeatmapOptions opt;
+    const OIIO::ImageBuf hm = heatmap(src, opt);
+    ASSERT_FALSE(hm.has_error()) << hm.geterror();
+    const OIIO::ImageSpec& s = hm.spec();
+    EXPECT_EQ(s.get_int_attribute("mcstat:heatmap:binary"), 1);
+    EXPECT_EQ(s.get_int_attribute("mcstat:heatmap:log"), 0);
+    EXPECT_EQ(s.get_float_attribute("mcstat:heatmap:min", -1.f), 0.f);
+    EXPECT_EQ(s.get_float_attribute("mcstat:heatmap:max", -1.f), 1.f);
+    EXPECT_EQ(s.get_int_attribute("mcstat:heatmap:nonFinite"), 1);
+    EXPECT_EQ(s.get_int_attribute("mcstat:legend:binary"), 1);
+    EXPECT_EQ(rect(hm, "colorbar").w, -1);  // no gradient
+    const Rect map = rect(hm, "heatmap"), sw0 = rect(hm, "legend:swatch0"),
+               sw1 = rect(hm, "legend:swatch1");
+    ASSERT_GT(sw0.w, 0);
+    ASSERT_GT(sw1.w, 0);
+    EXPECT_EQ(sw0.y, sw1.y);
+    EXPECT_GT(sw0.y, map.y + map.h);  // under the map
+    EXPECT_GT(sw1.x, sw0.x + sw0.w);  // side by side, the name of 0 between them
+    // The swatches have exactly the colours of the pixels of value 0 and 1.
+    const auto c0 = pixel(hm, sw0.x + sw0.w / 2, sw0.y + sw0.h / 2),
+               c1 = pixel(hm, sw1.x + sw1.w / 2, sw1.y + sw1.h / 2);
+    EXPECT_EQ(distance(pixel(hm, map.x, map.y), c0), 0.0);
+    EXPECT_EQ(distance(pixel(hm, map.x + 3, map.y), c0), 0.0);
+    EXPECT_EQ(distance(pixel(hm, map.x + 1, map.y), c1), 0.0);
+    EXPECT_GT(distance(c0, c1), 0.5);  // inferno's ends: black and yellow
+    EXPECT_EQ(distance(pixel(hm, map.x + 2, map.y), {1.f, 0.f, 1.f}), 0.0);  // NaN: magenta
+    // The name of 0 is drawn between the swatches (text pixels, brighter than the background).
+    const ReviewStyle st;
+    double bright = 0.0;
+    for (int x = sw0.x + sw0.w + 1; x < sw1.x - 1; ++x)  // inside the swatches' frames
+        for (int y = sw0.y; y < sw0.y + sw0.h; ++y)
+            bright = std::max(bright, distance(pixel(hm, x, y), st.background));
+    EXPECT_GT(bright, 0.3);
+
+    // Names by channel (any layer or component); other masks say 0 and 1.
+    EXPECT_EQ(binaryNames("firefly"), (std::array<std::string, 2>{"no firefly", "firefly"}));
+    EXPECT_EQ(binaryNames("tile.differs.R"), (std::array<std::string, 2>{"same", "differs"}));
+    EXPECT_EQ(binaryNames("kept"), (std::array<std::string, 2>{"0", "1"}));
+
+    // Binary by its values, whatever its name; not when another value occurs.
+    int ch = 0;
+    ColorScale cs;
+    std::string err;
+    HeatmapOptions any;
+    ASSERT_TRUE(
+        resolveColorScale(channelImage("excluded", 3, 1, {0.f, 1.f, 1.f}), any, ch, cs, err))
+        << err;
+    EXPECT_TRUE(cs.binary);
+    EXPECT_EQ(cs.binaryNames[1], "1");
+    ASSERT_TRUE(resolveColorScale(channelImage("kept", 3, 1, {0.f, 1.f, 2.f}), any, ch, cs, err));
+    EXPECT_FALSE(cs.binary);
+    // A mask of ones only is still [0, 1]: its pixels are 1's colour (a widened [1, 2] range would
+    // paint them as the bottom of the scale).
+    ASSERT_TRUE(resolveColorScale(channelImage("differs", 2, 1, {1.f, 1.f}), any, ch, cs, err));
+    EXPECT_TRUE(cs.binary);
+    EXPECT_EQ(cs.lo, 0.0);
+    EXPECT_EQ(cs.hi, 1.0);
+    EXPECT_EQ(cs.binaryNames[1], "differs");
+    // No finite value: the name decides.
+    ASSERT_TRUE(resolveColorScale(channelImage("firefly", 2, 1, {kNaN, kNaN}), any, ch, cs, err));
+    EXPECT_TRUE(cs.binary);
+    ASSERT_TRUE(resolveColorScale(channelImage("gini", 2, 1, {kNaN, kNaN}), any, ch, cs, err));
+    EXPECT_FALSE(cs.binary);
+    // A log scale or another range asked for: the colour bar.
+    HeatmapOptions asked;
+    asked.log = 1;
+    ASSERT_TRUE(resolveColorScale(src, asked, ch, cs, err)) << err;
+    EXPECT_FALSE(cs.binary);
+    asked.log = 0;
+    asked.max = 2.0;
+    ASSERT_TRUE(resolveColorScale(src, asked, ch, cs, err)) << err;
+    EXPECT_FALSE(cs.binary);
+    asked.min = 0.0;
+    asked.max = 1.0;  // the mask's own range: still the legend
+    ASSERT_TRUE(resolveColorScale(src, asked, ch, cs, err)) << err;
+    EXPECT_TRUE(cs.binary);
+}
+
+TEST(ReviewOps, CaptionSaysWhatThePictureIsOf) {
+    OIIO::ImageSpec spec(2, 2, 3, OIIO::TypeDesc::FLOAT);
+    EXPECT_EQ(provenanceCaption(spec, ""), "");
+    EXPECT_EQ(provenanceCaption(spec, "x.exr"), "of x.exr");
+    spec.attribute("mcstat.operation", "gmon");
+    spec.attribute("mcstat.parameters", "mode=lum");
+    spec.attribute("mcstat.M", 21);
+    spec.attribute("mcstat.spp", 1000);
+    // One clause per line: where a caption may break.
+    EXPECT_EQ(provenanceCaption(spec, "scene.mcstat"),
+              "G-MoN (mode=lum)\nof scene.mcstat\n(M = 21, 1000 spp)");
+    spec.attribute("mcstat.errormap.reference", "out/demo/reference-65536spp.exr");
+    spec.attribute("mcstat.sources", "s1.exr,s2.exr");
+    spec.attribute("mcstat.parameters", "mode=channel,threshold=0.5");
+    EXPECT_EQ(provenanceCaption(spec, "seeds.mcstat"),
+              "G-MoN (mode=channel, threshold=0.5)\nof seeds.mcstat\n(M = 21, 1000 spp, 2 source "
+              "files)\nvs reference-65536spp.exr");
+
+    // The error map keeps the estimate's provenance.
+    OIIO::ImageSpec is(4, 1, 3, OIIO::TypeDesc::FLOAT);
+    is.attribute("mcstat.operation", "mean");
+    is.attribute("mcstat.M", 5);
+    OIIO::ImageBuf img(is), ref(OIIO::ImageSpec(4, 1, 3, OIIO::TypeDesc::FLOAT));
+    OIIO::ImageBufAlgo::fill(img, {0.5f, 0.5f, 0.5f});
+    OIIO::ImageBufAlgo::fill(ref, {0.4f, 0.4f, 0.4f});
+    const OIIO::ImageBuf e = errorImage(img, ref, options());
+    ASSERT_FALSE(e.has_error()) << e.geterror();
+    EXPECT_EQ(e.spec().get_string_attribute("mcstat.operation"), "mean");
+    EXPECT_EQ(e.spec().get_int_attribute("mcstat.M"), 5);
+
+    // The caption above the map, recorded; without one the map starts at the margin.
+    HeatmapOptions opt;
+    const OIIO::ImageBuf plain = heatmap(e, opt);
+    opt.caption = provenanceCaption(e.spec(), "a.mcstat");
+    EXPECT_EQ(opt.caption, "mean\nof a.mcstat\n(M = 5)");
+    const OIIO::ImageBuf hm = heatmap(e, opt);
+    ASSERT_FALSE(hm.has_error()) << hm.geterror();
+    // Recorded on one line; drawn on one line too, as the clauses fit the 256-pixel bar's width.
+    EXPECT_EQ(hm.spec().get_string_attribute("mcstat:heatmap:caption"), "mean of a.mcstat (M = 5)");
+    EXPECT_EQ(plain.spec().get_string_attribute("mcstat:heatmap:caption", "none"), "none");
+    const ReviewStyle st;
+    EXPECT_EQ(rect(plain, "heatmap").y, st.margin);
+    EXPECT_EQ(rect(hm, "heatmap").y, st.margin + st.lineHeight() + st.margin / 2);
+    // Narrower than the clauses together: a line each, broken between them, not inside them.
+    opt.colorBar = false;
+    opt.caption = "G-MoN (mode=lum)\nof scene.mcstat\n(M = 21, 1000 spp)";
+    OIIO::ImageBuf big(OIIO::ImageSpec(150, 2, 1, OIIO::TypeDesc::FLOAT));
+    OIIO::ImageBufAlgo::zero(big);
+    const OIIO::ImageBuf narrow = heatmap(big, opt);
+    ASSERT_FALSE(narrow.has_error()) << narrow.geterror();
+    EXPECT_EQ(rect(narrow, "heatmap").y, st.margin + 3 * st.lineHeight() + st.margin / 2);
+}
+
 // ---- contact sheet ------------------------------------------------------------------------------
 
 TEST(ReviewOps, ContactSheetLayoutAndPixels) {

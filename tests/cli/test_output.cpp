@@ -71,6 +71,14 @@ TEST_F(OutputCli, HalfOverflowIsCountedAndSaid) {
     h.getpixel(0, 0, px, 3);
     EXPECT_TRUE(std::isinf(px[0]) && px[0] > 0);
     EXPECT_EQ(px[1], 1.f);
+    // -q (anywhere on the line): the same file, not a word; errors still speak.
+    r = mcstat(path("big.exr") + " -d half -o " + path("hq.exr") + " -q");
+    EXPECT_EQ(r.code, 0);
+    EXPECT_EQ(r.err, "");
+    EXPECT_EQ(mcstat::testing::slurp(path("hq.exr")), mcstat::testing::slurp(path("h.exr")));
+    r = mcstat("-q " + path("big.exr") + " -d hlf -o " + path("hq.exr"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("-d: TYPE must be half or float"), std::string::npos) << r.err;
     // Those channels as float: nothing to say.
     r = mcstat(path("big.exr") + " -d half -d R=float -d B=float -o " + path("h2.exr"));
     EXPECT_EQ(r.code, 0);

@@ -315,12 +315,60 @@ TEST_F(ReviewCli, ErrorMapAndHeatmap) {
             for (int c = 0; c < 3; ++c) ASSERT_NEAR(a[c], b[c], 1.0 / 255.0 + 1e-6);
         }
 
-    // Diagnostics channels by name; the firefly mask with a linear scale.
-    Result g = mcstat("a.mcstat --gmon:diag=1 --heatmap:channel=kept:map=viridis -o kept.exr");
+    // The caption says what the picture is of: the estimator, the file, M and spp, the reference;
+    // the error map carries them (and the reference), so a heatmap of it read back says the same.
+    const std::string caption = "G-MoN (mode=lum) of a.mcstat (M = 5, 40 spp) vs ref.exr";
+    EXPECT_EQ(hm.spec().get_string_attribute("mcstat:heatmap:caption"), caption);
+    EXPECT_EQ(e.spec().get_string_attribute("mcstat.operation"), "gmon");
+    EXPECT_EQ(e.spec().get_string_attribute("mcstat.errormap.reference"), "ref.exr");
+    Result g = mcstat("err.exr --heatmap -o hm2.exr");
+    ASSERT_EQ(g.code, 0) << g.err;
+    EXPECT_EQ(readFloat(path("hm2.exr")).spec().get_string_attribute("mcstat:heatmap:caption"),
+              caption);
+    EXPECT_GT(hm.spec().get_int_attribute("mcstat:heatmap:y"), ReviewStyle().margin);
+
+    // Diagnostics channels by name; no reference in their caption.
+    g = mcstat("a.mcstat --gmon:diag=1 --heatmap:channel=kept:map=viridis -o kept.exr");
     ASSERT_EQ(g.code, 0) << g.err;
     const OIIO::ImageSpec ks = readFloat(path("kept.exr")).spec();
     EXPECT_EQ(ks.get_string_attribute("mcstat:heatmap:channel"), "kept");
     EXPECT_EQ(ks.get_int_attribute("mcstat:heatmap:log"), 0);
+    EXPECT_EQ(ks.get_string_attribute("mcstat:heatmap:caption"),
+              "G-MoN (mode=lum) of a.mcstat (M = 5, 40 spp)");
+
+    // The mean's firefly mask: a 0/1 legend, its swatches in the colours of the pixels.
+    g = mcstat(
+        "a.mcstat --mean --errormap:floor=0:ratio=1.2 ref.exr -o ferr.exr "
+        "--heatmap:channel=firefly -o ff.exr");
+    ASSERT_EQ(g.code, 0) << g.err;
+    const OIIO::ImageBuf mask = readFloat(path("ff.exr")), ferr = readFloat(path("ferr.exr"));
+    const OIIO::ImageSpec& fs = mask.spec();
+    EXPECT_EQ(fs.get_int_attribute("mcstat:heatmap:binary"), 1);
+    EXPECT_EQ(fs.get_int_attribute("mcstat:colorbar:width", -1), -1);
+    EXPECT_EQ(fs.get_string_attribute("mcstat:heatmap:caption"),
+              "mean of a.mcstat (M = 5, 40 spp) vs ref.exr");
+    const int s = fs.get_int_attribute("mcstat:heatmap:scale"),
+              mx = fs.get_int_attribute("mcstat:heatmap:x"),
+              my = fs.get_int_attribute("mcstat:heatmap:y");
+    float sw[2][3];
+    for (int i = 0; i < 2; ++i) {
+        const std::string p = "mcstat:legend:swatch" + std::to_string(i) + ":";
+        ASSERT_GT(fs.get_int_attribute(p + "width"), 0) << i;
+        mask.getpixel(fs.get_int_attribute(p + "x") + 2, fs.get_int_attribute(p + "y") + 2, sw[i],
+                      3);
+    }
+    const int fc2 = ferr.spec().channelindex("firefly");
+    int counted[2] = {0, 0};
+    for (int p = 0; p < 32 * 24; ++p) {
+        float v[2], c[3];
+        ferr.getpixel(p % 32, p / 32, v, 2);
+        mask.getpixel(mx + (p % 32) * s, my + (p / 32) * s, c, 3);
+        const int k = v[fc2] == 1.f ? 1 : 0;
+        ++counted[k];
+        for (int ch = 0; ch < 3; ++ch) ASSERT_EQ(c[ch], sw[k][ch]) << p;
+    }
+    EXPECT_GT(counted[1], 0);  // ratio 1.2 with no floor: some pixels are fireflies
+    EXPECT_GT(counted[0], 0);
     g = mcstat(
         "a.mcstat --gmon --errormap:floor=0:ratio=1 ref.exr --heatmap:channel=firefly:min=0:max=1 "
         "-o f.exr");

@@ -41,6 +41,10 @@ struct ColorScale {
     bool log = false;             ///< t linear in log10(v) instead of v
     std::string label;            ///< what the colour bar says under its numbers
     long nonFinite = 0;           ///< NaN / Inf pixels in the mapped data (shown in the legend)
+    /// A 0/1 mask (every finite value 0 or 1, range [0, 1], linear): the legend is two swatches,
+    /// the colours of 0 and 1 named by binaryNames, instead of a gradient with numbers.
+    bool binary = false;
+    std::array<std::string, 2> binaryNames{"0", "1"};
 };
 
 /// Position of `v` on the scale, clamped to [0, 1] (a log scale sends v <= 0 to 0); NaN when v is
@@ -61,7 +65,9 @@ struct HeatmapOptions {
     bool symmetric = false;
     int scale = 1;         ///< integer upscaling of the map (nearest pixel), 1..64
     bool colorBar = true;  ///< false: only the mapped pixels (a contact-sheet tile)
-    /// Text drawn above the map (e.g. a comparison's verdict), word-wrapped to the picture's width.
+    /// Text drawn above the map (e.g. a comparison's verdict, or provenanceCaption), wrapped to the
+    /// picture's width: a newline marks where a line may break first (its clauses are packed onto
+    /// lines as they fit), then spaces.
     std::string caption;
     int minBarWidth = 256;  ///< the colour bar is at least this wide (room for its numbers)
     ReviewStyle style;
@@ -69,15 +75,26 @@ struct HeatmapOptions {
 
 /// Resolves the channel and the range of a heatmap of `src` within `roi` (default: src's data
 /// window): `channel` its index, `scale` the map, range (defaults from the data, an empty range
-/// widened: linear to [v, v + 1], log to [v, 10 v]), log flag, label and non-finite count. False
-/// with `err` for an unknown channel or map, or a bad range.
+/// widened: linear to [v, v + 1], log to [v, 10 v]), log flag, label and non-finite count. A
+/// binary channel (every finite value 0 or 1; a channel with no finite value when it is named
+/// firefly or differs) gets scale.binary, range [0, 1] and linear, unless opt asks for a log
+/// scale or a range other than [0, 1]; the names of 0 and 1 are binaryNames(channel). False with
+/// `err` for an unknown channel or map, or a bad range.
 bool resolveColorScale(const OIIO::ImageBuf& src, const HeatmapOptions& opt, int& channel,
                        ColorScale& scale, std::string& err, OIIO::ROI roi = {});
+
+/// What 0 and 1 mean in a 0/1 mask named `channel` (any layer or component: "firefly",
+/// "tile.differs.R"): "no firefly" / "firefly", "same" / "differs"; otherwise "0" / "1".
+std::array<std::string, 2> binaryNames(const std::string& channel);
 
 /// A horizontal colour bar `width` pixels wide: the gradient of `scale.map` from scale.lo (left) to
 /// scale.hi (right), tick marks and numbers under it, and scale.label (plus a magenta swatch when
 /// scale.nonFinite > 0). Column i of the gradient shows t = (i + 0.5) / width. Spec attributes
 /// mcstat:colorbar:x, y, width, height give the gradient's rectangle in dst.
+/// For scale.binary, a legend instead: two swatches, the colours of t = 0 and t = 1 (as the
+/// heatmap's pixels of value 0 and 1 have them), each followed by "0 = name" / "1 = name", then
+/// the label; the same height. Spec attributes mcstat:legend:binary = 1 and
+/// mcstat:legend:swatch0:x, y, width, height (and swatch1) instead of mcstat:colorbar:*.
 bool colorBar(OIIO::ImageBuf& dst, int width, const ColorScale& scale,
               const ReviewStyle& style = {});
 OIIO::ImageBuf colorBar(int width, const ColorScale& scale, const ReviewStyle& style = {});
@@ -85,20 +102,30 @@ OIIO::ImageBuf colorBar(int width, const ColorScale& scale, const ReviewStyle& s
 /// Heatmap of one channel of `src` within `roi`: colour_map of the position on the resolved scale,
 /// through the OCIO display view (OIIO's maps are scene-linear; the built-in config's view gives
 /// their published sRGB values), NaN / Inf pixels kNonFiniteColor, upscaled `opt.scale` times,
-/// with a colour bar under it unless opt.colorBar is false and opt.caption above it. Spec
-/// attributes:
-/// mcstat:heatmap:channel, map, min, max, log, nonFinite, scale; mcstat:heatmap:x, y, width, height
-/// (the map's rectangle) and mcstat:colorbar:x, y, width, height (the gradient's), in dst's pixel
-/// coordinates.
+/// with a colour bar (a binary channel: its two-swatch legend) under it unless opt.colorBar is
+/// false and opt.caption above it. Spec attributes:
+/// mcstat:heatmap:channel, map, min, max, log, binary, nonFinite, scale, caption (when there is
+/// one, newlines as spaces); mcstat:heatmap:x, y, width, height (the map's rectangle) and
+/// mcstat:colorbar:x, y, width, height (the gradient's) or mcstat:legend:swatch0/1:x, y, width,
+/// height (a binary channel's swatches), in dst's pixel coordinates.
 bool heatmap(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, const HeatmapOptions& opt,
              OIIO::ROI roi = {}, int nthreads = 0);
 OIIO::ImageBuf heatmap(const OIIO::ImageBuf& src, const HeatmapOptions& opt, OIIO::ROI roi = {},
                        int nthreads = 0);
 
+/// What a picture of an image with `spec`'s provenance shows, as a caption: the operation that
+/// made it (its registry title and mcstat.parameters), `file` (the statistics file or image it
+/// came from; may be empty), the samples (mcstat.M, mcstat.spp, the count of mcstat.sources) and,
+/// for an error map, the reference (mcstat.errormap.reference, its file name), one clause per
+/// line (HeatmapOptions::caption packs them): "G-MoN (mode=lum)\nof scene.mcstat\n(M = 21, 1000
+/// spp)\nvs reference-65536spp.exr". Without provenance: "of FILE"; without either: empty.
+std::string provenanceCaption(const OIIO::ImageSpec& spec, const std::string& file);
+
 /// Per-pixel error of the R, G, B (first three channels) of `img` against those of `ref` (same
 /// size; pixels paired by their place in each data window, as diffImages pairs them), within `roi`
 /// (default: img's data window): channels "relerr" and "firefly" from errorMap (metrics.h), NaN
-/// where a value of either pixel is NaN or Inf. Spec attributes mcstat:errormap:eps, ratio, floor.
+/// where a value of either pixel is NaN or Inf. Spec attributes mcstat:errormap:eps, ratio, floor,
+/// and img's provenance (its "mcstat." attributes: what the error is of).
 bool errorImage(OIIO::ImageBuf& dst, const OIIO::ImageBuf& img, const OIIO::ImageBuf& ref,
                 const DiffOptions& opt, OIIO::ROI roi = {}, int nthreads = 0);
 OIIO::ImageBuf errorImage(const OIIO::ImageBuf& img, const OIIO::ImageBuf& ref,
