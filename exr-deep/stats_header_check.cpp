@@ -47,6 +47,26 @@ struct CoreContext {
     }
 };
 
+/// OpenEXR's magic number, the first four bytes of every OpenEXR file.
+constexpr unsigned char kExrMagic[4] = {0x76, 0x2f, 0x31, 0x01};
+
+/// Opens the headers of `io.fd` with OpenEXR's Core reader into `ctx` (the chunk table is not
+/// reconstructed: the checks judge it). `io` must outlive `ctx`. False with a one-line `err`.
+bool startCoreRead(CoreIo& io, CoreContext& ctx, const std::string& path, std::string& err) {
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = &coreError;
+    init.user_data = &io;
+    init.read_fn = &coreRead;
+    init.size_fn = &coreSize;
+    init.flags = EXR_CONTEXT_FLAG_DISABLE_CHUNK_RECONSTRUCTION;
+    const exr_result_t rv = exr_start_read(&ctx.ctxt, path.c_str(), &init);
+    if (rv == EXR_ERR_SUCCESS) return true;
+    const std::string what =
+        io.firstError.empty() ? exr_get_default_error_message(rv) : io.firstError;
+    err = fmt::format("{}: truncated or corrupt (header: {})", path, oneLine(what));
+    return false;
+}
+
 const char* storageName(exr_storage_t s) {
     switch (s) {
         case EXR_STORAGE_SCANLINE:
@@ -850,9 +870,8 @@ bool checkAttributeSizes(int fd, uint64_t fileSize, const std::string& path, std
 }  // namespace
 
 bool checkExrAttributeSizes(int fd, uint64_t size, const std::string& path, std::string& err) {
-    static constexpr unsigned char kMagic[4] = {0x76, 0x2f, 0x31, 0x01};
     unsigned char magic[4] = {};
-    if (size < 8 || preadFull(fd, magic, 4, 0) != 4 || std::memcmp(magic, kMagic, 4) != 0)
+    if (size < 8 || preadFull(fd, magic, 4, 0) != 4 || std::memcmp(magic, kExrMagic, 4) != 0)
         return true;  // not OpenEXR: its own reader judges it
     return checkAttributeSizes(fd, size, path, err);
 }
@@ -861,19 +880,11 @@ bool readExrPartNames(int fd, uint64_t size, const std::string& path,
                       std::vector<std::string>& names, bool& newerStats, std::string& err) {
     if (!checkAttributeSizes(fd, size, path, err)) return false;
     CoreIo io{fd, int64_t(size), {}};
-    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-    init.error_handler_fn = &coreError;
-    init.user_data = &io;
-    init.read_fn = &coreRead;
-    init.size_fn = &coreSize;
-    init.flags = EXR_CONTEXT_FLAG_DISABLE_CHUNK_RECONSTRUCTION;
     CoreContext ctx;
-    const exr_result_t rv = exr_start_read(&ctx.ctxt, path.c_str(), &init);
+    if (!startCoreRead(io, ctx, path, err)) return false;
     int n = 0;
-    if (rv != EXR_ERR_SUCCESS || exr_get_count(ctx.ctxt, &n) != EXR_ERR_SUCCESS) {
-        const std::string what =
-            io.firstError.empty() ? exr_get_default_error_message(rv) : io.firstError;
-        err = fmt::format("{}: truncated or corrupt (header: {})", path, oneLine(what));
+    if (exr_get_count(ctx.ctxt, &n) != EXR_ERR_SUCCESS) {
+        err = fmt::format("{}: truncated or corrupt (header: no part count)", path);
         return false;
     }
     Checker checker(ctx.ctxt, path);
@@ -890,7 +901,6 @@ bool readExrPartNames(int fd, uint64_t size, const std::string& path,
 
 bool checkStatsHeaders(int fd, uint64_t size, const std::string& path, const ReadLimits& limits,
                        StatsHeader& hdr, std::string& err) {
-    static constexpr unsigned char kMagic[4] = {0x76, 0x2f, 0x31, 0x01};
     unsigned char magic[4] = {};
     if (size == 0) {
         err = path + ": not an OpenEXR file (empty file)";
@@ -901,7 +911,7 @@ bool checkStatsHeaders(int fd, uint64_t size, const std::string& path, const Rea
         err = fmt::format("{}: cannot read ({})", path, std::strerror(errno));
         return false;
     }
-    if (got < 4 || std::memcmp(magic, kMagic, 4) != 0) {
+    if (got < 4 || std::memcmp(magic, kExrMagic, 4) != 0) {
         err = path + ": not an OpenEXR file";
         return false;
     }
@@ -909,20 +919,8 @@ bool checkStatsHeaders(int fd, uint64_t size, const std::string& path, const Rea
     if (!checkAttributeSizes(fd, size, path, err)) return false;
 
     CoreIo io{fd, int64_t(size), {}};
-    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-    init.error_handler_fn = &coreError;
-    init.user_data = &io;
-    init.read_fn = &coreRead;
-    init.size_fn = &coreSize;
-    init.flags = EXR_CONTEXT_FLAG_DISABLE_CHUNK_RECONSTRUCTION;
     CoreContext ctx;
-    const exr_result_t rv = exr_start_read(&ctx.ctxt, path.c_str(), &init);
-    if (rv != EXR_ERR_SUCCESS) {
-        const std::string what =
-            io.firstError.empty() ? exr_get_default_error_message(rv) : io.firstError;
-        err = fmt::format("{}: truncated or corrupt (header: {})", path, oneLine(what));
-        return false;
-    }
+    if (!startCoreRead(io, ctx, path, err)) return false;
     Checker checker(ctx.ctxt, path);
     if (!checker.run(limits, hdr) || !checker.checkChunks(size)) {
         err = checker.err;
