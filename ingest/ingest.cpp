@@ -15,9 +15,9 @@
 #include <cstring>
 #include <limits>
 #include <memory>
-#include <regex>
 #include <set>
 
+#include "mcstat/core/params.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
 
@@ -547,10 +547,16 @@ bool checkTotals(Ingest& s, std::string& err) {
 /// it does not say.
 void frameOf(const InputFile& f, long long& name, long long& meta) {
     name = meta = -1;
-    static const std::regex numbered(R"(.*\.(-?[0-9]+)\.[^.]+$)");
-    std::smatch m;
+    // The text between the last two dots, when it is a whole integer.
     const std::string file = OIIO::Filesystem::filename(f.path);
-    if (std::regex_match(file, m, numbered)) name = std::stoll(m[1].str());
+    const size_t last = file.rfind('.');
+    const size_t before =
+        last == std::string::npos || last == 0 ? std::string::npos : file.rfind('.', last - 1);
+    if (before != std::string::npos) {
+        const std::string digits = file.substr(before + 1, last - before - 1);
+        int64_t v = 0;
+        if (parseIntegerText(digits, v)) name = v;
+    }
     for (const char* key : {"Frame", "frame"}) {
         const OIIO::ParamValue* p = f.spec.find_attribute(key);
         if (!p) continue;

@@ -8,13 +8,14 @@
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/strutil.h>
 #include <fcntl.h>
+#include <fnmatch.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
-#include <regex>
 #include <set>
 
 #include "cli.h"
@@ -142,35 +143,27 @@ bool framesOnDisk(const std::string& pattern, int padding, std::vector<int64_t>&
             pattern);
         return false;
     }
-    std::string re;
-    size_t at = 0;
-    auto literal = [&](const std::string& s) {
-        for (char c : s) {
-            if (c == '*')
-                re += "[^/]*";
-            else if (c == '?')
-                re += "[^/]";
-            else if (std::string("\\^$.|+()[]{}").find(c) != std::string::npos)
-                re += std::string("\\") + c;
-            else
-                re += c;
-        }
-    };
-    for (const FrameToken& t : frameTokens(name, padding)) {
-        literal(name.substr(at, t.begin - at));
-        re += t.digits > 0 ? format("(-?[0-9]{{{},}})", t.digits) : std::string("(-?[0-9]+)");
-        at = t.end;
-    }
-    literal(name.substr(at));
+    // A file is frame f when some run of digits in its name is f and the pattern with f in
+    // place of its frame tokens matches the name as a glob (fnmatch, as --ingest's globs).
     std::vector<std::string> entries;
     OIIO::Filesystem::get_directory_entries(dir.empty() ? "." : dir, entries, false);
-    const std::regex rx(re);
     std::set<int64_t> found;
     for (const std::string& e : entries) {
-        std::smatch m;
         const std::string file = OIIO::Filesystem::filename(e);
-        int64_t f = 0;
-        if (std::regex_match(file, m, rx) && parseIntegerText(m[1].str(), f)) found.insert(f);
+        for (size_t a = 0; a < file.size();) {
+            if (!std::isdigit(static_cast<unsigned char>(file[a]))) {
+                ++a;
+                continue;
+            }
+            size_t b = a;
+            while (b < file.size() && std::isdigit(static_cast<unsigned char>(file[b]))) ++b;
+            const size_t from = a > 0 && file[a - 1] == '-' ? a - 1 : a;
+            int64_t f = 0;
+            if (b - a <= 18 && parseIntegerText(file.substr(from, b - from), f) &&
+                fnmatch(expand(name, f, padding).c_str(), file.c_str(), 0) == 0)
+                found.insert(f);
+            a = b;
+        }
     }
     if (found.empty()) {
         err = format("{}: no file of this frame sequence exists (give --frames to name them)",
