@@ -830,8 +830,8 @@ bool finishFile(Ingest& s, size_t j, const FileTally& t, std::string& err) {
     if (t.nonFinite) {
         s.report.nonFiniteValues += t.nonFinite;
         s.report.warnings.push_back(fmt::format(
-            "{}: {} non-finite RGB values (NaN/Inf) in {} pixels: the plain mean there is "
-            "non-finite; the robust estimators leave that sub-buffer out",
+            "{}: {} non-finite RGB values (NaN/Inf) in {} pixels: the stored mean (part beauty) "
+            "there is non-finite; --mean and the robust estimators leave that sub-buffer out",
             f.path, t.nonFinite, t.nonFinitePixels));
     }
     if (t.nonFiniteAov) {

@@ -95,7 +95,7 @@ bool diffOptions(const Modifiers& mods, const std::string& cmd, DiffOptions& opt
                  std::string& err) {
     std::string warning;
     opt.luma = lumaCoefficients(&warning);
-    if (!warning.empty()) std::fprintf(stderr, "mcstat: warning: %s\n", warning.c_str());
+    if (!warning.empty()) cli::warning(warning);
     return parseDiffOptions(mods, cmd, opt, err);
 }
 

@@ -17,6 +17,7 @@ packages=(
   clang libclang-rt-14-dev               # scripts/fuzz.sh: libFuzzer and clang's ASan/UBSan runtimes
   blender python3-numpy python3-openimageio  # tests/aovs: real Cycles renders through ingest, checked in Python
   graphviz                               # dot: docs/images/architecture.png is drawn from architecture.dot
+  slurm-wlm munge                        # farm/: a shot's seeds as Slurm tasks (tests/farm runs a one-node cluster)
 )
 
 missing=()
