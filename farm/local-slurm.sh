@@ -59,8 +59,17 @@ stop_one() {
 }
 
 do_stop() {
-  local rc=0
-  # Jobs still running on the node are the node's children: slurmd's stop ends their steps.
+  local rc=0 i
+  # Jobs still queued or running are cancelled first (this cluster is private to DIR, so every
+  # job in it is ours), and their processes given a few seconds to end, so that no job step
+  # outlives the daemons.
+  if live_pid slurmctld >/dev/null && [[ -f $conf ]]; then
+    SLURM_CONF=$conf scancel --user="$(id -un)" >/dev/null 2>&1 || true
+    for ((i = 0; i < 100; i++)); do  # 10 s
+      [[ -z $(SLURM_CONF=$conf squeue -h -o %i 2>/dev/null) ]] && break
+      sleep 0.1
+    done
+  fi
   stop_one slurmd || rc=1
   stop_one slurmctld || rc=1
   stop_one munged || rc=1
