@@ -42,20 +42,31 @@ log_tail() {  # the last lines of daemon $1's log, indented, for an error messag
   if [[ -s $f ]]; then tail -n 15 "$f" | sed 's/^/    /'; else echo "    ($f is empty or missing)"; fi
 }
 
-stop_one() {
-  local name=$1 pid i
-  pid=$(live_pid "$name") || { rm -f "$(pidfile "$name")"; return 0; }
-  kill -TERM "$pid" 2>/dev/null || true
-  for ((i = 0; i < 100; i++)); do  # 10 s
-    kill -0 "$pid" 2>/dev/null || break
-    sleep 0.1
+# Stop the daemons named in "$@" together: SIGTERM, then wait (10 s), then SIGKILL.
+stop_these() {
+  local name pid i rc=0 pids=() names=()
+  for name in "$@"; do
+    if pid=$(live_pid "$name"); then
+      kill -TERM "$pid" 2>/dev/null || true
+      pids+=("$pid") names+=("$name")
+    else
+      rm -f "$(pidfile "$name")"
+    fi
   done
-  if kill -0 "$pid" 2>/dev/null; then
-    kill -KILL "$pid" 2>/dev/null || true
-    for ((i = 0; i < 50; i++)); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
-  fi
-  kill -0 "$pid" 2>/dev/null && { echo "$prog: $name (pid $pid) did not exit" >&2; return 1; }
-  rm -f "$(pidfile "$name")"
+  for i in "${!pids[@]}"; do
+    pid=${pids[$i]}
+    for ((t = 0; t < 100; t++)); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
+    if kill -0 "$pid" 2>/dev/null; then
+      kill -KILL "$pid" 2>/dev/null || true
+      for ((t = 0; t < 50; t++)); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
+    fi
+    if kill -0 "$pid" 2>/dev/null; then
+      echo "$prog: ${names[$i]} (pid $pid) did not exit" >&2; rc=1
+    else
+      rm -f "$(pidfile "${names[$i]}")"
+    fi
+  done
+  return $rc
 }
 
 do_stop() {
@@ -70,9 +81,8 @@ do_stop() {
       sleep 0.1
     done
   fi
-  stop_one slurmd || rc=1
-  stop_one slurmctld || rc=1
-  stop_one munged || rc=1
+  stop_these slurmd slurmctld || rc=1
+  stop_these munged || rc=1
   return $rc
 }
 
