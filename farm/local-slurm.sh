@@ -34,6 +34,9 @@ live_pid() {
   [[ -s $f ]] || return 1
   pid=$(tr -dc '0-9' <"$f")
   [[ -n $pid ]] && kill -0 "$pid" 2>/dev/null || return 1
+  # Only a process started for DIR (its command line names a file in DIR): a stale pid file
+  # whose number now belongs to another process is not ours to report or to stop.
+  [[ $(tr '\0' ' ' <"/proc/$pid/cmdline" 2>/dev/null) == *"$dir/"* ]] || return 1
   echo "$pid"
 }
 
