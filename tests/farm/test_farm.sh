@@ -15,6 +15,9 @@
 #      `mcstat --ingest` of the same files on one machine.
 #   4. The Blender/Cycles template (farm/templates/cycles.tmpl): 1 frame x 2 seeds through
 #      ingest; the estimate carries the AOVs.
+#   5. Other tree shapes, run without Slurm (mcstat-farm run-local): 9 seeds with fan-in 8 (a group
+#      of one passes through a level), 10 seeds with fan-in 3, one seed; each the same bytes as
+#      one `mcstat <seeds> --merge:fanin=K`.
 # It fails (never skips) when Slurm cannot start: not root, slurm-wlm/munge missing, a daemon
 # that does not come up; the reason is printed. Labelled slow (not run under the sanitizers).
 #
@@ -222,6 +225,21 @@ grep -q "M = 2 sub-buffers, spp = 16" cycles_info.txt || { cat cycles_info.txt; 
 grep -q 'renderer "Blender/Cycles' cycles_info.txt || fail "Cycles shot: not rendered by Cycles?"
 nch=$(oiiotool --info "$D/out/cyc.0007.gmon.exr" | sed -n 's/.*, \([0-9]*\) channel.*/\1/p')
 [[ ${nch:-0} -gt 4 ]] || fail "the Cycles estimate should carry the AOVs (found ${nch:-no} channels)"
+
+step "tree shapes without Slurm (run-local): 9 seeds fan-in 8 (a group of one passes through), 10 seeds fan-in 3, 1 seed"
+for combo in "9 8" "10 3" "1 2"; do
+  set -- $combo
+  T=$work/tree-s$1-k$2
+  "$farm/mcstat-farm" run-local "$T" --name t --frames 5 --seeds "$1" --spp 8 --res 32 24 \
+    --template-file "$farm/templates/fixture-stats.tmpl" --fanin "$2" --estimate none >"$T.log" 2>&1 ||
+    { cat "$T.log"; fail "run-local of $1 seeds, fan-in $2 failed"; }
+  if [[ $1 -gt 1 ]]; then
+    "$mcstat" -q "$T"/render/f0005/s*.mcstat --merge:fanin="$2" -o "$T.single.mcstat"
+  else
+    cp "$T/render/f0005/s0001.mcstat" "$T.single.mcstat"   # one seed: the frame's file is that render
+  fi
+  cmp "$T.single.mcstat" "$T/out/t.0005.mcstat" || fail "$1 seeds, fan-in $2: the tree differs from --merge:fanin=$2"
+done
 
 step "stop the cluster"
 trap - EXIT
