@@ -1,15 +1,17 @@
-// mergeStats: two renders of the same image combined as if one render had taken all samples
-// (FORMAT.md "Merge"). Everything is computed in double from the stored float32 values and rounded
-// once when stored.
+// mergeStats: renders of the same image combined as if one render had taken all their samples
+// (FORMAT.md "Merge"), N inputs in one pass; mergeOrder, the canonical order of the inputs that
+// makes an N-way merge's tree, and so its bytes, independent of the order files were given in.
+// Everything is computed in double from the stored float32 values and rounded once when stored.
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
-#include <set>
+#include <map>
 
 #include "mcstat/core/moments.h"
+#include "mcstat/core/parallel.h"
 #include "mcstat/stats_file.h"
 #include "stats_layout.h"
 
@@ -32,17 +34,53 @@ std::vector<std::string> splitSeeds(const std::string& s) {
     return out;
 }
 
-/// Count-weighted mean of two means; 0 when both weights are 0.
-double weighted(double wa, double ma, double wb, double mb) {
-    const double w = wa + wb;
-    if (w == 0.0) return 0.0;
-    if (wa == 0.0) return mb;  // also keeps a non-finite value of the empty side out
-    if (wb == 0.0) return ma;
-    return (wa * ma + wb * mb) / w;
-}
-
 /// Number of hits recovered from coverage A and count n, kept in [0, n] (also for a NaN A).
 double hitsOf(float A, double n) { return std::fmax(0.0, std::fmin(n, std::round(double(A) * n))); }
+
+/// The weighted mean of values x_i with weights w_i, summed in input order in double over the
+/// inputs with w_i > 0 only (a non-finite value of an empty input stays out); 0 when every weight
+/// is 0. One input of weight > 0 gives its value exactly (n x / n is exact for a float x and an
+/// integral n < 2^24).
+struct WeightedMean {
+    double sum = 0.0, weight = 0.0;
+    void add(double w, double x) {
+        if (w == 0.0) return;
+        sum += w * x;
+        weight += w;
+    }
+    double value() const { return weight == 0.0 ? 0.0 : sum / weight; }
+};
+
+/// Splits "a + b" (the renderer names of a merge) into its names.
+std::vector<std::string> splitRenderers(const std::string& s) {
+    std::vector<std::string> out;
+    size_t start = 0;
+    while (start <= s.size()) {
+        size_t end = s.find(" + ", start);
+        if (end == std::string::npos) end = s.size();
+        out.push_back(s.substr(start, end - start));
+        start = end + 3;
+    }
+    return out;
+}
+
+/// Whether seed a sorts before seed b: decimal numbers by value, before any other seed (an
+/// ingested file's "h<hash>"), which sort as text.
+bool seedLess(const std::string& a, const std::string& b) {
+    const auto isNumber = [](const std::string& s) {
+        return !s.empty() &&
+               std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; });
+    };
+    const bool na = isNumber(a), nb = isNumber(b);
+    if (na != nb) return na;
+    if (!na) return a < b;
+    const auto digits = [](const std::string& s) {
+        const size_t i = s.find_first_not_of('0');
+        return i == std::string::npos ? std::string() : s.substr(i);
+    };
+    const std::string da = digits(a), db = digits(b);
+    return da.size() != db.size() ? da.size() < db.size() : da < db;
+}
 
 bool checkCompatible(const StatsHeader& a, const StatsHeader& b, std::string& err) {
     const auto fail = [&](const std::string& what) {
@@ -114,17 +152,6 @@ bool checkCompatible(const StatsHeader& a, const StatsHeader& b, std::string& er
                                 a.aovs.size(), b.aovs.size(), shown(extra.name),
                                 aLonger ? "first" : "second"));
     }
-    if (!a.seeds.empty() && !b.seeds.empty()) {
-        const std::vector<std::string> sa = splitSeeds(a.seeds);
-        const std::set<std::string> setA(sa.begin(), sa.end());
-        for (const std::string& s : splitSeeds(b.seeds))
-            if (setA.count(s))
-                return fail(
-                    fmt::format("seed {} is in both inputs (the same samples would be "
-                                "counted twice)",
-                                s));
-    }
-    if (a.spp > std::numeric_limits<int>::max() - b.spp) return fail("spp overflows");
     return true;
 }
 
@@ -144,47 +171,115 @@ double bufferVariance(const StatsImage& img, size_t p, size_t c, double mean) {
     return filled >= 2 ? ss / double(filled - 1) : std::numeric_limits<double>::quiet_NaN();
 }
 
-bool mergeHeaders(const StatsHeader& a, const StatsHeader& b, StatsHeader& out, std::string& err) {
-    if (!checkCompatible(a, b, err)) return false;
-    StatsHeader r = a;
-    r.spp = a.spp + b.spp;
-    if (a.seeds.empty() || b.seeds.empty())
-        r.seeds = a.seeds + b.seeds;
-    else
-        r.seeds = a.seeds + "," + b.seeds;
-    if (a.renderer != b.renderer) r.renderer = a.renderer + " + " + b.renderer;
-    if (a.sources.empty() || b.sources.empty())
-        r.sources = a.sources + b.sources;
-    else
-        r.sources = a.sources + "," + b.sources;
-    r.formatVersion = std::max(a.formatVersion, b.formatVersion);
+std::vector<size_t> mergeOrder(const std::vector<const StatsHeader*>& in) {
+    std::vector<std::vector<std::string>> keys(in.size());
+    for (size_t i = 0; i < in.size(); ++i) keys[i] = splitSeeds(in[i]->seeds);
+    std::vector<size_t> order(in.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](size_t x, size_t y) {
+        return std::lexicographical_compare(keys[x].begin(), keys[x].end(), keys[y].begin(),
+                                            keys[y].end(), seedLess);
+    });
+    return order;
+}
+
+bool mergeHeaders(const std::vector<const StatsHeader*>& in, StatsHeader& out, std::string& err,
+                  const std::vector<std::string>& names) {
+    const auto nameOf = [&](size_t i) {
+        return i < names.size() ? names[i] : fmt::format("input {}", i + 1);
+    };
+    if (in.empty()) {
+        err = "cannot merge: no input";
+        return false;
+    }
+    for (size_t i = 1; i < in.size(); ++i)
+        if (!checkCompatible(*in[0], *in[i], err)) {
+            if (in.size() > 2 || !names.empty())
+                err = fmt::format("{} and {}: {}", nameOf(0), nameOf(i), err);
+            return false;
+        }
+    // A seed in two inputs: the same samples would be counted twice.
+    std::map<std::string, size_t> seen;
+    for (size_t i = 0; i < in.size(); ++i)
+        for (const std::string& s : splitSeeds(in[i]->seeds)) {
+            const auto [it, fresh] = seen.emplace(s, i);
+            if (!fresh && it->second != i) {
+                err = fmt::format(
+                    "cannot merge: seed {} is in both {} and {} (the same samples would be "
+                    "counted twice)",
+                    s, nameOf(it->second), nameOf(i));
+                if (in.size() == 2 && names.empty())
+                    err = fmt::format(
+                        "cannot merge: seed {} is in both inputs (the same samples would be "
+                        "counted twice)",
+                        s);
+                return false;
+            }
+        }
+    StatsHeader r = *in[0];
+    std::vector<std::string> seeds, sources, renderers;
+    r.spp = 0;
+    for (const StatsHeader* h : in) {
+        if (h->spp > std::numeric_limits<int>::max() - r.spp) {
+            err = "cannot merge: spp overflows";
+            return false;
+        }
+        r.spp += h->spp;
+        if (!h->seeds.empty()) seeds.push_back(h->seeds);
+        if (!h->sources.empty()) sources.push_back(h->sources);
+        // Each name once, in the order first seen: the same text for any grouping of the inputs.
+        for (const std::string& name : splitRenderers(h->renderer))
+            if (std::find(renderers.begin(), renderers.end(), name) == renderers.end())
+                renderers.push_back(name);
+        r.formatVersion = std::max(r.formatVersion, h->formatVersion);
+    }
+    const auto join = [](const std::vector<std::string>& v, const char* sep) {
+        std::string s;
+        for (size_t i = 0; i < v.size(); ++i) s += (i ? sep : "") + v[i];
+        return s;
+    };
+    r.seeds = join(seeds, ",");
+    r.sources = join(sources, ",");
+    r.renderer = join(renderers, " + ");
     out = std::move(r);
     return true;
 }
 
-bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::string& err) {
-    if (!validateStats(a, "first merge input", err) || !validateStats(b, "second merge input", err))
-        return false;
+bool mergeHeaders(const StatsHeader& a, const StatsHeader& b, StatsHeader& out, std::string& err) {
+    return mergeHeaders(std::vector<const StatsHeader*>{&a, &b}, out, err);
+}
+
+bool mergeStats(const std::vector<const StatsImage*>& in, StatsImage& out, std::string& err,
+                int nthreads) {
+    const size_t n = in.size();
+    std::vector<const StatsHeader*> headers;
+    for (size_t i = 0; i < n; ++i) {
+        const std::string what = n == 2 ? (i == 0 ? "first merge input" : "second merge input")
+                                        : fmt::format("merge input {}", i + 1);
+        if (!validateStats(*in[i], what, err)) return false;
+        headers.push_back(&in[i]->header);
+    }
     StatsImage r;
-    if (!mergeHeaders(a.header, b.header, r.header, err)) return false;
+    if (!mergeHeaders(headers, r.header, err)) return false;
     const size_t pixels = r.pixelCount();
     if (r.header.adaptiveM) {
         // Buffer j of a pixel holds the samples i = j mod m_p of each input; with different m_p the
         // buffers hold different sample sets and cannot be combined without the samples.
         std::vector<uint32_t> m(pixels);
         for (size_t p = 0; p < pixels; ++p) {
-            if (a.buffersOf(p) != b.buffersOf(p)) {
-                err = fmt::format(
-                    "cannot merge: adaptive M differs at pixel ({}, {}): {} vs {} sub-buffers "
-                    "(adaptive renders merge only with the same buffer count per pixel: "
-                    "mcstat-render --m-strategy pilot with the same --pilot-seed, --pilot and "
-                    "--m-max)",
-                    r.header.originX + int64_t(p % size_t(r.header.width)),
-                    r.header.originY + int64_t(p / size_t(r.header.width)), a.buffersOf(p),
-                    b.buffersOf(p));
-                return false;
-            }
-            m[p] = uint32_t(a.buffersOf(p));
+            for (size_t i = 1; i < n; ++i)
+                if (in[i]->buffersOf(p) != in[0]->buffersOf(p)) {
+                    err = fmt::format(
+                        "cannot merge: adaptive M differs at pixel ({}, {}): {} vs {} sub-buffers "
+                        "(adaptive renders merge only with the same buffer count per pixel: "
+                        "mcstat-render --m-strategy pilot with the same --pilot-seed, --pilot and "
+                        "--m-max)",
+                        r.header.originX + int64_t(p % size_t(r.header.width)),
+                        r.header.originY + int64_t(p / size_t(r.header.width)), in[0]->buffersOf(p),
+                        in[i]->buffersOf(p));
+                    return false;
+                }
+            m[p] = uint32_t(in[0]->buffersOf(p));
         }
         if (!r.allocateAdaptive(m, err)) return false;
     } else if (!r.allocate(err)) {
@@ -193,70 +288,116 @@ bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::
 
     const size_t A = r.header.aovs.size();  // fixed M only (the header checks refuse others)
     std::vector<bool> isId(A);
-    for (size_t i = 0; i < A; ++i) isId[i] = r.header.aovs[i].cls == AovClass::Id;
-    for (size_t p = 0; p < pixels; ++p) {
-        // Sub-buffers: count-weighted means, counts add.
-        const size_t k0 = r.bufferBegin(p), m = size_t(r.buffersOf(p));
-        for (size_t j = 0; j < m; ++j) {
-            const size_t k = k0 + j;
-            const double na = a.bufferCount[k], nb = b.bufferCount[k];
-            for (size_t c = 0; c < 3; ++c)
-                r.bufferMean[k * 3 + c] =
-                    float(weighted(na, a.bufferMean[k * 3 + c], nb, b.bufferMean[k * 3 + c]));
-            r.bufferCount[k] = float(na + nb);
-            // AOVs (version 5): as the buffer means, except labels, taken whole from the input
-            // whose buffer holds more samples (the first on ties, the second when the first is
-            // empty).
-            for (size_t i = 0; i < A; ++i) {
-                const float va = a.aov[k * A + i], vb = b.aov[k * A + i];
-                r.aov[k * A + i] =
-                    isId[i] ? (na == 0.0 || nb > na ? vb : va) : float(weighted(na, va, nb, vb));
+    for (size_t a = 0; a < A; ++a) isId[a] = r.header.aovs[a].cls == AovClass::Id;
+    // Per pixel, independent of every other pixel: any split over threads gives the same bits.
+    parallelFor(0, int64_t(pixels), 0, nthreads, [&](int64_t pBegin, int64_t pEnd) {
+        std::vector<double> hits(n);
+        for (size_t p = size_t(pBegin); p < size_t(pEnd); ++p) {
+            // Sub-buffers: count-weighted means, counts add.
+            const size_t k0 = r.bufferBegin(p), m = size_t(r.buffersOf(p));
+            for (size_t j = 0; j < m; ++j) {
+                const size_t k = k0 + j;
+                WeightedMean mean[3];
+                double count = 0.0;
+                for (const StatsImage* s : in) {
+                    const size_t ks = s->bufferBegin(p) + j;
+                    const double w = s->bufferCount[ks];
+                    for (size_t c = 0; c < 3; ++c) mean[c].add(w, s->bufferMean[ks * 3 + c]);
+                    count += w;
+                }
+                for (size_t c = 0; c < 3; ++c) r.bufferMean[k * 3 + c] = float(mean[c].value());
+                r.bufferCount[k] = float(count);
+                // AOVs (version 5): as the buffer means, except labels, taken whole from the
+                // input whose buffer holds the most samples (the first such; an empty buffer
+                // never wins over a later one, so the last input's when all are empty).
+                for (size_t a = 0; a < A; ++a) {
+                    if (isId[a]) {
+                        size_t best = 0;
+                        for (size_t i = 1; i < n; ++i)
+                            if (in[best]->bufferCount[k] == 0.f ||
+                                in[i]->bufferCount[k] > in[best]->bufferCount[k])
+                                best = i;
+                        r.aov[k * A + a] = in[best]->aov[k * A + a];
+                    } else {
+                        WeightedMean v;
+                        for (const StatsImage* s : in) v.add(s->bufferCount[k], s->aov[k * A + a]);
+                        r.aov[k * A + a] = float(v.value());
+                    }
+                }
             }
-        }
-        // Moments: Chan et al.'s pooling (core/moments.h); M2 recovered as variance * (n - 1).
-        const double na = a.count[p], nb = b.count[p], n = na + nb;
-        r.count[p] = float(n);
-        for (size_t c = 0; c < 3; ++c) {
-            const size_t i = p * 3 + c;
-            double mean = 0.0, var = 0.0;
-            if (na == 0.0) {
-                mean = b.mean[i];
-                var = b.variance[i];
-            } else if (nb == 0.0) {
-                mean = a.mean[i];
-                var = a.variance[i];
-            } else {
-                RunningMoments pooled = RunningMoments::fromVariance(na, a.mean[i], a.variance[i]);
-                pooled.merge(RunningMoments::fromVariance(nb, b.mean[i], b.variance[i]));
-                mean = pooled.mean;
-                var = pooled.variance();
+            // Moments: the pooled mean and sum of squared deviations of every input's samples,
+            // M2 = sum_i [M2_i + n_i (mean_i - mean)^2] with M2_i = variance_i (n_i - 1), the
+            // one-pass form of Chan et al.'s pairwise update (core/moments.h).
+            double total = 0.0;
+            for (const StatsImage* s : in) total += s->count[p];
+            r.count[p] = float(total);
+            size_t nonEmpty = 0, only = 0;
+            for (size_t i = 0; i < n; ++i)
+                if (in[i]->count[p] > 0.f) {
+                    ++nonEmpty;
+                    only = i;
+                }
+            for (size_t c = 0; c < 3; ++c) {
+                const size_t e = p * 3 + c;
+                double mean = 0.0, var = 0.0;
+                if (nonEmpty == 1) {  // that input's values, bit for bit
+                    mean = in[only]->mean[e];
+                    var = in[only]->variance[e];
+                } else if (nonEmpty > 1) {
+                    WeightedMean wm;
+                    for (const StatsImage* s : in) wm.add(s->count[p], s->mean[e]);
+                    mean = wm.value();
+                    double m2 = 0.0;
+                    for (const StatsImage* s : in) {
+                        const double ni = s->count[p];
+                        if (ni == 0.0) continue;
+                        const double d = double(s->mean[e]) - mean;
+                        m2 += RunningMoments::fromVariance(ni, s->mean[e], s->variance[e]).m2 +
+                              ni * d * d;
+                    }
+                    var = total > 1.0 ? m2 / (total - 1.0) : 0.0;
+                }
+                // Version 3: a variance estimated from the buffers is re-estimated from the
+                // merged buffers (its definition, FORMAT.md); an unknown one stays unknown.
+                if (r.header.variance == kVarianceBuffers)
+                    var = bufferVariance(r, p, c, mean);
+                else if (r.header.variance == kVarianceUnknown)
+                    var = std::numeric_limits<double>::quiet_NaN();
+                r.mean[e] = float(mean);
+                r.variance[e] = float(var);
+                r.beauty[e] = float(mean);
             }
-            if (n == 0.0) mean = var = 0.0;
-            // Version 3: a variance estimated from the buffers is re-estimated from the merged
-            // buffers (its definition, FORMAT.md); an unknown one stays unknown.
-            if (r.header.variance == kVarianceBuffers)
-                var = bufferVariance(r, p, c, mean);
-            else if (r.header.variance == kVarianceUnknown)
-                var = std::numeric_limits<double>::quiet_NaN();
-            r.mean[i] = float(mean);
-            r.variance[i] = float(var);
-            r.beauty[i] = float(mean);
+            // Features: N, P, Z weighted by hit counts, Albedo by sample counts, A recomputed.
+            double allHits = 0.0;
+            for (size_t i = 0; i < n; ++i) {
+                hits[i] = hitsOf(in[i]->coverage[p], in[i]->count[p]);
+                allHits += hits[i];
+            }
+            for (size_t c = 0; c < 3; ++c) {
+                const size_t e = p * 3 + c;
+                WeightedMean normal, position, albedo;
+                for (size_t i = 0; i < n; ++i) {
+                    normal.add(hits[i], in[i]->normal[e]);
+                    position.add(hits[i], in[i]->position[e]);
+                    albedo.add(in[i]->count[p], in[i]->albedo[e]);
+                }
+                r.normal[e] = float(normal.value());
+                r.position[e] = float(position.value());
+                r.albedo[e] = float(albedo.value());
+            }
+            WeightedMean depth;
+            for (size_t i = 0; i < n; ++i) depth.add(hits[i], in[i]->depth[p]);
+            r.depth[p] =
+                allHits == 0.0 ? std::numeric_limits<float>::infinity() : float(depth.value());
+            r.coverage[p] = total == 0.0 ? 0.f : float(allHits / total);
         }
-        // Features: N, P, Z weighted by hit counts, Albedo by sample counts, A recomputed.
-        const double ha = hitsOf(a.coverage[p], na);
-        const double hb = hitsOf(b.coverage[p], nb);
-        for (size_t c = 0; c < 3; ++c) {
-            const size_t i = p * 3 + c;
-            r.normal[i] = float(weighted(ha, a.normal[i], hb, b.normal[i]));
-            r.position[i] = float(weighted(ha, a.position[i], hb, b.position[i]));
-            r.albedo[i] = float(weighted(na, a.albedo[i], nb, b.albedo[i]));
-        }
-        r.depth[p] = ha + hb == 0.0 ? std::numeric_limits<float>::infinity()
-                                    : float(weighted(ha, a.depth[p], hb, b.depth[p]));
-        r.coverage[p] = n == 0.0 ? 0.f : float((ha + hb) / n);
-    }
+    });
     out = std::move(r);
     return true;
+}
+
+bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::string& err) {
+    return mergeStats(std::vector<const StatsImage*>{&a, &b}, out, err, 1);
 }
 
 }  // namespace mcstat

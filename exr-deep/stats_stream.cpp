@@ -19,7 +19,8 @@ int StatsBlockSource::blockRows(unsigned parts, size_t budgetBytes) const {
     if (parts & kStatsPartMoments) floats += 7;
     if (parts & kStatsPartFeatures) floats += 11;
     if ((parts & kStatsPartAovs) && !h.adaptiveM) floats += size_t(h.M) * h.aovs.size();
-    const size_t rowBytes = std::max<size_t>(1, floats * sizeof(float) * size_t(h.width));
+    const size_t rowBytes = std::max<size_t>(1, floats * sizeof(float) * size_t(h.width)) *
+                            size_t(std::max(1, blocksHeld()));
     const size_t chunk = size_t(std::max(1, chunkRows()));
     const size_t chunks = size_t(std::max(1, decodeThreads()));
     const size_t rows = std::max<size_t>(chunks, budgetBytes / rowBytes / chunk) * chunk;
@@ -105,44 +106,71 @@ bool MemoryStatsSource::read(int firstRow, int rows, unsigned parts, StatsImage&
     return validateStats(block, parts, name_, err);
 }
 
-bool MergedStatsSource::init(StatsBlockSource& a, StatsBlockSource& b, std::string& err) {
-    a_ = b_ = nullptr;
+bool MergedStatsSource::init(const std::vector<StatsBlockSource*>& inputs, std::string& err,
+                             int nthreads) {
+    inputs_.clear();
     header_ = StatsHeader();
     header_.width = header_.height = 0;
-    if (!a.ready() || !b.ready()) {
-        err = "cannot merge: an input holds no image";
-        return false;
+    std::vector<const StatsHeader*> headers;
+    std::vector<std::string> names;
+    for (StatsBlockSource* s : inputs) {
+        if (s == nullptr || !s->ready()) {
+            err = "cannot merge: an input holds no image";
+            return false;
+        }
+        headers.push_back(&s->header());
+        names.push_back(s->name());
     }
     StatsHeader h;
-    if (!mergeHeaders(a.header(), b.header(), h, err)) return false;
-    a_ = &a;
-    b_ = &b;
+    if (!mergeHeaders(headers, h, err, inputs.size() > 2 ? names : std::vector<std::string>()))
+        return false;
+    inputs_ = inputs;
     header_ = std::move(h);
-    name_ = fmt::format("merge({}, {})", a.name(), b.name());
+    nthreads_ = nthreads;
+    blocks_.resize(inputs.size());
+    name_ = "merge(" + names[0];
+    for (size_t i = 1; i < names.size(); ++i) name_ += ", " + names[i];
+    name_ += ")";
     return true;
 }
 
+bool MergedStatsSource::init(StatsBlockSource& a, StatsBlockSource& b, std::string& err) {
+    return init(std::vector<StatsBlockSource*>{&a, &b}, err, 1);
+}
+
 int MergedStatsSource::chunkRows() const {
-    return a_ && b_ ? std::max(a_->chunkRows(), b_->chunkRows()) : 1;
+    int rows = 1;
+    for (const StatsBlockSource* s : inputs_) rows = std::max(rows, s->chunkRows());
+    return rows;
 }
 
 int MergedStatsSource::decodeThreads() const {
-    return a_ && b_ ? std::max(a_->decodeThreads(), b_->decodeThreads()) : 1;
+    int threads = 1;
+    for (const StatsBlockSource* s : inputs_) threads = std::max(threads, s->decodeThreads());
+    return threads;
+}
+
+int MergedStatsSource::blocksHeld() const {
+    int blocks = 1;
+    for (const StatsBlockSource* s : inputs_) blocks += s->blocksHeld();
+    return blocks;
 }
 
 bool MergedStatsSource::read(int firstRow, int rows, unsigned parts, StatsImage& block,
                              std::string& err) {
-    if (!a_ || !b_) {
+    if (inputs_.empty()) {
         err = "merge: not initialised";
         return false;
     }
     if (!checkRange(header_, name_, firstRow, rows, parts, err)) return false;
     // The merge of any part needs the counts and coverage of the others: read everything.
-    if (!a_->read(firstRow, rows, kStatsAllParts, blockA_, err) ||
-        !b_->read(firstRow, rows, kStatsAllParts, blockB_, err))
-        return false;
+    std::vector<const StatsImage*> in;
+    for (size_t i = 0; i < inputs_.size(); ++i) {
+        if (!inputs_[i]->read(firstRow, rows, kStatsAllParts, blocks_[i], err)) return false;
+        in.push_back(&blocks_[i]);
+    }
     StatsImage merged;
-    if (!mergeStats(blockA_, blockB_, merged, err)) return false;
+    if (!mergeStats(in, merged, err, nthreads_)) return false;
     // Per-pixel merging leaves the whole-image header fields (spp, seeds, ...) as mergeHeaders
     // made them; only the block's rows differ.
     merged.header = header_;

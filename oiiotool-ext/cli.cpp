@@ -277,28 +277,106 @@ bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& 
     return true;
 }
 
-bool cmdMerge(State& st, const std::string& cmd, const std::vector<std::string>&, const Modifiers&,
-              std::string& err) {
-    if (!needStack(st, 2, cmd, err)) return false;
-    Item& a = st.stack[st.stack.size() - 2];
-    Item& b = st.stack.back();
-    if (!a.isStats() || !b.isStats()) {
-        err = format("{} merges two statistics files; {} is an image", cmd,
-                     a.isStats() ? b.name : a.name);
+std::vector<ParamSpec> mergeModifiers() {
+    return {intParam("fanin", 2, kMaxBuffers, std::to_string(kDefaultMergeFanIn),
+                     "inputs per node of the merge tree (its depth is ceil(log_fanin N)); a farm "
+                     "that merges in jobs uses the same value to get the same bytes"),
+            intParam("n", 0, 1 << 20, "0", "merge the top n entries of the stack; 0: all")};
+}
+
+/// "merge(a, b, c)", or for many inputs "merge of N files (first, ..., last)".
+std::string mergeName(const std::vector<std::shared_ptr<const Item>>& in) {
+    if (in.size() <= 4) {
+        std::string s = "merge(" + in[0]->name;
+        for (size_t i = 1; i < in.size(); ++i) s += ", " + in[i]->name;
+        return s + ")";
+    }
+    return format("merge of {} files ({}, ..., {})", in.size(), in.front()->name, in.back()->name);
+}
+
+/// --merge: the statistics files on the stack (every entry, or the top :n=) in one file. The
+/// inputs are sorted by their seeds (mergeOrder), then merged by a fixed tree: consecutive groups
+/// of :fanin= inputs, each merged in one pass, the groups' results grouped again, until one is
+/// left (FORMAT.md "Merge of N files"). The tree depends only on the inputs, so any input order
+/// gives the same bytes, and a farm that runs the same groups as separate jobs gets the same file.
+bool cmdMerge(State& st, const std::string& cmd, const std::vector<std::string>&,
+              const Modifiers& mods, std::string& err) {
+    // checkModifiers checked both and filled in their defaults.
+    const auto integer = [&](const char* key) {
+        ParamValue v;
+        std::string ignored;
+        for (const ParamSpec& spec : mergeModifiers())
+            if (spec.name == key) parseParamValue(cmd, spec, mods.at(key), v, ignored);
+        return v.integer;
+    };
+    const size_t fanin = size_t(integer("fanin"));
+    const int64_t nGiven = integer("n");
+    const size_t n = nGiven > 0 ? size_t(nGiven) : st.stack.size();
+    if (!needStack(st, std::max<size_t>(n, 2), cmd, err)) return false;
+    if (n < 2) {
+        err = format("{}:n={} merges nothing; give at least 2", cmd, n);
         return false;
     }
-    // The headers are checked now; the pixels are merged block by block when the result is
-    // used (written, estimated), so a merge of large files never holds either image.
-    Item out;
-    if (!mergeHeaders(a.header, b.header, out.header, err)) {
-        err = format("{} {} + {}: {}", cmd, a.name, b.name, err);
+    const size_t first = st.stack.size() - n;
+    std::vector<std::shared_ptr<const Item>> leaves;
+    std::vector<const StatsHeader*> headers;
+    std::vector<std::string> names;
+    for (size_t i = first; i < st.stack.size(); ++i) {
+        const Item& it = st.stack[i];
+        if (!it.isStats()) {
+            err = nGiven > 0 ? format("{} merges statistics files; {} is an image", cmd, it.name)
+                             : format(
+                                   "{} merges every statistics file on the stack; {} is an "
+                                   "image (merge only the top N with {}:n=N)",
+                                   cmd, it.name, cmd);
+            return false;
+        }
+        for (size_t j = first; j < i; ++j)
+            if (!it.path.empty() && st.stack[j].path == it.path) {
+                err = format("{}: {} is given twice (its samples would be counted twice)", cmd,
+                             it.path);
+                return false;
+            }
+        leaves.push_back(std::make_shared<const Item>(it));
+    }
+    for (const auto& leaf : leaves) {
+        headers.push_back(&leaf->header);
+        names.push_back(leaf->name);
+    }
+    // Every input against the first, and seeds across all inputs, before any grouping: the
+    // message names the two files involved.
+    StatsHeader whole;
+    if (!mergeHeaders(headers, whole, err, names)) {
+        err = format("{}: {}", cmd, err);
         return false;
     }
-    out.name = format("merge({}, {})", a.name, b.name);
-    out.mergeA = std::make_shared<const Item>(a);
-    out.mergeB = std::make_shared<const Item>(b);
-    st.stack.pop_back();
-    st.stack.back() = std::move(out);
+    std::vector<std::shared_ptr<const Item>> level;
+    for (size_t i : mergeOrder(headers)) level.push_back(leaves[i]);
+    while (level.size() > 1) {
+        std::vector<std::shared_ptr<const Item>> next;
+        for (size_t g = 0; g < level.size(); g += fanin) {
+            const size_t end = std::min(level.size(), g + fanin);
+            if (end - g == 1) {  // a group of one passes through unchanged
+                next.push_back(level[g]);
+                continue;
+            }
+            Item node;
+            node.mergeInputs.assign(level.begin() + ptrdiff_t(g), level.begin() + ptrdiff_t(end));
+            std::vector<const StatsHeader*> h;
+            for (const auto& in : node.mergeInputs) h.push_back(&in->header);
+            if (!mergeHeaders(h, node.header, err)) {
+                err = format("{}: {}", cmd, err);
+                return false;
+            }
+            node.name = mergeName(node.mergeInputs);
+            next.push_back(std::make_shared<const Item>(std::move(node)));
+        }
+        level = std::move(next);
+    }
+    Item out = *level[0];
+    out.name = mergeName(leaves);
+    st.stack.resize(first);
+    st.stack.push_back(std::move(out));
     return true;
 }
 
@@ -540,13 +618,11 @@ std::vector<Command> buildTable() {
                  "Push one statistics file built from renders of one image, one EXR per seed "
                  "(glob or comma-separated list; one sub-buffer per file, docs/ingest.md)",
                  ingestModifiers(), &cmdIngest, ""});
-    t.push_back({"--merge",
-                 0,
-                 "",
-                 "Merge the top two statistics files (renders of one image with different seeds)",
-                 {},
-                 &cmdMerge,
-                 ""});
+    t.push_back({"--merge", 0, "",
+                 "Merge the statistics files on the stack (renders of one image with different "
+                 "seeds) into one, as if one render had taken all their samples: sorted by seed, "
+                 "then merged by a fixed tree, so any input order gives the same bytes",
+                 mergeModifiers(), &cmdMerge, ""});
     t.push_back({"--plan", 0, "",
                  "Jung's error-rate planner: buffers M, windows and spp for fewer than one "
                  "overestimated pixel (docs/planner.md); needs no input",

@@ -24,8 +24,9 @@ struct Item {
     std::string path;  ///< source file of a statistics item ("" when computed)
     StatsHeader header;
     std::shared_ptr<StatsImage> stats;  ///< null until needed (statistics items)
-    /// A merge not computed yet (`--merge`): read block by block from these two items when used.
-    std::shared_ptr<const Item> mergeA, mergeB;
+    /// A merge not computed yet (`--merge`, one node of its tree): read block by block from these
+    /// items, merged in this order, when used.
+    std::vector<std::shared_ptr<const Item>> mergeInputs;
     std::shared_ptr<OIIO::ImageBuf> image;  ///< set for image items
     /// An image computed from a statistics file: that file's header, so that -o writes the result
     /// laid out as the input render was (names, parts, AOVs; render_layout.h). Null otherwise.

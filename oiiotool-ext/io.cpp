@@ -231,14 +231,17 @@ bool pushFile(State& st, const std::string& path, std::string& err) {
 bool openSource(const State& st, const Item& item, ItemSource& src, std::string& err) {
     if (item.stats) {
         src.owned.push_back(std::make_unique<MemoryStatsSource>(item.stats, item.name));
-    } else if (item.mergeA && item.mergeB) {
-        ItemSource a, b;
-        if (!openSource(st, *item.mergeA, a, err) || !openSource(st, *item.mergeB, b, err))
-            return false;
+    } else if (!item.mergeInputs.empty()) {
+        std::vector<StatsBlockSource*> inputs;
+        std::vector<ItemSource> parts(item.mergeInputs.size());
+        for (size_t i = 0; i < parts.size(); ++i) {
+            if (!openSource(st, *item.mergeInputs[i], parts[i], err)) return false;
+            inputs.push_back(parts[i].root);
+        }
         auto merged = std::make_unique<MergedStatsSource>();
-        if (!merged->init(*a.root, *b.root, err)) return false;
-        for (ItemSource* s : {&a, &b})
-            for (auto& o : s->owned) src.owned.push_back(std::move(o));
+        if (!merged->init(inputs, err, st.nthreads)) return false;
+        for (ItemSource& part : parts)
+            for (auto& o : part.owned) src.owned.push_back(std::move(o));
         src.owned.push_back(std::move(merged));
     } else {
         auto reader = std::make_unique<StatsFileReader>();
@@ -252,7 +255,7 @@ bool openSource(const State& st, const Item& item, ItemSource& src, std::string&
 bool loadStats(State& st, Item& item, std::string& err) {
     if (item.stats) return true;
     auto img = std::make_shared<StatsImage>();
-    if (item.mergeA) {
+    if (!item.mergeInputs.empty()) {
         ItemSource src;
         if (!openSource(st, item, src, err) || !readAll(*src.root, *img, err)) return false;
     } else if (!readStatsFile(item.path, *img, err)) {

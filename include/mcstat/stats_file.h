@@ -274,9 +274,13 @@ class StatsBlockSource {
     /// bad range, a bad value or a damaged file.
     virtual bool read(int firstRow, int rows, unsigned parts, StatsImage& block,
                       std::string& err) = 0;
+    /// Blocks of the rows asked for that a read holds in memory at once: 1, or for a merge its own
+    /// and every input's (blockRows divides its budget by it).
+    virtual int blocksHeld() const { return 1; }
     /// Whether header() describes an image (the source opened or initialised).
     bool ready() const { return header().width > 0 && header().height > 0; }
-    /// A block height for about `budgetBytes` of decoded parts `parts` per block: a multiple of
+    /// A block height for about `budgetBytes` of decoded parts `parts` in all the blocks a read
+    /// holds (blocksHeld()): a multiple of
     /// chunkRows(), at least one chunk per decoding thread (decodeThreads()), at most the image
     /// height.
     int blockRows(unsigned parts = kStatsAllParts, size_t budgetBytes = size_t(64) << 20) const;
@@ -326,26 +330,31 @@ class MemoryStatsSource final : public StatsBlockSource {
     std::string name_;
 };
 
-/// The merge of two sources (mergeStats), block by block: each block of the result equals the
-/// same rows of mergeStats over the whole images, since the merge is per pixel. Reads every part
-/// of both inputs whatever `parts` asks (the merge of one part needs the others' counts). The
-/// inputs must outlive this source.
+/// The merge of sources (mergeStats) in one pass, block by block: each block of the result equals
+/// the same rows of mergeStats over the whole images, since the merge is per pixel. Reads every
+/// part of every input whatever `parts` asks (the merge of one part needs the others' counts).
+/// The inputs are merged in the order given (mergeOrder gives the canonical one) and must outlive
+/// this source. A tree of merges is a MergedStatsSource over MergedStatsSources.
 class MergedStatsSource final : public StatsBlockSource {
   public:
-    /// Checks that `a` and `b` can merge (mergeHeaders); false with `err`.
+    /// Checks that the inputs can merge (mergeHeaders, named by their name()); false with `err`.
+    /// `nthreads` merge each block (0: all cores).
+    bool init(const std::vector<StatsBlockSource*>& inputs, std::string& err, int nthreads = 1);
+    /// init of two inputs.
     bool init(StatsBlockSource& a, StatsBlockSource& b, std::string& err);
     const StatsHeader& header() const override { return header_; }
     const std::string& name() const override { return name_; }
     int chunkRows() const override;
     int decodeThreads() const override;
+    int blocksHeld() const override;
     bool read(int firstRow, int rows, unsigned parts, StatsImage& block, std::string& err) override;
 
   private:
-    StatsBlockSource* a_ = nullptr;
-    StatsBlockSource* b_ = nullptr;
+    std::vector<StatsBlockSource*> inputs_;
     StatsHeader header_;
     std::string name_;
-    StatsImage blockA_, blockB_;
+    std::vector<StatsImage> blocks_;
+    int nthreads_ = 1;
 };
 
 /// Writes a statistics file by blocks of rows, in order: open(), write() each block (all four
@@ -455,18 +464,38 @@ bool validateStats(const StatsImage& img, unsigned parts, const std::string& wha
 /// buffers of independent samples (the between-group mean square of a one-way ANOVA).
 double bufferVariance(const StatsImage& img, size_t p, size_t c, double mean);
 
-/// The header of mergeStats(a, b)'s result from the inputs' headers, after checking that they can
-/// merge (same size, origin, M, assignment, variance source, features, colour space, display
-/// window, AOVs, beauty channel names and part; no seed in both): spp added, seeds, sources and
-/// renderer names joined, source metadata a's. False with `err` naming the first difference.
+/// How many inputs one node of an N-way merge takes by default (`mcstat --merge:fanin=K`): the
+/// merge of n inputs is a tree of depth ceil(log_K n) (FORMAT.md "Merge of N files").
+inline constexpr int kDefaultMergeFanIn = 8;
+
+/// The canonical order of merge inputs (FORMAT.md "Merge of N files"): by their seed lists,
+/// compared seed by seed (numbers by value, before other seeds, which compare as text), inputs
+/// without seeds first, ties in the given order. Returns the input indices in that order; a merge
+/// whose inputs are sorted so gives the same bytes whatever order they were given in.
+std::vector<size_t> mergeOrder(const std::vector<const StatsHeader*>& inputs);
+
+/// The header of mergeStats(inputs)'s result from the inputs' headers, after checking that they
+/// can merge (same size, origin, M, assignment, variance source, features, colour space, display
+/// window, AOVs, beauty channel names and part; no seed in two inputs): spp added, seeds and
+/// sources lists concatenated in input order, renderer names each once in the order first seen,
+/// source metadata the first input's. False with `err` naming the first difference and, when
+/// `names` are given (one per input), the inputs involved.
+bool mergeHeaders(const std::vector<const StatsHeader*>& inputs, StatsHeader& out, std::string& err,
+                  const std::vector<std::string>& names = {});
+/// mergeHeaders of two inputs.
 bool mergeHeaders(const StatsHeader& a, const StatsHeader& b, StatsHeader& out, std::string& err);
 
-/// Combines two renders of the same image (same size, M, assignment) into one, as if a single
-/// render had taken all samples: per-buffer count-weighted sums, Chan's parallel variance; AOVs
-/// per buffer count-weighted like the buffer means, except class Id: the value of the input whose
-/// buffer count is larger (a on ties, b when a's count is 0).
-/// Adaptive M: both inputs adaptive with the same m_p in every pixel (else refused, naming the
-/// first differing pixel); fixed and adaptive inputs are never merged.
+/// Combines renders of the same image (same size, M, assignment) into one, as if a single render
+/// had taken all their samples, in one pass (FORMAT.md "Merge"): per buffer the count-weighted mean
+/// summed in input order in double and rounded once; the pooled variance; AOVs per buffer
+/// count-weighted like the buffer means, except class Id: the value of the input whose buffer
+/// count is the largest (the first such; a later input's when the earlier one's count is 0).
+/// Adaptive M: every input adaptive with the same m_p in every pixel (else refused, naming the
+/// first differing pixel); fixed and adaptive inputs are never merged. `nthreads` threads over
+/// the pixels (0: all cores); the result does not depend on it. `out` may be one of the inputs.
+bool mergeStats(const std::vector<const StatsImage*>& inputs, StatsImage& out, std::string& err,
+                int nthreads = 1);
+/// mergeStats of two inputs, on one thread.
 bool mergeStats(const StatsImage& a, const StatsImage& b, StatsImage& out, std::string& err);
 
 }  // namespace mcstat

@@ -564,6 +564,31 @@ StatsImage smallImage(const std::vector<float>& counts, const std::vector<float>
     return img;
 }
 
+TEST(AovMerge, ThreeInputsLabelFromTheLargestCountFirstOnTies) {
+    //                      pixel 0     pixel 1     pixel 2     pixel 3
+    const StatsImage a = smallImage({3, 1, 0, 2, 0, 0, 5, 2}, {1, 1, 1, 1, 1, 1, 1, 1},
+                                    {10, 11, 12, 13, 14, 15, 16, 17}, "1");
+    const StatsImage b = smallImage({1, 3, 2, 2, 0, 0, 4, 6}, {2, 2, 2, 2, 2, 2, 2, 2},
+                                    {20, 21, 22, 23, 24, 25, 26, 27}, "2");
+    const StatsImage c = smallImage({3, 4, 2, 5, 0, 0, 0, 6}, {4, 4, 4, 4, 4, 4, 4, 4},
+                                    {30, 31, 32, 33, 34, 35, 36, 37}, "3");
+    StatsImage r;
+    std::string err;
+    ASSERT_TRUE(mergeStats({&a, &b, &c}, r, err)) << err;
+    const auto L = [&](size_t k) { return r.aov[k * 2]; };
+    const auto I = [&](size_t k) { return r.aov[k * 2 + 1]; };
+    EXPECT_EQ(L(0), float((3.0 * 1 + 1.0 * 2 + 3.0 * 4) / 7.0));
+    EXPECT_EQ(L(2), 3.f);   // a empty: (2*2 + 2*4) / 4
+    EXPECT_EQ(L(4), 0.f);   // all empty
+    EXPECT_EQ(I(0), 10.f);  // 3, 1, 3: the first of the largest
+    EXPECT_EQ(I(1), 31.f);  // 1, 3, 4
+    EXPECT_EQ(I(2), 22.f);  // 0, 2, 2: a empty, b first of the largest
+    EXPECT_EQ(I(3), 33.f);  // 2, 2, 5
+    EXPECT_EQ(I(4), 34.f);  // all empty: the last input's
+    EXPECT_EQ(I(6), 16.f);  // 5, 4, 0
+    EXPECT_EQ(I(7), 27.f);  // 2, 6, 6: b first of the largest
+}
+
 TEST(AovMerge, CountWeightedLikeBufferMeansAndLabelsWhole) {
     //                      pixel 0     pixel 1     pixel 2     pixel 3
     const StatsImage a = smallImage({3, 1, 0, 2, 0, 0, 5, 5}, {1, 0.1f, 9, 4, 7, 7, 2, 1},

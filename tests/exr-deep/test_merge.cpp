@@ -217,5 +217,82 @@ TEST_F(Merge, RejectsInvalidInput) {
     EXPECT_TRUE(contains(err, "second merge input: pixel (3, 0)")) << err;
 }
 
+// ---- N inputs in one pass (FORMAT.md "Merge of N files") ----
+
+TEST_F(Merge, NInputsInOnePassRoundOnce) {
+    StatsImage abc;
+    ASSERT_TRUE(mergeStats({&a, &b, &c}, abc, err)) << err;
+    // One rounding after the double sums: the bound of one level (k = 1), tighter than the
+    // two pairwise merges' k = 2.
+    expectCloseToReference(abc, reference({ra, rb, rc}), scales({ra, rb, rc}), 1);
+    EXPECT_EQ(abc.header.seeds, "1,2,3");
+    EXPECT_EQ(abc.header.spp, a.header.spp + b.header.spp + c.header.spp);
+    // The pooled variance by hand at a pixel where all three hold samples:
+    // M2 = sum_i [var_i (n_i - 1) + n_i (mean_i - mean)^2], var = M2 / (n - 1).
+    const size_t p = 3 * W + 4;
+    ASSERT_GT(a.count[p] * b.count[p] * c.count[p], 0.f);
+    for (size_t ch = 0; ch < 3; ++ch) {
+        const size_t e = p * 3 + ch;
+        double n = 0, s = 0, m2 = 0;
+        for (const StatsImage* i : {&a, &b, &c}) {
+            n += i->count[p];
+            s += double(i->count[p]) * i->mean[e];
+        }
+        const double mean = s / n;
+        for (const StatsImage* i : {&a, &b, &c}) {
+            const double d = double(i->mean[e]) - mean;
+            m2 += double(i->variance[e]) * (i->count[p] - 1.0) + i->count[p] * d * d;
+        }
+        EXPECT_EQ(abc.mean[e], float(mean));
+        EXPECT_EQ(abc.variance[e], float(m2 / (n - 1)));
+    }
+}
+
+TEST_F(Merge, NInputsDoNotDependOnTheThreadCount) {
+    StatsImage one, four;
+    ASSERT_TRUE(mergeStats({&c, &a, &b}, one, err, 1)) << err;
+    ASSERT_TRUE(mergeStats({&c, &a, &b}, four, err, 4)) << err;
+    EXPECT_EQ(
+        0, std::memcmp(one.bufferMean.data(), four.bufferMean.data(), one.bufferMean.size() * 4));
+    EXPECT_EQ(0, std::memcmp(one.variance.data(), four.variance.data(), one.variance.size() * 4));
+    EXPECT_EQ(0, std::memcmp(one.depth.data(), four.depth.data(), one.depth.size() * 4));
+}
+
+TEST_F(Merge, CanonicalOrderIsBySeedsNumbersByValue) {
+    std::vector<StatsHeader> h(6);
+    h[0].seeds = "10";
+    h[1].seeds = "9";
+    h[2].seeds = "h00ab";
+    h[3].seeds = "2,5";
+    h[4].seeds = "";
+    h[5].seeds = "2,40";
+    std::vector<const StatsHeader*> ptrs;
+    for (const StatsHeader& x : h) ptrs.push_back(&x);
+    // "" first, then 2,5 < 2,40 < 9 < 10 (by value, not as text), then the non-numeric seed.
+    EXPECT_EQ(mergeOrder(ptrs), (std::vector<size_t>{4, 3, 5, 1, 0, 2}));
+}
+
+TEST_F(Merge, NInputsRefusalNamesTheInputs) {
+    b.header.seeds = "5";
+    c.header.seeds = "5,6";
+    StatsHeader out;
+    EXPECT_FALSE(mergeHeaders({&a.header, &b.header, &c.header}, out, err, {"a", "b", "c"}));
+    EXPECT_TRUE(contains(err, "seed 5 is in both b and c")) << err;
+    c.header.seeds = "6";
+    c.header.colorSpace = "ACEScg";
+    EXPECT_FALSE(mergeHeaders({&a.header, &b.header, &c.header}, out, err, {"a", "b", "c"}));
+    EXPECT_TRUE(contains(err, "a and c: cannot merge: colour spaces differ")) << err;
+    // Renderer names once each, whatever the grouping: the same header from any tree.
+    c.header.colorSpace = a.header.colorSpace;
+    b.header.renderer = "other 2.0";
+    StatsHeader ab, ab_c, abc;
+    ASSERT_TRUE(mergeHeaders(a.header, b.header, ab, err)) << err;
+    ASSERT_TRUE(mergeHeaders(ab, c.header, ab_c, err)) << err;
+    ASSERT_TRUE(mergeHeaders({&a.header, &b.header, &c.header}, abc, err)) << err;
+    EXPECT_EQ(ab_c.renderer, "test-renderer 1.0 + other 2.0");
+    EXPECT_EQ(abc.renderer, ab_c.renderer);
+    EXPECT_EQ(abc.seeds, ab_c.seeds);
+}
+
 }  // namespace
 }  // namespace mcstat::test
