@@ -138,6 +138,11 @@ bool makeSceneLinear(const std::string& path, OIIO::ImageBuf& rgb, std::string& 
                    integer ? " (its integer pixels are quantised and clipped at 1: a float "
                              "EXR reference is better)"
                            : ""));
+    else if (integer)  // declared linear (a PNG with gamma 1): right, but lossy
+        noteOnce(
+            format("{} holds {} integer pixels ({}): values are quantised and clipped at 1; "
+                   "a float EXR reference is better",
+                   path, spec.format.c_str(), space));
     return true;
 }
 

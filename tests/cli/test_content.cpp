@@ -177,6 +177,16 @@ TEST_F(ContentCli, SrgbPngReferenceIsMadeSceneLinearBeforeComparing) {
               std::string::npos)
         << r.err;
     EXPECT_EQ(lines(r.err), 1u) << r.err;  // the EXR references need no note
+    // A PNG that declares linear data (stock oiiotool writes gamma 1 from an EXR): compared as
+    // it is, with a note that 8 bits quantise and clip it.
+    ASSERT_EQ(std::system(("oiiotool " + path("ref.exr") + " -o " + path("linear.png")).c_str()),
+              0);
+    r = mcstat(path("test.exr") + " --diff " + path("linear.png"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.err.find(path("linear.png") + " holds uint8 integer pixels (Linear): values are "
+                                              "quantised and clipped at 1"),
+              std::string::npos)
+        << r.err;
 }
 
 TEST_F(ContentCli, ReferenceInAColourSpaceOcioDoesNotKnowIsRefused) {
