@@ -19,20 +19,29 @@ namespace mcstat {
 
 namespace {
 
-std::vector<std::string> splitSeeds(const std::string& s) {
+/// The items of a list joined by `sep`: seeds "1, 2" (trimmed, empty items dropped) or renderer
+/// names "a + b" (kept as they are).
+std::vector<std::string> splitList(const std::string& s, const std::string& sep, bool trim) {
     std::vector<std::string> out;
     size_t start = 0;
     while (start <= s.size()) {
-        size_t end = s.find(',', start);
+        size_t end = s.find(sep, start);
         if (end == std::string::npos) end = s.size();
         std::string item = s.substr(start, end - start);
-        const size_t b = item.find_first_not_of(" \t");
-        const size_t e = item.find_last_not_of(" \t");
-        if (b != std::string::npos) out.push_back(item.substr(b, e - b + 1));
-        start = end + 1;
+        if (trim) {
+            const size_t first = item.find_first_not_of(" \t");
+            if (first == std::string::npos)
+                item.clear();
+            else
+                item = item.substr(first, item.find_last_not_of(" \t") - first + 1);
+        }
+        if (!trim || !item.empty()) out.push_back(item);
+        start = end + sep.size();
     }
     return out;
 }
+
+std::vector<std::string> splitSeeds(const std::string& s) { return splitList(s, ",", true); }
 
 /// Number of hits recovered from coverage A and count n, kept in [0, n] (also for a NaN A).
 double hitsOf(float A, double n) { return std::fmax(0.0, std::fmin(n, std::round(double(A) * n))); }
@@ -50,19 +59,6 @@ struct WeightedMean {
     }
     double value() const { return weight == 0.0 ? 0.0 : sum / weight; }
 };
-
-/// Splits "a + b" (the renderer names of a merge) into its names.
-std::vector<std::string> splitRenderers(const std::string& s) {
-    std::vector<std::string> out;
-    size_t start = 0;
-    while (start <= s.size()) {
-        size_t end = s.find(" + ", start);
-        if (end == std::string::npos) end = s.size();
-        out.push_back(s.substr(start, end - start));
-        start = end + 3;
-    }
-    return out;
-}
 
 /// Whether seed a sorts before seed b: decimal numbers by value, before any other seed (an
 /// ingested file's "h<hash>"), which sort as text.
@@ -228,7 +224,7 @@ bool mergeHeaders(const std::vector<const StatsHeader*>& in, StatsHeader& out, s
         if (!h->seeds.empty()) seeds.push_back(h->seeds);
         if (!h->sources.empty()) sources.push_back(h->sources);
         // Each name once, in the order first seen: the same text for any grouping of the inputs.
-        for (const std::string& name : splitRenderers(h->renderer))
+        for (const std::string& name : splitList(h->renderer, " + ", false))
             if (std::find(renderers.begin(), renderers.end(), name) == renderers.end())
                 renderers.push_back(name);
         r.formatVersion = std::max(r.formatVersion, h->formatVersion);
