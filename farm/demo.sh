@@ -50,10 +50,15 @@ cleanup() {
   exit $rc
 }
 trap cleanup EXIT
-trap 'exit 130' INT TERM
+# A long step runs in the background and is waited for, so that Ctrl-C or SIGTERM stops it and
+# the cluster at once (bash runs a trap only after the foreground command ends).
+child=""
+trap '[[ -z $child ]] || kill -TERM "$child" 2>/dev/null; exit 130' INT TERM
+run() { "$@" & child=$!; local rc=0; wait "$child" || rc=$?; child=""; return $rc; }
 
 echo "== a one-node Slurm cluster in $slurm"
-start_out=$("$farm/local-slurm.sh" start "$slurm") || die "Slurm did not start (see above)"
+run "$farm/local-slurm.sh" start "$slurm" >"$slurm/start.out" || die "Slurm did not start (see above)"
+start_out=$(cat "$slurm/start.out")
 eval "$start_out"
 export SLURM_CONF
 "$farm/local-slurm.sh" status "$slurm"
@@ -62,7 +67,7 @@ shot=$out/shot
 rm -rf "$shot" "$out/single"
 echo "== submit: frames $frames x $seeds seeds, $spp spp, ${res[0]}x${res[1]}, merge fan-in $fanin, G-MoN per frame"
 rc=0
-"$farm/mcstat-farm" submit "$shot" --name shot --frames "$frames" --seeds "$seeds" --spp "$spp" \
+run "$farm/mcstat-farm" submit "$shot" --name shot --frames "$frames" --seeds "$seeds" --spp "$spp" \
   --res "${res[@]}" --template-file "$farm/templates/fixture-stats.tmpl" --fanin "$fanin" \
   --estimate gmon --wait "$wait_s" || rc=$?
 [[ $rc -eq 0 ]] || die "the shot did not complete (exit $rc); the report is in $shot/report.txt"
