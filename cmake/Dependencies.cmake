@@ -19,6 +19,8 @@ endforeach()
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(OpenColorIO REQUIRED IMPORTED_TARGET OpenColorIO)
 add_library(OpenColorIO::OpenColorIO ALIAS PkgConfig::OpenColorIO)
+# libdeflate (libdeflate-dev 1.14 ships only a pkg-config file): the ZIP codec of statistics files.
+pkg_check_modules(libdeflate REQUIRED IMPORTED_TARGET libdeflate)
 find_package(embree 3 CONFIG REQUIRED)
 find_package(fmt CONFIG REQUIRED)
 find_package(nlohmann_json CONFIG REQUIRED)

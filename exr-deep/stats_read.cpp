@@ -1,7 +1,8 @@
 // StatsFileReader, readStatsFile, readStatsHeader: header validation first (stats_header_check),
-// then blocks of rows of the parts asked for are decoded straight into a StatsImage's arrays
-// through Imf::FrameBuffer slices (OpenEXR decodes a block's chunks in parallel), then each block
-// is validated. readStatsFile is one block of every row and part.
+// then blocks of rows of the parts asked for are decoded straight into a StatsImage's arrays, then
+// each block is validated. readStatsFile is one block of every row and part. The flat parts go
+// through OpenEXR's Core API with libdeflate for ZIP, a block's chunks in parallel
+// (flat_part_reader.h); the deep part and the optional parts through the C++ API.
 // Adaptive M (format 2): the block's deep sample counts are read and checked first, then the block
 // is sized for them, then the deep samples are read through per-pixel pointers.
 #include <OpenEXR/ImfDeepFrameBuffer.h>
@@ -20,9 +21,13 @@
 #include <cstdint>
 #include <cstring>
 #include <memory>
+#include <new>
+#include <stdexcept>
+#include <vector>
 
 #include "deep_frame_buffer.h"
 #include "fd_stream.h"
+#include "flat_part_reader.h"
 #include "mcstat/stats_file.h"
 #include "stats_header_check.h"
 #include "stats_layout.h"
@@ -106,16 +111,34 @@ int linesPerChunk(Imf::Compression c) {
 }
 
 /// Reads the flat parts of `parts` (StatsParts) into `blk`, whose header is the block's (origin
-/// at its first row) and whose arrays are sized; throws on failure.
-void readFlatParts(Imf::MultiPartInputFile& in, unsigned parts, StatsImage& blk) {
+/// at its first row) and whose arrays are sized, rows `firstRow`.. of the file (0-based): through
+/// OpenEXR's Core API with libdeflate and the chunks on `threads` threads (flat_part_reader.h),
+/// or, for a part it does not take (B44, B44A, DWAA, DWAB), through the C++ API. Throws on failure.
+void readFlatParts(Imf::MultiPartInputFile& in, detail::FlatPartReader& flat, int firstRow,
+                   int threads, unsigned parts, StatsImage& blk) {
     const StatsHeader& h = blk.header;
+    std::vector<detail::PartSlices> core;
     for (int part = 0; part < layout::kPartBits; ++part) {
         if (!(parts & (1u << part)) || (h.adaptiveM && part == layout::kBuffers)) continue;
         if (part == layout::kAovs && h.aovs.empty()) continue;  // no part aovs: nothing to read
+        const std::vector<layout::ChannelPlace> channels =
+            part == layout::kAovs ? layout::aovChannels(h)
+                                  : layout::partChannels(part, h.M, h.adaptiveM);
+        if (flat.handles(part)) {
+            detail::PartSlices req;
+            req.part = part;
+            req.slices.reserve(channels.size());
+            for (const layout::ChannelPlace& c : channels) {
+                float* data = layout::arrayOf(blk, c.array).data() + c.offset;
+                const size_t xStride = c.stride * sizeof(float);
+                req.slices.push_back(
+                    {c.name, reinterpret_cast<char*>(data), xStride, xStride * size_t(h.width)});
+            }
+            core.push_back(std::move(req));
+            continue;
+        }
         Imf::FrameBuffer fb;
-        for (const layout::ChannelPlace& c : part == layout::kAovs
-                                                 ? layout::aovChannels(h)
-                                                 : layout::partChannels(part, h.M, h.adaptiveM)) {
+        for (const layout::ChannelPlace& c : channels) {
             float* data = layout::arrayOf(blk, c.array).data() + c.offset;
             const size_t xStride = c.stride * sizeof(float);
             fb.insert(c.name, Imf::Slice(Imf::FLOAT, windowBase(data, h, xStride), xStride,
@@ -125,6 +148,17 @@ void readFlatParts(Imf::MultiPartInputFile& in, unsigned parts, StatsImage& blk)
         ip.setFrameBuffer(fb);
         ip.readPixels(h.originY, h.originY + h.height - 1);
     }
+    if (core.empty()) return;
+    std::string problem;
+    switch (flat.read(core, firstRow, h.height, threads, problem)) {
+        case detail::FlatPartReader::Result::Ok:
+            return;
+        case detail::FlatPartReader::Result::OutOfMemory:
+            throw std::bad_alloc();
+        case detail::FlatPartReader::Result::Corrupt:
+            break;
+    }
+    throw std::runtime_error(problem);
 }
 
 /// Adaptive M: reads the per-pixel sample counts of the block's rows of part "vbuffers" and
@@ -216,6 +250,7 @@ struct StatsFileReader::Impl {
     StatsHeader header;
     std::unique_ptr<detail::FdIStream> stream;
     std::unique_ptr<Imf::MultiPartInputFile> file;
+    detail::FlatPartReader flat;  // the flat parts, through the Core API and libdeflate
     int chunkRows = 1;
     int threads = 1;                   // decoding threads (codecThreads)
     std::vector<uint32_t> deepCounts;  // adaptive M: the block's m_p, reused
@@ -248,6 +283,13 @@ bool StatsFileReader::open(const std::string& path, std::string& err, const Read
         impl->stream = std::make_unique<detail::FdIStream>(impl->fd.get(), path, impl->size);
         impl->file = std::make_unique<Imf::MultiPartInputFile>(*impl->stream, threads);
         checkSameFile(*impl->file, impl->header);
+        const StatsHeader& h = impl->header;
+        std::string problem;
+        if (!impl->flat.open(impl->fd.get(), impl->size, path, h.originX, h.originY, h.width,
+                             h.height, problem)) {
+            err = fmt::format("{}: truncated or corrupt ({})", path, problem);
+            return false;
+        }
         impl->chunkRows = linesPerChunk(impl->file->header(layout::kBuffers).compression());
         impl->threads = threads;
         impl_ = std::move(impl);
@@ -317,7 +359,7 @@ bool StatsFileReader::read(int firstRow, int rows, unsigned parts, StatsImage& b
             return false;
         }
         if (h.adaptiveM && (parts & kStatsPartBuffers)) readDeepBuffers(*im.file, block);
-        readFlatParts(*im.file, parts, block);
+        readFlatParts(*im.file, im.flat, firstRow, im.threads, parts, block);
     } catch (const std::bad_alloc&) {
         err = im.path + ": out of memory while reading pixels";
         return false;
