@@ -113,6 +113,36 @@ TEST_F(MergeN, TheTreeRunAsSeparateCommandsGivesTheSameBytes) {
     RecordProperty("buffer_means_differing_between_trees", std::to_string(differ));
 }
 
+TEST_F(MergeN, SixtyFourFilesGiveTheSameBytesInAnyOrder) {
+    // Issue 23's case: 64 seeds (tiny renders), the default fan-in 8: a tree of depth 2.
+    std::vector<std::string> names;
+    for (int s = 101; s <= 164; ++s) {
+        names.push_back(path("t" + std::to_string(s) + ".mcstat"));
+        const std::string cmd = std::string(MCSTAT_RENDER_EXE) +
+                                " --quiet --threads 1 --scene default --res 12 8 --spp 2 --M 2 "
+                                "--seed " +
+                                std::to_string(s) + " -o " + names.back();
+        ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    }
+    const auto joined = [](const std::vector<std::string>& v) {
+        std::string out;
+        for (const std::string& n : v) out += n + " ";
+        return out;
+    };
+    ASSERT_EQ(mcstat(joined(names) + "--merge -o " + path("sorted.mcstat")).code, 0);
+    std::reverse(names.begin(), names.end());
+    ASSERT_EQ(mcstat(joined(names) + "--merge -o " + path("reversed.mcstat")).code, 0);
+    std::shuffle(names.begin(), names.end(), std::mt19937(64));
+    ASSERT_EQ(mcstat(joined(names) + "--merge -o " + path("shuffled.mcstat")).code, 0);
+    const std::string sorted = slurp(path("sorted.mcstat"));
+    EXPECT_TRUE(slurp(path("reversed.mcstat")) == sorted);
+    EXPECT_TRUE(slurp(path("shuffled.mcstat")) == sorted);
+    const StatsImage m = read(path("sorted.mcstat"));
+    EXPECT_EQ(m.header.spp, 128);
+    EXPECT_EQ(m.header.seeds.substr(0, 8), "101,102,");
+    for (float n : m.count) EXPECT_EQ(n, 128.f);
+}
+
 TEST_F(MergeN, RefusalsNameTheFiles) {
     // An image on the stack: merging "everything" would be a mistake; :n= merges the top n.
     std::string cmd = std::string(MCSTAT_RENDER_EXE) +
