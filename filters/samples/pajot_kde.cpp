@@ -32,6 +32,34 @@ int64_t totalSamples(const std::vector<PajotMode>& modes) {
     return n;
 }
 
+/// int64_t(std::floor(t)) and int64_t(std::ceil(t)), inline (without SSE4.1 the library's are
+/// calls): for |t| < 2^52 truncation is exact and one step corrects it; beyond, and for NaN, the
+/// library's own expression, so every input gives what it gave before.
+inline int64_t floorToInt(double t) {
+    if (!(std::fabs(t) < 4503599627370496.0)) return int64_t(std::floor(t));
+    const int64_t i = int64_t(t);
+    return double(i) > t ? i - 1 : i;
+}
+inline int64_t ceilToInt(double t) {
+    if (!(std::fabs(t) < 4503599627370496.0)) return int64_t(std::ceil(t));
+    const int64_t i = int64_t(t);
+    return double(i) < t ? i + 1 : i;
+}
+
+/// cnt (cnt - 1) / 2 and (cnt - 1) cnt (2 cnt - 1) / 6 for cnt = c as modeKernelSum computes them
+/// in double: below 2^17 every product is an exact integer in double and divisible, so integer
+/// arithmetic gives the same values without a division; above, the double expressions.
+inline void indexSums(int64_t c, double& sj, double& sj2) {
+    const double cnt = double(c);
+    if (c < (int64_t(1) << 17)) {
+        sj = double(c * (c - 1) / 2);
+        sj2 = double((c - 1) * c * (2 * c - 1) / 6);
+    } else {
+        sj = cnt * (cnt - 1.0) / 2.0;
+        sj2 = (cnt - 1.0) * cnt * (2.0 * cnt - 1.0) / 6.0;
+    }
+}
+
 /// Sum over the n regularly spaced values of `m` of (1 - u^2) for |u| < 1, u = (x - value) / h:
 /// closed form over the index range inside the window, relative to its first index so that the
 /// sums stay small (no cancellation even for modes of millions of samples).
@@ -41,42 +69,184 @@ double modeKernelSum(const PajotMode& m, double x, double h) {
     const double s = (hi - lo) / double(m.n - 1);
     const double tLo = (x - h - lo) / s, tHi = (x + h - lo) / s;
     const int64_t last = int64_t(m.n) - 1;
-    const int64_t i0 = std::max<int64_t>(0, int64_t(std::floor(tLo)) + 1);
-    const int64_t i1 = std::min<int64_t>(last, int64_t(std::ceil(tHi)) - 1);
+    const int64_t i0 = std::max<int64_t>(0, floorToInt(tLo) + 1);
+    const int64_t i1 = std::min<int64_t>(last, ceilToInt(tHi) - 1);
     if (i0 > i1) return 0.0;
     const double cnt = double(i1 - i0 + 1);
     const double a = (x - (lo + double(i0) * s)) / h, b = s / h;
-    const double sj = cnt * (cnt - 1.0) / 2.0;                       // sum of j, j < cnt
-    const double sj2 = (cnt - 1.0) * cnt * (2.0 * cnt - 1.0) / 6.0;  // sum of j^2
+    double sj = 0, sj2 = 0;  // sum of j and of j^2, j < cnt
+    indexSums(i1 - i0 + 1, sj, sj2);
     // sum_j 1 - (a - b j)^2 = cnt (1 - a^2) + 2 a b sum j - b^2 sum j^2
     return std::max(0.0, cnt * (1.0 - a * a) + 2.0 * a * b * sj - b * b * sj2);
 }
 
+/// Mean nearest-neighbour distance of the approximate distribution (adrNearestNeighbour) given its
+/// sample count.
+double nearestNeighbourOf(const std::vector<PajotMode>& modes, int64_t n) {
+    if (n < 2) return 0.0;
+    const double inf = std::numeric_limits<double>::infinity();
+    double sum = 0;
+    for (size_t k = 0; k < modes.size(); ++k) {
+        const PajotMode& m = modes[k];
+        const double below = k > 0 ? double(m.lo) - double(modes[k - 1].hi) : inf;
+        const double above = k + 1 < modes.size() ? double(modes[k + 1].lo) - double(m.hi) : inf;
+        if (m.n == 1) {
+            sum += std::min(below, above);
+        } else {
+            const double s = (double(m.hi) - double(m.lo)) / double(m.n - 1);
+            sum += std::min(s, below) + std::min(s, above) + double(m.n - 2) * s;
+        }
+    }
+    return sum / double(n);
+}
+
+// ---- one ADR update's densities -----------------------------------------------------------------
+// An update evaluates the pilot density (eq. 3, bandwidth nn) at up to 16 points per mode for eq.
+// 4's geometric mean, then at three points for the bandwidths, all over the same modes with the
+// same nn. AdrDensities holds what every one of those evaluations used to recompute (each mode's
+// bounds in double, the spacing of its values and spacing / nn, n nn) and evaluates with the same
+// operations in the same order, so that every density is the same double as adrDensityOf's.
+
+/// A mode with the values modeKernelSum derives from it for bandwidth h.
+struct ModeSpan {
+    double lo = 0, hi = 0;
+    double s = 0;  ///< (hi - lo) / (n - 1), extended modes with lo < hi
+    double b = 0;  ///< s / h
+    uint32_t n = 0;
+};
+
+/// modeKernelSum(m, x, h) with xmh = x - h and xph = x + h.
+inline double spanKernelSum(const ModeSpan& m, double x, double xmh, double xph, double h) {
+    if (m.n == 1 || m.lo == m.hi) return double(m.n) * epanechnikov((x - m.lo) / h) / 0.75;
+    const double tLo = (xmh - m.lo) / m.s, tHi = (xph - m.lo) / m.s;
+    const int64_t last = int64_t(m.n) - 1;
+    const int64_t i0 = std::max<int64_t>(0, floorToInt(tLo) + 1);
+    const int64_t i1 = std::min<int64_t>(last, ceilToInt(tHi) - 1);
+    if (i0 > i1) return 0.0;
+    const double cnt = double(i1 - i0 + 1);
+    const double a = (x - (m.lo + double(i0) * m.s)) / h;
+    double sj = 0, sj2 = 0;
+    indexSums(i1 - i0 + 1, sj, sj2);
+    return std::max(0.0, cnt * (1.0 - a * a) + 2.0 * a * m.b * sj - m.b * m.b * sj2);
+}
+
+class AdrDensities {
+  public:
+    /// Prepares the densities over `modes` (n samples) with bandwidth h > 0.
+    void prepare(const std::vector<PajotMode>& modes, int64_t n, double h) {
+        h_ = h;
+        nh_ = double(n) * h;
+        spans_.resize(modes.size());
+        for (size_t k = 0; k < modes.size(); ++k) {
+            const PajotMode& m = modes[k];
+            ModeSpan& sp = spans_[k];
+            sp.lo = m.lo;
+            sp.hi = m.hi;
+            sp.n = m.n;
+            if (m.n != 1 && sp.lo != sp.hi) {
+                sp.s = (sp.hi - sp.lo) / double(m.n - 1);
+                sp.b = sp.s / h;
+            }
+        }
+        first_ = 0;
+    }
+    /// adrDensityOf(modes, n, x, h). Consecutive calls at increasing x (the quadrature points of
+    /// eq. 4, mode after mode) move the window's first mode forward instead of searching for it.
+    double at(double x) {
+        const double xmh = x - h_, xph = x + h_;
+        const size_t count = spans_.size();
+        // The first mode whose hi exceeds x - h (std::lower_bound's answer), from the last one.
+        while (first_ < count && spans_[first_].hi <= xmh) ++first_;
+        while (first_ > 0 && spans_[first_ - 1].hi > xmh) --first_;
+        double sum = 0;
+        for (size_t i = first_; i < count && spans_[i].lo < xph; ++i)
+            sum += spanKernelSum(spans_[i], x, xmh, xph, h_);
+        return 0.75 * sum / nh_;
+    }
+
+    /// Scratch of the geometric mean: the density and its log at every quadrature point.
+    std::vector<double>& points() { return points_; }
+    std::vector<double>& logs() { return logs_; }
+
+  private:
+    std::vector<ModeSpan> spans_;
+    std::vector<double> points_, logs_;
+    double h_ = 0, nh_ = 0;
+    size_t first_ = 0;
+};
+
+/// double(t) / double(q - 1) for 0 <= t < q <= 16: the positions of eq. 4's quadrature points
+/// within a mode, computed once.
+const double* quadraturePositions(int64_t q) {
+    static const std::array<std::array<double, 16>, 17> table = [] {
+        std::array<std::array<double, 16>, 17> t{};
+        for (int64_t n = 2; n <= 16; ++n)
+            for (int64_t i = 0; i < n; ++i) t[size_t(n)][size_t(i)] = double(i) / double(n - 1);
+        return t;
+    }();
+    return table[size_t(q)].data();
+}
+
+/// A density already evaluated at x (a quadrature point), kept for the bandwidths.
+struct KnownDensity {
+    double x = std::numeric_limits<double>::quiet_NaN();
+    double p = 0;
+};
+
 /// Geometric mean of the pilot density over the approximate distribution (eq. 4's numerator).
 /// Modes of at most 16 values use every value; larger ones 16 evenly spread values, each standing
 /// for n / 16 of them (the density varies slowly inside an extended mode; this bounds the cost of
-/// an update by the number of modes, not of samples).
-double adrGeometricMeanDensity(const std::vector<PajotMode>& modes, double nn) {
+/// an update by the number of modes, not of samples). The densities at the last point of mode
+/// k - 1, the point of mode k and the first point of mode k + 1 are kept in `known`.
+double adrGeometricMeanDensity(const std::vector<PajotMode>& modes, int64_t total, double nn,
+                               AdrDensities& density, size_t k, KnownDensity known[3]) {
     // A single mode farther than nn from both neighbours sees only its own kernel: its density is
     // exactly 0.75 / (n nn), no search needed. ADR accumulates many of those in the tails (section
     // 4.3, Table 1), so this keeps an update linear in the number of modes with a small constant.
-    const int64_t total = totalSamples(modes);
     const double isolatedLog = std::log(0.75 / (double(total) * nn));
+    // First every point's density (one sweep of the window over the modes), then the logs (calls
+    // independent of each other), then the sum in the order of the points.
+    std::vector<double>& p = density.points();
+    p.clear();
+    double lastX = std::numeric_limits<double>::quiet_NaN(), lastP = 0;
+    for (size_t j = 0; j < modes.size(); ++j) {
+        const PajotMode& m = modes[j];
+        if (m.n == 1 && (j == 0 || double(m.lo) - double(modes[j - 1].hi) >= nn) &&
+            (j + 1 == modes.size() || double(modes[j + 1].lo) - double(m.hi) >= nn))
+            continue;
+        const int64_t q = std::min<int64_t>(m.n, 16);
+        const double* pos = quadraturePositions(q);
+        const double lo = m.lo, width = double(m.hi) - double(m.lo);
+        for (int64_t t = 0; t < q; ++t) {
+            const double x = lo + width * (q == 1 ? 0.0 : pos[t]);
+            if (x != lastX) {
+                lastX = x;
+                lastP = density.at(x);
+            }
+            p.push_back(lastP);
+            if (j + 1 == k && t == q - 1) known[0] = {x, lastP};
+            if (j == k) known[1] = {x, lastP};
+            if (j == k + 1 && t == 0) known[2] = {x, lastP};
+        }
+    }
+    std::vector<double>& logs = density.logs();
+    logs.resize(p.size());
+    for (size_t i = 0; i < p.size(); ++i)
+        logs[i] = i > 0 && p[i] == p[i - 1] ? logs[i - 1] : std::log(p[i]);
     double logSum = 0, weight = 0;
-    for (size_t k = 0; k < modes.size(); ++k) {
-        const PajotMode& m = modes[k];
-        if (m.n == 1 && (k == 0 || double(m.lo) - double(modes[k - 1].hi) >= nn) &&
-            (k + 1 == modes.size() || double(modes[k + 1].lo) - double(m.hi) >= nn)) {
+    size_t i = 0;
+    for (size_t j = 0; j < modes.size(); ++j) {
+        const PajotMode& m = modes[j];
+        if (m.n == 1 && (j == 0 || double(m.lo) - double(modes[j - 1].hi) >= nn) &&
+            (j + 1 == modes.size() || double(modes[j + 1].lo) - double(m.hi) >= nn)) {
             logSum += isolatedLog;
             weight += 1;
             continue;
         }
         const int64_t q = std::min<int64_t>(m.n, 16);
         const double w = double(m.n) / double(q);
-        for (int64_t t = 0; t < q; ++t) {
-            const double pos = q == 1 ? 0.0 : double(t) / double(q - 1);
-            const double x = double(m.lo) + (double(m.hi) - double(m.lo)) * pos;
-            logSum += w * std::log(adrDensityOf(modes, total, x, nn));
+        for (int64_t t = 0; t < q; ++t, ++i) {
+            logSum += w * logs[i];
             weight += w;
         }
     }
@@ -143,22 +313,7 @@ float pajotLogLuminance(const float rgb[3], const std::array<double, 3>& luma) {
 }
 
 double adrNearestNeighbour(const std::vector<PajotMode>& modes) {
-    const int64_t n = totalSamples(modes);
-    if (n < 2) return 0.0;
-    const double inf = std::numeric_limits<double>::infinity();
-    double sum = 0;
-    for (size_t k = 0; k < modes.size(); ++k) {
-        const PajotMode& m = modes[k];
-        const double below = k > 0 ? double(m.lo) - double(modes[k - 1].hi) : inf;
-        const double above = k + 1 < modes.size() ? double(modes[k + 1].lo) - double(m.hi) : inf;
-        if (m.n == 1) {
-            sum += std::min(below, above);
-        } else {
-            const double s = (double(m.hi) - double(m.lo)) / double(m.n - 1);
-            sum += std::min(s, below) + std::min(s, above) + double(m.n - 2) * s;
-        }
-    }
-    return sum / double(n);
+    return nearestNeighbourOf(modes, totalSamples(modes));
 }
 
 double adrDensity(const std::vector<PajotMode>& modes, double x, double h) {
@@ -184,8 +339,12 @@ double rotBandwidth(int64_t n, double sigma) {
     return std::pow(25.0 * double(n), -0.2) * sigma;  // eq. 5
 }
 
-std::vector<PajotMode> aggregateModes(const std::vector<float>& l, const std::vector<double>& h) {
-    std::vector<PajotMode> modes;
+namespace {
+
+/// aggregateModes into `modes` (emptied first).
+void aggregateModesInto(const std::vector<float>& l, const std::vector<double>& h,
+                        std::vector<PajotMode>& modes) {
+    modes.clear();
     for (size_t i = 0; i < l.size(); ++i) {
         if (i > 0 && overlaps(l[i - 1], l[i], h[i - 1], h[i]) && modes.back().n < UINT32_MAX) {
             modes.back().hi = l[i];
@@ -194,13 +353,14 @@ std::vector<PajotMode> aggregateModes(const std::vector<float>& l, const std::ve
             modes.push_back({l[i], l[i], 1});
         }
     }
-    return modes;
 }
 
-std::vector<double> adaptiveBandwidths(const std::vector<float>& l) {
+/// adaptiveBandwidths into `h`, with `pilot` as scratch.
+void adaptiveBandwidthsInto(const std::vector<float>& l, std::vector<double>& h,
+                            std::vector<double>& pilot) {
     const size_t n = l.size();
-    std::vector<double> h(n, 0.0);
-    if (n < 2) return h;
+    h.assign(n, 0.0);
+    if (n < 2) return;
     double nn = 0;  // mean nearest-neighbour distance
     for (size_t i = 0; i < n; ++i) {
         const double below = i > 0 ? double(l[i]) - double(l[i - 1]) : HUGE_VAL;
@@ -208,21 +368,48 @@ std::vector<double> adaptiveBandwidths(const std::vector<float>& l) {
         nn += std::min(below, above);
     }
     nn /= double(n);
-    if (!(nn > 0.0)) return h;  // all equal: zero bandwidths, one mode of equal values
+    if (!(nn > 0.0)) return;  // all equal: zero bandwidths, one mode of equal values
     // Pilot density at every value with bandwidth nn (eq. 3), a window over the sorted values.
-    std::vector<double> pilot(n);
-    double logSum = 0;
+    pilot.resize(n);
+    double logSum = 0, lastLog = 0;
     size_t first = 0;
     for (size_t i = 0; i < n; ++i) {
+        if (i > 0 && l[i] == l[i - 1]) {  // the same window, the same sum: the same density
+            pilot[i] = pilot[i - 1];
+            logSum += lastLog;
+            continue;
+        }
         while (double(l[i]) - double(l[first]) >= nn) ++first;
         double sum = 0;
         for (size_t j = first; j < n && double(l[j]) - double(l[i]) < nn; ++j)
             sum += epanechnikov((double(l[i]) - double(l[j])) / nn);
         pilot[i] = sum / (double(n) * nn);
-        logSum += std::log(pilot[i]);
+        lastLog = std::log(pilot[i]);
+        logSum += lastLog;
     }
     const double g = std::exp(logSum / double(n));
     for (size_t i = 0; i < n; ++i) h[i] = nn * std::sqrt(g / pilot[i]);  // eq. 4
+}
+
+/// lastExtendedUpperBound(aggregateModes(l, h for every value)) without building the modes: the
+/// last value that joins its predecessor's mode ends the last extended mode.
+float lastExtendedUpperBoundOf(const std::vector<float>& l, double h) {
+    for (size_t i = l.size(); i-- > 1;)
+        if (overlaps(l[i - 1], l[i], h, h)) return l[i];
+    return kNoMode;
+}
+
+}  // namespace
+
+std::vector<PajotMode> aggregateModes(const std::vector<float>& l, const std::vector<double>& h) {
+    std::vector<PajotMode> modes;
+    aggregateModesInto(l, h, modes);
+    return modes;
+}
+
+std::vector<double> adaptiveBandwidths(const std::vector<float>& l) {
+    std::vector<double> h, pilot;
+    adaptiveBandwidthsInto(l, h, pilot);
     return h;
 }
 
@@ -318,16 +505,27 @@ void adrAdd(std::vector<PajotMode>& modes, float l) {
     // now includes it) may overlap the neighbouring modes' extreme samples' kernels.
     const size_t k = size_t(it - modes.begin());
     modes.insert(it, PajotMode{l, l, 1});
-    const double nn = adrNearestNeighbour(modes);
     const int64_t total = totalSamples(modes);
-    auto bandwidth = [&modes, nn, total](double g, double x) {
-        return nn > 0.0 ? nn * std::sqrt(g / adrDensityOf(modes, total, x, nn)) : 0.0;
+    const double nn = nearestNeighbourOf(modes, total);
+    // Scratch of the thread's updates: no allocation per sample once it has grown.
+    thread_local AdrDensities scratch;
+    AdrDensities& density = scratch;
+    KnownDensity known[3];
+    double g = 0.0;
+    if (nn > 0.0) {
+        density.prepare(modes, total, nn);
+        g = adrGeometricMeanDensity(modes, total, nn, density, k, known);
+    }
+    // h = nn (G / p(x))^(1/2) (eq. 4), p(x) taken from the geometric mean's points when it is one.
+    auto bandwidth = [&density, nn, g](double x, const KnownDensity& kd) {
+        if (!(nn > 0.0)) return 0.0;
+        return nn * std::sqrt(g / (kd.x == x ? kd.p : density.at(x)));
     };
-    const double g = nn > 0.0 ? adrGeometricMeanDensity(modes, nn) : 0.0;
-    const double hl = bandwidth(g, l);
-    const bool below = k > 0 && overlaps(modes[k - 1].hi, l, bandwidth(g, modes[k - 1].hi), hl);
-    const bool above =
-        k + 1 < modes.size() && overlaps(l, modes[k + 1].lo, hl, bandwidth(g, modes[k + 1].lo));
+    const double hl = bandwidth(l, known[1]);
+    const bool below =
+        k > 0 && overlaps(modes[k - 1].hi, l, bandwidth(modes[k - 1].hi, known[0]), hl);
+    const bool above = k + 1 < modes.size() &&
+                       overlaps(l, modes[k + 1].lo, hl, bandwidth(modes[k + 1].lo, known[2]));
     // Merging on both sides replaces the two modes and the new sample by one extended mode.
     size_t first = k, last = k;
     if (below) first = k - 1;
@@ -390,6 +588,8 @@ bool PajotPixel::add(const float rgb[3], const PajotParams& p, int64_t tag) {
     ++s_.taken;
     const PajotSample smp{{rgb[0], rgb[1], rgb[2]}, pajotLogLuminance(rgb, p.luma), tag};
     if (s_.phase == PajotPhase::Learning) {
+        // One allocation for the learning samples (the usual N; a large N grows as it comes).
+        if (s_.learning.empty() && p.learning <= 4096) s_.learning.reserve(size_t(p.learning));
         s_.learning.push_back(smp);
         if (int64_t(s_.learning.size()) >= p.learning) finishLearning(p);
         return true;
@@ -424,22 +624,28 @@ bool PajotPixel::add(const float rgb[3], const PajotParams& p, int64_t tag) {
 }
 
 void PajotPixel::finishLearning(const PajotParams& p) {
-    std::vector<float> l;  // non-black log-luminances in the order taken
+    // Scratch of the thread's learning phases: no allocation per pixel once it has grown.
+    struct Scratch {
+        std::vector<float> l, sorted;
+        std::vector<double> h, pilot;
+    };
+    thread_local Scratch sc;
+    std::vector<float>& l = sc.l;  // non-black log-luminances in the order taken
+    l.clear();
     for (const PajotSample& smp : s_.learning)
         if (smp.l != kNoMode) l.push_back(smp.l);
-    std::vector<float> sorted = l;
+    std::vector<float>& sorted = sc.sorted;
+    sorted.assign(l.begin(), l.end());
     std::sort(sorted.begin(), sorted.end());
     s_.mAdr = s_.mRot = kNoMode;
     if (p.method != PajotMethod::ROT) {
-        s_.modes = aggregateModes(sorted, adaptiveBandwidths(sorted));
+        adaptiveBandwidthsInto(sorted, sc.h, sc.pilot);
+        aggregateModesInto(sorted, sc.h, s_.modes);
         s_.mAdr = lastExtendedUpperBound(s_.modes);
     }
     if (p.method != PajotMethod::ADR) {
         for (float v : l) welford(s_, v);
-        const double h = rotBandwidth(s_.rotN, rotSigma(s_));
-        const std::vector<PajotMode> modes =
-            aggregateModes(sorted, std::vector<double>(sorted.size(), h));
-        s_.mRot = lastExtendedUpperBound(modes);
+        s_.mRot = lastExtendedUpperBoundOf(sorted, rotBandwidth(s_.rotN, rotSigma(s_)));
         // Modes at or below m are released (section 4.4); above m every mode is single.
         s_.rotSingles.assign(std::upper_bound(sorted.begin(), sorted.end(), s_.mRot), sorted.end());
     }
