@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <libdeflate.h>
 
+#include <algorithm>
 #include <cstring>
 #include <new>
 
@@ -60,6 +61,89 @@ void interleaveZipHalves(const uint8_t* in, uint8_t* out, size_t n) {
         out[2 * k + 1] = b[k];
     }
     if (n % 2 != 0) out[n - 1] = a[pairs];
+}
+
+void splitAndPredictZip(const uint8_t* in, uint8_t* out, size_t n) {
+    if (n == 0) return;
+    const size_t pairs = n / 2;
+    uint8_t* a = out;
+    uint8_t* b = out + (n + 1) / 2;
+    size_t k = 0;
+#if defined(__SSE2__)
+    const __m128i low = _mm_set1_epi16(0x00ff);
+    for (; pairs - k >= 16; k += 16) {
+        const __m128i v0 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(in + 2 * k));
+        const __m128i v1 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(in + 2 * k + 16));
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(a + k),
+                         _mm_packus_epi16(_mm_and_si128(v0, low), _mm_and_si128(v1, low)));
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(b + k),
+                         _mm_packus_epi16(_mm_srli_epi16(v0, 8), _mm_srli_epi16(v1, 8)));
+    }
+#endif
+    for (; k < pairs; ++k) {
+        a[k] = in[2 * k];
+        b[k] = in[2 * k + 1];
+    }
+    if (n % 2 != 0) a[pairs] = in[n - 1];
+    // Predictor, from the end so that each byte's predecessor is still the original.
+    size_t i = n;  // bytes [i, n) are done
+#if defined(__SSE2__)
+    const __m128i bias = _mm_set1_epi8(char(-128));  // + 128 and - 128 are the same modulo 256
+    for (; i >= 17; i -= 16) {
+        const __m128i cur = _mm_loadu_si128(reinterpret_cast<const __m128i*>(out + i - 16));
+        const __m128i prev = _mm_loadu_si128(reinterpret_cast<const __m128i*>(out + i - 17));
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(out + i - 16),
+                         _mm_add_epi8(_mm_sub_epi8(cur, prev), bias));
+    }
+#endif
+    for (; i > 1; --i) out[i - 1] = uint8_t(out[i - 1] - out[i - 2] + 128);
+}
+
+ZipEncoder::ZipEncoder(int level) : c_(libdeflate_alloc_compressor(level)) {
+    if (c_ == nullptr) throw std::bad_alloc();
+}
+
+ZipEncoder::~ZipEncoder() { libdeflate_free_compressor(c_); }
+
+size_t ZipEncoder::apply(const void* in, size_t n, void* out, size_t capacity) {
+    if (n == 0) return 0;
+    if (scratchSize_ < n) {
+        scratch_.reset();
+        scratchSize_ = 0;
+        scratch_.reset(new uint8_t[n]);
+        scratchSize_ = n;
+    }
+    splitAndPredictZip(static_cast<const uint8_t*>(in), scratch_.get(), n);
+    // Room for one byte less than the input: libdeflate returns 0 when the result does not fit,
+    // and a chunk as large as its input would read as stored.
+    return libdeflate_zlib_compress(c_, scratch_.get(), n, out, std::min(capacity, n - 1));
+}
+
+exr_result_t zipCompressChunk(exr_encode_pipeline_t* encode) {
+    if (encode == nullptr || encode->encoding_user_data == nullptr ||
+        (encode->chunk.type != EXR_STORAGE_SCANLINE && encode->chunk.type != EXR_STORAGE_TILED) ||
+        encode->alloc_fn == nullptr)
+        return EXR_ERR_INVALID_ARGUMENT;
+    auto& zip = *static_cast<ZipEncoder*>(encode->encoding_user_data);
+    const size_t n = size_t(encode->packed_bytes);
+    if (encode->compressed_buffer == nullptr || encode->compressed_alloc_size < n) {
+        encode->compressed_buffer = encode->alloc_fn(EXR_TRANSCODE_BUFFER_COMPRESSED, n);
+        encode->compressed_alloc_size = encode->compressed_buffer != nullptr ? n : 0;
+        if (encode->compressed_buffer == nullptr) return EXR_ERR_OUT_OF_MEMORY;
+    }
+    try {
+        const size_t got = zip.apply(encode->packed_buffer, n, encode->compressed_buffer,
+                                     encode->compressed_alloc_size);
+        if (got == 0) {
+            std::memcpy(encode->compressed_buffer, encode->packed_buffer, n);
+            encode->compressed_bytes = n;
+        } else {
+            encode->compressed_bytes = got;
+        }
+        return EXR_ERR_SUCCESS;
+    } catch (const std::bad_alloc&) {
+        return EXR_ERR_OUT_OF_MEMORY;
+    }
 }
 
 ZipDecoder::ZipDecoder() : d_(libdeflate_alloc_decompressor()) {

@@ -14,6 +14,7 @@
 #include <memory>
 #include <string>
 
+struct libdeflate_compressor;
 struct libdeflate_decompressor;
 
 namespace mcstat::detail {
@@ -54,6 +55,37 @@ class ZipDecoder {
 /// does not give exactly its unpacked size is EXR_ERR_CORRUPT_CHUNK (the decoder's problem()
 /// says why). An empty packed chunk of a non-empty one is corrupt too.
 exr_result_t zipDecompressChunk(exr_decode_pipeline_t* decode);
+
+/// One thread's ZIP encoder: OpenEXR's byte split and predictor, then libdeflate's zlib format at
+/// `level` (the writer's 4). Not thread-safe.
+class ZipEncoder {
+  public:
+    explicit ZipEncoder(int level = 4);
+    ~ZipEncoder();
+    ZipEncoder(const ZipEncoder&) = delete;
+    ZipEncoder& operator=(const ZipEncoder&) = delete;
+
+    /// Applies OpenEXR's ZIP to the `n` bytes at `in`, into `out` (room for `capacity` bytes);
+    /// returns the compressed size, or 0 when the result would not be smaller than `n` (the
+    /// chunk is then stored as it is, which readers tell by its size). Throws std::bad_alloc
+    /// when the scratch buffer cannot grow.
+    size_t apply(const void* in, size_t n, void* out, size_t capacity);
+
+  private:
+    libdeflate_compressor* c_ = nullptr;
+    std::unique_ptr<uint8_t[]> scratch_;
+    size_t scratchSize_ = 0;
+};
+
+/// The compress_fn of a Core encode pipeline of a ZIP or ZIPS part whose encoding_user_data is a
+/// ZipEncoder: the compressed buffer comes from the pipeline's alloc_fn, and a chunk ZIP would
+/// not shrink is stored as it is (compressed_bytes == packed_bytes), as OpenEXR's writers do.
+exr_result_t zipCompressChunk(exr_encode_pipeline_t* encode);
+
+/// The steps before deflating, on their own (the inverse of interleaveZipHalves and
+/// undoZipPredictor): the even bytes of `in` then its odd ones, each byte but the first stored
+/// as its difference to the previous one plus 128, modulo 256.
+void splitAndPredictZip(const uint8_t* in, uint8_t* out, size_t n);
 
 /// The two steps after inflating, on their own (ZipDecoder::undo runs them; exposed for tests
 /// and benchmarks). undoZipPredictor: byte i (i > 0) of `p` becomes the sum of bytes 0..i, each

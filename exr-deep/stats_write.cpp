@@ -1,6 +1,8 @@
 // writeStatsFile: validate, write the four parts (part 1 deep with adaptive M) to a temporary file
 // in the target's directory, rename it onto the target. On failure the temporary file is removed
-// and the target is untouched.
+// and the target is untouched. A file of flat parts only (fixed M, no version-4 parts) is written
+// through OpenEXR's Core API with libdeflate's ZIP (flat_part_writer.h); the others through the
+// C++ API, as before.
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfDeepFrameBuffer.h>
 #include <OpenEXR/ImfDeepScanLineOutputPart.h>
@@ -28,6 +30,7 @@
 #include "deep_frame_buffer.h"
 #include "extra_parts.h"
 #include "fd_stream.h"
+#include "flat_part_writer.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
 #include "mcstat/temp_file.h"
@@ -171,6 +174,33 @@ void writeRows(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
     }
 }
 
+/// The slices of every flat part of `blk` for the Core writer, in part order (read only).
+std::vector<detail::PartSlices> flatSlices(const StatsImage& blk) {
+    const StatsHeader& h = blk.header;
+    const int parts = h.aovs.empty() ? layout::kPartCount : layout::kAovs + 1;
+    std::vector<detail::PartSlices> out(static_cast<size_t>(parts));
+    for (int part = 0; part < parts; ++part) {
+        out[size_t(part)].part = part;
+        for (const layout::ChannelPlace& c : part == layout::kAovs
+                                                 ? layout::aovChannels(h)
+                                                 : layout::partChannels(part, h.M, h.adaptiveM)) {
+            const float* data = layout::arrayOf(blk, c.array).data() + c.offset;
+            const size_t xStride = c.stride * sizeof(float);
+            // The writer only reads through the slice.
+            out[size_t(part)].slices.push_back(
+                {c.name, const_cast<char*>(reinterpret_cast<const char*>(data)), xStride,
+                 xStride * size_t(h.width)});
+        }
+    }
+    return out;
+}
+
+/// Bytes per pixel of the widest array a slice of `h` points into (the Core writer's strides).
+size_t widestPixelBytes(const StatsHeader& h) {
+    const size_t m = size_t(std::max(1, h.M));
+    return sizeof(float) * std::max({size_t(3) * m, m * h.aovs.size(), size_t(11)});
+}
+
 }  // namespace
 
 struct StatsFileWriter::Impl {
@@ -180,13 +210,15 @@ struct StatsFileWriter::Impl {
     detail::Fd fd;
     std::unique_ptr<detail::FdOStream> os;
     std::unique_ptr<Imf::MultiPartOutputFile> file;
-    int nextRow = 0;  ///< rows written so far
+    std::unique_ptr<detail::FlatPartWriter> flat;  ///< instead of `file` for flat parts only
+    int nextRow = 0;                               ///< rows written so far
     /// Written after the four parts by commit() (writeStatsFile's version-4 extras).
     std::function<void(Imf::MultiPartOutputFile&)> extraParts;
     bool failed = false;
 
     ~Impl() {
         file.reset();  // OpenEXR writes the offset tables here; the file is removed anyway
+        flat.reset();
         fd.reset();
         tmp.reset();  // removes the temporary unless it was renamed
     }
@@ -237,10 +269,22 @@ bool StatsFileWriterAccess::open(StatsFileWriter& w, const std::string& path, co
     }
     try {
         std::vector<Imf::Header> headers = makeHeaders(h);
-        headers.insert(headers.end(), extraHeaders.begin(), extraHeaders.end());
-        impl->os = std::make_unique<detail::FdOStream>(impl->fd.get(), tmp);
-        impl->file = std::make_unique<Imf::MultiPartOutputFile>(
-            *impl->os, headers.data(), int(headers.size()), false, detail::codecThreads(nthreads));
+        if (extraHeaders.empty() && !h.adaptiveM &&
+            detail::FlatPartWriter::supports(headers, widestPixelBytes(h))) {
+            impl->flat = std::make_unique<detail::FlatPartWriter>();
+            std::string problem;
+            if (!impl->flat->open(impl->fd.get(), path, headers, detail::codecThreads(nthreads),
+                                  problem)) {
+                err = fmt::format("{}: cannot write ({})", path, problem);
+                return false;
+            }
+        } else {
+            headers.insert(headers.end(), extraHeaders.begin(), extraHeaders.end());
+            impl->os = std::make_unique<detail::FdOStream>(impl->fd.get(), tmp);
+            impl->file = std::make_unique<Imf::MultiPartOutputFile>(*impl->os, headers.data(),
+                                                                    int(headers.size()), false,
+                                                                    detail::codecThreads(nthreads));
+        }
     } catch (const std::exception& e) {
         err = fmt::format("{}: cannot write ({})", path, e.what());
         return false;
@@ -281,6 +325,22 @@ bool StatsFileWriter::write(const StatsImage& block, std::string& err) {
             }
     }
     if (!validateStats(block, im.path, err)) return false;
+    if (im.flat) {
+        std::string problem;
+        bool ok = false;
+        try {
+            ok = im.flat->write(flatSlices(block), b.height, problem);
+        } catch (const std::bad_alloc&) {
+            problem = "out of memory";
+        }
+        if (!ok) {
+            im.failed = true;
+            err = fmt::format("{}: cannot write ({})", im.path, problem);
+            return false;
+        }
+        im.nextRow += b.height;
+        return true;
+    }
     try {
         writeRows(*im.file, block);
         if (!im.os->error().empty()) throw std::runtime_error(im.os->error());
@@ -303,9 +363,14 @@ bool StatsFileWriter::commit(std::string& err) {
     Impl& im = *impl_;
     std::string problem;
     try {
-        if (im.extraParts) im.extraParts(*im.file);
-        im.file.reset();  // writes the offset tables
-        problem = im.os->error();
+        if (im.flat) {
+            im.flat->finish(problem);  // the spilled chunks and the offset tables
+            im.flat.reset();
+        } else {
+            if (im.extraParts) im.extraParts(*im.file);
+            im.file.reset();  // writes the offset tables
+            problem = im.os->error();
+        }
     } catch (const std::exception& e) {
         problem = e.what();
     }

@@ -1,16 +1,24 @@
-// The reader's flat parts go through OpenEXR's Core API, ZIP and ZIPS inflated by libdeflate
-// (exr-deep/flat_part_reader.h): for every compression OpenEXR writes, the pixels equal the C++
-// API's read of the same file bit for bit (NaN payloads, infinities, denormals, -0 included),
-// on 1 and 2 threads and for blocks that cut chunks; a damaged ZIP chunk is a one-line error.
+// Statistics files through OpenEXR's Core API with libdeflate's ZIP.
+// Reading (exr-deep/flat_part_reader.h): for every compression OpenEXR writes, the pixels equal
+// the C++ API's read of the same file bit for bit (NaN payloads, infinities, denormals, -0
+// included), on 1 and 2 threads and for blocks that cut chunks; a damaged ZIP chunk is a one-line
+// error. Writing (exr-deep/flat_part_writer.h): the bytes are standard ZIP that OpenEXR's C++
+// API, its file checker (exrcheck's engine) and stock oiiotool read, the same whatever the blocks
+// and threads; a chunk ZIP cannot shrink is stored as it is.
+#include <OpenEXR/ImfCheckFile.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/openexr.h>
 #include <gtest/gtest.h>
 
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 #include <map>
+#include <memory>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -134,7 +142,7 @@ struct Codec {
     bool lossless;  // for FLOAT channels
 };
 
-class CoreRead : public testing::Test {
+class CoreIo : public testing::Test {
   protected:
     void SetUp() override {
         // 53 rows: a last chunk of 5 rows for ZIP's 16 and 21 for PIZ's 32; an odd width makes
@@ -158,7 +166,7 @@ class CoreRead : public testing::Test {
     std::string zipPath;
 };
 
-TEST_F(CoreRead, EveryCompressionGivesTheCppApisPixelsOnOneAndTwoThreads) {
+TEST_F(CoreIo, EveryCompressionGivesTheCppApisPixelsOnOneAndTwoThreads) {
     const Codec codecs[] = {
         {Imf::ZIP_COMPRESSION, "zip", true},    {Imf::ZIPS_COMPRESSION, "zips", true},
         {Imf::NO_COMPRESSION, "none", true},    {Imf::PIZ_COMPRESSION, "piz", true},
@@ -182,7 +190,7 @@ TEST_F(CoreRead, EveryCompressionGivesTheCppApisPixelsOnOneAndTwoThreads) {
     }
 }
 
-TEST_F(CoreRead, OnlySomePartsAndBlocksOfWholeChunks) {
+TEST_F(CoreIo, OnlySomePartsAndBlocksOfWholeChunks) {
     StatsFileReader reader;
     std::string err;
     ASSERT_TRUE(reader.open(zipPath, err, ReadLimits(), 2)) << err;
@@ -219,7 +227,7 @@ std::string readError(const std::string& path, int threads) {
     return err;
 }
 
-TEST_F(CoreRead, CorruptZipChunkIsAOneLineErrorNamingTheFile) {
+TEST_F(CoreIo, CorruptZipChunkIsAOneLineErrorNamingTheFile) {
     const exr_chunk_info_t ci = chunkOf(zipPath, 1, 16);  // part buffers, rows 16..31
     ASSERT_GT(ci.packed_size, 64u);
     ASSERT_LT(ci.packed_size, ci.unpacked_size) << "the chunk is stored, not compressed";
@@ -238,7 +246,7 @@ TEST_F(CoreRead, CorruptZipChunkIsAOneLineErrorNamingTheFile) {
     EXPECT_EQ(one.find('\n'), std::string::npos) << one;
 }
 
-TEST_F(CoreRead, ShortZipChunkIsAnError) {
+TEST_F(CoreIo, ShortZipChunkIsAnError) {
     // The chunk's size field says fewer bytes than its data: inflating stops short.
     const exr_chunk_info_t ci = chunkOf(zipPath, 3, 32);  // part features, rows 32..47
     ASSERT_LT(ci.packed_size, ci.unpacked_size);
@@ -260,7 +268,7 @@ TEST_F(CoreRead, ShortZipChunkIsAnError) {
     }
 }
 
-TEST_F(CoreRead, TwoDamagedChunksReportTheSameOneWhateverTheThreads) {
+TEST_F(CoreIo, TwoDamagedChunksReportTheSameOneWhateverTheThreads) {
     std::vector<unsigned char> bytes = readBytes(zipPath);
     for (int y : {0, 48}) {
         const exr_chunk_info_t ci = chunkOf(zipPath, 1, y);
@@ -272,6 +280,88 @@ TEST_F(CoreRead, TwoDamagedChunksReportTheSameOneWhateverTheThreads) {
     const std::string one = readError(bad, 1);
     EXPECT_TRUE(contains(one, "part 'buffers': the chunk of rows ")) << one;
     for (int i = 0; i < 4; ++i) EXPECT_EQ(readError(bad, 2), one);
+}
+
+// ---- writing ------------------------------------------------------------------------------------
+
+/// Writes `img` with StatsFileWriter in blocks of `blockRows` rows on `threads` threads.
+void writeByBlocks(const std::string& path, const StatsImage& img, int blockRows, int threads) {
+    MemoryStatsSource src(std::make_shared<const StatsImage>(img), "memory");
+    StatsFileWriter w;
+    std::string err;
+    ASSERT_TRUE(w.open(path, img.header, err, threads)) << err;
+    StatsImage block;
+    for (int y = 0; y < img.header.height; y += blockRows) {
+        ASSERT_TRUE(
+            src.read(y, std::min(blockRows, img.header.height - y), kStatsAllParts, block, err))
+            << err;
+        ASSERT_TRUE(w.write(block, err)) << err;
+    }
+    ASSERT_TRUE(w.commit(err)) << err;
+}
+
+TEST_F(CoreIo, WrittenBytesAreTheSameWhateverTheBlocksAndThreads) {
+    // zipPath is writeStatsFile's (the whole image at once, straight into the file); streamed
+    // writes go through the spill file and the staging of rows that do not fill a chunk.
+    const std::vector<unsigned char> whole = readBytes(zipPath);
+    const std::pair<int, int> runs[] = {{7, 1}, {7, 2}, {16, 2}, {40, 1}, {53, 2}, {1, 2}};
+    for (const auto& [rows, threads] : runs) {
+        const std::string path = dir.file("blocks.mcstat");
+        writeByBlocks(path, img, rows, threads);
+        EXPECT_TRUE(readBytes(path) == whole) << rows << " rows a block, " << threads << " threads";
+    }
+}
+
+TEST_F(CoreIo, WrittenZipIsStandardOpenExr) {
+    // Every part says ZIP and holds compressed chunks; OpenEXR's C++ API reads the image's bits;
+    // its file checker (exrcheck's engine, every read path, the Core's included) finds nothing.
+    expectEqualsCppRead(img, zipPath, "written");
+    for (const RawPart& p : readRaw(zipPath))
+        EXPECT_EQ(p.header.compression(), Imf::ZIP_COMPRESSION) << p.header.name();
+    const exr_chunk_info_t ci = chunkOf(zipPath, 1, 0);
+    EXPECT_LT(ci.packed_size, ci.unpacked_size);
+    EXPECT_FALSE(Imf::checkOpenEXRFile(zipPath.c_str(), false, false, true));
+    EXPECT_FALSE(Imf::checkOpenEXRFile(zipPath.c_str(), false, false, false));
+}
+
+TEST_F(CoreIo, StockOiiotoolReadsTheWrittenFile) {
+    const std::string oiiotool = MCSTAT_OIIOTOOL;
+    if (oiiotool.empty()) GTEST_SKIP() << "no oiiotool";
+    // Named .exr, so that OIIO's own OpenEXR reader opens it (not mcstat's plugin).
+    const std::string exr = dir.file("stats.exr"), out = dir.file("buffers.exr");
+    std::filesystem::copy_file(zipPath, exr);
+    const std::string cmd =
+        oiiotool + " '" + exr + "' --subimage buffers -d float -o '" + out + "' 2>&1";
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    const std::vector<RawPart> parts = readRaw(out);
+    ASSERT_EQ(parts.size(), 1u);
+    const auto mine = channelsOf(img);
+    const auto& buffers = mine.at("buffers");
+    ASSERT_EQ(parts[0].values.size(), buffers.size());
+    for (const auto& [name, values] : parts[0].values) {
+        ASSERT_TRUE(buffers.count(name)) << name;
+        EXPECT_TRUE(bitEqual(values, buffers.at(name))) << name;
+    }
+}
+
+TEST_F(CoreIo, AChunkZipCannotShrinkIsStoredAsItIs) {
+    // Random bits in the beauty: its chunks do not compress, so they are stored (packed size ==
+    // unpacked size, which readers take as uncompressed); they still read back bit for bit.
+    std::mt19937 rng(5);
+    for (float& v : img.beauty) {
+        uint32_t u = rng();
+        std::memcpy(&v, &u, sizeof v);
+    }
+    const std::string path = dir.file("noise.mcstat");
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path, img, err)) << err;
+    const exr_chunk_info_t ci = chunkOf(path, 0, 0);
+    EXPECT_EQ(ci.packed_size, ci.unpacked_size);
+    expectEqualsCppRead(img, path, "noise");
+    StatsImage back;
+    ASSERT_TRUE(readStatsFile(path, back, err)) << err;
+    EXPECT_TRUE(bitEqual(back.beauty, img.beauty));
+    EXPECT_TRUE(bitEqual(back.bufferMean, img.bufferMean));
 }
 
 }  // namespace
