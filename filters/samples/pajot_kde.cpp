@@ -491,10 +491,8 @@ bool parsePajotParamsText(const std::string& text, PajotParams& p, std::string& 
 
 // ---- the per-pixel estimator --------------------------------------------------------------------
 
-namespace {
-
-/// ADR's incremental update (section 4.2) for a non-black value l.
-void adrAdd(std::vector<PajotMode>& modes, float l) {
+void adrUpdate(std::vector<PajotMode>& modes, float l, AdrUpdateTrace* trace) {
+    if (trace) *trace = AdrUpdateTrace();
     auto it = std::lower_bound(modes.begin(), modes.end(), l,
                                [](const PajotMode& m, float v) { return m.hi < v; });
     if (it != modes.end() && it->lo <= l) {  // inside [lo, hi] of a mode: one more sample
@@ -522,10 +520,11 @@ void adrAdd(std::vector<PajotMode>& modes, float l) {
         return nn * std::sqrt(g / (kd.x == x ? kd.p : density.at(x)));
     };
     const double hl = bandwidth(l, known[1]);
-    const bool below =
-        k > 0 && overlaps(modes[k - 1].hi, l, bandwidth(modes[k - 1].hi, known[0]), hl);
-    const bool above = k + 1 < modes.size() &&
-                       overlaps(l, modes[k + 1].lo, hl, bandwidth(modes[k + 1].lo, known[2]));
+    const double hBelow = k > 0 ? bandwidth(modes[k - 1].hi, known[0]) : 0.0;
+    const double hAbove = k + 1 < modes.size() ? bandwidth(modes[k + 1].lo, known[2]) : 0.0;
+    if (trace) *trace = {true, nn, g, hl, hBelow, hAbove};
+    const bool below = k > 0 && overlaps(modes[k - 1].hi, l, hBelow, hl);
+    const bool above = k + 1 < modes.size() && overlaps(l, modes[k + 1].lo, hl, hAbove);
     // Merging on both sides replaces the two modes and the new sample by one extended mode.
     size_t first = k, last = k;
     if (below) first = k - 1;
@@ -539,6 +538,8 @@ void adrAdd(std::vector<PajotMode>& modes, float l) {
     modes.erase(modes.begin() + std::ptrdiff_t(first) + 1,
                 modes.begin() + std::ptrdiff_t(last) + 1);
 }
+
+namespace {
 
 /// ROT's modes above m from the sorted singles with the constant bandwidth h (section 4.4): the
 /// singles chained to the last extended mode extend it; a group of overlapping singles above
@@ -598,7 +599,7 @@ bool PajotPixel::add(const float rgb[3], const PajotParams& p, int64_t tag) {
         const float oldM = acceptance();
         const float oldAdr = s_.mAdr, oldRot = s_.mRot;
         if (s_.phase == PajotPhase::ADR) {
-            adrAdd(s_.modes, smp.l);
+            adrUpdate(s_.modes, smp.l);
             s_.mAdr = lastExtendedUpperBound(s_.modes);
         }
         if (p.method != PajotMethod::ADR) {

@@ -18,6 +18,7 @@
 #include "mcstat/filters/samples/pajot_state.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
+#include "pajot_reference.h"
 #include "tool_test.h"
 
 namespace mcstat {
@@ -150,6 +151,51 @@ TEST_F(PajotFile, AResumedRenderEqualsTheStraightOneBitForBit) {
                                     (1.0 + std::fabs(double(t.bufferMean[i]))));
     EXPECT_LT(worst, 1e-6);
 }
+
+/// Renders with --pajot METHOD and --keep-samples, replays every pixel's records through the plain
+/// re-implementation of pajot_reference.h and compares the state the renderer wrote (parts pajot
+/// and modes) with the replay's, bit for bit: the online estimator's speed-ups change nothing a
+/// real render stores.
+class OnlineReference : public PajotFile, public ::testing::WithParamInterface<const char*> {};
+
+TEST_P(OnlineReference, TheStoredStateIsThePlainImplementationsBitForBit) {
+    for (const char* scene : {"caustic", "default"}) {
+        const std::string f = path(std::string(scene) + ".mcstat");
+        ASSERT_EQ(render(std::string("--scene ") + scene + " --res 32 24 --spp 250 --M 2 --pajot " +
+                         GetParam() + " --keep-samples --threads 2 -o " + f)
+                      .code,
+                  0);
+        PajotImage online;
+        std::string err;
+        ASSERT_TRUE(readPajotParts(f, online, err)) << err;
+        SampleRecordsReader rd;
+        ASSERT_TRUE(rd.open(f, err)) << err;
+        SampleBlock block;
+        const int width = rd.header().width, height = rd.header().height;
+        ASSERT_TRUE(rd.read(0, height, block, err)) << err;
+        const int r = block.channel("R"), g = block.channel("G"), b = block.channel("B");
+        ASSERT_GE(std::min({r, g, b}), 0);
+        size_t k = 0;
+        int differ = 0, records = 0;
+        for (size_t p = 0; p < size_t(width) * size_t(height); ++p) {
+            pajot_ref::Pixel ref;
+            for (uint32_t i = 0; i < block.counts[p]; ++i, ++k) {
+                const float* smp = &block.samples[k * block.stride()];
+                const float rgb[3] = {smp[r], smp[g], smp[b]};
+                ref.add(rgb, online.params);
+            }
+            const std::string d = pajot_ref::firstDifference(online.pixels[p], ref.s);
+            if (!d.empty() && differ++ < 5)
+                ADD_FAILURE() << scene << ", pixel " << p << ": " << d << " differs";
+            const PajotState& st = online.pixels[p];
+            records += int(st.modes.size() + st.rotSingles.size() + st.delayed.size());
+        }
+        EXPECT_EQ(differ, 0) << scene;
+        EXPECT_GT(records, width * height / 4) << scene;  // modes and delayed samples to compare
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(Methods, OnlineReference, ::testing::Values("adr", "rot", "hybrid"));
 
 TEST_F(PajotFile, OneAndTwoThreadsWriteTheSameBytes) {
     const std::string a = path("t1.mcstat"), b = path("t2.mcstat");

@@ -172,6 +172,16 @@ double rotBandwidth(int64_t n, double sigma);
 std::vector<PajotMode> aggregateModes(const std::vector<float>& l, const std::vector<double>& h);
 /// Eq. 4 over the exact values `l` (sorted): nn, the pilot density with bandwidth nn, and h_i.
 std::vector<double> adaptiveBandwidths(const std::vector<float>& l);
+/// What one ADR update computed when the value started a new mode (for the tests that pin the
+/// arithmetic bit for bit): nn, eq. 4's G, and the bandwidths at the new value and at the extreme
+/// samples of the modes below and above it (0 where there is none).
+struct AdrUpdateTrace {
+    bool inserted = false;  ///< false: the value fell inside a mode, nothing was computed
+    double nn = 0, g = 0, h = 0, hBelow = 0, hAbove = 0;
+};
+/// ADR's incremental update (section 4.2) of sorted, disjoint `modes` by a non-black value l, as
+/// PajotPixel::add makes it; what it computed in `trace` when given.
+void adrUpdate(std::vector<PajotMode>& modes, float l, AdrUpdateTrace* trace = nullptr);
 /// m of a mode list: the hi of the last extended mode, -inf when none.
 float lastExtendedUpperBound(const std::vector<PajotMode>& modes);
 
