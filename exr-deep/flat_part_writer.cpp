@@ -16,7 +16,9 @@
 #include <algorithm>
 #include <atomic>
 #include <climits>
+#include <condition_variable>
 #include <cstring>
+#include <functional>
 #include <mutex>
 #include <new>
 #include <unordered_map>
@@ -249,8 +251,11 @@ struct FlatPartWriter::Impl {
         idle.push_back(w);
     }
     bool encode(Task& t, const PartSlices* src, Worker& w);
+    /// Encodes `tasks` on `threads` threads; false with the problem of the first failing one
+    /// in task order. With `sink`, each chunk goes to it in task order (false stops with
+    /// Task::problem set) and is then released.
     bool encodeAll(std::vector<Task>& tasks, const std::vector<PartSlices>& src,
-                   std::string& problem);
+                   std::string& problem, const std::function<bool(Task&)>& sink = nullptr);
     std::string coreProblem(exr_result_t rv, const std::string& message) const {
         if (!io.error.empty()) return io.error;
         return message.empty() ? std::string(exr_get_default_error_message(rv)) : message;
@@ -421,11 +426,30 @@ bool FlatPartWriter::Impl::encode(Task& t, const PartSlices* src, Worker& w) {
 }
 
 bool FlatPartWriter::Impl::encodeAll(std::vector<Task>& tasks, const std::vector<PartSlices>& src,
-                                     std::string& problem) {
-    std::atomic<int64_t> firstFailed{int64_t(tasks.size())};
-    parallelFor(0, int64_t(tasks.size()), 1, threads, [&](int64_t b, int64_t e) {
-        for (int64_t i = b; i < e; ++i) {
+                                     std::string& problem, const std::function<bool(Task&)>& sink) {
+    // Each thread claims the next task in order; `sink` (when given) takes the encoded chunks in
+    // task order as soon as each one's predecessors are done, and a thread waits before encoding a
+    // task more than `ahead` past the next one to sink (memory stays a few chunks). Claims are in
+    // order, so the task the others wait for is always being encoded: no thread waits forever.
+    const int64_t n = int64_t(tasks.size()), ahead = 4 * int64_t(threads);
+    std::atomic<int64_t> claimed{0}, firstFailed{n};
+    std::mutex m;
+    std::condition_variable cv;
+    int64_t nextSink = 0;
+    std::vector<char> done(tasks.size(), 0);
+    const auto fail = [&](int64_t i) {
+        int64_t cur = firstFailed.load();
+        while (i < cur && !firstFailed.compare_exchange_weak(cur, i)) {
+        }
+    };
+    parallelFor(0, threads, 1, threads, [&](int64_t, int64_t) {
+        for (int64_t i = claimed++; i < n; i = claimed++) {
             if (i > firstFailed.load()) continue;
+            if (sink) {
+                std::unique_lock<std::mutex> lock(m);
+                cv.wait(lock, [&] { return i < nextSink + ahead || firstFailed.load() < n; });
+                if (i > firstFailed.load()) continue;
+            }
             Task& t = tasks[size_t(i)];
             Worker* w = nullptr;
             bool ok = false;
@@ -438,15 +462,28 @@ bool FlatPartWriter::Impl::encodeAll(std::vector<Task>& tasks, const std::vector
             }
             tWorker = nullptr;
             if (w != nullptr) release(w);
-            if (!ok) {
-                int64_t cur = firstFailed.load();
-                while (i < cur && !firstFailed.compare_exchange_weak(cur, i)) {
+            if (!ok) fail(i);
+            if (sink) {
+                std::lock_guard<std::mutex> lock(m);
+                done[size_t(i)] = ok ? 1 : 0;
+                while (nextSink < n && done[size_t(nextSink)] && nextSink < firstFailed.load()) {
+                    Task& ready = tasks[size_t(nextSink)];
+                    if (!sink(ready)) {
+                        fail(nextSink);
+                        break;
+                    }
+                    std::vector<uint8_t>().swap(ready.out);
+                    ++nextSink;
                 }
+                cv.notify_all();
+            } else if (!ok) {
+                std::lock_guard<std::mutex> lock(m);
+                cv.notify_all();
             }
         }
     });
     const int64_t failed = firstFailed.load();
-    if (failed >= int64_t(tasks.size())) return true;
+    if (failed >= n) return true;
     problem = tasks[size_t(failed)].problem;
     return false;
 }
@@ -463,31 +500,34 @@ bool FlatPartWriter::write(const std::vector<PartSlices>& parts, int rows, std::
     tWorker = &main;
     const int r0 = im.nextRow, r1 = im.nextRow + rows;  // rows of this write, 0-based
     if (r0 == 0 && r1 == im.height) {
-        // The whole image: part by part into the file, a few chunks per thread at a time.
+        // The whole image: every part's chunks in file order, each written as soon as the ones
+        // before it are.
         im.direct = true;
+        std::vector<Task> tasks;
         for (size_t p = 0; p < parts.size(); ++p) {
             const PartState& ps = im.parts[p];
-            const int batch = ps.lines * 4 * im.threads;
-            for (int b0 = 0; b0 < im.height; b0 += batch) {
-                std::vector<Task> tasks;
-                for (int r = b0; r < std::min(im.height, b0 + batch); r += ps.lines) {
-                    Task t;
-                    t.part = int(p);
-                    t.row = t.srcRow = r;
-                    t.rows = std::min(ps.lines, im.height - r);
-                    tasks.push_back(std::move(t));
-                }
-                if (!im.encodeAll(tasks, parts, problem)) return tWorker = nullptr, false;
-                for (const Task& t : tasks) {
-                    const exr_result_t rv = exr_write_scanline_chunk(im.ctxt, t.part, im.y0 + t.row,
-                                                                     t.out.data(), t.out.size());
-                    if (rv != EXR_ERR_SUCCESS) {
-                        problem = im.coreProblem(rv, main.message);
-                        return tWorker = nullptr, false;
-                    }
-                }
+            for (int r = 0; r < im.height; r += ps.lines) {
+                Task t;
+                t.part = int(p);
+                t.row = t.srcRow = r;
+                t.rows = std::min(ps.lines, im.height - r);
+                tasks.push_back(std::move(t));
             }
         }
+        const auto toFile = [&](Task& t) {  // one at a time (encodeAll's lock), any thread
+            Worker* const saved = tWorker;
+            tWorker = &main;
+            main.message.clear();
+            const exr_result_t rv = exr_write_scanline_chunk(im.ctxt, t.part, im.y0 + t.row,
+                                                             t.out.data(), t.out.size());
+            if (rv != EXR_ERR_SUCCESS)
+                t.problem =
+                    fmt::format("part '{}': the chunk of row {}: {}", im.parts[size_t(t.part)].name,
+                                im.y0 + t.row, im.coreProblem(rv, main.message));
+            tWorker = saved;
+            return rv == EXR_ERR_SUCCESS;
+        };
+        if (!im.encodeAll(tasks, parts, problem, toFile)) return tWorker = nullptr, false;
         im.nextRow = im.height;
         tWorker = nullptr;
         return true;
