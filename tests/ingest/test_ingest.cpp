@@ -255,9 +255,9 @@ TEST_F(Ingest, NonFiniteValuesAreKeptCountedAndReported) {
     EXPECT_EQ(rep.nonFiniteValues, 4);
     ASSERT_EQ(rep.warnings.size(), 1u);
     EXPECT_EQ(rep.warnings[0], paths[1] +
-                                   ": 4 non-finite RGB values (NaN/Inf) in 2 pixels: the plain "
-                                   "mean there is non-finite; the robust estimators leave that "
-                                   "sub-buffer out");
+                                   ": 4 non-finite RGB values (NaN/Inf) in 2 pixels: the stored "
+                                   "mean (part beauty) there is non-finite; --mean and the "
+                                   "robust estimators leave that sub-buffer out");
     EXPECT_TRUE(std::isnan(img.bufferMean[(1 * 3 + 1) * 3]));
     EXPECT_TRUE(std::isnan(img.mean[1 * 3]));      // the plain mean, as a renderer's would be
     EXPECT_TRUE(std::isinf(img.mean[2 * 3 + 1]));  // +Inf stays +Inf
