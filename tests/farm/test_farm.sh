@@ -54,10 +54,18 @@ host=$(hostname -s)
 
 # Our own bound, below ctest's TIMEOUT (600 s): ctest's kill would leave the daemons running,
 # a SIGTERM from here runs the traps that stop them.
-( sleep "${MCSTAT_FARM_TEST_BOUND:-540}"
+# The sleep must not hold our stdout/stderr: killing the subshell leaves it running, and ctest
+# waits for every holder of the test's output to close it.
+( sleep "${MCSTAT_FARM_TEST_BOUND:-540}" </dev/null >/dev/null 2>&1
   echo "test_farm: FAIL: not done after ${MCSTAT_FARM_TEST_BOUND:-540} s; stopping" >&2
   kill -TERM $$ 2>/dev/null ) &
 watchdog=$!
+# The watchdog and its sleep (a child of the subshell, which a kill of the subshell leaves).
+stop_watchdog() {
+  local sleeper
+  sleeper=$(ps -o pid= --ppid "$watchdog" 2>/dev/null || true)
+  kill "$watchdog" $sleeper 2>/dev/null || true
+}
 child=""
 on_term() {
   [[ -z $child ]] || kill -TERM "$child" 2>/dev/null || true
@@ -68,7 +76,7 @@ trap on_term INT TERM
 # Long steps run in the background and are waited for: a trap runs only after a foreground
 # command ends, and a SIGTERM must stop a waiting submit at once.
 run() { "$@" & child=$!; local rc=0; wait "$child" || rc=$?; child=""; return $rc; }
-trap 'kill "$watchdog" 2>/dev/null || true' EXIT
+trap 'stop_watchdog' EXIT
 
 # Same pixels (every channel) in two EXRs.
 same_pixels() { oiiotool --fail 0 --failpercent 0 "$1" "$2" --diff >/dev/null 2>&1; }
@@ -124,7 +132,7 @@ done <demo.pids
 slurm=$work/slurm
 stop_cluster() {
   local rc=$?
-  kill "$watchdog" 2>/dev/null || true
+  stop_watchdog
   "$farm/local-slurm.sh" stop "$slurm" || { echo "test_farm: could not stop the cluster in $slurm" >&2; rc=1; }
   exit $rc
 }
@@ -265,7 +273,7 @@ for combo in "9 8" "10 3" "1 2"; do
 done
 
 step "stop the cluster"
-trap 'kill "$watchdog" 2>/dev/null || true' EXIT
+trap 'stop_watchdog' EXIT
 "$farm/local-slurm.sh" stop "$slurm" || fail "local-slurm.sh stop failed"
 for d in munged slurmctld slurmd; do [[ ! -e $slurm/$d.pid ]] || fail "$d.pid left after stop"; done
 echo "test_farm: PASS in $((SECONDS - t_start)) s"
