@@ -14,6 +14,7 @@
 #include "deflate_codec.h"
 #include "fd_stream.h"
 #include "mcstat/core/parallel.h"
+#include "worker_pool.h"
 
 namespace mcstat::detail {
 
@@ -110,26 +111,10 @@ struct FlatPartReader::Impl {
     std::string path;
     int x0 = 0, y0 = 0, width = 0, height = 0;
     std::vector<PartInfo> parts;
-    std::mutex poolMutex;
-    std::vector<std::unique_ptr<Worker>> workers;
-    std::vector<Worker*> idle;
+    detail::WorkerPool<Worker> pool;  ///< scratch of the threads decoding chunks
 
     ~Impl() {
         if (ctxt != nullptr) exr_finish(&ctxt);
-    }
-    Worker* acquire() {
-        std::lock_guard<std::mutex> lock(poolMutex);
-        if (idle.empty()) {
-            workers.push_back(std::make_unique<Worker>());
-            return workers.back().get();
-        }
-        Worker* w = idle.back();
-        idle.pop_back();
-        return w;
-    }
-    void release(Worker* w) {
-        std::lock_guard<std::mutex> lock(poolMutex);
-        idle.push_back(w);
     }
     /// Decodes the chunk of part request `req` that starts at file row `chunkY` into the rows of
     /// its slices that [firstRow, firstRow + rows) (0-based) asks for, with worker `w`; anything
@@ -387,7 +372,7 @@ FlatPartReader::Result FlatPartReader::read(const std::vector<PartSlices>& parts
             Worker* w = nullptr;
             Result res = Result::Ok;
             try {
-                w = im.acquire();
+                w = im.pool.acquire();
                 tWorker = w;
                 res = im.decode(parts[size_t(task.req)], byName[size_t(task.req)], task.y, firstRow,
                                 rows, *w, problems[size_t(t)]);
@@ -396,7 +381,7 @@ FlatPartReader::Result FlatPartReader::read(const std::vector<PartSlices>& parts
                 problems[size_t(t)] = "out of memory while decoding";
             }
             tWorker = nullptr;
-            if (w != nullptr) im.release(w);
+            if (w != nullptr) im.pool.release(w);
             results[size_t(t)] = res;
             if (res != Result::Ok) {
                 int64_t cur = firstFailed.load();

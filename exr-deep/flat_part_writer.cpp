@@ -27,6 +27,7 @@
 #include "fd_stream.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/temp_file.h"
+#include "worker_pool.h"
 
 namespace mcstat::detail {
 
@@ -228,27 +229,11 @@ struct FlatPartWriter::Impl {
     std::unique_ptr<TemporaryFile> spillFile;
     Fd spillFd;
     uint64_t spillSize = 0;
-    std::mutex poolMutex;
-    std::vector<std::unique_ptr<Worker>> workers;
-    std::vector<Worker*> idle;
-    Worker main;  ///< the calling thread's, for the serial steps' messages
+    detail::WorkerPool<Worker> pool;  ///< scratch of the threads encoding chunks
+    Worker main;                      ///< the calling thread's, for the serial steps' messages
 
     ~Impl() {
         if (ctxt != nullptr) exr_finish(&ctxt);
-    }
-    Worker* acquire() {
-        std::lock_guard<std::mutex> lock(poolMutex);
-        if (idle.empty()) {
-            workers.push_back(std::make_unique<Worker>());
-            return workers.back().get();
-        }
-        Worker* w = idle.back();
-        idle.pop_back();
-        return w;
-    }
-    void release(Worker* w) {
-        std::lock_guard<std::mutex> lock(poolMutex);
-        idle.push_back(w);
     }
     bool encode(Task& t, const PartSlices* src, Worker& w);
     /// Encodes `tasks` on `threads` threads; false with the problem of the first failing one
@@ -454,14 +439,14 @@ bool FlatPartWriter::Impl::encodeAll(std::vector<Task>& tasks, const std::vector
             Worker* w = nullptr;
             bool ok = false;
             try {
-                w = acquire();
+                w = pool.acquire();
                 tWorker = w;
                 ok = encode(t, &src[size_t(t.part)], *w);
             } catch (const std::bad_alloc&) {
                 t.problem = "out of memory while compressing";
             }
             tWorker = nullptr;
-            if (w != nullptr) release(w);
+            if (w != nullptr) pool.release(w);
             if (!ok) fail(i);
             if (sink) {
                 std::lock_guard<std::mutex> lock(m);
