@@ -365,7 +365,10 @@ class Pixel {
 /// The first field in which two states differ, bit for bit (doubles and floats by their bit
 /// patterns), or "" when they are the same.
 inline std::string firstDifference(const PajotState& a, const PajotState& b) {
-    auto same = [](const void* x, const void* y, size_t n) { return std::memcmp(x, y, n) == 0; };
+    // n == 0 first: an empty vector's data() may be null, which memcmp must not be given.
+    auto same = [](const void* x, const void* y, size_t n) {
+        return n == 0 || std::memcmp(x, y, n) == 0;
+    };
     auto sameSamples = [&](const std::vector<PajotSample>& x, const std::vector<PajotSample>& y) {
         if (x.size() != y.size()) return false;
         for (size_t i = 0; i < x.size(); ++i)
