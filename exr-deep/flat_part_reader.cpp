@@ -25,24 +25,11 @@ namespace {
 /// of a chunk that reaches outside the rows asked for.
 struct Worker {
     ZipDecoder zip;
-    static constexpr int kBuffers = int(EXR_TRANSCODE_BUFFER_SAMPLES) + 1;
-    std::unique_ptr<uint8_t[]> buffers[kBuffers];
-    size_t sizes[kBuffers] = {};
+    TranscodeBuffers transcode;
     std::unique_ptr<uint8_t[]> rows;
     size_t rowsSize = 0;
     std::string message;  ///< OpenEXR's first error message of the current chunk
 
-    /// Buffer `id` with at least `n` bytes (contents unspecified).
-    void* buffer(int id, size_t n) {
-        if (id < 0 || id >= kBuffers) return nullptr;
-        if (sizes[id] < n) {
-            buffers[id].reset();
-            sizes[id] = 0;
-            buffers[id].reset(new uint8_t[n]);
-            sizes[id] = n;
-        }
-        return buffers[id].get();
-    }
     uint8_t* rowScratch(size_t n) {
         if (rowsSize < n) {
             rows.reset();
@@ -61,7 +48,7 @@ thread_local Worker* tWorker = nullptr;
 void* workerAlloc(exr_transcoding_pipeline_buffer_id_t id, size_t n) {
     if (tWorker == nullptr) return nullptr;
     try {
-        return tWorker->buffer(int(id), n);
+        return tWorker->transcode.get(int(id), n);
     } catch (const std::bad_alloc&) {
         return nullptr;  // the pipeline reports EXR_ERR_OUT_OF_MEMORY
     }

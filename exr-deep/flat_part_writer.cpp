@@ -37,21 +37,8 @@ namespace {
 /// buffers (handed out by its allocation hooks).
 struct Worker {
     ZipEncoder zip{4};
-    static constexpr int kBuffers = int(EXR_TRANSCODE_BUFFER_SAMPLES) + 1;
-    std::unique_ptr<uint8_t[]> buffers[kBuffers];
-    size_t sizes[kBuffers] = {};
+    TranscodeBuffers transcode;
     std::string message;  ///< OpenEXR's first error message of the current chunk
-
-    void* buffer(int id, size_t n) {
-        if (id < 0 || id >= kBuffers) return nullptr;
-        if (sizes[id] < n) {
-            buffers[id].reset();
-            sizes[id] = 0;
-            buffers[id].reset(new uint8_t[n]);
-            sizes[id] = n;
-        }
-        return buffers[id].get();
-    }
 };
 
 thread_local Worker* tWorker = nullptr;
@@ -59,7 +46,7 @@ thread_local Worker* tWorker = nullptr;
 void* workerAlloc(exr_transcoding_pipeline_buffer_id_t id, size_t n) {
     if (tWorker == nullptr) return nullptr;
     try {
-        return tWorker->buffer(int(id), n);
+        return tWorker->transcode.get(int(id), n);
     } catch (const std::bad_alloc&) {
         return nullptr;
     }
