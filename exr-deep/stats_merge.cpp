@@ -306,13 +306,15 @@ bool mergeStats(const std::vector<const StatsImage*>& in, StatsImage& out, std::
                 // AOVs (version 5): as the buffer means, except labels, taken whole from the
                 // input whose buffer holds the most samples (the first such; an empty buffer
                 // never wins over a later one, so the last input's when all are empty).
+                // That input depends on the buffer only: found once for all its labels.
+                size_t best = 0;
+                if (A > 0)
+                    for (size_t i = 1; i < n; ++i)
+                        if (in[best]->bufferCount[k] == 0.f ||
+                            in[i]->bufferCount[k] > in[best]->bufferCount[k])
+                            best = i;
                 for (size_t a = 0; a < A; ++a) {
                     if (isId[a]) {
-                        size_t best = 0;
-                        for (size_t i = 1; i < n; ++i)
-                            if (in[best]->bufferCount[k] == 0.f ||
-                                in[i]->bufferCount[k] > in[best]->bufferCount[k])
-                                best = i;
                         r.aov[k * A + a] = in[best]->aov[k * A + a];
                     } else {
                         WeightedMean v;
