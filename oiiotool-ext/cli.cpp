@@ -301,16 +301,8 @@ std::string mergeName(const std::vector<std::shared_ptr<const Item>>& in) {
 /// gives the same bytes, and a farm that runs the same groups as separate jobs gets the same file.
 bool cmdMerge(State& st, const std::string& cmd, const std::vector<std::string>&,
               const Modifiers& mods, std::string& err) {
-    // checkModifiers checked both and filled in their defaults.
-    const auto integer = [&](const char* key) {
-        ParamValue v;
-        std::string ignored;
-        for (const ParamSpec& spec : mergeModifiers())
-            if (spec.name == key) parseParamValue(cmd, spec, mods.at(key), v, ignored);
-        return v.integer;
-    };
-    const size_t fanin = size_t(integer("fanin"));
-    const int64_t nGiven = integer("n");
+    const size_t fanin = size_t(modifierValue(mergeModifiers(), mods, "fanin").integer);
+    const int64_t nGiven = modifierValue(mergeModifiers(), mods, "n").integer;
     const size_t n = nGiven > 0 ? size_t(nGiven) : st.stack.size();
     if (!needStack(st, std::max<size_t>(n, 2), cmd, err)) return false;
     if (n < 2) {
@@ -776,6 +768,15 @@ bool splitModifiers(const std::string& arg, std::string& name, Modifiers& mods, 
 }
 
 }  // namespace
+
+ParamValue modifierValue(const std::vector<ParamSpec>& specs, const Modifiers& mods,
+                         const std::string& name) {
+    ParamValue v;
+    std::string ignored;  // checkModifiers has parsed the same text with the same spec
+    for (const ParamSpec& p : specs)
+        if (p.name == name) parseParamValue("modifier", p, mods.at(name), v, ignored);
+    return v;
+}
 
 void replaceWithImage(Item& top, const std::string& op, std::shared_ptr<OIIO::ImageBuf> img,
                       bool keepLayout) {

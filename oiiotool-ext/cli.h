@@ -36,6 +36,11 @@ struct Item {
 
 using Modifiers = std::map<std::string, std::string>;
 
+/// The typed value of modifier `name` of a command whose modifiers are `specs`, once the one check
+/// (checkModifiers) has accepted them and filled in their defaults.
+ParamValue modifierValue(const std::vector<ParamSpec>& specs, const Modifiers& mods,
+                         const std::string& name);
+
 struct State {
     std::vector<Item> stack;
     int nthreads = 0;  ///< 0: all cores

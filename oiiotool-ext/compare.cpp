@@ -53,11 +53,7 @@ namespace {
 
 /// The value of modifier `name` (checkModifiers filled in its default).
 ParamValue modifierValue(const Modifiers& mods, const std::string& name) {
-    ParamValue v;
-    std::string ignored;
-    for (const ParamSpec& p : compareModifiers())
-        if (p.name == name) parseParamValue("--compare", p, mods.at(name), v, ignored);
-    return v;
+    return cli::modifierValue(compareModifiers(), mods, name);
 }
 
 bool compareOptions(const Modifiers& mods, CompareOptions& opt) {
