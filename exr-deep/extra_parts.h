@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "core_part_writer.h"
 #include "mcstat/sample_records.h"
 
 namespace mcstat::detail {
@@ -20,7 +21,12 @@ bool checkExtras(const std::string& path, const StatsImage& img, const StatsExtr
 /// Appends the headers of parts pajot, modes, records as `extras` asks.
 void appendExtraHeaders(std::vector<Imf::Header>& headers, const StatsHeader& h,
                         const StatsExtras& extras);
-/// Writes those parts (after the four); throws on failure.
+/// Bytes per pixel of the widest array the flat part `pajot` of `extras` points into.
+size_t extraPixelBytes(const StatsExtras& extras);
+/// Appends the rows of parts pajot, modes, records as `extras` asks for the Core writer (`img`:
+/// the whole image; the rows point into `extras`).
+void appendExtraRows(std::vector<PartRows>& rows, const StatsImage& img, const StatsExtras& extras);
+/// Writes those parts (after the four) through the C++ API; throws on failure.
 void writeExtraParts(Imf::MultiPartOutputFile& out, const StatsImage& img,
                      const StatsExtras& extras);
 

@@ -9,13 +9,14 @@
 #include <OpenEXR/ImfDeepFrameBuffer.h>
 #include <OpenEXR/ImfDeepScanLineInputFile.h>
 #include <OpenEXR/ImfDeepScanLineInputPart.h>
-#include <OpenEXR/ImfDeepScanLineOutputFile.h>
 #include <OpenEXR/ImfDeepScanLineOutputPart.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfInputPart.h>
 #include <OpenEXR/ImfMultiPartInputFile.h>
 #include <OpenEXR/ImfOutputPart.h>
 #include <OpenEXR/ImfStringAttribute.h>
+#include <errno.h>
+#include <fcntl.h>
 #include <fmt/format.h>
 #include <unistd.h>
 
@@ -27,6 +28,7 @@
 
 #include "deep_frame_buffer.h"
 #include "extra_parts.h"
+#include "fd_stream.h"
 #include "mcstat/temp_file.h"
 #include "stats_layout.h"
 #include "window.h"
@@ -63,32 +65,19 @@ std::vector<std::string> splitList(const std::string& text) {
     return out;
 }
 
-/// The deep frame buffer over `block`: its counts, each channel's per-pixel pointers into its
-/// samples, A from `ones` (written files only). A reader sets it, reads the counts into
-/// block.counts, allocates the samples and only then calls point() (deep_frame_buffer.h).
+/// The deep frame buffer over `block` for a read: its counts and each channel's per-pixel pointers
+/// into its samples. Set it, read the counts into block.counts, allocate the samples and only then
+/// call point() (deep_frame_buffer.h).
 struct RecordPointers {
     DeepFrameBufferSet set;
-    bool withA;
-    std::vector<float> ones;
-    RecordPointers(const StatsHeader& h, SampleBlock& b, bool writeA)
-        : set(h, b.counts.data(), b.y0), withA(writeA) {
+    RecordPointers(const StatsHeader& h, SampleBlock& b) : set(h, b.counts.data(), b.y0) {
         const size_t nc = b.stride();
         for (size_t c = 0; c < nc; ++c)
             set.addChannel(b.channels[c], b.counts.size(), nc * sizeof(float));
-        if (withA) {
-            set.addChannel("A", b.counts.size(), sizeof(float));
-            point(b);
-        }
     }
     /// Points every pixel at its samples (after the counts are known and the samples allocated).
     void point(SampleBlock& b) {
-        const size_t nc = b.stride();
-        set.pointContiguous(b.samples.data(), b.counts.data(), b.counts.size(), nc);
-        if (!withA) return;
-        uint32_t most = 0;
-        for (uint32_t c : b.counts) most = std::max(most, c);
-        ones.assign(std::max<size_t>(most, 1), 1.f);
-        for (size_t p = 0; p < b.counts.size(); ++p) set.point(nc, p, ones.data());
+        set.pointContiguous(b.samples.data(), b.counts.data(), b.counts.size(), b.stride());
     }
     Imf::DeepFrameBuffer& fb() { return set.frameBuffer(); }
 };
@@ -167,17 +156,16 @@ struct SampleRecordsWriter::Impl {
     std::unique_ptr<TemporaryFile> tmp;  ///< the records file, removed with the writer
     std::string path;                    ///< tmp's path
     std::vector<std::string> channels;
-    std::unique_ptr<Imf::DeepScanLineOutputFile> file;
+    detail::Fd fd;
+    std::unique_ptr<detail::CorePartWriter> file;  ///< one deep part, chunks straight to `fd`
     int nextRow = 0;
 };
 
 SampleRecordsWriter::SampleRecordsWriter() : impl_(new Impl) {}
 
 SampleRecordsWriter::~SampleRecordsWriter() {
-    try {
-        impl_->file.reset();
-    } catch (...) {
-    }
+    impl_->file.reset();
+    impl_->fd.reset();
     impl_->tmp.reset();
 }
 
@@ -204,12 +192,28 @@ bool SampleRecordsWriter::open(const std::string& target, const StatsHeader& h, 
     if (!checkOutputTarget(target, err)) return false;
     impl_->tmp = std::make_unique<TemporaryFile>(target, ".records");
     impl_->path = impl_->tmp->path();
+    impl_->fd =
+        detail::Fd(::open(impl_->path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600));
+    if (impl_->fd.get() < 0) {
+        err = fmt::format("{}: cannot create the per-sample records {} ({})", target, impl_->path,
+                          std::strerror(errno));
+        impl_->tmp->remove();  // nothing was created; forget the name
+        return false;
+    }
+    std::string problem;
     try {
-        impl_->file.reset(new Imf::DeepScanLineOutputFile(impl_->path.c_str(),
-                                                          recordsHeader(h, impl_->channels, list)));
+        impl_->file = std::make_unique<detail::CorePartWriter>();
+        if (!impl_->file->open(impl_->fd.get(), impl_->path,
+                               {recordsHeader(h, impl_->channels, list)}, detail::codecThreads(0),
+                               problem))
+            impl_->file.reset();
     } catch (const std::exception& e) {
+        problem = e.what();
+        impl_->file.reset();
+    }
+    if (!impl_->file) {
         err = fmt::format("{}: cannot create the per-sample records ({})", target,
-                          detail::oneLine(e.what()));
+                          detail::oneLine(problem));
         return false;
     }
     return true;
@@ -228,12 +232,28 @@ bool SampleRecordsWriter::write(const SampleBlock& block, std::string& err) {
         err = impl_->path + ": a block of records does not hold the channels the file declares";
         return false;
     }
+    // Sample k of the block at samples[k * stride + c]; A is 1 for every sample.
+    static const float kOne = 1.f;
+    detail::PartRows rows;
+    rows.counts = block.counts.data();
+    const size_t nc = block.stride();
+    for (size_t c = 0; c < nc; ++c)
+        rows.deep.push_back({block.channels[c],
+                             block.samples.empty()
+                                 ? nullptr
+                                 : reinterpret_cast<const char*>(block.samples.data() + c),
+                             nc * sizeof(float), false});
+    rows.deep.push_back({"A", reinterpret_cast<const char*>(&kOne), 0, true});
+    std::string problem;
+    bool ok = false;
     try {
-        RecordPointers rp(impl_->header, const_cast<SampleBlock&>(block), true);
-        impl_->file->setFrameBuffer(rp.fb());
-        impl_->file->writePixels(block.rows);
-    } catch (const std::exception& e) {
-        err = fmt::format("{}: cannot write records ({})", impl_->path, detail::oneLine(e.what()));
+        ok = impl_->file->write({rows}, block.rows, problem);
+    } catch (const std::bad_alloc&) {
+        problem = "out of memory";
+    }
+    if (!ok) {
+        impl_->file.reset();  // no further writes
+        err = fmt::format("{}: cannot write records ({})", impl_->path, detail::oneLine(problem));
         return false;
     }
     impl_->nextRow += block.rows;
@@ -241,14 +261,19 @@ bool SampleRecordsWriter::write(const SampleBlock& block, std::string& err) {
 }
 
 bool SampleRecordsWriter::close(std::string& err) {
-    if (impl_->nextRow != impl_->header.height) {
+    if (!impl_->file || impl_->nextRow != impl_->header.height) {
         err = impl_->path + ": records closed before the last row";
         return false;
     }
-    try {
+    std::string problem;
+    if (!impl_->file->finish(problem)) {
         impl_->file.reset();
-    } catch (const std::exception& e) {
-        err = fmt::format("{}: cannot finish records ({})", impl_->path, detail::oneLine(e.what()));
+        err = fmt::format("{}: cannot finish records ({})", impl_->path, detail::oneLine(problem));
+        return false;
+    }
+    impl_->file.reset();
+    if (const std::string closeErr = impl_->fd.close(); !closeErr.empty()) {
+        err = fmt::format("{}: cannot finish records ({})", impl_->path, closeErr);
         return false;
     }
     return true;
@@ -353,7 +378,7 @@ bool SampleRecordsReader::read(int y0, int rows, SampleBlock& block, std::string
         block.channels = impl_->selected;
         const size_t recordBytes = block.stride() * sizeof(float);
         Imf::DeepScanLineInputPart ip(*impl_->file, impl_->part);
-        RecordPointers rp(h, block, false);
+        RecordPointers rp(h, block);
         ip.setFrameBuffer(rp.fb());
         ip.readPixelSampleCounts(h.originY + y0, h.originY + y0 + rows - 1);
         // The counts come from the file's own chunks; bound them before allocating.
@@ -510,6 +535,48 @@ void writeExtraParts(Imf::MultiPartOutputFile& out, const StatsImage& img,
         Imf::DeepScanLineInputFile in(extras.recordsFile.c_str());
         Imf::DeepScanLineOutputPart op(out, part++);
         op.copyPixels(in);
+    }
+}
+
+size_t extraPixelBytes(const StatsExtras& extras) {
+    if (extras.state == nullptr) return 0;
+    return sizeof(float) *
+           std::max(extras.state->floatChannels.size(), extras.state->uintChannels.size());
+}
+
+void appendExtraRows(std::vector<PartRows>& rows, const StatsImage& img,
+                     const StatsExtras& extras) {
+    const size_t width = size_t(img.header.width);
+    if (extras.state != nullptr) {
+        const PixelStateParts& s = *extras.state;
+        // Part pajot: pixel-interleaved floats and words (the writer only reads them).
+        PartRows flat;
+        const size_t nf = s.floatChannels.size(), nu = s.uintChannels.size();
+        auto* fl = const_cast<char*>(reinterpret_cast<const char*>(s.floats.data()));
+        auto* words = const_cast<char*>(reinterpret_cast<const char*>(s.words.data()));
+        for (size_t c = 0; c < nf; ++c)
+            flat.slices.push_back({s.floatChannels[c], fl + c * sizeof(float), nf * sizeof(float),
+                                   nf * sizeof(float) * width});
+        for (size_t c = 0; c < nu; ++c)
+            flat.slices.push_back({s.uintChannels[c], words + c * sizeof(uint32_t),
+                                   nu * sizeof(uint32_t), nu * sizeof(uint32_t) * width});
+        rows.push_back(std::move(flat));
+        // Part modes: every pixel's records contiguous, in scanline order.
+        PartRows deep;
+        const size_t nc = s.recordChannels.size();
+        deep.counts = s.recordCounts.data();
+        for (size_t c = 0; c < nc; ++c)  // no records: nothing is read through the pointer
+            deep.deep.push_back(
+                {s.recordChannels[c],
+                 s.records.empty() ? nullptr : reinterpret_cast<const char*>(s.records.data() + c),
+                 nc * sizeof(float), false});
+        rows.push_back(std::move(deep));
+    }
+    if (!extras.recordsFile.empty()) {
+        // Chunks move as they are: no decoding, no memory growing with the image.
+        PartRows records;
+        records.copyFrom = extras.recordsFile;
+        rows.push_back(std::move(records));
     }
 }
 

@@ -1,8 +1,8 @@
 // writeStatsFile: validate, write the four parts (part 1 deep with adaptive M) to a temporary file
 // in the target's directory, rename it onto the target. On failure the temporary file is removed
-// and the target is untouched. A file of flat parts only (fixed M, no version-4 parts) is written
-// through OpenEXR's Core API with libdeflate's ZIP (flat_part_writer.h); the others through the
-// C++ API, as before.
+// and the target is untouched. Every part (flat, deep `vbuffers`, and writeStatsFile's version-4
+// parts) is written through OpenEXR's Core API with libdeflate's ZIP (core_part_writer.h); parts
+// it cannot express (CorePartWriter::supports) through the C++ API with zlib.
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfDeepFrameBuffer.h>
 #include <OpenEXR/ImfDeepScanLineOutputPart.h>
@@ -17,6 +17,7 @@
 #include <OpenEXR/ImfStringVectorAttribute.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <fmt/format.h>
 #include <unistd.h>
 
@@ -27,13 +28,14 @@
 #include <limits>
 #include <memory>
 
+#include "core_part_writer.h"
 #include "deep_frame_buffer.h"
 #include "extra_parts.h"
 #include "fd_stream.h"
-#include "flat_part_writer.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
 #include "mcstat/temp_file.h"
+#include "stats_header_check.h"
 #include "stats_layout.h"
 #include "window.h"
 
@@ -174,31 +176,61 @@ void writeRows(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
     }
 }
 
-/// The slices of every flat part of `blk` for the Core writer, in part order (read only).
-std::vector<detail::PartSlices> flatSlices(const StatsImage& blk) {
+/// What the Core writer reads of a block's adaptive buffers besides the image: per pixel its
+/// buffer count, and the Z of deep sample j (j) and A (1).
+struct DeepBufferRows {
+    std::vector<uint32_t> counts;
+    std::vector<float> zs;
+    float one = 1.f;
+};
+
+/// The rows of every part of `blk` for the Core writer, in part order (read only; `deep` holds
+/// what vbuffers needs besides `blk`).
+std::vector<detail::PartRows> partRows(const StatsImage& blk, DeepBufferRows& deep) {
     const StatsHeader& h = blk.header;
     const int parts = h.aovs.empty() ? layout::kPartCount : layout::kAovs + 1;
-    std::vector<detail::PartSlices> out(static_cast<size_t>(parts));
+    std::vector<detail::PartRows> out(static_cast<size_t>(parts));
     for (int part = 0; part < parts; ++part) {
-        out[size_t(part)].part = part;
+        detail::PartRows& rows = out[size_t(part)];
+        if (h.adaptiveM && part == layout::kBuffers) {
+            // One deep sample per sub-buffer: R, G, B, count; Z = the buffer's index, A = 1.
+            const size_t pixels = blk.pixelCount(), k0 = pixels > 0 ? blk.bufferBegin(0) : 0;
+            deep.counts.resize(pixels);
+            for (size_t p = 0; p < pixels; ++p) deep.counts[p] = uint32_t(blk.buffersOf(p));
+            deep.zs.resize(size_t(std::max(1, h.M)));
+            for (size_t j = 0; j < deep.zs.size(); ++j) deep.zs[j] = float(j);
+            const auto bytes = [](const float* f) { return reinterpret_cast<const char*>(f); };
+            rows.counts = deep.counts.data();
+            for (size_t c = 0; c < 3; ++c)
+                rows.deep.push_back({layout::kDeepChannels[c],
+                                     bytes(blk.bufferMean.data() + k0 * 3 + c), 3 * sizeof(float),
+                                     false});
+            rows.deep.push_back({layout::kDeepChannels[3], bytes(blk.bufferCount.data() + k0),
+                                 sizeof(float), false});
+            rows.deep.push_back(
+                {layout::kDeepChannels[4], bytes(deep.zs.data()), sizeof(float), true});
+            rows.deep.push_back({layout::kDeepChannels[5], bytes(&deep.one), 0, true});
+            continue;
+        }
         for (const layout::ChannelPlace& c : part == layout::kAovs
                                                  ? layout::aovChannels(h)
                                                  : layout::partChannels(part, h.M, h.adaptiveM)) {
             const float* data = layout::arrayOf(blk, c.array).data() + c.offset;
             const size_t xStride = c.stride * sizeof(float);
             // The writer only reads through the slice.
-            out[size_t(part)].slices.push_back(
-                {c.name, const_cast<char*>(reinterpret_cast<const char*>(data)), xStride,
-                 xStride * size_t(h.width)});
+            rows.slices.push_back({c.name, const_cast<char*>(reinterpret_cast<const char*>(data)),
+                                   xStride, xStride * size_t(h.width)});
         }
     }
     return out;
 }
 
-/// Bytes per pixel of the widest array a slice of `h` points into (the Core writer's strides).
-size_t widestPixelBytes(const StatsHeader& h) {
+/// Bytes per pixel of the widest array a flat slice of `h` points into (the Core writer's
+/// strides), `extra` those of the version-4 parts.
+size_t widestPixelBytes(const StatsHeader& h, size_t extra) {
     const size_t m = size_t(std::max(1, h.M));
-    return sizeof(float) * std::max({size_t(3) * m, m * h.aovs.size(), size_t(11)});
+    return std::max(sizeof(float) * std::max({size_t(3) * m, m * h.aovs.size(), size_t(11)}),
+                    extra);
 }
 
 }  // namespace
@@ -210,15 +242,19 @@ struct StatsFileWriter::Impl {
     detail::Fd fd;
     std::unique_ptr<detail::FdOStream> os;
     std::unique_ptr<Imf::MultiPartOutputFile> file;
-    std::unique_ptr<detail::FlatPartWriter> flat;  ///< instead of `file` for flat parts only
+    std::unique_ptr<detail::CorePartWriter> core;  ///< instead of `file` when it takes the parts
     int nextRow = 0;                               ///< rows written so far
-    /// Written after the four parts by commit() (writeStatsFile's version-4 extras).
+    /// writeStatsFile's version-4 parts: written with the image by the Core writer, or after the
+    /// four parts by commit() through the C++ API.
+    const StatsExtras* extras = nullptr;
     std::function<void(Imf::MultiPartOutputFile&)> extraParts;
     bool failed = false;
+    /// replaceSeeds(): mcstat:seeds put in place by commit() ("" keeps open()'s).
+    std::string seeds;
 
     ~Impl() {
         file.reset();  // OpenEXR writes the offset tables here; the file is removed anyway
-        flat.reset();
+        core.reset();
         fd.reset();
         tmp.reset();  // removes the temporary unless it was renamed
     }
@@ -227,7 +263,7 @@ struct StatsFileWriter::Impl {
 /// writeStatsFile's access to the writer's extra parts.
 struct StatsFileWriterAccess {
     static bool open(StatsFileWriter& w, const std::string& path, const StatsHeader& h,
-                     const std::vector<Imf::Header>& extraHeaders,
+                     const std::vector<Imf::Header>& extraHeaders, const StatsExtras* extras,
                      std::function<void(Imf::MultiPartOutputFile&)> extraParts, std::string& err,
                      int nthreads);
 };
@@ -237,11 +273,12 @@ StatsFileWriter::~StatsFileWriter() = default;
 
 bool StatsFileWriter::open(const std::string& path, const StatsHeader& header, std::string& err,
                            int nthreads) {
-    return StatsFileWriterAccess::open(*this, path, header, {}, {}, err, nthreads);
+    return StatsFileWriterAccess::open(*this, path, header, {}, nullptr, {}, err, nthreads);
 }
 
 bool StatsFileWriterAccess::open(StatsFileWriter& w, const std::string& path, const StatsHeader& h,
                                  const std::vector<Imf::Header>& extraHeaders,
+                                 const StatsExtras* extras,
                                  std::function<void(Imf::MultiPartOutputFile&)> extraParts,
                                  std::string& err, int nthreads) {
     w.impl_.reset();
@@ -257,6 +294,7 @@ bool StatsFileWriterAccess::open(StatsFileWriter& w, const std::string& path, co
     auto impl = std::make_unique<StatsFileWriter::Impl>();
     impl->path = path;
     impl->header = h;
+    impl->extras = extras;
     impl->extraParts = std::move(extraParts);
     impl->tmp = std::make_unique<TemporaryFile>(path);
     const std::string& tmp = impl->tmp->path();
@@ -269,17 +307,17 @@ bool StatsFileWriterAccess::open(StatsFileWriter& w, const std::string& path, co
     }
     try {
         std::vector<Imf::Header> headers = makeHeaders(h);
-        if (extraHeaders.empty() && !h.adaptiveM &&
-            detail::FlatPartWriter::supports(headers, widestPixelBytes(h))) {
-            impl->flat = std::make_unique<detail::FlatPartWriter>();
+        headers.insert(headers.end(), extraHeaders.begin(), extraHeaders.end());
+        const size_t extraBytes = extras != nullptr ? detail::extraPixelBytes(*extras) : 0;
+        if (detail::CorePartWriter::supports(headers, widestPixelBytes(h, extraBytes))) {
+            impl->core = std::make_unique<detail::CorePartWriter>();
             std::string problem;
-            if (!impl->flat->open(impl->fd.get(), path, headers, detail::codecThreads(nthreads),
+            if (!impl->core->open(impl->fd.get(), path, headers, detail::codecThreads(nthreads),
                                   problem)) {
                 err = fmt::format("{}: cannot write ({})", path, problem);
                 return false;
             }
         } else {
-            headers.insert(headers.end(), extraHeaders.begin(), extraHeaders.end());
             impl->os = std::make_unique<detail::FdOStream>(impl->fd.get(), tmp);
             impl->file = std::make_unique<Imf::MultiPartOutputFile>(*impl->os, headers.data(),
                                                                     int(headers.size()), false,
@@ -325,11 +363,15 @@ bool StatsFileWriter::write(const StatsImage& block, std::string& err) {
             }
     }
     if (!validateStats(block, im.path, err)) return false;
-    if (im.flat) {
+    if (im.core) {
         std::string problem;
         bool ok = false;
         try {
-            ok = im.flat->write(flatSlices(block), b.height, problem);
+            DeepBufferRows deep;
+            std::vector<detail::PartRows> rows = partRows(block, deep);
+            // The version-4 parts come with the whole image (writeStatsFile).
+            if (im.extras != nullptr) detail::appendExtraRows(rows, block, *im.extras);
+            ok = im.core->write(rows, b.height, problem);
         } catch (const std::bad_alloc&) {
             problem = "out of memory";
         }
@@ -353,6 +395,20 @@ bool StatsFileWriter::write(const StatsImage& block, std::string& err) {
     return true;
 }
 
+bool StatsFileWriter::replaceSeeds(const std::string& seeds, std::string& err) {
+    if (!impl_) {
+        err = "statistics file writer: not open";
+        return false;
+    }
+    if (seeds.size() != impl_->header.seeds.size()) {
+        err = fmt::format("{}: mcstat:seeds of {} bytes cannot replace the {} written", impl_->path,
+                          seeds.size(), impl_->header.seeds.size());
+        return false;
+    }
+    impl_->seeds = seeds;
+    return true;
+}
+
 bool StatsFileWriter::commit(std::string& err) {
     if (!impl_ || impl_->failed || impl_->nextRow != impl_->header.height) {
         err = !impl_ ? "statistics file writer: not open"
@@ -363,9 +419,9 @@ bool StatsFileWriter::commit(std::string& err) {
     Impl& im = *impl_;
     std::string problem;
     try {
-        if (im.flat) {
-            im.flat->finish(problem);  // the spilled chunks and the offset tables
-            im.flat.reset();
+        if (im.core) {
+            im.core->finish(problem);  // the spilled chunks and the offset tables
+            im.core.reset();
         } else {
             if (im.extraParts) im.extraParts(*im.file);
             im.file.reset();  // writes the offset tables
@@ -373,6 +429,18 @@ bool StatsFileWriter::commit(std::string& err) {
         }
     } catch (const std::exception& e) {
         problem = e.what();
+    }
+    if (problem.empty() && !im.seeds.empty() && im.seeds != im.header.seeds) {
+        // The seeds known once every row was written (replaceSeeds), in place in every header.
+        const std::string& tmp = im.tmp->path();
+        detail::Fd rw(::open(tmp.c_str(), O_RDWR | O_CLOEXEC));
+        struct stat st {};
+        std::string why;
+        if (rw.get() < 0 || ::fstat(rw.get(), &st) != 0)
+            problem = std::strerror(errno);
+        else if (!detail::replaceStringAttribute(rw.get(), uint64_t(st.st_size), tmp,
+                                                 layout::kAttrSeeds, im.seeds, why))
+            problem = why;
     }
     if (problem.empty() && ::fsync(im.fd.get()) != 0) problem = std::strerror(errno);
     if (const std::string closeErr = im.fd.close(); problem.empty()) problem = closeErr;
@@ -407,7 +475,7 @@ bool writeStatsFile(const std::string& path, const StatsImage& img, const StatsE
     auto extraParts = [&img, &extras](Imf::MultiPartOutputFile& out) {
         detail::writeExtraParts(out, img, extras);
     };
-    if (!StatsFileWriterAccess::open(w, path, img.header, extraHeaders,
+    if (!StatsFileWriterAccess::open(w, path, img.header, extraHeaders, &extras,
                                      extraHeaders.empty() ? nullptr : std::function(extraParts),
                                      err, 0))
         return false;
