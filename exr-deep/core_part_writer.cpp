@@ -412,7 +412,8 @@ bool CorePartWriter::Impl::openCopySource(size_t p, const std::string& path, std
                ps.channelBytes[size_t(c)] == 4 && chlist->entries[c].pixel_type != EXR_PIXEL_HALF;
     if (!same) {
         problem = fmt::format(
-            "part '{}': {} is not a deep part of its channels and compression{}", ps.name, path,
+            "part '{}': {} is not a deep part of its window, channels and compression{}", ps.name,
+            path,
             rv != EXR_ERR_SUCCESS ? std::string(" (") + exr_get_default_error_message(rv) + ")"
                                   : std::string());
         if (src != nullptr) exr_finish(&src);

@@ -2,7 +2,8 @@
 // in the target's directory, rename it onto the target. On failure the temporary file is removed
 // and the target is untouched. Every part (flat, deep `vbuffers`, and writeStatsFile's version-4
 // parts) is written through OpenEXR's Core API with libdeflate's ZIP (core_part_writer.h); parts
-// it cannot express (CorePartWriter::supports) through the C++ API with zlib.
+// it cannot express (CorePartWriter::supports), or every part when the environment says
+// MCSTAT_EXR_WRITER=cpp, through the C++ API with zlib.
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfDeepFrameBuffer.h>
 #include <OpenEXR/ImfDeepScanLineOutputPart.h>
@@ -17,12 +18,13 @@
 #include <OpenEXR/ImfStringVectorAttribute.h>
 #include <errno.h>
 #include <fcntl.h>
-#include <sys/stat.h>
 #include <fmt/format.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <functional>
 #include <limits>
@@ -225,6 +227,13 @@ std::vector<detail::PartRows> partRows(const StatsImage& blk, DeepBufferRows& de
     return out;
 }
 
+/// MCSTAT_EXR_WRITER=cpp: every part through OpenEXR's C++ API with zlib, as before the Core
+/// writer (the same pixels in other bytes; for comparisons in tests and benchmarks).
+bool cppWriterAsked() {
+    const char* v = std::getenv("MCSTAT_EXR_WRITER");
+    return v != nullptr && std::strcmp(v, "cpp") == 0;
+}
+
 /// Bytes per pixel of the widest array a flat slice of `h` points into (the Core writer's
 /// strides), `extra` those of the version-4 parts.
 size_t widestPixelBytes(const StatsHeader& h, size_t extra) {
@@ -309,7 +318,8 @@ bool StatsFileWriterAccess::open(StatsFileWriter& w, const std::string& path, co
         std::vector<Imf::Header> headers = makeHeaders(h);
         headers.insert(headers.end(), extraHeaders.begin(), extraHeaders.end());
         const size_t extraBytes = extras != nullptr ? detail::extraPixelBytes(*extras) : 0;
-        if (detail::CorePartWriter::supports(headers, widestPixelBytes(h, extraBytes))) {
+        if (!cppWriterAsked() &&
+            detail::CorePartWriter::supports(headers, widestPixelBytes(h, extraBytes))) {
             impl->core = std::make_unique<detail::CorePartWriter>();
             std::string problem;
             if (!impl->core->open(impl->fd.get(), path, headers, detail::codecThreads(nthreads),

@@ -22,46 +22,6 @@
 namespace mcstat::test {
 namespace {
 
-/// An adaptive image whose pixel (x, y) has mFn(x, y) buffers and sppFn(x, y) samples
-/// (makeSample(seed, p, i), sample i -> buffer i mod m_p): built from fixed-M renders with M = m_p,
-/// which hold exactly those buffers.
-template <class MFn, class SppFn>
-StatsImage adaptiveImage(int w, int h, int mMax, uint64_t seed, MFn mFn, SppFn sppFn, int ox = 0,
-                         int oy = 0) {
-    std::map<int, StatsImage> byM;
-    std::vector<uint32_t> m(size_t(w) * size_t(h));
-    for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-            const int mp = mFn(x, y);
-            m[size_t(y) * size_t(w) + size_t(x)] = uint32_t(mp);
-            if (!byM.count(mp)) byM[mp] = renderImage(w, h, mp, seed, sppFn, ox, oy);
-        }
-    StatsImage out;
-    out.header = byM.begin()->second.header;
-    out.header.M = mMax;
-    out.header.formatVersion = kStatsFormatVersionAdaptive;
-    std::string err;
-    EXPECT_TRUE(out.allocateAdaptive(m, err)) << err;
-    const StatsImage& any = byM.begin()->second;
-    out.beauty = any.beauty;
-    out.count = any.count;
-    out.mean = any.mean;
-    out.variance = any.variance;
-    out.normal = any.normal;
-    out.position = any.position;
-    out.albedo = any.albedo;
-    out.depth = any.depth;
-    out.coverage = any.coverage;
-    for (size_t p = 0; p < m.size(); ++p) {
-        const PixelBuffers src = byM[int(m[p])].pixelBuffers(p);
-        const size_t k = out.bufferBegin(p);
-        EXPECT_EQ(src.M, int(m[p]));
-        std::copy(src.mean, src.mean + 3 * src.M, out.bufferMean.begin() + long(k * 3));
-        std::copy(src.count, src.count + src.M, out.bufferCount.begin() + long(k));
-    }
-    return out;
-}
-
 /// m_p in {1, 3, 5, 17} by position, spp 0..9 (some buffers empty, some pixels without samples).
 StatsImage sampleAdaptive(int w = 7, int h = 5, int ox = 0, int oy = 0) {
     return adaptiveImage(

@@ -2,7 +2,7 @@
 // Reading (exr-deep/flat_part_reader.h): for every compression OpenEXR writes, the pixels equal
 // the C++ API's read of the same file bit for bit (NaN payloads, infinities, denormals, -0
 // included), on 1 and 2 threads and for blocks that cut chunks; a damaged ZIP chunk is a one-line
-// error. Writing (exr-deep/flat_part_writer.h): the bytes are standard ZIP that OpenEXR's C++
+// error. Writing (exr-deep/core_part_writer.h): the bytes are standard ZIP that OpenEXR's C++
 // API, its file checker (exrcheck's engine) and stock oiiotool read, the same whatever the blocks
 // and threads; a chunk ZIP cannot shrink is stored as it is.
 #include <OpenEXR/ImfCheckFile.h>
