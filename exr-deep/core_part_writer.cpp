@@ -265,12 +265,25 @@ struct CorePartWriter::Impl {
     /// the problem of the first failing task in task order.
     bool encodeAll(std::vector<Task>& tasks, const std::vector<Source>& src, std::string& problem,
                    const std::function<bool(Task&)>& sink);
+    /// Writes the chunk of part `part` starting at file row `y` (`size` bytes at `bytes`; deep: the
+    /// packed counts, `tableBytes` of them, then the samples, `unpacked` bytes unpacked).
+    exr_result_t writeChunk(int part, int y, const uint8_t* bytes, uint64_t size,
+                            uint64_t tableBytes, uint64_t unpacked) {
+        if (!parts[size_t(part)].deep) return exr_write_scanline_chunk(ctxt, part, y, bytes, size);
+        return exr_write_deep_scanline_chunk(ctxt, part, y, bytes + tableBytes, size - tableBytes,
+                                             unpacked, bytes, tableBytes);
+    }
     /// Writes chunk `t` (encoded) into the file; false with t.problem.
     bool toFile(Task& t);
     /// Appends chunk `t` to the spill file; false with t.problem.
     bool toSpill(Task& t);
     /// Opens the file part `p`'s chunks are copied from and checks it holds such a part.
     bool openCopySource(size_t p, const std::string& path, std::string& problem);
+    /// A call from the caller's thread: OpenEXR's messages go to `main`.
+    void enter() {
+        main.message.clear();
+        tWorker = &main;
+    }
     std::string coreProblem(exr_result_t rv, const std::string& message) const {
         if (!io.error.empty()) return io.error;
         return message.empty() ? std::string(exr_get_default_error_message(rv)) : message;
@@ -643,10 +656,7 @@ bool CorePartWriter::Impl::toFile(Task& t) {
     const PartState& ps = parts[size_t(t.part)];
     const int y = y0 + t.row;
     const exr_result_t rv =
-        ps.deep ? exr_write_deep_scanline_chunk(ctxt, t.part, y, t.out.data() + t.tableBytes,
-                                                t.out.size() - t.tableBytes, t.unpacked,
-                                                t.out.data(), t.tableBytes)
-                : exr_write_scanline_chunk(ctxt, t.part, y, t.out.data(), t.out.size());
+        writeChunk(t.part, y, t.out.data(), t.out.size(), t.tableBytes, t.unpacked);
     if (rv != EXR_ERR_SUCCESS)
         t.problem = fmt::format("part '{}': the chunk of row {}: {}", ps.name, y,
                                 coreProblem(rv, main.message));
@@ -681,9 +691,7 @@ bool CorePartWriter::write(const std::vector<PartRows>& parts, int rows, std::st
         return false;
     }
     Impl& im = *impl_;
-    Worker& main = im.main;
-    main.message.clear();
-    tWorker = &main;
+    im.enter();
     const int r0 = im.nextRow, r1 = im.nextRow + rows;  // rows of this write, 0-based
     if (r0 == 0) im.direct = parts.size() == 1 || r1 == im.height;
     const auto fail = [&](std::string why) {
@@ -823,9 +831,7 @@ bool CorePartWriter::finish(std::string& problem) {
         return false;
     }
     Impl& im = *impl_;
-    Worker& main = im.main;
-    main.message.clear();
-    tWorker = &main;
+    im.enter();
     exr_result_t rv = EXR_ERR_SUCCESS;
     if (!im.direct) {
         std::vector<uint8_t> buf;
@@ -842,17 +848,14 @@ bool CorePartWriter::finish(std::string& problem) {
                     return false;
                 }
                 const int y = im.y0 + int(c) * ps.lines;
-                rv = ps.deep ? exr_write_deep_scanline_chunk(
-                                   im.ctxt, int(p), y, buf.data() + sc.tableBytes,
-                                   sc.size - sc.tableBytes, sc.unpacked, buf.data(), sc.tableBytes)
-                             : exr_write_scanline_chunk(im.ctxt, int(p), y, buf.data(), sc.size);
+                rv = im.writeChunk(int(p), y, buf.data(), sc.size, sc.tableBytes, sc.unpacked);
             }
         }
     }
     if (rv == EXR_ERR_SUCCESS) rv = exr_finish(&im.ctxt);
     tWorker = nullptr;
     if (rv != EXR_ERR_SUCCESS || !im.io.error.empty()) {
-        problem = im.coreProblem(rv, main.message);
+        problem = im.coreProblem(rv, im.main.message);
         return false;
     }
     im.spillFd.reset();

@@ -8,6 +8,7 @@
 #  3. Quality at equal spp (100, 1000, 10000) against a high-spp reference: mean, G-MoN, ADR, ROT,
 #     hybrid: relMSE, SSIM, firefly pixels, energy lost (1 - sum Y / sum Y_ref).
 # and draws docs/images/pajot_caustic.png (the caustic first delayed, then accepted).
+# BUILD (default build) is the build directory measured; SKIP_BUILD=1 uses it as it is.
 # Scenes: `default` (Cornell box, glass-sphere caustic fireflies) and `caustic` (a glass ball's
 # caustic on a floor, rare early and real; section 4.3's progressiveness test).
 set -euo pipefail
@@ -15,12 +16,13 @@ cd "$(dirname "$0")/.."
 REPS=${REPS:-3}
 QUALITY_SPP=${QUALITY_SPP:-"100 1000 10000"}
 REF_SPP=${REF_SPP:-40000}
-out=out/bench-pajot; mkdir -p "$out"
-R=build/render-fixture/mcstat-render
-M=build/oiiotool-ext/mcstat
+out=${OUT:-out/bench-pajot}; mkdir -p "$out"
+BUILD=${BUILD:-build}
+R=$BUILD/render-fixture/mcstat-render
+M=$BUILD/oiiotool-ext/mcstat
 if [ -z "${SKIP_BUILD:-}" ]; then
   scripts/install-deps.sh
-  MCSTAT_TARGETS="mcstat mcstat-render" scripts/build.sh build >/dev/null
+  MCSTAT_TARGETS="mcstat mcstat-render" scripts/build.sh "$BUILD" >/dev/null
 fi
 
 # SECTIONS picks what runs (default all): 1 overhead, 2 state, 3 quality, 4 picture.
@@ -30,26 +32,43 @@ want() { [[ " $SECTIONS " == *" $1 "* ]]; }
 median() { sort -n | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
 
 if want 1; then
+# BASE=DIR adds the renderer of another build (e.g. a worktree of the commit before a change),
+# alternated with this one in every repetition; `render` and `write` are the renderer's own
+# --timings walls (the write includes encoding the Pajot state).
+BASE_R=${BASE:+$BASE/render-fixture/mcstat-render}
 echo "== 1. Render-time overhead at equal spp (100 spp, M = 8, 2 threads; median of $REPS) =="
-printf "%-9s %-8s %10s %10s %12s\n" "scene" "method" "wall" "overhead" "peak RSS"
+printf "%-9s %-6s %-8s %10s %10s %10s %10s %12s\n" "scene" "build" "method" "wall" "overhead" \
+  "render" "write" "peak RSS"
 for scene in default caustic; do
-  declare -A times=() mems=()
+  declare -A times=() mems=() renders=() writes=()
+  builds=(this); [ -n "$BASE_R" ] && builds+=(base)
   for _ in $(seq "$REPS"); do
-    for method in plain adr rot hybrid; do
-      args=(--scene "$scene" --spp 100 --M 8 --quiet -o "$out/$scene-$method-100.mcstat")
-      [ "$method" != plain ] && args+=(--pajot "$method")
-      /usr/bin/time -f "%e %M" -o "$out/time.txt" "$R" "${args[@]}"
-      read -r t m <"$out/time.txt"
-      times[$method]+="$t "; mems[$method]=$m
+    for b in "${builds[@]}"; do
+      bin=$R; [ "$b" = base ] && bin=$BASE_R
+      for method in plain adr rot hybrid; do
+        args=(--scene "$scene" --spp 100 --M 8 --quiet --timings -o "$out/$scene-$method-100.mcstat")
+        [ "$method" != plain ] && args+=(--pajot "$method")
+        /usr/bin/time -f "%e %M" -o "$out/time.txt" "$bin" "${args[@]}" 2>"$out/timings.txt"
+        read -r t m <"$out/time.txt"
+        read -r rw ww < <(awk '/timings:/ { print $5, $12 }' "$out/timings.txt")
+        k=$b-$method
+        times[$k]+="$t "; mems[$k]=$m; renders[$k]+="$rw "; writes[$k]+="$ww "
+      done
     done
   done
-  base=$(printf '%s\n' ${times[plain]} | median)
-  for method in plain adr rot hybrid; do
-    t=$(printf '%s\n' ${times[$method]} | median)
-    awk -v s="$scene" -v m="$method" -v t="$t" -v b="$base" -v r="${mems[$method]}" \
-      'BEGIN { printf "%-9s %-8s %8.3f s %+9.1f %% %8.1f MiB\n", s, m, t, 100 * (t / b - 1), r / 1024 }'
+  for b in "${builds[@]}"; do
+    base=$(printf '%s\n' ${times[$b-plain]} | median)
+    for method in plain adr rot hybrid; do
+      k=$b-$method
+      t=$(printf '%s\n' ${times[$k]} | median)
+      rw=$(printf '%s\n' ${renders[$k]} | median)
+      ww=$(printf '%s\n' ${writes[$k]} | median)
+      awk -v s="$scene" -v bb="$b" -v m="$method" -v t="$t" -v b="$base" -v r="${mems[$k]}" \
+        -v rw="$rw" -v ww="$ww" 'BEGIN { printf "%-9s %-6s %-8s %8.3f s %+9.1f %% %8.3f s %8.3f s %8.1f MiB\n",
+          s, bb, m, t, 100 * (t / b - 1), rw, ww, r / 1024 }'
+    done
   done
-  unset times mems
+  unset times mems renders writes
 done
 
 fi

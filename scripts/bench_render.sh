@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Renderer benchmark (never part of the test suite). Prints two tables
-# for the default scene at 640x480, seed 3:
+# for the default scene at 640x480 (RES="W H"; RES=scene: the scene's own 160x120), seed 3:
 #  1. M = 1 against M = 21 at 64 and 256 spp: whole-process wall and CPU time, the render alone and
 #     the file writing alone (mcstat-render --timings), peak RSS, and the overheads of M = 21 in %.
 #     The render's overhead is the online accumulation of the sub-buffers (goal <= 2 %); the
@@ -10,14 +10,23 @@
 # alternated within each repetition, so that a load change on the machine hits them alike.
 # BUILD (default build) is the build directory whose render-fixture/mcstat-render is measured;
 # SKIP_BUILD=1 uses it as it is. SPPS (default "64 256") and THREAD_SPP (default 64) set the spp.
+# BASE=DIR adds table 1's rows of another build's renderer (e.g. a worktree of the commit before a
+# change), alternated with this one in every repetition. SECTIONS (default "1 2") picks the tables;
+# OUT (default out/bench-render) is where the files go.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 REPS=${REPS:-3}
 BUILD=${BUILD:-build}
 SPPS=${SPPS:-"64 256"}
 THREAD_SPP=${THREAD_SPP:-64}
-out=out/bench-render; mkdir -p "$out"
+SECTIONS=${SECTIONS:-"1 2"}
+RES=${RES:-"640 480"}
+out=${OUT:-out/bench-render}; mkdir -p "$out"
 R=$BUILD/render-fixture/mcstat-render
+BASE_R=${BASE:+$BASE/render-fixture/mcstat-render}
+want() { [[ " $SECTIONS " == *" $1 "* ]]; }
+resArgs=(); [ "$RES" != scene ] && read -r -a resArgs <<<"--res $RES"
+size=${RES/ /x}; [ "$RES" = scene ] && size="the scene's size"
 if [ -z "${SKIP_BUILD:-}" ]; then
   scripts/install-deps.sh
   MCSTAT_TARGETS="mcstat-render" scripts/build.sh "$BUILD" >/dev/null
@@ -26,12 +35,12 @@ fi
 
 median() { sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
 
-# run KEY ARGS...: one render; appends "wall cpu rss renderWall renderCpu writeWall writeCpu" to
+# run KEY ARGS...: one render (BIN, default $R); appends "wall cpu rss renderWall renderCpu writeWall writeCpu" to
 # $out/KEY.runs (cpu = user + system of the whole process, rss in KiB).
 run() {
   local key=$1; shift
   /usr/bin/time -f "%e %U %S %M" -o "$out/time.txt" \
-    "$R" --scene default --res 640 480 --seed 3 --quiet --timings "$@" \
+    "${BIN:-$R}" --scene default "${resArgs[@]}" --seed 3 --quiet --timings "$@" \
     -o "$out/$key.mcstat" 2>"$out/timings.txt"
   local e u s m rw rc ww wc
   read -r e u s m <"$out/time.txt"
@@ -44,39 +53,50 @@ run() {
 med() { awk -v c="$2" '{ print $c }' "$out/$1.runs" | median; }
 
 rm -f "$out"/*.runs
-echo "== 1. Sub-buffer overhead: M = 1 against M = 21 (default scene, 640x480, all threads;" \
+builds=(this); [ -n "$BASE_R" ] && builds+=(base)
+if want 1; then
+echo "== 1. Sub-buffer overhead: M = 1 against M = 21 (default scene, $size, all threads;" \
   "median of $REPS) =="
 for spp in $SPPS; do
   for _ in $(seq "$REPS"); do
-    for M in 1 21; do run "spp$spp-M$M" --spp "$spp" --M "$M"; done
+    for b in "${builds[@]}"; do
+      bin=$R; [ "$b" = base ] && bin=$BASE_R
+      for M in 1 21; do BIN=$bin run "$b-spp$spp-M$M" --spp "$spp" --M "$M"; done
+    done
   done
 done
-printf "%5s %4s %9s %9s %11s %11s %11s %11s %10s\n" "spp" "M" "wall" "CPU" "render wall" \
-  "render CPU" "write wall" "write CPU" "peak RSS"
-for spp in $SPPS; do
-  for M in 1 21; do
-    k=spp$spp-M$M
-    printf "%5d %4d %7.2f s %7.2f s %9.2f s %9.2f s %9.3f s %9.3f s %6.1f MiB\n" "$spp" "$M" \
-      "$(med "$k" 1)" "$(med "$k" 2)" "$(med "$k" 4)" "$(med "$k" 5)" "$(med "$k" 6)" \
-      "$(med "$k" 7)" "$(awk -v m="$(med "$k" 3)" 'BEGIN { print m / 1024 }')"
+printf "%-6s %5s %4s %9s %9s %11s %11s %11s %11s %10s\n" "build" "spp" "M" "wall" "CPU" \
+  "render wall" "render CPU" "write wall" "write CPU" "peak RSS"
+for b in "${builds[@]}"; do
+  for spp in $SPPS; do
+    for M in 1 21; do
+      k=$b-spp$spp-M$M
+      printf "%-6s %5d %4d %7.2f s %7.2f s %9.2f s %9.2f s %9.3f s %9.3f s %6.1f MiB\n" "$b" \
+        "$spp" "$M" "$(med "$k" 1)" "$(med "$k" 2)" "$(med "$k" 4)" "$(med "$k" 5)" \
+        "$(med "$k" 6)" "$(med "$k" 7)" "$(awk -v m="$(med "$k" 3)" 'BEGIN { print m / 1024 }')"
+    done
   done
 done
 echo
 echo "Overhead of M = 21 over M = 1 (ratios of the medians):"
-printf "%5s %10s %10s %13s %13s %14s\n" "spp" "wall" "CPU" "render wall" "render CPU" \
-  "write / render"
-for spp in $SPPS; do
-  a=spp$spp-M1 b=spp$spp-M21
-  awk -v w1="$(med "$a" 1)" -v w2="$(med "$b" 1)" -v c1="$(med "$a" 2)" -v c2="$(med "$b" 2)" \
-    -v rw1="$(med "$a" 4)" -v rw2="$(med "$b" 4)" -v rc1="$(med "$a" 5)" -v rc2="$(med "$b" 5)" \
-    -v ww2="$(med "$b" 6)" -v spp="$spp" 'BEGIN {
-      printf "%5d %+8.1f %% %+8.1f %% %+11.1f %% %+11.1f %% %12.1f %%\n", spp,
-        100 * (w2 / w1 - 1), 100 * (c2 / c1 - 1), 100 * (rw2 / rw1 - 1), 100 * (rc2 / rc1 - 1),
-        100 * ww2 / rw2 }'
+printf "%-6s %5s %10s %10s %13s %13s %14s\n" "build" "spp" "wall" "CPU" "render wall" \
+  "render CPU" "write / render"
+for b in "${builds[@]}"; do
+  for spp in $SPPS; do
+    a=$b-spp$spp-M1 c=$b-spp$spp-M21
+    awk -v w1="$(med "$a" 1)" -v w2="$(med "$c" 1)" -v c1="$(med "$a" 2)" -v c2="$(med "$c" 2)" \
+      -v rw1="$(med "$a" 4)" -v rw2="$(med "$c" 4)" -v rc1="$(med "$a" 5)" -v rc2="$(med "$c" 5)" \
+      -v ww2="$(med "$c" 6)" -v spp="$spp" -v b="$b" 'BEGIN {
+        printf "%-6s %5d %+8.1f %% %+8.1f %% %+11.1f %% %+11.1f %% %12.1f %%\n", b, spp,
+          100 * (w2 / w1 - 1), 100 * (c2 / c1 - 1), 100 * (rw2 / rw1 - 1), 100 * (rc2 / rc1 - 1),
+          100 * ww2 / rw2 }'
+  done
 done
+fi
 
+want 2 || exit 0
 echo
-echo "== 2. Thread scaling (default scene, 640x480, $THREAD_SPP spp; median of $REPS) =="
+echo "== 2. Thread scaling (default scene, $size, $THREAD_SPP spp; median of $REPS) =="
 for _ in $(seq "$REPS"); do
   for M in 1 21; do
     for t in 1 2; do run "threads$t-M$M" --spp "$THREAD_SPP" --M "$M" --threads "$t"; done

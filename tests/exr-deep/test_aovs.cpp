@@ -306,16 +306,7 @@ TEST(AovFile, StreamedByBlocksGivesTheSameFile) {
     for (int rows : {1, 3, 16, 17, 37}) {
         SCOPED_TRACE("blocks of " + std::to_string(rows) + " rows");
         const std::string path = dir.file("b" + std::to_string(rows) + ".mcstat");
-        StatsFileWriter w;
-        ASSERT_TRUE(w.open(path, img.header, err, 2)) << err;
-        StatsImage block;
-        for (int y = 0; y < img.header.height; y += rows) {
-            ASSERT_TRUE(
-                src.read(y, std::min(rows, img.header.height - y), kStatsAllParts, block, err))
-                << err;
-            ASSERT_TRUE(w.write(block, err)) << err;
-        }
-        ASSERT_TRUE(w.commit(err)) << err;
+        writeByBlocks(path, img, rows, 2);
         // The same pixels and headers; one block is writeStatsFile byte for byte (with several,
         // OpenEXR stores each chunk when it is complete, so the parts' chunks interleave).
         StatsImage back;

@@ -284,22 +284,6 @@ TEST_F(CoreIo, TwoDamagedChunksReportTheSameOneWhateverTheThreads) {
 
 // ---- writing ------------------------------------------------------------------------------------
 
-/// Writes `img` with StatsFileWriter in blocks of `blockRows` rows on `threads` threads.
-void writeByBlocks(const std::string& path, const StatsImage& img, int blockRows, int threads) {
-    MemoryStatsSource src(std::make_shared<const StatsImage>(img), "memory");
-    StatsFileWriter w;
-    std::string err;
-    ASSERT_TRUE(w.open(path, img.header, err, threads)) << err;
-    StatsImage block;
-    for (int y = 0; y < img.header.height; y += blockRows) {
-        ASSERT_TRUE(
-            src.read(y, std::min(blockRows, img.header.height - y), kStatsAllParts, block, err))
-            << err;
-        ASSERT_TRUE(w.write(block, err)) << err;
-    }
-    ASSERT_TRUE(w.commit(err)) << err;
-}
-
 TEST_F(CoreIo, WrittenBytesAreTheSameWhateverTheBlocksAndThreads) {
     // zipPath is writeStatsFile's (the whole image at once, straight into the file); streamed
     // writes go through the spill file and the staging of rows that do not fill a chunk.

@@ -355,22 +355,6 @@ TEST_F(CoreWrite, StockOiiotoolReadsTheDeepAndUintParts) {
     }
 }
 
-/// Writes `img` with StatsFileWriter in blocks of `blockRows` rows on `threads` threads.
-void writeByBlocks(const std::string& path, const StatsImage& img, int blockRows, int threads) {
-    MemoryStatsSource src(std::make_shared<const StatsImage>(img), "memory");
-    StatsFileWriter w;
-    std::string err;
-    ASSERT_TRUE(w.open(path, img.header, err, threads)) << err;
-    StatsImage block;
-    for (int y = 0; y < img.header.height; y += blockRows) {
-        ASSERT_TRUE(
-            src.read(y, std::min(blockRows, img.header.height - y), kStatsAllParts, block, err))
-            << err;
-        ASSERT_TRUE(w.write(block, err)) << err;
-    }
-    ASSERT_TRUE(w.commit(err)) << err;
-}
-
 TEST(CoreWriteAdaptive, DeepBuffersReadBackAsTheCppApiWritesThemWhateverTheBlocksAndThreads) {
     // m_p in 1..9 (odd), 0..11 samples: empty buffers, pixels without samples.
     const StatsImage img = adaptiveImage(

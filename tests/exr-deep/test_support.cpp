@@ -6,7 +6,10 @@
 #include <algorithm>
 #include <fstream>
 #include <iterator>
+#include <memory>
 #include <stdexcept>
+
+#include "mcstat/stats_file.h"
 
 namespace mcstat::test {
 
@@ -48,6 +51,21 @@ void writeBytes(const std::string& path, const std::vector<unsigned char>& bytes
 
 bool contains(const std::string& haystack, const std::string& needle) {
     return haystack.find(needle) != std::string::npos;
+}
+
+void writeByBlocks(const std::string& path, const StatsImage& img, int blockRows, int threads) {
+    MemoryStatsSource src(std::make_shared<const StatsImage>(img), "memory");
+    StatsFileWriter w;
+    std::string err;
+    ASSERT_TRUE(w.open(path, img.header, err, threads)) << err;
+    StatsImage block;
+    for (int y = 0; y < img.header.height; y += blockRows) {
+        ASSERT_TRUE(
+            src.read(y, std::min(blockRows, img.header.height - y), kStatsAllParts, block, err))
+            << err;
+        ASSERT_TRUE(w.write(block, err)) << err;
+    }
+    ASSERT_TRUE(w.commit(err)) << err;
 }
 
 }  // namespace mcstat::test

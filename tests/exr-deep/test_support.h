@@ -5,6 +5,10 @@
 #include <string>
 #include <vector>
 
+namespace mcstat {
+struct StatsImage;
+}
+
 namespace mcstat::test {
 
 /// A fresh directory for one test, removed (with its content) on destruction.
@@ -25,6 +29,10 @@ class ScratchDir {
 
 std::vector<unsigned char> readBytes(const std::string& path);
 void writeBytes(const std::string& path, const std::vector<unsigned char>& bytes);
+
+/// Writes `img` to `path` with StatsFileWriter in blocks of `blockRows` rows on `threads` threads
+/// (gtest failures on error).
+void writeByBlocks(const std::string& path, const StatsImage& img, int blockRows, int threads);
 
 /// Whether `haystack` contains `needle`.
 bool contains(const std::string& haystack, const std::string& needle);
