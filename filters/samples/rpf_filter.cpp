@@ -54,8 +54,12 @@ struct Binned {
     double entropy = 0;  ///< natural log
 };
 
-void binValues(const float* v, size_t stride, size_t n, int maxBins, Binned& out,
-               std::vector<uint32_t>& count, const CLogC& clogc) {
+/// Values v[i * stride], i < n, binned; with `weight`, sample i counts weight[i] times and `total`
+/// is the sum of the weights (a neighbourhood whose repeated draws are held once, section 4.1),
+/// without, once (total = n). The histogram and entropy are those of the samples listed with
+/// their repeats: the same integer counts, summed in the same order.
+void binValues(const float* v, size_t stride, size_t n, const uint32_t* weight, size_t total,
+               int maxBins, Binned& out, std::vector<uint32_t>& count, const CLogC& clogc) {
     out.bin.resize(n);
     float lo = std::numeric_limits<float>::infinity();
     for (size_t i = 0; i < n; ++i) lo = std::min(lo, v[i * stride]);
@@ -73,16 +77,22 @@ void binValues(const float* v, size_t stride, size_t n, int maxBins, Binned& out
     const size_t nb = size_t(out.bins);
     count.assign(4 * nb, 0);
     size_t i4 = 0;
-    for (; i4 + 4 <= n; i4 += 4)
-        for (size_t l = 0; l < 4; ++l) ++count[l * nb + out.bin[i4 + l]];
-    for (; i4 < n; ++i4) ++count[out.bin[i4]];
+    if (weight) {
+        for (; i4 + 4 <= n; i4 += 4)
+            for (size_t l = 0; l < 4; ++l) count[l * nb + out.bin[i4 + l]] += weight[i4 + l];
+        for (; i4 < n; ++i4) count[out.bin[i4]] += weight[i4];
+    } else {
+        for (; i4 + 4 <= n; i4 += 4)
+            for (size_t l = 0; l < 4; ++l) ++count[l * nb + out.bin[i4 + l]];
+        for (; i4 < n; ++i4) ++count[out.bin[i4]];
+    }
     for (size_t b = 0; b < nb; ++b)
         count[b] += count[nb + b] + count[2 * nb + b] + count[3 * nb + b];
     count.resize(nb);
     // H = log n - (1/n) sum c log c
     double s = 0;
     for (uint32_t c : count) s += clogc[c];
-    out.entropy = n > 0 ? std::log(double(n)) - s / double(n) : 0.0;
+    out.entropy = total > 0 ? std::log(double(total)) - s / double(total) : 0.0;
 }
 
 /// Eq. 1 from two binned vectors: H(X) + H(Y) - H(X, Y), clamped at 0 against rounding.
@@ -107,24 +117,26 @@ double binnedMutualInformation(const Binned& a, const Binned& b, size_t n,
 
 /// Eq. 1 of variable `a` with each of variables [b0, b1) (out[b - b0]), in one pass over the
 /// samples: the joint histograms are independent, so their increments overlap in the CPU instead
-/// of waiting on each other as one histogram's repeated cells would.
+/// of waiting on each other as one histogram's repeated cells would. Sample i counts weight[i]
+/// times (binValues); `total` is the weights' sum.
 void mutualInformationRange(const std::vector<Binned>& v, int a, int b0, int b1, size_t n,
-                            std::vector<uint32_t>& joint, std::vector<size_t>& offsets,
-                            std::vector<int>& which, const CLogC& clogc, double* out) {
+                            const uint32_t* weight, size_t total, std::vector<uint32_t>& joint,
+                            std::vector<size_t>& offsets, std::vector<int>& which,
+                            const CLogC& clogc, double* out) {
     std::fill(out, out + (b1 - b0), 0.0);
     const Binned& x = v[size_t(a)];
     if (x.bins == 1 || n == 0) return;
     which.clear();
     offsets.clear();
-    size_t total = 0;
+    size_t cellsAll = 0;
     for (int b = b0; b < b1; ++b)
         if (b != a && v[size_t(b)].bins > 1) {
             which.push_back(b);
-            offsets.push_back(total);
-            total += size_t(x.bins) * size_t(v[size_t(b)].bins);
+            offsets.push_back(cellsAll);
+            cellsAll += size_t(x.bins) * size_t(v[size_t(b)].bins);
         }
     if (which.empty()) return;
-    if (joint.size() < total) joint.assign(total, 0);
+    if (joint.size() < cellsAll) joint.assign(cellsAll, 0);
     const size_t m = which.size();
     const uint8_t* xa = x.bin.data();
     // Tables in groups of four per pass, their increments interleaved.
@@ -142,23 +154,26 @@ void mutualInformationRange(const std::vector<Binned>& v, int a, int b0, int b1,
         if (g == 4) {
             for (size_t i = 0; i < n; ++i) {
                 const size_t r = xa[i];
-                ++t[0][r * nb[0] + yb[0][i]];
-                ++t[1][r * nb[1] + yb[1][i]];
-                ++t[2][r * nb[2] + yb[2][i]];
-                ++t[3][r * nb[3] + yb[3][i]];
+                const uint32_t c = weight[i];
+                t[0][r * nb[0] + yb[0][i]] += c;
+                t[1][r * nb[1] + yb[1][i]] += c;
+                t[2][r * nb[2] + yb[2][i]] += c;
+                t[3][r * nb[3] + yb[3][i]] += c;
             }
         } else {
             for (size_t l = 0; l < g; ++l)
-                for (size_t i = 0; i < n; ++i) ++t[l][size_t(xa[i]) * nb[l] + yb[l][i]];
+                for (size_t i = 0; i < n; ++i) t[l][size_t(xa[i]) * nb[l] + yb[l][i]] += weight[i];
         }
     }
-    const double logn = std::log(double(n));
+    const double logn = std::log(double(total));
     for (size_t k = 0; k < m; ++k) {
         const Binned& y = v[size_t(which[k])];
         const size_t cells = size_t(x.bins) * size_t(y.bins);
         uint32_t* t = joint.data() + offsets[k];
         double s = 0;
-        if (cells <= 2 * n) {
+        // Either way the sum is the same for the samples with their repeats: the cells in order,
+        // or the occupied cells in the order of their first sample (a repeat is never first).
+        if (cells <= 2 * total) {
             for (size_t c = 0; c < cells; ++c) s += clogc[t[c]];
             std::fill_n(t, cells, 0u);
         } else {  // sparse: visit the occupied cells through the samples, clearing each once
@@ -169,7 +184,7 @@ void mutualInformationRange(const std::vector<Binned>& v, int a, int b0, int b1,
                 c = 0;
             }
         }
-        const double hxy = logn - s / double(n);
+        const double hxy = logn - s / double(total);
         out[which[k] - b0] = std::max(0.0, x.entropy + y.entropy - hxy);
     }
 }
@@ -181,13 +196,29 @@ struct Scratch {
     std::vector<uint32_t> count, joint;
     std::vector<size_t> offsets;
     std::vector<int> which;
-    std::vector<double> mi;       // dims x dims, the pairs Algorithm 3 uses
-    std::vector<size_t> members;  // N: sample indices into the window
-    std::vector<float> xs;        // dims x |N| (by dimension), normalised (section 4.3)
-    std::vector<float> cs;        // |N| x 3: the current colours c', normalised for eq. 18
-    std::vector<float> z;         // k x |N|: the weighted coordinates of eq. 18, by dimension
-    std::vector<float> colour;    // 3 x |N|: the current colours c', by channel
-    std::vector<float> d2;        // |N|: squared distances, then weights
+    std::vector<double> mi;  // dims x dims, the pairs Algorithm 3 uses
+    // N as drawn (Algorithm 2) lists a sample once per draw that picked it; it is held as its
+    // distinct samples (`members`, in the order of their first draw, the pixel's own first) with
+    // how many times each was drawn (`mult`), and the draws in order as indices into members
+    // (`seq`, |N| entries). Counts are sums of multiplicities; sums of floating-point values run
+    // over seq, in the order of the draws, so that every result is the same bit for bit as
+    // with N listed in full.
+    std::vector<size_t> members;  // N's distinct samples: indices into the window
+    std::vector<uint32_t> mult;   // per member: how many draws of N picked it
+    std::vector<uint32_t> seq;    // |N|: N's entries in draw order, as indices into members
+    std::vector<uint32_t> ones;   // weights 1, for callers without repeats
+    std::vector<float> xs;        // dims x members (by dimension), normalised (section 4.3)
+    std::vector<float> cs;        // members x 3: the current colours c', normalised for eq. 18
+    std::vector<float> z;         // k x members: the weighted coordinates of eq. 18, by dimension
+    std::vector<float> colour;    // 3 x members: the current colours c', by channel
+    std::vector<float> d2;        // members: squared distances, then weights
+    // The draws already seen for this pixel (Algorithm 2): per sample of the box, by its place in
+    // the box's rows, the pixel's stamp and its member index (-1: failed the clustering test).
+    std::vector<uint32_t> seenStamp;
+    std::vector<int32_t> seenSlot;
+    uint32_t stamp = 0;
+    std::vector<int64_t> rowFirst;  // per box row: window index of its first sample in the box
+    std::vector<int64_t> rowBase;   // per box row: place of that sample in the box's list
     std::vector<double> mean, sd, threshold;  // per feature: clustering (Algorithm 2)
     std::vector<double> dcfk;                 // 3 x features: eq. 6's terms
     std::vector<double> scale;                // per coordinate of eq. 18: its factor
@@ -242,48 +273,62 @@ inline float expNegative(float x) {
     return t < 126.0f ? p * scale : 0.0f;
 }
 
-void meanAndDeviation(const float* v, size_t stride, size_t n, double& mean, double& sd) {
+/// Mean and (population) deviation of value(i), i < n, in double.
+template <class Value>
+void meanAndDeviationOf(Value value, size_t n, double& mean, double& sd) {
     // Four running sums, so the additions do not wait on each other (same result every run).
     double s[4] = {0, 0, 0, 0};
     size_t i = 0;
     for (; i + 4 <= n; i += 4)
-        for (size_t l = 0; l < 4; ++l) s[l] += double(v[(i + l) * stride]);
-    for (; i < n; ++i) s[0] += double(v[i * stride]);
+        for (size_t l = 0; l < 4; ++l) s[l] += double(value(i + l));
+    for (; i < n; ++i) s[0] += double(value(i));
     mean = n > 0 ? ((s[0] + s[1]) + (s[2] + s[3])) / double(n) : 0.0;
     double q[4] = {0, 0, 0, 0};
     for (i = 0; i + 4 <= n; i += 4)
         for (size_t l = 0; l < 4; ++l) {
-            const double d = double(v[(i + l) * stride]) - mean;
+            const double d = double(value(i + l)) - mean;
             q[l] += d * d;
         }
     for (; i < n; ++i) {
-        const double d = double(v[i * stride]) - mean;
+        const double d = double(value(i)) - mean;
         q[0] += d * d;
     }
     sd = n > 0 ? std::sqrt(((q[0] + q[1]) + (q[2] + q[3])) / double(n)) : 0.0;
 }
 
+void meanAndDeviation(const float* v, size_t stride, size_t n, double& mean, double& sd) {
+    meanAndDeviationOf([&](size_t i) { return v[i * stride]; }, n, mean, sd);
+}
+
 /// Algorithm 3, eq. 1: the mutual information of every pair the weights use, into sc.mi (dims x
-/// dims), over |N| = n samples; dimension d of sample i is xs[d * dimStride + i * sampleStride]
-/// (samples by rows or by columns).
+/// dims), over n distinct samples, sample i counting weight[i] times (total in all; weight null:
+/// once each); dimension d of sample i is xs[d * dimStride + i * sampleStride] (samples by rows
+/// or by columns).
 void neighbourhoodDependencies(const RpfLayout& layout, const float* xs, size_t dimStride,
-                               size_t sampleStride, size_t n, Scratch& sc) {
+                               size_t sampleStride, size_t n, const uint32_t* weight, size_t total,
+                               Scratch& sc) {
     const int dims = layout.dims(), nf = layout.features;
     const int fBase = 5 + layout.randoms;
-    sc.clogc.ensure(n);
+    if (!weight) {
+        sc.ones.assign(n, 1u);
+        weight = sc.ones.data();
+        total = n;
+    }
+    sc.clogc.ensure(total);
     sc.binned.resize(size_t(dims));
     for (int d = 0; d < dims; ++d)
-        binValues(xs + size_t(d) * dimStride, sampleStride, n, kMaxBins, sc.binned[size_t(d)],
-                  sc.count, sc.clogc);
+        binValues(xs + size_t(d) * dimStride, sampleStride, n, weight, total, kMaxBins,
+                  sc.binned[size_t(d)], sc.count, sc.clogc);
     // Every mutual information Algorithm 3 uses: colour channel k with all of p, r, f (dims
     // [3, dims)), feature k with p and r (dims [3, 5 + n)).
     sc.mi.assign(size_t(dims) * size_t(dims), 0.0);
     for (int k = 0; k < 3; ++k)
-        mutualInformationRange(sc.binned, k, 3, dims, n, sc.joint, sc.offsets, sc.which, sc.clogc,
-                               sc.mi.data() + size_t(k) * size_t(dims) + 3);
+        mutualInformationRange(sc.binned, k, 3, dims, n, weight, total, sc.joint, sc.offsets,
+                               sc.which, sc.clogc, sc.mi.data() + size_t(k) * size_t(dims) + 3);
     for (int k = 0; k < nf; ++k)
-        mutualInformationRange(sc.binned, fBase + k, 3, fBase, n, sc.joint, sc.offsets, sc.which,
-                               sc.clogc, sc.mi.data() + size_t(fBase + k) * size_t(dims) + 3);
+        mutualInformationRange(sc.binned, fBase + k, 3, fBase, n, weight, total, sc.joint,
+                               sc.offsets, sc.which, sc.clogc,
+                               sc.mi.data() + size_t(fBase + k) * size_t(dims) + 3);
 }
 
 /// Algorithm 3, eq. 2-16: the dependencies of sc.mi summed (eq. 2-8), their fractions due to the
@@ -334,10 +379,12 @@ RpfWeights dependencyWeights(const RpfLayout& layout, int pass, double epsilon, 
     return w;
 }
 
-/// Algorithm 3 (eq. 1-16) over |N| = n samples laid out as neighbourhoodDependencies reads them.
+/// Algorithm 3 (eq. 1-16) over n distinct samples laid out as neighbourhoodDependencies reads
+/// them, counted with their weights.
 RpfWeights featureWeights(const RpfLayout& layout, const float* xs, size_t dimStride,
-                          size_t sampleStride, size_t n, int pass, double epsilon, Scratch& sc) {
-    neighbourhoodDependencies(layout, xs, dimStride, sampleStride, n, sc);
+                          size_t sampleStride, size_t n, const uint32_t* weight, size_t total,
+                          int pass, double epsilon, Scratch& sc) {
+    neighbourhoodDependencies(layout, xs, dimStride, sampleStride, n, weight, total, sc);
     return dependencyWeights(layout, pass, epsilon, sc);
 }
 
@@ -367,9 +414,10 @@ void clusterThresholds(const RpfWindow& w, const RpfParams& prm, size_t first, s
 /// Algorithm 2's draws (section 4.1): `count` candidates drawn around pixel (x, y), each pixel
 /// offset round(N(0, sigma_p^2)) per axis, one of that pixel's samples picked uniformly. The
 /// candidates that land in the box, outside P, on a pixel with samples go to `batch` (returned:
-/// how many), their features prefetched: they lie at random places in a window of megabytes.
+/// how many) with their place in the box's samples (`place`, sc.rowFirst / rowBase), their
+/// features prefetched: they lie at random places in a window of megabytes.
 int drawCandidates(const RpfWindow& w, const OffsetLaw& law, int half, int x, int y, int64_t count,
-                   PixelRng& rng, size_t* batch) {
+                   PixelRng& rng, const Scratch& sc, size_t* batch, size_t* place) {
     const size_t featureOffset = size_t(5 + w.layout.randoms) * sizeof(float);
     const long last = long(law.cdf.size());
     int found = 0;
@@ -389,47 +437,106 @@ int drawCandidates(const RpfWindow& w, const OffsetLaw& law, int half, int x, in
         const char* at = reinterpret_cast<const char*>(w.sample(j)) + featureOffset;
         __builtin_prefetch(at);
         __builtin_prefetch(at + size_t(w.layout.features) * sizeof(float) - 1);
+        const size_t row = size_t(oy + half);
+        place[found] = size_t(int64_t(j) - sc.rowFirst[row] + sc.rowBase[row]);
         batch[found++] = j;
     }
     return found;
 }
 
+/// The samples of the box of pixel (x, y) (b x b pixels, clipped to the window) numbered row by
+/// row: sc.rowFirst[r] is the window index of the first sample of box row r, sc.rowBase[r] its
+/// number (the samples of a row of pixels are consecutive in the window). Returns how many.
+size_t numberBoxSamples(const RpfWindow& w, int half, int x, int y, Scratch& sc) {
+    const int b = 2 * half + 1;
+    const long x0 = std::max(0, x - half), x1 = std::min(w.width - 1, x + half);
+    sc.rowFirst.assign(size_t(b), 0);
+    sc.rowBase.assign(size_t(b), 0);
+    int64_t total = 0;
+    for (int r = 0; r < b; ++r) {
+        const long ny = y - half + r;
+        if (ny < w.y0 || ny >= w.y0 + w.rows) continue;
+        const size_t p0 = size_t(ny - w.y0) * size_t(w.width);
+        const int64_t a = int64_t(w.offset[p0 + size_t(x0)]);
+        sc.rowFirst[size_t(r)] = a;
+        sc.rowBase[size_t(r)] = total;
+        total += int64_t(w.offset[p0 + size_t(x1) + 1]) - a;
+    }
+    return size_t(total);
+}
+
 /// Algorithm 2 (sections 4.1-4.2): N <- P, then up to M - s neighbours (M of Algorithm 1 line 8)
 /// drawn with a Gaussian of sigma_p = b/4 around the pixel, each kept when every feature is
-/// within clusterThresholds' bound of the pixel's mean.
+/// within clusterThresholds' bound of the pixel's mean. A sample drawn again takes the first
+/// draw's decision (the test depends on the sample alone) and is counted again (sc.mult, sc.seq).
 void drawNeighbourhood(const RpfWindow& w, const RpfParams& prm, int pass, const OffsetLaw& law,
                        int x, int y, size_t first, size_t s, Scratch& sc) {
     const RpfLayout& L = w.layout;
     const int fBase = 5 + L.randoms;
     const int b = prm.boxes[size_t(pass)], half = b / 2;
     sc.members.clear();
-    for (size_t i = 0; i < s; ++i) sc.members.push_back(first + i);
+    sc.mult.assign(s, 1u);
+    sc.seq.clear();
+    for (size_t i = 0; i < s; ++i) {
+        sc.members.push_back(first + i);
+        sc.seq.push_back(uint32_t(i));
+    }
     const double M = std::min(std::floor(double(b) * double(b) * double(s) * prm.samplesFactor),
                               double(prm.maxNeighbourhood));
     const int64_t draws = std::max<int64_t>(0, int64_t(M) - int64_t(s));
+    if (draws == 0) return;
     PixelRng rng(prm.seed, pass, uint64_t(y) * uint64_t(w.width) + uint64_t(x));
+    const size_t boxSamples = numberBoxSamples(w, half, x, y, sc);
+    if (sc.seenStamp.size() < boxSamples) {
+        sc.seenStamp.resize(boxSamples, 0u);
+        sc.seenSlot.resize(boxSamples, 0);
+    }
+    if (++sc.stamp == 0) {  // wrapped: no entry may look seen
+        std::fill(sc.seenStamp.begin(), sc.seenStamp.end(), 0u);
+        sc.stamp = 1;
+    }
     // Candidates in batches: draw a batch (prefetching), then test them in draw order. The same
     // draws and the same decisions as one at a time.
     constexpr int kBatch = 32;
-    size_t batch[kBatch];
+    size_t batch[kBatch], place[kBatch];
     for (int64_t q0 = 0; q0 < draws; q0 += kBatch) {
         const int64_t qn = std::min<int64_t>(kBatch, draws - q0);
-        const int found = drawCandidates(w, law, half, x, y, qn, rng, batch);
+        const int found = drawCandidates(w, law, half, x, y, qn, rng, sc, batch, place);
         for (int c = 0; c < found; ++c) {
+            const size_t at = place[c];
+            if (sc.seenStamp[at] == sc.stamp) {  // drawn before: the same decision
+                const int32_t slot = sc.seenSlot[at];
+                if (slot >= 0) {
+                    ++sc.mult[size_t(slot)];
+                    sc.seq.push_back(uint32_t(slot));
+                }
+                continue;
+            }
             const float* f = w.sample(batch[c]) + fBase;
             bool keep = true;
             for (int k = 0; k < L.features; ++k)
                 keep &= std::abs(double(f[k]) - sc.mean[size_t(k)]) <= sc.threshold[size_t(k)];
-            if (keep) sc.members.push_back(batch[c]);
+            sc.seenStamp[at] = sc.stamp;
+            if (keep) {
+                const uint32_t slot = uint32_t(sc.members.size());
+                sc.seenSlot[at] = int32_t(slot);
+                sc.members.push_back(batch[c]);
+                sc.mult.push_back(1u);
+                sc.seq.push_back(slot);
+            } else {
+                sc.seenSlot[at] = -1;
+            }
         }
     }
 }
 
 /// Section 4.3: every element of the samples of N normalised over N (sc.xs, by dimension), and
-/// their current colours c' likewise (sc.cs, by sample) for eq. 18.
+/// their current colours c' likewise (sc.cs, by sample) for eq. 18. Means and deviations run
+/// over N's draws in order (sc.seq), each distinct sample normalised once.
 void normaliseNeighbourhood(const RpfWindow& w, const std::vector<float>& cIn, Scratch& sc) {
     const int dims = w.layout.dims();
-    const size_t n = sc.members.size();
+    const size_t n = sc.members.size(), total = sc.seq.size();
+    const uint32_t* seq = sc.seq.data();
     sc.xs.resize(n * size_t(dims));
     for (size_t i = 0; i < n; ++i) {
         const float* v = w.sample(sc.members[i]);
@@ -438,7 +545,7 @@ void normaliseNeighbourhood(const RpfWindow& w, const std::vector<float>& cIn, S
     for (int d = 0; d < dims; ++d) {
         float* v = sc.xs.data() + size_t(d) * n;
         double m, sd;
-        meanAndDeviation(v, 1, n, m, sd);
+        meanAndDeviationOf([&](size_t i) { return v[seq[i]]; }, total, m, sd);
         const double inv = sd > 0 ? 1.0 / sd : 0.0;
         for (size_t i = 0; i < n; ++i) v[i] = float((double(v[i]) - m) * inv);
     }
@@ -446,8 +553,9 @@ void normaliseNeighbourhood(const RpfWindow& w, const std::vector<float>& cIn, S
     for (size_t i = 0; i < n; ++i)
         std::copy_n(cIn.data() + sc.members[i] * 3, 3, sc.cs.data() + i * 3);
     for (int d = 0; d < 3; ++d) {
+        const float* c = sc.cs.data() + d;
         double m, sd;
-        meanAndDeviation(sc.cs.data() + d, 3, n, m, sd);
+        meanAndDeviationOf([&](size_t i) { return c[size_t(seq[i]) * 3]; }, total, m, sd);
         const double inv = sd > 0 ? 1.0 / sd : 0.0;
         for (size_t i = 0; i < n; ++i)
             sc.cs[i * 3 + size_t(d)] = float((double(sc.cs[i * 3 + size_t(d)]) - m) * inv);
@@ -519,7 +627,8 @@ void bilateralWeights(size_t i, size_t kz, Scratch& sc) {
     for (size_t j = 0; j < n; ++j) d2[j] = expNegative(d2[j]);  // w_ij
 }
 
-/// Eq. 20: the filtered colour c'' of a sample, N's current colours weighted by sc.d2 (in double).
+/// Eq. 20: the filtered colour c'' of a sample, N's current colours weighted by sc.d2 (in double),
+/// summed over N's draws in order.
 void filterColour(const Scratch& sc, float* out) {
     const size_t n = sc.members.size();
     const float* d2 = sc.d2.data();
@@ -527,7 +636,7 @@ void filterColour(const Scratch& sc, float* out) {
     const float* g = r + n;
     const float* bl = g + n;
     double acc[3] = {0, 0, 0}, wsum = 0;
-    for (size_t j = 0; j < n; ++j) {
+    for (const uint32_t j : sc.seq) {
         const double wij = d2[j];
         acc[0] += wij * r[j];
         acc[1] += wij * g[j];
@@ -540,11 +649,11 @@ void filterColour(const Scratch& sc, float* out) {
 /// The AOVs of a sample (docs/aovs.md) with eq. 20's weights sc.d2: a non-finite value is left
 /// out of its channel, a label kept as it is.
 void filterAovs(const RpfWindow& w, const float* aIn, const Scratch& sc, float* out) {
-    const size_t n = sc.members.size(), A = w.aovs;
+    const size_t A = w.aovs;
     for (size_t a = 0; a < A; ++a) {
         if (w.aovFixed[a]) continue;  // a label: kept as it is
         double av = 0, aw = 0;
-        for (size_t j = 0; j < n; ++j) {
+        for (const uint32_t j : sc.seq) {
             const float v = aIn[sc.members[j] * A + a];
             if (!std::isfinite(v)) continue;
             av += double(sc.d2[j]) * double(v);
@@ -598,9 +707,10 @@ void filterPixel(const RpfWindow& w, const RpfParams& prm, int pass, const Offse
     clusterThresholds(w, prm, first, s, sc);
     drawNeighbourhood(w, prm, pass, law, x, y, first, s, sc);
     normaliseNeighbourhood(w, cIn, sc);
-    const size_t n = sc.members.size();
-    const RpfWeights wt = featureWeights(w.layout, sc.xs.data(), n, 1, n, pass, prm.epsilon, sc);
-    if (report) reportPixel(n, wt, *report);
+    const size_t n = sc.members.size(), total = sc.seq.size();
+    const RpfWeights wt = featureWeights(w.layout, sc.xs.data(), n, 1, n, sc.mult.data(), total,
+                                         pass, prm.epsilon, sc);
+    if (report) reportPixel(total, wt, *report);
     // Algorithm 4, eq. 18-20, for every sample of the pixel (the first s members of N).
     const size_t kz = bilateralCoordinates(w, prm, wt, s, cIn, sc);
     const size_t A = aIn ? w.aovs : 0;
@@ -623,15 +733,15 @@ double mutualInformation(const float* a, const float* b, size_t n, int maxBins) 
     std::vector<int> which;
     std::vector<double> mi;  // dims x dims, the pairs Algorithm 3 uses
     maxBins = std::clamp(maxBins, 1, 65535);
-    binValues(a, 1, n, maxBins, ba, count, clogc);
-    binValues(b, 1, n, maxBins, bb, count, clogc);
+    binValues(a, 1, n, nullptr, n, maxBins, ba, count, clogc);
+    binValues(b, 1, n, nullptr, n, maxBins, bb, count, clogc);
     return binnedMutualInformation(ba, bb, n, joint, clogc);
 }
 
 RpfWeights rpfFeatureWeights(const RpfLayout& layout, const float* xs, size_t n, int pass,
                              double epsilon) {
     Scratch sc;
-    return featureWeights(layout, xs, 1, size_t(layout.dims()), n, pass, epsilon, sc);
+    return featureWeights(layout, xs, 1, size_t(layout.dims()), n, nullptr, n, pass, epsilon, sc);
 }
 
 int rpfHalo(const RpfParams& params) {
