@@ -2,10 +2,13 @@
 
 #include <OpenEXR/openexr.h>
 #include <fmt/format.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <map>
 #include <vector>
@@ -802,7 +805,13 @@ bool valueMatchesSize(int fd, const std::string& type, uint64_t at, uint32_t siz
 /// opaque attribute of the size its header claims before reading it (1.8 GB for a 10 KB file
 /// found by fuzzing, tests/fuzz/regressions), and the Core API accepts such a header, so this
 /// runs before either sees the file.
-bool checkAttributeSizes(int fd, uint64_t fileSize, const std::string& path, std::string& err) {
+/// Each attribute as checkAttributeSizes walks them: the header's index, the attribute's name and
+/// type, where its value starts and its size.
+using AttributeVisitor = std::function<void(
+    int header, const std::string& name, const std::string& type, uint64_t valueAt, uint32_t size)>;
+
+bool checkAttributeSizes(int fd, uint64_t fileSize, const std::string& path, std::string& err,
+                         const AttributeVisitor& visit = {}) {
     // Long names are at most 255 bytes (OpenEXR's limit): a name, a type and a size fit in this.
     constexpr size_t kMaxNameLen = 255, kMaxAttributes = 100000;
     unsigned char version[4] = {};
@@ -861,6 +870,7 @@ bool checkAttributeSizes(int fd, uint64_t fileSize, const std::string& path, std
         if (!valueMatchesSize(fd, type, valueAt, uint32_t(valueSize), why))
             return fail(
                 fmt::format("attribute '{}' of type {}: {}", oneLine(name), oneLine(type), why));
+        if (visit) visit(header, name, type, valueAt, uint32_t(valueSize));
         pos = valueAt + uint64_t(valueSize);
         if (++attributes > kMaxAttributes)
             return fail(fmt::format("more than {} attributes", kMaxAttributes));
@@ -874,6 +884,40 @@ bool checkExrAttributeSizes(int fd, uint64_t size, const std::string& path, std:
     if (size < 8 || preadFull(fd, magic, 4, 0) != 4 || std::memcmp(magic, kExrMagic, 4) != 0)
         return true;  // not OpenEXR: its own reader judges it
     return checkAttributeSizes(fd, size, path, err);
+}
+
+bool replaceStringAttribute(int fd, uint64_t size, const std::string& path, const std::string& name,
+                            const std::string& value, std::string& err) {
+    std::vector<uint64_t> at;
+    bool sizesAgree = true;
+    const bool walked = checkAttributeSizes(
+        fd, size, path, err,
+        [&](int, const std::string& n, const std::string& type, uint64_t valueAt, uint32_t bytes) {
+            if (n != name || type != "string") return;
+            at.push_back(valueAt);
+            sizesAgree = sizesAgree && bytes == value.size();
+        });
+    if (!walked) return false;
+    if (at.empty() || !sizesAgree) {
+        err = fmt::format("{}: {} string attribute '{}' of {} bytes to replace in place", path,
+                          at.empty() ? "no" : "not every", name, value.size());
+        return false;
+    }
+    for (uint64_t pos : at) {
+        size_t done = 0;
+        while (done < value.size()) {
+            const ssize_t n =
+                ::pwrite(fd, value.data() + done, value.size() - done, off_t(pos + done));
+            if (n < 0 && errno == EINTR) continue;
+            if (n <= 0) {
+                err = fmt::format("{}: cannot write attribute '{}' ({})", path, name,
+                                  n < 0 ? std::strerror(errno) : "nothing written");
+                return false;
+            }
+            done += size_t(n);
+        }
+    }
+    return true;
 }
 
 bool readExrPartNames(int fd, uint64_t size, const std::string& path,

@@ -205,6 +205,10 @@ bool writeStatsFile(const std::string& path, StatsBlockSource& src, std::string&
         block.header.formatVersion = out.formatVersion;
         if (!writer.write(block, err)) return false;
     }
+    // A source may know its seeds only once every row was read (an ingest's RGB hashes): the
+    // last block's header carries them.
+    if (block.header.seeds != out.seeds && !writer.replaceSeeds(block.header.seeds, err))
+        return false;
     return writer.commit(err);
 }
 

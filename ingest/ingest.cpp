@@ -17,6 +17,7 @@
 #include <memory>
 #include <set>
 
+#include "mcstat/core/parallel.h"
 #include "mcstat/core/params.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
@@ -399,22 +400,19 @@ bool checkRequest(const std::vector<std::string>& paths, const IngestOptions& op
     return true;
 }
 
-/// What the three phases of ingestRenders share: the files, what their headers settled, the
-/// result being built.
+/// What every source over the same renders shares: the files and what their headers settled
+/// (phase 1), and once a pass has read every row, each file's RGB hash (the provenance in
+/// mcstat:seeds) and what its pixels showed.
 struct Ingest {
-    Ingest(const IngestOptions& options, IngestReport& rep) : opt(options), report(rep) {}
-
-    const IngestOptions& opt;
-    IngestReport& report;
-    std::vector<InputFile> files;
+    IngestOptions opt;
+    IngestReport report;
+    std::vector<InputFile> files;  ///< headers only: no file is held open
     // Every channel but the beauty, kept per sub-buffer (docs/aovs.md).
     std::vector<AovChannel> aovs;
     std::vector<int> aovIndex;  ///< the channel index in every file of each of `aovs`
     double totalSpp = 0.0;      ///< samples per pixel over every file
-    StatsImage img;
-    std::vector<double> featureSum;  // N xyz, P xyz, Albedo rgb, Z; only when a feature exists
-    // Phase 2: blocks of rows read so far (for opt.progress), the RGB hash of each file read.
-    int64_t blocksDone = 0;
+    StatsHeader header;         ///< mcstat:seeds a placeholder of the final length until hashed
+    bool hashed = false;        ///< a pass read every row: `hashes` and header.seeds are final
     std::vector<uint64_t> hashes;
 
     const InputFile& first() const { return files[0]; }
@@ -603,13 +601,26 @@ bool readHeaders(const std::vector<std::string>& paths, Ingest& s, std::string& 
            checkTotals(s, err);
 }
 
+/// mcstat:seeds of renders known by the hashes of their RGB: "h" and 16 hex digits per file. Until
+/// a pass has read every row (`hashes` null), a placeholder of the same length: a statistics file
+/// written while its rows are read gets the hashes in place when it is complete
+/// (StatsFileWriter::commit).
+std::string seedsText(const std::vector<uint64_t>* hashes, size_t files) {
+    std::string s;
+    for (size_t j = 0; j < files; ++j) {
+        if (j) s += ',';
+        s += hashes ? fmt::format("h{:016x}", (*hashes)[j]) : "h" + std::string(16, '-');
+    }
+    return s;
+}
+
 /// The result's header: its size and buffers, where its samples came from and (version 5) what
 /// the render looked like.
 void fillHeader(Ingest& s) {
     const InputFile& first = s.first();
     const std::vector<InputFile>& files = s.files;
     const int M = s.buffers();
-    StatsHeader& h = s.img.header;
+    StatsHeader& h = s.header;
     h.formatVersion = kStatsFormatVersionProvenance;
     h.width = s.width();
     h.height = s.height();
@@ -637,68 +648,66 @@ void fillHeader(Ingest& s) {
     }
     h.sourceMetadata = sourceMetadataJson(fsp);
     h.formatVersion = std::max(kStatsFormatVersionProvenance, requiredFormatVersion(h));
+    h.seeds = seedsText(nullptr, files.size());
 }
 
-/// Allocates the result's arrays, its AOVs and the feature sums.
-bool allocateResult(Ingest& s, std::string& err) {
-    const int W = s.width(), H = s.height();
-    StatsImage& img = s.img;
-    if (!img.allocate(err)) return false;
-    try {
-        img.aov.assign(img.pixelCount() * size_t(s.buffers()) * s.aovs.size(), 0.f);
-    } catch (const std::exception& e) {
-        err = fmt::format("cannot allocate the AOVs of {}x{}: {}", W, H, e.what());
-        return false;
-    }
-    const size_t npix = size_t(int64_t(W) * int64_t(H));
-    try {
-        if (s.first().features.present != 0) s.featureSum.assign(npix * 10, 0.0);
-    } catch (const std::exception& e) {
-        err = fmt::format("cannot allocate the feature sums for {}x{}: {}", W, H, e.what());
-        return false;
-    }
-    return true;
+/// Rows per chunk of a render as its compression stores them (OpenEXR: ZIPS, RLE and NONE 1, ZIP
+/// and PXR24 16, PIZ, B44 and DWAA 32, DWAB 256; a tiled file its tile height): blocks of rows
+/// that start on a multiple of it never decode a chunk twice.
+int chunkRowsOf(const ImageSpec& spec) {
+    if (spec.tile_height > 0) return spec.tile_height;
+    const std::string c = OIIO::Strutil::lower(spec.get_string_attribute("compression"));
+    using OIIO::Strutil::starts_with;
+    if (starts_with(c, "zips") || starts_with(c, "rle") || starts_with(c, "none")) return 1;
+    if (starts_with(c, "zip") || starts_with(c, "pxr24")) return 16;
+    if (starts_with(c, "dwab")) return 256;
+    if (starts_with(c, "piz") || starts_with(c, "b44") || starts_with(c, "dwaa")) return 32;
+    return 16;
 }
 
-/// Reopens `f` for its pixels, refusing it if it changed since its header was read.
-bool reopenInput(InputFile& f, std::string& err) {
-    f.in = openRender(f.path, err);
-    if (!f.in) return false;
-    if (f.in->spec().x != f.spec.x || f.in->spec().y != f.spec.y ||
-        f.in->spec().width != f.spec.width || f.in->spec().height != f.spec.height ||
-        f.in->spec().nchannels != f.spec.nchannels) {
+/// Reopens `f` for its pixels into `in`, refusing it if it changed since its header was read.
+bool reopenInput(const InputFile& f, std::unique_ptr<ImageInput>& in, std::string& err) {
+    in = openRender(f.path, err);
+    if (!in) return false;
+    const ImageSpec& now = in->spec();
+    if (now.x != f.spec.x || now.y != f.spec.y || now.width != f.spec.width ||
+        now.height != f.spec.height || now.nchannels != f.spec.nchannels) {
         err = f.path + ": changed while being ingested";
+        in.reset();
         return false;
     }
     return true;
 }
 
-/// The channels read from `f`: the beauty, the features, the AOVs (-1 for an absent one).
-std::vector<int> usedChannels(const InputFile& f, const std::vector<int>& aovIndex) {
+/// The channels read from `f`: the beauty, and when asked the features and the AOVs (-1 for an
+/// absent one).
+std::vector<int> usedChannels(const InputFile& f, const std::vector<int>& aovIndex, bool features,
+                              bool aovs) {
     std::vector<int> used(f.beauty.index.begin(), f.beauty.index.end());
-    for (int i : f.features.normal) used.push_back(i);
-    for (int i : f.features.position) used.push_back(i);
-    for (int i : f.features.albedo) used.push_back(i);
-    used.push_back(f.features.depth);
-    for (int i : aovIndex) used.push_back(i);
+    if (features) {
+        for (int i : f.features.normal) used.push_back(i);
+        for (int i : f.features.position) used.push_back(i);
+        for (int i : f.features.albedo) used.push_back(i);
+        used.push_back(f.features.depth);
+    }
+    if (aovs)
+        for (int i : aovIndex) used.push_back(i);
     return used;
 }
 
-/// One block of rows of file j as read into `rows`: read r (one per subimage) at `base[r]`.
+/// Rows [y0, y1) of one file's channels as read (one contiguous read per subimage, read r at
+/// `base[r]`).
 struct RowBlock {
-    InputFile& f;
-    size_t j;  ///< the file's index, which is its sub-buffer's
+    const InputFile& f;
     std::vector<SubimageRead> reads;
-    std::vector<float>& rows;
+    std::vector<float> rows;
     std::vector<size_t> base;
-    int y0 = 0;
-    size_t pixels = 0;  ///< pixels in the block
+    size_t pixels = 0;
 };
 
-/// Reads rows [b.y0, y1) of the channels of b.reads into b.rows.
-bool readBlock(RowBlock& b, int y1, int W, std::string& err) {
-    b.pixels = size_t(y1 - b.y0) * size_t(W);
-    // One contiguous read per subimage; `value(i, q)` is channel i at block pixel q.
+/// Reads rows [y0, y1) (0-based) of the channels of b.reads from `in` into b.rows.
+bool readBlock(ImageInput& in, RowBlock& b, int y0, int y1, int W, std::string& err) {
+    b.pixels = size_t(y1 - y0) * size_t(W);
     b.base.assign(b.reads.size(), 0);
     size_t total = 0;
     for (size_t r = 0; r < b.reads.size(); ++r) {
@@ -707,10 +716,10 @@ bool readBlock(RowBlock& b, int y1, int W, std::string& err) {
     }
     b.rows.resize(total);
     for (size_t r = 0; r < b.reads.size(); ++r)
-        if (!b.f.in->read_scanlines(b.reads[r].subimage, 0, b.f.spec.y + b.y0, b.f.spec.y + y1, 0,
-                                    b.reads[r].chbegin, b.reads[r].chend, TypeDesc::FLOAT,
-                                    b.rows.data() + b.base[r])) {
-            err = fmt::format("{}: {}", b.f.path, oneLine(b.f.in->geterror()));
+        if (!in.read_scanlines(b.reads[r].subimage, 0, b.f.spec.y + y0, b.f.spec.y + y1, 0,
+                               b.reads[r].chbegin, b.reads[r].chend, TypeDesc::FLOAT,
+                               b.rows.data() + b.base[r])) {
+            err = fmt::format("{}: {}", b.f.path, oneLine(in.geterror()));
             return false;
         }
     return true;
@@ -727,143 +736,174 @@ void locate(const RowBlock& b, int i, size_t& off, size_t& stride) {
         }
 }
 
-/// What one file's pixels showed: the hash of its RGB (the same render twice) and its NaN/Inf.
+/// What one file's pixels showed over the rows hashed so far: the hash of its RGB (the same
+/// render twice), its NaN/Inf.
 struct FileTally {
     uint64_t hash = kFnvBasis;
     int64_t nonFinite = 0, nonFinitePixels = 0, nonFiniteAov = 0;
 };
 
-/// Stores a block's RGB as sub-buffer j's mean with the file's count, hashing and tallying it.
-void storeRGB(Ingest& s, const RowBlock& b, FileTally& t) {
-    const size_t W = size_t(s.width()), M = size_t(s.buffers());
-    const double n = double(b.f.spp);
+constexpr int kFeatureSlots = 10;  ///< N xyz, P xyz, albedo rgb, Z
+
+}  // namespace
+
+// ---- the pixels, by blocks of rows
+// ----------------------------------------------------------------
+
+struct IngestSource::Impl {
+    std::shared_ptr<Ingest> plan;
+    std::string name;
+    int nthreads = 0;
+    /// Files held open between reads (at most kKeepOpen files; more are opened per block).
+    std::vector<std::unique_ptr<ImageInput>> open;
+    std::vector<FileTally> tallies;
+    int hashedRows = 0;  ///< rows [0, hashedRows) of every file hashed by this source
+    int aovRows = 0;     ///< rows [0, aovRows) of every file's AOVs tallied by this source
+    bool passDone = false;
+    int64_t blocksDone = 0;
+    std::vector<float> featureRaw;  ///< a block's features, [(j * pixels + q) * 10 + slot]
+    std::vector<double> featureSum;
+
+    static constexpr size_t kKeepOpen = 64;
+
+    bool readFile(size_t j, int y0, int y1, int blockRow0, bool features, bool aovs,
+                  StatsImage& block, std::string& err);
+    bool finishPass(std::string& err);
+    void moments(StatsImage& block, size_t q0, size_t q1, bool features);
+};
+
+IngestSource::IngestSource() : impl_(std::make_unique<Impl>()) {}
+IngestSource::~IngestSource() = default;
+
+bool IngestSource::init(const std::vector<std::string>& paths, const IngestOptions& opt,
+                        std::string& err, int nthreads) {
+    impl_ = std::make_unique<Impl>();
+    auto plan = std::make_shared<Ingest>();
+    plan->opt = opt;
+    if (!checkRequest(paths, opt, err) || !readHeaders(paths, *plan, err)) return false;
+    fillHeader(*plan);
+    impl_->plan = std::move(plan);
+    impl_->nthreads = nthreads;
+    impl_->name = paths.size() == 1 ? paths[0]
+                                    : fmt::format("ingest of {} renders ({}, ..., {})",
+                                                  paths.size(), paths.front(), paths.back());
+    impl_->tallies.assign(paths.size(), FileTally());
+    return true;
+}
+
+std::unique_ptr<IngestSource> IngestSource::clone(int nthreads) const {
+    auto c = std::make_unique<IngestSource>();
+    c->impl_->plan = impl_->plan;
+    c->impl_->name = impl_->name;
+    c->impl_->nthreads = nthreads;
+    if (impl_->plan) c->impl_->tallies.assign(impl_->plan->files.size(), FileTally());
+    return c;
+}
+
+const StatsHeader& IngestSource::header() const {
+    static const StatsHeader kNone;
+    return impl_->plan ? impl_->plan->header : kNone;
+}
+const std::string& IngestSource::name() const { return impl_->name; }
+const IngestReport& IngestSource::report() const {
+    static const IngestReport kNone;
+    return impl_->plan ? impl_->plan->report : kNone;
+}
+bool IngestSource::hashed() const { return impl_->plan && impl_->plan->hashed; }
+int IngestSource::chunkRows() const {
+    return impl_->plan ? chunkRowsOf(impl_->plan->first().spec) : 1;
+}
+int IngestSource::decodeThreads() const {
+    return impl_->plan ? std::max(1, std::min(threadCount(impl_->nthreads), impl_->plan->buffers()))
+                       : 1;
+}
+int IngestSource::blocksHeld() const {
+    // The features of every file are held per block before they are summed (10 floats per
+    // buffer, about as much as the sub-buffers' 4): counted as a second block.
+    return impl_->plan && impl_->plan->first().features.present != 0 ? 2 : 1;
+}
+
+/// Reads rows [y0, y1) of file j into `block` (whose row 0 is image row blockRow0): its RGB as
+/// sub-buffer j with the file's count, hashed and tallied over the rows not hashed yet; its
+/// features into featureRaw; its AOVs into sub-buffer j's.
+bool IngestSource::Impl::readFile(size_t j, int y0, int y1, int blockRow0, bool features, bool aovs,
+                                  StatsImage& block, std::string& err) {
+    const Ingest& s = *plan;
+    const InputFile& f = s.files[j];
+    std::unique_ptr<ImageInput> once;
+    std::unique_ptr<ImageInput>& in = j < open.size() ? open[j] : once;
+    if (!in && !reopenInput(f, in, err)) return false;
+    const int W = s.width();
+    RowBlock b{f, readsFor(f, usedChannels(f, s.aovIndex, features, aovs)), {}, {}, 0};
+    if (!readBlock(*in, b, y0, y1, W, err)) return false;
+    const size_t M = size_t(s.buffers()), A = s.aovs.size();
+    const size_t q0 = size_t(y0 - blockRow0) * size_t(W);  // the rows' first pixel in `block`
+    const float n = float(f.spp);
+    FileTally& t = tallies[j];
+    // RGB: stored, and hashed and tallied over the rows this source has not hashed yet (a
+    // window filter reads a block's halo rows twice; a pass that skips rows hashes nothing more).
     size_t rgbOff[3], rgbStride[3];
-    for (int c = 0; c < 3; ++c) locate(b, b.f.beauty.index[size_t(c)], rgbOff[c], rgbStride[c]);
+    for (int c = 0; c < 3; ++c) locate(b, f.beauty.index[size_t(c)], rgbOff[c], rgbStride[c]);
+    const size_t hashFrom =
+        y0 <= hashedRows && hashedRows < y1 ? size_t(hashedRows - y0) * size_t(W) : b.pixels;
     for (size_t q = 0; q < b.pixels; ++q) {
-        const size_t p = size_t(b.y0) * W + q;
         float rgb[3];
+        for (int c = 0; c < 3; ++c) rgb[c] = b.rows[rgbOff[c] + q * rgbStride[c]];
+        const size_t k = (q0 + q) * M + j;
+        for (int c = 0; c < 3; ++c) block.bufferMean[k * 3 + size_t(c)] = rgb[c];
+        block.bufferCount[k] = n;
+        if (q < hashFrom) continue;
         bool finite = true;
-        for (int c = 0; c < 3; ++c) {
-            rgb[c] = b.rows[rgbOff[c] + q * rgbStride[c]];
+        for (int c = 0; c < 3; ++c)
             if (!std::isfinite(rgb[c])) {
                 ++t.nonFinite;
                 finite = false;
             }
-        }
         t.nonFinitePixels += !finite;
         t.hash = fnv1a(t.hash, rgb, sizeof rgb);
-        const size_t k = p * M + b.j;
-        for (int c = 0; c < 3; ++c) s.img.bufferMean[k * 3 + size_t(c)] = rgb[c];
-        s.img.bufferCount[k] = float(n);
     }
-}
-
-/// Adds a block's features to the sums.
-void addFeatures(Ingest& s, const RowBlock& b) {
-    const size_t W = size_t(s.width());
-    const double n = double(b.f.spp);
-    // Features: count-weighted sums in double (the file's value stands for its n samples).
-    const auto addFeature = [&](int i, size_t slot) {
-        if (i < 0) return;
-        size_t off = 0, stride = 1;
-        locate(b, i, off, stride);
-        for (size_t q = 0; q < b.pixels; ++q)
-            s.featureSum[(size_t(b.y0) * W + q) * 10 + slot] +=
-                n * double(b.rows[off + q * stride]);
-    };
-    const FeatureChannels& features = b.f.features;
-    for (size_t c = 0; c < 3; ++c) {
-        addFeature(features.normal[c], c);
-        addFeature(features.position[c], 3 + c);
-        addFeature(features.albedo[c], 6 + c);
+    if (features) {
+        const auto take = [&](int i, size_t slot) {
+            if (i < 0) return;
+            size_t off = 0, stride = 1;
+            locate(b, i, off, stride);
+            float* raw = featureRaw.data() + (j * block.pixelCount() + q0) * kFeatureSlots;
+            for (size_t q = 0; q < b.pixels; ++q)
+                raw[q * kFeatureSlots + slot] = b.rows[off + q * stride];
+        };
+        for (size_t c = 0; c < 3; ++c) {
+            take(f.features.normal[c], c);
+            take(f.features.position[c], 3 + c);
+            take(f.features.albedo[c], 6 + c);
+        }
+        take(f.features.depth, 9);
     }
-    addFeature(features.depth, 9);
-}
-
-/// Stores a block's AOVs in sub-buffer j, tallying their NaN/Inf.
-void storeAovs(Ingest& s, const RowBlock& b, FileTally& t) {
-    const size_t W = size_t(s.width()), M = size_t(s.buffers()), A = s.aovs.size();
-    // AOVs: file j's values are sub-buffer j's, as the beauty's are.
-    for (size_t a = 0; a < A; ++a) {
-        size_t off = 0, stride = 1;
-        locate(b, s.aovIndex[a], off, stride);
-        for (size_t q = 0; q < b.pixels; ++q) {
-            const size_t k = (size_t(b.y0) * W + q) * M + b.j;
-            const float v = b.rows[off + q * stride];
-            t.nonFiniteAov += !std::isfinite(v);
-            s.img.aov[k * A + a] = v;
+    if (aovs) {
+        const size_t tallyFrom =
+            y0 <= aovRows && aovRows < y1 ? size_t(aovRows - y0) * size_t(W) : b.pixels;
+        for (size_t a = 0; a < A; ++a) {
+            size_t off = 0, stride = 1;
+            locate(b, s.aovIndex[a], off, stride);
+            for (size_t q = 0; q < b.pixels; ++q) {
+                const float v = b.rows[off + q * stride];
+                if (q >= tallyFrom) t.nonFiniteAov += !std::isfinite(v);
+                block.aov[((q0 + q) * M + j) * A + a] = v;
+            }
         }
     }
-}
-
-/// Reads file j's pixels, block by block, into sub-buffer j; `rows` is the block's memory.
-bool readFilePixels(Ingest& s, size_t j, std::vector<float>& rows, FileTally& t, std::string& err) {
-    InputFile& f = s.files[j];
-    if (!reopenInput(f, err)) return false;
-    const int W = s.width(), H = s.height();
-    const int rowsPerBlock = std::max(1, s.opt.rowsPerBlock);
-    const int64_t blocksPerFile = (H + rowsPerBlock - 1) / rowsPerBlock;
-    RowBlock b{f, j, readsFor(f, usedChannels(f, s.aovIndex)), rows, {}, 0, 0};
-    for (b.y0 = 0; b.y0 < H; b.y0 += rowsPerBlock) {
-        if (!readBlock(b, std::min(H, b.y0 + rowsPerBlock), W, err)) return false;
-        storeRGB(s, b, t);
-        addFeatures(s, b);
-        storeAovs(s, b, t);
-        ++s.blocksDone;
-        if (s.opt.progress) s.opt.progress(s.blocksDone, blocksPerFile * int64_t(s.files.size()));
-    }
+    if (j >= open.size()) in.reset();  // more files than are kept open: closed after each block
     return true;
 }
 
-/// After file j's pixels: refuses a second copy of a render, records the file's hash and warns
-/// about its NaN/Inf; closes the file.
-bool finishFile(Ingest& s, size_t j, const FileTally& t, std::string& err) {
-    InputFile& f = s.files[j];
-    for (size_t i = 0; i < s.hashes.size(); ++i)
-        if (s.hashes[i] == t.hash) {
-            err = fmt::format("{}: holds the same RGB pixels as {} (the same render twice?)",
-                              f.path, s.files[i].path);
-            return false;
-        }
-    s.hashes.push_back(t.hash);
-    s.img.header.seeds += fmt::format("{}h{:016x}", j ? "," : "", t.hash);
-    if (t.nonFinite) {
-        s.report.nonFiniteValues += t.nonFinite;
-        s.report.warnings.push_back(fmt::format(
-            "{}: {} non-finite RGB values (NaN/Inf) in {} pixels: the stored mean (part beauty) "
-            "there is non-finite; --mean and the robust estimators leave that sub-buffer out",
-            f.path, t.nonFinite, t.nonFinitePixels));
-    }
-    if (t.nonFiniteAov) {
-        s.report.nonFiniteAovValues += t.nonFiniteAov;
-        s.report.warnings.push_back(fmt::format(
-            "{}: {} non-finite AOV values (NaN/Inf): each is left out of its channel alone, "
-            "the other sub-buffers' weights renormalised (docs/aovs.md)",
-            f.path, t.nonFiniteAov));
-    }
-    f.in.reset();  // close each file once read
-    return true;
-}
-
-/// 2. Pixels, file by file, in blocks of rows (memory: one block per file at a time).
-bool readPixels(Ingest& s, std::string& err) {
-    std::vector<float> rows;
-    for (size_t j = 0; j < s.files.size(); ++j) {
-        FileTally t;
-        if (!readFilePixels(s, j, rows, t, err) || !finishFile(s, j, t, err)) return false;
-    }
-    return true;
-}
-
-/// 3. Moments from the buffers, in double; features normalised; absent ones NaN.
-void computeMoments(Ingest& s) {
-    StatsImage& img = s.img;
-    const size_t npix = size_t(int64_t(s.width()) * int64_t(s.height()));
-    const size_t M = size_t(s.buffers());
-    const unsigned features = s.first().features.present;
+/// Moments of block pixels [q0, q1) from the buffers, in double; features from featureRaw,
+/// count-weighted over the files in their order; absent ones NaN.
+void IngestSource::Impl::moments(StatsImage& img, size_t q0, size_t q1, bool features) {
+    const Ingest& s = *plan;
+    const size_t M = size_t(s.buffers()), npix = img.pixelCount();
+    const unsigned present = features ? s.first().features.present : 0u;
     const double N = s.totalSpp;
     const float nan = std::numeric_limits<float>::quiet_NaN();
-    for (size_t p = 0; p < npix; ++p) {
+    for (size_t p = q0; p < q1; ++p) {
         img.count[p] = float(N);
         for (size_t c = 0; c < 3; ++c) {
             double sum = 0.0;
@@ -877,35 +917,179 @@ void computeMoments(Ingest& s) {
             img.variance[p * 3 + c] = float(bufferVariance(img, p, c, mean));
         }
         img.coverage[p] = nan;
-        if (features == 0) {
+        if (present == 0) {
             for (size_t c = 0; c < 3; ++c)
                 img.normal[p * 3 + c] = img.position[p * 3 + c] = img.albedo[p * 3 + c] = nan;
             img.depth[p] = nan;
             continue;
         }
-        const double* fs = &s.featureSum[p * 10];
-        for (size_t c = 0; c < 3; ++c) {
-            img.normal[p * 3 + c] = features & kFeatureNormal ? float(fs[c] / N) : nan;
-            img.position[p * 3 + c] = features & kFeaturePosition ? float(fs[3 + c] / N) : nan;
-            img.albedo[p * 3 + c] = features & kFeatureAlbedo ? float(fs[6 + c] / N) : nan;
+        double fs[kFeatureSlots] = {};
+        for (size_t j = 0; j < M; ++j) {
+            const double n = double(s.files[j].spp);
+            const float* raw = featureRaw.data() + (j * npix + p) * kFeatureSlots;
+            for (int slot = 0; slot < kFeatureSlots; ++slot) fs[slot] += n * double(raw[slot]);
         }
-        img.depth[p] = features & kFeatureDepth ? float(fs[9] / N) : nan;
+        for (size_t c = 0; c < 3; ++c) {
+            img.normal[p * 3 + c] = present & kFeatureNormal ? float(fs[c] / N) : nan;
+            img.position[p * 3 + c] = present & kFeaturePosition ? float(fs[3 + c] / N) : nan;
+            img.albedo[p * 3 + c] = present & kFeatureAlbedo ? float(fs[6 + c] / N) : nan;
+        }
+        img.depth[p] = present & kFeatureDepth ? float(fs[9] / N) : nan;
     }
 }
 
-}  // namespace
+/// After a pass over every row: refuses a second copy of a render, records the hashes (the
+/// header's seeds) and the NaN/Inf warnings, once per set of renders; a later pass must find the
+/// same hashes (a render that changed in between is refused).
+bool IngestSource::Impl::finishPass(std::string& err) {
+    Ingest& s = *plan;
+    const size_t M = s.files.size();
+    if (s.hashed) {
+        for (size_t j = 0; j < M; ++j)
+            if (tallies[j].hash != s.hashes[j]) {
+                err = s.files[j].path + ": changed while being ingested";
+                return false;
+            }
+        return true;
+    }
+    std::vector<uint64_t> hashes(M);
+    for (size_t j = 0; j < M; ++j) {
+        hashes[j] = tallies[j].hash;
+        for (size_t i = 0; i < j; ++i)
+            if (hashes[i] == hashes[j]) {
+                err = fmt::format("{}: holds the same RGB pixels as {} (the same render twice?)",
+                                  s.files[j].path, s.files[i].path);
+                return false;
+            }
+    }
+    std::vector<std::string> warnings;
+    for (size_t j = 0; j < M; ++j) {
+        const FileTally& t = tallies[j];
+        if (t.nonFinite) {
+            s.report.nonFiniteValues += t.nonFinite;
+            warnings.push_back(fmt::format(
+                "{}: {} non-finite RGB values (NaN/Inf) in {} pixels: the stored mean (part "
+                "beauty) there is non-finite; --mean and the robust estimators leave that "
+                "sub-buffer out",
+                s.files[j].path, t.nonFinite, t.nonFinitePixels));
+        }
+        if (t.nonFiniteAov && aovRows == s.height()) {
+            s.report.nonFiniteAovValues += t.nonFiniteAov;
+            warnings.push_back(fmt::format(
+                "{}: {} non-finite AOV values (NaN/Inf): each is left out of its channel alone, "
+                "the other sub-buffers' weights renormalised (docs/aovs.md)",
+                s.files[j].path, t.nonFiniteAov));
+        }
+    }
+    s.hashes = std::move(hashes);
+    s.header.seeds = seedsText(&s.hashes, M);
+    s.hashed = true;
+    for (const std::string& w : warnings) {
+        s.report.warnings.push_back(w);
+        if (s.opt.warning) s.opt.warning(w);
+    }
+    return true;
+}
+
+bool IngestSource::read(int firstRow, int rows, unsigned parts, StatsImage& block,
+                        std::string& err) {
+    Impl& im = *impl_;
+    if (!im.plan) {
+        err = "ingest: no renders to read from";
+        return false;
+    }
+    const Ingest& s = *im.plan;
+    const int W = s.width(), H = s.height();
+    if (rows < 1 || firstRow < 0 || firstRow > H - rows || (parts & ~kStatsAllParts)) {
+        err = fmt::format("{}: cannot read rows {}..{} of parts {:#x} (the image has {} rows)",
+                          im.name, firstRow, int64_t(firstRow) + rows - 1, parts, H);
+        return false;
+    }
+    if (im.open.empty() && s.files.size() <= Impl::kKeepOpen) im.open.resize(s.files.size());
+    // The RGB of every file is read whatever `parts` asks: the beauty and the moments are its
+    // mean and variance. Features and AOVs are read only when asked.
+    const bool features = (parts & kStatsPartFeatures) && s.first().features.present != 0;
+    const bool aovs = (parts & kStatsPartAovs) && !s.aovs.empty();
+    const size_t M = size_t(s.buffers()), A = s.aovs.size();
+    StatsImage& img = block;
+    img.header = s.header;
+    img.header.height = rows;
+    img.header.originY = s.header.originY + firstRow;
+    const size_t npix = size_t(rows) * size_t(W);
+    try {
+        img.beauty.resize(npix * 3);
+        img.bufferMean.resize(npix * M * 3);
+        img.bufferCount.resize(npix * M);
+        img.bufferOffset.clear();
+        img.count.resize(npix);
+        img.mean.resize(npix * 3);
+        img.variance.resize(npix * 3);
+        img.normal.resize(npix * 3);
+        img.position.resize(npix * 3);
+        img.albedo.resize(npix * 3);
+        img.depth.resize(npix);
+        img.coverage.resize(npix);
+        img.aov.resize(aovs ? npix * M * A : 0);
+        im.featureRaw.resize(features ? npix * M * kFeatureSlots : 0);
+    } catch (const std::exception& e) {
+        err = fmt::format("{}: cannot allocate rows {}..{} ({}x{}, M = {}): {}", im.name, firstRow,
+                          firstRow + rows - 1, W, rows, M, e.what());
+        return false;
+    }
+    // Rows in steps of opt.rowsPerBlock: each step reads every file (in parallel, one file per
+    // task), so a whole-image read holds one step of each file's channels at a time.
+    const int step = std::max(1, s.opt.rowsPerBlock);
+    const int64_t stepsPerPass = (H + step - 1) / step;
+    std::vector<std::string> errs(M);
+    for (int y0 = firstRow; y0 < firstRow + rows; y0 += step) {
+        const int y1 = std::min(firstRow + rows, y0 + step);
+        parallelFor(0, int64_t(M), 1, im.nthreads, [&](int64_t b, int64_t e) {
+            for (int64_t j = b; j < e; ++j)
+                if (errs[size_t(j)].empty())
+                    im.readFile(size_t(j), y0, y1, firstRow, features, aovs, img, errs[size_t(j)]);
+        });
+        for (const std::string& e : errs)  // the first file's error, whatever the thread count
+            if (!e.empty()) {
+                err = e;
+                return false;
+            }
+        if (y0 <= im.hashedRows && im.hashedRows < y1) im.hashedRows = y1;
+        if (aovs && y0 <= im.aovRows && im.aovRows < y1) im.aovRows = y1;
+        ++im.blocksDone;
+        if (s.opt.progress) s.opt.progress(std::min(im.blocksDone, stepsPerPass), stepsPerPass);
+    }
+    parallelFor(0, int64_t(rows), 0, im.nthreads, [&](int64_t b, int64_t e) {
+        im.moments(img, size_t(b) * size_t(W), size_t(e) * size_t(W), features);
+    });
+    if (im.hashedRows == H && !im.passDone) {
+        im.passDone = true;
+        if (!im.finishPass(err)) return false;
+        img.header.seeds = s.header.seeds;  // final now
+    }
+    // The arrays of the parts not asked for are empty, as a file reader leaves them.
+    if (!(parts & kStatsPartBeauty)) img.beauty.clear();
+    if (!(parts & kStatsPartBuffers)) img.bufferMean.clear(), img.bufferCount.clear();
+    if (!(parts & kStatsPartMoments)) img.count.clear(), img.mean.clear(), img.variance.clear();
+    if (!features && !(parts & kStatsPartFeatures)) {
+        img.normal.clear(), img.position.clear(), img.albedo.clear(), img.depth.clear();
+        img.coverage.clear();
+    }
+    return true;
+}
 
 bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& opt, StatsImage& out,
                    IngestReport& report, std::string& err) {
     report = IngestReport();
-    if (!checkRequest(paths, opt, err)) return false;
-    Ingest s{opt, report};
-    if (!readHeaders(paths, s, err)) return false;
-    fillHeader(s);
-    if (!allocateResult(s, err)) return false;
-    if (!readPixels(s, err)) return false;
-    computeMoments(s);
-    out = std::move(s.img);
+    IngestSource src;
+    if (!src.init(paths, opt, err)) {
+        report = src.report();
+        return false;
+    }
+    StatsImage img;
+    const bool ok = readAll(src, img, err);
+    report = src.report();
+    if (!ok) return false;
+    out = std::move(img);
     return true;
 }
 

@@ -314,6 +314,11 @@ bool cmdMerge(State& st, const std::string& cmd, const std::vector<std::string>&
     std::vector<const StatsHeader*> headers;
     std::vector<std::string> names;
     for (size_t i = first; i < st.stack.size(); ++i) {
+        // An ingest's seeds are its renders' RGB hashes: the merge's seed check needs them.
+        if (!settleIngest(st, st.stack[i], err)) {
+            err = format("{}: {}", cmd, err);
+            return false;
+        }
         const Item& it = st.stack[i];
         if (!it.isStats()) {
             err = nGiven > 0 ? format("{} merges statistics files; {} is an image", cmd, it.name)

@@ -13,6 +13,7 @@
 #include "mcstat/analysis/metrics.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/render_layout.h"
+#include "mcstat/ingest.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat::cli {
@@ -27,6 +28,8 @@ struct Item {
     /// A merge not computed yet (`--merge`, one node of its tree): read block by block from these
     /// items, merged in this order, when used.
     std::vector<std::shared_ptr<const Item>> mergeInputs;
+    /// Renders not read yet (`--ingest`): their headers, read block by block when used.
+    std::shared_ptr<const IngestSource> ingest;
     std::shared_ptr<OIIO::ImageBuf> image;  ///< set for image items
     /// An image computed from a statistics file: that file's header, so that -o writes the result
     /// laid out as the input render was (names, parts, AOVs; render_layout.h). Null otherwise.
@@ -131,6 +134,9 @@ struct ItemSource {
 /// merge of its two inputs. False with `err` on a bad file or an impossible merge.
 bool openSource(const State& st, const Item& item, ItemSource& src, std::string& err);
 bool loadStats(State& st, Item& item, std::string& err);
+/// An ingest item's header with its final seeds (the RGB hashes), reading the renders' RGB once
+/// if no pass has yet; any other item as it is.
+bool settleIngest(State& st, Item& item, std::string& err);
 bool cmdOutput(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
                std::string&);
 bool cmdInfo(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,

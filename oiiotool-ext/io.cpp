@@ -236,6 +236,8 @@ bool pushFile(State& st, const std::string& path, std::string& err) {
 bool openSource(const State& st, const Item& item, ItemSource& src, std::string& err) {
     if (item.stats) {
         src.owned.push_back(std::make_unique<MemoryStatsSource>(item.stats, item.name));
+    } else if (item.ingest) {
+        src.owned.push_back(item.ingest->clone(st.nthreads));
     } else if (!item.mergeInputs.empty()) {
         std::vector<StatsBlockSource*> inputs;
         std::vector<ItemSource> parts(item.mergeInputs.size());
@@ -260,7 +262,7 @@ bool openSource(const State& st, const Item& item, ItemSource& src, std::string&
 bool loadStats(State& st, Item& item, std::string& err) {
     if (item.stats) return true;
     auto img = std::make_shared<StatsImage>();
-    if (!item.mergeInputs.empty()) {
+    if (!item.mergeInputs.empty() || item.ingest) {
         ItemSource src;
         if (!openSource(st, item, src, err) || !readAll(*src.root, *img, err)) return false;
     } else if (!readStatsFile(item.path, *img, err)) {
@@ -268,6 +270,23 @@ bool loadStats(State& st, Item& item, std::string& err) {
     }
     item.stats = img;
     item.header = img->header;
+    return true;
+}
+
+bool settleIngest(State& st, Item& item, std::string& err) {
+    if (!item.ingest) return true;
+    if (!item.ingest->hashed()) {
+        // Only the RGB: the hashes are of the beauty (ZIP chunks hold every channel, so this
+        // still decodes them all).
+        const std::unique_ptr<IngestSource> src = item.ingest->clone(st.nthreads);
+        const int rows = src->blockRows(kStatsPartBeauty);
+        StatsImage block;
+        for (int y = 0; y < src->header().height; y += rows)
+            if (!src->read(y, std::min(rows, src->header().height - y), kStatsPartBeauty, block,
+                           err))
+                return false;
+    }
+    item.header = item.ingest->header();
     return true;
 }
 
@@ -360,20 +379,24 @@ bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>
         err = format("{}: {}", cmd, err);
         return false;
     }
-    // Progress on a terminal only: ingesting many large renders takes a while.
-    Progress progress("mcstat: ingest", 1000, showProgress());
-    if (const auto fraction = progress.fractionCallback())
-        opt.progress = [fraction](int64_t done, int64_t total) {
-            fraction(double(done) / double(std::max<int64_t>(1, total)));
+    // Progress on a terminal only: reading many large renders takes a while. The renders are
+    // read when the item is used (-o, an estimator), block by block; each pass shows its line.
+    if (showProgress()) {
+        auto shown = std::make_shared<std::unique_ptr<Progress>>();
+        opt.progress = [shown](int64_t done, int64_t total) {
+            if (!*shown) *shown = std::make_unique<Progress>("mcstat: ingest", 1000, true);
+            (*shown)->set(double(done) / double(std::max<int64_t>(1, total)));
+            if (done >= total) shown->reset();  // the pass is done: its final line
         };
-    auto stats = std::make_shared<StatsImage>();
-    IngestReport report;
-    const bool ok = ingestRenders(paths, opt, *stats, report, err);
-    progress.finish();
-    if (!ok) {
+    }
+    // The pixels' warnings (NaN/Inf) come when a pass has read every row.
+    opt.warning = [](const std::string& w) { warning(w); };
+    auto src = std::make_shared<IngestSource>();
+    if (!src->init(paths, opt, err, st.nthreads)) {
         err = format("{}: {}", cmd, err);
         return false;
     }
+    const IngestReport& report = src->report();
     for (const std::string& w : report.warnings) warning(w);
     if (st.verbose) {
         std::fprintf(
@@ -397,8 +420,8 @@ bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>
     }
     Item item;
     item.name = format("ingest({})", args[0]);
-    item.header = stats->header;
-    item.stats = std::move(stats);
+    item.header = src->header();
+    item.ingest = std::move(src);
     st.stack.push_back(std::move(item));
     return true;
 }
@@ -620,6 +643,10 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
                     s.nchannels, OIIO::Strutil::join(s.channelnames, ",").c_str(),
                     s.format.c_str());
         return true;
+    }
+    if (!settleIngest(st, top, err)) {  // the seeds of renders are their RGB hashes
+        err = format("{}: {}", cmd, err);
+        return false;
     }
     const StatsHeader& h = top.header;
     std::printf("%s: mcstat statistics file, format %d\n", top.name.c_str(), h.formatVersion);

@@ -34,8 +34,13 @@ struct IngestOptions {
     ReadLimits limits;
     /// Rows decoded per read: memory per file is rows x width x the channels read.
     int rowsPerBlock = 128;
-    /// Called after each block of rows with (blocks done, blocks in all); may be empty.
+    /// Called after each block of rows of every file with (blocks done, blocks in a pass over
+    /// the image); may be empty.
     std::function<void(int64_t, int64_t)> progress;
+    /// Called with each warning that the pixels give (NaN/Inf counts per file), once per set of
+    /// renders, when the first pass over every row completes; may be empty. The warnings also go
+    /// to the report (IngestSource::report).
+    std::function<void(const std::string&)> warning;
     /// Keep every channel that is not the beauty's R, G, B as an AOV (docs/aovs.md). false drops
     /// them, on request only (`--ingest:aovs=0`), and the report says so.
     bool aovs = true;
@@ -68,9 +73,53 @@ struct IngestReport {
 /// count-weighted means over the files, the others absent (NaN, not in mcstat:features); coverage
 /// is always absent. Every file must have the same data and display windows and channel names.
 /// NaN/Inf RGB values are kept (estimators leave such buffers out; the plain mean is non-finite
-/// there) and counted. Two files with identical RGB are refused (the same render twice).
+/// there) and counted. Two files with identical RGB are refused (the same render twice). The
+/// whole image in memory: IngestSource streams the same rows.
 bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& opt, StatsImage& out,
                    IngestReport& report, std::string& err);
+
+/// The renders of one image as a statistics image read by blocks of rows (StatsBlockSource), so
+/// that `mcstat --ingest ... -o f.mcstat` and the estimators over an ingest hold a block of rows
+/// of each file and of the result, never the images (memory flat in the image's height).
+/// init() reads and checks every header as ingestRenders does, allocating no pixels; read()
+/// decodes the rows asked for from every file, one file per task on `nthreads` threads (files
+/// are kept open up to 64 of them, else opened per block), and computes the block's moments. The
+/// RGB is read whatever the parts asked; features and AOVs only when asked.
+///
+/// Provenance: each file's RGB hash (mcstat:seeds "h<16 hex digits>", the same render twice is
+/// refused) is known only once a pass has read every row, in order from row 0 (a window
+/// filter's overlapping blocks count). Until then header().seeds holds a placeholder of the
+/// final length; the block that completes the pass carries the final seeds, which the
+/// statistics file writer puts in place at commit. A later pass must find the same hashes.
+class IngestSource final : public StatsBlockSource {
+  public:
+    IngestSource();
+    ~IngestSource() override;
+    IngestSource(const IngestSource&) = delete;
+    IngestSource& operator=(const IngestSource&) = delete;
+
+    /// Reads and checks every header (phase 1 of ingestRenders); false with `err`. The report's
+    /// header-phase warnings are in report() at once; the pixels' ones after a complete pass.
+    bool init(const std::vector<std::string>& paths, const IngestOptions& opt, std::string& err,
+              int nthreads = 0);
+    /// Another source over the same renders, sharing what init() found and, once known, the
+    /// hashes; its own files, threads and pass.
+    std::unique_ptr<IngestSource> clone(int nthreads) const;
+    const IngestReport& report() const;
+    /// Whether a pass over every row has completed: header().seeds holds the hashes.
+    bool hashed() const;
+
+    const StatsHeader& header() const override;
+    const std::string& name() const override;
+    int chunkRows() const override;
+    int decodeThreads() const override;
+    int blocksHeld() const override;
+    bool read(int firstRow, int rows, unsigned parts, StatsImage& block, std::string& err) override;
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
 
 /// Channel names of an image file over all its subimages (parts). Subimage 0's names are kept as
 /// they are; in later parts a name without a layer is qualified by the part's name ("N" in part

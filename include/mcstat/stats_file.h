@@ -376,6 +376,10 @@ class StatsFileWriter {
     /// Appends `block` (a valid image of whole rows: header.originY the next row to write, every
     /// part present, part aovs too when the header has AOVs, the same AOVs as open()'s header).
     bool write(const StatsImage& block, std::string& err);
+    /// Before commit(): mcstat:seeds as known only once every row was read (an ingest's RGB
+    /// hashes, IngestSource), of the same length as open()'s placeholder; commit() puts it in
+    /// place in every part's header before the rename. False with `err` on another length.
+    bool replaceSeeds(const std::string& seeds, std::string& err);
     /// After the last row: completes the file and renames it onto the target.
     bool commit(std::string& err);
 

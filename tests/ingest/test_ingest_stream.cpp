@@ -1,0 +1,218 @@
+// Ingest by blocks of rows (IngestSource): every block equals the same rows of the whole image for
+// any block height and thread count, the provenance hashes arrive with the pass that reads the
+// last row (and reach a file written while reading), and a render given twice or changed between
+// passes is refused.
+#include <OpenImageIO/filesystem.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+
+#include "mcstat/ingest.h"
+#include "render_files.h"
+
+namespace mcstat {
+namespace {
+
+using testing::ExrSpec;
+using testing::writeExr;
+
+constexpr int kW = 13, kH = 37;  ///< the renders' size: blocks of 1, 5 and 16 rows end short
+
+class IngestStream : public ::testing::Test {
+  protected:
+    std::string dir;
+    void SetUp() override {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        dir = std::string(MCSTAT_BINARY_DIR) + "/tests/ingest/tmp-" + info->test_suite_name() +
+              "-" + info->name();
+        OIIO::Filesystem::remove_all(dir);
+        OIIO::Filesystem::create_directory(dir);
+    }
+    void TearDown() override { OIIO::Filesystem::remove_all(dir); }
+    std::string path(const std::string& name) const { return dir + "/" + name; }
+
+    /// File j in Cycles' naming (features and AOVs), 16 spp, with a NaN in file 1 and values
+    /// that differ per file, row and column.
+    std::string writeRender(int j, float shift = 0.f) {
+        ExrSpec e;
+        e.width = kW;
+        e.height = kH;
+        e.channels = testing::cyclesChannels();
+        e.stringAttrs["cycles.ViewLayer.samples"] = "16";
+        const std::string p = path("s" + std::to_string(j) + ".exr");
+        writeExr(p, e, [&](const std::string& n, int x, int y) -> float {
+            const float base = 0.01f * float(x * 7 + y * 3 + j * 11 % 5) + shift;
+            if (j == 1 && x == 3 && y == 20 && n.find("Combined.G") != std::string::npos)
+                return std::nanf("");
+            if (n.find("Combined") != std::string::npos) return base + float(n.back() - 'A');
+            if (n.find("Normal") != std::string::npos) return 0.1f * float(j) - 0.02f * float(y);
+            return base * 0.5f + 0.25f;
+        });
+        return p;
+    }
+
+    std::vector<std::string> renders(int n) {
+        std::vector<std::string> p;
+        for (int j = 0; j < n; ++j) p.push_back(writeRender(j));
+        return p;
+    }
+};
+
+/// Rows [y0, y0 + rows) of `whole`'s array `a` (`per` values per pixel) against `block`'s.
+void expectRows(const std::vector<float>& whole, const std::vector<float>& block, size_t per,
+                int y0, int rows, const char* what) {
+    ASSERT_EQ(block.size(), size_t(rows) * kW * per) << what;
+    const size_t off = size_t(y0) * kW * per;
+    // Bit for bit, NaN included.
+    EXPECT_EQ(std::memcmp(block.data(), whole.data() + off, block.size() * sizeof(float)), 0)
+        << what << " rows " << y0 << "..";
+}
+
+TEST_F(IngestStream, BlocksEqualTheWholeImageForAnyBlockHeightAndThreadCount) {
+    const auto paths = renders(5);
+    StatsImage whole;
+    IngestReport rep;
+    std::string err;
+    ASSERT_TRUE(ingestRenders(paths, IngestOptions(), whole, rep, err)) << err;
+    ASSERT_NE(whole.header.seeds.find("h"), std::string::npos);
+    const size_t M = 5, A = whole.header.aovs.size();
+    ASSERT_GT(A, 0u);
+    for (int threads : {1, 2})
+        for (int rows : {1, 5, 16, kH}) {
+            IngestSource src;
+            ASSERT_TRUE(src.init(paths, IngestOptions(), err, threads)) << err;
+            // Before the last row: a placeholder of the final length, no hash.
+            EXPECT_EQ(src.header().seeds.size(), whole.header.seeds.size());
+            EXPECT_NE(src.header().seeds, whole.header.seeds);
+            EXPECT_FALSE(src.hashed());
+            StatsImage b;
+            for (int y = 0; y < kH; y += rows) {
+                const int n = std::min(rows, kH - y);
+                ASSERT_TRUE(src.read(y, n, kStatsAllParts, b, err)) << err;
+                ASSERT_TRUE(validateStats(b, "block", err)) << err;
+                EXPECT_EQ(b.header.originY, y);
+                expectRows(whole.bufferMean, b.bufferMean, 3 * M, y, n, "bufferMean");
+                expectRows(whole.bufferCount, b.bufferCount, M, y, n, "bufferCount");
+                expectRows(whole.mean, b.mean, 3, y, n, "mean");
+                expectRows(whole.variance, b.variance, 3, y, n, "variance");
+                expectRows(whole.beauty, b.beauty, 3, y, n, "beauty");
+                expectRows(whole.normal, b.normal, 3, y, n, "normal");
+                expectRows(whole.position, b.position, 3, y, n, "position");
+                expectRows(whole.depth, b.depth, 1, y, n, "depth");
+                expectRows(whole.aov, b.aov, M * A, y, n, "aov");
+            }
+            // The block with the last row carries the hashes, as the source's header does now.
+            EXPECT_TRUE(src.hashed());
+            EXPECT_EQ(b.header.seeds, whole.header.seeds);
+            EXPECT_EQ(src.header().seeds, whole.header.seeds);
+            EXPECT_EQ(src.report().nonFiniteValues, 1);
+        }
+}
+
+TEST_F(IngestStream, OverlappingBlocksAndRGBOnlyReadsHashEachRowOnce) {
+    const auto paths = renders(3);
+    StatsImage whole;
+    IngestReport rep;
+    std::string err;
+    ASSERT_TRUE(ingestRenders(paths, IngestOptions(), whole, rep, err)) << err;
+    // A window filter's blocks overlap by their halo: rows 5..9 and 15..19 are read twice.
+    IngestSource src;
+    ASSERT_TRUE(src.init(paths, IngestOptions(), err, 2)) << err;
+    StatsImage b;
+    ASSERT_TRUE(src.read(0, 10, kStatsAllParts, b, err)) << err;
+    ASSERT_TRUE(src.read(5, 15, kStatsAllParts, b, err)) << err;
+    ASSERT_TRUE(src.read(15, kH - 15, kStatsAllParts, b, err)) << err;
+    EXPECT_EQ(src.header().seeds, whole.header.seeds);
+    EXPECT_EQ(src.report().nonFiniteValues, 1);  // the NaN counted once
+    // Only the beauty asked for: the other parts' arrays are empty, and the hashes are the same.
+    IngestSource rgb;
+    ASSERT_TRUE(rgb.init(paths, IngestOptions(), err, 1)) << err;
+    ASSERT_TRUE(rgb.read(0, kH, kStatsPartBeauty, b, err)) << err;
+    EXPECT_TRUE(b.bufferMean.empty());
+    EXPECT_TRUE(b.aov.empty());
+    EXPECT_TRUE(b.normal.empty());
+    expectRows(whole.beauty, b.beauty, 3, 0, kH, "beauty");
+    EXPECT_EQ(b.header.seeds, whole.header.seeds);
+    // A pass that skips rows hashes nothing past the gap.
+    IngestSource gap;
+    ASSERT_TRUE(gap.init(paths, IngestOptions(), err, 1)) << err;
+    ASSERT_TRUE(gap.read(0, 10, kStatsAllParts, b, err)) << err;
+    ASSERT_TRUE(gap.read(11, kH - 11, kStatsAllParts, b, err)) << err;
+    EXPECT_FALSE(gap.hashed());
+    EXPECT_NE(b.header.seeds, whole.header.seeds);
+}
+
+TEST_F(IngestStream, AFileWrittenWhileReadingGetsTheHashesInItsHeaders) {
+    const auto paths = renders(4);
+    StatsImage whole;
+    IngestReport rep;
+    std::string err;
+    ASSERT_TRUE(ingestRenders(paths, IngestOptions(), whole, rep, err)) << err;
+    IngestSource src;
+    ASSERT_TRUE(src.init(paths, IngestOptions(), err, 2)) << err;
+    // A small budget: several blocks, so the header is written long before the last row is read.
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), src, err, 2, 4096)) << err;
+    StatsImage back;
+    ASSERT_TRUE(readStatsFile(path("f.mcstat"), back, err)) << err;
+    EXPECT_EQ(back.header.seeds, whole.header.seeds);
+    EXPECT_EQ(back.bufferMean.size(), whole.bufferMean.size());
+    EXPECT_EQ(std::memcmp(back.bufferMean.data(), whole.bufferMean.data(),
+                          whole.bufferMean.size() * sizeof(float)),
+              0);
+    EXPECT_EQ(back.aov, whole.aov);
+    StatsCheckReport check;
+    ASSERT_TRUE(checkStatsFile(path("f.mcstat"), check, err)) << err;
+    EXPECT_TRUE(check.openexrChecked);
+    // A clone shares the hashes: a second write has them from its first block.
+    const auto again = src.clone(1);
+    EXPECT_EQ(again->header().seeds, whole.header.seeds);
+    ASSERT_TRUE(writeStatsFile(path("g.mcstat"), *again, err, 1, 4096)) << err;
+    ASSERT_TRUE(readStatsFile(path("g.mcstat"), back, err)) << err;
+    EXPECT_EQ(back.header.seeds, whole.header.seeds);
+}
+
+TEST_F(IngestStream, TheSameRenderTwiceIsRefusedAtTheLastRowAndNothingIsWritten) {
+    auto paths = renders(3);
+    OIIO::Filesystem::copy(paths[1], path("copy.exr"));
+    paths.push_back(path("copy.exr"));
+    IngestSource src;
+    std::string err;
+    ASSERT_TRUE(src.init(paths, IngestOptions(), err, 2)) << err;  // headers alone cannot tell
+    EXPECT_FALSE(writeStatsFile(path("f.mcstat"), src, err, 2, 4096));
+    EXPECT_NE(err.find("copy.exr: holds the same RGB pixels as " + paths[1]), std::string::npos)
+        << err;
+    EXPECT_FALSE(OIIO::Filesystem::exists(path("f.mcstat")));
+    std::vector<std::string> left;
+    OIIO::Filesystem::get_directory_entries(dir, left);
+    for (const std::string& f : left) EXPECT_EQ(OIIO::Filesystem::extension(f), ".exr") << f;
+}
+
+TEST_F(IngestStream, ARenderChangedBetweenPassesIsRefused) {
+    const auto paths = renders(3);
+    IngestSource src;
+    std::string err;
+    ASSERT_TRUE(src.init(paths, IngestOptions(), err, 1)) << err;
+    StatsImage b;
+    ASSERT_TRUE(src.read(0, kH, kStatsAllParts, b, err)) << err;
+    ASSERT_TRUE(src.hashed());
+    writeRender(2, 0.5f);  // same layout, other pixels
+    const auto again = src.clone(1);
+    EXPECT_FALSE(again->read(0, kH, kStatsAllParts, b, err));
+    EXPECT_NE(err.find(paths[2] + ": changed while being ingested"), std::string::npos) << err;
+}
+
+TEST_F(IngestStream, SeedsOfAnotherLengthAreRefusedByTheWriter) {
+    const auto paths = renders(2);
+    IngestSource src;
+    std::string err;
+    ASSERT_TRUE(src.init(paths, IngestOptions(), err, 1)) << err;
+    StatsFileWriter w;
+    ASSERT_TRUE(w.open(path("f.mcstat"), src.header(), err, 1)) << err;
+    EXPECT_FALSE(w.replaceSeeds("h1234", err));
+    EXPECT_NE(err.find("mcstat:seeds of 5 bytes cannot replace the 35 written"), std::string::npos)
+        << err;
+}
+
+}  // namespace
+}  // namespace mcstat
