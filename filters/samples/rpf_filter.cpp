@@ -11,6 +11,15 @@
 
 #include "mcstat/core/parallel.h"
 
+// The per-pixel work, compiled twice: for AVX2 and for the baseline, chosen at load time by the
+// CPU. The same arithmetic either way: no reassociation is allowed (no -ffast-math), and AVX2
+// does not include FMA, so no multiply-add is contracted.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_ADDRESS__)
+#define MCSTAT_RPF_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define MCSTAT_RPF_CLONES
+#endif
+
 namespace mcstat {
 
 namespace {
@@ -58,6 +67,7 @@ struct Binned {
 /// is the sum of the weights (a neighbourhood whose repeated draws are held once, section 4.1),
 /// without, once (total = n). The histogram and entropy are those of the samples listed with
 /// their repeats: the same integer counts, summed in the same order.
+MCSTAT_RPF_CLONES
 void binValues(const float* v, size_t stride, size_t n, const uint32_t* weight, size_t total,
                int maxBins, Binned& out, std::vector<uint32_t>& count, const CLogC& clogc) {
     out.bin.resize(n);
@@ -119,6 +129,7 @@ double binnedMutualInformation(const Binned& a, const Binned& b, size_t n,
 /// samples: the joint histograms are independent, so their increments overlap in the CPU instead
 /// of waiting on each other as one histogram's repeated cells would. Sample i counts weight[i]
 /// times (binValues); `total` is the weights' sum.
+MCSTAT_RPF_CLONES
 void mutualInformationRange(const std::vector<Binned>& v, int a, int b0, int b1, size_t n,
                             const uint32_t* weight, size_t total, std::vector<uint32_t>& joint,
                             std::vector<size_t>& offsets, std::vector<int>& which,
@@ -698,6 +709,7 @@ void removeSpikes(const RpfWindow& w, size_t first, size_t s, size_t A, std::vec
 
 /// Algorithm 2, 3 and 4 (and section 6.1 when asked) for pixel (x, y): its samples' filtered
 /// colours (and AOVs) into cOut (and aOut).
+MCSTAT_RPF_CLONES
 void filterPixel(const RpfWindow& w, const RpfParams& prm, int pass, const OffsetLaw& law, int x,
                  int y, const std::vector<float>& cIn, std::vector<float>& cOut, Scratch& sc,
                  RpfPixelReport* report, const float* aIn, float* aOut) {
