@@ -11,7 +11,11 @@
 #  3. Pictures: docs/images/rpf_SCENE.png (MC 8 spp | RPF 8 spp | reference, sRGB, clamped) and
 #     docs/images/rpf_maps_SCENE.png (the first pass's dependency maps, the report's Fig. 6:
 #     rpf.colourOnRandom | rpf.textureOnRandom | rpf.alpha | rpf.textureBeta, grey 0..1).
-# Environment: SECTIONS (default "1 2 3"), REPS (1), REF_SPP (8192), SCENES (the four),
+#  4. Where RPF's error is (EXPLAIN scenes, default dof): docs/images/rpf_error_SCENE.png (per-pixel
+#     relative squared error of RPF 8 and of MC 64 against the reference, log scale, and the first
+#     pass's |N|) and tables of each one's share of relMSE by |N|, by the reference's light edges
+#     and by the worst pixels.
+# Environment: SECTIONS (default "1 2 3 4"), EXPLAIN (scenes of section 4, default "dof"), REPS (1), REF_SPP (8192), SCENES (the four),
 # BUILD (build: the binaries' build directory), SKIP_BUILD=1 (use the binaries as they are),
 # REFRESH=1 (re-render the cached MC renders; references are re-rendered only when deleted).
 # Cached under out/bench-rpf/: ref-SCENE-SPP.exr, mc-SCENE-SPP.exr, SCENE-8-keep.mcstat; RPF
@@ -24,7 +28,8 @@ die() { echo "bench_rpf: $*" >&2; exit 1; }
 REPS=${REPS:-1}
 REF_SPP=${REF_SPP:-8192}
 SCENES=${SCENES:-"dof arealight motion texture"}
-SECTIONS=${SECTIONS:-"1 2 3"}
+SECTIONS=${SECTIONS:-"1 2 3 4"}
+EXPLAIN=${EXPLAIN:-dof}
 BUILD=${BUILD:-build}
 MC_SPP="8 64 512 2048"                          # the rows of section 2's tables
 SWEEP="8 16 32 64 128 256 512 1024 2048"        # powers of two for "MC matches RPF at"
@@ -34,7 +39,7 @@ R=$BUILD/render-fixture/mcstat-render
 M=$BUILD/oiiotool-ext/mcstat
 [[ $REPS =~ ^[1-9][0-9]*$ ]] || die "REPS must be a positive integer (got '$REPS')"
 [[ $REF_SPP =~ ^[1-9][0-9]*$ ]] || die "REF_SPP must be a positive integer (got '$REF_SPP')"
-for s in $SECTIONS; do [[ $s == [123] ]] || die "SECTIONS holds 1, 2 and/or 3 (got '$SECTIONS')"; done
+for s in $SECTIONS; do [[ $s == [1234] ]] || die "SECTIONS holds 1, 2, 3 and/or 4 (got '$SECTIONS')"; done
 want() { [[ " $SECTIONS " == *" $1 "* ]]; }
 
 # Progress on stderr only when it is a terminal (the tools show their own progress lines then too).
@@ -268,6 +273,98 @@ done
 note "Section 3 took $(hms $((SECONDS - t0)))."
 fi
 
+if want 4; then
+t0=$SECONDS
+md_begin 4 "4. Where RPF's error is (per pixel, against the ${REF_SPP}-spp reference)"
+md_cmds <<EOF
+$M $out/SCENE-8-keep.mcstat --rpf:maps=1 -o $out/SCENE-rpf8-maps.exr   # R, G, B and rpf.neighbours (|N|, pass 1)
+oiiotool --dumpdata IMAGE   # RPF 8, MC 64, MC 8, the reference: per-pixel values, joined by awk
+# error of a pixel: (1/3) sum over R, G, B of (x - r)^2 / (r^2 + 0.01), as mcstat --diff (relMSE is its mean)
+EOF
+md_text "rpf_error_SCENE.png: the per-pixel error of RPF 8 | of MC 64 (log scale, inferno colours: black"
+md_text "1e-4 or less, white 1 or more) | the first pass's neighbourhood size |N| (grey, black 0, white"
+md_text "12,100 = the draws of the 55-pixel box at 8 spp). Light edge: a pixel whose 3x3 neighbourhood"
+md_text "in the reference holds luminance both >= 1 and < 1 (the emitters have radiance 10-17, lit"
+md_text "surfaces less than 1). Share: the part of the image's relMSE (sum of the pixel errors) that the"
+md_text "pixels hold; mean: their mean error."
+md_text
+dumpv() { oiiotool --dumpdata "$1" | tail -n +2 | sed 's/^.*: //'; }
+for scene in $EXPLAIN; do
+  ensure_ref "$scene"; ensure_mc "$scene" 8; ensure_mc "$scene" 64; ensure_maps "$scene"
+  maps=$out/$scene-rpf8-maps.exr
+  # Where |N| is among the maps file's channels (in the file's order).
+  nch=$(oiiotool --info -v "$maps" | sed -n 's/^ *channel list: //p' | tr -d ' ' | tr ',' '\n' |
+        grep -n '^rpf.neighbours$' | cut -d: -f1)
+  [ -n "$nch" ] || die "$maps has no channel rpf.neighbours"
+  read -r width height < <(oiiotool --info "$maps" | sed -n 's/^[^:]*: *\([0-9]*\) x *\([0-9]*\),.*/\1 \2/p')
+  dumpv "$maps" >"$out/x-rpf.txt"; dumpv "$(ref_file "$scene")" >"$out/x-ref.txt"
+  dumpv "$(mc_file "$scene" 64)" >"$out/x-mc64.txt"; dumpv "$(mc_file "$scene" 8)" >"$out/x-mc8.txt"
+  nrpf=$(head -n1 "$out/x-rpf.txt" | wc -w)
+  # Per pixel (x-pix.txt): the errors of RPF 8, MC 64, MC 8, |N|, the light-edge flag; the tiles.
+  paste -d' ' "$out/x-rpf.txt" "$out/x-ref.txt" "$out/x-mc64.txt" "$out/x-mc8.txt" |
+    awk -v W="$width" -v H="$height" -v nch="$nch" -v o="$nrpf" -v out="$out" '
+    function rel(a, b, c, r, g, bl) {
+      return ((a - r) ^ 2 / (r * r + 0.01) + (b - g) ^ 2 / (g * g + 0.01) + (c - bl) ^ 2 / (bl * bl + 0.01)) / 3 }
+    function level(e) { e = e > 1e-4 ? log(e) / log(10) + 4 : 0; if (e > 4) e = 4; return int(e / 4 * 255 + 0.5) }
+    { p = NR - 1
+      er[p] = rel($1, $2, $3, $(o + 1), $(o + 2), $(o + 3))
+      em[p] = rel($(o + 4), $(o + 5), $(o + 6), $(o + 1), $(o + 2), $(o + 3))
+      e8[p] = rel($(o + 7), $(o + 8), $(o + 9), $(o + 1), $(o + 2), $(o + 3))
+      nn[p] = $nch; L[p] = 0.2126 * $(o + 1) + 0.7152 * $(o + 2) + 0.0722 * $(o + 3) }
+    END {
+      n = W * H
+      print "P2", W, H, 255 >(out "/x-err-rpf.pgm"); print "P2", W, H, 255 >(out "/x-err-mc64.pgm")
+      print "P2", W, H, 255 >(out "/x-nn.pgm")
+      for (p = 0; p < n; ++p) {
+        print level(er[p]) >(out "/x-err-rpf.pgm"); print level(em[p]) >(out "/x-err-mc64.pgm")
+        v = int(nn[p] / 12100 * 255 + 0.5); print (v > 255 ? 255 : v) >(out "/x-nn.pgm")
+        x = p % W; y = int(p / W); hi = 0; lo = 0
+        for (dy = -1; dy <= 1; ++dy) for (dx = -1; dx <= 1; ++dx) {
+          xx = x + dx; yy = y + dy
+          if (xx < 0 || yy < 0 || xx >= W || yy >= H) continue
+          if (L[yy * W + xx] >= 1) hi = 1; else lo = 1 }
+        printf "%.9g %.9g %.9g %d %d\n", er[p], em[p], e8[p], nn[p], hi && lo
+      }
+    }' >"$out/x-pix.txt"
+  n=$(wc -l <"$out/x-pix.txt")
+  # Groups: by |N|, by light edge, the worst 0.1 % and 1 % of RPF's pixels (sort -g -r).
+  { awk '{ if ($4 < 500) g = "a|N < 500"; else if ($4 < 2000) g = "b|500 <= N < 2,000"
+           else if ($4 < 4000) g = "c|2,000 <= N < 4,000"; else if ($4 < 8000) g = "d|4,000 <= N < 8,000"
+           else g = "e|N >= 8,000"
+           print g, $0; print ($5 ? "f|light edge" : "g|not a light edge"), $0 }' "$out/x-pix.txt"
+    sort -g -r -k1,1 "$out/x-pix.txt" >"$out/x-sorted.txt"
+    sed -n "1,$((n / 1000))s/^/h|worst 0.1 % of RPF 8 pixels /p" "$out/x-sorted.txt"
+    sed -n "1,$((n / 100))s/^/i|worst 1 % of RPF 8 pixels /p" "$out/x-sorted.txt"
+  } | awk -v n="$n" -v tot="$out/x-total.txt" '
+    { k = index($0, " "); g = $0; sub(/ [^ ]+ [^ ]+ [^ ]+ [^ ]+ [^ ]+$/, "", g)
+      m = split($0, f, " "); c[g]++; r[g] += f[m - 4]; q[g] += f[m - 3]; e[g] += f[m - 2]
+      if (g ~ /^[ab]/ || g ~ /^[cde]/) { R += f[m - 4]; Q += f[m - 3]; E += f[m - 2] } }
+    END { printf "%.5f %.5f %.5f\n", R / n, Q / n, E / n >tot
+          for (g in c) printf "%s|%.2f|%.1f %%|%.5f|%.1f %%|%.5f|%.5f\n", g, 100 * c[g] / n, 100 * r[g] / R,
+                              r[g] / c[g], 100 * q[g] / Q, q[g] / c[g], e[g] / c[g] }' | sort >"$out/x-groups.txt"
+  read -r rr mm m8 <"$out/x-total.txt"
+  echo "-- $scene: relMSE RPF 8 $rr, MC 64 $mm, MC 8 $m8"
+  md_text "### $scene"
+  md_text
+  md_text "relMSE over the image: RPF 8 $rr, MC 64 $mm, MC 8 $m8."
+  fmt="%-30s %10s %9s %9s %11s %10s %9s"
+  thead "$fmt" pixels "% of image" "RPF share" "RPF mean" "MC 64 share" "MC 64 mean" "MC 8 mean"
+  while IFS='|' read -r _ g a b c2 d e f; do trow "$fmt" "$g" "$a" "$b" "$c2" "$d" "$e" "$f"; done <"$out/x-groups.txt"
+  tend
+  tiles=()
+  for t in err-rpf err-mc64; do
+    oiiotool "$out/x-$t.pgm" --colormap inferno -d uint8 -o "$out/tile-$scene-$t.png"
+    tiles+=("$out/tile-$scene-$t.png")
+  done
+  oiiotool "$out/x-nn.pgm" --ch 0,0,0 -d uint8 -o "$out/tile-$scene-nn.png"; tiles+=("$out/tile-$scene-nn.png")
+  oiiotool "${tiles[@]}" --mosaic:pad=4 3x1 -o "docs/images/rpf_error_$scene.png"
+  echo "docs/images/rpf_error_$scene.png ($(( $(stat -c %s "docs/images/rpf_error_$scene.png") / 1024 )) KiB)"
+  md_text "![$scene: error of RPF 8 | error of MC 64 | |N| of the first pass](images/rpf_error_$scene.png)"
+  md_text
+done
+note "Section 4 took $(hms $((SECONDS - t0)))."
+fi
+
 # docs/rpf-results.md from every section's latest fragment.
 {
   echo "# Random parameter filtering: benchmark results"
@@ -276,7 +373,7 @@ fi
   echo "section and keeps the others). Scenes: ${SCENES// /, } at 256x256; plain MC and RPF's input"
   echo "use seed $SEED, the reference seed $REF_SEED."
   echo
-  for s in 1 2 3; do [ -f "$out/section-$s.md" ] && cat "$out/section-$s.md"; done
+  for s in 1 2 3 4; do [ -f "$out/section-$s.md" ] && cat "$out/section-$s.md"; done
 } >docs/rpf-results.md
 echo
 echo "wrote docs/rpf-results.md"
