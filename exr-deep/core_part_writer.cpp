@@ -35,7 +35,7 @@ namespace {
 /// One encoding thread's state, reused from chunk to chunk: the ZIP encoder and the pipeline's
 /// buffers (handed out by its allocation hooks).
 struct Worker {
-    ZipEncoder zip{4};
+    ZipEncoder zip;
     TranscodeBuffers transcode;
     std::vector<uint8_t> table, data;  ///< a deep chunk's sample counts and samples, unpacked
     std::string message;               ///< OpenEXR's first error message of the current chunk

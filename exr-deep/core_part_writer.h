@@ -1,9 +1,9 @@
 // Internal: the parts of a statistics file written through OpenEXR's Core API ("OpenEXRCore" in
 // OpenEXR's documentation: exr_start_write, a part per header, then the chunks in order), ZIP and
-// ZIPS chunks compressed by libdeflate (deflate_codec.h), the chunks of each write on several
+// ZIPS chunks compressed by ISA-L's igzip (deflate_codec.h), the chunks of each write on several
 // threads (parallelFor). The bytes are standard OpenEXR: any reader opens them.
 // Flat scan-line parts (FLOAT, UINT and HALF channels) go through the Core's encode pipeline, its
-// compress_fn replaced by libdeflate's. Deep scan-line parts (NONE or ZIPS, one row a chunk) are
+// compress_fn replaced by ZipEncoder's. Deep scan-line parts (NONE or ZIPS, one row a chunk) are
 // packed here, because OpenEXR 3.1's Core has no deep packing (its default_pack_deep returns
 // EXR_ERR_INVALID_ARGUMENT): a chunk is the row's cumulative sample counts and then, channel after
 // channel in the file's order, every sample of the row, each compressed as ZIP compresses (a

@@ -1,9 +1,11 @@
 #include "deflate_codec.h"
 
 #include <fmt/format.h>
+#include <isa-l/igzip_lib.h>
 #include <libdeflate.h>
 
 #include <algorithm>
+#include <climits>
 #include <cstring>
 #include <new>
 
@@ -99,11 +101,9 @@ void splitAndPredictZip(const uint8_t* in, uint8_t* out, size_t n) {
     for (; i > 1; --i) out[i - 1] = uint8_t(out[i - 1] - out[i - 2] + 128);
 }
 
-ZipEncoder::ZipEncoder(int level) : c_(libdeflate_alloc_compressor(level)) {
-    if (c_ == nullptr) throw std::bad_alloc();
-}
+ZipEncoder::ZipEncoder() : levelBuffer_(new uint8_t[ISAL_DEF_LVL1_DEFAULT]) {}
 
-ZipEncoder::~ZipEncoder() { libdeflate_free_compressor(c_); }
+ZipEncoder::~ZipEncoder() = default;
 
 size_t ZipEncoder::apply(const void* in, size_t n, void* out, size_t capacity) {
     if (n == 0) return 0;
@@ -114,9 +114,23 @@ size_t ZipEncoder::apply(const void* in, size_t n, void* out, size_t capacity) {
         scratchSize_ = n;
     }
     splitAndPredictZip(static_cast<const uint8_t*>(in), scratch_.get(), n);
-    // Room for one byte less than the input: libdeflate returns 0 when the result does not fit,
-    // and a chunk as large as its input would read as stored.
-    return libdeflate_zlib_compress(c_, scratch_.get(), n, out, std::min(capacity, n - 1));
+    // One call over the whole chunk (stateless): the zlib header, the deflate stream, the
+    // Adler-32. Room for one byte less than the input: a result that does not fit overflows and
+    // the chunk is stored, since a chunk as large as its input would read as stored.
+    isal_zstream z;
+    isal_deflate_stateless_init(&z);
+    z.level = 1;
+    z.level_buf = levelBuffer_.get();
+    z.level_buf_size = ISAL_DEF_LVL1_DEFAULT;
+    z.gzip_flag = IGZIP_ZLIB;
+    z.flush = NO_FLUSH;
+    z.end_of_stream = 1;
+    z.next_in = scratch_.get();
+    z.avail_in = uint32_t(n);
+    z.next_out = static_cast<uint8_t*>(out);
+    z.avail_out = uint32_t(std::min(capacity, n - 1));
+    if (n > UINT32_MAX || isal_deflate_stateless(&z) != COMP_OK) return 0;
+    return size_t(z.total_out);
 }
 
 exr_result_t zipCompressChunk(exr_encode_pipeline_t* encode) {
