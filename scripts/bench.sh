@@ -258,6 +258,27 @@ if want ingest; then
     w=med_$n; r=rss_$n
     awk -v l="$l" -v w="${!w}" -v b="$med_ref" -v r="${!r}" 'BEGIN { printf "%-48s %8.3f s %8.2fx %10s MiB\n", l, w, w / b, r }'
   done
+  awk -v a="$med_ing" -v b="$med_ingm" 'BEGIN { printf "(-o f.mcstat over --mean: %.2fx)\n", a / b }'
+  # Memory against height: the renders are read by blocks of rows (IngestSource), so the peak
+  # should not follow the image's height. NSEEDS renders at 1920x540 and 1920x1080, 2 spp.
+  mkdir -p "$out/hseeds"
+  for h in 540 1080; do
+    for s in $(seq "$NSEEDS"); do
+      f=$out/hseeds/h${h}_s$s.exr
+      if [ ! -f "$f" ] || [ "${REFRESH:-0}" = 1 ]; then
+        "$render" --scene default --res 1920 "$h" --spp 2 --seed "$s" --reference --quiet -o "$f"
+      fi
+    done
+  done
+  cmd_h540=("$mcstat" --ingest "$out/hseeds/h540_s*.exr" -o "$out/ingested-h540.mcstat")
+  cmd_h1080=("$mcstat" --ingest "$out/hseeds/h1080_s*.exr" -o "$out/ingested-h1080.mcstat")
+  cmd_g540=("$mcstat" --ingest "$out/hseeds/h540_s*.exr" --gmon -o "$out/ingested-g540.exr")
+  cmd_g1080=("$mcstat" --ingest "$out/hseeds/h1080_s*.exr" --gmon -o "$out/ingested-g1080.exr")
+  run_alternating h540 h1080 g540 g1080
+  printf "%-48s %12s %12s %8s\n" "command ($NSEEDS renders, 1920 wide)" "540 rows" "1080 rows" "ratio"
+  awk -v a="$rss_h540" -v b="$rss_h1080" 'BEGIN { printf "%-48s %8s MiB %8s MiB %7.2fx\n", "mcstat --ingest FILES -o f.mcstat", a, b, b / a }'
+  awk -v a="$rss_g540" -v b="$rss_g1080" 'BEGIN { printf "%-48s %8s MiB %8s MiB %7.2fx\n", "mcstat --ingest FILES --gmon -o g.exr", a, b, b / a }'
+  echo "(peak RSS; the goal: 1080 rows within 1.25x of 540)"
   echo
 fi
 
