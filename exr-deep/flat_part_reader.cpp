@@ -194,6 +194,20 @@ bool FlatPartReader::handles(int part) const {
     return checked && info.scanline && info.sameWindow && impl_->width <= INT32_MAX / 4;
 }
 
+bool FlatPartReader::readsAsFloat(int part, const std::string& channel) const {
+    if (!handles(part)) return false;
+    const exr_attr_chlist_t* chlist = nullptr;
+    if (exr_get_channels(impl_->ctxt, part, &chlist) != EXR_ERR_SUCCESS || chlist == nullptr)
+        return false;
+    for (int c = 0; c < chlist->num_channels; ++c) {
+        const exr_attr_chlist_entry_t& e = chlist->entries[c];
+        if (e.name.str == nullptr || channel != e.name.str) continue;
+        return (e.pixel_type == EXR_PIXEL_FLOAT || e.pixel_type == EXR_PIXEL_HALF) &&
+               e.x_sampling == 1 && e.y_sampling == 1;
+    }
+    return false;
+}
+
 FlatPartReader::Result FlatPartReader::Impl::decode(
     const PartSlices& req, const std::unordered_map<std::string, size_t>& byName, int chunkY,
     int firstRow, int rows, Worker& w, std::string& problem) {
@@ -257,8 +271,10 @@ FlatPartReader::Result FlatPartReader::Impl::decode(
             const auto it = byName.find(ch.channel_name != nullptr ? ch.channel_name : "");
             ch.decode_to_ptr = nullptr;
             if (it == byName.end()) continue;
-            if (ch.data_type != EXR_PIXEL_FLOAT || ch.x_samples != 1 || ch.y_samples != 1 ||
-                ch.width != width || ch.height != ci.height) {
+            // HALF is converted to FLOAT by the pipeline's unpack step (a renderer's half AOVs).
+            if ((ch.data_type != EXR_PIXEL_FLOAT && ch.data_type != EXR_PIXEL_HALF) ||
+                ch.x_samples != 1 || ch.y_samples != 1 || ch.width != width ||
+                ch.height != ci.height) {
                 problem =
                     fmt::format("{}: channel '{}' changed while reading", where(), ch.channel_name);
                 result = Result::Corrupt;

@@ -15,7 +15,7 @@
 
 namespace mcstat::detail {
 
-/// Where one FLOAT channel goes: element (x, y) of the rows read (both from 0) at
+/// Where one channel goes, as float: element (x, y) of the rows read (both from 0) at
 /// base + y * lineStride + x * pixelStride bytes.
 struct FloatSlice {
     std::string name;
@@ -47,11 +47,14 @@ class FlatPartReader {
     /// give the C++ API's pixels (NONE, RLE, ZIPS, ZIP, PIZ, PXR24; B44, B44A, DWAA and DWAB stay
     /// with the caller's C++ API read).
     bool handles(int part) const;
+    /// Whether read() takes channel `channel` of part `part`: a part handles() takes, a FLOAT or
+    /// HALF channel (HALF converted to float by the pipeline), sampled at every pixel.
+    bool readsAsFloat(int part, const std::string& channel) const;
 
     enum class Result { Ok, Corrupt, OutOfMemory };
     /// Reads rows [firstRow, firstRow + rows) of the data window (0-based) of every part of
     /// `parts` into its slices, each chunk a task of parallelFor on `threads` threads. Each slice
-    /// must name a FLOAT channel of its part and every part must be one handles() takes (else
+    /// must name a channel readsAsFloat() takes and every part must be one handles() takes (else
     /// Corrupt: "file changed while reading"). On failure `problem` (one line, no path) is that of
     /// the first failing chunk in the reader's fixed order, whatever the thread count.
     Result read(const std::vector<PartSlices>& parts, int firstRow, int rows, int threads,

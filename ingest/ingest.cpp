@@ -6,21 +6,28 @@
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
+#include <fcntl.h>
 #include <fmt/format.h>
 #include <fnmatch.h>
 #include <glob.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <memory>
 #include <set>
 
+#include "fd_stream.h"
+#include "flat_part_reader.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/params.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
+#include "stats_header_check.h"
 
 namespace mcstat {
 
@@ -108,6 +115,7 @@ struct InputFile {
     ImageSpec spec;  ///< subimage 0
     std::vector<std::string> names;
     std::vector<std::pair<int, int>> where;
+    std::vector<std::string> rawNames;  ///< each channel's name in its part (names qualify some)
     /// Per subimage: its part name when the file has several parts ("" for a one-part file).
     std::vector<std::string> partNames;
     BeautyChannels beauty;
@@ -119,8 +127,10 @@ struct InputFile {
 /// The channel names of every subimage of `in` (see listChannels); leaves `in` on some subimage.
 void channelsOf(ImageInput& in, std::vector<std::string>& names,
                 std::vector<std::pair<int, int>>& where,
-                std::vector<std::string>* partNames = nullptr) {
+                std::vector<std::string>* partNames = nullptr,
+                std::vector<std::string>* rawNames = nullptr) {
     names.clear();
+    if (rawNames) rawNames->clear();
     where.clear();
     if (partNames) partNames->clear();
     for (int sub = 0; in.seek_subimage(sub, 0); ++sub) {
@@ -128,10 +138,12 @@ void channelsOf(ImageInput& in, std::vector<std::string>& names,
         const std::string part = s.get_string_attribute("oiio:subimagename");
         if (partNames) partNames->push_back(part.empty() ? fmt::format("part{}", sub) : part);
         for (int c = 0; c < s.nchannels; ++c) {
-            std::string n = s.channel_name(c);
+            const std::string raw = s.channel_name(c);
+            std::string n = raw;
             if (sub > 0 && n.find('.') == std::string::npos && !part.empty()) n = part + "." + n;
             if (std::find(names.begin(), names.end(), n) != names.end()) continue;  // first wins
             names.push_back(n);
+            if (rawNames) rawNames->push_back(raw);
             where.emplace_back(sub, c);
         }
         if (sub > 4096) break;  // a sane bound on parts
@@ -178,7 +190,7 @@ bool openInput(const std::string& path, InputFile& f, std::string& err) {
         err = path + ": a volume image; ingest reads flat 2D renders";
         return false;
     }
-    channelsOf(*f.in, f.names, f.where, &f.partNames);
+    channelsOf(*f.in, f.names, f.where, &f.partNames, &f.rawNames);
     return true;
 }
 
@@ -665,15 +677,59 @@ int chunkRowsOf(const ImageSpec& spec) {
     return 16;
 }
 
-/// Reopens `f` for its pixels into `in`, refusing it if it changed since its header was read.
-bool reopenInput(const InputFile& f, std::unique_ptr<ImageInput>& in, std::string& err) {
-    in = openRender(f.path, err);
-    if (!in) return false;
-    const ImageSpec& now = in->spec();
+/// A render open for its pixels: through OpenEXR's Core API when it reads every channel used
+/// (scan-line parts of the image's data window, FLOAT or HALF, ZIP and ZIPS inflated by libdeflate,
+/// exr-deep/flat_part_reader.h), else through OIIO (tiled files, B44 and DWA, other formats).
+/// MCSTAT_EXR_READER=cpp in the environment takes OIIO's reader always (tests compare the two).
+struct OpenRender {
+    detail::Fd fd;
+    std::unique_ptr<detail::FlatPartReader> core;  ///< or
+    std::unique_ptr<ImageInput> oiio;
+};
+
+/// Whether the environment asks for OIIO's reader (OpenEXR's C++ API) for renders.
+bool oiioReaderForced() {
+    const char* v = std::getenv("MCSTAT_EXR_READER");
+    return v != nullptr && std::string(v) == "cpp";
+}
+
+/// Opens `f` through the Core API when it can read every channel of `used`; false leaves `r`
+/// for OIIO (no error: OIIO's reader judges what the Core one does not take).
+bool openCore(const InputFile& f, const std::vector<int>& used, OpenRender& r) {
+    if (oiioReaderForced()) return false;
+    detail::Fd fd(::open(f.path.c_str(), O_RDONLY | O_CLOEXEC));
+    struct stat st {};
+    if (fd.get() < 0 || ::fstat(fd.get(), &st) != 0 || !S_ISREG(st.st_mode)) return false;
+    std::string problem;
+    unsigned char magic[4] = {};
+    if (detail::preadFull(fd.get(), magic, 4, 0) != 4 || magic[0] != 0x76 || magic[1] != 0x2f ||
+        magic[2] != 0x31 || magic[3] != 0x01)
+        return false;  // not OpenEXR
+    auto core = std::make_unique<detail::FlatPartReader>();
+    if (!detail::checkExrAttributeSizes(fd.get(), uint64_t(st.st_size), f.path, problem) ||
+        !core->open(fd.get(), uint64_t(st.st_size), f.path, f.spec.x, f.spec.y, f.spec.width,
+                    f.spec.height, problem))
+        return false;
+    for (int i : used)
+        if (i >= 0 && !core->readsAsFloat(f.where[size_t(i)].first, f.rawNames[size_t(i)]))
+            return false;
+    r.fd = std::move(fd);
+    r.core = std::move(core);
+    return true;
+}
+
+/// Reopens `f` for the pixels of channels `used` into `r`, refusing it if it changed since its
+/// header was read.
+bool reopenInput(const InputFile& f, const std::vector<int>& used, OpenRender& r,
+                 std::string& err) {
+    if (openCore(f, used, r)) return true;
+    r.oiio = openRender(f.path, err);
+    if (!r.oiio) return false;
+    const ImageSpec& now = r.oiio->spec();
     if (now.x != f.spec.x || now.y != f.spec.y || now.width != f.spec.width ||
         now.height != f.spec.height || now.nchannels != f.spec.nchannels) {
         err = f.path + ": changed while being ingested";
-        in.reset();
+        r.oiio.reset();
         return false;
     }
     return true;
@@ -705,8 +761,10 @@ struct RowBlock {
     size_t pixels = 0;
 };
 
-/// Reads rows [y0, y1) (0-based) of the channels of b.reads from `in` into b.rows.
-bool readBlock(ImageInput& in, RowBlock& b, int y0, int y1, int W, std::string& err) {
+/// Reads rows [y0, y1) (0-based) of channels `used` (grouped as b.reads) from `in` into b.rows,
+/// pixel-interleaved per subimage as OIIO's read_scanlines gives them.
+bool readBlock(OpenRender& in, const std::vector<int>& used, RowBlock& b, int y0, int y1, int W,
+               std::string& err) {
     b.pixels = size_t(y1 - y0) * size_t(W);
     b.base.assign(b.reads.size(), 0);
     size_t total = 0;
@@ -715,11 +773,38 @@ bool readBlock(ImageInput& in, RowBlock& b, int y0, int y1, int W, std::string& 
         total += b.pixels * size_t(b.reads[r].chend - b.reads[r].chbegin);
     }
     b.rows.resize(total);
+    if (in.core) {
+        // Every channel used by name into its place of the same layout, once (a feature channel
+        // is an AOV too).
+        std::vector<detail::PartSlices> parts(b.reads.size());
+        for (size_t r = 0; r < b.reads.size(); ++r) parts[r].part = b.reads[r].subimage;
+        std::vector<int> once(used);
+        std::sort(once.begin(), once.end());
+        once.erase(std::unique(once.begin(), once.end()), once.end());
+        for (int i : once) {
+            if (i < 0) continue;
+            const auto [sub, ch] = b.f.where[size_t(i)];
+            for (size_t r = 0; r < b.reads.size(); ++r) {
+                if (b.reads[r].subimage != sub) continue;
+                const size_t nch = size_t(b.reads[r].chend - b.reads[r].chbegin);
+                char* base = reinterpret_cast<char*>(b.rows.data() + b.base[r] +
+                                                     size_t(ch - b.reads[r].chbegin));
+                parts[r].slices.push_back({b.f.rawNames[size_t(i)], base, nch * sizeof(float),
+                                           nch * sizeof(float) * size_t(W)});
+            }
+        }
+        std::string problem;
+        if (in.core->read(parts, y0, y1 - y0, 1, problem) != detail::FlatPartReader::Result::Ok) {
+            err = fmt::format("{}: {}", b.f.path, problem);
+            return false;
+        }
+        return true;
+    }
     for (size_t r = 0; r < b.reads.size(); ++r)
-        if (!in.read_scanlines(b.reads[r].subimage, 0, b.f.spec.y + y0, b.f.spec.y + y1, 0,
-                               b.reads[r].chbegin, b.reads[r].chend, TypeDesc::FLOAT,
-                               b.rows.data() + b.base[r])) {
-            err = fmt::format("{}: {}", b.f.path, oneLine(in.geterror()));
+        if (!in.oiio->read_scanlines(b.reads[r].subimage, 0, b.f.spec.y + y0, b.f.spec.y + y1, 0,
+                                     b.reads[r].chbegin, b.reads[r].chend, TypeDesc::FLOAT,
+                                     b.rows.data() + b.base[r])) {
+            err = fmt::format("{}: {}", b.f.path, oneLine(in.oiio->geterror()));
             return false;
         }
     return true;
@@ -755,7 +840,7 @@ struct IngestSource::Impl {
     std::string name;
     int nthreads = 0;
     /// Files held open between reads (at most kKeepOpen files; more are opened per block).
-    std::vector<std::unique_ptr<ImageInput>> open;
+    std::vector<std::unique_ptr<OpenRender>> open;
     std::vector<FileTally> tallies;
     int hashedRows = 0;  ///< rows [0, hashedRows) of every file hashed by this source
     int aovRows = 0;     ///< rows [0, aovRows) of every file's AOVs tallied by this source
@@ -830,12 +915,20 @@ bool IngestSource::Impl::readFile(size_t j, int y0, int y1, int blockRow0, bool 
                                   StatsImage& block, std::string& err) {
     const Ingest& s = *plan;
     const InputFile& f = s.files[j];
-    std::unique_ptr<ImageInput> once;
-    std::unique_ptr<ImageInput>& in = j < open.size() ? open[j] : once;
-    if (!in && !reopenInput(f, in, err)) return false;
+    std::unique_ptr<OpenRender> once;
+    std::unique_ptr<OpenRender>& in = j < open.size() ? open[j] : once;
+    // Opened for every channel a read may ask for, so that a kept file serves any parts.
+    if (!in) {
+        in = std::make_unique<OpenRender>();
+        if (!reopenInput(f, usedChannels(f, s.aovIndex, true, true), *in, err)) {
+            in.reset();
+            return false;
+        }
+    }
     const int W = s.width();
-    RowBlock b{f, readsFor(f, usedChannels(f, s.aovIndex, features, aovs)), {}, {}, 0};
-    if (!readBlock(*in, b, y0, y1, W, err)) return false;
+    const std::vector<int> used = usedChannels(f, s.aovIndex, features, aovs);
+    RowBlock b{f, readsFor(f, used), {}, {}, 0};
+    if (!readBlock(*in, used, b, y0, y1, W, err)) return false;
     const size_t M = size_t(s.buffers()), A = s.aovs.size();
     const size_t q0 = size_t(y0 - blockRow0) * size_t(W);  // the rows' first pixel in `block`
     const float n = float(f.spp);

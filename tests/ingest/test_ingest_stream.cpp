@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <cstring>
 
 #include "mcstat/ingest.h"
@@ -212,6 +214,70 @@ TEST_F(IngestStream, SeedsOfAnotherLengthAreRefusedByTheWriter) {
     EXPECT_FALSE(w.replaceSeeds("h1234", err));
     EXPECT_NE(err.find("mcstat:seeds of 5 bytes cannot replace the 35 written"), std::string::npos)
         << err;
+}
+
+/// Every bit pattern of half (and float values around it) from the pixel index: 256 x 256 pixels
+/// hold the 65,536 halfs once, NaN payloads, Infs, denormals and -0 included.
+float halfPattern(int x, int y, int shift) {
+    const uint16_t bits = uint16_t((y * 256 + x + shift) & 0xffff);
+    // IEEE half to float by hand (the writer converts it back exactly: every half is a float).
+    const uint32_t sign = uint32_t(bits >> 15) << 31, exp = (bits >> 10) & 0x1f, man = bits & 0x3ff;
+    uint32_t f = 0;
+    if (exp == 0x1f) {
+        f = sign | 0x7f800000u | (man << 13);
+    } else if (exp == 0) {
+        float v = std::ldexp(float(man), -24);
+        std::memcpy(&f, &v, 4);
+        f |= sign;
+    } else {
+        f = sign | ((exp + 112) << 23) | (man << 13);
+    }
+    float out;
+    std::memcpy(&out, &f, 4);
+    return out;
+}
+
+TEST_F(IngestStream, OpenEXRsCoreReaderGivesOIIOsBitsForEveryCompressionAndType) {
+    // Renders as pbrt writes them (half) and as Cycles does (float), in the compressions the
+    // Core reader takes and in one it leaves to OIIO (B44, half only), against MCSTAT_EXR_READER=
+    // cpp (OIIO's reader) on the same files.
+    for (const char* compression : {"zip", "zips", "piz", "rle", "none", "pxr24", "b44"})
+        for (bool half : {true, false}) {
+            if (std::string(compression) == "pxr24" && !half) continue;  // lossy on float
+            std::vector<std::string> paths;
+            for (int j = 0; j < 2; ++j) {
+                ExrSpec e;
+                e.width = 256;
+                e.height = 256;
+                e.channels = {"R", "G", "B", "A", "P.X", "N.Y"};
+                e.half = half;
+                e.intAttrs["samplesPerPixel"] = 4;
+                e.stringAttrs["compression"] = compression;
+                paths.push_back(path(std::string(compression) + std::to_string(j) + ".exr"));
+                writeExr(paths.back(), e, [&](const std::string& n, int x, int y) -> float {
+                    if (n == "R") return halfPattern(x, y, j * 7);
+                    if (n == "G") return halfPattern(x, y, 1000 + j);
+                    return 0.001f * float(x - y) + float(n[0]) * 0.25f + float(j);
+                });
+            }
+            StatsImage core, cpp;
+            IngestReport rep;
+            std::string err;
+            ASSERT_TRUE(ingestRenders(paths, IngestOptions(), core, rep, err)) << err;
+            ::setenv("MCSTAT_EXR_READER", "cpp", 1);
+            const bool ok = ingestRenders(paths, IngestOptions(), cpp, rep, err);
+            ::unsetenv("MCSTAT_EXR_READER");
+            ASSERT_TRUE(ok) << err;
+            const auto same = [](const std::vector<float>& a, const std::vector<float>& b) {
+                return a.size() == b.size() &&
+                       (a.empty() || std::memcmp(a.data(), b.data(), a.size() * 4) == 0);
+            };
+            EXPECT_TRUE(same(core.bufferMean, cpp.bufferMean)) << compression << " half " << half;
+            EXPECT_TRUE(same(core.aov, cpp.aov)) << compression << " half " << half;
+            EXPECT_TRUE(same(core.position, cpp.position)) << compression << " half " << half;
+            EXPECT_TRUE(same(core.normal, cpp.normal)) << compression << " half " << half;
+            EXPECT_EQ(core.header.seeds, cpp.header.seeds);
+        }
 }
 
 }  // namespace
