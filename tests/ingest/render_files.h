@@ -2,7 +2,9 @@
 // pbrt-v4's GBufferFilm, Arnold-style AOV layers, plain RGB), written by the test itself.
 #pragma once
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
 
 #include <functional>
 #include <map>
@@ -11,6 +13,22 @@
 #include <vector>
 
 namespace mcstat::testing {
+
+/// A scratch directory per test under the build tree (tests/ingest/tmp-SUITE-TEST), removed
+/// afterwards.
+class ScratchDirTest : public ::testing::Test {
+  protected:
+    std::string dir;
+    void SetUp() override {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        dir = std::string(MCSTAT_BINARY_DIR) + "/tests/ingest/tmp-" + info->test_suite_name() +
+              "-" + info->name();
+        OIIO::Filesystem::remove_all(dir);
+        OIIO::Filesystem::create_directory(dir);
+    }
+    void TearDown() override { OIIO::Filesystem::remove_all(dir); }
+    std::string path(const std::string& name) const { return dir + "/" + name; }
+};
 
 /// Value of channel `name` at pixel (x, y).
 using ChannelFn = std::function<float(const std::string& name, int x, int y)>;

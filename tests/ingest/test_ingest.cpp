@@ -19,19 +19,8 @@ using testing::ExrSpec;
 using testing::writeExr;
 
 /// A scratch directory per test, removed afterwards.
-class Ingest : public ::testing::Test {
+class Ingest : public testing::ScratchDirTest {
   protected:
-    std::string dir;
-    void SetUp() override {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        dir = std::string(MCSTAT_BINARY_DIR) + "/tests/ingest/tmp-" + info->test_suite_name() +
-              "-" + info->name();
-        OIIO::Filesystem::remove_all(dir);
-        OIIO::Filesystem::create_directory(dir);
-    }
-    void TearDown() override { OIIO::Filesystem::remove_all(dir); }
-    std::string path(const std::string& name) const { return dir + "/" + name; }
-
     /// Combined RGB of file j at (x, y): a smooth image plus a per-file offset (a seed's noise).
     static float beauty(int j, int c, int x, int y) {
         return 0.1f * float(x) + 0.05f * float(y) + 0.3f * float(c) + 0.125f * float(j * j % 7);

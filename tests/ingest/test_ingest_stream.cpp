@@ -21,19 +21,8 @@ using testing::writeExr;
 
 constexpr int kW = 13, kH = 37;  ///< the renders' size: blocks of 1, 5 and 16 rows end short
 
-class IngestStream : public ::testing::Test {
+class IngestStream : public testing::ScratchDirTest {
   protected:
-    std::string dir;
-    void SetUp() override {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        dir = std::string(MCSTAT_BINARY_DIR) + "/tests/ingest/tmp-" + info->test_suite_name() +
-              "-" + info->name();
-        OIIO::Filesystem::remove_all(dir);
-        OIIO::Filesystem::create_directory(dir);
-    }
-    void TearDown() override { OIIO::Filesystem::remove_all(dir); }
-    std::string path(const std::string& name) const { return dir + "/" + name; }
-
     /// File j in Cycles' naming (features and AOVs), 16 spp, with a NaN in file 1 and values
     /// that differ per file, row and column.
     std::string writeRender(int j, float shift = 0.f) {
@@ -52,6 +41,15 @@ class IngestStream : public ::testing::Test {
             return base * 0.5f + 0.25f;
         });
         return p;
+    }
+
+    /// ingestRenders of `paths`: the whole image the blocks are checked against.
+    static StatsImage whole(const std::vector<std::string>& paths) {
+        StatsImage img;
+        IngestReport rep;
+        std::string err;
+        EXPECT_TRUE(ingestRenders(paths, IngestOptions(), img, rep, err)) << err;
+        return img;
     }
 
     std::vector<std::string> renders(int n) {
@@ -73,10 +71,9 @@ void expectRows(const std::vector<float>& whole, const std::vector<float>& block
 
 TEST_F(IngestStream, BlocksEqualTheWholeImageForAnyBlockHeightAndThreadCount) {
     const auto paths = renders(5);
-    StatsImage whole;
-    IngestReport rep;
+    const StatsImage whole = IngestStream::whole(paths);
+    ASSERT_FALSE(whole.bufferMean.empty());
     std::string err;
-    ASSERT_TRUE(ingestRenders(paths, IngestOptions(), whole, rep, err)) << err;
     ASSERT_NE(whole.header.seeds.find("h"), std::string::npos);
     const size_t M = 5, A = whole.header.aovs.size();
     ASSERT_GT(A, 0u);
@@ -114,10 +111,9 @@ TEST_F(IngestStream, BlocksEqualTheWholeImageForAnyBlockHeightAndThreadCount) {
 
 TEST_F(IngestStream, OverlappingBlocksAndRGBOnlyReadsHashEachRowOnce) {
     const auto paths = renders(3);
-    StatsImage whole;
-    IngestReport rep;
+    const StatsImage whole = IngestStream::whole(paths);
+    ASSERT_FALSE(whole.bufferMean.empty());
     std::string err;
-    ASSERT_TRUE(ingestRenders(paths, IngestOptions(), whole, rep, err)) << err;
     // A window filter's blocks overlap by their halo: rows 5..9 and 15..19 are read twice.
     IngestSource src;
     ASSERT_TRUE(src.init(paths, IngestOptions(), err, 2)) << err;
@@ -147,10 +143,9 @@ TEST_F(IngestStream, OverlappingBlocksAndRGBOnlyReadsHashEachRowOnce) {
 
 TEST_F(IngestStream, AFileWrittenWhileReadingGetsTheHashesInItsHeaders) {
     const auto paths = renders(4);
-    StatsImage whole;
-    IngestReport rep;
+    const StatsImage whole = IngestStream::whole(paths);
+    ASSERT_FALSE(whole.bufferMean.empty());
     std::string err;
-    ASSERT_TRUE(ingestRenders(paths, IngestOptions(), whole, rep, err)) << err;
     IngestSource src;
     ASSERT_TRUE(src.init(paths, IngestOptions(), err, 2)) << err;
     // A small budget: several blocks, so the header is written long before the last row is read.
