@@ -63,7 +63,25 @@ struct WriteIo {
     int fd = -1;
     std::mutex mutex;
     std::string error;  ///< the first write error
+    /// Early writeback: the bytes below `kicked` were handed to the kernel's writeback as they
+    /// arrived, so the commit's fsync waits only for the rest. Writes come one at a time
+    /// (encodeAll's lock, or the calling thread).
+    uint64_t kicked = 0;
 };
+
+/// Starts the writeback of what `io` holds beyond its last start once that is at least 1 MiB
+/// (file writes end at `end`); advisory: the durability is still the commit's fsync.
+void startWriteback(WriteIo& io, uint64_t end) {
+#if defined(__linux__)
+    constexpr uint64_t kStep = uint64_t(1) << 20;
+    if (end < io.kicked + kStep) return;
+    (void)::sync_file_range(io.fd, off_t(io.kicked), off_t(end - io.kicked), SYNC_FILE_RANGE_WRITE);
+    io.kicked = end;
+#else
+    (void)io;
+    (void)end;
+#endif
+}
 
 int64_t coreWrite(exr_const_context_t, void* user, const void* buffer, uint64_t sz, uint64_t offset,
                   exr_stream_error_func_ptr_t) {
@@ -81,6 +99,7 @@ int64_t coreWrite(exr_const_context_t, void* user, const void* buffer, uint64_t 
         }
         done += uint64_t(w);
     }
+    startWriteback(io, offset + done);
     return int64_t(done);
 }
 

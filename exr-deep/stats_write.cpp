@@ -260,6 +260,8 @@ struct StatsFileWriter::Impl {
     bool failed = false;
     /// replaceSeeds(): mcstat:seeds put in place by commit() ("" keeps open()'s).
     std::string seeds;
+    /// writeStatsFile's image, validated before open(): write() does not check it again.
+    const StatsImage* validated = nullptr;
 
     ~Impl() {
         file.reset();  // OpenEXR writes the offset tables here; the file is removed anyway
@@ -275,6 +277,9 @@ struct StatsFileWriterAccess {
                      const std::vector<Imf::Header>& extraHeaders, const StatsExtras* extras,
                      std::function<void(Imf::MultiPartOutputFile&)> extraParts, std::string& err,
                      int nthreads);
+    static void markValidated(StatsFileWriter& w, const StatsImage& img) {
+        w.impl_->validated = &img;
+    }
 };
 
 StatsFileWriter::StatsFileWriter() = default;
@@ -372,7 +377,7 @@ bool StatsFileWriter::write(const StatsImage& block, std::string& err) {
                 return false;
             }
     }
-    if (!validateStats(block, im.path, err)) return false;
+    if (&block != im.validated && !validateStats(block, im.path, err)) return false;
     if (im.core) {
         std::string problem;
         bool ok = false;
@@ -489,6 +494,7 @@ bool writeStatsFile(const std::string& path, const StatsImage& img, const StatsE
                                      extraHeaders.empty() ? nullptr : std::function(extraParts),
                                      err, 0))
         return false;
+    StatsFileWriterAccess::markValidated(w, img);  // above: one pass over the pixels, not two
     return w.write(img, err) && w.commit(err);
 }
 

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Renderer benchmark (never part of the test suite). Prints two tables
 # for the default scene at 640x480 (RES="W H"; RES=scene: the scene's own 160x120), seed 3:
-#  1. M = 1 against M = 21 at 64 and 256 spp: whole-process wall and CPU time, the render alone and
-#     the file writing alone (mcstat-render --timings), peak RSS, and the overheads of M = 21 in %.
+#  1. M = 1 against M = 21 at 64 and 256 spp: whole-process wall (to the millisecond) and CPU time,
+#     the render alone and the file writing alone (mcstat-render --timings), peak RSS, the file's
+#     size, and the overheads of M = 21 in %.
 #     The render's overhead is the online accumulation of the sub-buffers (goal <= 2 %); the
 #     writing's is deflating 21 times the buffer channels, reported apart.
 #  2. Thread scaling: --threads 1 against --threads 2 (goal >= 1.8x for the render).
@@ -35,18 +36,23 @@ fi
 
 median() { sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
 
-# run KEY ARGS...: one render (BIN, default $R); appends "wall cpu rss renderWall renderCpu writeWall writeCpu" to
-# $out/KEY.runs (cpu = user + system of the whole process, rss in KiB).
+# run KEY ARGS...: one render (BIN, default $R); appends "wall cpu rss renderWall renderCpu writeWall writeCpu
+# fileBytes" to $out/KEY.runs (cpu = user + system of the whole process, rss in KiB).
 run() {
   local key=$1; shift
+  local t0 t1
+  t0=$(date +%s%N)
   /usr/bin/time -f "%e %U %S %M" -o "$out/time.txt" \
     "${BIN:-$R}" --scene default "${resArgs[@]}" --seed 3 --quiet --timings "$@" \
     -o "$out/$key.mcstat" 2>"$out/timings.txt"
+  t1=$(date +%s%N)
   local e u s m rw rc ww wc
   read -r e u s m <"$out/time.txt"
+  e=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.4f", (b - a) / 1e9 }')  # %e has 2 decimals
   # "mcstat-render: timings: render wall X s cpu Y s, write wall Z s cpu W s"
   read -r rw rc ww wc < <(awk '/timings:/ { print $5, $8, $12, $15 }' "$out/timings.txt")
-  echo "$e $(awk -v u="$u" -v s="$s" 'BEGIN { print u + s }') $m $rw $rc $ww $wc" >>"$out/$key.runs"
+  echo "$e $(awk -v u="$u" -v s="$s" 'BEGIN { print u + s }') $m $rw $rc $ww $wc" \
+    "$(stat -c %s "$out/$key.mcstat")" >>"$out/$key.runs"
 }
 
 # med KEY COLUMN: the median of one column (1-based, as in run's line) of KEY's runs.
@@ -65,15 +71,16 @@ for spp in $SPPS; do
     done
   done
 done
-printf "%-6s %5s %4s %9s %9s %11s %11s %11s %11s %10s\n" "build" "spp" "M" "wall" "CPU" \
-  "render wall" "render CPU" "write wall" "write CPU" "peak RSS"
+printf "%-6s %5s %4s %9s %9s %11s %11s %11s %11s %10s %9s\n" "build" "spp" "M" "wall" "CPU" \
+  "render wall" "render CPU" "write wall" "write CPU" "peak RSS" "file"
 for b in "${builds[@]}"; do
   for spp in $SPPS; do
     for M in 1 21; do
       k=$b-spp$spp-M$M
-      printf "%-6s %5d %4d %7.2f s %7.2f s %9.2f s %9.2f s %9.3f s %9.3f s %6.1f MiB\n" "$b" \
-        "$spp" "$M" "$(med "$k" 1)" "$(med "$k" 2)" "$(med "$k" 4)" "$(med "$k" 5)" \
-        "$(med "$k" 6)" "$(med "$k" 7)" "$(awk -v m="$(med "$k" 3)" 'BEGIN { print m / 1024 }')"
+      printf "%-6s %5d %4d %7.3f s %7.2f s %9.3f s %9.2f s %9.3f s %9.3f s %6.1f MiB %5.2f MB\n" \
+        "$b" "$spp" "$M" "$(med "$k" 1)" "$(med "$k" 2)" "$(med "$k" 4)" "$(med "$k" 5)" \
+        "$(med "$k" 6)" "$(med "$k" 7)" "$(awk -v m="$(med "$k" 3)" 'BEGIN { print m / 1024 }')" \
+        "$(awk -v m="$(med "$k" 8)" 'BEGIN { print m / 1e6 }')"
     done
   done
 done

@@ -4,7 +4,8 @@
 // included), on 1 and 2 threads and for blocks that cut chunks; a damaged ZIP chunk is a one-line
 // error. Writing (exr-deep/core_part_writer.h): the bytes are standard ZIP that OpenEXR's C++
 // API, its file checker (exrcheck's engine) and stock oiiotool read, the same whatever the blocks
-// and threads; a chunk ZIP cannot shrink is stored as it is.
+// and threads; a chunk ZIP cannot shrink is stored as it is; a bad count is refused whether the
+// image is written whole or streamed by blocks.
 #include <OpenEXR/ImfCheckFile.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/openexr.h>
@@ -326,6 +327,26 @@ TEST_F(CoreIo, StockOiiotoolReadsTheWrittenFile) {
         ASSERT_TRUE(buffers.count(name)) << name;
         EXPECT_TRUE(bitEqual(values, buffers.at(name))) << name;
     }
+}
+
+TEST_F(CoreIo, ABadCountIsRefusedByTheWholeWriteAndInAStreamedBlock) {
+    // writeStatsFile checks its image once, before the writer opens; a block handed to the
+    // streaming writer is still checked by the writer.
+    img.bufferCount[1] = -1.f;  // the first pixel's buffer 1
+    const std::string path = dir.file("bad.mcstat");
+    std::string err;
+    EXPECT_FALSE(writeStatsFile(path, img, err));
+    EXPECT_NE(err.find("buffer 1 count is negative"), std::string::npos) << err;
+    EXPECT_FALSE(std::filesystem::exists(path));
+    {
+        StatsFileWriter w;
+        ASSERT_TRUE(w.open(path, img.header, err)) << err;
+        err.clear();
+        EXPECT_FALSE(w.write(img, err));
+        EXPECT_NE(err.find("buffer 1 count is negative"), std::string::npos) << err;
+        EXPECT_FALSE(w.commit(err));
+    }
+    EXPECT_FALSE(std::filesystem::exists(path));
 }
 
 TEST_F(CoreIo, AChunkZipCannotShrinkIsStoredAsItIs) {
