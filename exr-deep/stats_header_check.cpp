@@ -785,14 +785,31 @@ bool valueMatchesSize(int fd, const std::string& type, uint64_t at, uint32_t siz
         return true;
     }
     // chlist: name NUL, 16 bytes (type, pLinear and reserved, xSampling, ySampling), repeated,
-    // then an empty name: the last byte.
+    // then an empty name: the last byte. A pixel type other than OpenEXR's three makes OIIO 2.4's
+    // reader abort (an assertion, found by fuzzing ingest), a sampling below 1 divides by zero:
+    // both refused here, before any reader sees them.
     while (i < size && v[i] != 0) {
         const auto* end = static_cast<const unsigned char*>(std::memchr(&v[i], 0, size - i));
         if (end == nullptr || size_t(end - &v[i]) > 255 || size_t(end - v.data()) + 1 + 16 > size) {
             why = fmt::format("a channel at byte {} of {} runs past the value", i, size);
             return false;
         }
-        i = size_t(end - v.data()) + 1 + 16;
+        const size_t fields = size_t(end - v.data()) + 1;  // the channel's 16 bytes
+        const auto pixelType = int32_t(le32(fields));
+        const auto xs = int32_t(le32(fields + 8)), ys = int32_t(le32(fields + 12));
+        if (pixelType < 0 || pixelType > 2) {
+            why = fmt::format(
+                "a channel at byte {} has pixel type {} (OpenEXR's are 0 uint, 1 half, "
+                "2 float)",
+                i, pixelType);
+            return false;
+        }
+        if (xs < 1 || ys < 1) {
+            why = fmt::format("a channel at byte {} has sampling {} x {} (at least 1 x 1)", i, xs,
+                              ys);
+            return false;
+        }
+        i = fields + 16;
     }
     if (i + 1 == size) return true;
     why = fmt::format("the channel list ends at byte {} of {}", i + 1, size);

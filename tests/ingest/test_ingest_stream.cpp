@@ -275,5 +275,20 @@ TEST_F(IngestStream, OpenEXRsCoreReaderGivesOIIOsBitsForEveryCompressionAndType)
         }
 }
 
+TEST_F(IngestStream, AChannelOfAnUnknownPixelTypeIsRefusedBeforeOIIOSeesIt) {
+    // Found by fuzzing: OIIO 2.4's EXR reader aborts (an assertion) on a pixel type other than
+    // OpenEXR's three; the header walk refuses the file first, naming the channel's place.
+    const std::string file =
+        std::string(MCSTAT_SOURCE_DIR) + "/tests/fuzz/regressions/ingest/unknown-pixel-type.exr";
+    StatsImage img;
+    IngestReport rep;
+    std::string err;
+    EXPECT_FALSE(ingestRenders({file}, IngestOptions(), img, rep, err));
+    EXPECT_NE(err.find("unknown-pixel-type.exr: truncated or corrupt (header 0: attribute "
+                       "'channels' of type chlist: a channel at byte 54 has pixel type"),
+              std::string::npos)
+        << err;
+}
+
 }  // namespace
 }  // namespace mcstat
