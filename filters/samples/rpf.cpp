@@ -111,6 +111,7 @@ bool rpfParamsFrom(const ParamValues& v, RpfParams& p, std::string& err) {
     p.sigma8sq = v.at("sigma8").real;
     p.samplesFactor = v.at("samples").real;
     p.maxNeighbourhood = v.at("max").integer;
+    p.maxKept = v.at("kept").integer;
     p.spikes = v.at("spikes").integer != 0;
     p.seed = uint64_t(v.at("seed").integer);
     const int passes = int(v.at("passes").integer);
@@ -342,6 +343,9 @@ Operation rpfOperation() {
                       "at most box^2 x spp x this samples per neighbourhood (Algorithm 1 line 8)"),
             intParam("max", 1, 1e7, "16384",
                      "but never more than this many (a pixel costs its samples x |N|)"),
+            intParam("kept", 0, 1e7, "1536",
+                     "stop drawing once N holds this many (a random subset; 0: every draw, the "
+                     "report's rule)"),
             intParam("passes", 1, 4, "4", "passes with boxes 55, 35, 17, 7 (section 3.2)"),
             spikes,
             intParam("seed", 0, 2147483647, "0", "seed of the neighbourhoods' random draws"),

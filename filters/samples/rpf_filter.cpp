@@ -510,10 +510,11 @@ void drawNeighbourhood(const RpfWindow& w, const RpfParams& prm, int pass, const
     // draws and the same decisions as one at a time.
     constexpr int kBatch = 32;
     size_t batch[kBatch], place[kBatch];
-    for (int64_t q0 = 0; q0 < draws; q0 += kBatch) {
+    const size_t cap = prm.maxKept > 0 ? size_t(prm.maxKept) : SIZE_MAX;
+    for (int64_t q0 = 0; q0 < draws && sc.seq.size() < cap; q0 += kBatch) {
         const int64_t qn = std::min<int64_t>(kBatch, draws - q0);
         const int found = drawCandidates(w, law, half, x, y, qn, rng, sc, batch, place);
-        for (int c = 0; c < found; ++c) {
+        for (int c = 0; c < found && sc.seq.size() < cap; ++c) {
             const size_t at = place[c];
             if (sc.seenStamp[at] == sc.stamp) {  // drawn before: the same decision
                 const int32_t slot = sc.seenSlot[at];
@@ -773,8 +774,9 @@ bool validateRpfParams(const RpfParams& p, std::string& err) {
             return false;
         }
     if (!(p.samplesFactor > 0 && p.samplesFactor <= 64) || p.maxNeighbourhood < 1 ||
-        !(p.sigma8sq > 0) || !std::isfinite(p.sigma8sq) || !(p.featureSigmas >= 0) ||
-        !(p.positionSigmas >= 0) || !(p.floor >= 0) || !(p.epsilon > 0)) {
+        p.maxKept < 0 || !(p.sigma8sq > 0) || !std::isfinite(p.sigma8sq) ||
+        !(p.featureSigmas >= 0) || !(p.positionSigmas >= 0) || !(p.floor >= 0) ||
+        !(p.epsilon > 0)) {
         err = "rpf: parameters out of range";
         return false;
     }

@@ -201,6 +201,37 @@ TEST(RpfFilter, ClusteringDropsSamplesFromAnotherSurface) {
     }
 }
 
+TEST(RpfFilter, KeptStopsTheDrawsOnceNHoldsThatMany) {
+    // One surface, so every draw inside the image is kept. Box 15 at 8 spp: M = 15 x 15 x 8 / 2 =
+    // 900, 892 draws. Without a bound N holds most of them; with kept = 300 drawing stops at 300
+    // (the pixel's 8 included), which changes the filtered colours; a bound no draw reaches
+    // (kept = M) changes nothing, bit for bit.
+    const RpfWindow w = makeWindow(31, 31, 8, 17, [](int, int, int, float* s) {
+        s[0] = s[1] = s[2] = 3 * s[5];
+        s[6] = 1.f;
+    });
+    std::vector<float> c(w.samples() * 3);
+    for (size_t i = 0; i < w.samples(); ++i) std::copy_n(w.sample(i), 3, c.data() + i * 3);
+    auto pass = [&](int64_t kept, std::vector<RpfPixelReport>& report) {
+        RpfParams p;
+        p.boxes = {15};
+        p.maxKept = kept;
+        std::vector<float> out = c;
+        rpfPass(w, p, 0, c, out, 15, 16, 1, &report);
+        return out;
+    };
+    std::vector<RpfPixelReport> none, bound, unreached;
+    const std::vector<float> all = pass(0, none), some = pass(300, bound),
+                             same = pass(900, unreached);
+    const size_t centre = 15, first = size_t(w.offset[15 * 31 + 15]);
+    EXPECT_GT(none[centre].neighbours, 600);  // 892 draws, a few beyond the image's edge or on P
+    EXPECT_EQ(bound[centre].neighbours, 300);
+    EXPECT_EQ(unreached[centre].neighbours, none[centre].neighbours);
+    EXPECT_EQ(same, all);
+    EXPECT_NE(some[first * 3], all[first * 3]);
+    for (const RpfPixelReport& r : bound) EXPECT_LE(r.neighbours, 300);
+}
+
 TEST(RpfFilter, KeepsTheEnergyOfAConstantImage) {
     // Eq. 20 is a normalised weighted mean: on a constant colour every filtered sample, and so
     // every pixel, keeps that colour whatever the weights.
