@@ -11,7 +11,8 @@
 #  3. Pictures: docs/images/rpf_SCENE.png (MC 8 spp | RPF 8 spp | reference, sRGB, clamped) and
 #     docs/images/rpf_maps_SCENE.png (the first pass's dependency maps, the report's Fig. 6:
 #     rpf.colourOnRandom | rpf.textureOnRandom | rpf.alpha | rpf.textureBeta, grey 0..1).
-#  4. Where RPF's error is (EXPLAIN scenes, default dof): docs/images/rpf_error_SCENE.png (per-pixel
+#  4. Where RPF's error is (EXPLAIN scenes, default dof; RPF with every draw, kept=0, the report's
+#     rule): docs/images/rpf_error_SCENE.png (per-pixel
 #     relative squared error of RPF 8 and of MC 64 against the reference, log scale, and the first
 #     pass's |N|) and tables of each one's share of relMSE by |N|, by the reference's light edges
 #     and by the worst pixels.
@@ -136,11 +137,13 @@ ensure_rpf() {
   ensure_keep "$1"
   if stale "$f" "$k"; then say "$1: RPF"; "$M" "$k" --rpf -o "$f"; echo "$mstamp" >"$f.by"; fi
 }
+# ensure_maps SCENE [SUFFIX OPTIONS]: RPF with maps=1 (and OPTIONS, e.g. :kept=0) into
+# SCENE-rpf8-maps[SUFFIX].exr.
 ensure_maps() {
-  local k f; k=$(keep_file "$1"); f=$out/$1-rpf8-maps.exr
+  local k f; k=$(keep_file "$1"); f=$out/$1-rpf8-maps${2:-}.exr
   ensure_keep "$1"
   if stale "$f" "$k"; then
-    say "$1: RPF with maps=1"; "$M" "$k" --rpf:maps=1 -o "$f"; echo "$mstamp" >"$f.by"
+    say "$1: RPF with maps=1${3:-}"; "$M" "$k" --rpf:maps=1${3:-} -o "$f"; echo "$mstamp" >"$f.by"
   fi
 }
 metrics() {  # metrics IMAGE REF: prints "relMSE SSIM"
@@ -156,26 +159,30 @@ md_begin 1 "1. Speed and memory at 8 spp (256x256, all $(nproc) cores, median of
 md_cmds <<EOF
 $R --scene SCENE --spp 8 --keep-samples --seed $SEED -o $out/SCENE-8-keep.mcstat
 $M $out/SCENE-8-keep.mcstat --rpf -o $out/SCENE-rpf8.exr
-# each under /usr/bin/time -f "%e %M" (wall seconds, peak RSS)
+$M $out/SCENE-8-keep.mcstat --rpf:kept=0 -o $out/SCENE-rpf8-full.exr   # the report's rule: every draw
+# each under /usr/bin/time -f "%e %M" (wall seconds, peak RSS); the two RPF runs alternate
 EOF
-fmt="%-10s %12s %13s %9s %11s %14s %8s"
-thead "$fmt" scene "render (s)" "records (MiB)" "RPF (s)" "RPF/render" "RPF peak (MiB)" "<= 30 s"
+fmt="%-10s %12s %13s %9s %11s %14s %8s %11s %7s"
+thead "$fmt" scene "render (s)" "records (MiB)" "RPF (s)" "RPF/render" "RPF peak (MiB)" "<= 30 s" "kept=0 (s)" "ratio"
 for scene in $SCENES; do
-  keep=$(keep_file "$scene"); rts=() pts=() peak=0
+  keep=$(keep_file "$scene"); rts=() pts=() fts=() peak=0
   for _ in $(seq "$REPS"); do
-    say "$scene: 8 spp --keep-samples, then RPF"
+    say "$scene: 8 spp --keep-samples, then RPF, then RPF with kept=0"
     timed "$R" --scene "$scene" --spp 8 --keep-samples --seed "$SEED" -o "$keep"; rts+=("$T")
     timed "$M" "$keep" --rpf -o "$out/$scene-rpf8.exr"; pts+=("$T")
     echo "$mstamp" >"$out/$scene-rpf8.exr.by"
     if [ "$MEM" -gt "$peak" ]; then peak=$MEM; fi
+    timed "$M" "$keep" --rpf:kept=0 -o "$out/$scene-rpf8-full.exr"; fts+=("$T")
   done
   rt=$(printf '%s\n' "${rts[@]}" | median); pt=$(printf '%s\n' "${pts[@]}" | median)
+  ft=$(printf '%s\n' "${fts[@]}" | median)
   trow "$fmt" "$scene" "$rt" "$(mib "$(stat -c %s "$keep")")" "$pt" \
     "$(awk -v a="$pt" -v b="$rt" 'BEGIN { printf "%.1fx", a / b }')" "$(mib $((peak * 1024)))" \
-    "$(awk -v a="$pt" 'BEGIN { print a <= 30 ? "yes" : "no" }')"
+    "$(awk -v a="$pt" 'BEGIN { print a <= 30 ? "yes" : "no" }')" "$ft" \
+    "$(awk -v a="$pt" -v b="$ft" 'BEGIN { printf "%.2fx", a / b }')"
 done
 tend
-note "Peak RSS is the largest of the REPS runs. 1-minute load average at the start: $load1 on $(nproc) cores (other jobs on the machine inflate the times). Section 1 took $(hms $((SECONDS - t0)))."
+note "RPF with the default kept = 1,536 (drawing stops once N holds that many draws) against the report's rule, every draw (kept = 0), in the same runs. Peak RSS is the largest of the REPS runs. 1-minute load average at the start: $load1 on $(nproc) cores (other jobs on the machine inflate the times). Section 1 took $(hms $((SECONDS - t0)))."
 fi
 
 if want 2; then
@@ -277,7 +284,7 @@ if want 4; then
 t0=$SECONDS
 md_begin 4 "4. Where RPF's error is (per pixel, against the ${REF_SPP}-spp reference)"
 md_cmds <<EOF
-$M $out/SCENE-8-keep.mcstat --rpf:maps=1 -o $out/SCENE-rpf8-maps.exr   # R, G, B and rpf.neighbours (|N|, pass 1)
+$M $out/SCENE-8-keep.mcstat --rpf:maps=1:kept=0 -o $out/SCENE-rpf8-maps-full.exr   # the report's rule; R, G, B and rpf.neighbours (|N|, pass 1)
 oiiotool --dumpdata IMAGE   # RPF 8, MC 64, MC 8, the reference: per-pixel values, joined by awk
 # error of a pixel: (1/3) sum over R, G, B of (x - r)^2 / (r^2 + 0.01), as mcstat --diff (relMSE is its mean)
 EOF
@@ -287,11 +294,13 @@ md_text "12,100 = the draws of the 55-pixel box at 8 spp). Light edge: a pixel w
 md_text "in the reference holds luminance both >= 1 and < 1 (the emitters have radiance 10-17, lit"
 md_text "surfaces less than 1). Share: the part of the image's relMSE (sum of the pixel errors) that the"
 md_text "pixels hold; mean: their mean error."
+md_text "RPF here draws every neighbour (kept = 0, the report's rule), so that |N| is the report's; the"
+md_text "default stops at 1,536 draws (section 1)."
 md_text
 dumpv() { oiiotool --dumpdata "$1" | tail -n +2 | sed 's/^.*: //'; }
 for scene in $EXPLAIN; do
-  ensure_ref "$scene"; ensure_mc "$scene" 8; ensure_mc "$scene" 64; ensure_maps "$scene"
-  maps=$out/$scene-rpf8-maps.exr
+  ensure_ref "$scene"; ensure_mc "$scene" 8; ensure_mc "$scene" 64; ensure_maps "$scene" -full :kept=0
+  maps=$out/$scene-rpf8-maps-full.exr
   # Where |N| is among the maps file's channels (in the file's order).
   nch=$(oiiotool --info -v "$maps" | sed -n 's/^ *channel list: //p' | tr -d ' ' | tr ',' '\n' |
         grep -n '^rpf.neighbours$' | cut -d: -f1)
