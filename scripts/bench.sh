@@ -9,7 +9,7 @@
 #   SECTIONS="file height" scripts/bench.sh
 #
 # Environment:
-#   SECTIONS  any of: estimators threads file height compare ingest aovs render   (default: all)
+#   SECTIONS  any of: estimators threads file height compare goals ingest aovs render (default: all)
 #   REPS      runs per command, alternated, medians reported (default 4)
 #   BASELINE  a folder holding an older build's mcstat and mcstat.imageio.so: the file table then
 #             shows its figures beside today's, measured in the same run (docs/benchmarks.md)
@@ -22,7 +22,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 REPS=${REPS:-4}
-SECTIONS=${SECTIONS:-estimators threads file height compare ingest aovs render}
+SECTIONS=${SECTIONS:-estimators threads file height compare goals ingest aovs render}
 BUILD=${BUILD:-build}
 BASELINE=${BASELINE:-}
 if [ "${SKIP_BUILD:-0}" != 1 ]; then
@@ -230,17 +230,54 @@ if want compare; then
   echo
 fi
 
-if want ingest; then
-  # Renders of one image, one plain EXR per seed (docs/ingest.md), against stock oiiotool
-  # averaging the same files.
-  NSEEDS=${NSEEDS:-21}
+# NSEEDS renders of one image (640x480, 4 spp), one plain EXR per seed (docs/ingest.md), in
+# $out/seeds, rendered once and reused.
+NSEEDS=${NSEEDS:-21}
+seed_renders() {
   mkdir -p "$out/seeds"
+  local s f
   for s in $(seq "$NSEEDS"); do
     f=$out/seeds/seed_$s.exr
     if [ ! -f "$f" ] || [ "${REFRESH:-0}" = 1 ]; then
       "$render" --scene default --res 640 480 --spp 4 --seed "$s" --reference --quiet -o "$f"
     fi
   done
+}
+
+if want goals; then
+  # Issue 24's goals, each command against its reference, all alternated in one run.
+  zip=$out/bench-1920x1080-M21.mcstat
+  stats_file "$zip" 1920 1080 64
+  f540=$out/height-540.mcstat
+  stats_file "$f540" 1920 540 8
+  seed_renders
+  echo "== The speed goals in one run: each command / its reference, 2 cores, medians of $REPS alternated =="
+  cmd_gref=(oiiotool "$zip" --subimage 1 --stats)
+  cmd_ggmon=("$mcstat" "$zip" --gmon -o "$out/o.exr")
+  cmd_wref=(oiiotool -a "$f540" --compression zip -o "$out/rewrite.exr")
+  cmd_wmc=("$mcstat" "$f540" -o "$out/rewrite.mcstat")
+  cmd_iref=("$mcstat" --ingest "$out/seeds/seed_*.exr" --mean -o "$out/ingested-mean.exr")
+  cmd_ifile=("$mcstat" --ingest "$out/seeds/seed_*.exr" -o "$out/ingested.mcstat")
+  run_alternating gref ggmon wref wmc iref ifile
+  printf "%-58s | %7s %7s %6s %7s %8s\n" "command" "wall s" "ratio" "goal" "CPU s" "peak MiB"
+  goal_row() {  # goal_row NAME REF GOAL LABEL
+    local w=med_$1 c=cpu_$1 r=rss_$1 b=med_$2
+    printf "%-58s | %7.2f %6.2fx %6s %7.2f %8s\n" "$4" "${!w}" "$(awk -v w="${!w}" -v b="${!b}" 'BEGIN { print w / b }')" "$3" "${!c}" "${!r}"
+  }
+  goal_row gref gref "" "oiiotool F --subimage 1 --stats (F: 1920x1080, M = 21)"
+  goal_row ggmon gref 0.6 "mcstat F --gmon -o o.exr"
+  goal_row wref wref "" "oiiotool -a F --compression zip -o G.exr (1920x540)"
+  goal_row wmc wref 0.5 "mcstat F -o G.mcstat"
+  goal_row iref iref "" "mcstat --ingest 'seed_*.exr' --mean -o m.exr ($NSEEDS)"
+  goal_row ifile iref 1.5 "mcstat --ingest 'seed_*.exr' -o f.mcstat"
+  echo "(ingest memory against height: SECTIONS=ingest; the renderer's M = 21 overhead: SECTIONS=render)"
+  echo
+fi
+
+if want ingest; then
+  # Renders of one image, one plain EXR per seed (docs/ingest.md), against stock oiiotool
+  # averaging the same files.
+  seed_renders
   echo "== mcstat --ingest of $NSEEDS renders (640x480, plain float EXR) against stock oiiotool averaging them =="
   cmd_ref=(oiiotool "$out/seeds/seed_1.exr")
   for s in $(seq 2 "$NSEEDS"); do cmd_ref+=("$out/seeds/seed_$s.exr" --add); done
