@@ -253,6 +253,209 @@ double adrGeometricMeanDensity(const std::vector<PajotMode>& modes, int64_t tota
     return std::exp(logSum / weight);
 }
 
+// ---- certified decisions: bounds of eq. 4's G without the quadrature's densities ----------------
+// Pajot, Barthe, Paulin 2011, section 4.2, eq. 3-4: an update's modes depend on G only through two
+// comparisons, d < h(x) + h(l) with h(x) = nn (G / p(x))^(1/2). Every pilot density is
+// p(x) = 0.75 S(x) / (n nn), S(x) the sum of (1 - u^2), u = (x - v) / nn, over the values v of the
+// approximate distribution with |u| < 1, so G = 0.75 / (n nn) times the weighted geometric mean of
+// S at the quadrature points. Bounds of S at each point give bounds of G; when the comparisons come
+// out the same at both bounds (with a margin for rounding), they are the exact code's comparisons.
+
+/// F(t), the integral of (1 - u^2) over [0, t], t in [0, 1].
+inline double kernelIntegral(double t) { return t - t * t * t * (1.0 / 3.0); }
+
+/// A mode as the bounds see it: its values' spacing over nn, r, and 1 / r (0 for single modes and
+/// modes of equal values).
+struct BoundSpan {
+    double r = 0, invR = 0;
+};
+
+/// Adds bounds of S at x from the values of mode `m` (spacing `sp`) when x lies outside
+/// [m.lo, m.hi], gap nn from its nearest value (0 < gap < 1). Its values lie at gap + i r
+/// (i < n), where the kernel decreases: r times their sum lies between the kernel's integral from
+/// gap to gap + n r and its value at gap plus the integral from gap to gap + (n - 1) r (both cut
+/// at 1); the nearest value alone gives 1 - gap^2.
+inline void neighbourBounds(const PajotMode& m, const BoundSpan& sp, double gap, double& lo,
+                            double& hi) {
+    const double near = 1.0 - gap * gap;
+    if (sp.invR == 0.0) {
+        lo += double(m.n) * near;
+        hi += double(m.n) * near;
+        return;
+    }
+    const double fGap = kernelIntegral(gap);
+    lo +=
+        std::max(near, (kernelIntegral(std::min(1.0, gap + double(m.n) * sp.r)) - fGap) * sp.invR);
+    hi += std::min(
+        double(m.n) * near,
+        near + (kernelIntegral(std::min(1.0, gap + double(m.n - 1) * sp.r)) - fGap) * sp.invR);
+}
+
+/// Bounds of eq. 4's G as adrGeometricMeanDensity computes it (rounding included), over the same
+/// quadrature points, without their densities. At a point x of a mode of spacing s = r nn (values
+/// lo + i s, i < n, x in [lo, hi], a = (x - lo) / nn, b = (hi - x) / nn), the mode's own values in
+/// the window sum to
+///   - the sum over the infinite grid lo + i s, i in Z, which is 4 / (3 r) within
+///     [-r/3 - 0.04 r^2, r/6 + 0.04 r^2] whatever the grid's offset (Euler-Maclaurin with the
+///     periodic Bernoulli functions: the kernel's derivative jumps by 2 at both ends of the
+///     window, B2 / 2 lies in [-1/24, 1/12], and the integral of B3 / 6 against the constant
+///     second derivative -2 over the window is at most 0.04 r^2 in size), less the grid's tails
+///     beyond lo and hi, whose values lie at a + i r and b + i r (i >= 1) where the kernel
+///     decreases: r times a tail lies between the kernel's integral from a + r to 1 and from a to
+///     1;
+///   - at an end of the mode with the other end beyond the window, (the grid's sum at a value + 1)
+///     / 2, by symmetry;
+///   - within 1 of the kernel's integral over the window's part inside [lo, hi], over r (the sum of
+///     a unimodal function at points spaced r that reach both ends of an interval differs from its
+///     integral over r by at most its maximum);
+///   - at least 1 at the mode's own values (every point of a mode of up to 16 values, the ends of
+///     larger ones), at least 1 - (r/2)^2 elsewhere (a value lies within s/2);
+///   - at most n.
+/// The neighbouring modes within nn add what neighbourBounds says; single modes and modes of equal
+/// values give n (1 - u^2) exactly. Every bound is widened for the exact code's rounding: its
+/// points, values and closed forms (an absolute error per term of a few ulps of the values over nn,
+/// at most `total` terms), its logs, weighted sum and exp (a few ulps of up to about 750 per
+/// term). Returns false when no bounds can be formed (positions too coarse against nn, a product
+/// out of range); gLo may be 0.
+bool adrGeometricMeanBounds(const std::vector<PajotMode>& modes, int64_t total, double nn,
+                            std::vector<BoundSpan>& spans, double& gLo, double& gHi) {
+    const double invNn = 1.0 / nn;
+    const double eps = std::numeric_limits<double>::epsilon();
+    double maxAbs = 0;
+    spans.resize(modes.size());
+    for (size_t j = 0; j < modes.size(); ++j) {
+        const PajotMode& m = modes[j];
+        maxAbs = std::max(maxAbs, std::max(std::fabs(double(m.lo)), std::fabs(double(m.hi))));
+        BoundSpan& sp = spans[j];
+        sp = BoundSpan();
+        if (m.n != 1 && m.lo != m.hi) {
+            sp.r = (double(m.hi) - double(m.lo)) / double(m.n - 1) * invNn;
+            sp.invR = 1.0 / sp.r;
+            // The closed form's window indices (x -+ nn - lo) / s, up to n - 1 + 2 / r in size,
+            // must stay below 2^52, where its floor and ceiling are exact (beyond, the exact
+            // code's conversions to int64_t give what they give): no certificate otherwise.
+            if (!(sp.invR < 281474976710656.0)) return false;
+        }
+    }
+    const double absSlack = (16.0 * eps * maxAbs * invNn + 64.0 * eps) * double(total);
+    if (!(absSlack < 1e-3)) return false;
+    const double full = kernelIntegral(1.0);
+    // Sum of w log S over the points: modes of up to 16 values have w = 1, so their bounds go
+    // into one running product (one log when it leaves [1e-200, 1e200], and at the end).
+    double logLo = 0, logHi = 0, weight = 0;
+    double unitLo = 1, unitHi = 1;
+    int64_t terms = 0;
+    for (size_t j = 0; j < modes.size(); ++j) {
+        const PajotMode& m = modes[j];
+        const bool farBelow = j == 0 || double(m.lo) - double(modes[j - 1].hi) >= nn;
+        const bool farAbove = j + 1 == modes.size() || double(modes[j + 1].lo) - double(m.hi) >= nn;
+        if (m.n == 1 && farBelow && farAbove) {  // S = 1 exactly
+            weight += 1;
+            ++terms;
+            continue;
+        }
+        const int64_t q = std::min<int64_t>(m.n, 16);
+        const double* pos = quadraturePositions(q);
+        const double lo = m.lo, hi = m.hi, width = hi - lo;
+        const BoundSpan own = spans[j];
+        const double r = own.r;
+        // The whole grid's sum, which is also the own values' sum at a point whose window lies
+        // inside [lo, hi] (a, b >= 1; no other mode reaches such a point).
+        double gridLo = 0, gridHi = 0, innerLo = 0, innerHi = 0;
+        if (own.invR != 0.0) {
+            gridLo = 4.0 / 3.0 * own.invR - r * (1.0 / 3.0) - 0.04 * r * r;
+            gridHi = 4.0 / 3.0 * own.invR + r * (1.0 / 6.0) + 0.04 * r * r;
+            innerLo = std::max(gridLo, q == m.n ? 1.0 : r < 2.0 ? 1.0 - 0.25 * r * r : 0.0);
+            innerHi = std::min(gridHi, double(m.n));
+            innerLo = std::max(0.0, innerLo * (1.0 - 1e-9) - absSlack);
+            innerHi = innerHi * (1.0 + 1e-9) + absSlack;
+        }
+        // The modes with values within nn of [lo, hi].
+        size_t below = j, above = j + 1;
+        while (below > 0 && double(modes[below - 1].hi) > lo - nn) --below;
+        while (above < modes.size() && double(modes[above].lo) < hi + nn) ++above;
+        double prodLo = 1, prodHi = 1;
+        for (int64_t t = 0; t < q; ++t) {
+            const double x = lo + width * (q == 1 ? 0.0 : pos[t]);
+            const double a = (x - lo) * invNn, b = (hi - x) * invNn;
+            if (a >= 1.0 && b >= 1.0 && own.invR != 0.0) {
+                prodLo *= innerLo;
+                prodHi *= innerHi;
+                continue;
+            }
+            double sLo, sHi;
+            if (own.invR == 0.0) {
+                sLo = sHi = double(m.n);
+            } else {
+                // The grid's sum less its tails beyond lo and hi.
+                double fa = full, fb = full, tailLo = 0, tailHi = 0;
+                if (a < 1.0) {
+                    fa = kernelIntegral(std::max(0.0, a));
+                    tailHi += (full - fa) * own.invR;
+                    tailLo +=
+                        (full - kernelIntegral(std::min(1.0, std::max(0.0, a) + r))) * own.invR;
+                }
+                if (b < 1.0) {
+                    fb = kernelIntegral(std::max(0.0, b));
+                    tailHi += (full - fb) * own.invR;
+                    tailLo +=
+                        (full - kernelIntegral(std::min(1.0, std::max(0.0, b) + r))) * own.invR;
+                }
+                sLo = gridLo - tailHi;
+                sHi = std::min(double(m.n), gridHi - tailLo);
+                if ((x == lo && b >= 1.0) || (x == hi && a >= 1.0)) {
+                    sLo = std::max(sLo, 0.5 * (gridLo + 1.0));
+                    sHi = std::min(sHi, 0.5 * (gridHi + 1.0));
+                }
+                const double mid = (fa + fb) * own.invR;
+                sLo = std::max(sLo, mid - 1.0);
+                sHi = std::min(sHi, mid + 1.0);
+                if (q == m.n || t == 0 || t == q - 1)
+                    sLo = std::max(sLo, 1.0);
+                else if (r < 2.0)
+                    sLo = std::max(sLo, 1.0 - 0.25 * r * r);
+            }
+            if (a < 1.0)
+                for (size_t i = below; i < j; ++i) {
+                    const double gap = (x - double(modes[i].hi)) * invNn;
+                    if (gap < 1.0) neighbourBounds(modes[i], spans[i], gap, sLo, sHi);
+                }
+            if (b < 1.0)
+                for (size_t i = j + 1; i < above; ++i) {
+                    const double gap = (double(modes[i].lo) - x) * invNn;
+                    if (gap < 1.0) neighbourBounds(modes[i], spans[i], gap, sLo, sHi);
+                }
+            prodLo *= std::max(0.0, sLo * (1.0 - 1e-9) - absSlack);
+            prodHi *= sHi * (1.0 + 1e-9) + absSlack;
+        }
+        if (!(prodHi < 1e200)) return false;  // at most 16 factors of at most 2^32 each
+        weight += double(m.n);
+        terms += q;
+        if (q == m.n) {
+            unitLo *= prodLo;
+            unitHi *= prodHi;
+            if (!(unitHi < 1e200) || unitLo < 1e-200) {
+                logLo += std::log(unitLo);  // -inf when a bound is 0: gLo = 0
+                logHi += std::log(unitHi);
+                unitLo = unitHi = 1;
+            }
+        } else {
+            const double w = double(m.n) / double(q);
+            logLo += w * std::log(prodLo);
+            logHi += w * std::log(prodHi);
+        }
+    }
+    logLo += std::log(unitLo);
+    logHi += std::log(unitHi);
+    const double scale = 0.75 / (double(total) * nn);
+    const double relSlack = 1e-9 + 4096.0 * eps * double(terms);
+    // Every density the exact code computes, at most 0.75 total / (total nn), must be finite.
+    if (!(relSlack < 1e-3) || !(scale > 0.0) || !(scale * double(total) < 1e300)) return false;
+    gLo = scale * std::exp(logLo / weight) * (1.0 - relSlack);
+    gHi = scale * std::exp(logHi / weight) * (1.0 + relSlack);
+    return gHi < HUGE_VAL;
+}
+
 }  // namespace
 
 const char* pajotMethodName(PajotMethod m) {
@@ -491,6 +694,12 @@ bool parsePajotParamsText(const std::string& text, PajotParams& p, std::string& 
 
 // ---- the per-pixel estimator --------------------------------------------------------------------
 
+namespace {
+thread_local uint64_t certifiedUpdates = 0;
+}  // namespace
+
+uint64_t adrCertifiedUpdates() { return certifiedUpdates; }
+
 void adrUpdate(std::vector<PajotMode>& modes, float l, AdrUpdateTrace* trace) {
     if (trace) *trace = AdrUpdateTrace();
     auto it = std::lower_bound(modes.begin(), modes.end(), l,
@@ -508,23 +717,59 @@ void adrUpdate(std::vector<PajotMode>& modes, float l, AdrUpdateTrace* trace) {
     // Scratch of the thread's updates: no allocation per sample once it has grown.
     thread_local AdrDensities scratch;
     AdrDensities& density = scratch;
-    KnownDensity known[3];
-    double g = 0.0;
+    // Certified decisions (Pajot, Barthe, Paulin 2011, section 4.2, eq. 3-4): the modes depend on
+    // G only through the two comparisons d < h(x) + h(l), h(x) = nn (G / p(x))^(1/2). With bounds
+    // gLo <= G <= gHi (adrGeometricMeanBounds) and the three densities, a comparison that comes
+    // out the same at both bounds, with a relative margin of 1e-9 for the rounding of the
+    // bandwidths and their sum, comes out so at G: its h sum is nn sqrt(G) (p(x)^(-1/2) +
+    // p(l)^(-1/2)), increasing in G. Only when one sits between them is the exact G computed. The
+    // trace wants the exact values, and records what the bounds decided beside them.
+    auto verdict = [nn](double a, double b, double pa, double pb, double gLo, double gHi) {
+        if (a == b) return 1;  // overlaps() without bandwidths
+        const double d = b - a, inv = 1.0 / std::sqrt(pa) + 1.0 / std::sqrt(pb);
+        if (d < nn * std::sqrt(gLo) * inv * (1.0 - 1e-9)) return 1;
+        if (d >= nn * std::sqrt(gHi) * inv * (1.0 + 1e-9)) return 0;
+        return -1;
+    };
+    int certBelow = -1, certAbove = -1;  // -1: not settled by the bounds
+    double gLo = 0, gHi = 0;
     if (nn > 0.0) {
         density.prepare(modes, total, nn);
-        g = adrGeometricMeanDensity(modes, total, nn, density, k, known);
+        thread_local std::vector<BoundSpan> spans;
+        if (adrGeometricMeanBounds(modes, total, nn, spans, gLo, gHi)) {
+            const double pl = density.at(l);
+            const double pb = k > 0 ? density.at(modes[k - 1].hi) : 1.0;
+            const double pa = k + 1 < modes.size() ? density.at(modes[k + 1].lo) : 1.0;
+            if (pl > 0.0 && pb > 0.0 && pa > 0.0 && pl < HUGE_VAL && pb < HUGE_VAL &&
+                pa < HUGE_VAL) {
+                certBelow = k > 0 ? verdict(modes[k - 1].hi, l, pb, pl, gLo, gHi) : 0;
+                certAbove =
+                    k + 1 < modes.size() ? verdict(l, modes[k + 1].lo, pl, pa, gLo, gHi) : 0;
+            }
+        }
     }
-    // h = nn (G / p(x))^(1/2) (eq. 4), p(x) taken from the geometric mean's points when it is one.
-    auto bandwidth = [&density, nn, g](double x, const KnownDensity& kd) {
-        if (!(nn > 0.0)) return 0.0;
-        return nn * std::sqrt(g / (kd.x == x ? kd.p : density.at(x)));
-    };
-    const double hl = bandwidth(l, known[1]);
-    const double hBelow = k > 0 ? bandwidth(modes[k - 1].hi, known[0]) : 0.0;
-    const double hAbove = k + 1 < modes.size() ? bandwidth(modes[k + 1].lo, known[2]) : 0.0;
-    if (trace) *trace = {true, nn, g, hl, hBelow, hAbove};
-    const bool below = k > 0 && overlaps(modes[k - 1].hi, l, hBelow, hl);
-    const bool above = k + 1 < modes.size() && overlaps(l, modes[k + 1].lo, hl, hAbove);
+    bool below = certBelow == 1, above = certAbove == 1;
+    if (!trace && certBelow >= 0 && certAbove >= 0) {
+        ++certifiedUpdates;
+    } else {
+        // The exact G (eq. 4 over the quadrature points) and bandwidths.
+        KnownDensity known[3];
+        double g = 0.0;
+        if (nn > 0.0) g = adrGeometricMeanDensity(modes, total, nn, density, k, known);
+        // h = nn (G / p(x))^(1/2) (eq. 4), p(x) from the geometric mean's points when it is one.
+        auto bandwidth = [&density, nn, g](double x, const KnownDensity& kd) {
+            if (!(nn > 0.0)) return 0.0;
+            return nn * std::sqrt(g / (kd.x == x ? kd.p : density.at(x)));
+        };
+        const double hl = bandwidth(l, known[1]);
+        const double hBelow = k > 0 ? bandwidth(modes[k - 1].hi, known[0]) : 0.0;
+        const double hAbove = k + 1 < modes.size() ? bandwidth(modes[k + 1].lo, known[2]) : 0.0;
+        below = k > 0 && overlaps(modes[k - 1].hi, l, hBelow, hl);
+        above = k + 1 < modes.size() && overlaps(l, modes[k + 1].lo, hl, hAbove);
+        if (trace)
+            *trace = {true,  nn,    g,         hl,        hBelow, hAbove,
+                      below, above, certBelow, certAbove, gLo,    gHi};
+    }
     // Merging on both sides replaces the two modes and the new sample by one extended mode.
     size_t first = k, last = k;
     if (below) first = k - 1;

@@ -285,6 +285,122 @@ TEST(PajotReferenceAdr, TheArithmeticsEdgesGiveTheSameDoubles) {
     }
 }
 
+/// The modes' floats and counts, bit for bit.
+bool sameModes(const std::vector<PajotMode>& a, const std::vector<PajotMode>& b) {
+    if (a.size() != b.size()) return false;
+    for (size_t i = 0; i < a.size(); ++i)
+        if (std::memcmp(&a[i].lo, &b[i].lo, sizeof(float)) != 0 ||
+            std::memcmp(&a[i].hi, &b[i].hi, sizeof(float)) != 0 || a[i].n != b[i].n)
+            return false;
+    return true;
+}
+
+/// Log-luminance streams for the certified updates: the shapes whose bounds are loosest or
+/// whose arithmetic is the most fragile.
+enum class LogKind { Clustered, HeavyTail, Equal, TinyGaps, Denormal, Mixed };
+
+std::vector<float> logStream(LogKind kind, int count, uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::normal_distribution<double> gauss(0.0, 1.0);
+    const double centre = 4.0 * gauss(rng);
+    std::vector<float> out;
+    for (int i = 0; i < count; ++i) {
+        const double r = u(rng);
+        double l = centre + gauss(rng);
+        switch (kind) {
+            case LogKind::Clustered:  // three tight clusters and scattered values between them
+                l = centre + 2.0 * double(int(3.0 * u(rng))) + 0.05 * gauss(rng);
+                if (r < 0.1) l = centre - 1.0 + 6.0 * u(rng);
+                break;
+            case LogKind::HeavyTail:  // log of a Pareto variable: a long tail of single modes
+                l = centre + 1.5 * -std::log(std::max(u(rng), 1e-300));
+                break;
+            case LogKind::Equal:  // a few levels: runs of equal values, modes of zero width
+                l = centre + 0.25 * double(int(4.0 * u(rng)));
+                if (r < 0.15) l += 0.01 * gauss(rng);
+                break;
+            case LogKind::TinyGaps: {  // values one float apart or a few
+                float v = float(centre);
+                for (int k = int(40.0 * u(rng)); k > 0; --k) v = std::nextafter(v, 1e30f);
+                out.push_back(r < 0.05 ? float(centre + gauss(rng)) : v);
+                continue;
+            }
+            case LogKind::Denormal:  // denormal floats: gaps of 1.4e-45
+                out.push_back(float(double(int(200.0 * u(rng) * u(rng))) * 1.401298464324817e-45));
+                continue;
+            case LogKind::Mixed:  // the above together
+                if (r < 0.2)
+                    l = centre + 0.25 * double(int(4.0 * u(rng)));
+                else if (r < 0.3)
+                    l = centre + 1.5 * -std::log(std::max(u(rng), 1e-300));
+                else if (r < 0.35)
+                    l = double(int(50.0 * u(rng))) * 1.401298464324817e-45;
+                break;
+        }
+        out.push_back(float(l));
+    }
+    return out;
+}
+
+TEST(PajotReferenceAdr, CertifiedUpdatesKeepEveryDecision) {
+    // Without a trace an update decides its merges from bounds of eq. 4's G when they settle them
+    // (filters/samples/pajot_kde.cpp, adrGeometricMeanBounds). Every sample goes through that
+    // update, through the traced update (the exact G, which also records what the bounds
+    // decided) and through the plain reference; the modes must agree after every sample, the
+    // bounds must hold G and agree with the exact decisions wherever they settled them, and they
+    // must settle a good share of the updates (else the test tests nothing).
+    const LogKind kinds[] = {LogKind::Clustered, LogKind::HeavyTail, LogKind::Equal,
+                             LogKind::TinyGaps,  LogKind::Denormal,  LogKind::Mixed};
+    int64_t inserted = 0, certified = 0, settledTraced = 0;
+    for (const LogKind kind : kinds) {
+        int64_t kindInserted = 0, kindCertified = 0;
+        for (uint64_t seed = 1; seed <= 10; ++seed) {
+            const std::vector<float> l = logStream(kind, 2000, seed * 7919 + uint64_t(kind));
+            std::vector<float> sorted(l.begin(), l.begin() + 50);
+            std::sort(sorted.begin(), sorted.end());
+            std::vector<PajotMode> modes = aggregateModes(sorted, adaptiveBandwidths(sorted));
+            std::vector<PajotMode> traced = modes, ref = modes;
+            for (size_t i = 50; i < l.size(); ++i) {
+                const uint64_t before = adrCertifiedUpdates();
+                AdrUpdateTrace t;
+                adrUpdate(modes, l[i]);
+                adrUpdate(traced, l[i], &t);
+                pajot_ref::updateModes(ref, l[i]);
+                const std::string where = "kind " + std::to_string(int(kind)) + ", seed " +
+                                          std::to_string(seed) + ", value " + std::to_string(i);
+                ASSERT_TRUE(sameModes(modes, ref)) << where;
+                ASSERT_TRUE(sameModes(traced, ref)) << where;
+                const uint64_t now = adrCertifiedUpdates() - before;
+                ASSERT_LE(now, uint64_t(t.inserted)) << where;
+                kindInserted += t.inserted;
+                kindCertified += int64_t(now);
+                if (!t.inserted) continue;
+                // Certified without a trace exactly when the traced update's bounds settled both.
+                ASSERT_EQ(now == 1, t.certBelow >= 0 && t.certAbove >= 0) << where;
+                if (t.certBelow >= 0) {
+                    ASSERT_EQ(t.certBelow == 1, t.below) << where;
+                }
+                if (t.certAbove >= 0) {
+                    ASSERT_EQ(t.certAbove == 1, t.above) << where;
+                }
+                if (t.gHi > 0.0) {
+                    ASSERT_LE(t.gLo, t.g) << where;
+                    ASSERT_LE(t.g, t.gHi) << where;
+                }
+                settledTraced += t.certBelow >= 0 && t.certAbove >= 0;
+            }
+        }
+        std::printf("kind %d: %lld of %lld updates certified\n", int(kind),
+                    static_cast<long long>(kindCertified), static_cast<long long>(kindInserted));
+        inserted += kindInserted;
+        certified += kindCertified;
+    }
+    EXPECT_EQ(certified, settledTraced);
+    EXPECT_GT(inserted, 10000);
+    EXPECT_GT(certified, inserted / 2) << certified << " of " << inserted;
+}
+
 INSTANTIATE_TEST_SUITE_P(Methods, PajotReference,
                          ::testing::Values(PajotMethod::ADR, PajotMethod::ROT, PajotMethod::Hybrid),
                          [](const ::testing::TestParamInfo<PajotMethod>& param) {

@@ -178,10 +178,18 @@ std::vector<double> adaptiveBandwidths(const std::vector<float>& l);
 struct AdrUpdateTrace {
     bool inserted = false;  ///< false: the value fell inside a mode, nothing was computed
     double nn = 0, g = 0, h = 0, hBelow = 0, hAbove = 0;
+    bool below = false, above = false;  ///< the merges decided (from the exact values)
+    /// What the bounds of G alone decided: 1 merge, 0 not, -1 unsettled (exact G needed).
+    int certBelow = -1, certAbove = -1;
+    double gLo = 0, gHi = 0;  ///< the bounds of G (0 when none were formed)
 };
 /// ADR's incremental update (section 4.2) of sorted, disjoint `modes` by a non-black value l, as
-/// PajotPixel::add makes it; what it computed in `trace` when given.
+/// PajotPixel::add makes it. Without a trace the merges come from bounds of eq. 4's G when those
+/// settle them (the same decisions as the exact G's, by construction); with one, always from the
+/// exact values, which it records.
 void adrUpdate(std::vector<PajotMode>& modes, float l, AdrUpdateTrace* trace = nullptr);
+/// Updates on this thread (without a trace) whose merges the bounds settled: for the tests.
+uint64_t adrCertifiedUpdates();
 /// m of a mode list: the hi of the last extended mode, -inf when none.
 float lastExtendedUpperBound(const std::vector<PajotMode>& modes);
 
