@@ -315,10 +315,11 @@ inline void neighbourBounds(const PajotMode& m, const BoundSpan& sp, double gap,
 /// values give n (1 - u^2) exactly. Every bound is widened for the exact code's rounding: its
 /// points, values and closed forms (an absolute error per term of a few ulps of the values over nn,
 /// at most `total` terms), its logs, weighted sum and exp (a few ulps of up to about 750 per
-/// term). Returns false when no bounds can be formed (positions too coarse against nn, a product
-/// out of range); gLo may be 0.
+/// term). `coarse`: one pair of bounds per mode instead (cheaper, looser; see below). Returns false
+/// when no bounds can be formed (positions too coarse against nn, a product out of range); gLo may
+/// be 0.
 bool adrGeometricMeanBounds(const std::vector<PajotMode>& modes, int64_t total, double nn,
-                            std::vector<BoundSpan>& spans, double& gLo, double& gHi) {
+                            std::vector<BoundSpan>& spans, bool coarse, double& gLo, double& gHi) {
     const double invNn = 1.0 / nn;
     const double eps = std::numeric_limits<double>::epsilon();
     double maxAbs = 0;
@@ -375,7 +376,39 @@ bool adrGeometricMeanBounds(const std::vector<PajotMode>& modes, int64_t total, 
         while (below > 0 && double(modes[below - 1].hi) > lo - nn) --below;
         while (above < modes.size() && double(modes[above].lo) < hi + nn) ++above;
         double prodLo = 1, prodHi = 1;
-        for (int64_t t = 0; t < q; ++t) {
+        if (coarse) {
+            // One pair of bounds for every point of the mode. Own values: at least
+            // (F(min(a, 1)) + F(min(b, 1))) / r less min(1, r/3 + 0.04 r^2) (the unimodal bound;
+            // the grid less its tails), a + b = w / nn with F concave and F(0) = 0, so at least
+            // F(min(w / nn, 1)) / r less that; at least 1 at values, 1 - (r/2)^2 elsewhere; at
+            // most the whole grid's sum, n and 4 / (3 r) + 1. Neighbours: at most what they add at
+            // the mode's nearest end (their upper bound decreases with the gap), at least 0.
+            double sLo = double(m.n), sHi = double(m.n);
+            if (own.invR != 0.0) {
+                const double fw = kernelIntegral(std::min(1.0, width * invNn));
+                sLo = std::max(fw * own.invR - std::min(1.0, r * (1.0 / 3.0) + 0.04 * r * r),
+                               q == m.n  ? 1.0
+                               : r < 2.0 ? 1.0 - 0.25 * r * r
+                                         : 0.0);
+                sHi = std::min(double(m.n), std::min(gridHi, 4.0 / 3.0 * own.invR + 1.0));
+            }
+            double unused = 0;
+            for (size_t i = below; i < j; ++i) {
+                const double gap = (lo - double(modes[i].hi)) * invNn;
+                if (gap < 1.0) neighbourBounds(modes[i], spans[i], gap, unused, sHi);
+            }
+            for (size_t i = j + 1; i < above; ++i) {
+                const double gap = (double(modes[i].lo) - hi) * invNn;
+                if (gap < 1.0) neighbourBounds(modes[i], spans[i], gap, unused, sHi);
+            }
+            sLo = std::max(0.0, sLo * (1.0 - 1e-9) - absSlack);
+            sHi = sHi * (1.0 + 1e-9) + absSlack;
+            for (int64_t t = 0; t < q; ++t) {
+                prodLo *= sLo;
+                prodHi *= sHi;
+            }
+        }
+        for (int64_t t = 0; t < q && !coarse; ++t) {
             const double x = lo + width * (q == 1 ? 0.0 : pos[t]);
             const double a = (x - lo) * invNn, b = (hi - x) * invNn;
             if (a >= 1.0 && b >= 1.0 && own.invR != 0.0) {
@@ -736,15 +769,21 @@ void adrUpdate(std::vector<PajotMode>& modes, float l, AdrUpdateTrace* trace) {
     if (nn > 0.0) {
         density.prepare(modes, total, nn);
         thread_local std::vector<BoundSpan> spans;
-        if (adrGeometricMeanBounds(modes, total, nn, spans, gLo, gHi)) {
+        // Coarse bounds first (one pair per mode), then bounds per point, then the exact G.
+        if (adrGeometricMeanBounds(modes, total, nn, spans, true, gLo, gHi)) {
             const double pl = density.at(l);
             const double pb = k > 0 ? density.at(modes[k - 1].hi) : 1.0;
             const double pa = k + 1 < modes.size() ? density.at(modes[k + 1].lo) : 1.0;
             if (pl > 0.0 && pb > 0.0 && pa > 0.0 && pl < HUGE_VAL && pb < HUGE_VAL &&
                 pa < HUGE_VAL) {
-                certBelow = k > 0 ? verdict(modes[k - 1].hi, l, pb, pl, gLo, gHi) : 0;
-                certAbove =
-                    k + 1 < modes.size() ? verdict(l, modes[k + 1].lo, pl, pa, gLo, gHi) : 0;
+                auto decide = [&] {
+                    certBelow = k > 0 ? verdict(modes[k - 1].hi, l, pb, pl, gLo, gHi) : 0;
+                    certAbove =
+                        k + 1 < modes.size() ? verdict(l, modes[k + 1].lo, pl, pa, gLo, gHi) : 0;
+                    return certBelow >= 0 && certAbove >= 0;
+                };
+                if (!decide() && adrGeometricMeanBounds(modes, total, nn, spans, false, gLo, gHi))
+                    decide();
             }
         }
     }

@@ -181,7 +181,9 @@ struct AdrUpdateTrace {
     bool below = false, above = false;  ///< the merges decided (from the exact values)
     /// What the bounds of G alone decided: 1 merge, 0 not, -1 unsettled (exact G needed).
     int certBelow = -1, certAbove = -1;
-    double gLo = 0, gHi = 0;  ///< the bounds of G (0 when none were formed)
+    /// The bounds of G last formed (one pair per mode, or per point when those did not settle;
+    /// 0 when none were formed).
+    double gLo = 0, gHi = 0;
 };
 /// ADR's incremental update (section 4.2) of sorted, disjoint `modes` by a non-black value l, as
 /// PajotPixel::add makes it. Without a trace the merges come from bounds of eq. 4's G when those
