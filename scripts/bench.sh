@@ -248,8 +248,8 @@ if want goals; then
   # Issue 24's goals, each command against its reference, all alternated in one run.
   zip=$out/bench-1920x1080-M21.mcstat
   stats_file "$zip" 1920 1080 64
-  f540=$out/height-540.mcstat
-  stats_file "$f540" 1920 540 8
+  f540=$out/bench-1920x540-M21.mcstat  # the 1080-row file's twin: half the rows, the same spp
+  stats_file "$f540" 1920 540 64
   seed_renders
   echo "== The speed goals in one run: each command / its reference, 2 cores, medians of $REPS alternated =="
   cmd_gref=(oiiotool "$zip" --subimage 1 --stats)
@@ -390,5 +390,6 @@ if want aovs; then
 fi
 
 if want render; then
-  if [ -x scripts/bench_render.sh ]; then SKIP_BUILD=1 BUILD="$BUILD" REPS="$REPS" scripts/bench_render.sh; fi
+  # bench_render.sh has sections of its own: this one's SECTIONS (from the environment) is not them.
+  if [ -x scripts/bench_render.sh ]; then SKIP_BUILD=1 BUILD="$BUILD" REPS="$REPS" SECTIONS="1 2" scripts/bench_render.sh; fi
 fi
