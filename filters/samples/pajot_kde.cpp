@@ -32,16 +32,26 @@ int64_t totalSamples(const std::vector<PajotMode>& modes) {
     return n;
 }
 
+/// t clamped to [-2^62, 2^62], NaN to -2^62: a window index beyond a mode's 2^32 values (a
+/// spacing far below the bandwidth, e.g. denormal gaps beside values of order 1) stays beyond
+/// them, and converting it to int64_t is defined (beyond 2^63 it is not). The window then holds
+/// the mode's values the bandwidth reaches, and an index of NaN none.
+inline double clampIndex(double t) {
+    constexpr double kMax = 4611686018427387904.0;  // 2^62
+    return t < kMax ? (t > -kMax ? t : -kMax) : (t >= kMax ? kMax : -kMax);
+}
+
 /// int64_t(std::floor(t)) and int64_t(std::ceil(t)), inline (without SSE4.1 the library's are
-/// calls): for |t| < 2^52 truncation is exact and one step corrects it; beyond, and for NaN, the
-/// library's own expression, so every input gives what it gave before.
+/// calls): for |t| < 2^52 truncation is exact and one step corrects it; beyond, the library's
+/// own expression of the clamped value, so every input whose conversion was defined gives what
+/// it gave before.
 inline int64_t floorToInt(double t) {
-    if (!(std::fabs(t) < 4503599627370496.0)) return int64_t(std::floor(t));
+    if (!(std::fabs(t) < 4503599627370496.0)) return int64_t(std::floor(clampIndex(t)));
     const int64_t i = int64_t(t);
     return double(i) > t ? i - 1 : i;
 }
 inline int64_t ceilToInt(double t) {
-    if (!(std::fabs(t) < 4503599627370496.0)) return int64_t(std::ceil(t));
+    if (!(std::fabs(t) < 4503599627370496.0)) return int64_t(std::ceil(clampIndex(t)));
     const int64_t i = int64_t(t);
     return double(i) < t ? i + 1 : i;
 }

@@ -50,8 +50,13 @@ inline double modeSum(const PajotMode& m, double x, double h) {
     if (m.n == 1 || lo == hi) return double(m.n) * kernel((x - lo) / h) / 0.75;
     const double s = (hi - lo) / double(m.n - 1);
     const double tLo = (x - h - lo) / s, tHi = (x + h - lo) / s;
-    const int64_t i0 = std::max<int64_t>(0, int64_t(std::floor(tLo)) + 1);
-    const int64_t i1 = std::min<int64_t>(int64_t(m.n) - 1, int64_t(std::ceil(tHi)) - 1);
+    // Window indices clamped to +-2^62 (NaN: -2^62) before the conversion, which beyond 2^63 is
+    // undefined: a mode's spacing can be far below the bandwidth (denormal gaps).
+    auto clamp = [](double t) {
+        return t < 0x1p62 ? (t > -0x1p62 ? t : -0x1p62) : (t >= 0x1p62 ? 0x1p62 : -0x1p62);
+    };
+    const int64_t i0 = std::max<int64_t>(0, int64_t(std::floor(clamp(tLo))) + 1);
+    const int64_t i1 = std::min<int64_t>(int64_t(m.n) - 1, int64_t(std::ceil(clamp(tHi))) - 1);
     if (i0 > i1) return 0.0;
     const double cnt = double(i1 - i0 + 1);
     const double a = (x - (lo + double(i0) * s)) / h, b = s / h;

@@ -408,6 +408,42 @@ TEST(PajotReferenceAdr, CertifiedUpdatesKeepEveryDecision) {
     EXPECT_GT(certified * 4, inserted * 3) << certified << " of " << inserted;
 }
 
+TEST(PajotReferenceAdr, DenormalGapsBesideOrdinaryValuesKeepEveryDecision) {
+    // Log-luminances a few denormals apart (a mode's spacing near 1e-45) beside values of order 1
+    // (nn and the bandwidths near 0.01-1): a density's window index (x - h - lo) / spacing is
+    // near 1e43, beyond int64_t. The indices are clamped before the conversion (which was
+    // undefined: the sanitizer build stopped here), so the window holds the mode's values the
+    // bandwidth reaches. The update and the reference agree after every sample, and the result
+    // is a state with finite bounds.
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    for (int run = 0; run < 20; ++run) {
+        std::vector<float> l;
+        for (int i = 0; i < 600; ++i) {
+            const double r = u(rng);
+            l.push_back(r < 0.5 ? float(double(int(50.0 * u(rng))) * 1.401298464324817e-45)
+                                : float(0.5 + 2.0 * u(rng)));
+        }
+        std::vector<float> sorted(l.begin(), l.begin() + 50);
+        std::sort(sorted.begin(), sorted.end());
+        std::vector<PajotMode> modes = aggregateModes(sorted, adaptiveBandwidths(sorted));
+        std::vector<PajotMode> ref = modes;
+        for (size_t i = 50; i < l.size(); ++i) {
+            adrUpdate(modes, l[i]);
+            pajot_ref::updateModes(ref, l[i]);
+            ASSERT_TRUE(sameModes(modes, ref)) << "run " << run << ", value " << i;
+        }
+        for (const PajotMode& m : modes) {
+            ASSERT_TRUE(std::isfinite(m.lo) && std::isfinite(m.hi) && m.lo <= m.hi);
+        }
+        // The denormal values gathered into a mode of many samples.
+        uint32_t most = 0;
+        for (const PajotMode& m : modes)
+            if (m.hi < 1e-30f) most = std::max(most, m.n);
+        EXPECT_GT(most, 100u) << "run " << run;
+    }
+}
+
 INSTANTIATE_TEST_SUITE_P(Methods, PajotReference,
                          ::testing::Values(PajotMethod::ADR, PajotMethod::ROT, PajotMethod::Hybrid),
                          [](const ::testing::TestParamInfo<PajotMethod>& param) {
