@@ -896,11 +896,43 @@ bool checkAttributeSizes(int fd, uint64_t fileSize, const std::string& path, std
 
 }  // namespace
 
-bool checkExrAttributeSizes(int fd, uint64_t size, const std::string& path, std::string& err) {
+bool checkExrAttributeSizes(int fd, uint64_t size, const std::string& path, std::string& err,
+                            int64_t maxPixels) {
     unsigned char magic[4] = {};
     if (size < 8 || preadFull(fd, magic, 4, 0) != 4 || std::memcmp(magic, kExrMagic, 4) != 0)
         return true;  // not OpenEXR: its own reader judges it
-    return checkAttributeSizes(fd, size, path, err);
+    // Every part's data window (box2i: xMin, yMin, xMax, yMax, little endian) against maxPixels.
+    int64_t width = 0, height = 0;
+    bool tooLarge = false;
+    const bool walked = checkAttributeSizes(
+        fd, size, path, err,
+        [&](int, const std::string& name, const std::string& type, uint64_t valueAt,
+            uint32_t bytes) {
+            if (maxPixels <= 0 || tooLarge || name != "dataWindow" || type != "box2i" ||
+                bytes != 16)
+                return;
+            unsigned char b[16] = {};
+            if (preadFull(fd, b, 16, valueAt) != 16) return;  // the walk has checked the size
+            int32_t v[4];
+            for (int i = 0; i < 4; ++i)
+                v[i] = int32_t(uint32_t(b[4 * i]) | uint32_t(b[4 * i + 1]) << 8 |
+                               uint32_t(b[4 * i + 2]) << 16 | uint32_t(b[4 * i + 3]) << 24);
+            const int64_t w = int64_t(v[2]) - int64_t(v[0]) + 1,
+                          h = int64_t(v[3]) - int64_t(v[1]) + 1;
+            if (w <= 0 || h <= 0) return;  // an empty window: OpenEXR's reader says so
+            if (w > maxPixels / h) {
+                tooLarge = true;
+                width = w;
+                height = h;
+            }
+        });
+    if (!walked) return false;
+    if (tooLarge) {
+        err = fmt::format("{}: image {}x{} exceeds the limit of {} pixels", path, width, height,
+                          maxPixels);
+        return false;
+    }
+    return true;
 }
 
 bool replaceStringAttribute(int fd, uint64_t size, const std::string& path, const std::string& name,

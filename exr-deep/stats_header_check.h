@@ -16,7 +16,8 @@ namespace mcstat::detail {
 bool checkStatsHeaders(int fd, uint64_t size, const std::string& path, const ReadLimits& limits,
                        StatsHeader& hdr, std::string& err);
 /// checkExrAttributeSizes (stats_file.h) over an open file.
-bool checkExrAttributeSizes(int fd, uint64_t size, const std::string& path, std::string& err);
+bool checkExrAttributeSizes(int fd, uint64_t size, const std::string& path, std::string& err,
+                            int64_t maxPixels = 0);
 /// Overwrites, in every header of the OpenEXR file open as `fd` (read-write, `size` bytes), the
 /// value of the string attribute `name` with `value` of the same length: a value known only once
 /// the pixels are written (an ingest's RGB hashes in mcstat:seeds), put in place before the file

@@ -380,11 +380,11 @@ bool readStatsFile(const std::string& path, StatsImage& img, std::string& err,
     return true;
 }
 
-bool checkExrAttributeSizes(const std::string& path, std::string& err) {
+bool checkExrAttributeSizes(const std::string& path, std::string& err, int64_t maxPixels) {
     detail::Fd fd;
     uint64_t size = 0;
     return openRegular(path, fd, size, err) &&
-           detail::checkExrAttributeSizes(fd.get(), size, path, err);
+           detail::checkExrAttributeSizes(fd.get(), size, path, err, maxPixels);
 }
 
 std::string FileContent::partsText() const {

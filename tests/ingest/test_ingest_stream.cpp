@@ -290,5 +290,33 @@ TEST_F(IngestStream, AChannelOfAnUnknownPixelTypeIsRefusedBeforeOIIOSeesIt) {
         << err;
 }
 
+TEST(IngestLimits, ADataWindowBeyondThePixelLimitIsRefusedBeforeOpenEXROpensIt) {
+    // Found by fuzzing: a 1.4 KB file whose header claims a 4259846 x 770 data window. OpenEXR's
+    // C++ reader sizes its line buffers by that width when the file is opened (8 s of page faults
+    // under the sanitizer), so the header walk compares the window with the limit first; the
+    // message is the one the limit check after opening gives.
+    const std::string file =
+        std::string(MCSTAT_SOURCE_DIR) + "/tests/fuzz/regressions/ingest/wide-data-window.exr";
+    for (const int64_t limit : {int64_t(1) << 20, ReadLimits().maxPixels}) {
+        IngestOptions opt;
+        opt.spp = 4;
+        opt.limits.maxPixels = limit;
+        StatsImage img;
+        IngestReport rep;
+        std::string err;
+        EXPECT_FALSE(ingestRenders({file}, opt, img, rep, err));
+        EXPECT_NE(err.find("wide-data-window.exr: image 4259846x770 exceeds the limit of " +
+                           std::to_string(limit) + " pixels"),
+                  std::string::npos)
+            << err;
+    }
+    // The walk alone, through the public check: within the limit it passes, beyond it refuses.
+    std::string err;
+    EXPECT_TRUE(checkExrAttributeSizes(file, err));
+    EXPECT_TRUE(checkExrAttributeSizes(file, err, int64_t(4259846) * 770));
+    EXPECT_FALSE(checkExrAttributeSizes(file, err, int64_t(4259846) * 770 - 1));
+    EXPECT_NE(err.find("exceeds the limit of"), std::string::npos) << err;
+}
+
 }  // namespace
 }  // namespace mcstat
