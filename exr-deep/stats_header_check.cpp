@@ -20,6 +20,11 @@ namespace mcstat::detail {
 
 namespace {
 
+/// A 32-bit little-endian value (OpenEXR's byte order for every number in a header).
+inline uint32_t loadLe32(const unsigned char* p) {
+    return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
+}
+
 struct CoreIo {
     int fd;
     int64_t size;
@@ -762,10 +767,7 @@ bool valueMatchesSize(int fd, const std::string& type, uint64_t at, uint32_t siz
         why = "cut short";
         return false;
     }
-    auto le32 = [&v](size_t i) {
-        return uint32_t(v[i]) | uint32_t(v[i + 1]) << 8 | uint32_t(v[i + 2]) << 16 |
-               uint32_t(v[i + 3]) << 24;
-    };
+    auto le32 = [&v](size_t i) { return loadLe32(&v[i]); };
     if (preview) {
         const uint64_t need =
             size >= 8 ? 8 + uint64_t(le32(0)) * uint64_t(le32(4)) * 4 : uint64_t(8);
@@ -873,10 +875,8 @@ bool checkAttributeSizes(int fd, uint64_t fileSize, const std::string& path, std
             return fail(fmt::format("attribute '{}' has no valid type name", oneLine(name)));
         const size_t sizeAt = size_t(typeEnd - buf.data()) + 1;
         if (sizeAt + 4 > n) return fail(fmt::format("attribute '{}' is cut", oneLine(name)));
-        const auto* sz = reinterpret_cast<const unsigned char*>(buf.data() + sizeAt);
         const auto valueSize =
-            int32_t(uint32_t(sz[0]) | uint32_t(sz[1]) << 8 | uint32_t(sz[2]) << 16 |
-                    uint32_t(sz[3]) << 24);  // little endian in the file
+            int32_t(loadLe32(reinterpret_cast<const unsigned char*>(buf.data() + sizeAt)));
         const uint64_t valueAt = pos + sizeAt + 4;
         if (valueSize < 0 || uint64_t(valueSize) > fileSize - std::min(fileSize, valueAt))
             return fail(fmt::format("attribute '{}' claims {} bytes; {} are left in the file's {}",
@@ -904,28 +904,28 @@ bool checkExrAttributeSizes(int fd, uint64_t size, const std::string& path, std:
     // Every part's data window (box2i: xMin, yMin, xMax, yMax, little endian) against maxPixels.
     int64_t width = 0, height = 0;
     bool tooLarge = false;
-    const bool walked = checkAttributeSizes(
-        fd, size, path, err,
-        [&](int, const std::string& name, const std::string& type, uint64_t valueAt,
-            uint32_t bytes) {
-            if (maxPixels <= 0 || tooLarge || name != "dataWindow" || type != "box2i" ||
-                bytes != 16)
-                return;
-            unsigned char b[16] = {};
-            if (preadFull(fd, b, 16, valueAt) != 16) return;  // the walk has checked the size
-            int32_t v[4];
-            for (int i = 0; i < 4; ++i)
-                v[i] = int32_t(uint32_t(b[4 * i]) | uint32_t(b[4 * i + 1]) << 8 |
-                               uint32_t(b[4 * i + 2]) << 16 | uint32_t(b[4 * i + 3]) << 24);
-            const int64_t w = int64_t(v[2]) - int64_t(v[0]) + 1,
-                          h = int64_t(v[3]) - int64_t(v[1]) + 1;
-            if (w <= 0 || h <= 0) return;  // an empty window: OpenEXR's reader says so
-            if (w > maxPixels / h) {
-                tooLarge = true;
-                width = w;
-                height = h;
-            }
-        });
+    const bool walked =
+        checkAttributeSizes(fd, size, path, err,
+                            [&](int, const std::string& name, const std::string& type,
+                                uint64_t valueAt, uint32_t bytes) {
+                                if (maxPixels <= 0 || tooLarge || name != "dataWindow" ||
+                                    type != "box2i" || bytes != 16)
+                                    return;
+                                unsigned char b[16] = {};
+                                if (preadFull(fd, b, 16, valueAt) != 16)
+                                    return;  // the walk has checked the size
+                                int32_t v[4];
+                                for (int i = 0; i < 4; ++i) v[i] = int32_t(loadLe32(b + 4 * i));
+                                const int64_t w = int64_t(v[2]) - int64_t(v[0]) + 1,
+                                              h = int64_t(v[3]) - int64_t(v[1]) + 1;
+                                if (w <= 0 || h <= 0)
+                                    return;  // an empty window: OpenEXR's reader says so
+                                if (w > maxPixels / h) {
+                                    tooLarge = true;
+                                    width = w;
+                                    height = h;
+                                }
+                            });
     if (!walked) return false;
     if (tooLarge) {
         err = fmt::format("{}: image {}x{} exceeds the limit of {} pixels", path, width, height,
