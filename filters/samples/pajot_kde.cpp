@@ -197,6 +197,14 @@ const double* quadraturePositions(int64_t q) {
     return table[size_t(q)].data();
 }
 
+/// Mode j is a single sample at least nn from both neighbouring modes: its pilot density (eq. 3,
+/// bandwidth nn) sees only its own kernel, exactly 0.75 / (n nn).
+inline bool isolatedSingle(const std::vector<PajotMode>& modes, size_t j, double nn) {
+    const PajotMode& m = modes[j];
+    return m.n == 1 && (j == 0 || double(m.lo) - double(modes[j - 1].hi) >= nn) &&
+           (j + 1 == modes.size() || double(modes[j + 1].lo) - double(m.hi) >= nn);
+}
+
 /// A density already evaluated at x (a quadrature point), kept for the bandwidths.
 struct KnownDensity {
     double x = std::numeric_limits<double>::quiet_NaN();
@@ -221,9 +229,7 @@ double adrGeometricMeanDensity(const std::vector<PajotMode>& modes, int64_t tota
     double lastX = std::numeric_limits<double>::quiet_NaN(), lastP = 0;
     for (size_t j = 0; j < modes.size(); ++j) {
         const PajotMode& m = modes[j];
-        if (m.n == 1 && (j == 0 || double(m.lo) - double(modes[j - 1].hi) >= nn) &&
-            (j + 1 == modes.size() || double(modes[j + 1].lo) - double(m.hi) >= nn))
-            continue;
+        if (isolatedSingle(modes, j, nn)) continue;
         const int64_t q = std::min<int64_t>(m.n, 16);
         const double* pos = quadraturePositions(q);
         const double lo = m.lo, width = double(m.hi) - double(m.lo);
@@ -247,8 +253,7 @@ double adrGeometricMeanDensity(const std::vector<PajotMode>& modes, int64_t tota
     size_t i = 0;
     for (size_t j = 0; j < modes.size(); ++j) {
         const PajotMode& m = modes[j];
-        if (m.n == 1 && (j == 0 || double(m.lo) - double(modes[j - 1].hi) >= nn) &&
-            (j + 1 == modes.size() || double(modes[j + 1].lo) - double(m.hi) >= nn)) {
+        if (isolatedSingle(modes, j, nn)) {
             logSum += isolatedLog;
             weight += 1;
             continue;
@@ -358,9 +363,7 @@ bool adrGeometricMeanBounds(const std::vector<PajotMode>& modes, int64_t total, 
     int64_t terms = 0;
     for (size_t j = 0; j < modes.size(); ++j) {
         const PajotMode& m = modes[j];
-        const bool farBelow = j == 0 || double(m.lo) - double(modes[j - 1].hi) >= nn;
-        const bool farAbove = j + 1 == modes.size() || double(modes[j + 1].lo) - double(m.hi) >= nn;
-        if (m.n == 1 && farBelow && farAbove) {  // S = 1 exactly
+        if (isolatedSingle(modes, j, nn)) {  // S = 1 exactly
             weight += 1;
             ++terms;
             continue;
