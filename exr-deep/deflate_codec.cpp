@@ -101,7 +101,14 @@ void splitAndPredictZip(const uint8_t* in, uint8_t* out, size_t n) {
     for (; i > 1; --i) out[i - 1] = uint8_t(out[i - 1] - out[i - 2] + 128);
 }
 
-ZipEncoder::ZipEncoder() : levelBuffer_(new uint8_t[ISAL_DEF_LVL1_DEFAULT]) {}
+void ZipEncoder::FreeCompressor::operator()(libdeflate_compressor* c) const {
+    libdeflate_free_compressor(c);
+}
+
+ZipEncoder::ZipEncoder()
+    : small_(libdeflate_alloc_compressor(4)), levelBuffer_(new uint8_t[ISAL_DEF_LVL1_DEFAULT]) {
+    if (small_ == nullptr) throw std::bad_alloc();
+}
 
 ZipEncoder::~ZipEncoder() = default;
 
@@ -114,6 +121,9 @@ size_t ZipEncoder::apply(const void* in, size_t n, void* out, size_t capacity) {
         scratchSize_ = n;
     }
     splitAndPredictZip(static_cast<const uint8_t*>(in), scratch_.get(), n);
+    if (n < kIgzipFullHashBytes)  // 0 when it does not fit in n - 1 bytes: the chunk is stored
+        return libdeflate_zlib_compress(small_.get(), scratch_.get(), n, out,
+                                        std::min(capacity, n - 1));
     // One call over the whole chunk (stateless): the zlib header, the deflate stream, the
     // Adler-32. Room for one byte less than the input: a result that does not fit overflows and
     // the chunk is stored, since a chunk as large as its input would read as stored.

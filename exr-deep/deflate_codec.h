@@ -14,6 +14,7 @@
 #include <memory>
 #include <string>
 
+struct libdeflate_compressor;
 struct libdeflate_decompressor;
 
 namespace mcstat::detail {
@@ -61,8 +62,16 @@ exr_result_t zipDecompressChunk(exr_decode_pipeline_t* decode);
 /// level 4 and zlib's 150, for streams 1.2 % larger than libdeflate's (measured on 103 MB of a
 /// 21-seed ingest's part buffers, docs/benchmarks.md). Float data whose low mantissa bytes are
 /// noise leaves a deflater little to find, so the slower match finders of libdeflate's levels gain
-/// under 1 % of size. The streams are standard zlib that every ZIP reader inflates. Not
-/// thread-safe.
+/// under 1 % of size. The streams are standard zlib that every ZIP reader inflates.
+///
+/// A chunk under kIgzipFullHashBytes goes to libdeflate's level 4 instead. For such an input
+/// ISA-L 2.30 shrinks its level-1 hash table (hash mask below twice the input's length), and
+/// its stream then varies from one process to another: the same 120-byte sample-count table
+/// gave a 1-byte-shorter (valid) stream in about 1 process in 100 to 3000, with every buffer,
+/// its address and the level buffer's contents held fixed, and never with address-space
+/// randomisation off; inputs of 4,096 bytes or more gave one stream in 3,000 processes. A file
+/// must hold the same bytes on any thread count, and libdeflate's output is a function of its
+/// input. Not thread-safe.
 class ZipEncoder {
   public:
     ZipEncoder();
@@ -76,8 +85,15 @@ class ZipEncoder {
     /// when the scratch buffer cannot grow.
     size_t apply(const void* in, size_t n, void* out, size_t capacity);
 
+    /// Chunks shorter than this go to libdeflate (see the class comment).
+    static constexpr size_t kIgzipFullHashBytes = 4096;
+
   private:
-    std::unique_ptr<uint8_t[]> levelBuffer_;  ///< igzip's level-1 hash tables
+    struct FreeCompressor {
+        void operator()(libdeflate_compressor* c) const;
+    };
+    std::unique_ptr<libdeflate_compressor, FreeCompressor> small_;  ///< level 4, short chunks
+    std::unique_ptr<uint8_t[]> levelBuffer_;                        ///< igzip's level-1 hash tables
     std::unique_ptr<uint8_t[]> scratch_;
     size_t scratchSize_ = 0;
 };
