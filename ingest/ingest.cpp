@@ -427,6 +427,7 @@ struct Ingest {
     double totalSpp = 0.0;      ///< samples per pixel over every file
     StatsHeader header;         ///< mcstat:seeds a placeholder of the final length until hashed
     bool hashed = false;        ///< a pass read every row: `hashes` and header.seeds are final
+    bool aovsTallied = false;   ///< a pass read every row's AOVs: their NaN/Inf warnings given
     std::vector<uint64_t> hashes;
 
     const InputFile& first() const { return files[0]; }
@@ -856,6 +857,7 @@ struct IngestSource::Impl {
     bool readFile(size_t j, int y0, int y1, int blockRow0, bool features, bool aovs,
                   StatsImage& block, std::string& err);
     bool finishPass(std::string& err);
+    void finishAovPass();
     void moments(StatsImage& block, size_t q0, size_t q1, bool features);
 };
 
@@ -1068,13 +1070,6 @@ bool IngestSource::Impl::finishPass(std::string& err) {
                 "sub-buffer out",
                 s.files[j].path, t.nonFinite, t.nonFinitePixels));
         }
-        if (t.nonFiniteAov && aovRows == s.height()) {
-            s.report.nonFiniteAovValues += t.nonFiniteAov;
-            warnings.push_back(fmt::format(
-                "{}: {} non-finite AOV values (NaN/Inf): each is left out of its channel alone, "
-                "the other sub-buffers' weights renormalised (docs/aovs.md)",
-                s.files[j].path, t.nonFiniteAov));
-        }
     }
     s.hashes = std::move(hashes);
     s.header.seeds = seedsText(&s.hashes, M);
@@ -1084,6 +1079,26 @@ bool IngestSource::Impl::finishPass(std::string& err) {
         if (s.opt.warning) s.opt.warning(w);
     }
     return true;
+}
+
+/// After a pass over every row's AOVs, the first of any source (a pass that read RGB only, such as
+/// --info's, settles the hashes but not these): the AOVs' NaN/Inf warnings, once per set of
+/// renders.
+void IngestSource::Impl::finishAovPass() {
+    Ingest& s = *plan;
+    if (s.aovsTallied) return;
+    s.aovsTallied = true;
+    for (size_t j = 0; j < s.files.size(); ++j) {
+        const FileTally& t = tallies[j];
+        if (!t.nonFiniteAov) continue;
+        s.report.nonFiniteAovValues += t.nonFiniteAov;
+        const std::string w = fmt::format(
+            "{}: {} non-finite AOV values (NaN/Inf): each is left out of its channel alone, the "
+            "other sub-buffers' weights renormalised (docs/aovs.md)",
+            s.files[j].path, t.nonFiniteAov);
+        s.report.warnings.push_back(w);
+        if (s.opt.warning) s.opt.warning(w);
+    }
 }
 
 bool IngestSource::read(int firstRow, int rows, unsigned parts, StatsImage& block,
@@ -1161,6 +1176,7 @@ bool IngestSource::read(int firstRow, int rows, unsigned parts, StatsImage& bloc
         if (!im.finishPass(err)) return false;
         img.header.seeds = s.header.seeds;  // final now
     }
+    if (im.aovRows == H && !s.aovs.empty()) im.finishAovPass();
     // The arrays of the parts not asked for are empty, as a file reader leaves them.
     if (!(parts & kStatsPartBeauty)) img.beauty.clear();
     if (!(parts & kStatsPartBuffers)) img.bufferMean.clear(), img.bufferCount.clear();

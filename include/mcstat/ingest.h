@@ -38,8 +38,9 @@ struct IngestOptions {
     /// the image); may be empty.
     std::function<void(int64_t, int64_t)> progress;
     /// Called with each warning that the pixels give (NaN/Inf counts per file), once per set of
-    /// renders, when the first pass over every row completes; may be empty. The warnings also go
-    /// to the report (IngestSource::report).
+    /// renders: the RGB's when the first pass over every row completes, the AOVs' when the first
+    /// pass over every row's AOVs does (a pass may read RGB only); may be empty. The warnings
+    /// also go to the report (IngestSource::report).
     std::function<void(const std::string&)> warning;
     /// Keep every channel that is not the beauty's R, G, B as an AOV (docs/aovs.md). false drops
     /// them, on request only (`--ingest:aovs=0`), and the report says so.

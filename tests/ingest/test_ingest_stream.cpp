@@ -5,10 +5,14 @@
 #include <OpenImageIO/filesystem.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
+#include <string>
+#include <vector>
 
 #include "mcstat/ingest.h"
 #include "render_files.h"
@@ -316,6 +320,62 @@ TEST(IngestLimits, ADataWindowBeyondThePixelLimitIsRefusedBeforeOpenEXROpensIt) 
     EXPECT_TRUE(checkExrAttributeSizes(file, err, int64_t(4259846) * 770));
     EXPECT_FALSE(checkExrAttributeSizes(file, err, int64_t(4259846) * 770 - 1));
     EXPECT_NE(err.find("exceeds the limit of"), std::string::npos) << err;
+}
+
+TEST_F(IngestStream, AnAovsNaNIsReportedOnceEvenWhenAnRGBOnlyPassCameFirst) {
+    // File 2's AO.G is NaN at one pixel and +Inf at another; its RGB is finite.
+    std::vector<std::string> paths;
+    for (int j = 0; j < 3; ++j) {
+        ExrSpec e;
+        e.width = kW;
+        e.height = kH;
+        e.channels = testing::cyclesChannels();
+        e.stringAttrs["cycles.ViewLayer.samples"] = "16";
+        paths.push_back(path("aov" + std::to_string(j) + ".exr"));
+        writeExr(paths.back(), e, [&](const std::string& n, int x, int y) -> float {
+            if (j == 2 && n == "ViewLayer.AO.G" && y == 30 && (x == 4 || x == 5))
+                return x == 4 ? std::nanf("") : std::numeric_limits<float>::infinity();
+            return 0.01f * float(x + y) + 0.1f * float(j) + 0.02f * float(n.back() - 'A');
+        });
+    }
+    const std::string expected =
+        paths[2] +
+        ": 2 non-finite AOV values (NaN/Inf): each is left out of its channel alone, the other "
+        "sub-buffers' weights renormalised (docs/aovs.md)";
+    {
+        StatsImage img;
+        IngestReport rep;
+        std::string err;
+        ASSERT_TRUE(ingestRenders(paths, IngestOptions(), img, rep, err)) << err;
+        EXPECT_EQ(rep.nonFiniteValues, 0);
+        EXPECT_EQ(rep.nonFiniteAovValues, 2);
+        EXPECT_EQ(std::count(rep.warnings.begin(), rep.warnings.end(), expected), 1);
+    }
+    std::vector<std::string> called;
+    IngestOptions opt;
+    opt.warning = [&](const std::string& w) { called.push_back(w); };
+    std::string err;
+    IngestSource src;
+    ASSERT_TRUE(src.init(paths, opt, err, 2)) << err;
+    StatsImage b;
+    // RGB only over every row (what --info reads): the hashes are settled, the AOVs not read.
+    ASSERT_TRUE(src.read(0, kH, kStatsPartBeauty, b, err)) << err;
+    EXPECT_TRUE(src.hashed());
+    EXPECT_TRUE(called.empty());
+    EXPECT_EQ(src.report().nonFiniteAovValues, 0);
+    // Then every part, by blocks, as a write does: the warning once the AOVs' pass completes.
+    ASSERT_TRUE(src.read(0, 31, kStatsAllParts, b, err)) << err;
+    EXPECT_TRUE(called.empty());  // row 30 read, rows 31.. not yet
+    ASSERT_TRUE(src.read(31, kH - 31, kStatsAllParts, b, err)) << err;
+    EXPECT_EQ(called, std::vector<std::string>{expected});
+    EXPECT_EQ(src.report().nonFiniteAovValues, 2);
+    // A second full pass, or a clone's, repeats nothing.
+    ASSERT_TRUE(src.read(0, kH, kStatsAllParts, b, err)) << err;
+    auto other = src.clone(1);
+    ASSERT_TRUE(other->read(0, kH, kStatsAllParts, b, err)) << err;
+    EXPECT_EQ(called.size(), 1u);
+    EXPECT_EQ(src.report().nonFiniteAovValues, 2);
+    EXPECT_EQ(std::count(src.report().warnings.begin(), src.report().warnings.end(), expected), 1);
 }
 
 }  // namespace
