@@ -306,6 +306,21 @@ inline void neighbourBounds(const PajotMode& m, const BoundSpan& sp, double gap,
         near + (kernelIntegral(std::min(1.0, gap + double(m.n - 1) * sp.r)) - fGap) * sp.invR);
 }
 
+/// neighbourBounds of the modes around mode j that a point's window reaches: modes [from, j)
+/// below it, their gap from xBelow, and modes (j, to) above it, their gap from xAbove.
+inline void neighboursBounds(const std::vector<PajotMode>& modes,
+                             const std::vector<BoundSpan>& spans, size_t from, size_t j, size_t to,
+                             double xBelow, double xAbove, double invNn, double& lo, double& hi) {
+    for (size_t i = from; i < j; ++i) {
+        const double gap = (xBelow - double(modes[i].hi)) * invNn;
+        if (gap < 1.0) neighbourBounds(modes[i], spans[i], gap, lo, hi);
+    }
+    for (size_t i = j + 1; i < to; ++i) {
+        const double gap = (double(modes[i].lo) - xAbove) * invNn;
+        if (gap < 1.0) neighbourBounds(modes[i], spans[i], gap, lo, hi);
+    }
+}
+
 /// Bounds of eq. 4's G as adrGeometricMeanDensity computes it (rounding included), over the same
 /// quadrature points, without their densities. At a point x of a mode of spacing s = r nn (values
 /// lo + i s, i < n, x in [lo, hi], a = (x - lo) / nn, b = (hi - x) / nn), the mode's own values in
@@ -406,14 +421,7 @@ bool adrGeometricMeanBounds(const std::vector<PajotMode>& modes, int64_t total, 
                 sHi = std::min(double(m.n), std::min(gridHi, 4.0 / 3.0 * own.invR + 1.0));
             }
             double unused = 0;
-            for (size_t i = below; i < j; ++i) {
-                const double gap = (lo - double(modes[i].hi)) * invNn;
-                if (gap < 1.0) neighbourBounds(modes[i], spans[i], gap, unused, sHi);
-            }
-            for (size_t i = j + 1; i < above; ++i) {
-                const double gap = (double(modes[i].lo) - hi) * invNn;
-                if (gap < 1.0) neighbourBounds(modes[i], spans[i], gap, unused, sHi);
-            }
+            neighboursBounds(modes, spans, below, j, above, lo, hi, invNn, unused, sHi);
             sLo = std::max(0.0, sLo * (1.0 - 1e-9) - absSlack);
             sHi = sHi * (1.0 + 1e-9) + absSlack;
             for (int64_t t = 0; t < q; ++t) {
@@ -461,16 +469,9 @@ bool adrGeometricMeanBounds(const std::vector<PajotMode>& modes, int64_t total, 
                 else if (r < 2.0)
                     sLo = std::max(sLo, 1.0 - 0.25 * r * r);
             }
-            if (a < 1.0)
-                for (size_t i = below; i < j; ++i) {
-                    const double gap = (x - double(modes[i].hi)) * invNn;
-                    if (gap < 1.0) neighbourBounds(modes[i], spans[i], gap, sLo, sHi);
-                }
-            if (b < 1.0)
-                for (size_t i = j + 1; i < above; ++i) {
-                    const double gap = (double(modes[i].lo) - x) * invNn;
-                    if (gap < 1.0) neighbourBounds(modes[i], spans[i], gap, sLo, sHi);
-                }
+            // Beyond nn from an end, no neighbour on that side is within nn of x.
+            neighboursBounds(modes, spans, a < 1.0 ? below : j, j, b < 1.0 ? above : j + 1, x, x,
+                             invNn, sLo, sHi);
             prodLo *= std::max(0.0, sLo * (1.0 - 1e-9) - absSlack);
             prodHi *= sHi * (1.0 + 1e-9) + absSlack;
         }
@@ -779,16 +780,19 @@ void adrUpdate(std::vector<PajotMode>& modes, float l, AdrUpdateTrace* trace) {
     };
     int certBelow = -1, certAbove = -1;  // -1: not settled by the bounds
     double gLo = 0, gHi = 0;
+    // The densities at l and at the neighbouring ends, once the bounds have asked for them (NaN
+    // before): the exact bandwidths reuse them.
+    double pl = std::numeric_limits<double>::quiet_NaN(), pb = pl, pa = pl;
     if (nn > 0.0) {
         density.prepare(modes, total, nn);
         thread_local std::vector<BoundSpan> spans;
         // Coarse bounds first (one pair per mode), then bounds per point, then the exact G.
         if (adrGeometricMeanBounds(modes, total, nn, spans, true, gLo, gHi)) {
-            const double pl = density.at(l);
-            const double pb = k > 0 ? density.at(modes[k - 1].hi) : 1.0;
-            const double pa = k + 1 < modes.size() ? density.at(modes[k + 1].lo) : 1.0;
-            if (pl > 0.0 && pb > 0.0 && pa > 0.0 && pl < HUGE_VAL && pb < HUGE_VAL &&
-                pa < HUGE_VAL) {
+            pl = density.at(l);
+            if (k > 0) pb = density.at(modes[k - 1].hi);
+            if (k + 1 < modes.size()) pa = density.at(modes[k + 1].lo);
+            auto usable = [](double p) { return p > 0.0 && p < HUGE_VAL; };
+            if (usable(pl) && (k == 0 || usable(pb)) && (k + 1 == modes.size() || usable(pa))) {
                 auto decide = [&] {
                     certBelow = k > 0 ? verdict(modes[k - 1].hi, l, pb, pl, gLo, gHi) : 0;
                     certAbove =
@@ -808,14 +812,15 @@ void adrUpdate(std::vector<PajotMode>& modes, float l, AdrUpdateTrace* trace) {
         KnownDensity known[3];
         double g = 0.0;
         if (nn > 0.0) g = adrGeometricMeanDensity(modes, total, nn, density, k, known);
-        // h = nn (G / p(x))^(1/2) (eq. 4), p(x) from the geometric mean's points when it is one.
-        auto bandwidth = [&density, nn, g](double x, const KnownDensity& kd) {
+        // h = nn (G / p(x))^(1/2) (eq. 4), p(x) from the geometric mean's points when it is one,
+        // else the bounds' `p` when they computed it (NaN when not).
+        auto bandwidth = [&density, nn, g](double x, const KnownDensity& kd, double p) {
             if (!(nn > 0.0)) return 0.0;
-            return nn * std::sqrt(g / (kd.x == x ? kd.p : density.at(x)));
+            return nn * std::sqrt(g / (kd.x == x ? kd.p : std::isnan(p) ? density.at(x) : p));
         };
-        const double hl = bandwidth(l, known[1]);
-        const double hBelow = k > 0 ? bandwidth(modes[k - 1].hi, known[0]) : 0.0;
-        const double hAbove = k + 1 < modes.size() ? bandwidth(modes[k + 1].lo, known[2]) : 0.0;
+        const double hl = bandwidth(l, known[1], pl);
+        const double hBelow = k > 0 ? bandwidth(modes[k - 1].hi, known[0], pb) : 0.0;
+        const double hAbove = k + 1 < modes.size() ? bandwidth(modes[k + 1].lo, known[2], pa) : 0.0;
         below = k > 0 && overlaps(modes[k - 1].hi, l, hBelow, hl);
         above = k + 1 < modes.size() && overlaps(l, modes[k + 1].lo, hl, hAbove);
         if (trace)
