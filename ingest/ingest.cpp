@@ -431,6 +431,11 @@ struct Ingest {
     std::vector<uint64_t> hashes;
 
     const InputFile& first() const { return files[0]; }
+    /// A warning the pixels give: into the report and to the caller's callback.
+    void warnOfPixels(const std::string& w) {
+        report.warnings.push_back(w);
+        if (opt.warning) opt.warning(w);
+    }
     int width() const { return files[0].spec.width; }
     int height() const { return files[0].spec.height; }
     int buffers() const { return int(files.size()); }  ///< M: one sub-buffer per file
@@ -1074,10 +1079,7 @@ bool IngestSource::Impl::finishPass(std::string& err) {
     s.hashes = std::move(hashes);
     s.header.seeds = seedsText(&s.hashes, M);
     s.hashed = true;
-    for (const std::string& w : warnings) {
-        s.report.warnings.push_back(w);
-        if (s.opt.warning) s.opt.warning(w);
-    }
+    for (const std::string& w : warnings) s.warnOfPixels(w);
     return true;
 }
 
@@ -1092,12 +1094,10 @@ void IngestSource::Impl::finishAovPass() {
         const FileTally& t = tallies[j];
         if (!t.nonFiniteAov) continue;
         s.report.nonFiniteAovValues += t.nonFiniteAov;
-        const std::string w = fmt::format(
+        s.warnOfPixels(fmt::format(
             "{}: {} non-finite AOV values (NaN/Inf): each is left out of its channel alone, the "
             "other sub-buffers' weights renormalised (docs/aovs.md)",
-            s.files[j].path, t.nonFiniteAov);
-        s.report.warnings.push_back(w);
-        if (s.opt.warning) s.opt.warning(w);
+            s.files[j].path, t.nonFiniteAov));
     }
 }
 
