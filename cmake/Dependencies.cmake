@@ -19,10 +19,9 @@ endforeach()
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(OpenColorIO REQUIRED IMPORTED_TARGET OpenColorIO)
 add_library(OpenColorIO::OpenColorIO ALIAS PkgConfig::OpenColorIO)
-# libdeflate (libdeflate-dev 1.14 ships only a pkg-config file): the ZIP codec's inflate.
+# libdeflate (libdeflate-dev 1.14 ships only a pkg-config file): the ZIP codec's inflate and
+# deflate.
 pkg_check_modules(libdeflate REQUIRED IMPORTED_TARGET libdeflate)
-# ISA-L (libisal-dev 2.30, pkg-config only): the ZIP codec's deflate (igzip, 5x libdeflate's level 4).
-pkg_check_modules(libisal REQUIRED IMPORTED_TARGET libisal)
 find_package(embree 3 CONFIG REQUIRED)
 find_package(fmt CONFIG REQUIRED)
 find_package(nlohmann_json CONFIG REQUIRED)

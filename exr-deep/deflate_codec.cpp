@@ -1,7 +1,6 @@
 #include "deflate_codec.h"
 
 #include <fmt/format.h>
-#include <isa-l/igzip_lib.h>
 #include <libdeflate.h>
 
 #include <algorithm>
@@ -105,15 +104,14 @@ void ZipEncoder::FreeCompressor::operator()(libdeflate_compressor* c) const {
     libdeflate_free_compressor(c);
 }
 
-ZipEncoder::ZipEncoder()
-    : small_(libdeflate_alloc_compressor(4)), levelBuffer_(new uint8_t[ISAL_DEF_LVL1_DEFAULT]) {
-    if (small_ == nullptr) throw std::bad_alloc();
+ZipEncoder::ZipEncoder() : c_(libdeflate_alloc_compressor(4)) {
+    if (c_ == nullptr) throw std::bad_alloc();
 }
 
 ZipEncoder::~ZipEncoder() = default;
 
 size_t ZipEncoder::apply(const void* in, size_t n, void* out, size_t capacity) {
-    if (n == 0) return 0;
+    if (n < 2) return 0;  // a zlib stream has 6 bytes of header and checksum: stored
     if (scratchSize_ < n) {
         scratch_.reset();
         scratchSize_ = 0;
@@ -121,31 +119,10 @@ size_t ZipEncoder::apply(const void* in, size_t n, void* out, size_t capacity) {
         scratchSize_ = n;
     }
     splitAndPredictZip(static_cast<const uint8_t*>(in), scratch_.get(), n);
-    if (n < kIgzipFullHashBytes)  // 0 when it does not fit in n - 1 bytes: the chunk is stored
-        return libdeflate_zlib_compress(small_.get(), scratch_.get(), n, out,
-                                        std::min(capacity, n - 1));
-    // One call over the whole chunk (stateless): the zlib header, the deflate stream, the
-    // Adler-32. Room for one byte less than the input: a result that does not fit overflows and
-    // the chunk is stored, since a chunk as large as its input would read as stored.
-    // isal_deflate_stateless_init leaves fields of the stream that the stateless deflate reads
-    // (valgrind: its choices then depended on the stack's old bytes, and a file's bytes differed
-    // between 1 and 2 threads once in the sanitizer suite): value-initialised, the output is a
-    // function of the chunk alone (tests: byte-identical files on 1 and 2 threads). The level
-    // buffer's hash table igzip sets up itself (valgrind finds no read of it before a write).
-    isal_zstream z{};
-    isal_deflate_stateless_init(&z);
-    z.level = 1;
-    z.level_buf = levelBuffer_.get();
-    z.level_buf_size = ISAL_DEF_LVL1_DEFAULT;
-    z.gzip_flag = IGZIP_ZLIB;
-    z.flush = NO_FLUSH;
-    z.end_of_stream = 1;
-    z.next_in = scratch_.get();
-    z.avail_in = uint32_t(n);
-    z.next_out = static_cast<uint8_t*>(out);
-    z.avail_out = uint32_t(std::min(capacity, n - 1));
-    if (n > UINT32_MAX || isal_deflate_stateless(&z) != COMP_OK) return 0;
-    return size_t(z.total_out);
+    // One call over the whole chunk: the zlib header, the deflate stream, the Adler-32. Room for
+    // one byte less than the input: a result that does not fit gives 0 and the chunk is stored,
+    // since a chunk as large as its input would read as stored.
+    return libdeflate_zlib_compress(c_.get(), scratch_.get(), n, out, std::min(capacity, n - 1));
 }
 
 exr_result_t zipCompressChunk(exr_encode_pipeline_t* encode) {

@@ -57,21 +57,14 @@ class ZipDecoder {
 exr_result_t zipDecompressChunk(exr_decode_pipeline_t* decode);
 
 /// One thread's ZIP encoder: OpenEXR's byte split and predictor, then the zlib format from
-/// ISA-L's igzip at its level 1 (Intel's Intelligent Storage Acceleration Library, Debian's
-/// libisal): on a statistics file's sub-buffers 844 MB/s of CPU against libdeflate's 160 at its
-/// level 4 and zlib's 150, for streams 1.2 % larger than libdeflate's (measured on 103 MB of a
-/// 21-seed ingest's part buffers, docs/benchmarks.md). Float data whose low mantissa bytes are
-/// noise leaves a deflater little to find, so the slower match finders of libdeflate's levels gain
-/// under 1 % of size. The streams are standard zlib that every ZIP reader inflates.
-///
-/// A chunk under kIgzipFullHashBytes goes to libdeflate's level 4 instead. For such an input
-/// ISA-L 2.30 shrinks its level-1 hash table (hash mask below twice the input's length), and
-/// its stream then varies from one process to another: the same 120-byte sample-count table
-/// gave a 1-byte-shorter (valid) stream in about 1 process in 100 to 3000, with every buffer,
-/// its address and the level buffer's contents held fixed, and never with address-space
-/// randomisation off; inputs of 4,096 bytes or more gave one stream in 3,000 processes. A file
-/// must hold the same bytes on any thread count, and libdeflate's output is a function of its
-/// input. Not thread-safe.
+/// libdeflate's level 4: 160 MB/s of CPU on a statistics file's sub-buffers against zlib's 150
+/// (measured on 103 MB of a 21-seed ingest's part buffers, docs/benchmarks.md); its levels 1 to 6
+/// give 151 to 169 MB/s for 58.4 to 58.1 % of the bytes, since float data whose low mantissa
+/// bytes are noise leaves a deflater little to find. Its output is a
+/// function of its input, so a file holds the same bytes on any thread count. ISA-L's igzip,
+/// 5x as fast, is not used: its stream varied from one process to another (1 render in 20 to 200
+/// wrote a chunk 1 byte shorter; docs/benchmarks.md). The streams are standard zlib that every
+/// ZIP reader inflates. Not thread-safe.
 class ZipEncoder {
   public:
     ZipEncoder();
@@ -85,15 +78,11 @@ class ZipEncoder {
     /// when the scratch buffer cannot grow.
     size_t apply(const void* in, size_t n, void* out, size_t capacity);
 
-    /// Chunks shorter than this go to libdeflate (see the class comment).
-    static constexpr size_t kIgzipFullHashBytes = 4096;
-
   private:
     struct FreeCompressor {
         void operator()(libdeflate_compressor* c) const;
     };
-    std::unique_ptr<libdeflate_compressor, FreeCompressor> small_;  ///< level 4, short chunks
-    std::unique_ptr<uint8_t[]> levelBuffer_;                        ///< igzip's level-1 hash tables
+    std::unique_ptr<libdeflate_compressor, FreeCompressor> c_;  ///< level 4
     std::unique_ptr<uint8_t[]> scratch_;
     size_t scratchSize_ = 0;
 };

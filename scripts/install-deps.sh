@@ -7,8 +7,7 @@ packages=(
   cmake g++ make pkg-config time
   libopenimageio-dev openimageio-tools   # images, threading, argument parsing; oiiotool for checks
   libopenexr-dev openexr                 # the statistics file; exrheader for checks
-  libdeflate-dev                         # ZIP chunks of statistics files inflated at libdeflate's speed
-  libisal-dev                            # ... and deflated by ISA-L's igzip (5x libdeflate's level 4)
+  libdeflate-dev                         # ZIP chunks of statistics files inflated and deflated
   libopencolorio-dev                     # display transforms and luma coefficients
   libembree-dev libtbb-dev               # the fixture renderer's ray tracing
   libfmt-dev nlohmann-json3-dev          # formatting, scene files
