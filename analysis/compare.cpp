@@ -15,6 +15,7 @@
 #include <numeric>
 
 #include "mcstat/core/parallel.h"
+#include "mcstat/core/untrusted_text.h"
 #include "mcstat/image/imageops.h"
 
 namespace mcstat {
@@ -160,7 +161,7 @@ bool Comparison::resolveQuantities(std::string& err) {
                 continue;
             const int ib = hb.aovIndex(name);
             if (ib < 0) {
-                err = fmt::format("{} has AOV '{}', {} has not", a_.src->name(), name,
+                err = fmt::format("{} has AOV '{}', {} has not", a_.src->name(), printable(name),
                                   b_.src->name());
                 return false;
             }
@@ -177,8 +178,7 @@ bool Comparison::resolveQuantities(std::string& err) {
             for (const AovChannel& c : ha.aovs) names.push_back(c.name);
             err = fmt::format("AOV '{}' matches none of {}'s AOV channels ({})", pattern,
                               a_.src->name(),
-                              names.empty() ? std::string("it has none")
-                                            : fmt::format("{}", fmt::join(names, ", ")));
+                              names.empty() ? std::string("it has none") : printableList(names));
             return false;
         }
     }
@@ -708,11 +708,13 @@ std::string toleranceText(const CompareOptions& opt) {
     return s;
 }
 
+/// The quantities tested (luminance, R, G, B, AOV names from the files: printable()).
 std::string quantitiesText(const CompareResult& r) {
-    if (r.quantities.size() <= 3) return fmt::format("{}", fmt::join(r.quantities, ", "));
-    return fmt::format("{} and {} more",
-                       fmt::join(r.quantities.begin(), r.quantities.begin() + 3, ", "),
-                       r.quantities.size() - 3);
+    std::vector<std::string> shown;
+    for (size_t i = 0; i < r.quantities.size() && i < 3; ++i)
+        shown.push_back(printable(r.quantities[i]));
+    if (r.quantities.size() <= 3) return fmt::format("{}", fmt::join(shown, ", "));
+    return fmt::format("{} and {} more", fmt::join(shown, ", "), r.quantities.size() - 3);
 }
 
 std::string findingText(const CompareFinding& f, const CompareResult& r) {
@@ -722,7 +724,8 @@ std::string findingText(const CompareFinding& f, const CompareResult& r) {
     std::string size = std::isfinite(f.result.z)
                            ? fmt::format("{:+.2f} standard errors", f.result.z)
                            : std::string("exact (no noise on either side)");
-    return fmt::format("{} {}: {:.6g} -> {:.6g} ({:+.4g}{}, {}), p = {:.3g}", where, f.quantity,
+    return fmt::format("{} {}: {:.6g} -> {:.6g} ({:+.4g}{}, {}), p = {:.3g}", where,
+                       printable(f.quantity),
                        f.a, f.b, f.result.difference,
                        f.a != 0.0 ? fmt::format(", {:+.2f}%", rel * 100.0) : std::string(), size,
                        f.result.p);

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <vector>
 
+#include "mcstat/core/untrusted_text.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
@@ -235,8 +236,8 @@ bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& chan
     } else {
         channel = spec.channelindex(opt.channel);
         if (channel < 0) {
-            err = format("no channel '{}' (channels: {})", opt.channel,
-                         OIIO::Strutil::join(spec.channelnames, ", "));
+            err = format("no channel '{}' (channels: {})", printable(opt.channel),
+                         printableList(spec.channelnames));
             return false;
         }
     }
@@ -290,7 +291,7 @@ bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& chan
         s.log = false;
         s.lo = 0.0;
         s.hi = 1.0;
-        s.label = name;
+        s.label = printable(name);
         scale = s;
         return true;
     }
@@ -321,7 +322,7 @@ bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& chan
     }
     s.lo = lo;
     s.hi = hi;
-    s.label = s.log ? name + " (log scale)" : name;
+    s.label = s.log ? printable(name) + " (log scale)" : printable(name);
     scale = s;
     return true;
 }
@@ -618,13 +619,15 @@ std::string provenanceCaption(const ImageSpec& spec, const std::string& file) {
     std::string text;
     if (!opName.empty()) {
         const Operation* op = findOperation(opName);
-        text = op ? op->title : opName;
-        const std::string params = spec.get_string_attribute(p + "parameters");
+        // What a file says of itself is untrusted: shown through printable() (its picture, and the
+        // caption attribute written from it).
+        text = op ? op->title : printable(opName);
+        const std::string params = printable(spec.get_string_attribute(p + "parameters"));
         if (!params.empty()) text += " (" + OIIO::Strutil::replace(params, ",", ", ", true) + ")";
     }
     // Clauses on lines of their own where a caption may break (wrapText).
     const char* nl = "\n";
-    if (!file.empty()) text += (text.empty() ? "" : nl) + std::string("of ") + file;
+    if (!file.empty()) text += (text.empty() ? "" : nl) + std::string("of ") + printable(file);
     std::vector<std::string> samples;
     const int M = spec.get_int_attribute(p + "M", 0), spp = spec.get_int_attribute(p + "spp", 0);
     if (M > 0) samples.push_back(format("M = {}", M));
@@ -637,7 +640,7 @@ std::string provenanceCaption(const ImageSpec& spec, const std::string& file) {
     if (!samples.empty())
         text += (text.empty() ? "" : nl) + ("(" + OIIO::Strutil::join(samples, ", ") + ")");
     const std::string ref = spec.get_string_attribute(p + "errormap.reference");
-    if (!ref.empty()) text += (text.empty() ? "" : nl) + ("vs " + OIIO::Filesystem::filename(ref));
+    if (!ref.empty()) text += (text.empty() ? "" : nl) + ("vs " + printable(OIIO::Filesystem::filename(ref)));
     return text;
 }
 

@@ -1,5 +1,6 @@
 // Colour management through OpenColorIO (see include/mcstat/color.h).
 #include "mcstat/color.h"
+#include "mcstat/core/untrusted_text.h"
 
 #include <OpenColorIO/OpenColorIO.h>
 #include <strings.h>
@@ -100,7 +101,7 @@ bool toSceneLinear(float* rgb, long npixels, const std::string& from, bool& conv
     try {
         const OCIO::ConstConfigRcPtr& cfg = activeConfig().config;
         if (!cfg->getColorSpace(from.c_str())) {
-            err = "colour space '" + from + "' is not in the OCIO config" +
+            err = "colour space '" + printable(from) + "' is not in the OCIO config" +
                   (std::getenv("OCIO") ? std::string(" ($OCIO)") : std::string(" (mcstat's own)"));
             return false;
         }
@@ -111,7 +112,8 @@ bool toSceneLinear(float* rgb, long npixels, const std::string& from, bool& conv
         converted = true;
         return true;
     } catch (const std::exception& e) {
-        err = "OCIO conversion from '" + from + "' to scene-linear failed: " + e.what();
+        err = "OCIO conversion from '" + printable(from) + "' to scene-linear failed: " +
+              oneLine(e.what());
         return false;
     }
 }

@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "mcstat/core/untrusted_text.h"
+
 namespace mcstat {
 
 namespace {
@@ -23,7 +25,7 @@ std::string formatDuration(double s) {
 }  // namespace
 
 Progress::Progress(std::string label, int64_t total, bool enabled)
-    : label_(std::move(label)),
+    : label_(oneLine(label)),  // a label may hold a file's name (core/untrusted_text.h)
       total_(total),
       enabled_(enabled),
       start_(std::chrono::steady_clock::now()) {

@@ -25,6 +25,7 @@
 #include "deflate_codec.h"
 #include "fd_stream.h"
 #include "mcstat/core/parallel.h"
+#include "mcstat/core/untrusted_text.h"
 #include "mcstat/temp_file.h"
 #include "worker_pool.h"
 
@@ -184,12 +185,14 @@ bool addPart(exr_context_t ctxt, const Imf::Header& h, std::string& problem) {
             ch.white_x = cv.white.x, ch.white_y = cv.white.y;
             rv = exr_attr_set_chromaticities(ctxt, idx, a.name(), &ch);
         } else {
-            problem = fmt::format("part '{}': attribute '{}' of type {}", h.name(), a.name(), type);
+            problem = fmt::format("part '{}': attribute '{}' of type {}", printable(h.name()),
+                                  printable(a.name()), printable(type));
             return false;
         }
     }
     if (rv != EXR_ERR_SUCCESS) {
-        problem = fmt::format("part '{}': {}", h.name(), exr_get_default_error_message(rv));
+        problem = fmt::format("part '{}': {}", printable(h.name()),
+                              exr_get_default_error_message(rv));
         return false;
     }
     return true;

@@ -14,6 +14,7 @@
 #include "deflate_codec.h"
 #include "fd_stream.h"
 #include "mcstat/core/parallel.h"
+#include "mcstat/core/untrusted_text.h"
 #include "worker_pool.h"
 
 namespace mcstat::detail {
@@ -216,7 +217,7 @@ FlatPartReader::Result FlatPartReader::Impl::decode(
     const int lines = info.linesPerChunk;
     const int chunkEnd = std::min(chunkY + lines, y0 + height);  // exclusive, file rows
     const auto where = [&] {
-        return fmt::format("part '{}': the chunk of rows {}..{}", info.name, chunkY, chunkEnd - 1);
+        return fmt::format("part '{}': the chunk of rows {}..{}", printable(info.name), chunkY, chunkEnd - 1);
     };
     w.message.clear();
     exr_chunk_info_t ci{};
@@ -276,7 +277,8 @@ FlatPartReader::Result FlatPartReader::Impl::decode(
                 ch.x_samples != 1 || ch.y_samples != 1 || ch.width != width ||
                 ch.height != ci.height) {
                 problem =
-                    fmt::format("{}: channel '{}' changed while reading", where(), ch.channel_name);
+                    fmt::format("{}: channel '{}' changed while reading", where(),
+                                    printable(ch.channel_name));
                 result = Result::Corrupt;
                 break;
             }

@@ -137,7 +137,7 @@ bool recordChannelsOf(const std::vector<std::string>& fields, std::vector<std::s
             std::string known;
             for (const RecordField& r : table)
                 known += (known.empty() ? "" : ", ") + std::string(r.name);
-            err = fmt::format("unknown record field '{}' (known: {})", f, known);
+            err = fmt::format("unknown record field '{}' (known: {})", printable(f), known);
             return false;
         }
         want[i] = true;

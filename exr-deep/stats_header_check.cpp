@@ -188,7 +188,7 @@ class Checker {
     std::string label(int part) const {
         if (part < layout::kPartCount) return names_[part];
         if (part == layout::kAovs && hasAovs_) return layout::kPartAovs;
-        return partName(part);
+        return printable(partName(part));
     }
 
     bool run(const ReadLimits& limits, StatsHeader& hdr);
@@ -246,14 +246,14 @@ bool Checker::checkParts() {
     const int n = nparts_;
     std::string found;
     for (int part = 0; part < n && part < 8; ++part)
-        found += (part ? ", '" : "'") + partName(part) + "'";
+        found += (part ? ", '" : "'") + printable(partName(part), 40) + "'";
     if (n > 8) found += ", ...";
     for (int part = 0; part < n && part < layout::kPartCount; ++part) {
         const std::string name = partName(part);
         if (name != names_[part]) {
             // A part of another name at this place: either misnamed or something missing before it.
             return fail(fmt::format("part {} is named '{}', expected '{}' (parts found: {})", part,
-                                    name, names_[part], found));
+                                    printable(name), names_[part], found));
         }
     }
     const std::string expected =
@@ -290,7 +290,8 @@ bool Checker::checkParts() {
     }
     if (n > extra)
         return fail(fmt::format(
-            "extra part '{}' at index {} (the file has the 4 parts {}{})", partName(extra), extra,
+            "extra part '{}' at index {} (the file has the 4 parts {}{})",
+            printable(partName(extra)), extra,
             expected,
             version0 >= kStatsFormatVersionAovs
                 ? ", then optionally aovs, then optionally pajot and modes, then records"
@@ -300,7 +301,8 @@ bool Checker::checkParts() {
     exr_attr_box2i_t dw0{}, disp0{};
     for (int part = 0; part < n; ++part) {
         exr_storage_t storage = EXR_STORAGE_LAST_TYPE;
-        const std::string pname = part < layout::kPartCount ? names_[part] : partName(part);
+        const std::string pname =
+            part < layout::kPartCount ? names_[part] : printable(partName(part));
         const bool deep = (adaptive_ && part == layout::kBuffers) || pname == layout::kPartModes ||
                           pname == layout::kPartRecords;
         const exr_storage_t want = deep ? EXR_STORAGE_DEEP_SCANLINE : EXR_STORAGE_SCANLINE;
@@ -385,7 +387,7 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
         const auto differs = [&](const char* attrName, const std::string& v,
                                  const std::string& v0) {
             return fail(fmt::format("part '{}' has {} = '{}', part 'beauty' has '{}'", pn, attrName,
-                                    v, v0));
+                                    printable(v), printable(v0)));
         };
         if (h.formatVersion != h0.formatVersion)
             return differs(layout::kAttrFormatVersion, std::to_string(h.formatVersion),
@@ -434,7 +436,8 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
     // version 5 can say is read from version 5 on only.
     if (h0.formatVersion < requiredFormatVersion(h0))
         return fail(fmt::format("{} = '{}' needs {} >= {} (the file has {})",
-                                layout::kAttrAssignment, h0.assignment, layout::kAttrFormatVersion,
+                                layout::kAttrAssignment, printable(h0.assignment),
+                                layout::kAttrFormatVersion,
                                 requiredFormatVersion(h0), h0.formatVersion));
     hdr = h0;
     return true;
@@ -468,8 +471,7 @@ bool Checker::checkAovAttributes(StatsHeader& hdr) {
             return fail(fmt::format(
                 "part '{}': {}: unknown class '{}' of AOV '{}' (known: alpha, light, data, id)", pn,
                 layout::kAttrAovClasses,
-                classes[a].size() > 40 ? classes[a].substr(0, 40) + "..." : classes[a],
-                aovs[a].name.size() > 40 ? aovs[a].name.substr(0, 40) + "..." : aovs[a].name));
+                printable(classes[a], 40), printable(aovs[a].name, 40)));
     }
     hdr.aovs = std::move(aovs);
     return true;
@@ -537,7 +539,7 @@ bool Checker::checkChannels(int part, int M) {
         }
         if (!inFile.empty())
             return fail(
-                fmt::format("part '{}': unexpected channel '{}'", pn, inFile.begin()->first));
+                fmt::format("part '{}': unexpected channel '{}'", pn, printable(inFile.begin()->first)));
         return true;
     }
     if (part == layout::kBuffers && groups != M)
@@ -558,7 +560,7 @@ bool Checker::checkChannels(int part, int M) {
         inFile.erase(it);
     }
     if (!inFile.empty())
-        return fail(fmt::format("part '{}': unexpected channel '{}'", pn, inFile.begin()->first));
+        return fail(fmt::format("part '{}': unexpected channel '{}'", pn, printable(inFile.begin()->first)));
     return true;
 }
 
@@ -657,7 +659,7 @@ const char* compressionName(exr_compression_t c) {
 
 bool Checker::checkChunks(uint64_t fileSize) {
     for (int part = 0; part < nparts_; ++part) {
-        const std::string pn = partName(part);
+        const std::string pn = printable(partName(part));
         exr_storage_t storage = EXR_STORAGE_LAST_TYPE;
         exr_attr_box2i_t dw{};
         int32_t lines = 0;
@@ -872,21 +874,21 @@ bool checkAttributeSizes(int fd, uint64_t fileSize, const std::string& path, std
                        : nullptr;
         const std::string name(buf.data(), nameLen);
         if (typeEnd == nullptr)
-            return fail(fmt::format("attribute '{}' has no valid type name", oneLine(name)));
+            return fail(fmt::format("attribute '{}' has no valid type name", printable(name)));
         const size_t sizeAt = size_t(typeEnd - buf.data()) + 1;
-        if (sizeAt + 4 > n) return fail(fmt::format("attribute '{}' is cut", oneLine(name)));
+        if (sizeAt + 4 > n) return fail(fmt::format("attribute '{}' is cut", printable(name)));
         const auto valueSize =
             int32_t(loadLe32(reinterpret_cast<const unsigned char*>(buf.data() + sizeAt)));
         const uint64_t valueAt = pos + sizeAt + 4;
         if (valueSize < 0 || uint64_t(valueSize) > fileSize - std::min(fileSize, valueAt))
             return fail(fmt::format("attribute '{}' claims {} bytes; {} are left in the file's {}",
-                                    oneLine(name), valueSize,
+                                    printable(name), valueSize,
                                     fileSize - std::min(fileSize, valueAt), fileSize));
         const std::string type(buf.data() + typeAt, size_t(typeEnd - (buf.data() + typeAt)));
         std::string why;
         if (!valueMatchesSize(fd, type, valueAt, uint32_t(valueSize), why))
             return fail(
-                fmt::format("attribute '{}' of type {}: {}", oneLine(name), oneLine(type), why));
+                fmt::format("attribute '{}' of type {}: {}", printable(name), printable(type), why));
         if (visit) visit(header, name, type, valueAt, uint32_t(valueSize));
         pos = valueAt + uint64_t(valueSize);
         if (++attributes > kMaxAttributes)

@@ -50,10 +50,12 @@ bool checkHeader(const StatsHeader& h, std::string& problem) {
         problem = fmt::format(
             "format version {} cannot hold this content (assignment '{}', variance '{}', "
             "features '{}'{}{}): it needs version {}",
-            h.formatVersion, h.assignment, h.variance, featureListText(h.features),
+            h.formatVersion, printable(h.assignment), printable(h.variance),
+            featureListText(h.features),
             h.sources.empty() ? "" : ", sources",
             v5 ? fmt::format(", {} AOVs, beauty channels '{}', '{}', '{}'{}{}", h.aovs.size(),
-                             h.beautyNames[0], h.beautyNames[1], h.beautyNames[2],
+                             printable(h.beautyNames[0]), printable(h.beautyNames[1]),
+                             printable(h.beautyNames[2]),
                              h.beautyPart.empty() ? "" : ", a beauty part",
                              h.sourceMetadata.empty() ? "" : ", source metadata")
                : std::string(),

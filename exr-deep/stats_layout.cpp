@@ -16,18 +16,18 @@ bool knownAssignment(const std::string& assignment, bool adaptiveM, std::string&
     if (assignment == kAssignmentRoundRobin) return true;
     if (assignment == kAssignmentLeastCount) {
         if (adaptiveM) return true;
-        problem = fmt::format("sample assignment '{}' needs adaptive M", assignment);
+        problem = fmt::format("sample assignment '{}' needs adaptive M", printable(assignment));
         return false;
     }
     if (assignment == kAssignmentPerFile) {
         if (!adaptiveM) return true;
-        problem = fmt::format("sample assignment '{}' needs a fixed M", assignment);
+        problem = fmt::format("sample assignment '{}' needs a fixed M", printable(assignment));
         return false;
     }
     problem = fmt::format(
         "unknown sample assignment '{}' (this reader knows '{}', '{}' and, with adaptive "
         "M, '{}')",
-        assignment, kAssignmentRoundRobin, kAssignmentPerFile, kAssignmentLeastCount);
+        printable(assignment), kAssignmentRoundRobin, kAssignmentPerFile, kAssignmentLeastCount);
     return false;
 }
 
@@ -36,7 +36,8 @@ bool knownVariance(const std::string& variance, std::string& problem) {
         variance == kVarianceUnknown)
         return true;
     problem = fmt::format("unknown variance source '{}' (this reader knows '{}', '{}', '{}')",
-                          variance, kVarianceSamples, kVarianceBuffers, kVarianceUnknown);
+                          printable(variance), kVarianceSamples, kVarianceBuffers,
+                          kVarianceUnknown);
     return false;
 }
 
@@ -66,11 +67,12 @@ bool parseFeatureList(const std::string& text, unsigned& bits, std::string& prob
         for (int i = 0; i < 5; ++i)
             if (item == kFeatureNames[i]) found = i;
         if (found < 0) {
-            problem = fmt::format("unknown feature '{}' (known: N, P, Albedo, Z, A)", item);
+            problem = fmt::format("unknown feature '{}' (known: N, P, Albedo, Z, A)",
+                                  printable(item));
             return false;
         }
         if (out & (1u << found)) {
-            problem = fmt::format("feature '{}' listed twice", item);
+            problem = fmt::format("feature '{}' listed twice", printable(item));
             return false;
         }
         out |= 1u << found;
@@ -157,9 +159,7 @@ uint64_t aovChannelListBytes(const StatsHeader& h) {
 }
 
 bool checkAovFields(const StatsHeader& h, std::string& problem) {
-    const auto shortName = [](const std::string& s) {
-        return detail::oneLine(s.size() > 40 ? s.substr(0, 40) + "..." : s);
-    };
+    const auto shortName = [](const std::string& s) { return printable(s, 40); };
     const auto badName = [&](const std::string& name, size_t maxBytes, const char* what) {
         if (name.empty()) {
             problem = fmt::format("{} is empty", what);
@@ -289,6 +289,6 @@ std::string oneLine(std::string s) {
     for (char& c : s)
         if (c == '\n' || c == '\r') c = ' ';
     while (!s.empty() && s.back() == ' ') s.pop_back();
-    return s;
+    return mcstat::oneLine(s);
 }
 }  // namespace mcstat::detail

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "mcstat/core/untrusted_text.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat::layout {
@@ -158,6 +159,7 @@ namespace mcstat::detail {
 /// The arrays of other parts are emptied. Contents are unspecified: the caller overwrites them.
 bool resizeParts(StatsImage& img, unsigned parts, size_t buffers, std::vector<uint64_t>&& offsets,
                  std::string& err);
-/// `s` with line breaks replaced by spaces (library messages must stay on one line).
+/// A library's message (an OpenEXR exception's text) for one line: line breaks become spaces,
+/// every other control byte an escape (mcstat::oneLine, core/untrusted_text.h).
 std::string oneLine(std::string s);
 }  // namespace mcstat::detail

@@ -99,16 +99,18 @@ bool checkCompatible(const StatsHeader& a, const StatsHeader& b, std::string& er
             "sample assignments differ ('{}' vs '{}'): buffer j holds a different kind of sample "
             "set in each (FORMAT.md, \"Sample-to-buffer assignment\"), so their sums would "
             "mean nothing",
-            a.assignment, b.assignment));
+            printable(a.assignment), printable(b.assignment)));
     if (a.variance != b.variance)
-        return fail(fmt::format("variance sources differ ('{}' vs '{}')", a.variance, b.variance));
+        return fail(fmt::format("variance sources differ ('{}' vs '{}')", printable(a.variance),
+                                printable(b.variance)));
     if (a.features != b.features)
         return fail(fmt::format("feature sets differ ('{}' vs '{}')", featureListText(a.features),
                                 featureListText(b.features)));
     if (a.colorSpace != b.colorSpace)
-        return fail(fmt::format("colour spaces differ ('{}' vs '{}')", a.colorSpace, b.colorSpace));
+        return fail(fmt::format("colour spaces differ ('{}' vs '{}')", printable(a.colorSpace),
+                                printable(b.colorSpace)));
     // Version 5: the same render layout (FORMAT.md "Version 5", Merge).
-    const auto shown = [](const std::string& s) { return detail::oneLine(s); };
+    const auto shown = [](const std::string& s) { return printable(s); };
     // The display window as a box; displayWidth 0 means the data window (equal in both here).
     const auto display = [](const StatsHeader& h) {
         return h.displayWidth > 0

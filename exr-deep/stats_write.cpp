@@ -371,9 +371,9 @@ bool StatsFileWriter::write(const StatsImage& block, std::string& err) {
                 err = fmt::format(
                     "{}: a block's AOV {} is '{}' ({}, part '{}'), the image's is '{}' ({}, part "
                     "'{}')",
-                    im.path, a, detail::oneLine(b.aovs[a].name), aovClassName(b.aovs[a].cls),
-                    detail::oneLine(b.aovs[a].part), detail::oneLine(h.aovs[a].name),
-                    aovClassName(h.aovs[a].cls), detail::oneLine(h.aovs[a].part));
+                    im.path, a, printable(b.aovs[a].name), aovClassName(b.aovs[a].cls),
+                    printable(b.aovs[a].part), printable(h.aovs[a].name),
+                    aovClassName(h.aovs[a].cls), printable(h.aovs[a].part));
                 return false;
             }
     }

@@ -11,6 +11,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
+#include "mcstat/core/untrusted_text.h"
 #include "mcstat/temp_file.h"
 
 namespace mcstat {
@@ -124,8 +125,8 @@ bool applySourceMetadata(ImageSpec& spec, const std::string& json, std::string& 
         const nlohmann::json& v = a["values"];
         const size_t n = t.numelements() * t.aggregate;
         if (t.basetype == TypeDesc::UNKNOWN || v.size() != n || n == 0 || n > 4096) {
-            err = format("source metadata: '{}' has {} values for type '{}'", name, v.size(),
-                         a["type"].get<std::string>());
+            err = format("source metadata: '{}' has {} values for type '{}'", printable(name),
+                         v.size(), printable(a["type"].get<std::string>()));
             return false;
         }
         if (t.basetype == TypeDesc::STRING) {
@@ -133,7 +134,7 @@ bool applySourceMetadata(ImageSpec& spec, const std::string& json, std::string& 
             std::vector<OIIO::ustring> u;
             for (const auto& e : v) {
                 if (!e.is_string()) {
-                    err = format("source metadata: '{}' holds a non-string", name);
+                    err = format("source metadata: '{}' holds a non-string", printable(name));
                     return false;
                 }
                 u.emplace_back(e.get<std::string>());
@@ -150,7 +151,7 @@ bool applySourceMetadata(ImageSpec& spec, const std::string& json, std::string& 
                                 : e == "inf" ? std::numeric_limits<float>::infinity()
                                              : -std::numeric_limits<float>::infinity());
                 } else {
-                    err = format("source metadata: '{}' holds a non-number", name);
+                    err = format("source metadata: '{}' holds a non-number", printable(name));
                     return false;
                 }
             }
@@ -161,7 +162,7 @@ bool applySourceMetadata(ImageSpec& spec, const std::string& json, std::string& 
             std::vector<int> i;
             for (const auto& e : v) {
                 if (!e.is_number_integer()) {
-                    err = format("source metadata: '{}' holds a non-integer", name);
+                    err = format("source metadata: '{}' holds a non-integer", printable(name));
                     return false;
                 }
                 i.push_back(e.get<int>());
@@ -213,8 +214,8 @@ void describeResult(ImageSpec& spec, const Operation& op, const ParamValues& val
     spec.attribute(p + "parameters", params);
     spec.attribute(p + "M", h.M);
     spec.attribute(p + "spp", int(std::min<int64_t>(h.spp, INT32_MAX)));
-    if (!h.sources.empty()) spec.attribute(p + "sources", h.sources);
-    if (!h.renderer.empty()) spec.attribute(p + "renderer", h.renderer);
+    if (!h.sources.empty()) spec.attribute(p + "sources", printable(h.sources, 0));
+    if (!h.renderer.empty()) spec.attribute(p + "renderer", printable(h.renderer));
 }
 
 bool needsRenderLayout(const StatsHeader& h) {
@@ -240,7 +241,7 @@ bool applyWriteOptions(ImageSpec& spec, const ImageWriteOptions& opt, const std:
         for (const auto& [name, type] : opt.channelTypes)
             if (spec.channelindex(name) < 0) {
                 err = format("-d {}=...: the image has no channel '{}' (channels: {})", name, name,
-                             OIIO::Strutil::join(spec.channelnames, ", "));
+                             printableList(spec.channelnames));
                 return false;
             }
         for (int c = 0; c < spec.nchannels; ++c) {

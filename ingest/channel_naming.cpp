@@ -1,6 +1,7 @@
 // Finding the beauty and the features of a renderer's EXR by channel name (channel_naming.h,
 // docs/ingest.md "Channel naming").
 #include "mcstat/channel_naming.h"
+#include "mcstat/core/untrusted_text.h"
 
 #include <fmt/format.h>
 
@@ -40,13 +41,7 @@ bool rgbOf(const std::vector<std::string>& names, const std::string& layer,
     return true;
 }
 
-std::string quotedList(const std::vector<std::string>& items, size_t maxItems = 12) {
-    std::string s;
-    for (size_t i = 0; i < items.size() && i < maxItems; ++i)
-        s += (i ? ", '" : "'") + items[i] + "'";
-    if (items.size() > maxItems) s += fmt::format(", ... ({} in all)", items.size());
-    return s.empty() ? "none" : s;
-}
+std::string quotedList(const std::vector<std::string>& items) { return printableList(items, 12); }
 
 std::string layerLabel(const std::string& layer) {
     return layer.empty() ? std::string("(plain R,G,B)") : layer;

@@ -24,6 +24,7 @@
 #include "fd_stream.h"
 #include "flat_part_reader.h"
 #include "mcstat/core/parallel.h"
+#include "mcstat/core/untrusted_text.h"
 #include "mcstat/core/params.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
@@ -37,9 +38,10 @@ using OIIO::ImageInput;
 using OIIO::ImageSpec;
 using OIIO::TypeDesc;
 
-/// OIIO's messages may span lines; ours are one line.
+/// OIIO's messages may span lines and quote a file's names; ours are one line of printable text
+/// (core/untrusted_text.h).
 std::string oneLine(const std::string& s) {
-    return std::string(OIIO::Strutil::strip(OIIO::Strutil::replace(s, "\n", " ", true)));
+    return mcstat::oneLine(OIIO::Strutil::strip(OIIO::Strutil::replace(s, "\n", " ", true)));
 }
 
 bool hasGlobChars(const std::string& s) { return s.find_first_of("*?[") != std::string::npos; }
@@ -66,7 +68,7 @@ int64_t positiveInt(const ImageSpec& spec, const std::string& name) {
 /// RenderMan prefix theirs), else "unknown renderer".
 std::string rendererOf(const ImageSpec& spec) {
     for (const char* k : {"Software", "software"})
-        if (std::string s = spec.get_string_attribute(k); !s.empty()) return oneLine(s);
+        if (std::string s = spec.get_string_attribute(k); !s.empty()) return printable(s);
     static const std::pair<const char*, const char*> kPrefixes[] = {
         {"cycles.", "Blender/Cycles"}, {"BlenderMultiChannel", "Blender"},
         {"arnold/", "Arnold"},         {"karma", "Karma"},
@@ -253,12 +255,13 @@ bool sameLayout(const InputFile& first, const InputFile& f, std::string& err) {
     };
     const char* kSame = "every render must have the same channels";
     if (const std::string n = firstMissing(first.names, f.names); !n.empty()) {
-        err = fmt::format("{}: has no channel '{}' that {} has ({})", f.path, n, first.path, kSame);
+        err = fmt::format("{}: has no channel '{}' that {} has ({})", f.path, printable(n),
+                          first.path, kSame);
         return false;
     }
     if (const std::string n = firstMissing(f.names, first.names); !n.empty()) {
-        err = fmt::format("{}: has a channel '{}' that {} has not ({})", f.path, n, first.path,
-                          kSame);
+        err = fmt::format("{}: has a channel '{}' that {} has not ({})", f.path, printable(n),
+                          first.path, kSame);
         return false;
     }
     return true;
@@ -510,8 +513,8 @@ bool chooseAovs(Ingest& s, std::string& err) {
     }
     for (const AovChannel& a : s.aovs)
         if (a.name.size() > kMaxAovNameBytes) {
-            err = fmt::format("{}: channel name '{}...' is longer than {} bytes", first.path,
-                              a.name.substr(0, 40), kMaxAovNameBytes);
+            err = fmt::format("{}: channel name '{}' is longer than {} bytes", first.path,
+                              printable(a.name, 40), kMaxAovNameBytes);
             return false;
         }
     s.report.aovs = s.aovs;
@@ -653,7 +656,7 @@ void fillHeader(Ingest& s) {
     h.features = first.features.present;
     h.renderer = rendererOf(first.spec) + " via mcstat --ingest";
     for (size_t j = 0; j < files.size(); ++j)
-        h.sources += (j ? "," : "") + OIIO::Filesystem::filename(files[j].path);
+        h.sources += (j ? "," : "") + printable(OIIO::Filesystem::filename(files[j].path));
     // Version 5: what the render looked like, so that a result can replace one input.
     h.aovs = s.aovs;
     for (size_t c = 0; c < 3; ++c) h.beautyNames[c] = first.names[size_t(first.beauty.index[c])];

@@ -38,6 +38,7 @@
 #include <vector>
 
 #include "mcstat/color.h"
+#include "mcstat/core/untrusted_text.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
@@ -237,6 +238,12 @@ class McstatInput final : public ImageInput {
     ~McstatInput() override { reset(); }
     const char* format_name() const override { return "mcstat"; }
     int supports(string_view) const override { return false; }
+    /// Every error this reader records is one line of printable text, whatever the file or its
+    /// name holds (oiiotool, iv and idiff print it as it is): it hides ImageInput::errorfmt.
+    template<typename... Args>
+    void errorfmt(const char* pattern, const Args&... args) const {
+        ImageInput::errorfmt("{}", mcstat::oneLine(OIIO::Strutil::fmt::format(pattern, args...)));
+    }
     bool valid_file(const std::string& filename) const override;
     bool open(const std::string& name, ImageSpec& newspec) override;
     bool open(const std::string& name, ImageSpec& newspec, const ImageSpec& config) override;
@@ -476,15 +483,15 @@ ImageSpec McstatInput::makeSpec(const std::vector<std::string>& channels,
     s.attribute("mcstat:M", h.M);
     if (h.adaptiveM) s.attribute("mcstat:adaptiveM", 1);
     s.attribute("mcstat:spp", int(std::min<int64_t>(h.spp, INT32_MAX)));
-    s.attribute("mcstat:assignment", h.assignment);
+    s.attribute("mcstat:assignment", mcstat::printable(h.assignment));
     if (h.formatVersion >= mcstat::kStatsFormatVersionProvenance) {
-        s.attribute("mcstat:variance", h.variance);
+        s.attribute("mcstat:variance", mcstat::printable(h.variance));
         s.attribute("mcstat:features", mcstat::featureListText(h.features));
-        s.attribute("mcstat:sources", h.sources);
+        s.attribute("mcstat:sources", mcstat::printable(h.sources, 0));
     }
-    s.attribute("mcstat:renderer", h.renderer);
-    s.attribute("mcstat:colorSpace", h.colorSpace);
-    s.attribute("mcstat:seeds", h.seeds);
+    s.attribute("mcstat:renderer", mcstat::printable(h.renderer));
+    s.attribute("mcstat:colorSpace", mcstat::printable(h.colorSpace));
+    s.attribute("mcstat:seeds", mcstat::printable(h.seeds, 0));
     return s;
 }
 

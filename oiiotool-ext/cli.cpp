@@ -826,12 +826,14 @@ bool quietMode = false;
 
 bool quiet() { return quietMode; }
 
+// Every message is one line whatever an input put into it: oneLine() is the backstop behind the
+// printable() each message gives the strings it quotes from a file (core/untrusted_text.h).
 void warning(const std::string& text) {
-    if (!quietMode) std::fprintf(stderr, "mcstat: warning: %s\n", text.c_str());
+    if (!quietMode) std::fprintf(stderr, "mcstat: warning: %s\n", oneLine(text).c_str());
 }
 
 void note(const std::string& text) {
-    if (!quietMode) std::fprintf(stderr, "mcstat: note: %s\n", text.c_str());
+    if (!quietMode) std::fprintf(stderr, "mcstat: note: %s\n", oneLine(text).c_str());
 }
 
 bool showProgress() { return !quietMode && Progress::onTerminal(); }
@@ -841,7 +843,7 @@ int runOnce(const std::vector<std::string>& argv, const std::string& context) {
     std::string err;
     const int argc = int(argv.size());
     auto fail = [&](const std::string& message) {
-        std::fprintf(stderr, "mcstat: %s%s\n", context.c_str(), message.c_str());
+        std::fprintf(stderr, "mcstat: %s\n", oneLine(context + message).c_str());
         return 1;
     };
     for (int i = 0; i < argc; ++i) {
@@ -866,11 +868,11 @@ int runOnce(const std::vector<std::string>& argv, const std::string& context) {
             i += cmd->nargs;
             ok = cmd->run(st, name, args, mods, err);
             if (ok && st.verbose)
-                std::fprintf(stderr, "mcstat: %s done in %.3f s\n", arg.c_str(), timer());
+                std::fprintf(stderr, "mcstat: %s done in %.3f s\n", oneLine(arg).c_str(), timer());
         } else {
             ok = pushFile(st, arg, err);
             if (ok && st.verbose)
-                std::fprintf(stderr, "mcstat: read %s in %.3f s\n", arg.c_str(), timer());
+                std::fprintf(stderr, "mcstat: read %s in %.3f s\n", oneLine(arg).c_str(), timer());
         }
         if (!ok) return fail(err);
     }

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "mcstat/analysis/metrics.h"
+#include "mcstat/core/untrusted_text.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/ingest.h"

@@ -139,8 +139,10 @@ bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string
         return false;
     }
     const std::string verdict = compareVerdict(r, opt);
-    std::printf("%s: %s\n", what.c_str(), verdict.c_str());
-    for (const std::string& line : compareEvidence(r, opt)) std::printf("  %s\n", line.c_str());
+    // Each line stays one line whatever the inputs are named (core/untrusted_text.h).
+    std::printf("%s: %s\n", oneLine(what).c_str(), oneLine(verdict).c_str());
+    for (const std::string& line : compareEvidence(r, opt))
+        std::printf("  %s\n", oneLine(line).c_str());
     std::fflush(stdout);
     if (r.fail) st.exitStatus = 2;
 

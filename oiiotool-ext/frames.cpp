@@ -301,7 +301,7 @@ int runFrames(const std::vector<std::string>& all) {
     FrameRun run;
     std::string err;
     if (!takeFrameOptions(all, run, err)) {
-        std::fprintf(stderr, "mcstat: %s\n", err.c_str());
+        std::fprintf(stderr, "mcstat: %s\n", oneLine(err).c_str());
         return 1;
     }
     // The first argument with a frame pattern that is not an output names the frames on disk.
@@ -322,12 +322,12 @@ int runFrames(const std::vector<std::string>& all) {
     }
     if (!run.range.empty()) {
         if (!parseFrameRange(run.range, run.frames, err)) {
-            std::fprintf(stderr, "mcstat: %s\n", err.c_str());
+            std::fprintf(stderr, "mcstat: %s\n", oneLine(err).c_str());
             return 1;
         }
     } else if (input.empty() || !framesOnDisk(input, run.padding, run.frames, err)) {
         if (input.empty()) err = "only output names hold a frame pattern: give --frames";
-        std::fprintf(stderr, "mcstat: %s\n", err.c_str());
+        std::fprintf(stderr, "mcstat: %s\n", oneLine(err).c_str());
         return 1;
     }
     std::vector<int> status;

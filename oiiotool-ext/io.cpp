@@ -399,16 +399,19 @@ bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>
     const IngestReport& report = src->report();
     for (const std::string& w : report.warnings) warning(w);
     if (st.verbose) {
-        std::fprintf(
-            stderr, "mcstat: ingest: %zu files, beauty %s (%s), features %s\n", paths.size(),
-            report.beauty.layer.empty() ? "R,G,B" : report.beauty.layer.c_str(),
-            report.beauty.rule.c_str(),
-            report.features.present ? OIIO::Strutil::join(report.features.sources, "; ").c_str()
-                                    : "none");
+        // Names from the renders, through printable() (core/untrusted_text.h).
+        std::vector<std::string> sources;
+        for (const std::string& s : report.features.sources) sources.push_back(printable(s));
+        std::fprintf(stderr, "mcstat: ingest: %zu files, beauty %s (%s), features %s\n",
+                     paths.size(),
+                     report.beauty.layer.empty() ? "R,G,B"
+                                                 : printable(report.beauty.layer).c_str(),
+                     printable(report.beauty.rule).c_str(),
+                     report.features.present ? OIIO::Strutil::join(sources, "; ").c_str() : "none");
         for (const AovChannel& a : report.aovs)
             std::fprintf(stderr, "mcstat: ingest:   %-6s %s%s%s\n", aovClassName(a.cls),
-                         a.name.c_str(), a.part.empty() ? "" : "  (part ",
-                         a.part.empty() ? "" : (a.part + ")").c_str());
+                         printable(a.name).c_str(), a.part.empty() ? "" : "  (part ",
+                         a.part.empty() ? "" : (printable(a.part) + ")").c_str());
     }
     if (st.verbose && !report.aovs.empty()) {
         size_t count[4] = {0, 0, 0, 0};
@@ -591,9 +594,9 @@ bool printPajotSummary(const std::string& path, std::string& err) {
 /// Format version 5 (docs/aovs.md): the beauty's names, the windows and every AOV, grouped by
 /// layer (the channel name before its last dot) with its class and input part.
 void printAovSummary(const StatsHeader& h) {
-    std::printf("  beauty channels %s, %s, %s%s\n", h.beautyNames[0].c_str(),
-                h.beautyNames[1].c_str(), h.beautyNames[2].c_str(),
-                h.beautyPart.empty() ? "" : format(" (part '{}')", h.beautyPart).c_str());
+    std::printf("  beauty channels %s, %s, %s%s\n", printable(h.beautyNames[0]).c_str(),
+                printable(h.beautyNames[1]).c_str(), printable(h.beautyNames[2]).c_str(),
+                h.beautyPart.empty() ? "" : format(" (part '{}')", printable(h.beautyPart)).c_str());
     if (h.displayWidth > 0)
         std::printf("  display window %d,%d %d x %d (data window %d,%d %d x %d)\n", h.displayX,
                     h.displayY, h.displayWidth, h.displayHeight, h.originX, h.originY, h.width,
@@ -621,10 +624,12 @@ void printAovSummary(const StatsHeader& h) {
                 break;
             chans += "," + b.name.substr(d + 1);
         }
-        const std::string what = dot == std::string::npos ? a.name : layer + " (" + chans + ")";
+        const std::string what = dot == std::string::npos
+                                     ? printable(a.name)
+                                     : printable(layer) + " (" + printable(chans) + ")";
         std::printf("    %s\n", OIIO::Strutil::trimmed_whitespace(
                                     format("{:<32} {:<6} {}", what, aovClassName(a.cls),
-                                           a.part.empty() ? "" : "part " + a.part))
+                                           a.part.empty() ? "" : "part " + printable(a.part)))
                                     .c_str());
         i = j;
     }
@@ -639,8 +644,8 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
     Item& top = st.stack.back();
     if (!top.isStats()) {
         const OIIO::ImageSpec& s = top.image->spec();
-        std::printf("%s: %d x %d, %d channels (%s), %s\n", top.name.c_str(), s.width, s.height,
-                    s.nchannels, OIIO::Strutil::join(s.channelnames, ",").c_str(),
+        std::printf("%s: %d x %d, %d channels (%s), %s\n", oneLine(top.name).c_str(), s.width,
+                    s.height, s.nchannels, printableList(s.channelnames, 64).c_str(),
                     s.format.c_str());
         return true;
     }
@@ -649,20 +654,23 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
         return false;
     }
     const StatsHeader& h = top.header;
-    std::printf("%s: mcstat statistics file, format %d\n", top.name.c_str(), h.formatVersion);
+    // Every string below comes from the file: printable() (core/untrusted_text.h).
+    std::printf("%s: mcstat statistics file, format %d\n", oneLine(top.name).c_str(),
+                h.formatVersion);
     std::printf("  size %d x %d (origin %d,%d), %s = %d sub-buffers, spp = %lld, assignment %s\n",
                 h.width, h.height, h.originX, h.originY, h.adaptiveM ? "adaptive M, M_max" : "M",
-                h.M, (long long)h.spp, h.assignment.c_str());
-    std::printf("  renderer \"%s\", colour space %s, seeds %s\n", h.renderer.c_str(),
-                h.colorSpace.c_str(), h.seeds.empty() ? "(none)" : h.seeds.c_str());
+                h.M, (long long)h.spp, printable(h.assignment).c_str());
+    std::printf("  renderer \"%s\", colour space %s, seeds %s\n", printable(h.renderer).c_str(),
+                printable(h.colorSpace).c_str(),
+                h.seeds.empty() ? "(none)" : printable(h.seeds, 0).c_str());
     if (h.formatVersion >= kStatsFormatVersionProvenance) {
         // What version 3 says about where the data came from (FORMAT.md, "Version 3").
         const char* variance = h.variance == kVarianceSamples ? "from every sample (Welford)"
                                : h.variance == kVarianceBuffers
                                    ? "estimated from the spread of the buffer means"
                                    : "unknown (stored as NaN)";
-        std::printf("  variance %s: %s\n", h.variance.c_str(), variance);
-        if (!h.sources.empty()) std::printf("  sources %s\n", h.sources.c_str());
+        std::printf("  variance %s: %s\n", printable(h.variance).c_str(), variance);
+        if (!h.sources.empty()) std::printf("  sources %s\n", printable(h.sources, 0).c_str());
     }
     const std::string present = featureListText(h.features);
     const std::string absent = featureListText(kAllFeatures & ~h.features);
@@ -685,7 +693,8 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
         SampleRecordsReader records;
         if (!records.open(top.path, err)) return false;
         std::string fields;
-        for (const std::string& f : records.fields()) fields += (fields.empty() ? "" : ",") + f;
+        for (const std::string& f : records.fields())
+            fields += (fields.empty() ? "" : ",") + printable(f);
         std::printf(
             "  records (deep: every sample in the order taken; fields %s; %lld bytes each)\n",
             fields.c_str(), static_cast<long long>(recordBytesOnDisk(records.available().size())));
@@ -752,7 +761,8 @@ bool cmdCheck(State& st, const std::string& cmd, const std::vector<std::string>&
         PajotImage pajot;
         if (!readPajotParts(top.path, pajot, err)) return false;
     }
-    std::printf("%s: valid mcstat statistics file, format %d, %d x %d, %s %d\n", top.name.c_str(),
+    std::printf("%s: valid mcstat statistics file, format %d, %d x %d, %s %d\n",
+                oneLine(top.name).c_str(),
                 h.formatVersion, h.width, h.height, h.adaptiveM ? "adaptive M, M_max" : "M", h.M);
     std::printf(
         "  OpenEXR's checker passed; %lld pixels and %lld sub-buffers decoded, every count "

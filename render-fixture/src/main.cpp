@@ -27,6 +27,7 @@
 #include "mcstat/render/scene.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
+#include "mcstat/core/untrusted_text.h"
 #include "mcstat/temp_file.h"
 
 namespace {
@@ -34,7 +35,8 @@ namespace {
 using namespace mcstat::render;
 
 int fail(const std::string& msg) {
-    fmt::print(stderr, "mcstat-render: {}\n", msg);
+    // One line whatever a scene file or a path holds (core/untrusted_text.h).
+    fmt::print(stderr, "mcstat-render: {}\n", mcstat::oneLine(msg));
     return 1;
 }
 

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "builtin_scenes.h"
+#include "mcstat/core/untrusted_text.h"
 
 namespace mcstat::render {
 
@@ -297,27 +298,14 @@ namespace {
 bool parseSceneText(const std::string& jsonText, const std::string& source, Scene& scene,
                     std::string& err);
 
-/// A message on one line: control characters a JSON string may hold (an escaped "\n" in a key
-/// the message quotes) are shown as \xNN. Found by fuzzing.
-std::string escapeControls(const std::string& s) {
-    std::string out;
-    for (const char c : s) {
-        if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {
-            char hex[8];
-            std::snprintf(hex, sizeof hex, "\\x%02x", unsigned(static_cast<unsigned char>(c)));
-            out += hex;
-        } else
-            out += c;
-    }
-    return out;
-}
-
 }  // namespace
 
 bool parseScene(const std::string& jsonText, const std::string& source, Scene& scene,
                 std::string& err) {
     const bool ok = parseSceneText(jsonText, source, scene, err);
-    if (!ok) err = escapeControls(err);
+    // A message on one line: a scene file's strings (an escaped "\n" in a key the message
+    // quotes) are shown through oneLine (core/untrusted_text.h). Found by fuzzing.
+    if (!ok) err = oneLine(err);
     return ok;
 }
 
