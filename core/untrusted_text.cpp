@@ -110,7 +110,10 @@ std::string printable(std::string_view text, size_t maxBytes) {
     std::string out;
     out.reserve(end + 16);
     escapeInto(out, text.substr(0, end), true);
-    if (end < text.size()) out += "... (" + std::to_string(text.size() - end) + " more bytes)";
+    if (end < text.size()) {
+        const size_t cut = text.size() - end;
+        out += "... (" + std::to_string(cut) + (cut == 1 ? " more byte)" : " more bytes)");
+    }
     return out;
 }
 

@@ -65,10 +65,11 @@ int64_t positiveInt(const ImageSpec& spec, const std::string& name) {
 
 /// Which renderer wrote a file: its Software attribute, else what its own attributes say
 /// (Blender writes no Software but cycles.* statistics and BlenderMultiChannel; Arnold, Karma and
-/// RenderMan prefix theirs), else "unknown renderer".
+/// RenderMan prefix theirs), else "unknown renderer". Kept as the file says it, like the channel
+/// names: what shows it (--info, provenance attributes, the plugin) shows it through printable().
 std::string rendererOf(const ImageSpec& spec) {
     for (const char* k : {"Software", "software"})
-        if (std::string s = spec.get_string_attribute(k); !s.empty()) return printable(s);
+        if (std::string s = spec.get_string_attribute(k); !s.empty()) return s;
     static const std::pair<const char*, const char*> kPrefixes[] = {
         {"cycles.", "Blender/Cycles"}, {"BlenderMultiChannel", "Blender"},
         {"arnold/", "Arnold"},         {"karma", "Karma"},
@@ -656,7 +657,7 @@ void fillHeader(Ingest& s) {
     h.features = first.features.present;
     h.renderer = rendererOf(first.spec) + " via mcstat --ingest";
     for (size_t j = 0; j < files.size(); ++j)
-        h.sources += (j ? "," : "") + printable(OIIO::Filesystem::filename(files[j].path));
+        h.sources += (j ? "," : "") + OIIO::Filesystem::filename(files[j].path);
     // Version 5: what the render looked like, so that a result can replace one input.
     h.aovs = s.aovs;
     for (size_t c = 0; c < 3; ++c) h.beautyNames[c] = first.names[size_t(first.beauty.index[c])];

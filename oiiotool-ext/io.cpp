@@ -591,50 +591,6 @@ bool printPajotSummary(const std::string& path, std::string& err) {
     return true;
 }
 
-/// Format version 5 (docs/aovs.md): the beauty's names, the windows and every AOV, grouped by
-/// layer (the channel name before its last dot) with its class and input part.
-void printAovSummary(const StatsHeader& h) {
-    std::printf("  beauty channels %s, %s, %s%s\n", printable(h.beautyNames[0]).c_str(),
-                printable(h.beautyNames[1]).c_str(), printable(h.beautyNames[2]).c_str(),
-                h.beautyPart.empty() ? "" : format(" (part '{}')", printable(h.beautyPart)).c_str());
-    if (h.displayWidth > 0)
-        std::printf("  display window %d,%d %d x %d (data window %d,%d %d x %d)\n", h.displayX,
-                    h.displayY, h.displayWidth, h.displayHeight, h.originX, h.originY, h.width,
-                    h.height);
-    if (!h.sourceMetadata.empty())
-        std::printf("  source metadata: %zu bytes (written back into every result)\n",
-                    h.sourceMetadata.size());
-    if (h.aovs.empty()) {
-        std::printf("  aovs: none\n");
-        return;
-    }
-    std::printf("  aovs (%zu channels x %d sub-buffers):\n", h.aovs.size(), h.M);
-    size_t i = 0;
-    while (i < h.aovs.size()) {
-        const AovChannel& a = h.aovs[i];
-        const size_t dot = a.name.rfind('.');
-        const std::string layer = dot == std::string::npos ? a.name : a.name.substr(0, dot);
-        std::string chans = dot == std::string::npos ? a.name : a.name.substr(dot + 1);
-        size_t j = i + 1;
-        for (; j < h.aovs.size(); ++j) {
-            const AovChannel& b = h.aovs[j];
-            const size_t d = b.name.rfind('.');
-            if (d == std::string::npos || dot == std::string::npos ||
-                b.name.substr(0, d) != layer || b.cls != a.cls || b.part != a.part)
-                break;
-            chans += "," + b.name.substr(d + 1);
-        }
-        const std::string what = dot == std::string::npos
-                                     ? printable(a.name)
-                                     : printable(layer) + " (" + printable(chans) + ")";
-        std::printf("    %s\n", OIIO::Strutil::trimmed_whitespace(
-                                    format("{:<32} {:<6} {}", what, aovClassName(a.cls),
-                                           a.part.empty() ? "" : "part " + printable(a.part)))
-                                    .c_str());
-        i = j;
-    }
-}
-
 bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&, const Modifiers&,
              std::string& err) {
     if (st.stack.empty()) {
@@ -657,38 +613,7 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
     // Every string below comes from the file: printable() (core/untrusted_text.h).
     std::printf("%s: mcstat statistics file, format %d\n", oneLine(top.name).c_str(),
                 h.formatVersion);
-    std::printf("  size %d x %d (origin %d,%d), %s = %d sub-buffers, spp = %lld, assignment %s\n",
-                h.width, h.height, h.originX, h.originY, h.adaptiveM ? "adaptive M, M_max" : "M",
-                h.M, (long long)h.spp, printable(h.assignment).c_str());
-    std::printf("  renderer \"%s\", colour space %s, seeds %s\n", printable(h.renderer).c_str(),
-                printable(h.colorSpace).c_str(),
-                h.seeds.empty() ? "(none)" : printable(h.seeds, 0).c_str());
-    if (h.formatVersion >= kStatsFormatVersionProvenance) {
-        // What version 3 says about where the data came from (FORMAT.md, "Version 3").
-        const char* variance = h.variance == kVarianceSamples ? "from every sample (Welford)"
-                               : h.variance == kVarianceBuffers
-                                   ? "estimated from the spread of the buffer means"
-                                   : "unknown (stored as NaN)";
-        std::printf("  variance %s: %s\n", printable(h.variance).c_str(), variance);
-        if (!h.sources.empty()) std::printf("  sources %s\n", printable(h.sources, 0).c_str());
-    }
-    const std::string present = featureListText(h.features);
-    const std::string absent = featureListText(kAllFeatures & ~h.features);
-    const std::string features =
-        absent.empty()
-            ? present
-            : (present.empty() ? std::string("none") : present) + "; absent, NaN: " + absent;
-    if (h.adaptiveM)
-        std::printf(
-            "  parts: beauty (R,G,B)  vbuffers (deep: m_p in 1..%d samples R,G,B,count,Z,A)  "
-            "moments (count, mean.RGB, variance.RGB)  features (%s)\n",
-            h.M, features.c_str());
-    else
-        std::printf(
-            "  parts: beauty (R,G,B)  buffers (%d x b###.R,G,B,count)  moments (count, mean.RGB, "
-            "variance.RGB)  features (%s)\n",
-            h.M, features.c_str());
-    if (h.formatVersion >= kStatsFormatVersionAovs) printAovSummary(h);
+    for (const std::string& line : describeStatsHeader(h)) std::printf("%s\n", line.c_str());
     if (h.hasRecords) {
         SampleRecordsReader records;
         if (!records.open(top.path, err)) return false;

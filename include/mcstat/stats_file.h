@@ -446,6 +446,12 @@ struct FileContent {
 /// "<path>: <problem>" when an OpenEXR file's headers are damaged or the file cannot be read.
 bool probeFileContent(const std::string& path, FileContent& out, std::string& err);
 
+/// What `mcstat f --info` says of headers `h` after its first line: size and M, renderer,
+/// colour space, seeds, variance, sources, parts, features, beauty and AOVs, one string a line
+/// (no newline), every string the file supplied shown through printable()
+/// (mcstat/core/untrusted_text.h): no line holds a control byte.
+std::vector<std::string> describeStatsHeader(const StatsHeader& h);
+
 /// Validates the statistics file `path` completely, as exrcheck does for any OpenEXR file and
 /// more (`mcstat f --check`): the headers and chunk table (as readStatsHeader), OpenEXR's own
 /// checker (Imf::checkOpenEXRFile, in its reduced-memory mode), then every row of every part

@@ -26,7 +26,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (!ingestRenders({file.path()}, opt, img, report, err)) {
         // Ingest's messages name the file first ("<path>: ...") or say what was asked.
         fuzz::require(!err.empty() && err.find('\n') == std::string::npos,
-                      "ingest error empty or of more than one line", err);
+                      "ingest error empty or of more than one line", oneLine(err));
+        fuzz::requirePrintable(err, "ingest error holds a control byte or invalid UTF-8");
         fuzz::require(
             err.find(file.path()) != std::string::npos || err.find("spp") != std::string::npos ||
                 err.find("samples") != std::string::npos || err.find("limit") != std::string::npos,
@@ -36,6 +37,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     std::string verr;
     fuzz::require(validateStats(img, file.path(), verr), "ingested image does not validate", verr);
     const StatsHeader& h = img.header;
+    // What --info and -v would print of it, and the warnings, hold no control byte.
+    fuzz::requirePrintableDescription(h);
+    for (const std::string& w : report.warnings)
+        fuzz::requirePrintable(w, "ingest warning holds a control byte or invalid UTF-8");
+    fuzz::requirePrintable(printable(report.beauty.layer) + printable(report.beauty.rule),
+                           "-v beauty line");
     fuzz::require(img.aov.size() == img.pixelCount() * size_t(h.M) * h.aovs.size(),
                   "AOV array size", file.path());
     const std::array<double, 3> luma{0.2126, 0.7152, 0.0722};

@@ -2,6 +2,7 @@
 // into this program rather than loaded, so its coverage counts): valid_file, open, and a float read
 // of every subimage, as oiiotool and iv do. Errors must be one line naming the file.
 #include <OpenImageIO/imageio.h>
+#include <OpenImageIO/strutil.h>
 
 #include <cstdlib>
 #include <memory>
@@ -25,7 +26,8 @@ void requirePluginError(const std::string& path, const std::string& err) {
     mcstat::fuzz::require(err.find(path) != std::string::npos,
                           "plugin error does not name the file", err);
     mcstat::fuzz::require(err.find('\n') == std::string::npos, "plugin error of more than one line",
-                          err);
+                          mcstat::oneLine(err));
+    mcstat::fuzz::requirePrintable(err, "plugin error holds a control byte or invalid UTF-8");
 }
 
 }  // namespace
@@ -44,6 +46,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         const OIIO::ImageSpec& s = in->spec();
         mcstat::fuzz::require(s.width > 0 && s.height > 0 && s.nchannels > 0, "empty subimage",
                               file.path());
+        // The attributes the plugin composes from the file (oiiotool --info -v prints them).
+        for (const OIIO::ParamValue& p : s.extra_attribs)
+            if (p.type() == OIIO::TypeString &&
+                OIIO::Strutil::starts_with(p.name().string(), "mcstat:"))
+                mcstat::fuzz::requirePrintable(p.get_string(), "plugin attribute not printable");
         std::vector<float> pixels(size_t(s.image_pixels()) * size_t(s.nchannels));
         if (!in->read_image(sub, 0, 0, s.nchannels, OIIO::TypeFloat, pixels.data()))
             requirePluginError(file.path(), in->geterror());

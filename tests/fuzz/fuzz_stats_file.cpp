@@ -15,6 +15,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     StatsHeader hdr;
     if (!readStatsHeader(file.path(), hdr, err, limits))
         fuzz::requireOneLineError(file.path(), err);
+    else
+        fuzz::requirePrintableDescription(hdr);  // what --info prints of it
 
     StatsImage img;
     if (!readStatsFile(file.path(), img, err, limits)) {

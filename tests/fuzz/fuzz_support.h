@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <string>
 
+#include "mcstat/core/untrusted_text.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat::fuzz {
@@ -57,11 +58,25 @@ inline void require(bool cond, const char* what, const std::string& detail) {
     std::abort();
 }
 
-/// A rejection is one non-empty line naming the file: "<path>: <problem>".
+/// What a target would print holds no byte a terminal acts on: no control byte (newlines only
+/// between lines when `lines`), no invalid UTF-8, no C1 or bidirectional control
+/// (core/untrusted_text.h). The detail is shown escaped, so the finding's report stays readable.
+inline void requirePrintable(const std::string& text, const char* what, bool lines = false) {
+    require(isPrintable(text, lines), what, oneLine(text));
+}
+
+/// A rejection is one non-empty line of printable text naming the file: "<path>: <problem>".
 inline void requireOneLineError(const std::string& path, const std::string& err) {
     require(err.rfind(path + ": ", 0) == 0, "error does not start with the path", err);
     require(err.size() > path.size() + 2, "empty error reason", err);
-    require(err.find('\n') == std::string::npos, "error of more than one line", err);
+    require(err.find('\n') == std::string::npos, "error of more than one line", oneLine(err));
+    requirePrintable(err, "error holds a control byte or invalid UTF-8");
+}
+
+/// --info's description of accepted headers (describeStatsHeader): printable lines.
+inline void requirePrintableDescription(const StatsHeader& h) {
+    for (const std::string& line : describeStatsHeader(h))
+        requirePrintable(line, "--info line holds a control byte or invalid UTF-8");
 }
 
 }  // namespace mcstat::fuzz

@@ -30,7 +30,8 @@ inline constexpr size_t kShownBytes = 200;
 ///     and paragraph separators U+2028/U+2029 and the bidirectional controls (U+061C, U+200E/F,
 ///     U+202A..U+202E, U+2066..U+2069, which reorder what a reader sees): \u{XXXX}.
 /// A string longer than `maxBytes` bytes is cut at a character boundary at or before maxBytes
-/// and ends with "... (N more bytes)", N counted in the input. maxBytes = 0: never cut.
+/// and ends with "... (N more bytes)", N counted in the input (so the cut never splits a
+/// character). maxBytes = 0: never cut.
 std::string printable(std::string_view text, size_t maxBytes = kShownBytes);
 
 /// Names for a message, each printable() and quoted, comma-separated: "'R', 'G', 'B'"; past
