@@ -600,8 +600,10 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
     Item& top = st.stack.back();
     if (!top.isStats()) {
         const OIIO::ImageSpec& s = top.image->spec();
+        std::vector<std::string> names;
+        for (const std::string& n : s.channelnames) names.push_back(printable(n));
         std::printf("%s: %d x %d, %d channels (%s), %s\n", oneLine(top.name).c_str(), s.width,
-                    s.height, s.nchannels, printableList(s.channelnames, 64).c_str(),
+                    s.height, s.nchannels, OIIO::Strutil::join(names, ",").c_str(),
                     s.format.c_str());
         return true;
     }

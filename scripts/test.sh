@@ -14,5 +14,5 @@ scripts/build.sh build-asan -DMCSTAT_WERROR=ON -DMCSTAT_SANITIZE=ON -DMCSTAT_BUI
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
   ctest --test-dir build-asan --output-on-failure -j2 -LE slow
 
-# Coverage-guided fuzzing, bounded: the five targets at once for 60 s of wall time (tests/fuzz/).
+# Coverage-guided fuzzing, bounded: the six targets at once for 60 s of wall time (tests/fuzz/).
 scripts/fuzz.sh "${MCSTAT_FUZZ_SECONDS:-60}"

@@ -11,6 +11,7 @@
 
 #include "mcstat/core/moments.h"
 #include "mcstat/core/params.h"
+#include "mcstat/core/untrusted_text.h"
 
 namespace mcstat {
 
@@ -691,13 +692,13 @@ bool parsePajotParamsText(const std::string& text, PajotParams& p, std::string& 
         pos = comma + 1;
         const size_t eq = item.find('=');
         if (eq == std::string::npos) {
-            problem = "'" + item + "' is not key=value";
+            problem = "'" + printable(item) + "' is not key=value";
             return false;
         }
         const std::string k = item.substr(0, eq), v = item.substr(eq + 1);
         if (k == "method") {
             if (!parsePajotMethod(v, out.method)) {
-                problem = "unknown method '" + v + "'";
+                problem = "unknown method '" + printable(v) + "'";
                 return false;
             }
         } else if (k == "luma") {
@@ -706,13 +707,13 @@ bool parsePajotParamsText(const std::string& text, PajotParams& p, std::string& 
             if (b == std::string::npos || !parseRealText(v.substr(0, a), out.luma[0]) ||
                 !parseRealText(v.substr(a + 1, b - a - 1), out.luma[1]) ||
                 !parseRealText(v.substr(b + 1), out.luma[2])) {
-                problem = "bad luma '" + v + "'";
+                problem = "bad luma '" + printable(v) + "'";
                 return false;
             }
         } else {
             double d = 0.0;
             if (!parseRealText(v, d)) {
-                problem = "bad value '" + item + "'";
+                problem = "bad value '" + printable(item) + "'";
                 return false;
             }
             if (k == "n")
@@ -724,7 +725,7 @@ bool parsePajotParamsText(const std::string& text, PajotParams& p, std::string& 
             else if (k == "delta")
                 out.delta = d;
             else {
-                problem = "unknown key '" + k + "'";
+                problem = "unknown key '" + printable(k) + "'";
                 return false;
             }
         }

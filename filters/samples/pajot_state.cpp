@@ -8,6 +8,8 @@
 #include <cstring>
 #include <string>
 
+#include "mcstat/core/untrusted_text.h"
+
 namespace mcstat {
 
 namespace {
@@ -51,7 +53,7 @@ bool channelIndices(const std::vector<std::string>& have, const std::vector<std:
     for (const std::string& w : wanted) {
         const auto it = std::find(have.begin(), have.end(), w);
         if (it == have.end()) {
-            err = std::string(what) + " '" + w + "'";
+            err = std::string(what) + " '" + printable(w) + "'";
             return false;
         }
         index.push_back(size_t(it - have.begin()));

@@ -280,7 +280,7 @@ TEST(ReviewOps, HeatmapDefaultsAndErrors) {
     OIIO::ImageBuf dst;
     opt.channel = "nope";
     EXPECT_FALSE(heatmap(dst, src, opt));
-    EXPECT_NE(dst.geterror().find("no channel 'nope' (channels: R, gini)"), std::string::npos);
+    EXPECT_NE(dst.geterror().find("no channel 'nope' (channels: 'R', 'gini')"), std::string::npos);
     opt.channel = "";
     opt.map = "no-such-map";
     EXPECT_FALSE(heatmap(dst, src, opt));
