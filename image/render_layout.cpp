@@ -251,19 +251,53 @@ bool applyWriteOptions(ImageSpec& spec, const ImageWriteOptions& opt, const std:
     }
     spec.erase_attribute("compression");
     if (opt.compression.empty()) return true;
-    if (ext == "exr" || ext == "sxr" || ext == "mxr") {
-        const std::string name = opt.compression.substr(0, opt.compression.find(':'));
+    if (!checkCompression(opt.compression, ext, err)) return false;
+    spec.attribute("compression", opt.compression);
+    return true;
+}
+
+bool checkCompression(const std::string& text, const std::string& ext, std::string& err) {
+    const size_t colon = text.find(':');
+    const std::string name = text.substr(0, colon);
+    if (name.empty()) {
+        err = format("compression '{}': no codec name before the level", printable(text));
+        return false;
+    }
+    const bool exr = ext == "exr" || ext == "sxr" || ext == "mxr";
+    if (exr) {
         static const char* known[] = {"none",  "rle", "zips", "zip",  "piz",
                                       "pxr24", "b44", "b44a", "dwaa", "dwab"};
         if (std::find(std::begin(known), std::end(known), name) == std::end(known)) {
             err = format(
                 "compression '{}' is not one of OpenEXR's (none, rle, zips, zip, piz, "
                 "pxr24, b44, b44a, dwaa, dwab)",
-                name);
+                printable(name));
             return false;
         }
     }
-    spec.attribute("compression", opt.compression);
+    if (colon == std::string::npos) return true;
+    // OIIO reads the level as an integer and ignores what it cannot use, silently: "dwaa:abc"
+    // and "dwaa:-5" wrote level 45, "dwaa:1e9" level 1. Every level is checked here instead.
+    const std::string level = text.substr(colon + 1);
+    const bool dwa = name == "dwaa" || name == "dwab", zip = name == "zip" || name == "zips";
+    if (exr && !dwa && !zip) {
+        err = format("compression '{}': OpenEXR's {} takes no level (only zip, zips, dwaa, dwab do)",
+                     printable(text), name);
+        return false;
+    }
+    const long hi = !exr ? 100 : zip ? 9 : 1000000, lo = exr ? 1 : 0;
+    const bool digits = !level.empty() && level.size() <= 7 &&
+                        level.find_first_not_of("0123456789") == std::string::npos;
+    const long v = digits ? std::stol(level) : -1;
+    if (!digits || v < lo || v > hi) {
+        err = format("compression '{}': the level must be a whole number {}..{}{}, not '{}'",
+                     printable(text), lo, hi,
+                     !exr  ? std::string(" (PNG and TIFF zip 0..9, JPEG quality 1..100)")
+                     : zip ? std::string(" (zlib's levels)")
+                           : std::string(" (DWA quantisation; OpenEXR's default is 45)"),
+                     printable(level));
+        return false;
+    }
     return true;
 }
 

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <array>
+#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
@@ -447,6 +448,11 @@ bool cmdCompression(State& st, const std::string& cmd, const std::vector<std::st
         err = format("{}: an empty compression name", cmd);
         return false;
     }
+    // The syntax now; the codec against the format when -o knows it.
+    if (!checkCompression(args[0], "", err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
     st.write.compression = args[0];
     st.writeOptionsSet = true;
     return true;
@@ -483,7 +489,8 @@ std::vector<Command> buildTable() {
         {"--help",
          0,
          "",
-         "Print this help and exit; --help COMMAND (or COMMAND --help) prints that command's",
+         "Print this help and exit; --help COMMAND (or COMMAND --help) prints that command's "
+         "modifiers with their ranges and defaults",
          {},
          &cmdHelp,
          ""},
@@ -496,7 +503,14 @@ std::vector<Command> buildTable() {
          {},
          &cmdQuiet,
          ""},
-        {"-v", 0, "", "Verbose: report each command and its time on stderr", {}, &cmdVerbose, ""},
+        {"-v",
+         0,
+         "",
+         "Verbose, wherever it stands on the line (as -q): report each command and its time on "
+         "stderr; --info adds counts",
+         {},
+         &cmdVerbose,
+         ""},
         {"--threads",
          1,
          "N",
@@ -528,7 +542,8 @@ std::vector<Command> buildTable() {
          "the OCIO display view; a statistics file as ." +
              std::string(kStatsExtension),
          {enumParam("type", {"half", "float"}, "", "this output's data type (as -d)"),
-          textParam("compression", "", "this output's compression (as --compression)")},
+          textParam("compression", "",
+                    "this output's compression (as --compression, e.g. -o:compression=dwaa:45)")},
          &cmdOutput,
          ""},
         {"-d",
@@ -541,16 +556,18 @@ std::vector<Command> buildTable() {
          ""},
         {"--compression",
          1,
-         "NAME[:QUALITY]",
+         "NAME[:LEVEL]",
          "Compression of every later image output (EXR: none, rle, zips, zip, piz, pxr24, b44, "
-         "b44a, dwaa, dwab; e.g. dwaa:45)",
+         "b44a, dwaa, dwab; LEVEL 1..9 for zip/zips, 1..1000000 for dwaa/dwab, e.g. dwaa:45; "
+         "other formats 0..100, e.g. jpeg:90), checked",
          {},
          &cmdCompression,
          ""},
         {"--no-clobber",
          0,
          "",
-         "Keep existing files: -o skips a target that exists, with a warning",
+         "Keep existing files from here on: every later -o skips a target that exists, with a "
+         "warning (outputs before it still replace theirs)",
          {},
          &cmdNoClobber,
          ""},
@@ -634,10 +651,15 @@ std::vector<Command> buildTable() {
 /// The name among `candidates` nearest to `name` by edit distance, if near enough to be a slip of
 /// the keyboard (at most 2 edits, or a third of the name for long ones); "" otherwise.
 std::string nearestName(const std::string& name, const std::vector<std::string>& candidates) {
+    // Compared without case and leading dashes: "-gmon" and "--GMON" both mean --gmon, not --mon.
+    const auto key = [](const std::string& s) {
+        return OIIO::Strutil::lower(s.substr(std::min(s.find_first_not_of('-'), s.size())));
+    };
+    const std::string k = key(name);
     std::string best;
-    size_t bestDistance = std::max<size_t>(2, name.size() / 3) + 1;
+    size_t bestDistance = std::max<size_t>(2, k.size() / 3) + 1;
     for (const std::string& c : candidates) {
-        const size_t d = OIIO::Strutil::edit_distance(name, c);
+        const size_t d = OIIO::Strutil::edit_distance(k, key(c));
         if (d < bestDistance) {
             bestDistance = d;
             best = c;
@@ -757,17 +779,33 @@ bool cmdHelp(State&, const std::string&, const std::vector<std::string>&, const 
     std::exit(0);
 }
 
-/// Splits "--gmon:mode=channel:diag=1" into "--gmon" and {mode: channel, diag: 1}.
+/// Splits "--gmon:mode=channel:diag=1" into "--gmon" and {mode: channel, diag: 1}. As in oiiotool,
+/// a value may hold ':' where what follows cannot start a modifier (a digit, a sign, a dot), so
+/// "-o:compression=dwaa:45" gives {compression: dwaa:45}. A modifier given twice is refused: which
+/// one would count is a guess.
 bool splitModifiers(const std::string& arg, std::string& name, Modifiers& mods, std::string& err) {
     std::vector<std::string> parts = OIIO::Strutil::splits(arg, ":");
     name = parts[0];
+    std::string last;
     for (size_t i = 1; i < parts.size(); ++i) {
         const size_t eq = parts[i].find('=');
+        const unsigned char first = parts[i].empty() ? 0 : static_cast<unsigned char>(parts[i][0]);
+        const bool startsName = std::isalpha(first) || first == '_';
+        if (!last.empty() && !startsName && eq == std::string::npos) {
+            mods[last] += ":" + parts[i];  // the value goes on
+            continue;
+        }
         if (eq == std::string::npos || eq == 0) {
             err = format("{}: modifier '{}' is not name=value", name, parts[i]);
             return false;
         }
-        mods[parts[i].substr(0, eq)] = parts[i].substr(eq + 1);
+        last = parts[i].substr(0, eq);
+        if (mods.count(last)) {
+            err = format("{}: modifier '{}' given twice ('{}' and '{}')", name, last, mods[last],
+                         parts[i].substr(eq + 1));
+            return false;
+        }
+        mods[last] = parts[i].substr(eq + 1);
     }
     return true;
 }
@@ -842,6 +880,8 @@ int runOnce(const std::vector<std::string>& argv, const std::string& context) {
     State st;
     std::string err;
     const int argc = int(argv.size());
+    // -v holds for the whole line wherever it stands, as -q does: "mcstat f --info -v" means it.
+    st.verbose = std::find(argv.begin(), argv.end(), "-v") != argv.end();
     auto fail = [&](const std::string& message) {
         std::fprintf(stderr, "mcstat: %s\n", oneLine(context + message).c_str());
         return 1;
@@ -867,7 +907,7 @@ int runOnce(const std::vector<std::string>& argv, const std::string& context) {
             std::vector<std::string> args(argv.begin() + i + 1, argv.begin() + i + 1 + cmd->nargs);
             i += cmd->nargs;
             ok = cmd->run(st, name, args, mods, err);
-            if (ok && st.verbose)
+            if (ok && st.verbose && name != "-v")
                 std::fprintf(stderr, "mcstat: %s done in %.3f s\n", oneLine(arg).c_str(), timer());
         } else {
             ok = pushFile(st, arg, err);
@@ -881,17 +921,23 @@ int runOnce(const std::vector<std::string>& argv, const std::string& context) {
 
 int run(int argc, const char* const* argv) {
     if (argc < 2) {
+        // 1 as for every other error: 2 is --compare's DIFFERENT, and means only that.
         std::fprintf(stderr, "mcstat: no arguments; try 'mcstat --help'\n");
-        return 2;
+        return 1;
     }
     if (const int help = helpRequest(argc, argv); help >= 0) return help;
-    const std::vector<std::string> args(argv + 1, argv + argc);
+    std::vector<std::string> args(argv + 1, argv + argc);
+    std::string context;
+    if (args.size() >= 2 && args[0] == kFrameContextArg) {  // one frame of --parallel-frames
+        context = format("frame {}: ", args[1]);
+        args.erase(args.begin(), args.begin() + 2);
+    }
     // -q holds for the whole line wherever it stands (frames run as processes inherit it: it
     // stays among their arguments, where its command does nothing).
     quietMode = std::find(args.begin(), args.end(), "-q") != args.end();
     // A frame pattern in a file name (or --frames): the command line once per frame.
-    if (hasFramePattern(args)) return runFrames(args);
-    return runOnce(args, "");
+    if (context.empty() && hasFramePattern(args)) return runFrames(args);
+    return runOnce(args, context);
 }
 
 }  // namespace mcstat::cli

@@ -116,6 +116,9 @@ int run(int argc, const char* const* argv);
 /// Runs the arguments (without the program name) once: the process exit code; an error prints
 /// one line to stderr, after `context` (e.g. "frame 3: ").
 int runOnce(const std::vector<std::string>& args, const std::string& context);
+/// --parallel-frames starts each frame as "mcstat --frame-context N ARGS...": the child's errors
+/// then say "frame N: " as the serial run's do. Internal; not in --help.
+inline constexpr const char* kFrameContextArg = "--frame-context";
 
 // Implemented in frames.cpp: frame sequences (#, @, %0Nd, --frames, --parallel-frames).
 /// Whether the arguments hold a frame pattern or a frame option that needs one.

@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <csignal>
 #include <cstdio>
 #include <set>
 
@@ -241,8 +242,16 @@ void copyFile(const std::string& path, std::FILE* to) {
     std::fflush(to);
 }
 
+/// Frame statuses that are not exit codes.
+constexpr int kNotAttempted = -1;  ///< never started: an earlier frame failed
+constexpr int kStopped = -2;       ///< started, then stopped (SIGTERM) when an earlier frame failed
+
 /// --parallel-frames: up to one process per core, output printed in frame order. Returns each
-/// frame's exit status (-1: not run, after a failure without --skip-bad-frames).
+/// frame's exit status, or kNotAttempted / kStopped. As the serial run (and oiiotool), it stops
+/// at the first frame that fails unless --skip-bad-frames: no later frame is started, and later
+/// frames still running are stopped (their handlers remove their temporary files, so their
+/// targets stay as they were). Later frames that had already finished keep their outputs; the
+/// summary says which.
 std::vector<int> runParallel(const FrameRun& run) {
     const size_t n = run.frames.size();
     const int jobs = int(std::min<size_t>(n, size_t(threadCount(0))));
@@ -253,39 +262,73 @@ std::vector<int> runParallel(const FrameRun& run) {
         format("{}/mcstat-frames-{}-", OIIO::Filesystem::temp_directory_path(), getpid());
     auto outPath = [&](size_t i) { return stem + std::to_string(i) + ".out"; };
     auto errPath = [&](size_t i) { return stem + std::to_string(i) + ".err"; };
-    std::vector<int> status(n, -1);
+    std::vector<int> status(n, kNotAttempted);
     std::vector<pid_t> pids(n, -1);
-    size_t next = 0;
+    std::vector<bool> finished(n, false), printed(n, false);
+    size_t next = 0, firstFailed = n;
     int running = 0;
-    bool stop = false;
-    for (size_t i = 0; i < n; ++i) {
-        while (!stop && running < jobs && next < n) {
-            std::vector<std::string> args;
-            if (!hasThreads)
-                args = {"--threads", std::to_string(std::max(1, threadCount(0) / jobs))};
+    const auto failedFrame = [&](int st) { return st != 0 && st != 2 && st != kStopped; };
+    // Prints every finished frame's output that all earlier frames have printed before it.
+    size_t toPrint = 0;
+    const auto printInOrder = [&] {
+        while (toPrint < n && finished[toPrint]) {
+            if (finished[toPrint] && !printed[toPrint]) {
+                copyFile(outPath(toPrint), stdout);
+                copyFile(errPath(toPrint), stderr);
+                OIIO::Filesystem::remove(outPath(toPrint));
+                OIIO::Filesystem::remove(errPath(toPrint));
+                printed[toPrint] = true;
+            }
+            ++toPrint;
+        }
+    };
+    while (true) {
+        while (firstFailed == n && running < jobs && next < n) {
+            std::vector<std::string> args = {kFrameContextArg, std::to_string(run.frames[next])};
+            if (!hasThreads) {
+                args.push_back("--threads");
+                args.push_back(std::to_string(std::max(1, threadCount(0) / jobs)));
+            }
             for (const std::string& a : run.args)
                 args.push_back(expand(a, run.frames[next], run.padding));
             pids[next] = spawnFrame(args, outPath(next), errPath(next));
-            if (pids[next] >= 0) ++running;
+            if (pids[next] >= 0) {
+                ++running;
+            } else {
+                std::fprintf(stderr, "mcstat: frame %lld: could not start a process\n",
+                             (long long)run.frames[next]);
+                status[next] = 1;
+                finished[next] = true;
+                if (!run.skipBad) firstFailed = std::min(firstFailed, next);
+            }
             ++next;
         }
-        if (i >= next) break;  // stopped: frame i was never started
-        if (pids[i] < 0) {
-            std::fprintf(stderr, "mcstat: frame %lld: could not start a process\n",
-                         (long long)run.frames[i]);
-            status[i] = 1;
+        if (running == 0) break;
+        int ws = 0;
+        const pid_t pid = waitpid(-1, &ws, 0);
+        if (pid < 0) break;
+        size_t i = 0;
+        while (i < next && pids[i] != pid) ++i;
+        if (i == next) continue;  // not one of ours
+        --running;
+        finished[i] = true;
+        if (status[i] == kStopped) {
+            // stopped on purpose: its status stays kStopped
         } else {
-            int ws = 0;
-            waitpid(pids[i], &ws, 0);
             status[i] = WIFEXITED(ws) ? WEXITSTATUS(ws) : 128 + WTERMSIG(ws);
-            --running;
         }
-        copyFile(outPath(i), stdout);
-        copyFile(errPath(i), stderr);
-        OIIO::Filesystem::remove(outPath(i));
-        OIIO::Filesystem::remove(errPath(i));
-        if (!run.skipBad && status[i] != 0 && status[i] != 2) stop = true;
+        if (!run.skipBad && failedFrame(status[i]) && i < firstFailed) {
+            firstFailed = i;
+            for (size_t j = i + 1; j < next; ++j)
+                if (pids[j] >= 0 && !finished[j]) {
+                    status[j] = kStopped;
+                    kill(pids[j], SIGTERM);
+                }
+        }
+        printInOrder();
     }
+    finished.assign(n, true);  // what never started has nothing to print
+    printInOrder();
     return status;
 }
 
@@ -330,28 +373,67 @@ int runFrames(const std::vector<std::string>& all) {
         std::fprintf(stderr, "mcstat: %s\n", oneLine(err).c_str());
         return 1;
     }
-    std::vector<int> status;
+    // Every frame writing one file: the last would win, and parallel frames race for it.
+    if (run.frames.size() > 1)
+        for (size_t i = 1; i < run.args.size(); ++i) {
+            const std::string& o = run.args[i - 1];
+            const bool output =
+                OIIO::Strutil::starts_with(o, "-o") && (o.size() == 2 || o[2] == ':');
+            if (!output || !frameTokens(run.args[i], run.padding).empty()) continue;
+            const std::string& name = run.args[i];
+            const size_t dot = name.rfind('.');
+            const std::string suggestion =
+                dot == std::string::npos || dot == 0 || name.find('/', dot) != std::string::npos
+                    ? name + ".#"
+                    : name.substr(0, dot) + ".#" + name.substr(dot);
+            std::fprintf(stderr,
+                         "mcstat: %s %s: every one of the %zu frames of %s would write this one "
+                         "file (the last would win); put a frame pattern in the output name, "
+                         "e.g. %s\n",
+                         o.c_str(), oneLine(name).c_str(), run.frames.size(),
+                         input.empty() ? "--frames" : oneLine(input).c_str(),
+                         oneLine(suggestion).c_str());
+            return 1;
+        }
+    std::vector<int> status(run.frames.size(), kNotAttempted);
     if (run.parallel && run.frames.size() > 1) {
         status = runParallel(run);
     } else {
-        for (int64_t f : run.frames) {
+        for (size_t i = 0; i < run.frames.size(); ++i) {
+            const int64_t f = run.frames[i];
             std::vector<std::string> args;
             for (const std::string& a : run.args) args.push_back(expand(a, f, run.padding));
-            const int s = runOnce(args, format("frame {}: ", f));
-            status.push_back(s);
-            if (!run.skipBad && s != 0 && s != 2) break;
+            status[i] = runOnce(args, format("frame {}: ", f));
+            if (!run.skipBad && status[i] != 0 && status[i] != 2) break;
         }
     }
     int worst = 0;
-    std::vector<std::string> failed;
+    std::vector<std::string> failed, stopped, notAttempted;
     for (size_t i = 0; i < status.size(); ++i) {
+        const std::string f = std::to_string(run.frames[i]);
         if (status[i] == 2) worst = std::max(worst, 2);
-        if (status[i] > 0 && status[i] != 2) failed.push_back(std::to_string(run.frames[i]));
+        if (status[i] > 0 && status[i] != 2) failed.push_back(f);
+        if (status[i] == kStopped) stopped.push_back(f);
+        if (status[i] == kNotAttempted) notAttempted.push_back(f);
     }
     if (!failed.empty()) {
-        std::fprintf(stderr, "mcstat: %zu of %zu frames failed: %s%s\n", failed.size(),
-                     run.frames.size(), OIIO::Strutil::join(failed, ", ").c_str(),
-                     run.skipBad ? "" : " (--skip-bad-frames goes on past a failed frame)");
+        // What was not done is said as plainly as what failed: a farm reruns exactly those.
+        const auto list = [](const std::vector<std::string>& v) {
+            return v.size() <= 20 ? OIIO::Strutil::join(v, ", ")
+                                  : OIIO::Strutil::join(std::vector<std::string>(v.begin(),
+                                                                                 v.begin() + 20),
+                                                        ", ") +
+                                        format(", ... ({} in all)", v.size());
+        };
+        std::string rest;
+        if (!stopped.empty())
+            rest += format("; stopped when it failed: {}", list(stopped));
+        if (!notAttempted.empty()) rest += format("; not attempted: {}", list(notAttempted));
+        std::fprintf(stderr, "mcstat: %zu of %zu frames failed: %s%s%s\n", failed.size(),
+                     run.frames.size(), list(failed).c_str(), rest.c_str(),
+                     run.skipBad || (stopped.empty() && notAttempted.empty())
+                         ? ""
+                         : " (--skip-bad-frames goes on past a failed frame)");
         return 1;
     }
     return worst;

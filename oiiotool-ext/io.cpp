@@ -432,7 +432,10 @@ bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>
 bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>& args,
                const Modifiers& mods, std::string& err) {
     if (st.stack.empty()) {
-        err = format("{} {}: nothing on the stack to write", cmd, args[0]);
+        err = format(
+            "{} {}: nothing on the stack to write (arguments run left to right: name a file or a "
+            "command that makes an image before -o, e.g. mcstat FILE --gmon -o {})",
+            cmd, args[0], args[0]);
         return false;
     }
     Item& top = st.stack.back();
@@ -458,7 +461,13 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
             return false;
         }
     }
-    if (compression != mods.end()) opt.compression = compression->second;
+    if (compression != mods.end()) {
+        if (compression->second.empty()) {
+            err = format("{}:compression=: an empty compression name", cmd);
+            return false;
+        }
+        opt.compression = compression->second;
+    }
     if (top.isStats() && (type != mods.end() || compression != mods.end())) {
         err = format(
             "{} {}: a statistics file is written as its format says (float32, ZIP; "
@@ -594,7 +603,10 @@ bool printPajotSummary(const std::string& path, std::string& err) {
 bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&, const Modifiers&,
              std::string& err) {
     if (st.stack.empty()) {
-        err = format("{}: nothing on the stack to describe", cmd);
+        err = format(
+            "{0}: nothing on the stack to describe (arguments run left to right: put the file "
+            "first, mcstat FILE {0})",
+            cmd);
         return false;
     }
     Item& top = st.stack.back();
@@ -666,14 +678,26 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
 bool cmdCheck(State& st, const std::string& cmd, const std::vector<std::string>&, const Modifiers&,
               std::string& err) {
     if (st.stack.empty()) {
-        err = format("{}: nothing on the stack to check", cmd);
+        err = format(
+            "{0}: nothing on the stack to check (arguments run left to right: put the file first, "
+            "mcstat FILE {0})",
+            cmd);
         return false;
     }
     const Item& top = st.stack.back();
-    if (!top.isStats() || top.path.empty()) {
-        err =
-            format("{}: {} is not a statistics file read from disk (check the files it came from)",
-                   cmd, top.name);
+    if (!top.isStats()) {
+        err = format(
+            "{}: {} is an image, not a statistics file: --check validates a statistics file's "
+            "parts, sub-buffers and sample counts, which a plain image does not have (exrcheck "
+            "checks an EXR's structure)",
+            cmd, top.name);
+        return false;
+    }
+    if (top.path.empty()) {
+        err = format(
+            "{}: {} is made in memory, not read from a file: --check validates a statistics file "
+            "on disk (write it with -o f.{} and check that, or check the files it came from)",
+            cmd, top.name, kStatsExtension);
         return false;
     }
     // Progress on a terminal only: a large file takes as long as decoding it.

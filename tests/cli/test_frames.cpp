@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <fstream>
 
 #include "cli_support.h"
 
@@ -131,6 +132,74 @@ TEST_F(FramesCli, RefusalsSayWhatIsMissing) {
     r = mcstat("--skip-bad-frames " + path("a.mcstat"));
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.err.find("no file name holds a frame pattern"), std::string::npos) << r.err;
+}
+
+// Issue 34, item 1: a frame that fails stops the run in both modes (as oiiotool), the parallel
+// run's errors say which frame as the serial run's do, and the summary says what was not done.
+TEST_F(FramesCli, AFailedFrameStopsBothModesAndTheSummarySaysWhatWasNotDone) {
+    renderShot(2);
+    ASSERT_EQ(mcstat("--frames 1,2,4 --ingest '" + path("shot_s*.#.exr") + "' -o '" +
+                     path("shot.#.mcstat") + "'")
+                  .code,
+              0);
+    // Frame 2 truncated: its headers stay, its chunks go.
+    const std::string two = frameFile("shot", 2, "mcstat");
+    const std::string bytes = slurp(two);
+    std::ofstream(two, std::ios::binary | std::ios::trunc).write(bytes.data(), 2000);
+
+    auto r = mcstat("'" + path("shot.#.mcstat") + "' --gmon -o '" + path("s.#.exr") + "'");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_TRUE(OIIO::Filesystem::exists(frameFile("s", 1, "exr")));
+    EXPECT_FALSE(OIIO::Filesystem::exists(frameFile("s", 4, "exr")));
+    EXPECT_NE(r.err.find("mcstat: frame 2: "), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("1 of 3 frames failed: 2; not attempted: 4 (--skip-bad-frames"),
+              std::string::npos)
+        << r.err;
+
+    r = mcstat("'" + path("shot.#.mcstat") + "' --gmon -o '" + path("p.#.exr") +
+               "' --parallel-frames");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_TRUE(OIIO::Filesystem::exists(frameFile("p", 1, "exr")));
+    EXPECT_NE(r.err.find("mcstat: frame 2: "), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("1 of 3 frames failed: 2"), std::string::npos) << r.err;
+    // Frame 4 runs beside frame 2 or after it: either it finished before frame 2 failed (and the
+    // summary does not list it), or it was stopped or never started (and it has no output).
+    const bool four = OIIO::Filesystem::exists(frameFile("p", 4, "exr"));
+    const bool listed = r.err.find("stopped when it failed: 4") != std::string::npos ||
+                        r.err.find("not attempted: 4") != std::string::npos;
+    EXPECT_NE(four, listed) << r.err;
+
+    // --skip-bad-frames: every frame tried in both modes, the summary without a "not attempted".
+    for (const std::string mode : {"", " --parallel-frames"}) {
+        r = mcstat("--skip-bad-frames '" + path("shot.#.mcstat") + "' --gmon -o '" +
+                   path("k.#.exr") + "'" + mode);
+        EXPECT_EQ(r.code, 1) << mode;
+        EXPECT_TRUE(OIIO::Filesystem::exists(frameFile("k", 4, "exr"))) << mode;
+        EXPECT_NE(r.err.find("1 of 3 frames failed: 2\n"), std::string::npos) << mode << r.err;
+        OIIO::Filesystem::remove(frameFile("k", 4, "exr"));
+    }
+}
+
+// Issue 34, item 2: every frame writing one file is refused before anything runs.
+TEST_F(FramesCli, AnOutputWithoutAFramePatternIsRefusedForSeveralFrames) {
+    renderShot(2);
+    ASSERT_EQ(
+        mcstat("--ingest '" + path("shot_s*.#.exr") + "' -o '" + path("shot.#.mcstat") + "'").code,
+        0);
+    for (const std::string mode : {"", " --parallel-frames"}) {
+        auto r = mcstat("'" + path("shot.#.mcstat") + "' --mean -o " + path("one.exr") + mode);
+        EXPECT_EQ(r.code, 1) << mode;
+        EXPECT_NE(r.err.find("every one of the 5 frames of " + path("shot.#.mcstat") +
+                             " would write this one file"),
+                  std::string::npos)
+            << r.err;
+        EXPECT_NE(r.err.find("e.g. " + path("one.#.exr")), std::string::npos) << r.err;
+        EXPECT_FALSE(OIIO::Filesystem::exists(path("one.exr"))) << mode;
+    }
+    // One frame writes one file: allowed.
+    auto r = mcstat("--frames 2 '" + path("shot.#.mcstat") + "' --mean -o " + path("one.exr"));
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(OIIO::Filesystem::exists(path("one.exr")));
 }
 
 }  // namespace

@@ -51,7 +51,14 @@ bool parseWriteType(const std::string& text, OIIO::TypeDesc& out);
 
 /// Applies `opt` to the spec of a file about to be written: its format, per-channel formats (by
 /// the names in `spec`) and compression. False with `err` for a channel type naming no channel
-/// of the image or an EXR compression OpenEXR does not know.
+/// of the image or a compression checkCompression refuses.
+/// Checks a compression "NAME[:LEVEL]" for files of extension `ext` ("" when not known yet, as for
+/// --compression before -o: the syntax only). LEVEL is a whole number: for EXR, zip and zips take
+/// 1..9 (zlib's levels), dwaa and dwab 1..1000000 (the DWA quantisation level, 45 by default),
+/// the other OpenEXR codecs none; for other formats 0..100 (PNG and TIFF zip levels, JPEG
+/// quality), the name left to the format's writer. False with `err` saying what is wrong.
+bool checkCompression(const std::string& text, const std::string& ext, std::string& err);
+
 bool applyWriteOptions(OIIO::ImageSpec& spec, const ImageWriteOptions& opt, const std::string& ext,
                        std::string& err);
 

@@ -1,0 +1,107 @@
+// Habits from oiiotool and values a new user types (issue 34, items 3, 4 and 6): every compression
+// level checked, a per-output DWA level, modifiers given twice, -v wherever it stands, the hints
+// of "nothing on the stack", --check of a plain image, suggestions without case or dashes, and
+// the exit status of a bare `mcstat`.
+#include <OpenImageIO/imagebuf.h>
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "cli_support.h"
+
+namespace {
+
+using mcstat::testing::Result;
+
+class HabitsCli : public mcstat::testing::CliFixture {
+  protected:
+    void SetUp() override {
+        CliFixture::SetUp();
+        stats = path("s.mcstat");
+        const std::string cmd = std::string(MCSTAT_RENDER_EXE) +
+                                " --quiet --scene default --res 24 16 --spp 8 --M 4 -o " + stats;
+        ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    }
+    std::string stats;
+};
+
+TEST_F(HabitsCli, EveryCompressionLevelIsChecked) {
+    // Each of these wrote level 45 (or level 1 for 1e9) with exit status 0.
+    for (const std::string bad : {"dwaa:abc", "dwaa:-5", "dwaa:nan", "dwaa:", "dwaa:1e9",
+                                  "dwaa:0", "zip:abc", "zip:10", "zip:0", ":5"}) {
+        const Result r = mcstat(stats + " --mean --compression " + bad + " -o " + path("a.exr"));
+        EXPECT_EQ(r.code, 1) << bad;
+        EXPECT_NE(r.err.find("compression"), std::string::npos) << bad << ": " << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+        EXPECT_FALSE(OIIO::Filesystem::exists(path("a.exr"))) << bad;
+    }
+    // OpenEXR's codecs without a level refuse one; a name OpenEXR does not know is refused at -o.
+    Result r = mcstat(stats + " --mean -o:compression=piz:3 " + path("a.exr"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("piz takes no level"), std::string::npos) << r.err;
+    r = mcstat(stats + " --mean --compression lzw -o " + path("a.exr"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("'lzw' is not one of OpenEXR's"), std::string::npos) << r.err;
+
+    // A per-output DWA level (":" inside a modifier's value) and a zip level reach the file.
+    r = mcstat(stats + " --mean -o:compression=dwaa:200 " + path("d.exr") +
+               " --compression zip:9 -o " + path("z.exr"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    OIIO::ImageBuf d(path("d.exr")), z(path("z.exr"));
+    ASSERT_TRUE(d.init_spec(path("d.exr"), 0, 0) && z.init_spec(path("z.exr"), 0, 0));
+    EXPECT_EQ(d.spec().get_string_attribute("compression"), "dwaa");
+    EXPECT_FLOAT_EQ(d.spec().get_float_attribute("openexr:dwaCompressionLevel"), 200.f);
+    EXPECT_EQ(z.spec().get_string_attribute("compression"), "zip");
+}
+
+TEST_F(HabitsCli, AModifierGivenTwiceIsRefused) {
+    const Result r = mcstat(stats + " --gmon:mode=lum:mode=channel -o " + path("g.exr"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("modifier 'mode' given twice ('lum' and 'channel')"), std::string::npos)
+        << r.err;
+    EXPECT_FALSE(OIIO::Filesystem::exists(path("g.exr")));
+    // A part that starts a name is still a modifier, and one without '=' is refused as before.
+    const Result s = mcstat(stats + " --gmon:mode=lum:diag -o " + path("g.exr"));
+    EXPECT_EQ(s.code, 1);
+    EXPECT_NE(s.err.find("modifier 'diag' is not name=value"), std::string::npos) << s.err;
+}
+
+TEST_F(HabitsCli, VerboseHoldsWhereverItStandsAndHintsSayWhereTheFileGoes) {
+    Result r = mcstat(stats + " --info -v");
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("samples per pixel: min 8, max 8"), std::string::npos) << r.out;
+    EXPECT_EQ(r.err.find("-v done"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("--info done in"), std::string::npos) << r.err;
+
+    r = mcstat("--info " + stats);
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("put the file first, mcstat FILE --info"), std::string::npos) << r.err;
+    r = mcstat("-o " + path("x.exr"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("arguments run left to right"), std::string::npos) << r.err;
+
+    r = mcstat("--help");
+    EXPECT_NE(r.out.find("prints that command's modifiers with their ranges and defaults"),
+              std::string::npos);
+    EXPECT_NE(r.out.find("every later -o skips"), std::string::npos);
+}
+
+TEST_F(HabitsCli, MessagesSayWhatAUserNeeds) {
+    // --check of a plain EXR says what --check checks.
+    ASSERT_EQ(mcstat(stats + " --mean -o " + path("plain.exr")).code, 0);
+    Result r = mcstat(path("plain.exr") + " --check");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("is an image, not a statistics file: --check validates"),
+              std::string::npos)
+        << r.err;
+    // Suggestions ignore case and dashes.
+    r = mcstat(stats + " -gmon");
+    EXPECT_NE(r.err.find("(did you mean --gmon?)"), std::string::npos) << r.err;
+    r = mcstat(stats + " --GMON");
+    EXPECT_NE(r.err.find("(did you mean --gmon?)"), std::string::npos) << r.err;
+    // A bare mcstat is an error (1), not --compare's DIFFERENT (2).
+    r = mcstat("");
+    EXPECT_EQ(r.code, 1);
+}
+
+}  // namespace
