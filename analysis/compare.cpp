@@ -717,13 +717,22 @@ std::string quantitiesText(const CompareResult& r) {
     return fmt::format("{} and {} more", fmt::join(shown, ", "), r.quantities.size() - 3);
 }
 
-std::string findingText(const CompareFinding& f, const CompareResult& r) {
+std::string findingText(const CompareFinding& f, const CompareResult& r,
+                        const CompareOptions& opt) {
     const double rel = f.a != 0.0 ? f.result.difference / std::fabs(f.a) : 0.0;
     std::string where = f.tile ? fmt::format("tile {}x{} at ({}, {})", r.tile, r.tile, f.x, f.y)
                                : fmt::format("pixel ({}, {})", f.x, f.y);
+    // No standard error: against an image, only the statistics file's buffers measure noise, and
+    // :refspp= scales that measure, so a noiseless file leaves the reference noiseless too.
+    const char* exact = !r.oneSample ? "exact (no noise on either side)"
+                        : opt.referenceSpp > 0.0
+                            ? "exact (no noise in the statistics file here, so none in the "
+                              "reference either: refspp scales the file's own)"
+                            : "exact (no noise in the statistics file here, and the reference is "
+                              "taken as exact; :refspp= gives it noise)";
     std::string size = std::isfinite(f.result.z)
                            ? fmt::format("{:+.2f} standard errors", f.result.z)
-                           : std::string("exact (no noise on either side)");
+                           : std::string(exact);
     return fmt::format("{} {}: {:.6g} -> {:.6g} ({:+.4g}{}, {}), p = {:.3g}", where,
                        printable(f.quantity),
                        f.a, f.b, f.result.difference,
@@ -781,9 +790,9 @@ std::vector<std::string> compareEvidence(const CompareResult& r, const CompareOp
                                 r.tile > 0 ? ", tiles " + thr(r.tileThreshold) : std::string()));
     const char* label = equivalence ? "least equivalent" : (r.fail ? "strongest" : "largest |z|");
     if (r.strongest.valid)
-        lines.push_back(fmt::format("{}: {}", label, findingText(r.strongest, r)));
+        lines.push_back(fmt::format("{}: {}", label, findingText(r.strongest, r, opt)));
     if (r.strongestTile.valid)
-        lines.push_back(fmt::format("{} tile: {}", label, findingText(r.strongestTile, r)));
+        lines.push_back(fmt::format("{} tile: {}", label, findingText(r.strongestTile, r, opt)));
     if (r.nonFiniteOneSide > 0)
         lines.push_back(
             fmt::format("{} pixels hold NaN or Inf on one side only (counted as "

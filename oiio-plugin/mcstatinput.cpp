@@ -487,7 +487,8 @@ ImageSpec McstatInput::makeSpec(const std::vector<std::string>& channels,
     if (h.formatVersion >= mcstat::kStatsFormatVersionProvenance) {
         s.attribute("mcstat:variance", mcstat::printable(h.variance));
         s.attribute("mcstat:features", mcstat::featureListText(h.features));
-        s.attribute("mcstat:sources", mcstat::printable(h.sources, 0));
+        // Rendered files list no sources: the attribute is left out rather than shown empty.
+        if (!h.sources.empty()) s.attribute("mcstat:sources", mcstat::printable(h.sources, 0));
     }
     s.attribute("mcstat:renderer", mcstat::printable(h.renderer));
     s.attribute("mcstat:colorSpace", mcstat::printable(h.colorSpace));

@@ -2,7 +2,9 @@
 // --reference) into a plain mean-only EXR for high-spp reference images.
 #include <OpenEXR/ImfThreading.h>
 #include <OpenImageIO/argparse.h>
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
+#include <OpenImageIO/strutil.h>
 #include <fmt/format.h>
 #include <unistd.h>
 
@@ -10,6 +12,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
@@ -118,7 +121,8 @@ struct CommandLine {
                 threadsText = "0", resW, resH, mMaxText = std::to_string(kDefaultMaxBuffers),
                 pilotText = "0", checkpointText = "0", strategyText = "grow",
                 pilotSeedText = std::to_string(kDefaultPilotSeed);
-    bool reference = false, quiet = false, adaptive = false, keepSamples = false, timings = false;
+    bool reference = false, quiet = false, version = false, adaptive = false, keepSamples = false,
+         timings = false;
     bool aovs = false;
     std::string pajotText,
         pajotNText = "50", pajotDelayedText = "64", pajotTText = "2", pajotDeltaText = "0",
@@ -274,6 +278,9 @@ bool parseCommandLine(int argc, const char** argv, CommandLine& cl, int& exitCod
     ap.arg("--help").help("print this help and exit").action([&](OIIO::cspan<const char*>) {
         cl.help = true;
     });
+    ap.arg("--version").help("print the version and exit").action([&](OIIO::cspan<const char*>) {
+        cl.version = true;
+    });
     addSamplingOptions(ap, cl);
     addPerSampleOptions(ap, cl);
     addRunOptions(ap, cl);
@@ -287,10 +294,29 @@ bool parseCommandLine(int argc, const char** argv, CommandLine& cl, int& exitCod
         exitCode = 0;
         return false;
     }
+    if (cl.version) {
+        std::printf("mcstat-render %s\n", MCSTAT_VERSION);
+        exitCode = 0;
+        return false;
+    }
     if (cl.outPath.empty()) {
         exitCode = fail("no output given (-o OUT); see --help");
         return false;
     }
+    // The name says what the file is, for the tools that go by it (the OIIO plugin takes
+    // .mcstat, and a plain EXR named so fails there; mcstat itself reads by content).
+    const std::string ext = OIIO::Strutil::lower(OIIO::Filesystem::extension(cl.outPath, false));
+    if (cl.reference && ext == "mcstat") {
+        exitCode = fail(cl.outPath +
+                        ": --reference writes a plain EXR image, not a statistics file: name it "
+                        ".exr (the OIIO plugin would take a .mcstat for a statistics file)");
+        return false;
+    }
+    if (!cl.reference && ext != "mcstat" && !cl.quiet)
+        fmt::print(stderr,
+                   "mcstat-render: warning: {}: a statistics file named .{}: mcstat reads it by "
+                   "its content, but the OIIO plugin and other tools go by the name (.mcstat)\n",
+                   mcstat::oneLine(cl.outPath), ext.empty() ? "(no extension)" : ext);
     // Before hours of rendering: a target the write would refuse (a directory, /dev/null, a
     // read-only file, a missing directory) fails now.
     std::string err;

@@ -3,6 +3,7 @@
 // of "nothing on the stack", --check of a plain image, suggestions without case or dashes, and
 // the exit status of a bare `mcstat`.
 #include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
 #include <gtest/gtest.h>
 
 #include <string>
@@ -102,6 +103,67 @@ TEST_F(HabitsCli, MessagesSayWhatAUserNeeds) {
     // A bare mcstat is an error (1), not --compare's DIFFERENT (2).
     r = mcstat("");
     EXPECT_EQ(r.code, 1);
+}
+
+// Against an image, a pixel the statistics file holds without noise is exact whatever :refspp=
+// says (the reference's noise is the file's, scaled): the evidence says so, not "either side".
+TEST_F(HabitsCli, CompareSaysWhereAnExactFindingsNoiseWouldComeFrom) {
+    for (int s = 1; s <= 3; ++s) {
+        OIIO::ImageBuf b(OIIO::ImageSpec(4, 4, 3, OIIO::TypeFloat));
+        for (int y = 0; y < 4; ++y)
+            for (int x = 0; x < 4; ++x) {
+                const float v = x == 0 && y == 0 ? 0.5f : 0.25f + 0.01f * float(s * (x + y));
+                const float px[3] = {v, v, v};
+                b.setpixel(x, y, px);
+            }
+        ASSERT_TRUE(b.write(path("seed_" + std::to_string(s) + ".exr")));
+    }
+    OIIO::ImageBuf ref(OIIO::ImageSpec(4, 4, 3, OIIO::TypeFloat));
+    const float quarter[3] = {0.25f, 0.25f, 0.25f};
+    OIIO::ImageBufAlgo::fill(ref, quarter);
+    ASSERT_TRUE(ref.write(path("ref.exr")));
+    const std::string seeds = "--ingest:spp=8 '" + path("seed_*.exr") + "' ";
+    Result r = mcstat(seeds + path("ref.exr") + " --compare:refspp=100");
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_NE(r.out.find("pixel (0, 0) luminance"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("exact (no noise in the statistics file here, so none in the reference "
+                         "either: refspp scales the file's own)"),
+              std::string::npos)
+        << r.out;
+    r = mcstat(seeds + path("ref.exr") + " --compare");
+    EXPECT_NE(r.out.find("and the reference is taken as exact; :refspp= gives it noise"),
+              std::string::npos)
+        << r.out;
+    EXPECT_EQ(r.out.find("either side"), std::string::npos) << r.out;
+}
+
+// mcstat-render: --version, and an output name that says what the file is (issue 34, item 5).
+TEST_F(HabitsCli, TheRendererSaysItsVersionAndNamesWhatItWrites) {
+    const auto render = [&](const std::string& args, Result& r) {
+        const std::string o = path("render.out"), e = path("render.err");
+        const int status =
+            std::system((std::string(MCSTAT_RENDER_EXE) + " " + args + " >" + o + " 2>" + e).c_str());
+        r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+        r.out = mcstat::testing::slurp(o);
+        r.err = mcstat::testing::slurp(e);
+    };
+    Result r;
+    render("--version", r);
+    EXPECT_EQ(r.code, 0);
+    EXPECT_EQ(r.out, std::string("mcstat-render ") + MCSTAT_VERSION_TEXT + "\n");
+    // A plain EXR named .mcstat is refused before rendering; a statistics file named .exr warns.
+    render("--scene tiny --spp 4 --reference -o " + path("ref.mcstat"), r);
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("--reference writes a plain EXR image, not a statistics file"),
+              std::string::npos)
+        << r.err;
+    EXPECT_FALSE(OIIO::Filesystem::exists(path("ref.mcstat")));
+    render("--scene tiny --spp 4 -o " + path("stats.exr"), r);
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.err.find("warning: " + path("stats.exr") + ": a statistics file named .exr"),
+              std::string::npos)
+        << r.err;
+    EXPECT_TRUE(OIIO::Filesystem::exists(path("stats.exr")));
 }
 
 }  // namespace
