@@ -68,6 +68,7 @@ std::vector<std::string> describeStatsHeader(const StatsHeader& h) {
     lines.push_back(fmt::format("  renderer \"{}\", colour space {}, seeds {}",
                                 printable(h.renderer), printable(h.colorSpace),
                                 h.seeds.empty() ? std::string("(none)") : printable(h.seeds, 0)));
+    if (!h.scene.empty()) lines.push_back("  scene " + printable(h.scene, 0));
     if (h.formatVersion >= kStatsFormatVersionProvenance) {
         // What version 3 says about where the data came from (FORMAT.md, "Version 3").
         const char* variance = h.variance == kVarianceSamples ? "from every sample (Welford)"

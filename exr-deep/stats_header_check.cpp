@@ -352,6 +352,10 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
             !stringAttr(part, layout::kAttrColorSpace, h.colorSpace) ||
             !stringAttr(part, layout::kAttrSeeds, h.seeds))
             return false;
+        // Optional in every version: the scene's identity (absent: unknown).
+        if (attr(part, layout::kAttrScene) != nullptr &&
+            !stringAttr(part, layout::kAttrScene, h.scene))
+            return false;
         // Version 3 on: provenance, on every part (versions 1 and 2 imply the defaults).
         if (version >= kStatsFormatVersionProvenance) {
             std::string features;
@@ -404,6 +408,7 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
         if (h.colorSpace != h0.colorSpace)
             return differs(layout::kAttrColorSpace, h.colorSpace, h0.colorSpace);
         if (h.seeds != h0.seeds) return differs(layout::kAttrSeeds, h.seeds, h0.seeds);
+        if (h.scene != h0.scene) return differs(layout::kAttrScene, h.scene, h0.scene);
         if (h.variance != h0.variance)
             return differs(layout::kAttrVariance, h.variance, h0.variance);
         if (h.features != h0.features)

@@ -215,7 +215,7 @@ bool mergeHeaders(const std::vector<const StatsHeader*>& in, StatsHeader& out, s
             }
         }
     StatsHeader r = *in[0];
-    std::vector<std::string> seeds, sources, renderers;
+    std::vector<std::string> seeds, sources, renderers, scenes;
     r.spp = 0;
     for (const StatsHeader* h : in) {
         if (h->spp > std::numeric_limits<int>::max() - r.spp) {
@@ -229,6 +229,9 @@ bool mergeHeaders(const std::vector<const StatsHeader*>& in, StatsHeader& out, s
         for (const std::string& name : splitList(h->renderer, " + ", false))
             if (std::find(renderers.begin(), renderers.end(), name) == renderers.end())
                 renderers.push_back(name);
+        for (const std::string& name : splitList(h->scene, " + ", true))
+            if (std::find(scenes.begin(), scenes.end(), name) == scenes.end())
+                scenes.push_back(name);
         r.formatVersion = std::max(r.formatVersion, h->formatVersion);
     }
     const auto join = [](const std::vector<std::string>& v, const char* sep) {
@@ -239,6 +242,7 @@ bool mergeHeaders(const std::vector<const StatsHeader*>& in, StatsHeader& out, s
     r.seeds = join(seeds, ",");
     r.sources = join(sources, ",");
     r.renderer = join(renderers, " + ");
+    r.scene = join(scenes, " + ");
     out = std::move(r);
     return true;
 }

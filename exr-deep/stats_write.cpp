@@ -72,6 +72,7 @@ Imf::Header commonHeader(const StatsHeader& h, const std::string& name, bool dee
     hdr.insert(layout::kAttrRenderer, Imf::StringAttribute(h.renderer));
     hdr.insert(layout::kAttrColorSpace, Imf::StringAttribute(h.colorSpace));
     hdr.insert(layout::kAttrSeeds, Imf::StringAttribute(h.seeds));
+    if (!h.scene.empty()) hdr.insert(layout::kAttrScene, Imf::StringAttribute(h.scene));
     if (h.formatVersion >= kStatsFormatVersionProvenance) {
         hdr.insert(layout::kAttrVariance, Imf::StringAttribute(h.variance));
         hdr.insert(layout::kAttrFeatures, Imf::StringAttribute(featureListText(h.features)));

@@ -282,7 +282,10 @@ std::vector<ParamSpec> mergeModifiers() {
     return {intParam("fanin", 2, kMaxBuffers, std::to_string(kDefaultMergeFanIn),
                      "inputs per node of the merge tree (its depth is ceil(log_fanin N)); a farm "
                      "that merges in jobs uses the same value to get the same bytes"),
-            intParam("n", 0, 1 << 20, "0", "merge the top n entries of the stack; 0: all")};
+            intParam("n", 0, 1 << 20, "0", "merge the top n entries of the stack; 0: all"),
+            flagParam("force", "0",
+                      "merge renders of different scenes (mcstat:scene) all the same; the result "
+                      "names every scene")};
 }
 
 /// "merge(a, b, c)", or for many inputs "merge of N files (first, ..., last)".
@@ -341,6 +344,19 @@ bool cmdMerge(State& st, const std::string& cmd, const std::vector<std::string>&
         headers.push_back(&leaf->header);
         names.push_back(leaf->name);
     }
+    // Renders of different scenes (by what their renderer recorded) sum to nothing meaningful.
+    if (modifierValue(mergeModifiers(), mods, "force").integer == 0)
+        for (size_t i = 1; i < headers.size(); ++i)
+            for (size_t j = 0; j < i; ++j)
+                if (!headers[i]->scene.empty() && !headers[j]->scene.empty() &&
+                    headers[i]->scene != headers[j]->scene) {
+                    err = format(
+                        "{}: {} and {} are renders of different scenes ('{}' vs '{}'); merge "
+                        "renders of one scene, or give {}:force=1 if they are one",
+                        cmd, names[j], names[i], printable(headers[j]->scene),
+                        printable(headers[i]->scene), cmd);
+                    return false;
+                }
     // Every input against the first, and seeds across all inputs, before any grouping: the
     // message names the two files involved.
     StatsHeader whole;

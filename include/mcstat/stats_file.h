@@ -119,6 +119,11 @@ struct StatsHeader {
     std::string renderer;                   ///< producer name and version
     std::string colorSpace = "lin_rec709";  ///< OCIO colour space name of every RGB value
     std::string seeds;  ///< comma-separated seeds of the renders merged into this file
+    /// mcstat:scene (optional, any version): what identifies the scene rendered, e.g. the
+    /// renderer's scene name and a hash of its scene file ("default h0123..."); "" when the
+    /// producer does not know it (ingest). A merge joins different ones with " + "; mcstat
+    /// --merge refuses inputs whose scenes differ unless :force=1.
+    std::string scene;
     // Version 3 (provenance); versions 1 and 2 imply the defaults.
     std::string variance = kVarianceSamples;  ///< mcstat:variance: kVariance*
     unsigned features = kAllFeatures;         ///< mcstat:features: Feature bits holding data

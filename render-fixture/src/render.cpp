@@ -233,6 +233,7 @@ StatsImage newStatsImage(const Scene& scene, const RenderOptions& opt, int M) {
     h.assignment =
         opt.adaptiveM && opt.strategy == AdaptiveStrategy::Grow ? "leastcount" : "roundrobin";
     h.renderer = kRendererName;
+    h.scene = scene.identity;
     h.colorSpace = "lin_rec709";
     h.seeds = std::to_string(opt.seed);
     if (opt.adaptiveM) h.formatVersion = kStatsFormatVersionAdaptive;

@@ -3,6 +3,7 @@
 #include "mcstat/render/scene.h"
 
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <initializer_list>
@@ -303,6 +304,18 @@ bool parseSceneText(const std::string& jsonText, const std::string& source, Scen
 bool parseScene(const std::string& jsonText, const std::string& source, Scene& scene,
                 std::string& err) {
     const bool ok = parseSceneText(jsonText, source, scene, err);
+    if (ok) {
+        uint64_t hash = 14695981039346656037ull;  // FNV-1a 64
+        for (const char c : jsonText) {
+            hash ^= static_cast<unsigned char>(c);
+            hash *= 1099511628211ull;
+        }
+        const size_t slash = source.find_last_of("/:");
+        char hex[24];
+        std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash));
+        scene.identity =
+            (slash == std::string::npos ? source : source.substr(slash + 1)) + " h" + hex;
+    }
     // A message on one line: a scene file's strings (an escaped "\n" in a key the message
     // quotes) are shown through oneLine (core/untrusted_text.h). Found by fuzzing.
     if (!ok) err = oneLine(err);

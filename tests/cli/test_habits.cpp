@@ -166,4 +166,35 @@ TEST_F(HabitsCli, TheRendererSaysItsVersionAndNamesWhatItWrites) {
     EXPECT_TRUE(OIIO::Filesystem::exists(path("stats.exr")));
 }
 
+// Renders of different scenes do not merge unless forced; the scene is recorded and shown
+// (issue 34, item 7).
+TEST_F(HabitsCli, RendersOfDifferentScenesDoNotMergeUnlessForced) {
+    const auto render = [&](const std::string& scene, int seed, const std::string& out) {
+        const std::string cmd = std::string(MCSTAT_RENDER_EXE) + " --quiet --scene " + scene +
+                                " --res 24 16 --spp 8 --M 4 --seed " + std::to_string(seed) +
+                                " -o " + path(out);
+        ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    };
+    render("default", 2, "d2.mcstat");
+    render("caustic", 3, "c3.mcstat");
+    Result r = mcstat(stats + " --info");
+    EXPECT_NE(r.out.find("  scene default h"), std::string::npos) << r.out;
+    r = mcstat(stats + " " + path("c3.mcstat") + " --merge -o " + path("m.mcstat"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("are renders of different scenes ('default h"), std::string::npos)
+        << r.err;
+    EXPECT_NE(r.err.find("give --merge:force=1"), std::string::npos) << r.err;
+    EXPECT_FALSE(OIIO::Filesystem::exists(path("m.mcstat")));
+    // The same scene, another seed: merges. Forced: the result names both scenes.
+    r = mcstat(stats + " " + path("d2.mcstat") + " --merge -o " + path("m.mcstat"));
+    EXPECT_EQ(r.code, 0) << r.err;
+    r = mcstat(stats + " " + path("c3.mcstat") + " --merge:force=1 -o " + path("f.mcstat"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    r = mcstat(path("f.mcstat") + " --info");
+    EXPECT_NE(r.out.find(" + caustic h"), std::string::npos) << r.out;
+    // One scene merged with itself is recorded once.
+    r = mcstat(path("m.mcstat") + " --info");
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '+'), 0) << r.out;
+}
+
 }  // namespace

@@ -77,6 +77,10 @@ struct CameraDesc {
 
 struct Scene {
     std::string source;  ///< file name or "builtin:NAME": used in messages
+    /// What a statistics file records as its scene (mcstat:scene): the scene's name (the built-in
+    /// name or the file's name) and an FNV-1a 64-bit hash of its JSON text, "default h0123...":
+    /// --merge refuses renders whose scenes differ.
+    std::string identity;
     std::string description;
     int width = 0, height = 0;
     CameraDesc camera;
