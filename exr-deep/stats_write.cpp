@@ -315,8 +315,7 @@ bool StatsFileWriterAccess::open(StatsFileWriter& w, const std::string& path, co
     const std::string& tmp = impl->tmp->path();
     impl->fd = detail::Fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666));
     if (impl->fd.get() < 0) {
-        err = fmt::format("{}: cannot create temporary file {} ({})", path, tmp,
-                          std::strerror(errno));
+        err = fmt::format("{}: cannot write the file ({})", path, std::strerror(errno));
         impl->tmp->remove();  // nothing was created; forget the name
         return false;
     }

@@ -149,6 +149,13 @@ bool checkOutputTarget(const std::string& target, std::string& err) {
                           std::strerror(found ? ENOTDIR : errno));
         return false;
     }
+    // The temporary file goes into the same folder: a folder this user cannot write is refused
+    // here, naming the target, whatever the format (OIIO's writers and ours said it differently,
+    // some naming the hidden temporary file). Root passes, as the kernel lets it write.
+    if (::access(dirPath.c_str(), W_OK | X_OK) != 0) {
+        err = fmt::format("{}: cannot write into {} ({})", target, dirPath, std::strerror(errno));
+        return false;
+    }
     if (::stat(target.c_str(), &st) != 0) return true;  // a new file
     if (S_ISDIR(st.st_mode)) {
         err = target + ": is a directory";

@@ -228,4 +228,46 @@ TEST_F(Untrusted, TemporaryOfAKilledWriteIsRemovedByTheNextWrite) {
     EXPECT_TRUE(std::filesystem::exists(target));
 }
 
+// A read-only folder, as a user who is not root (as root, the test runs the tools as nobody
+// through setpriv): every output format, and the renderer, give the same one-line reason naming
+// the target, never the hidden temporary file (issue 34, item 9).
+TEST_F(Untrusted, AReadOnlyFolderIsOneReasonNamingTheTargetForEveryFormat) {
+    std::string prefix;
+    if (::geteuid() == 0) {
+        if (std::system("command -v setpriv >/dev/null") != 0) GTEST_SKIP() << "no setpriv";
+        prefix = "setpriv --reuid=65534 --regid=65534 --clear-groups ";
+    }
+    const std::string f = writeGood("f.mcstat");
+    const std::string ro = path("ro");
+    OIIO::Filesystem::create_directory(ro);
+    ASSERT_EQ(::chmod(ro.c_str(), 0555), 0);
+    ASSERT_EQ(::chmod(dir.c_str(), 0755), 0);
+    ASSERT_EQ(::chmod(f.c_str(), 0644), 0);
+    struct Case {
+        std::string tool, args, target;
+    };
+    const std::vector<Case> cases = {
+        {MCSTAT_EXE, f + " --mean -o " + ro + "/a.exr", ro + "/a.exr"},
+        {MCSTAT_EXE, f + " --mean -o " + ro + "/a.png", ro + "/a.png"},
+        {MCSTAT_EXE, f + " --mean -o " + ro + "/a.tif", ro + "/a.tif"},
+        {MCSTAT_EXE, f + " -o " + ro + "/a.mcstat", ro + "/a.mcstat"},
+        {MCSTAT_RENDER_EXE, "--scene tiny --spp 2 -o " + ro + "/r.mcstat", ro + "/r.mcstat"},
+        {MCSTAT_RENDER_EXE, "--scene tiny --spp 2 --reference -o " + ro + "/r.exr", ro + "/r.exr"},
+    };
+    for (const Case& c : cases) {
+        const std::string out = path("ro.stdout"), err = path("ro.stderr");
+        const int status =
+            std::system((prefix + c.tool + " " + c.args + " >" + out + " 2>" + err).c_str());
+        const std::string e = slurp(err);
+        EXPECT_EQ(WIFEXITED(status) ? WEXITSTATUS(status) : -1, 1) << c.args << ": " << e;
+        EXPECT_NE(e.find(c.target + ": cannot write into " + ro + "/ (Permission denied)"),
+                  std::string::npos)
+            << c.args << ": " << e;
+        EXPECT_EQ(e.find(".tmp-"), std::string::npos) << e;
+        EXPECT_EQ(std::count(e.begin(), e.end(), '\n'), 1) << e;
+    }
+    ::chmod(ro.c_str(), 0755);
+    EXPECT_TRUE(std::filesystem::is_empty(ro));
+}
+
 }  // namespace
