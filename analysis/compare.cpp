@@ -734,8 +734,7 @@ std::string findingText(const CompareFinding& f, const CompareResult& r,
                            ? fmt::format("{:+.2f} standard errors", f.result.z)
                            : std::string(exact);
     return fmt::format("{} {}: {:.6g} -> {:.6g} ({:+.4g}{}, {}), p = {:.3g}", where,
-                       printable(f.quantity),
-                       f.a, f.b, f.result.difference,
+                       printable(f.quantity), f.a, f.b, f.result.difference,
                        f.a != 0.0 ? fmt::format(", {:+.2f}%", rel * 100.0) : std::string(), size,
                        f.result.p);
 }

@@ -640,7 +640,8 @@ std::string provenanceCaption(const ImageSpec& spec, const std::string& file) {
     if (!samples.empty())
         text += (text.empty() ? "" : nl) + ("(" + OIIO::Strutil::join(samples, ", ") + ")");
     const std::string ref = spec.get_string_attribute(p + "errormap.reference");
-    if (!ref.empty()) text += (text.empty() ? "" : nl) + ("vs " + printable(OIIO::Filesystem::filename(ref)));
+    if (!ref.empty())
+        text += (text.empty() ? "" : nl) + ("vs " + printable(OIIO::Filesystem::filename(ref)));
     return text;
 }
 

@@ -1,6 +1,5 @@
 // Colour management through OpenColorIO (see include/mcstat/color.h).
 #include "mcstat/color.h"
-#include "mcstat/core/untrusted_text.h"
 
 #include <OpenColorIO/OpenColorIO.h>
 #include <strings.h>
@@ -8,6 +7,8 @@
 #include <cstdlib>
 #include <mutex>
 #include <sstream>
+
+#include "mcstat/core/untrusted_text.h"
 
 namespace OCIO = OCIO_NAMESPACE;
 
@@ -112,8 +113,8 @@ bool toSceneLinear(float* rgb, long npixels, const std::string& from, bool& conv
         converted = true;
         return true;
     } catch (const std::exception& e) {
-        err = "OCIO conversion from '" + printable(from) + "' to scene-linear failed: " +
-              oneLine(e.what());
+        err = "OCIO conversion from '" + printable(from) +
+              "' to scene-linear failed: " + oneLine(e.what());
         return false;
     }
 }

@@ -65,10 +65,17 @@ void escapeInto(std::string& out, std::string_view s, bool escapeBackslash) {
         }
         if (b < 0x80) {
             switch (b) {
-                case '\n': out += "\\n"; break;
-                case '\r': out += "\\r"; break;
-                case '\t': out += "\\t"; break;
-                default: appendHex(out, b);
+                case '\n':
+                    out += "\\n";
+                    break;
+                case '\r':
+                    out += "\\r";
+                    break;
+                case '\t':
+                    out += "\\t";
+                    break;
+                default:
+                    appendHex(out, b);
             }
             ++i;
             continue;

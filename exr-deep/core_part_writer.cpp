@@ -191,8 +191,8 @@ bool addPart(exr_context_t ctxt, const Imf::Header& h, std::string& problem) {
         }
     }
     if (rv != EXR_ERR_SUCCESS) {
-        problem = fmt::format("part '{}': {}", printable(h.name()),
-                              exr_get_default_error_message(rv));
+        problem =
+            fmt::format("part '{}': {}", printable(h.name()), exr_get_default_error_message(rv));
         return false;
     }
     return true;

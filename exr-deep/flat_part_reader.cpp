@@ -217,7 +217,8 @@ FlatPartReader::Result FlatPartReader::Impl::decode(
     const int lines = info.linesPerChunk;
     const int chunkEnd = std::min(chunkY + lines, y0 + height);  // exclusive, file rows
     const auto where = [&] {
-        return fmt::format("part '{}': the chunk of rows {}..{}", printable(info.name), chunkY, chunkEnd - 1);
+        return fmt::format("part '{}': the chunk of rows {}..{}", printable(info.name), chunkY,
+                           chunkEnd - 1);
     };
     w.message.clear();
     exr_chunk_info_t ci{};
@@ -276,9 +277,8 @@ FlatPartReader::Result FlatPartReader::Impl::decode(
             if ((ch.data_type != EXR_PIXEL_FLOAT && ch.data_type != EXR_PIXEL_HALF) ||
                 ch.x_samples != 1 || ch.y_samples != 1 || ch.width != width ||
                 ch.height != ci.height) {
-                problem =
-                    fmt::format("{}: channel '{}' changed while reading", where(),
-                                    printable(ch.channel_name));
+                problem = fmt::format("{}: channel '{}' changed while reading", where(),
+                                      printable(ch.channel_name));
                 result = Result::Corrupt;
                 break;
             }

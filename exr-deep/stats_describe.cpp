@@ -61,10 +61,10 @@ void describeAovs(const StatsHeader& h, std::vector<std::string>& lines) {
 
 std::vector<std::string> describeStatsHeader(const StatsHeader& h) {
     std::vector<std::string> lines;
-    lines.push_back(fmt::format(
-        "  size {} x {} (origin {},{}), {} = {} sub-buffers, spp = {}, assignment {}", h.width,
-        h.height, h.originX, h.originY, h.adaptiveM ? "adaptive M, M_max" : "M", h.M, h.spp,
-        printable(h.assignment)));
+    lines.push_back(
+        fmt::format("  size {} x {} (origin {},{}), {} = {} sub-buffers, spp = {}, assignment {}",
+                    h.width, h.height, h.originX, h.originY,
+                    h.adaptiveM ? "adaptive M, M_max" : "M", h.M, h.spp, printable(h.assignment)));
     lines.push_back(fmt::format("  renderer \"{}\", colour space {}, seeds {}",
                                 printable(h.renderer), printable(h.colorSpace),
                                 h.seeds.empty() ? std::string("(none)") : printable(h.seeds, 0)));

@@ -291,8 +291,7 @@ bool Checker::checkParts() {
     if (n > extra)
         return fail(fmt::format(
             "extra part '{}' at index {} (the file has the 4 parts {}{})",
-            printable(partName(extra)), extra,
-            expected,
+            printable(partName(extra)), extra, expected,
             version0 >= kStatsFormatVersionAovs
                 ? ", then optionally aovs, then optionally pajot and modes, then records"
             : version0 >= kStatsFormatVersionSamples
@@ -442,8 +441,8 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
     if (h0.formatVersion < requiredFormatVersion(h0))
         return fail(fmt::format("{} = '{}' needs {} >= {} (the file has {})",
                                 layout::kAttrAssignment, printable(h0.assignment),
-                                layout::kAttrFormatVersion,
-                                requiredFormatVersion(h0), h0.formatVersion));
+                                layout::kAttrFormatVersion, requiredFormatVersion(h0),
+                                h0.formatVersion));
     hdr = h0;
     return true;
 }
@@ -475,8 +474,7 @@ bool Checker::checkAovAttributes(StatsHeader& hdr) {
         if (!parseAovClass(classes[a], aovs[a].cls))
             return fail(fmt::format(
                 "part '{}': {}: unknown class '{}' of AOV '{}' (known: alpha, light, data, id)", pn,
-                layout::kAttrAovClasses,
-                printable(classes[a], 40), printable(aovs[a].name, 40)));
+                layout::kAttrAovClasses, printable(classes[a], 40), printable(aovs[a].name, 40)));
     }
     hdr.aovs = std::move(aovs);
     return true;
@@ -543,8 +541,8 @@ bool Checker::checkChannels(int part, int M) {
             inFile.erase(it);
         }
         if (!inFile.empty())
-            return fail(
-                fmt::format("part '{}': unexpected channel '{}'", pn, printable(inFile.begin()->first)));
+            return fail(fmt::format("part '{}': unexpected channel '{}'", pn,
+                                    printable(inFile.begin()->first)));
         return true;
     }
     if (part == layout::kBuffers && groups != M)
@@ -565,7 +563,8 @@ bool Checker::checkChannels(int part, int M) {
         inFile.erase(it);
     }
     if (!inFile.empty())
-        return fail(fmt::format("part '{}': unexpected channel '{}'", pn, printable(inFile.begin()->first)));
+        return fail(fmt::format("part '{}': unexpected channel '{}'", pn,
+                                printable(inFile.begin()->first)));
     return true;
 }
 
@@ -892,8 +891,8 @@ bool checkAttributeSizes(int fd, uint64_t fileSize, const std::string& path, std
         const std::string type(buf.data() + typeAt, size_t(typeEnd - (buf.data() + typeAt)));
         std::string why;
         if (!valueMatchesSize(fd, type, valueAt, uint32_t(valueSize), why))
-            return fail(
-                fmt::format("attribute '{}' of type {}: {}", printable(name), printable(type), why));
+            return fail(fmt::format("attribute '{}' of type {}: {}", printable(name),
+                                    printable(type), why));
         if (visit) visit(header, name, type, valueAt, uint32_t(valueSize));
         pos = valueAt + uint64_t(valueSize);
         if (++attributes > kMaxAttributes)

@@ -51,8 +51,7 @@ bool checkHeader(const StatsHeader& h, std::string& problem) {
             "format version {} cannot hold this content (assignment '{}', variance '{}', "
             "features '{}'{}{}): it needs version {}",
             h.formatVersion, printable(h.assignment), printable(h.variance),
-            featureListText(h.features),
-            h.sources.empty() ? "" : ", sources",
+            featureListText(h.features), h.sources.empty() ? "" : ", sources",
             v5 ? fmt::format(", {} AOVs, beauty channels '{}', '{}', '{}'{}{}", h.aovs.size(),
                              printable(h.beautyNames[0]), printable(h.beautyNames[1]),
                              printable(h.beautyNames[2]),

@@ -35,9 +35,9 @@ bool knownVariance(const std::string& variance, std::string& problem) {
     if (variance == kVarianceSamples || variance == kVarianceBuffers ||
         variance == kVarianceUnknown)
         return true;
-    problem = fmt::format("unknown variance source '{}' (this reader knows '{}', '{}', '{}')",
-                          printable(variance), kVarianceSamples, kVarianceBuffers,
-                          kVarianceUnknown);
+    problem =
+        fmt::format("unknown variance source '{}' (this reader knows '{}', '{}', '{}')",
+                    printable(variance), kVarianceSamples, kVarianceBuffers, kVarianceUnknown);
     return false;
 }
 
@@ -67,8 +67,8 @@ bool parseFeatureList(const std::string& text, unsigned& bits, std::string& prob
         for (int i = 0; i < 5; ++i)
             if (item == kFeatureNames[i]) found = i;
         if (found < 0) {
-            problem = fmt::format("unknown feature '{}' (known: N, P, Albedo, Z, A)",
-                                  printable(item));
+            problem =
+                fmt::format("unknown feature '{}' (known: N, P, Albedo, Z, A)", printable(item));
             return false;
         }
         if (out & (1u << found)) {

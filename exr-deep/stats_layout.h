@@ -68,7 +68,7 @@ inline constexpr const char* kAttrPartVersion = "version";
 inline constexpr const char* kAttrVariance = "mcstat:variance";  // string
 inline constexpr const char* kAttrFeatures = "mcstat:features";  // string
 inline constexpr const char* kAttrSources = "mcstat:sources";    // string
-inline constexpr const char* kAttrScene = "mcstat:scene";  // string, optional (any version)
+inline constexpr const char* kAttrScene = "mcstat:scene";        // string, optional (any version)
 
 /// Version 5 on, every part: the input's names of the beauty's R, G, B (string vector of 3) and the
 /// input part that held it (string); part 0 only: the input's metadata (string, opaque text).

@@ -389,7 +389,8 @@ bool checkExrAttributeSizes(const std::string& path, std::string& err, int64_t m
 
 std::string FileContent::partsText() const {
     if (partNames.size() == 1)
-        return partNames[0].empty() ? "one unnamed part" : fmt::format("part '{}'", printable(partNames[0]));
+        return partNames[0].empty() ? "one unnamed part"
+                                    : fmt::format("part '{}'", printable(partNames[0]));
     std::string list;
     for (size_t i = 0; i < partNames.size() && i < 8; ++i)
         list += fmt::format("{}'{}'", i ? ", " : "", printable(partNames[i], 40));

@@ -281,8 +281,9 @@ bool checkCompression(const std::string& text, const std::string& ext, std::stri
     const std::string level = text.substr(colon + 1);
     const bool dwa = name == "dwaa" || name == "dwab", zip = name == "zip" || name == "zips";
     if (exr && !dwa && !zip) {
-        err = format("compression '{}': OpenEXR's {} takes no level (only zip, zips, dwaa, dwab do)",
-                     printable(text), name);
+        err =
+            format("compression '{}': OpenEXR's {} takes no level (only zip, zips, dwaa, dwab do)",
+                   printable(text), name);
         return false;
     }
     const long hi = !exr ? 100 : zip ? 9 : 1000000, lo = exr ? 1 : 0;

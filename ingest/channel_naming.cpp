@@ -1,13 +1,14 @@
 // Finding the beauty and the features of a renderer's EXR by channel name (channel_naming.h,
 // docs/ingest.md "Channel naming").
 #include "mcstat/channel_naming.h"
-#include "mcstat/core/untrusted_text.h"
 
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cctype>
 #include <map>
+
+#include "mcstat/core/untrusted_text.h"
 
 namespace mcstat {
 

@@ -240,7 +240,7 @@ class McstatInput final : public ImageInput {
     int supports(string_view) const override { return false; }
     /// Every error this reader records is one line of printable text, whatever the file or its
     /// name holds (oiiotool, iv and idiff print it as it is): it hides ImageInput::errorfmt.
-    template<typename... Args>
+    template <typename... Args>
     void errorfmt(const char* pattern, const Args&... args) const {
         ImageInput::errorfmt("{}", mcstat::oneLine(OIIO::Strutil::fmt::format(pattern, args...)));
     }

@@ -420,14 +420,12 @@ int runFrames(const std::vector<std::string>& all) {
         // What was not done is said as plainly as what failed: a farm reruns exactly those.
         const auto list = [](const std::vector<std::string>& v) {
             return v.size() <= 20 ? OIIO::Strutil::join(v, ", ")
-                                  : OIIO::Strutil::join(std::vector<std::string>(v.begin(),
-                                                                                 v.begin() + 20),
-                                                        ", ") +
+                                  : OIIO::Strutil::join(
+                                        std::vector<std::string>(v.begin(), v.begin() + 20), ", ") +
                                         format(", ... ({} in all)", v.size());
         };
         std::string rest;
-        if (!stopped.empty())
-            rest += format("; stopped when it failed: {}", list(stopped));
+        if (!stopped.empty()) rest += format("; stopped when it failed: {}", list(stopped));
         if (!notAttempted.empty()) rest += format("; not attempted: {}", list(notAttempted));
         std::fprintf(stderr, "mcstat: %zu of %zu frames failed: %s%s%s\n", failed.size(),
                      run.frames.size(), list(failed).c_str(), rest.c_str(),

@@ -404,8 +404,7 @@ bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>
         for (const std::string& s : report.features.sources) sources.push_back(printable(s));
         std::fprintf(stderr, "mcstat: ingest: %zu files, beauty %s (%s), features %s\n",
                      paths.size(),
-                     report.beauty.layer.empty() ? "R,G,B"
-                                                 : printable(report.beauty.layer).c_str(),
+                     report.beauty.layer.empty() ? "R,G,B" : printable(report.beauty.layer).c_str(),
                      printable(report.beauty.rule).c_str(),
                      report.features.present ? OIIO::Strutil::join(sources, "; ").c_str() : "none");
         for (const AovChannel& a : report.aovs)
@@ -713,8 +712,8 @@ bool cmdCheck(State& st, const std::string& cmd, const std::vector<std::string>&
         if (!readPajotParts(top.path, pajot, err)) return false;
     }
     std::printf("%s: valid mcstat statistics file, format %d, %d x %d, %s %d\n",
-                oneLine(top.name).c_str(),
-                h.formatVersion, h.width, h.height, h.adaptiveM ? "adaptive M, M_max" : "M", h.M);
+                oneLine(top.name).c_str(), h.formatVersion, h.width, h.height,
+                h.adaptiveM ? "adaptive M, M_max" : "M", h.M);
     std::printf(
         "  OpenEXR's checker passed; %lld pixels and %lld sub-buffers decoded, every count "
         "finite, integral, 0..2^24 and summing to the pixel's; %lld non-finite sub-buffer "

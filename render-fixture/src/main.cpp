@@ -23,6 +23,7 @@
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/params.h"
 #include "mcstat/core/progress.h"
+#include "mcstat/core/untrusted_text.h"
 #include "mcstat/filters/samples/pajot.h"
 #include "mcstat/filters/samples/pajot_state.h"
 #include "mcstat/image/imageops.h"
@@ -30,7 +31,6 @@
 #include "mcstat/render/scene.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
-#include "mcstat/core/untrusted_text.h"
 #include "mcstat/temp_file.h"
 
 namespace {

@@ -28,8 +28,8 @@ class HabitsCli : public mcstat::testing::CliFixture {
 
 TEST_F(HabitsCli, EveryCompressionLevelIsChecked) {
     // Each of these wrote level 45 (or level 1 for 1e9) with exit status 0.
-    for (const std::string bad : {"dwaa:abc", "dwaa:-5", "dwaa:nan", "dwaa:", "dwaa:1e9",
-                                  "dwaa:0", "zip:abc", "zip:10", "zip:0", ":5"}) {
+    for (const std::string bad : {"dwaa:abc", "dwaa:-5", "dwaa:nan", "dwaa:", "dwaa:1e9", "dwaa:0",
+                                  "zip:abc", "zip:10", "zip:0", ":5"}) {
         const Result r = mcstat(stats + " --mean --compression " + bad + " -o " + path("a.exr"));
         EXPECT_EQ(r.code, 1) << bad;
         EXPECT_NE(r.err.find("compression"), std::string::npos) << bad << ": " << r.err;
@@ -141,8 +141,8 @@ TEST_F(HabitsCli, CompareSaysWhereAnExactFindingsNoiseWouldComeFrom) {
 TEST_F(HabitsCli, TheRendererSaysItsVersionAndNamesWhatItWrites) {
     const auto render = [&](const std::string& args, Result& r) {
         const std::string o = path("render.out"), e = path("render.err");
-        const int status =
-            std::system((std::string(MCSTAT_RENDER_EXE) + " " + args + " >" + o + " 2>" + e).c_str());
+        const int status = std::system(
+            (std::string(MCSTAT_RENDER_EXE) + " " + args + " >" + o + " 2>" + e).c_str());
         r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
         r.out = mcstat::testing::slurp(o);
         r.err = mcstat::testing::slurp(e);

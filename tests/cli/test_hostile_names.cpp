@@ -39,9 +39,9 @@ class HostileNames : public mcstat::testing::CliFixture {
     /// string attribute with an escape-laden name and value.
     void writeRender(const std::string& name, float level, bool rgb = true) {
         OIIO::ImageSpec spec(6, 4, rgb ? 6 : 2, OIIO::TypeFloat);
-        spec.channelnames = rgb ? std::vector<std::string>{"R", "G", "B", "A", kEvilChannel,
-                                                           kFormFeedChannel}
-                                : std::vector<std::string>{kEvilChannel, kFormFeedChannel};
+        spec.channelnames =
+            rgb ? std::vector<std::string>{"R", "G", "B", "A", kEvilChannel, kFormFeedChannel}
+                : std::vector<std::string>{kEvilChannel, kFormFeedChannel};
         spec.alpha_channel = rgb ? 3 : -1;
         spec.attribute(kEvilAttribute, kEvilValue);
         spec.attribute("Software", "\x1b[32mrenderer\n");

@@ -379,7 +379,8 @@ TEST_F(ReviewCli, ErrorMapAndHeatmap) {
     EXPECT_NE(g.err.find("apply an estimator first"), std::string::npos) << g.err;
     g = mcstat("a.mcstat --gmon --heatmap:channel=gini");
     EXPECT_EQ(g.code, 1);
-    EXPECT_NE(g.err.find("no channel 'gini' (channels: 'R', 'G', 'B')"), std::string::npos) << g.err;
+    EXPECT_NE(g.err.find("no channel 'gini' (channels: 'R', 'G', 'B')"), std::string::npos)
+        << g.err;
     g = mcstat("a.mcstat --gmon --heatmap:log=2");
     EXPECT_EQ(g.code, 1);
     EXPECT_NE(g.err.find("log must be 'auto', '0' or '1', not '2'"), std::string::npos) << g.err;

@@ -1,12 +1,12 @@
 // printable(), oneLine(), isPrintable() and printableList() (core/untrusted_text.h): each escape
 // by hand, the cut at a character boundary, and the property every caller relies on, that no
 // output of printable() or oneLine() holds a byte a terminal acts on, over random bytes.
-#include "mcstat/core/untrusted_text.h"
-
 #include <gtest/gtest.h>
 
 #include <random>
 #include <string>
+
+#include "mcstat/core/untrusted_text.h"
 
 using mcstat::isPrintable;
 using mcstat::oneLine;
@@ -31,22 +31,28 @@ TEST(UntrustedText, ControlBytesBecomeVisibleEscapes) {
 }
 
 TEST(UntrustedText, InvalidUtf8IsEscapedBytePerByte) {
-    EXPECT_EQ(printable("\x80"), "\\x80");              // a stray continuation byte
-    EXPECT_EQ(printable("\xc0\xaf"), "\\xc0\\xaf");     // an overlong '/'
-    EXPECT_EQ(printable("\xe0\x80\xaf"), "\\xe0\\x80\\xaf");  // an overlong 3-byte form
-    EXPECT_EQ(printable("\xed\xa0\x80"), "\\xed\\xa0\\x80");  // a UTF-16 surrogate
+    EXPECT_EQ(printable("\x80"), "\\x80");                             // a stray continuation byte
+    EXPECT_EQ(printable("\xc0\xaf"), "\\xc0\\xaf");                    // an overlong '/'
+    EXPECT_EQ(printable("\xe0\x80\xaf"), "\\xe0\\x80\\xaf");           // an overlong 3-byte form
+    EXPECT_EQ(printable("\xed\xa0\x80"), "\\xed\\xa0\\x80");           // a UTF-16 surrogate
     EXPECT_EQ(printable("\xf4\x90\x80\x80"), "\\xf4\\x90\\x80\\x80");  // past U+10FFFF
-    EXPECT_EQ(printable("\xe2\x82"), "\\xe2\\x82");     // cut short at the end
-    EXPECT_EQ(printable("\xe2\x82x"), "\\xe2\\x82x");   // cut short by an ASCII byte
+    EXPECT_EQ(printable("\xe2\x82"), "\\xe2\\x82");                    // cut short at the end
+    EXPECT_EQ(printable("\xe2\x82x"), "\\xe2\\x82x");                  // cut short by an ASCII byte
     EXPECT_EQ(printable("\xff\xfe"), "\\xff\\xfe");
     EXPECT_FALSE(isPrintable("\xc0\xaf"));
 }
 
 TEST(UntrustedText, HiddenUnicodeControlsAreEscaped) {
-    EXPECT_EQ(printable("\xc2\x9b" "31m"), "\\u{009b}31m");  // C1 CSI
-    EXPECT_EQ(printable("\xc2\x85"), "\\u{0085}");           // NEL
-    EXPECT_EQ(printable("a\xe2\x80\xa8" "b"), "a\\u{2028}b");  // line separator
-    EXPECT_EQ(printable("abc\xe2\x80\xae" "fdp.exe"), "abc\\u{202e}fdp.exe");  // RLO
+    EXPECT_EQ(printable("\xc2\x9b"
+                        "31m"),
+              "\\u{009b}31m");                      // C1 CSI
+    EXPECT_EQ(printable("\xc2\x85"), "\\u{0085}");  // NEL
+    EXPECT_EQ(printable("a\xe2\x80\xa8"
+                        "b"),
+              "a\\u{2028}b");  // line separator
+    EXPECT_EQ(printable("abc\xe2\x80\xae"
+                        "fdp.exe"),
+              "abc\\u{202e}fdp.exe");  // RLO
     EXPECT_EQ(printable("\xe2\x81\xa6"), "\\u{2066}");
     EXPECT_EQ(printable("\xc2\xa0"), "\xc2\xa0");  // NBSP is a printable character
     EXPECT_FALSE(isPrintable("\xc2\x9b"));
@@ -57,7 +63,7 @@ TEST(UntrustedText, LongStringsAreCutWithACount) {
     const std::string a300(300, 'a');
     EXPECT_EQ(printable(a300), std::string(200, 'a') + "... (100 more bytes)");
     EXPECT_EQ(printable(a300, 10), std::string(10, 'a') + "... (290 more bytes)");
-    EXPECT_EQ(printable(a300, 0), a300);                 // 0: never cut
+    EXPECT_EQ(printable(a300, 0), a300);                                 // 0: never cut
     EXPECT_EQ(printable(std::string(200, 'a')), std::string(200, 'a'));  // exactly the limit
     // A cut inside a character keeps the whole character out: "é" is 2 bytes at 9..10.
     const std::string s = std::string(9, 'a') + "\xc3\xa9" + "bbb";
@@ -98,10 +104,14 @@ TEST(UntrustedText, RandomBytesNeverSurviveUnescaped) {
     // Bytes biased to the interesting ranges: controls, ASCII, UTF-8 leads and continuations.
     const auto draw = [&] {
         switch (pick(rng)) {
-            case 0: return char(byte(rng) % 0x20);
-            case 1: return char(0x20 + byte(rng) % 0x60);
-            case 2: return char(0x80 + byte(rng) % 0x40);
-            default: return char(0xc0 + byte(rng) % 0x40);
+            case 0:
+                return char(byte(rng) % 0x20);
+            case 1:
+                return char(0x20 + byte(rng) % 0x60);
+            case 2:
+                return char(0x80 + byte(rng) % 0x40);
+            default:
+                return char(0xc0 + byte(rng) % 0x40);
         }
     };
     for (int i = 0; i < 20000; ++i) {

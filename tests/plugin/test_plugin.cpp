@@ -525,15 +525,18 @@ TEST_F(Plugin, IngestedFileShowsItsProvenanceAndNoFeaturesItDoesNotHave) {
     const Pixels a = readExr(path("plugin-gmon.exr")), b = readExr(path("mcstat-gmon.exr"));
     EXPECT_EQ(a.data, b.data);
     EXPECT_FALSE(a.data.empty());
-    // A rendered file has no source files: no empty mcstat:sources (issue 34, item 8).
+    // A rendered file has no source files: no empty mcstat:sources (issue 34, item 8). With AOVs
+    // it is format 5, which carries the provenance attributes.
     const std::string rendered = path("rendered.mcstat");
-    ASSERT_EQ(run(std::string(MCSTAT_RENDER_EXE) + " --scene tiny --spp 8 --quiet -o " +
-                      quote(rendered),
-                  false)
-                  .code,
-              0);
+    ASSERT_EQ(
+        run(std::string(MCSTAT_RENDER_EXE) + " --scene tiny --spp 8 --aovs --quiet -o " +
+                quote(rendered),
+            false)
+            .code,
+        0);
     r = run("oiiotool --info -v " + quote(rendered));
     ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(contains(r.out, "mcstat:formatVersion: 5")) << r.out;
     EXPECT_TRUE(contains(r.out, "mcstat:variance:")) << r.out;
     EXPECT_FALSE(contains(r.out, "mcstat:sources")) << r.out;
 }
