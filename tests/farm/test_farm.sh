@@ -152,7 +152,9 @@ touch "$trig/fail" "$trig/kill"
 # The fault template: the fixture renderer, except that while a trigger file exists, frame 2
 # seed 3 fails with exit 3, and frame 1 seed 5 writes half a file and then kill -9s its task
 # (the run-task wrapper, its parent) and itself, as a lost node or the OOM killer would.
-fault_tmpl='if [ -e {trig}/fail ] && [ {frame} = 2 ] && [ {seed} = 3 ]; then echo "injected failure: frame {frame} seed {seed}" >&2; exit 3; fi; '
+# Its message carries a colour escape and a window-title sequence, as a renderer's output may:
+# the report shows them escaped (farm/mcstat-farm printable()).
+fault_tmpl='if [ -e {trig}/fail ] && [ {frame} = 2 ] && [ {seed} = 3 ]; then echo "injected failure: frame {frame} seed {seed}" >&2; printf "\033[31mred\033]0;title\007 done\n" >&2; exit 3; fi; '
 fault_tmpl+='if [ -e {trig}/kill ] && [ {frame} = 1 ] && [ {seed} = 5 ]; then head -c 50000 /dev/urandom >{output}; kill -9 $PPID $$; fi; '
 fault_tmpl+='{mcstat_render} --scene default --res 64 48 --spp 16 --M 8 --seed $(( {frame} * 1000 + {seed} )) --quiet -o {output}'
 B=$work/fault
@@ -178,6 +180,10 @@ grep -q "injected failure: frame 2 seed 3" "$B/$flog" || fail "the failed task's
   fail "frame 2: the merges reading seed 3 and the estimate should be reported as not run"
 grep -q "FAILED render f2 s3 (array task 8 of job [0-9]*) on node $host: exit code 3; log $flog" "$B/report.txt" ||
   { cat "$B/report.txt"; fail "report.txt does not name the failed task, its node and log"; }
+grep -qF '| \x1b[31mred\x1b]0;title\x07 done' "$B/report.txt" ||
+  { cat "$B/report.txt"; fail "report.txt does not show the log's escape sequences escaped"; }
+! LC_ALL=C grep -q "$(printf '[\001-\011\013-\037\177]')" "$B/report.txt" ||
+  fail "report.txt holds a control byte"
 # The killed task: started, never ended, gone from the queue; its partial file only under tmp/.
 [[ $(json "$R" '" ".join(i["item"] for i in d["frames"]["1"]["killed"])') == render.f0001.s0005 ]] ||
   fail "the report should name render.f0001.s0005 as killed"
