@@ -111,4 +111,20 @@ TEST_F(HostileNames, NoCommandPrintsAControlByteAndErrorsStayOneLine) {
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
 }
 
+// The fuzzing finding itself (tests/fuzz/regressions/ingest/channel-name-with-newline.exr): its
+// channel names hold a newline, a form feed and other raw bytes; the refusal is one line with
+// every one of them escaped.
+TEST_F(HostileNames, TheFuzzFindingIsOneLineWithItsBytesEscaped) {
+    const std::string finding =
+        std::string(MCSTAT_SOURCE_DIR) + "/tests/fuzz/regressions/ingest/channel-name-with-newline.exr";
+    const Result r = run("--ingest:spp=4 " + finding + " -o " + path("y.mcstat"), 1);
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_EQ(r.err.rfind("mcstat: --ingest: " + finding + ": no RGB channels", 0), 0) << r.err;
+    EXPECT_NE(r.err.find("\\x12"), std::string::npos) << r.err;   // a control byte
+    EXPECT_NE(r.err.find("\\x0c"), std::string::npos) << r.err;   // the form feed
+    EXPECT_NE(r.err.find("\\n"), std::string::npos) << r.err;     // the newline
+    EXPECT_NE(r.err.find("\\xc0p"), std::string::npos) << r.err;  // a byte that is not UTF-8
+    EXPECT_FALSE(OIIO::Filesystem::exists(path("y.mcstat")));
+}
+
 }  // namespace
