@@ -312,11 +312,10 @@ std::vector<int> runParallel(const FrameRun& run) {
         if (i == next) continue;  // not one of ours
         --running;
         finished[i] = true;
-        if (status[i] == kStopped) {
-            // stopped on purpose: its status stays kStopped
-        } else {
-            status[i] = WIFEXITED(ws) ? WEXITSTATUS(ws) : 128 + WTERMSIG(ws);
-        }
+        const int code = WIFEXITED(ws) ? WEXITSTATUS(ws) : 128 + WTERMSIG(ws);
+        // A frame asked to stop that had finished all the same (it exited before the signal
+        // came) counts as done: its output exists, and the summary must not call it stopped.
+        if (status[i] != kStopped || (WIFEXITED(ws) && (code == 0 || code == 2))) status[i] = code;
         if (!run.skipBad && failedFrame(status[i]) && i < firstFailed) {
             firstFailed = i;
             for (size_t j = i + 1; j < next; ++j)
