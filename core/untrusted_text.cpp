@@ -140,6 +140,15 @@ std::string oneLine(std::string_view message) {
     return out;
 }
 
+std::string libraryMessage(std::string_view text) {
+    std::string s(text);
+    for (char& c : s)
+        if (c == '\n' || c == '\r') c = ' ';
+    const size_t first = s.find_first_not_of(' ');
+    if (first == std::string::npos) return std::string();
+    return oneLine(std::string_view(s).substr(first, s.find_last_not_of(' ') - first + 1));
+}
+
 bool isPrintable(std::string_view text, bool newlineSeparators) {
     for (size_t i = 0; i < text.size();) {
         const unsigned char b = static_cast<unsigned char>(text[i]);

@@ -213,7 +213,7 @@ bool SampleRecordsWriter::open(const std::string& target, const StatsHeader& h, 
     }
     if (!impl_->file) {
         err = fmt::format("{}: cannot create the per-sample records ({})", target,
-                          detail::oneLine(problem));
+                          libraryMessage(problem));
         return false;
     }
     return true;
@@ -253,7 +253,7 @@ bool SampleRecordsWriter::write(const SampleBlock& block, std::string& err) {
     }
     if (!ok) {
         impl_->file.reset();  // no further writes
-        err = fmt::format("{}: cannot write records ({})", impl_->path, detail::oneLine(problem));
+        err = fmt::format("{}: cannot write records ({})", impl_->path, libraryMessage(problem));
         return false;
     }
     impl_->nextRow += block.rows;
@@ -268,7 +268,7 @@ bool SampleRecordsWriter::close(std::string& err) {
     std::string problem;
     if (!impl_->file->finish(problem)) {
         impl_->file.reset();
-        err = fmt::format("{}: cannot finish records ({})", impl_->path, detail::oneLine(problem));
+        err = fmt::format("{}: cannot finish records ({})", impl_->path, libraryMessage(problem));
         return false;
     }
     impl_->file.reset();
@@ -346,7 +346,7 @@ bool SampleRecordsReader::open(const std::string& path, std::string& err,
         }
         impl_->selected = impl_->available;
     } catch (const std::exception& e) {
-        err = fmt::format("{}: {}", path, detail::oneLine(e.what()));
+        err = fmt::format("{}: {}", path, libraryMessage(e.what()));
         return false;
     }
     return true;
@@ -407,7 +407,7 @@ bool SampleRecordsReader::read(int y0, int rows, SampleBlock& block, std::string
         err = impl_->path + ": out of memory while reading records";
         return false;
     } catch (const std::exception& e) {
-        err = fmt::format("{}: truncated or corrupt ({})", impl_->path, detail::oneLine(e.what()));
+        err = fmt::format("{}: truncated or corrupt ({})", impl_->path, libraryMessage(e.what()));
         return false;
     }
     return true;
@@ -644,7 +644,7 @@ bool readPixelStateParts(const std::string& path, PixelStateParts& out, std::str
         err = path + ": out of memory while reading the Pajot state";
         return false;
     } catch (const std::exception& e) {
-        err = fmt::format("{}: {}", path, detail::oneLine(e.what()));
+        err = fmt::format("{}: {}", path, libraryMessage(e.what()));
         return false;
     }
     return true;

@@ -36,7 +36,7 @@ bool checkStatsFile(const std::string& path, StatsCheckReport& report, std::stri
         }
     } catch (const std::exception& e) {
         err =
-            fmt::format("{}: OpenEXR's file checker failed ({})", path, detail::oneLine(e.what()));
+            fmt::format("{}: OpenEXR's file checker failed ({})", path, libraryMessage(e.what()));
         return false;
     }
     report.openexrChecked = true;

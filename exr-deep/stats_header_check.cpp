@@ -71,7 +71,7 @@ bool startCoreRead(CoreIo& io, CoreContext& ctx, const std::string& path, std::s
     if (rv == EXR_ERR_SUCCESS) return true;
     const std::string what =
         io.firstError.empty() ? exr_get_default_error_message(rv) : io.firstError;
-    err = fmt::format("{}: truncated or corrupt (header: {})", path, oneLine(what));
+    err = fmt::format("{}: truncated or corrupt (header: {})", path, libraryMessage(what));
     return false;
 }
 
@@ -123,7 +123,7 @@ class Checker {
     Checker(exr_const_context_t ctxt, std::string path) : c_(ctxt), path_(std::move(path)) {}
 
     bool fail(const std::string& problem) {
-        err = path_ + ": " + oneLine(problem);
+        err = path_ + ": " + libraryMessage(problem);
         return false;
     }
 
@@ -300,10 +300,10 @@ bool Checker::checkParts() {
     exr_attr_box2i_t dw0{}, disp0{};
     for (int part = 0; part < n; ++part) {
         exr_storage_t storage = EXR_STORAGE_LAST_TYPE;
-        const std::string pname =
-            part < layout::kPartCount ? names_[part] : printable(partName(part));
-        const bool deep = (adaptive_ && part == layout::kBuffers) || pname == layout::kPartModes ||
-                          pname == layout::kPartRecords;
+        const std::string raw = part < layout::kPartCount ? names_[part] : partName(part);
+        const std::string pname = printable(raw);  // for the messages
+        const bool deep = (adaptive_ && part == layout::kBuffers) || raw == layout::kPartModes ||
+                          raw == layout::kPartRecords;
         const exr_storage_t want = deep ? EXR_STORAGE_DEEP_SCANLINE : EXR_STORAGE_SCANLINE;
         if (exr_get_storage(c_, part, &storage) != EXR_ERR_SUCCESS || storage != want)
             return fail(fmt::format("part '{}' is {}, expected {}", pname, storageName(storage),

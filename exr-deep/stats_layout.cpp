@@ -285,10 +285,4 @@ const std::vector<float>& arrayOf(const StatsImage& img, Array a) { return array
 }  // namespace mcstat::layout
 
 namespace mcstat::detail {
-std::string oneLine(std::string s) {
-    for (char& c : s)
-        if (c == '\n' || c == '\r') c = ' ';
-    while (!s.empty() && s.back() == ' ') s.pop_back();
-    return mcstat::oneLine(s);
-}
 }  // namespace mcstat::detail

@@ -160,7 +160,4 @@ namespace mcstat::detail {
 /// The arrays of other parts are emptied. Contents are unspecified: the caller overwrites them.
 bool resizeParts(StatsImage& img, unsigned parts, size_t buffers, std::vector<uint64_t>&& offsets,
                  std::string& err);
-/// A library's message (an OpenEXR exception's text) for one line: line breaks become spaces,
-/// every other control byte an escape (mcstat::oneLine, core/untrusted_text.h).
-std::string oneLine(std::string s);
 }  // namespace mcstat::detail

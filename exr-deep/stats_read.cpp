@@ -235,7 +235,7 @@ bool readStatsHeader(const std::string& path, StatsHeader& hdr, std::string& err
         hdr = std::move(h);
         return true;
     } catch (const std::exception& e) {
-        err = fmt::format("{}: {}", path, detail::oneLine(e.what()));
+        err = fmt::format("{}: {}", path, libraryMessage(e.what()));
     } catch (...) {
         err = path + ": unknown error while reading the headers";
     }
@@ -297,7 +297,7 @@ bool StatsFileReader::open(const std::string& path, std::string& err, const Read
     } catch (const std::bad_alloc&) {
         err = path + ": out of memory while reading the headers";
     } catch (const std::exception& e) {
-        err = fmt::format("{}: truncated or corrupt ({})", path, detail::oneLine(e.what()));
+        err = fmt::format("{}: truncated or corrupt ({})", path, libraryMessage(e.what()));
     }
     return false;
 }
@@ -364,7 +364,7 @@ bool StatsFileReader::read(int firstRow, int rows, unsigned parts, StatsImage& b
         err = im.path + ": out of memory while reading pixels";
         return false;
     } catch (const std::exception& e) {
-        err = fmt::format("{}: truncated or corrupt ({})", im.path, detail::oneLine(e.what()));
+        err = fmt::format("{}: truncated or corrupt ({})", im.path, libraryMessage(e.what()));
         return false;
     }
     return validateStats(block, parts, im.path, err);

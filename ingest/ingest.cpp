@@ -38,12 +38,6 @@ using OIIO::ImageInput;
 using OIIO::ImageSpec;
 using OIIO::TypeDesc;
 
-/// OIIO's messages may span lines and quote a file's names; ours are one line of printable text
-/// (core/untrusted_text.h).
-std::string oneLine(const std::string& s) {
-    return mcstat::oneLine(OIIO::Strutil::strip(OIIO::Strutil::replace(s, "\n", " ", true)));
-}
-
 bool hasGlobChars(const std::string& s) { return s.find_first_of("*?[") != std::string::npos; }
 
 /// Natural order: "s2.exr" before "s10.exr" (glibc's strverscmp).
@@ -165,13 +159,13 @@ std::unique_ptr<ImageInput> openRender(const std::string& path, int64_t maxPixel
     if (!checkExrAttributeSizes(path, err, maxPixels)) return nullptr;
     std::unique_ptr<ImageInput> in = ImageInput::create(path, false);
     if (!in) {
-        err = fmt::format("{}: {}", path, oneLine(OIIO::geterror()));
+        err = fmt::format("{}: {}", path, libraryMessage(OIIO::geterror()));
         return nullptr;
     }
     ImageSpec spec;
     if (!in->open(path, spec)) {
         const std::string why = in->geterror();
-        err = fmt::format("{}: {}", path, oneLine(why.empty() ? OIIO::geterror() : why));
+        err = fmt::format("{}: {}", path, libraryMessage(why.empty() ? OIIO::geterror() : why));
         return nullptr;
     }
     return in;
@@ -380,7 +374,7 @@ bool readRenderRGB(const std::string& path, const std::string& layer, OIIO::Imag
         rows.resize(size_t(w) * size_t(spec.height) * size_t(nch));
         if (!f.in->read_scanlines(r.subimage, 0, spec.y, spec.y + spec.height, 0, r.chbegin,
                                   r.chend, TypeDesc::FLOAT, rows.data())) {
-            err = fmt::format("{}: {}", path, oneLine(f.in->geterror()));
+            err = fmt::format("{}: {}", path, libraryMessage(f.in->geterror()));
             return false;
         }
         for (int c = 0; c < 3; ++c) {
@@ -816,7 +810,7 @@ bool readBlock(OpenRender& in, const std::vector<int>& used, RowBlock& b, int y0
         if (!in.oiio->read_scanlines(b.reads[r].subimage, 0, b.f.spec.y + y0, b.f.spec.y + y1, 0,
                                      b.reads[r].chbegin, b.reads[r].chend, TypeDesc::FLOAT,
                                      b.rows.data() + b.base[r])) {
-            err = fmt::format("{}: {}", b.f.path, oneLine(in.oiio->geterror()));
+            err = fmt::format("{}: {}", b.f.path, libraryMessage(in.oiio->geterror()));
             return false;
         }
     return true;

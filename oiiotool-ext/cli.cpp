@@ -345,18 +345,20 @@ bool cmdMerge(State& st, const std::string& cmd, const std::vector<std::string>&
         names.push_back(leaf->name);
     }
     // Renders of different scenes (by what their renderer recorded) sum to nothing meaningful.
-    if (modifierValue(mergeModifiers(), mods, "force").integer == 0)
-        for (size_t i = 1; i < headers.size(); ++i)
-            for (size_t j = 0; j < i; ++j)
-                if (!headers[i]->scene.empty() && !headers[j]->scene.empty() &&
-                    headers[i]->scene != headers[j]->scene) {
-                    err = format(
-                        "{}: {} and {} are renders of different scenes ('{}' vs '{}'); merge "
-                        "renders of one scene, or give {}:force=1 if they are one",
-                        cmd, names[j], names[i], printable(headers[j]->scene),
-                        printable(headers[i]->scene), cmd);
-                    return false;
-                }
+    // Inputs that record no scene agree with any; the others must all record the first one's.
+    if (modifierValue(mergeModifiers(), mods, "force").integer == 0) {
+        size_t j = 0;
+        while (j < headers.size() && headers[j]->scene.empty()) ++j;
+        for (size_t i = j + 1; i < headers.size(); ++i)
+            if (!headers[i]->scene.empty() && headers[i]->scene != headers[j]->scene) {
+                err = format(
+                    "{}: {} and {} are renders of different scenes ('{}' vs '{}'); merge "
+                    "renders of one scene, or give {}:force=1 if they are one",
+                    cmd, names[j], names[i], printable(headers[j]->scene),
+                    printable(headers[i]->scene), cmd);
+                return false;
+            }
+    }
     // Every input against the first, and seeds across all inputs, before any grouping: the
     // message names the two files involved.
     StatsHeader whole;

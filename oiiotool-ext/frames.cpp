@@ -264,22 +264,18 @@ std::vector<int> runParallel(const FrameRun& run) {
     auto errPath = [&](size_t i) { return stem + std::to_string(i) + ".err"; };
     std::vector<int> status(n, kNotAttempted);
     std::vector<pid_t> pids(n, -1);
-    std::vector<bool> finished(n, false), printed(n, false);
+    std::vector<bool> finished(n, false);
     size_t next = 0, firstFailed = n;
     int running = 0;
     const auto failedFrame = [&](int st) { return st != 0 && st != 2 && st != kStopped; };
-    // Prints every finished frame's output that all earlier frames have printed before it.
+    // Prints the output of the finished frames that follow the last frame printed, in order.
     size_t toPrint = 0;
     const auto printInOrder = [&] {
-        while (toPrint < n && finished[toPrint]) {
-            if (finished[toPrint] && !printed[toPrint]) {
-                copyFile(outPath(toPrint), stdout);
-                copyFile(errPath(toPrint), stderr);
-                OIIO::Filesystem::remove(outPath(toPrint));
-                OIIO::Filesystem::remove(errPath(toPrint));
-                printed[toPrint] = true;
-            }
-            ++toPrint;
+        for (; toPrint < n && finished[toPrint]; ++toPrint) {
+            copyFile(outPath(toPrint), stdout);
+            copyFile(errPath(toPrint), stderr);
+            OIIO::Filesystem::remove(outPath(toPrint));
+            OIIO::Filesystem::remove(errPath(toPrint));
         }
     };
     while (true) {

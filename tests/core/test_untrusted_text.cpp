@@ -9,6 +9,7 @@
 #include "mcstat/core/untrusted_text.h"
 
 using mcstat::isPrintable;
+using mcstat::libraryMessage;
 using mcstat::oneLine;
 using mcstat::printable;
 using mcstat::printableList;
@@ -81,6 +82,13 @@ TEST(UntrustedText, OneLineKeepsBackslashesAndCutsNothing) {
     EXPECT_EQ(oneLine("part '\\x1b[31m': bad\nsecond"), "part '\\x1b[31m': bad\\nsecond");
     EXPECT_EQ(oneLine(std::string(500, 'x')), std::string(500, 'x'));
     EXPECT_EQ(oneLine("\x1b[2J"), "\\x1b[2J");
+}
+
+TEST(UntrustedText, LibraryMessagesBecomeOneTrimmedLine) {
+    EXPECT_EQ(libraryMessage("  Cannot read\nchannel 'a\x1b[31m'\r\n "),
+              "Cannot read channel 'a\\x1b[31m'");
+    EXPECT_EQ(libraryMessage("\n \n"), "");
+    EXPECT_EQ(libraryMessage("C:\\dir"), "C:\\dir");  // the backslash stays, as in oneLine
 }
 
 TEST(UntrustedText, ListsAreQuotedEscapedAndBounded) {

@@ -43,6 +43,11 @@ std::string printableList(const std::vector<std::string>& names, size_t maxItems
 /// backstop.
 std::string oneLine(std::string_view message);
 
+/// A library's message (OIIO's geterror(), an OpenEXR exception's what()) for one line of ours:
+/// its line breaks become spaces, leading and trailing spaces go, then oneLine()'s escapes (such a
+/// message may quote a file's names).
+std::string libraryMessage(std::string_view text);
+
 /// Whether `text` holds nothing printable() would escape, other than the backslash (newlines
 /// allowed between lines when `newlineSeparators`). What tests and fuzz targets assert of output.
 bool isPrintable(std::string_view text, bool newlineSeparators = false);
