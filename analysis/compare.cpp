@@ -70,6 +70,41 @@ void gatherBuffers(const Side& s, const Quantity& q, bool sideB, size_t p,
     }
 }
 
+/// A compact file's pixel that keeps only its mean (one buffer where the file has M > 1): the
+/// summary meanSummary gives on the full file's buffers, from what the compact file kept of them
+/// (FORMAT.md "Version 6"): the valid buffers M', the mean and the between-buffer covariance of
+/// R, G, B, s^2 = c^T C c for the quantity's weights c, variance s^2 / N, df = M' - 1. Yuen's
+/// trimmed mean of such a pixel is its mean (G-MoN trimmed nothing), tested as Welch's.
+bool compactSummary(const Side& s, const Quantity& q, size_t p,
+                    const std::array<double, 3>& luma, SideSummary& out) {
+    const StatsImage& b = s.block;
+    if (!b.header.compact || b.header.M < 2 || b.buffersOf(p) != 1 ||
+        b.spread.size() != b.pixelCount() * size_t(kSpreadFloats))
+        return false;
+    const PixelBuffers pb = b.pixelBuffers(p);
+    const float* sp = b.spread.data() + p * size_t(kSpreadFloats);
+    std::array<double, 3> w{0.0, 0.0, 0.0};
+    if (q.kind == Quantity::Channel)
+        w[size_t(q.channel)] = 1.0;
+    else
+        w = luma;
+    double est = 0.0, s2 = 0.0;
+    for (int c = 0; c < 3; ++c) {
+        est += w[size_t(c)] * double(pb.mean[c]);
+        for (int d = 0; d < 3; ++d)
+            s2 += w[size_t(c)] * w[size_t(d)] * double(sp[spreadIndex(c, d)]);
+    }
+    out = SideSummary();
+    out.estimate = est;
+    out.buffers = int(sp[0]);
+    const double n = double(pb.count[0]);
+    if (out.buffers >= 2 && n > 0.0 && std::isfinite(s2)) {
+        out.df = double(out.buffers - 1);
+        out.variance = std::max(0.0, s2) / n;
+    }
+    return true;
+}
+
 /// The reference image's value of quantity `q` at pixel (x, y) of the block's rows.
 double referenceValue(const Side& s, const Quantity& q, int x, int y,
                       const std::array<double, 3>& luma) {
@@ -97,6 +132,15 @@ class Comparison {
     bool resolveQuantities(std::string& err);
     bool processBlock(int row0, int rows, std::string& err);
     void testTile(int tx, int ty, int row0, Tally& tally);
+    /// The summary of quantity `q` of pixel `local` of side `s`, its buffers' values and counts
+    /// left in `v` and `c`.
+    SideSummary sideSummary(const Side& s, const Quantity& q, bool sideB, size_t local,
+                            std::vector<double>& v, std::vector<double>& c) const {
+        gatherBuffers(s, q, sideB, local, opt_.luma, v, c);
+        SideSummary out;
+        if (compactSummary(s, q, local, opt_.luma, out)) return out;
+        return summarize(v, c);
+    }
     SideSummary summarize(const std::vector<double>& v, const std::vector<double>& c) const {
         return opt_.trimmed ? trimmedSummary(v.data(), c.data(), int(v.size()), opt_.trim)
                             : meanSummary(v.data(), c.data(), int(v.size()));
@@ -206,8 +250,7 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
             for (size_t qi = 0; qi < Q; ++qi) {
                 const Quantity& q = q_[qi];
                 SideSummary sa, sb;
-                gatherBuffers(b_, q, true, local, opt_.luma, vb, cb);
-                sb = summarize(vb, cb);
+                sb = sideSummary(b_, q, true, local, vb, cb);
                 double nb = 0.0;
                 for (double c : cb) nb += c > 0.0 ? c : 0.0;
                 if (a_.ref) {
@@ -216,8 +259,7 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
                     referenceNoise(sb, nb);
                     if (tiles) refSum[qi] += r;
                 } else {
-                    gatherBuffers(a_, q, false, local, opt_.luma, va, ca);
-                    sa = summarize(va, ca);
+                    sa = sideSummary(a_, q, false, local, va, ca);
                 }
                 if (tiles) {
                     if (!sa.finite || !sb.finite) tileBad[qi] = 1;
@@ -303,9 +345,13 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
 bool Comparison::processBlock(int row0, int rows, std::string& err) {
     const bool aovs = std::any_of(q_.begin(), q_.end(),
                                   [](const Quantity& q) { return q.kind == Quantity::Aov; });
-    const unsigned parts = kStatsPartBuffers | (aovs ? kStatsPartAovs : 0u);
-    if (b_.src && !b_.src->read(row0, rows, parts, b_.block, err)) return false;
-    if (a_.src && !a_.src->read(row0, rows, parts, a_.block, err)) return false;
+    // A compact file's spread (what its buffer-free pixels keep for the test) is in part moments.
+    const auto partsOf = [&](const Side& s) {
+        return kStatsPartBuffers | (aovs ? kStatsPartAovs : 0u) |
+               (s.src->header().compact ? kStatsPartMoments : 0u);
+    };
+    if (b_.src && !b_.src->read(row0, rows, partsOf(b_), b_.block, err)) return false;
+    if (a_.src && !a_.src->read(row0, rows, partsOf(a_), a_.block, err)) return false;
     const int ty0 = row0 / taskSide_;
     const int ty1 = (row0 + rows + taskSide_ - 1) / taskSide_;
     const int64_t tasks = int64_t(ty1 - ty0) * tilesX_;
@@ -575,7 +621,8 @@ bool checkOptions(const CompareOptions& opt, std::string& err) {
 }
 
 /// The result's data window (the statistics file's) and whether tiles are tested: a tile averages
-/// a buffer index over its pixels, and with adaptive M the indices do not line up.
+/// a buffer index over its pixels, and with adaptive M (compact files too) the indices do not
+/// line up.
 void setWindow(CompareResult& out, const StatsHeader& h, bool adaptive, const CompareOptions& opt) {
     out.width = h.width;
     out.height = h.height;
@@ -599,6 +646,16 @@ bool sideBuffers(const StatsBlockSource& s, int& M, std::string& err) {
     return true;
 }
 
+/// AOVs of a compact file: a pixel that keeps its mean alone keeps no spread of its AOVs.
+bool compactQuantities(const StatsBlockSource& s, const CompareOptions& opt, std::string& err) {
+    if (!s.header().compact || opt.aovs.empty()) return true;
+    err = fmt::format(
+        "{} is a compact file: its pixels without heavy tails keep the spread of R, G and B, not of "
+        "the AOVs, so aovs= cannot be tested there; compare the full files",
+        s.name());
+    return false;
+}
+
 }  // namespace
 
 bool compareStats(StatsBlockSource& a, StatsBlockSource& b, const CompareOptions& opt,
@@ -616,7 +673,9 @@ bool compareStats(StatsBlockSource& a, StatsBlockSource& b, const CompareOptions
             hb.originX, hb.originY);
         return false;
     }
-    if (!sideBuffers(a, out.Ma, err) || !sideBuffers(b, out.Mb, err)) return false;
+    if (!sideBuffers(a, out.Ma, err) || !sideBuffers(b, out.Mb, err) ||
+        !compactQuantities(a, opt, err) || !compactQuantities(b, opt, err))
+        return false;
     setWindow(out, ha, ha.adaptiveM || hb.adaptiveM, opt);
     Side sa, sb;
     sa.src = &a;
@@ -642,7 +701,7 @@ bool compareStatsToImage(const OIIO::ImageBuf& ref, const std::string& refName, 
                           win.height(), b.name(), hb.width, hb.height);
         return false;
     }
-    if (!sideBuffers(b, out.Mb, err)) return false;
+    if (!sideBuffers(b, out.Mb, err) || !compactQuantities(b, opt, err)) return false;
     if (opt.trimmed) {
         // A trimmed mean estimates the mean only for symmetric distributions; a pixel's samples
         // are skewed (rare bright paths), so it would differ from the reference's mean anyway.

@@ -61,6 +61,10 @@ void describeAovs(const StatsHeader& h, std::vector<std::string>& lines) {
 
 std::vector<std::string> describeStatsHeader(const StatsHeader& h) {
     std::vector<std::string> lines;
+    if (h.compact)
+        lines.push_back(fmt::format("  compact: pixels keep their buffers by the rule \"{}\", "
+                                    "the others their mean",
+                                    printable(h.compactRule)));
     lines.push_back(
         fmt::format("  size {} x {} (origin {},{}), {} = {} sub-buffers, spp = {}, assignment {}",
                     h.width, h.height, h.originX, h.originY,
@@ -84,11 +88,16 @@ std::vector<std::string> describeStatsHeader(const StatsHeader& h) {
         absent.empty()
             ? present
             : (present.empty() ? std::string("none") : present) + "; absent, NaN: " + absent;
-    if (h.adaptiveM)
+    if (h.compact)
         lines.push_back(fmt::format(
-            "  parts: beauty (R,G,B)  vbuffers (deep: m_p in 1..{} samples R,G,B,count,Z,A)  "
+            "  parts: beauty (R,G,B)  vbuffers (deep: {} or 1 samples R,G,B,count,Z,A{})  "
+            "moments (count, mean.RGB, variance.RGB, spread)  features ({})",
+            h.M, h.aovs.empty() ? "" : ", aov.*", features));
+    else if (h.adaptiveM)
+        lines.push_back(fmt::format(
+            "  parts: beauty (R,G,B)  vbuffers (deep: m_p in 1..{} samples R,G,B,count,Z,A{})  "
             "moments (count, mean.RGB, variance.RGB)  features ({})",
-            h.M, features));
+            h.M, h.aovs.empty() ? "" : ", aov.*", features));
     else
         lines.push_back(fmt::format(
             "  parts: beauty (R,G,B)  buffers ({} x b###.R,G,B,count)  moments (count, mean.RGB, "

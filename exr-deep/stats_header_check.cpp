@@ -202,7 +202,9 @@ class Checker {
     bool checkVersionFirst();
     bool checkParts();
     bool checkAttributes(StatsHeader& hdr);
-    bool checkChannels(int part, int M);
+    /// The channels of part `part` (0..3) for M; `compact` adds part moments' spread channels,
+    /// `aovs` the deep part's AOV channels (version 6).
+    bool checkChannels(int part, int M, bool compact, const std::vector<AovChannel>& aovs);
     /// Version 5: the AOV attributes of part `aovs` into hdr.aovs (hasAovs_).
     bool checkAovAttributes(StatsHeader& hdr);
     /// Part `aovs` has exactly the channels bNNN.<name> of hdr's M and AOVs.
@@ -220,6 +222,8 @@ class Checker {
     int nparts_ = 0;
     bool adaptive_ = false;
     bool hasPajot_ = false, hasRecords_ = false, hasAovs_ = false;
+    /// The part carrying the AOV attributes: `aovs`, or (version 6, adaptive layout) `vbuffers`.
+    int aovPart_ = layout::kAovs;
     const char* const* names_ = layout::kPartNames;
 };
 
@@ -377,6 +381,15 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
                                         layout::kAttrBeautyChannels, beauty.size()));
             for (size_t c = 0; c < 3; ++c) h.beautyNames[c] = beauty[c];
         }
+        // Version 6 on: a compact file says so, with its rule, on every part.
+        if (version >= kStatsFormatVersionCompact && attr(part, layout::kAttrCompact) != nullptr) {
+            if (!stringAttr(part, layout::kAttrCompact, h.compactRule)) return false;
+            if (h.compactRule.empty())
+                return fail(fmt::format("part '{}': {} is empty (it names the rule that chose "
+                                        "the pixels keeping their buffers)",
+                                        pn, layout::kAttrCompact));
+            h.compact = true;
+        }
         h.formatVersion = version;
         h.M = M;
         h.spp = spp;
@@ -419,11 +432,22 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
                 return differs(layout::kAttrBeautyChannels, h.beautyNames[c], h0.beautyNames[c]);
         if (h.beautyPart != h0.beautyPart)
             return differs(layout::kAttrBeautyPart, h.beautyPart, h0.beautyPart);
+        if (h.compactRule != h0.compactRule)
+            return differs(layout::kAttrCompact, h.compactRule, h0.compactRule);
     }
     // Version 5: part 0 carries the source metadata (opaque text), part aovs the AOV list.
     if (h0.formatVersion >= kStatsFormatVersionAovs &&
         !stringAttr(0, layout::kAttrSourceMetadata, h0.sourceMetadata))
         return false;
+    // Version 6: AOVs of a file with the adaptive layout are channels of part vbuffers, which
+    // then carries the AOV list.
+    if (adaptive_ && h0.formatVersion >= kStatsFormatVersionCompact &&
+        attr(layout::kBuffers, layout::kAttrAovNames) != nullptr) {
+        aovPart_ = layout::kBuffers;
+        if (!checkAovAttributes(h0)) return false;
+    }
+    if (h0.compact && !adaptive_)
+        return fail(fmt::format("{} in a file without part 'vbuffers'", layout::kAttrCompact));
     if (hasAovs_ && !checkAovAttributes(h0)) return false;
     if (h0.formatVersion < 1 || h0.formatVersion > kStatsFormatVersion)
         return fail(fmt::format("unsupported {} {} (this reader knows 1..{})",
@@ -431,7 +455,8 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
     if (h0.adaptiveM != adaptive_)  // part 0 decided the part names; cannot differ, but be sure
         return fail(fmt::format("{} disagrees with the parts", layout::kAttrAdaptiveM));
     if (h0.spp < 0) return fail(fmt::format("negative {} {}", layout::kAttrSpp, h0.spp));
-    if (std::string problem; !layout::knownAssignment(h0.assignment, h0.adaptiveM, problem))
+    if (std::string problem;
+        !layout::knownAssignment(h0.assignment, h0.adaptiveM, problem, h0.compact))
         return fail(fmt::format("{}: {}", layout::kAttrAssignment, problem));
     if (std::string problem; !layout::knownVariance(h0.variance, problem))
         return fail(fmt::format("{}: {}", layout::kAttrVariance, problem));
@@ -448,8 +473,8 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
 }
 
 bool Checker::checkAovAttributes(StatsHeader& hdr) {
-    const int part = layout::kAovs;
-    const std::string pn = layout::kPartAovs;
+    const int part = aovPart_;
+    const std::string pn = label(part);
     std::vector<std::string> names, classes, parts;
     if (!stringVectorAttr(part, layout::kAttrAovNames, names) ||
         !stringVectorAttr(part, layout::kAttrAovClasses, classes) ||
@@ -512,7 +537,7 @@ bool Checker::checkAovChannels(const StatsHeader& hdr) {
     return true;
 }
 
-bool Checker::checkChannels(int part, int M) {
+bool Checker::checkChannels(int part, int M, bool compact, const std::vector<AovChannel>& aovs) {
     const char* pn = names_[part];
     const exr_attr_chlist_t* chlist = nullptr;
     if (exr_get_channels(c_, part, &chlist) != EXR_ERR_SUCCESS || chlist == nullptr)
@@ -526,18 +551,22 @@ bool Checker::checkChannels(int part, int M) {
         if (isBufferCountChannel(name.c_str())) ++groups;
     }
     if (adaptive_ && part == layout::kBuffers) {
-        for (const char* name : layout::kDeepChannels) {
+        std::vector<std::string> names(std::begin(layout::kDeepChannels),
+                                       std::end(layout::kDeepChannels));
+        for (const AovChannel& a : aovs) names.push_back(layout::aovDeepChannel(a.name));
+        for (const std::string& name : names) {
             const auto it = inFile.find(name);
             if (it == inFile.end())
-                return fail(fmt::format("part '{}': missing channel '{}'", pn, name));
+                return fail(
+                    fmt::format("part '{}': missing channel '{}'", pn, printable(name)));
             const exr_attr_chlist_entry_t& e = *it->second;
             if (e.pixel_type != EXR_PIXEL_FLOAT)
                 return fail(
                     fmt::format("part '{}': channel '{}' has wrong type {} (expected FLOAT)", pn,
-                                name, pixelTypeName(e.pixel_type)));
+                                printable(name), pixelTypeName(e.pixel_type)));
             if (e.x_sampling != 1 || e.y_sampling != 1)
                 return fail(fmt::format("part '{}': channel '{}' has sampling {}x{} (expected 1x1)",
-                                        pn, name, e.x_sampling, e.y_sampling));
+                                        pn, printable(name), e.x_sampling, e.y_sampling));
             inFile.erase(it);
         }
         if (!inFile.empty())
@@ -548,7 +577,8 @@ bool Checker::checkChannels(int part, int M) {
     if (part == layout::kBuffers && groups != M)
         return fail(fmt::format("part '{}' has {} buffer channel groups (bNNN.count) but {} = {}",
                                 pn, groups, layout::kAttrM, M));
-    const std::vector<layout::ChannelPlace> expected = layout::partChannels(part, M);
+    const std::vector<layout::ChannelPlace> expected =
+        layout::partChannels(part, M, false, compact);
     for (const layout::ChannelPlace& c : expected) {
         const auto it = inFile.find(c.name);
         if (it == inFile.end())
@@ -595,8 +625,10 @@ bool Checker::run(const ReadLimits& limits, StatsHeader& hdr) {
     // rows when streamed, every row when read whole: StatsFileReader::read checks that), so here
     // the limit only refuses an image whose single row cannot be read.
     const int64_t bytesPerPixel =
-        hdr.adaptiveM ? int64_t(layout::floatsPerPixel(1) * sizeof(float) + sizeof(uint64_t))
-                      : int64_t(layout::floatsPerPixel(hdr.M, hdr.aovs.size()) * sizeof(float));
+        hdr.adaptiveM
+            ? int64_t(layout::floatsPerPixel(1, hdr.aovs.size(), hdr.compact) * sizeof(float) +
+                      sizeof(uint64_t))
+            : int64_t(layout::floatsPerPixel(hdr.M, hdr.aovs.size()) * sizeof(float));
     if (w > limits.maxBytes / bytesPerPixel)
         return fail(fmt::format(
             "a row of image {}x{} with {} = {}{} needs {}{} bytes, exceeding the limit of {} bytes",
@@ -604,7 +636,8 @@ bool Checker::run(const ReadLimits& limits, StatsHeader& hdr) {
             hdr.aovs.empty() ? std::string() : fmt::format(" and {} AOVs", hdr.aovs.size()),
             hdr.adaptiveM ? "at least " : "", double(w) * double(bytesPerPixel), limits.maxBytes));
     for (int part = 0; part < layout::kPartCount; ++part)
-        if (!checkChannels(part, hdr.M)) return false;
+        if (!checkChannels(part, hdr.M, hdr.compact, hdr.adaptiveM ? hdr.aovs : std::vector<AovChannel>()))
+            return false;
     if (hasAovs_ && !checkAovChannels(hdr)) return false;
 
     hdr.hasPajot = hasPajot_;

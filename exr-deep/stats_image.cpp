@@ -38,7 +38,11 @@ bool checkHeader(const StatsHeader& h, std::string& problem) {
         problem = fmt::format("negative spp {}", h.spp);
         return false;
     }
-    if (!layout::knownAssignment(h.assignment, h.adaptiveM, problem)) return false;
+    if (!layout::knownAssignment(h.assignment, h.adaptiveM, problem, h.compact)) return false;
+    if (h.compact && (!h.adaptiveM || h.compactRule.empty())) {
+        problem = "a compact file has the adaptive layout and names its rule";
+        return false;
+    }
     if (!layout::knownVariance(h.variance, problem)) return false;
     if (h.features > kAllFeatures) {
         problem = fmt::format("feature bits {:#x} beyond the known features", h.features);
@@ -91,7 +95,7 @@ bool allocateArrays(StatsImage& img, size_t buffers, std::vector<uint64_t>&& off
     const size_t pixels = size_t(header.width) * size_t(header.height);  // < 2^62
     const size_t maxFloats = std::numeric_limits<size_t>::max() / sizeof(float);
     const size_t perPixel = layout::floatsPerPixel(0);
-    const size_t A = header.aovs.size();  // <= kMaxAovs (checkHeader); 0 with adaptive M
+    const size_t A = header.aovs.size();  // <= kMaxAovs (checkHeader)
     if (pixels > maxFloats / perPixel || buffers > (maxFloats - pixels * perPixel) / (4 + A)) {
         err =
             fmt::format("cannot allocate statistics image: {}x{} pixels with {} buffers overflows",
@@ -113,6 +117,7 @@ bool allocateArrays(StatsImage& img, size_t buffers, std::vector<uint64_t>&& off
         t.depth.assign(pixels, std::numeric_limits<float>::infinity());
         t.coverage.assign(pixels, 0.f);
         t.aov.assign(buffers * A, 0.f);
+        if (header.compact) t.spread.assign(pixels * size_t(kSpreadFloats), 0.f);
         t.bufferOffset = std::move(offsets);
         img = std::move(t);
     } catch (const std::exception& e) {  // bad_alloc, length_error
@@ -154,9 +159,11 @@ bool resizeParts(StatsImage& img, unsigned parts, size_t buffers, std::vector<ui
         fit(img.albedo, pixels * 3, feat);
         fit(img.depth, pixels, feat);
         fit(img.coverage, pixels, feat);
-        // Part aovs: fixed M only (the header check refuses AOVs with adaptive M).
-        fit(img.aov, h.adaptiveM ? 0 : pixels * size_t(h.M) * h.aovs.size(),
+        // Part aovs (fixed M), or the AOV channels of the deep part (adaptive layout, read with
+        // the buffers: `buffers` counts them).
+        fit(img.aov, (h.adaptiveM ? buffers : pixels * size_t(h.M)) * h.aovs.size(),
             (parts & kStatsPartAovs) != 0);
+        fit(img.spread, pixels * size_t(kSpreadFloats), mom && h.compact);
     } catch (const std::exception& e) {  // bad_alloc, length_error
         err = fmt::format("cannot allocate {} rows of {} pixels with {} buffers: {}", h.height,
                           h.width, buffers, e.what());
@@ -255,11 +262,14 @@ bool StatsImage::checkBufferLayout(std::string& why) const {
         }
         for (size_t p = 0; p < pixels; ++p) {
             const uint64_t a = bufferOffset[p], b = bufferOffset[p + 1];
-            if (b <= a || b - a > uint64_t(h.M)) {
-                why = fmt::format("pixel ({}, {}) has {} sub-buffers, outside 1..{}",
+            // A compact file's pixel holds its M buffers or their mean alone.
+            if (b <= a || b - a > uint64_t(h.M) || (h.compact && b - a != 1 && b - a != uint64_t(h.M))) {
+                why = fmt::format("pixel ({}, {}) has {} sub-buffers, {}",
                                   h.originX + int64_t(p % size_t(h.width)),
                                   h.originY + int64_t(p / size_t(h.width)),
-                                  b >= a ? int64_t(b - a) : -int64_t(a - b), h.M);
+                                  b >= a ? int64_t(b - a) : -int64_t(a - b),
+                                  h.compact ? fmt::format("neither 1 nor M = {} (compact)", h.M)
+                                            : fmt::format("outside 1..{}", h.M));
                 return false;
             }
         }
@@ -273,8 +283,7 @@ bool StatsImage::checkBufferLayout(std::string& why) const {
     }
     // Part aovs: empty (not read, or no AOVs) or one value per buffer and AOV.
     const size_t A = h.aovs.size();
-    if (!aov.empty() &&
-        (h.adaptiveM || A == 0 || buffers > aov.max_size() / A || aov.size() != buffers * A)) {
+    if (!aov.empty() && (A == 0 || buffers > aov.max_size() / A || aov.size() != buffers * A)) {
         why = fmt::format("AOV array holds {} values, expected {} buffers x {} AOVs", aov.size(),
                           buffers, A);
         return false;
@@ -297,8 +306,18 @@ bool validateStats(const StatsImage& img, unsigned parts, const std::string& wha
     const size_t pixels = img.pixelCount();
     const bool buffers = (parts & kStatsPartBuffers) != 0,
                moments = (parts & kStatsPartMoments) != 0;
-    if (parts & kStatsPartAovs) {
-        const size_t A = h.aovs.size(), m = h.adaptiveM ? 0 : size_t(h.M);
+    if ((parts & kStatsPartAovs) && h.adaptiveM) {
+        // The deep part's AOV channels: one value per buffer and AOV, read with the buffers.
+        const size_t A = h.aovs.size();
+        const size_t k = img.bufferOffset.size() == pixels + 1 ? size_t(img.bufferOffset[pixels])
+                                                               : size_t(0);
+        if (img.aov.size() != k * A) {
+            err = fmt::format("{}: AOV array holds {} floats, expected {} buffers x {} AOVs", what,
+                              img.aov.size(), k, A);
+            return false;
+        }
+    } else if (parts & kStatsPartAovs) {
+        const size_t A = h.aovs.size(), m = size_t(h.M);
         if (pixels > img.aov.max_size() / (m * A + 1) || img.aov.size() != pixels * m * A) {
             err = fmt::format(
                 "{}: array of part '{}' holds {} floats, expected {} ({} pixels x M = {} x {} "
@@ -309,7 +328,8 @@ bool validateStats(const StatsImage& img, unsigned parts, const std::string& wha
     }
     for (int part = 0; part < layout::kPartCount; ++part) {
         if (!(parts & (1u << part))) continue;  // StatsParts bits follow the part order
-        for (const layout::ChannelPlace& c : layout::partChannels(part, h.M, h.adaptiveM)) {
+        for (const layout::ChannelPlace& c :
+             layout::partChannels(part, h.M, h.adaptiveM, h.compact)) {
             if (c.offset != 0) continue;  // one check per array
             const std::vector<float>& a = layout::arrayOf(img, c.array);
             if (pixels > a.max_size() / c.stride || a.size() != pixels * c.stride) {

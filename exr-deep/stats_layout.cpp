@@ -12,7 +12,10 @@ std::string bufferChannel(int j, const char* component) {
     return fmt::format("b{:03d}.{}", j, component);
 }
 
-bool knownAssignment(const std::string& assignment, bool adaptiveM, std::string& problem) {
+std::string aovDeepChannel(const std::string& name) { return "aov." + name; }
+
+bool knownAssignment(const std::string& assignment, bool adaptiveM, std::string& problem,
+                     bool compact) {
     if (assignment == kAssignmentRoundRobin) return true;
     if (assignment == kAssignmentLeastCount) {
         if (adaptiveM) return true;
@@ -20,7 +23,7 @@ bool knownAssignment(const std::string& assignment, bool adaptiveM, std::string&
         return false;
     }
     if (assignment == kAssignmentPerFile) {
-        if (!adaptiveM) return true;
+        if (!adaptiveM || compact) return true;
         problem = fmt::format("sample assignment '{}' needs a fixed M", printable(assignment));
         return false;
     }
@@ -87,6 +90,7 @@ bool parseFeatureList(const std::string& text, unsigned& bits, std::string& prob
 }
 
 int requiredFormatVersion(const StatsHeader& h) {
+    if (h.compact || (h.adaptiveM && !h.aovs.empty())) return kStatsFormatVersionCompact;
     if (!h.aovs.empty() || h.beautyNames != std::array<std::string, 3>{"R", "G", "B"} ||
         !h.beautyPart.empty() || !h.sourceMetadata.empty())
         return kStatsFormatVersionAovs;
@@ -102,7 +106,7 @@ int requiredFormatVersion(const StatsHeader& h) {
 
 namespace mcstat::layout {
 
-std::vector<ChannelPlace> partChannels(int part, int M, bool adaptiveM) {
+std::vector<ChannelPlace> partChannels(int part, int M, bool adaptiveM, bool compact) {
     if (adaptiveM && part == kBuffers) return {};
     const size_t m = size_t(M);
     switch (part) {
@@ -120,11 +124,17 @@ std::vector<ChannelPlace> partChannels(int part, int M, bool adaptiveM) {
             }
             return ch;
         }
-        case kMoments:
-            return {{"count", Array::Count, 0, 1},         {"mean.R", Array::Mean, 0, 3},
-                    {"mean.G", Array::Mean, 1, 3},         {"mean.B", Array::Mean, 2, 3},
-                    {"variance.R", Array::Variance, 0, 3}, {"variance.G", Array::Variance, 1, 3},
-                    {"variance.B", Array::Variance, 2, 3}};
+        case kMoments: {
+            std::vector<ChannelPlace> ch = {
+                {"count", Array::Count, 0, 1},         {"mean.R", Array::Mean, 0, 3},
+                {"mean.G", Array::Mean, 1, 3},         {"mean.B", Array::Mean, 2, 3},
+                {"variance.R", Array::Variance, 0, 3}, {"variance.G", Array::Variance, 1, 3},
+                {"variance.B", Array::Variance, 2, 3}};
+            if (compact)
+                for (size_t i = 0; i < size_t(kSpreadFloats); ++i)
+                    ch.push_back({kSpreadChannels[i], Array::Spread, i, size_t(kSpreadFloats)});
+            return ch;
+        }
         case kFeatures:
             return {{"N.X", Array::Normal, 0, 3},      {"N.Y", Array::Normal, 1, 3},
                     {"N.Z", Array::Normal, 2, 3},      {"P.X", Array::Position, 0, 3},
@@ -149,10 +159,17 @@ std::vector<ChannelPlace> aovChannels(const StatsHeader& h) {
     return ch;
 }
 
-size_t floatsPerPixel(int M, size_t aovs) { return 3 + 4 * size_t(M) + 7 + 11 + size_t(M) * aovs; }
+size_t floatsPerPixel(int M, size_t aovs, bool compact) {
+    return 3 + 4 * size_t(M) + 7 + 11 + size_t(M) * aovs + (compact ? size_t(kSpreadFloats) : 0);
+}
 
 uint64_t aovChannelListBytes(const StatsHeader& h) {
     if (h.aovs.empty()) return 0;
+    if (h.adaptiveM) {  // part vbuffers: its six channels and "aov." + name per AOV, once
+        uint64_t bytes = 6 * 24 + 1;
+        for (const AovChannel& a : h.aovs) bytes += 4 + uint64_t(a.name.size()) + 1 + 16;
+        return bytes;
+    }
     uint64_t names = 0;  // "bNNN." + name + NUL + 16 bytes, per AOV and buffer
     for (const AovChannel& a : h.aovs) names += 5 + uint64_t(a.name.size()) + 1 + 16;
     return names * uint64_t(std::max(h.M, 0)) + 1;
@@ -203,11 +220,6 @@ bool checkAovFields(const StatsHeader& h, std::string& problem) {
         return false;
     }
     if (h.aovs.empty()) return true;
-    if (h.adaptiveM) {
-        problem = fmt::format("{} AOV channels with adaptive M (part 'aovs' needs a fixed M)",
-                              h.aovs.size());
-        return false;
-    }
     if (h.aovs.size() > size_t(kMaxAovs)) {
         problem = fmt::format("{} AOV channels, more than {}", h.aovs.size(), kMaxAovs);
         return false;
@@ -238,9 +250,9 @@ bool checkAovFields(const StatsHeader& h, std::string& problem) {
     }
     if (const uint64_t bytes = aovChannelListBytes(h); bytes > kMaxStructuredBytes) {
         problem = fmt::format(
-            "{} AOV channels x M = {} need a channel list of {} bytes in part 'aovs', more than "
+            "{} AOV channels x M = {} need a channel list of {} bytes in part '{}', more than "
             "readers accept ({})",
-            h.aovs.size(), h.M, bytes, kMaxStructuredBytes);
+            h.aovs.size(), h.M, bytes, h.adaptiveM ? "vbuffers" : "aovs", kMaxStructuredBytes);
         return false;
     }
     return true;
@@ -272,6 +284,8 @@ auto& arrayOfImpl(Img& img, Array a) {
             return img.depth;
         case Array::Aov:
             return img.aov;
+        case Array::Spread:
+            return img.spread;
         case Array::Coverage:
             break;
     }

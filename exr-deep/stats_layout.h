@@ -26,14 +26,20 @@ inline const char* const* partNames(bool adaptiveM) {
 }
 
 /// Version 5: the optional flat part `aovs` directly after the four (fixed M only), present iff
-/// StatsHeader::aovs is non-empty. Its StatsParts bit (kStatsPartAovs) is 1 << kAovs, and in a
+/// StatsHeader::aovs is non-empty and M is fixed (version 6 keeps the AOVs of a file with the
+/// adaptive layout in the deep part `vbuffers`, hasAovPart). Its StatsParts bit (kStatsPartAovs) is 1 << kAovs, and in a
 /// file that has it, it is part number kAovs.
 inline constexpr int kAovs = 4;
 inline constexpr const char* kPartAovs = "aovs";
+/// Whether a file of `h` has the flat part `aovs`: AOVs with a fixed M.
+inline bool hasAovPart(const StatsHeader& h) { return !h.aovs.empty() && !h.adaptiveM; }
+/// Version 6: the deep channel of AOV `name` in part `vbuffers` ("aov.<name>": the prefix keeps
+/// an AOV called `A`, `Z` or `count` apart from the part's own channels).
+std::string aovDeepChannel(const std::string& name);
 /// Number of StatsParts bits: the four parts and `aovs` (bit `part` is kStatsPart* of that part).
 inline constexpr int kPartBits = 5;
 /// Index in the file of the first version-4 part (pajot, or records): after the four and `aovs`.
-inline int firstExtraPart(const StatsHeader& h) { return kPartCount + (h.aovs.empty() ? 0 : 1); }
+inline int firstExtraPart(const StatsHeader& h) { return kPartCount + (hasAovPart(h) ? 1 : 0); }
 
 /// Version 4: the optional parts after the four (and `aovs`), in this order when present (pajot
 /// and modes always together).
@@ -60,6 +66,12 @@ inline constexpr const char* kAttrColorSpace = "mcstat:colorSpace";        // st
 inline constexpr const char* kAttrSeeds = "mcstat:seeds";                  // string
 /// Version 2 on: int 0 (fixed M, part "buffers") or 1 (adaptive M, part "vbuffers").
 inline constexpr const char* kAttrAdaptiveM = "mcstat:adaptiveM";
+/// Version 6 on: string, present exactly in compact files: the rule that chose the pixels keeping
+/// their buffers (StatsHeader::compactRule), never empty.
+inline constexpr const char* kAttrCompact = "mcstat:compact";
+/// Version 6, part moments of a compact file: StatsImage::spread's channels, in its order.
+inline constexpr const char* kSpreadChannels[kSpreadFloats] = {
+    "spread.buffers", "spread.RR", "spread.GG", "spread.BB", "spread.RG", "spread.RB", "spread.GB"};
 /// OpenEXR's part version attribute (int, 1): the Core API wants it on every part once deep parts
 /// exist.
 inline constexpr const char* kAttrPartVersion = "version";
@@ -102,7 +114,9 @@ using mcstat::kAssignmentPerFile;
 using mcstat::kAssignmentRoundRobin;
 /// Whether `assignment` is a rule this reader knows for a file with fixed or adaptive M; if not,
 /// `problem` says why in a phrase.
-bool knownAssignment(const std::string& assignment, bool adaptiveM, std::string& problem);
+/// A compact file (version 6) keeps its full file's rule: round robin or per file.
+bool knownAssignment(const std::string& assignment, bool adaptiveM, std::string& problem,
+                     bool compact = false);
 /// Whether `variance` is a known mcstat:variance value; if not, `problem` says why.
 bool knownVariance(const std::string& variance, std::string& problem);
 
@@ -119,7 +133,8 @@ enum class Array {
     Albedo,
     Depth,
     Coverage,
-    Aov
+    Aov,
+    Spread
 };
 
 /// One FLOAT channel: its name and its place in the pixel-interleaved array
@@ -136,7 +151,9 @@ std::string bufferChannel(int j, const char* component);
 
 /// Every channel of part `part` for a file with M sub-buffers, in a fixed order. For the deep part
 /// "vbuffers" use kDeepChannels (its flat channel list is empty).
-std::vector<ChannelPlace> partChannels(int part, int M, bool adaptiveM = false);
+/// A compact file's part moments adds kSpreadChannels (`compact`).
+std::vector<ChannelPlace> partChannels(int part, int M, bool adaptiveM = false,
+                                       bool compact = false);
 
 /// The channels of part `aovs` for `h` (fixed M): bNNN.<name> of buffer j and AOV a, element
 /// offset j * A + a of the M * A floats per pixel; buffers in order, AOVs in header order. Empty
@@ -146,7 +163,8 @@ std::vector<ChannelPlace> aovChannels(const StatsHeader& h);
 /// Number of floats per pixel over all parts (3 + 4M + 7 + 11, plus M * A for `aovs` AOVs). For
 /// adaptive M (no AOVs), the floats of the flat parts plus 4 per buffer is floatsPerPixel(0) + 4 *
 /// sum(m_p) / pixels.
-size_t floatsPerPixel(int M, size_t aovs = 0);
+/// A compact file adds kSpreadFloats (`compact`).
+size_t floatsPerPixel(int M, size_t aovs = 0, bool compact = false);
 
 /// The array of `img` a channel refers to.
 std::vector<float>& arrayOf(StatsImage& img, Array a);
@@ -155,6 +173,12 @@ const std::vector<float>& arrayOf(const StatsImage& img, Array a);
 }  // namespace mcstat::layout
 
 namespace mcstat::detail {
+/// The parts a read of `parts` reads: with the adaptive layout the AOVs live in the deep part
+/// `vbuffers`, so asking for them reads the buffers too.
+inline unsigned partsToRead(const StatsHeader& h, unsigned parts) {
+    return h.adaptiveM && !h.aovs.empty() && (parts & kStatsPartAovs) ? parts | kStatsPartBuffers
+                                                                       : parts;
+}
 /// Sizes the arrays of the parts in `parts` (StatsParts) for img.header's pixels and `buffers`
 /// sub-buffers in total, keeping their storage; `offsets` (adaptive M) moves into bufferOffset.
 /// The arrays of other parts are emptied. Contents are unspecified: the caller overwrites them.

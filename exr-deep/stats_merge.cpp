@@ -190,6 +190,17 @@ bool mergeHeaders(const std::vector<const StatsHeader*>& in, StatsHeader& out, s
         err = "cannot merge: no input";
         return false;
     }
+    // Whether a pixel of the merge is heavy-tailed depends on its merged buffers, which a compact
+    // file dropped where its own were light-tailed: the merge could not know which to keep.
+    for (size_t i = 0; i < in.size(); ++i)
+        if (in[i]->compact) {
+            err = fmt::format(
+                "cannot merge: {} is a compact file, whose pixels without heavy tails keep only "
+                "their mean, and whether a merged pixel is heavy-tailed cannot be known without "
+                "its buffers: merge the full files, then --compact",
+                nameOf(i));
+            return false;
+        }
     for (size_t i = 1; i < in.size(); ++i)
         if (!checkCompatible(*in[0], *in[i], err)) {
             if (in.size() > 2 || !names.empty())

@@ -72,7 +72,7 @@ void checkSameFile(const Imf::MultiPartInputFile& in, const StatsHeader& h) {
     // Same open file as the header check; guard anyway against it changing under us.
     const int expected = layout::firstExtraPart(h) + (h.hasPajot ? 2 : 0) + (h.hasRecords ? 1 : 0);
     if (in.parts() != expected) throw std::runtime_error("file changed while reading");
-    if (!h.aovs.empty()) {
+    if (layout::hasAovPart(h)) {
         const Imf::Header& ph = in.header(layout::kAovs);
         if (ph.dataWindow() != windowOf(h) || !ph.hasName() || ph.name() != layout::kPartAovs ||
             ph.type() != Imf::SCANLINEIMAGE)
@@ -120,10 +120,11 @@ void readFlatParts(Imf::MultiPartInputFile& in, detail::FlatPartReader& flat, in
     std::vector<detail::PartSlices> core;
     for (int part = 0; part < layout::kPartBits; ++part) {
         if (!(parts & (1u << part)) || (h.adaptiveM && part == layout::kBuffers)) continue;
-        if (part == layout::kAovs && h.aovs.empty()) continue;  // no part aovs: nothing to read
+        // No part aovs (no AOVs, or they are in the deep part): nothing to read.
+        if (part == layout::kAovs && !layout::hasAovPart(h)) continue;
         const std::vector<layout::ChannelPlace> channels =
             part == layout::kAovs ? layout::aovChannels(h)
-                                  : layout::partChannels(part, h.M, h.adaptiveM);
+                                  : layout::partChannels(part, h.M, h.adaptiveM, h.compact);
         if (flat.handles(part)) {
             detail::PartSlices req;
             req.part = part;
@@ -183,11 +184,21 @@ bool readDeepCounts(Imf::MultiPartInputFile& in, const std::string& path, const 
                 layout::kPartNamesAdaptive[layout::kBuffers], m[p], h.M, layout::kAttrM);
             return false;
         }
+        if (h.compact && m[p] != 1 && m[p] != uint32_t(h.M)) {
+            err = fmt::format(
+                "{}: pixel ({}, {}): part '{}' holds {} sub-buffers in a compact file (1 or {} = "
+                "{})",
+                path, h.originX + int64_t(p % size_t(h.width)),
+                h.originY + int64_t(p / size_t(h.width)),
+                layout::kPartNamesAdaptive[layout::kBuffers], m[p], layout::kAttrM, h.M);
+            return false;
+        }
         total += m[p];
     }
     const double bytes =
-        double(layout::floatsPerPixel(0) * sizeof(float) + sizeof(uint64_t)) * double(pixels) +
-        double(total) * 4.0 * sizeof(float);
+        double(layout::floatsPerPixel(0, 0, h.compact) * sizeof(float) + sizeof(uint64_t)) *
+            double(pixels) +
+        double(total) * double(4 + h.aovs.size()) * sizeof(float);
     if (int64_t(total) > limits.maxDeepSamples || bytes > double(limits.maxBytes)) {
         err = fmt::format(
             "{}: part '{}' holds {} sub-buffers ({} bytes in memory), exceeding the limit of {} "
@@ -200,19 +211,23 @@ bool readDeepCounts(Imf::MultiPartInputFile& in, const std::string& path, const 
 }
 
 /// Adaptive M: reads the buffer means and counts of the block's rows of part "vbuffers" into
-/// `blk` (sized for the counts readDeepCounts returned); Z and A are not read. Throws on read
-/// errors.
-void readDeepBuffers(Imf::MultiPartInputFile& in, StatsImage& blk) {
+/// `blk` (sized for the counts readDeepCounts returned), and its AOV channels when `aovs`; Z and A
+/// are not read. Throws on read errors.
+void readDeepBuffers(Imf::MultiPartInputFile& in, StatsImage& blk, bool aovs) {
     const StatsHeader& h = blk.header;
     const size_t pixels = blk.pixelCount();
+    const size_t A = aovs ? h.aovs.size() : 0;
     std::vector<uint32_t> m(pixels);
     DeepFrameBufferSet fb(h, m.data());
     for (size_t c = 0; c < 4; ++c)
         fb.addChannel(layout::kDeepChannels[c], pixels, c < 3 ? 3 * sizeof(float) : sizeof(float));
+    for (size_t a = 0; a < A; ++a)
+        fb.addChannel(layout::aovDeepChannel(h.aovs[a].name), pixels, A * sizeof(float));
     for (size_t p = 0; p < pixels; ++p) {
         const size_t k = blk.bufferBegin(p);
         for (size_t c = 0; c < 3; ++c) fb.point(c, p, blk.bufferMean.data() + k * 3 + c);
         fb.point(3, p, blk.bufferCount.data() + k);
+        for (size_t a = 0; a < A; ++a) fb.point(4 + a, p, blk.aov.data() + k * A + a);
     }
     Imf::DeepScanLineInputPart dp(in, layout::kBuffers);
     dp.setFrameBuffer(fb.frameBuffer());
@@ -315,6 +330,7 @@ bool StatsFileReader::read(int firstRow, int rows, unsigned parts, StatsImage& b
                           im.path, firstRow, int64_t(firstRow) + rows - 1, parts, fh.height);
         return false;
     }
+    parts = detail::partsToRead(fh, parts);
     try {
         block.header = fh;
         block.header.height = rows;
@@ -325,8 +341,8 @@ bool StatsFileReader::read(int firstRow, int rows, unsigned parts, StatsImage& b
         // (rows = height) to the image, a streamed one to its block, so a file streamed a block
         // at a time is not refused for its whole size. Adaptive M: checked on the counts below.
         if (!h.adaptiveM) {
-            const double bytes =
-                double(pixels) * double(layout::floatsPerPixel(h.M, h.aovs.size()) * sizeof(float));
+            const double bytes = double(pixels) * double(layout::floatsPerPixel(h.M, h.aovs.size()) *
+                                                         sizeof(float));
             if (bytes > double(im.limits.maxBytes)) {
                 err = fmt::format(
                     "{}: rows {}..{} ({}x{} with M = {}{}) need {} bytes, exceeding "
@@ -358,7 +374,8 @@ bool StatsFileReader::read(int firstRow, int rows, unsigned parts, StatsImage& b
             err = im.path + ": " + allocErr;
             return false;
         }
-        if (h.adaptiveM && (parts & kStatsPartBuffers)) readDeepBuffers(*im.file, block);
+        if (h.adaptiveM && (parts & kStatsPartBuffers))
+            readDeepBuffers(*im.file, block, (parts & kStatsPartAovs) != 0);
         readFlatParts(*im.file, im.flat, firstRow, im.threads, parts, block);
     } catch (const std::bad_alloc&) {
         err = im.path + ": out of memory while reading pixels";

@@ -16,9 +16,9 @@ int StatsBlockSource::blockRows(unsigned parts, size_t budgetBytes) const {
     size_t floats = 0;  // per pixel, over the parts read (adaptive M: at M_max, an upper bound)
     if (parts & kStatsPartBeauty) floats += 3;
     if (parts & kStatsPartBuffers) floats += 4 * size_t(h.M) + (h.adaptiveM ? 2 : 0);
-    if (parts & kStatsPartMoments) floats += 7;
+    if (parts & kStatsPartMoments) floats += 7 + (h.compact ? size_t(kSpreadFloats) : 0);
     if (parts & kStatsPartFeatures) floats += 11;
-    if ((parts & kStatsPartAovs) && !h.adaptiveM) floats += size_t(h.M) * h.aovs.size();
+    if (parts & kStatsPartAovs) floats += size_t(h.M) * h.aovs.size();
     const size_t rowBytes = std::max<size_t>(1, floats * sizeof(float) * size_t(h.width)) *
                             size_t(std::max(1, blocksHeld()));
     const size_t chunk = size_t(std::max(1, chunkRows()));
@@ -53,6 +53,7 @@ bool MemoryStatsSource::read(int firstRow, int rows, unsigned parts, StatsImage&
                              std::string& err) {
     const StatsImage& img = *img_;
     if (!checkRange(img.header, name_, firstRow, rows, parts, err)) return false;
+    parts = detail::partsToRead(img.header, parts);
     if (std::string why; !img.checkBufferLayout(why)) {
         err = name_ + ": " + why;
         return false;
@@ -78,7 +79,7 @@ bool MemoryStatsSource::read(int firstRow, int rows, unsigned parts, StatsImage&
     for (int part = 0; part < layout::kPartCount; ++part) {
         if (!(parts & (1u << part))) continue;
         for (const layout::ChannelPlace& c :
-             layout::partChannels(part, img.header.M, img.header.adaptiveM)) {
+             layout::partChannels(part, img.header.M, img.header.adaptiveM, img.header.compact)) {
             if (c.offset != 0) continue;  // one copy per array
             const std::vector<float>& src = layout::arrayOf(img, c.array);
             std::vector<float>& dst = layout::arrayOf(block, c.array);
@@ -87,7 +88,16 @@ bool MemoryStatsSource::read(int firstRow, int rows, unsigned parts, StatsImage&
                       dst.begin());
         }
     }
-    if ((parts & kStatsPartAovs) && !block.aov.empty()) {  // fixed M: M * A values per pixel
+    if ((parts & kStatsPartAovs) && !block.aov.empty() && img.header.adaptiveM) {
+        const size_t A = img.header.aovs.size();
+        if (img.aov.size() != img.bufferCount.size() * A) {
+            err = fmt::format("{}: AOV array holds {} values, expected {}", name_, img.aov.size(),
+                              img.bufferCount.size() * A);
+            return false;
+        }
+        std::copy(img.aov.begin() + ptrdiff_t(k0 * A), img.aov.begin() + ptrdiff_t(k1 * A),
+                  block.aov.begin());
+    } else if ((parts & kStatsPartAovs) && !block.aov.empty()) {  // fixed M: M * A per pixel
         const size_t per = size_t(img.header.M) * img.header.aovs.size();
         if (img.aov.size() != img.pixelCount() * per) {
             err = fmt::format("{}: AOV array holds {} values, expected {}", name_, img.aov.size(),

@@ -78,6 +78,7 @@ Imf::Header commonHeader(const StatsHeader& h, const std::string& name, bool dee
         hdr.insert(layout::kAttrFeatures, Imf::StringAttribute(featureListText(h.features)));
         hdr.insert(layout::kAttrSources, Imf::StringAttribute(h.sources));
     }
+    if (h.compact) hdr.insert(layout::kAttrCompact, Imf::StringAttribute(h.compactRule));
     if (h.formatVersion >= kStatsFormatVersionAovs) {
         hdr.insert(layout::kAttrBeautyChannels, Imf::StringVectorAttribute(std::vector<std::string>(
                                                     h.beautyNames.begin(), h.beautyNames.end())));
@@ -90,34 +91,44 @@ Imf::Header commonHeader(const StatsHeader& h, const std::string& name, bool dee
 
 namespace {
 
+/// The AOV list attributes (version 5), on part `aovs` or (version 6) the deep part `vbuffers`.
+void insertAovAttributes(Imf::Header& hdr, const StatsHeader& h) {
+    std::vector<std::string> names, classes, parts;
+    for (const AovChannel& a : h.aovs) {
+        names.push_back(a.name);
+        classes.emplace_back(aovClassName(a.cls));
+        parts.push_back(a.part);
+    }
+    hdr.insert(layout::kAttrAovNames, Imf::StringVectorAttribute(names));
+    hdr.insert(layout::kAttrAovClasses, Imf::StringVectorAttribute(classes));
+    hdr.insert(layout::kAttrAovParts, Imf::StringVectorAttribute(parts));
+}
+
 std::vector<Imf::Header> makeHeaders(const StatsHeader& h) {
     std::vector<Imf::Header> headers;
     for (int part = 0; part < layout::kPartCount; ++part) {
         const bool deep = h.adaptiveM && part == layout::kBuffers;
         Imf::Header hdr = detail::commonHeader(h, layout::partNames(h.adaptiveM)[part], deep);
         if (part == layout::kBeauty) Imf::addChromaticities(hdr, Imf::Chromaticities());  // Rec.709
-        for (const layout::ChannelPlace& c : layout::partChannels(part, h.M, h.adaptiveM))
+        for (const layout::ChannelPlace& c :
+             layout::partChannels(part, h.M, h.adaptiveM, h.compact))
             hdr.channels().insert(c.name, Imf::Channel(Imf::FLOAT));
-        if (deep)
+        if (deep) {
             for (const char* name : layout::kDeepChannels)
                 hdr.channels().insert(name, Imf::Channel(Imf::FLOAT));
+            for (const AovChannel& a : h.aovs)
+                hdr.channels().insert(layout::aovDeepChannel(a.name), Imf::Channel(Imf::FLOAT));
+            if (!h.aovs.empty()) insertAovAttributes(hdr, h);
+        }
         if (part == layout::kBeauty && h.formatVersion >= kStatsFormatVersionAovs)
             hdr.insert(layout::kAttrSourceMetadata, Imf::StringAttribute(h.sourceMetadata));
         headers.push_back(std::move(hdr));
     }
-    if (!h.aovs.empty()) {  // version 5, fixed M: part aovs, M * A channels
+    if (layout::hasAovPart(h)) {  // version 5, fixed M: part aovs, M * A channels
         Imf::Header hdr = detail::commonHeader(h, layout::kPartAovs, false);
         for (const layout::ChannelPlace& c : layout::aovChannels(h))
             hdr.channels().insert(c.name, Imf::Channel(Imf::FLOAT));
-        std::vector<std::string> names, classes, parts;
-        for (const AovChannel& a : h.aovs) {
-            names.push_back(a.name);
-            classes.emplace_back(aovClassName(a.cls));
-            parts.push_back(a.part);
-        }
-        hdr.insert(layout::kAttrAovNames, Imf::StringVectorAttribute(names));
-        hdr.insert(layout::kAttrAovClasses, Imf::StringVectorAttribute(classes));
-        hdr.insert(layout::kAttrAovParts, Imf::StringVectorAttribute(parts));
+        insertAovAttributes(hdr, h);
         headers.push_back(std::move(hdr));
     }
     return headers;
@@ -139,8 +150,11 @@ void writeDeepBuffers(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
     for (size_t j = 0; j < zs.size(); ++j) zs[j] = float(j);
     std::vector<uint32_t> m(pixels);
     DeepFrameBufferSet fb(h, m.data());
+    const size_t A = h.aovs.size();
     for (size_t c = 0; c < 6; ++c)
         fb.addChannel(layout::kDeepChannels[c], pixels, c < 3 ? 3 * sizeof(float) : sizeof(float));
+    for (size_t a = 0; a < A; ++a)
+        fb.addChannel(layout::aovDeepChannel(h.aovs[a].name), pixels, A * sizeof(float));
     for (size_t p = 0; p < pixels; ++p) {
         const size_t k = blk.bufferBegin(p);
         m[p] = uint32_t(blk.buffersOf(p));
@@ -148,6 +162,7 @@ void writeDeepBuffers(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
         fb.point(3, p, blk.bufferCount.data() + k);
         fb.point(4, p, zs.data());
         fb.point(5, p, ones.data());
+        for (size_t a = 0; a < A; ++a) fb.point(6 + a, p, blk.aov.data() + k * A + a);
     }
     Imf::DeepScanLineOutputPart op(out, layout::kBuffers);
     op.setFrameBuffer(fb.frameBuffer());
@@ -158,16 +173,16 @@ void writeDeepBuffers(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
 /// part aovs; throws on failure.
 void writeRows(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
     const StatsHeader& h = blk.header;
-    const int parts = h.aovs.empty() ? layout::kPartCount : layout::kAovs + 1;
+    const int parts = layout::firstExtraPart(h);
     for (int part = 0; part < parts; ++part) {
         if (h.adaptiveM && part == layout::kBuffers) {
             writeDeepBuffers(out, blk);
             continue;
         }
         Imf::FrameBuffer fb;
-        for (const layout::ChannelPlace& c : part == layout::kAovs
-                                                 ? layout::aovChannels(h)
-                                                 : layout::partChannels(part, h.M, h.adaptiveM)) {
+        for (const layout::ChannelPlace& c :
+             part == layout::kAovs ? layout::aovChannels(h)
+                                   : layout::partChannels(part, h.M, h.adaptiveM, h.compact)) {
             const float* data = layout::arrayOf(blk, c.array).data() + c.offset;
             const size_t xStride = c.stride * sizeof(float);
             fb.insert(c.name, Imf::Slice(Imf::FLOAT, windowBase(data, h, xStride), xStride,
@@ -191,7 +206,7 @@ struct DeepBufferRows {
 /// what vbuffers needs besides `blk`).
 std::vector<detail::PartRows> partRows(const StatsImage& blk, DeepBufferRows& deep) {
     const StatsHeader& h = blk.header;
-    const int parts = h.aovs.empty() ? layout::kPartCount : layout::kAovs + 1;
+    const int parts = layout::firstExtraPart(h);
     std::vector<detail::PartRows> out(static_cast<size_t>(parts));
     for (int part = 0; part < parts; ++part) {
         detail::PartRows& rows = out[size_t(part)];
@@ -213,11 +228,17 @@ std::vector<detail::PartRows> partRows(const StatsImage& blk, DeepBufferRows& de
             rows.deep.push_back(
                 {layout::kDeepChannels[4], bytes(deep.zs.data()), sizeof(float), true});
             rows.deep.push_back({layout::kDeepChannels[5], bytes(&deep.one), 0, true});
+            // Version 6: the AOVs, A values per deep sample.
+            const size_t A = h.aovs.size();
+            for (size_t a = 0; a < A; ++a) {
+                rows.deep.push_back({layout::aovDeepChannel(h.aovs[a].name),
+                                     bytes(blk.aov.data() + k0 * A + a), A * sizeof(float), false});
+            }
             continue;
         }
-        for (const layout::ChannelPlace& c : part == layout::kAovs
-                                                 ? layout::aovChannels(h)
-                                                 : layout::partChannels(part, h.M, h.adaptiveM)) {
+        for (const layout::ChannelPlace& c :
+             part == layout::kAovs ? layout::aovChannels(h)
+                                   : layout::partChannels(part, h.M, h.adaptiveM, h.compact)) {
             const float* data = layout::arrayOf(blk, c.array).data() + c.offset;
             const size_t xStride = c.stride * sizeof(float);
             // The writer only reads through the slice.

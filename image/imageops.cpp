@@ -182,7 +182,8 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
     // AOVs (docs/aovs.md): the estimator's buffer weights, from the beauty, applied to every AOV.
     const size_t A = h.aovs.size();
     if (A > 0) {
-        if (h.adaptiveM || src.aov.size() != src.pixelCount() * size_t(h.M) * A) {
+        // One value per buffer and AOV (fixed M, or every pixel's own buffers: version 6).
+        if (src.aov.size() != src.bufferCount.size() * A) {
             dst.errorfmt("estimate {}: statistics image has {} AOV values for {} AOV channels",
                          est.name, src.aov.size(), A);
             return false;
@@ -219,18 +220,19 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
         for (int y = r.ybegin; y < r.yend; ++y)
             for (int x = r.xbegin; x < r.xend; ++x) {
                 const size_t p = size_t(y - h.originY) * size_t(h.width) + size_t(x - h.originX);
-                kernel.estimate(src.pixelBuffers(p), e, scratch);
+                const PixelBuffers pb = src.pixelBuffers(p);
+                kernel.estimate(pb, e, scratch);
                 float* px =
                     base +
                     (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
                 if (A > 0) {
-                    if (scratch.bufferWeight.size() != size_t(h.M)) {
+                    if (scratch.bufferWeight.size() != size_t(pb.M)) {
                         noWeights = true;
                         std::fill(px + firstAov, px + nch, 0.f);
                     } else {
-                        applyAovWeights(scratch.bufferWeight.data(), size_t(h.M),
-                                        src.aov.data() + p * size_t(h.M) * A, A, classes.data(),
-                                        px + firstAov, aovScratch);
+                        applyAovWeights(scratch.bufferWeight.data(), size_t(pb.M),
+                                        src.aov.data() + src.bufferBegin(p) * A, A,
+                                        classes.data(), px + firstAov, aovScratch);
                     }
                 }
                 px[0] = e.rgb[0];
@@ -372,7 +374,7 @@ bool filter3D(ImageBuf& dst, const StatsImage& src, const SpatialParams& params,
     roi = OIIO::roi_intersection(roi, full);
     const size_t A = h.aovs.size();
     if (A > 0) {
-        if (h.adaptiveM || src.aov.size() != src.pixelCount() * size_t(h.M) * A) {
+        if (src.aov.size() != src.bufferCount.size() * A) {
             dst.errorfmt("3D filter: statistics image has {} AOV values for {} AOV channels",
                          src.aov.size(), A);
             return false;
@@ -428,7 +430,7 @@ bool filter3D(ImageBuf& dst, const StatsImage& src, const SpatialParams& params,
         [&](const SpatialScratch& scratch, int list, int buffer) {
             const auto [xx, yy] = scratch.source[size_t(list)];
             const size_t k =
-                (size_t(yy) * size_t(h.width) + size_t(xx)) * size_t(h.M) + size_t(buffer);
+                src.bufferBegin(size_t(yy) * size_t(h.width) + size_t(xx)) + size_t(buffer);
             return src.aov.data() + k * A;
         });
     return true;

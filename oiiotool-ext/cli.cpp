@@ -396,6 +396,51 @@ bool cmdMerge(State& st, const std::string& cmd, const std::vector<std::string>&
     return true;
 }
 
+std::vector<ParamSpec> compactModifiers() {
+    return {realParam("margin", 0.0, 1.0, false, "0",
+                      "also keep the buffers of pixels whose Gini coefficient G is within this "
+                      "fraction of G-MoN's threshold: G * floor(M/2) >= 1 - margin"),
+            realParam("z", 0.0, HUGE_VAL, false, "0",
+                      "also keep the buffers of pixels with a buffer more than z robust sigmas "
+                      "(1.4826 MAD of the luminances) from their median; 0: off")};
+}
+
+/// --compact: the top statistics file as a compact one (FORMAT.md "Version 6"), computed block by
+/// block when used (-o, an operation), so a large file never sits in memory whole.
+bool cmdCompact(State& st, const std::string& cmd, const std::vector<std::string>&,
+                const Modifiers& mods, std::string& err) {
+    if (!needStatsOnTop(st, cmd, err)) return false;
+    Item& top = st.stack.back();
+    // An ingest's seeds are its renders' RGB hashes, known once read: the header needs them.
+    if (!settleIngest(st, top, err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
+    CompactRule rule;
+    rule.luma = luma();
+    rule.margin = modifierValue(compactModifiers(), mods, "margin").real;
+    rule.z = modifierValue(compactModifiers(), mods, "z").real;
+    Item out;
+    out.compactInput = std::make_shared<const Item>(top);
+    out.compactRule = rule;
+    // The header, and every refusal (adaptive M, already compact), before any pixel is read.
+    ItemSource src;
+    if (!openSource(st, *out.compactInput, src, err)) return false;
+    CompactStatsSource probe;
+    if (!probe.init(*src.root, rule, err, st.nthreads)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
+    if (top.header.hasPajot || top.header.hasRecords)
+        warning(format("{}: parts pajot, modes and records of {} are not kept in the compact file "
+                       "(resume or re-estimate from the full file)",
+                       cmd, top.name));
+    out.header = probe.header();
+    out.name = "compact(" + top.name + ")";
+    top = std::move(out);
+    return true;
+}
+
 // ---- stack and global options -------------------------------------------------------------------
 
 bool cmdDup(State& st, const std::string& cmd, const std::vector<std::string>&, const Modifiers&,
@@ -655,6 +700,11 @@ std::vector<Command> buildTable() {
                  "seeds) into one, as if one render had taken all their samples: sorted by seed, "
                  "then merged by a fixed tree, so any input order gives the same bytes",
                  mergeModifiers(), &cmdMerge, ""});
+    t.push_back({"--compact", 0, "",
+                 "Make the top statistics file compact: a pixel keeps its sub-buffers only where "
+                 "G-MoN would trim one (luminance or channel mode), else their mean, so G-MoN is "
+                 "bit for bit the full file's (FORMAT.md, docs/compact.md)",
+                 compactModifiers(), &cmdCompact, ""});
     t.push_back({"--plan", 0, "",
                  "Jung's error-rate planner: buffers M, windows and spp for fewer than one "
                  "overestimated pixel (docs/planner.md); needs no input",

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "mcstat/analysis/metrics.h"
+#include "mcstat/compact/compact.h"
 #include "mcstat/core/untrusted_text.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/render_layout.h"
@@ -29,6 +30,10 @@ struct Item {
     /// A merge not computed yet (`--merge`, one node of its tree): read block by block from these
     /// items, merged in this order, when used.
     std::vector<std::shared_ptr<const Item>> mergeInputs;
+    /// A compact file not computed yet (`--compact`): this item's rows, compacted by
+    /// `compactRule` block by block when used.
+    std::shared_ptr<const Item> compactInput;
+    CompactRule compactRule;
     /// Renders not read yet (`--ingest`): their headers, read block by block when used.
     std::shared_ptr<const IngestSource> ingest;
     std::shared_ptr<OIIO::ImageBuf> image;  ///< set for image items
@@ -176,6 +181,11 @@ const std::vector<ParamSpec>& compareModifiers();
 // Implemented in plan.cpp: Jung's error-rate planner (docs/planner.md); needs nothing on the stack.
 bool cmdPlan(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
              std::string&);
+/// --compact (cli.cpp): the top statistics file as a compact one, lazily (Item::compactInput).
+bool cmdCompact(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
+                std::string&);
+std::vector<ParamSpec> compactModifiers();
+
 /// --plan's modifiers, typed as registry parameters (m is a comma-separated list of such values).
 const std::vector<ParamSpec>& planParams();
 

@@ -236,6 +236,13 @@ bool pushFile(State& st, const std::string& path, std::string& err) {
 bool openSource(const State& st, const Item& item, ItemSource& src, std::string& err) {
     if (item.stats) {
         src.owned.push_back(std::make_unique<MemoryStatsSource>(item.stats, item.name));
+    } else if (item.compactInput) {
+        ItemSource in;
+        if (!openSource(st, *item.compactInput, in, err)) return false;
+        auto compact = std::make_unique<CompactStatsSource>();
+        if (!compact->init(*in.root, item.compactRule, err, st.nthreads)) return false;
+        for (auto& o : in.owned) src.owned.push_back(std::move(o));
+        src.owned.push_back(std::move(compact));
     } else if (item.ingest) {
         src.owned.push_back(item.ingest->clone(st.nthreads));
     } else if (!item.mergeInputs.empty()) {
@@ -262,7 +269,7 @@ bool openSource(const State& st, const Item& item, ItemSource& src, std::string&
 bool loadStats(State& st, Item& item, std::string& err) {
     if (item.stats) return true;
     auto img = std::make_shared<StatsImage>();
-    if (!item.mergeInputs.empty() || item.ingest) {
+    if (!item.mergeInputs.empty() || item.ingest || item.compactInput) {
         ItemSource src;
         if (!openSource(st, item, src, err) || !readAll(*src.root, *img, err)) return false;
     } else if (!readStatsFile(item.path, *img, err)) {

@@ -30,7 +30,10 @@ inline constexpr const char* kStatsExtension = "mcstat";
 /// Version 5 adds the input render's own layout (files made by `mcstat --ingest` from production
 /// renders): the part `aovs` (every AOV, alpha, light group, data pass and ID matte per
 /// sub-buffer), the input's channel names of the beauty and its metadata (FORMAT.md "Version 5").
-inline constexpr int kStatsFormatVersion = 5;
+/// Version 6 adds compact files (`mcstat --compact`, FORMAT.md "Version 6"): the layout of
+/// adaptive M decided after the samples are in, each pixel holding its M sub-buffers or one (their
+/// mean), AOVs in the deep part, and the between-buffer spread of every pixel in part moments.
+inline constexpr int kStatsFormatVersion = 6;
 /// The version a fixed-M file is written with by default (readable by version-1 readers).
 inline constexpr int kStatsFormatVersionFixed = 1;
 /// The first version that can hold adaptive M.
@@ -42,6 +45,8 @@ inline constexpr int kStatsFormatVersionProvenance = 3;
 inline constexpr int kStatsFormatVersionSamples = 4;
 /// The first version that can hold AOVs (part `aovs`), beauty channel names and source metadata.
 inline constexpr int kStatsFormatVersionAovs = 5;
+/// The first version that can hold compact files and AOVs with the deep part `vbuffers`.
+inline constexpr int kStatsFormatVersionCompact = 6;
 
 /// What an AOV channel holds, which decides how an operation combines its sub-buffers
 /// (docs/aovs.md). Every operation computes weights from the beauty once per output pixel; the
@@ -74,6 +79,13 @@ struct AovChannel {
 /// Longest AOV channel name a file may hold (bytes), and most AOV channels.
 inline constexpr size_t kMaxAovNameBytes = 200;
 inline constexpr int kMaxAovs = 4096;
+
+/// Floats per pixel of StatsImage::spread: buffers, then RR, GG, BB, RG, RB, GB.
+inline constexpr int kSpreadFloats = 7;
+/// Index of the covariance of channels c and d (0..2) in a pixel's spread values.
+inline constexpr int spreadIndex(int c, int d) {
+    return c == d ? 1 + c : (c + d == 1 ? 4 : (c + d == 2 ? 5 : 6));
+}
 
 /// Sample-to-buffer rules (FORMAT.md "Sample-to-buffer assignment").
 inline constexpr const char* kAssignmentRoundRobin = "roundrobin";  ///< sample i -> buffer i mod M
@@ -115,6 +127,13 @@ struct StatsHeader {
     /// buffers, stored in the deep part "vbuffers" instead of the flat part "buffers".
     bool adaptiveM = false;
     int64_t spp = 0;  ///< samples per pixel the producer aimed at (counts hold what was taken)
+    /// Version 6 (mcstat:compact): a compact file, made from a fixed-M file after its samples
+    /// were in (include/mcstat/compact/compact.h). The layout is adaptive M's (adaptiveM is set),
+    /// every pixel holding either its M buffers or one, the mean G-MoN returns for it; part
+    /// moments adds the between-buffer spread (StatsImage::spread). `compactRule` is the rule
+    /// that decided, as text (e.g. "gmon luma=0.2126,0.7152,0.0722 margin=0 z=0").
+    bool compact = false;
+    std::string compactRule;
     std::string assignment = "roundrobin";  ///< sample-to-buffer rule, see FORMAT.md
     std::string renderer;                   ///< producer name and version
     std::string colorSpace = "lin_rec709";  ///< OCIO colour space name of every RGB value
@@ -185,8 +204,15 @@ struct StatsImage {
     std::vector<float> albedo;    ///< [p*3 + c] mean first-hit albedo over all samples (miss = 0)
     std::vector<float> depth;     ///< [p] mean first-hit distance over hits (+inf if none)
     std::vector<float> coverage;  ///< [p] fraction of samples whose camera ray hit geometry
-    // part "aovs" (version 5, fixed M): AOV channel a of buffer j of pixel p, k = p * M + j.
+    // part "aovs" (version 5, fixed M), or the deep part "vbuffers" (version 6, adaptive layout):
+    // AOV channel a of buffer j of pixel p, k = bufferBegin(p) + j.
     std::vector<float> aov;  ///< [k * A + a], A = header.aovs.size()
+    /// Compact files only (read with part moments): per pixel the number of valid buffers M' of
+    /// the full file and the between-buffer covariance of R, G, B, each sum_j n_j (x_j - mean_x)
+    /// (y_j - mean_y) / (M' - 1) over the valid buffers with mean_x their count-weighted mean
+    /// (NaN when M' < 2), in the order kSpreadNames gives; what --compare needs of a pixel whose
+    /// buffers are not kept.
+    std::vector<float> spread;  ///< [p * kSpreadFloats + i]
 
     size_t pixelCount() const { return size_t(header.width) * size_t(header.height); }
     /// Index k of pixel p's first buffer in bufferCount (times 3 in bufferMean).
