@@ -888,7 +888,7 @@ std::vector<std::string> compareEvidence(const CompareResult& r, const CompareOp
                         r.adaptive ? "adaptive M gives smooth pixels one buffer"
                                    : "fewer samples than buffers"));
     if (r.tile == 0 && opt.tile > 0)
-        lines.push_back("no tile tests: adaptive M (buffer indices differ from pixel to pixel)");
+        lines.push_back("no tile tests: adaptive M or a compact file (buffer indices differ from pixel to pixel)");
     return lines;
 }
 

@@ -229,8 +229,11 @@ bool CompactStatsSource::read(int firstRow, int rows, unsigned /*parts*/, StatsI
         for (size_t p = size_t(b); p < size_t(e); ++p) {
             const PixelBuffers px = full_.pixelBuffers(p);
             const size_t k = out.bufferBegin(p);
-            bufferSpread(px, out.spread.data() + p * size_t(kSpreadFloats));
+            float* spread = out.spread.data() + p * size_t(kSpreadFloats);
+            bufferSpread(px, spread);
             if (keep[p]) {
+                // Its buffers give its spread; zeros cost nothing once compressed.
+                std::fill(spread + 1, spread + kSpreadFloats, 0.f);
                 std::copy(px.mean, px.mean + 3 * M, out.bufferMean.begin() + long(k * 3));
                 std::copy(px.count, px.count + M, out.bufferCount.begin() + long(k));
                 std::copy(full_.aov.begin() + long(p * M * A),

@@ -651,7 +651,17 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
     if (!st.verbose && !h.adaptiveM) return true;
     if (!loadStats(st, top, err)) return false;
     const StatsImage& s = *top.stats;
-    if (h.adaptiveM) {  // Jung's adaptive M: the per-pixel buffer counts
+    if (h.compact) {  // which pixels kept their buffers (FORMAT.md "Version 6")
+        size_t kept = 0;
+        for (size_t p = 0; p < s.pixelCount(); ++p) kept += h.M > 1 && s.buffersOf(p) == h.M;
+        const double px = double(std::max<size_t>(1, s.pixelCount()));
+        std::printf(
+            "  compact: %zu of %zu pixels (%.2f %%) keep their %d sub-buffers, the others their "
+            "mean; %zu sub-buffers = %.4f image buffers\n",
+            kept, s.pixelCount(), 100.0 * double(kept) / px, h.M, s.bufferCount.size(),
+            double(s.bufferCount.size()) / px);
+        if (!st.verbose) return true;
+    } else if (h.adaptiveM) {  // Jung's adaptive M: the per-pixel buffer counts
         int mmin = h.M, mmax = 0;
         for (size_t p = 0; p < s.pixelCount(); ++p) {
             mmin = std::min(mmin, s.buffersOf(p));

@@ -20,6 +20,7 @@
 #include <thread>
 
 #include "mcstat/color.h"
+#include "mcstat/compact/compact.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/params.h"
 #include "mcstat/core/progress.h"
@@ -124,6 +125,7 @@ struct CommandLine {
     bool reference = false, quiet = false, version = false, adaptive = false, keepSamples = false,
          timings = false;
     bool aovs = false;
+    bool compact = false;  ///< --compact: write a compact file (FORMAT.md "Version 6")
     std::string pajotText,
         pajotNText = "50", pajotDelayedText = "64", pajotTText = "2", pajotDeltaText = "0",
         maxSampleBytesText = std::to_string(mcstat::kDefaultMaxRecordBytes), resumePath;
@@ -221,6 +223,13 @@ void addPerSampleOptions(OIIO::ArgParse& ap, CommandLine& cl) {
             "they sum to the beauty sample by sample); with --keep-samples per sample too. Fixed "
             "M only")
         .action([&](OIIO::cspan<const char*>) { cl.aovs = true; });
+    ap.arg("--compact")
+        .help(
+            "write a compact file (format 6, docs/compact.md): a pixel keeps its sub-buffers only "
+            "where G-MoN would trim one, else their mean, decided once every sample is in; G-MoN "
+            "of the file equals the full file's bit for bit. Fixed M, without --keep-samples, "
+            "--pajot or --resume")
+        .action([&](OIIO::cspan<const char*>) { cl.compact = true; });
     ap.arg("--max-sample-bytes N")
         .help(
             "with --keep-samples: refuse renders whose records exceed N bytes before compression "
@@ -311,6 +320,20 @@ bool parseCommandLine(int argc, const char** argv, CommandLine& cl, int& exitCod
                         ": --reference writes a plain EXR image, not a statistics file: name it "
                         ".exr (the OIIO plugin would take a .mcstat for a statistics file)");
         return false;
+    }
+    if (cl.compact) {
+        const char* clash = cl.reference     ? "--reference (a plain image)"
+                            : cl.adaptive    ? "--adaptive-m (its buffers are chosen while rendering)"
+                            : cl.keepSamples ? "--keep-samples (a compact file keeps no samples)"
+                            : !cl.pajotText.empty() ? "--pajot (a compact file keeps no Pajot state)"
+                            : !cl.resumePath.empty()
+                                ? "--resume (resume the full file, then compact it with mcstat "
+                                  "--compact)"
+                                : nullptr;
+        if (clash != nullptr) {
+            exitCode = fail(fmt::format("--compact cannot be combined with {}", clash));
+            return false;
+        }
     }
     if (!cl.reference && ext != "mcstat" && !cl.quiet)
         fmt::print(stderr,
@@ -619,6 +642,14 @@ bool renderStatsOutput(const CommandLine& cl, Job& job, RenderStats& stats, Timi
     img.header.hasRecords = cl.keepSamples;
     img.header.formatVersion =
         std::max(img.header.formatVersion, mcstat::requiredFormatVersion(img.header));
+    if (cl.compact) {  // decided now that every sample is in (docs/compact.md)
+        mcstat::CompactRule rule;
+        std::string warning;
+        rule.luma = mcstat::lumaCoefficients(&warning);
+        mcstat::StatsImage small;
+        if (!mcstat::compactStats(img, rule, small, err, job.opt.threads)) return false;
+        return mcstat::writeStatsFile(cl.outPath, small, err);
+    }
     return mcstat::writeStatsFile(cl.outPath, img, ex, err);
 }
 

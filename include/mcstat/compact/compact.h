@@ -50,7 +50,8 @@ bool compactKeeps(const PixelBuffers& px, const CompactRule& rule, CompactScratc
 
 /// The spread of pixel `px` (StatsImage::spread, kSpreadFloats values): its valid buffers M'
 /// and the between-buffer covariance of R, G, B, sum_j n_j (x_j - mx) (y_j - my) / (M' - 1)
-/// with mx, my the count-weighted means, accumulated in double; NaN for M' < 2.
+/// with mx, my the count-weighted means, accumulated in double; NaN for M' < 2. A compact file
+/// stores it for the pixels without buffers and 0 for the others (their buffers give it).
 void bufferSpread(const PixelBuffers& px, float* out);
 
 /// A compact file's rows from a fixed-M source, a block at a time (memory follows the blocks).
