@@ -482,6 +482,7 @@ ImageSpec McstatInput::makeSpec(const std::vector<std::string>& channels,
     s.attribute("mcstat:formatVersion", h.formatVersion);
     s.attribute("mcstat:M", h.M);
     if (h.adaptiveM) s.attribute("mcstat:adaptiveM", 1);
+    if (h.compact) s.attribute("mcstat:compact", mcstat::printable(h.compactRule));
     s.attribute("mcstat:spp", int(std::min<int64_t>(h.spp, INT32_MAX)));
     s.attribute("mcstat:assignment", mcstat::printable(h.assignment));
     if (h.formatVersion >= mcstat::kStatsFormatVersionProvenance) {

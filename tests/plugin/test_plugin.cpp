@@ -583,6 +583,29 @@ TEST_F(Plugin, AovsAlphaAndProvenanceSurviveStockOiiotool) {
     }
 }
 
+TEST_F(Plugin, CompactFilesGiveTheFullFilesGMoNWithAovs) {
+    // docs/compact.md: stock oiiotool through the plugin on a compact file shows the same robust
+    // image, AOVs included, bit for bit, as on the full file; the compact file is smaller.
+    const std::string full = path("full.mcstat"), small = path("small.mcstat");
+    Result r = run(std::string(MCSTAT_RENDER_EXE) +
+                       " --scene tiny --spp 48 --M 9 --aovs --quiet -o " + quote(full),
+                   false);
+    ASSERT_EQ(r.code, 0) << r.err;
+    ASSERT_EQ(mcstat(quote(full) + " --compact -o " + quote(small)).code, 0);
+    EXPECT_LT(OIIO::Filesystem::file_size(small), OIIO::Filesystem::file_size(full));
+    r = run("oiiotool " + quote(full) + " --subimage 0 -o " + quote(path("a.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    r = run("oiiotool " + quote(small) + " --subimage 0 -o " + quote(path("b.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    const Pixels a = readExr(path("a.exr")), b = readExr(path("b.exr"));
+    EXPECT_EQ(a.channels, b.channels);
+    EXPECT_TRUE(samePixels(a, b));
+    r = run("oiiotool --info -v " + quote(small));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("mcstat:formatVersion: 6"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("mcstat:compact: \"gmon luma="), std::string::npos) << r.out;
+}
+
 TEST_F(Plugin, OverscanAndTheRendersMetadataSurviveStockOiiotool) {
     // Renders with overscan (data window 2 pixels beyond a 12x10 display window) and a frame
     // number, ingested: subimage 0, written by stock oiiotool, keeps both windows and the frame.
