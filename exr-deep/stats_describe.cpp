@@ -61,14 +61,14 @@ void describeAovs(const StatsHeader& h, std::vector<std::string>& lines) {
 
 std::vector<std::string> describeStatsHeader(const StatsHeader& h) {
     std::vector<std::string> lines;
-    if (h.compact)
-        lines.push_back(fmt::format("  compact: pixels keep their buffers by the rule \"{}\", "
-                                    "the others their mean",
-                                    printable(h.compactRule)));
     lines.push_back(
         fmt::format("  size {} x {} (origin {},{}), {} = {} sub-buffers, spp = {}, assignment {}",
                     h.width, h.height, h.originX, h.originY,
                     h.adaptiveM ? "adaptive M, M_max" : "M", h.M, h.spp, printable(h.assignment)));
+    if (h.compact)
+        lines.push_back(fmt::format("  compact: a pixel keeps its buffers by the rule \"{}\", "
+                                    "else their mean",
+                                    printable(h.compactRule)));
     lines.push_back(fmt::format("  renderer \"{}\", colour space {}, seeds {}",
                                 printable(h.renderer), printable(h.colorSpace),
                                 h.seeds.empty() ? std::string("(none)") : printable(h.seeds, 0)));

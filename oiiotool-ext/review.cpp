@@ -443,6 +443,7 @@ bool cmdHeatmap(State& st, const std::string& cmd, const std::vector<std::string
 struct QualityRow {
     double spp = 0.0;
     int buffers = 0;
+    double bytes = 0.0;  ///< the file's bytes per pixel (x=bytes; several files only)
     const EstimatorInfo* est = nullptr;
     DiffMetrics m;
 };
@@ -497,7 +498,7 @@ std::string plotSafe(const std::string& s) {
 }
 
 std::string qualityScript(const std::vector<const EstimatorInfo*>& ests, bool logRelMSE,
-                          const std::string& title) {
+                          const std::string& title, bool bytes) {
     std::string s =
         "set terminal pngcairo noenhanced size 1200,480 font 'DejaVu Sans,11'\n"
         "set output 'plot.png'\n"
@@ -507,7 +508,8 @@ std::string qualityScript(const std::vector<const EstimatorInfo*>& ests, bool lo
         "'\n"
         "set grid\n"
         "set logscale x\n"
-        "set xlabel 'samples per pixel'\n";
+        "set xlabel '" +
+        std::string(bytes ? "bytes per pixel (the file on disk)" : "samples per pixel") + "'\n";
     auto curves = [&](int column) {
         std::string p = "plot";
         for (size_t i = 0; i < ests.size(); ++i)
@@ -529,6 +531,7 @@ struct QualityPlot {
     size_t nfiles = 0;    ///< statistics files at the top of the stack
     std::vector<const EstimatorInfo*> ests;
     std::string csvPath;
+    bool bytes = false;  ///< x=bytes: x is each file's size per pixel instead of its spp
     DiffOptions opt;
     OIIO::ImageBuf ref;
     std::vector<QualityRow> rows;
@@ -541,6 +544,14 @@ bool parseQualityPlot(const Modifiers& mods, QualityPlot& q, std::string& err) {
     if (!estimatorList(modifier(mods, "estimators", "mean,mon,gmon"), cmd, q.ests, err))
         return false;
     q.csvPath = modifier(mods, "csv", "");
+    q.bytes = modifier(mods, "x", "spp") == "bytes";
+    if (q.bytes && q.nfiles < 2) {
+        err = format(
+            "{}: x=bytes plots files of different sizes, one point each; the stack holds {} (push "
+            "the files to compare, e.g. FULL.mcstat SMALL.mcstat)",
+            cmd, q.nfiles);
+        return false;
+    }
     if (q.nfiles > 1 && mods.count("buffers")) {
         err = format("{}: modifier buffers applies to a single statistics file; the stack holds {}",
                      cmd, q.nfiles);
@@ -560,7 +571,7 @@ bool measureQuality(State& st, QualityPlot& q, const StatsImage& s, const std::s
     for (const EstimatorInfo* e : q.ests) {
         OIIO::ImageBuf img;
         if (!runEstimator(s, *e, st.nthreads, img, q.cmd, err)) return false;
-        QualityRow r{spp, buffers, e, {}};
+        QualityRow r{spp, buffers, 0.0, e, {}};
         if (!diffImages(img, q.ref, q.opt, r.m, err)) {
             err = format("{}: {}({}) vs {}: {}", q.cmd, e->name, what, q.refName, err);
             return false;
@@ -603,9 +614,9 @@ bool measureSubsets(State& st, const Modifiers& mods, QualityPlot& q, std::strin
     Item& top = st.stack.back();
     if (top.header.adaptiveM) {
         err = format(
-            "{}: {} has adaptive M (1..{} buffers per pixel); nested buffer subsets need a "
-            "fixed-M file (or push several files for one point each)",
-            q.cmd, top.name, top.header.M);
+            "{}: {} has {} (1..{} buffers per pixel); nested buffer subsets need a fixed-M file "
+            "(or push several files for one point each)",
+            q.cmd, top.name, top.header.compact ? "been compacted" : "adaptive M", top.header.M);
         return false;
     }
     const int M = top.header.M;
@@ -630,9 +641,22 @@ bool measureSubsets(State& st, const Modifiers& mods, QualityPlot& q, std::strin
 bool measureFiles(State& st, QualityPlot& q, std::string& err) {
     for (size_t i = st.stack.size() - q.nfiles; i < st.stack.size(); ++i) {
         Item& it = st.stack[i];
+        double bytes = 0.0;
+        if (q.bytes) {
+            if (it.path.empty()) {
+                err = format("{}: x=bytes needs files on disk; {} is computed (write it with -o "
+                             "first)",
+                             q.cmd, it.name);
+                return false;
+            }
+            bytes = double(OIIO::Filesystem::file_size(it.path)) /
+                    double(std::max<int64_t>(1, int64_t(it.header.width) * it.header.height));
+        }
         if (!loadStats(st, it, err)) return false;
+        const size_t first = q.rows.size();
         if (!measureQuality(st, q, *it.stats, it.name, meanCount(*it.stats), it.header.M, err))
             return false;
+        for (size_t r = first; r < q.rows.size(); ++r) q.rows[r].bytes = bytes;
         it.stats.reset();  // one file in memory at a time
     }
     q.title = format("{} files vs {}", q.nfiles, q.refName);
@@ -641,10 +665,10 @@ bool measureFiles(State& st, QualityPlot& q, std::string& err) {
 
 /// Writes every point to the CSV file modifier csv names.
 bool writeQualityCsv(const QualityPlot& q, std::string& err) {
-    std::string csv = "spp,buffers,estimator,relMSE,SSIM,PSNR,fireflies\n";
+    std::string csv = "spp,buffers,estimator,relMSE,SSIM,PSNR,fireflies,bytesPerPixel\n";
     for (const QualityRow& r : q.rows)
-        csv += format("{:.17g},{},{},{:.17g},{:.17g},{:.17g},{}\n", r.spp, r.buffers, r.est->name,
-                      r.m.relMSE, r.m.ssim, r.m.psnr, r.m.fireflies);
+        csv += format("{:.17g},{},{},{:.17g},{:.17g},{:.17g},{},{:.6g}\n", r.spp, r.buffers,
+                      r.est->name, r.m.relMSE, r.m.ssim, r.m.psnr, r.m.fireflies, r.bytes);
     std::ofstream f(q.csvPath, std::ios::binary);
     f << csv;
     f.close();
@@ -664,13 +688,14 @@ std::string qualityData(const QualityPlot& q, bool& logRelMSE) {
         std::vector<const QualityRow*> pts;
         for (const QualityRow& r : q.rows)
             if (r.est == q.ests[i]) pts.push_back(&r);
+        const auto x = [&q](const QualityRow* r) { return q.bytes ? r->bytes : r->spp; };
         std::stable_sort(pts.begin(), pts.end(),
-                         [](const QualityRow* a, const QualityRow* b) { return a->spp < b->spp; });
+                         [&x](const QualityRow* a, const QualityRow* b) { return x(a) < x(b); });
         data += format("# {}\n", q.ests[i]->name);
         for (const QualityRow* r : pts) {
             // gnuplot takes NaN as a missing point; a log axis cannot show relMSE <= 0.
             logRelMSE = logRelMSE && r->m.relMSE > 0.0;
-            data += format("{:.17g} {:.17g} {:.17g}\n", r->spp, r->m.relMSE, r->m.ssim);
+            data += format("{:.17g} {:.17g} {:.17g}\n", x(r), r->m.relMSE, r->m.ssim);
         }
         data += "\n\n";
     }
@@ -682,7 +707,8 @@ bool drawQualityPlot(State& st, const QualityPlot& q, std::string& err) {
     bool logRelMSE = true;
     const std::string data = qualityData(q, logRelMSE);
     auto plot = std::make_shared<OIIO::ImageBuf>();
-    if (!runGnuplot(qualityScript(q.ests, logRelMSE, q.title), {{"data.txt", data}}, "plot.png",
+    if (!runGnuplot(qualityScript(q.ests, logRelMSE, q.title, q.bytes), {{"data.txt", data}},
+                    "plot.png",
                     *plot, err)) {
         err = format("{}: {}", q.cmd, err);
         return false;
@@ -774,7 +800,11 @@ void appendReviewCommands(std::vector<Command>& t) {
                       k.list = true;
                       return k;
                   }(),
-                  textParam("csv", "", "FILE: spp,buffers,estimator,relMSE,SSIM,PSNR,fireflies"),
+                  textParam("csv", "",
+                            "FILE: spp,buffers,estimator,relMSE,SSIM,PSNR,fireflies,bytesPerPixel"),
+                  enumParam("x", {"spp", "bytes"}, "spp",
+                            "the x axis: samples per pixel, or (several files) each file's bytes "
+                            "per pixel on disk, e.g. full against compact (docs/compact.md)"),
                   layerModifier()},
                  &cmdQualityPlot,
                  ""});

@@ -9,7 +9,8 @@
 #   SECTIONS="file height" scripts/bench.sh
 #
 # Environment:
-#   SECTIONS  any of: estimators threads file height compare goals ingest aovs render (default: all)
+#   SECTIONS  any of: estimators threads file height compare compact goals ingest aovs render
+#             (default: all)
 #   REPS      runs per command, alternated, medians reported (default 4)
 #   BASELINE  a folder holding an older build's mcstat and mcstat.imageio.so: the file table then
 #             shows its figures beside today's, measured in the same run (docs/benchmarks.md)
@@ -22,7 +23,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 REPS=${REPS:-4}
-SECTIONS=${SECTIONS:-estimators threads file height compare goals ingest aovs render}
+SECTIONS=${SECTIONS:-estimators threads file height compare compact goals ingest aovs render}
 BUILD=${BUILD:-build}
 BASELINE=${BASELINE:-}
 if [ "${SKIP_BUILD:-0}" != 1 ]; then
@@ -144,6 +145,41 @@ if want file; then
     done
     echo
   done
+fi
+
+if want compact; then
+  # docs/compact.md: G-MoN on a compact file against the full one (goal <= 0.25x), --compact
+  # against a plain rewrite of the same file (goal <= 1.5x), and --compact's peak memory against
+  # the image height (flat: it streams by blocks of rows).
+  full=$out/bench-1920x1080-M21.mcstat
+  stats_file "$full" 1920 1080 64
+  small=$out/bench-1920x1080-M21-compact.mcstat
+  "$mcstat" "$full" --compact -o "$small"
+  echo "== Compact: $full ($(du -h "$full" | cut -f1)) and compact ($(du -h "$small" | cut -f1)); 2 cores, medians of $REPS =="
+  "$mcstat" "$small" --info | grep '^  compact: [0-9]' || true
+  cmd_gfull=("$mcstat" "$full" --gmon -o "$out/o.exr")
+  cmd_gsmall=("$mcstat" "$small" --gmon -o "$out/o.exr")
+  cmd_copy=("$mcstat" "$full" -o "$out/copy.mcstat")
+  cmd_compact=("$mcstat" "$full" --compact -o "$out/c.mcstat")
+  cmd_plug=(env OIIO_LIBRARY_PATH="$BUILD/oiio-plugin" oiiotool "$small" --subimage 0 -o "$out/o.exr")
+  run_alternating gfull gsmall copy compact plug
+  printf "%-52s | %8s %9s %9s\n" "command" "wall s" "ratio" "peak MiB"
+  row() { local w=med_$2 r=rss_$2 b=med_$3; printf "%-52s | %8.2f %8.2fx %9s\n" "$1" "${!w}" "$(echo "${!w} / ${!b}" | bc -l)" "${!r}"; }
+  row "mcstat FULL --gmon -o o.exr (reference)" gfull gfull
+  row "mcstat COMPACT --gmon -o o.exr / the full file's" gsmall gfull
+  row "plugin: oiiotool COMPACT -o o.exr / the full's gmon" plug gfull
+  row "mcstat FULL -o copy.mcstat (reference)" copy copy
+  row "mcstat FULL --compact -o c.mcstat / the copy" compact copy
+  echo
+  echo "== --compact's peak memory against image height: 1920 wide, M = 21, 8 spp =="
+  printf "%8s | %9s %9s\n" "height" "wall s" "peak MiB"
+  for h in 540 1080 2160; do
+    stats_file "$out/height-$h.mcstat" 1920 "$h" 8
+    cmd_ch=("$mcstat" "$out/height-$h.mcstat" --compact -o "$out/c.mcstat")
+    run_alternating ch
+    printf "%8s | %9.2f %9s\n" "$h" "$med_ch" "$rss_ch"
+  done
+  echo
 fi
 
 if want height; then

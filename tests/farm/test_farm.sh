@@ -278,6 +278,16 @@ for combo in "9 8" "10 3" "1 2"; do
   cmp "$T.single.mcstat" "$T/out/t.0005.mcstat" || fail "$1 seeds, fan-in $2: the tree differs from --merge:fanin=$2"
 done
 
+step "a compact shot (run-local --compact): the frame's file is the merge compacted, in the same job"
+T=$work/compact
+run "$farm/mcstat-farm" run-local "$T" --name c --frames 2 --seeds 3 --spp 16 --res 32 24 \
+  --template-file "$farm/templates/fixture-stats.tmpl" --fanin 2 --compact >"$T.log" 2>&1 ||
+  { cat "$T.log"; fail "run-local of a compact shot failed"; }
+"$mcstat" -q "$T"/render/f0002/s*.mcstat --merge:fanin=2 --compact -o "$T.single.mcstat"
+cmp "$T.single.mcstat" "$T/out/c.0002.mcstat" || fail "compact shot: the frame's file differs from --merge --compact"
+"$mcstat" "$T/out/c.0002.mcstat" --info | grep -q "format 6" || fail "compact shot: the frame's file is not compact"
+[[ -f "$T/out/c.0002.gmon.exr" ]] || fail "compact shot: no estimate"
+
 step "stop the cluster"
 trap 'stop_watchdog' EXIT
 "$farm/local-slurm.sh" stop "$slurm" || fail "local-slurm.sh stop failed"
