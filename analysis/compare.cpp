@@ -75,8 +75,8 @@ void gatherBuffers(const Side& s, const Quantity& q, bool sideB, size_t p,
 /// (FORMAT.md "Version 6"): the valid buffers M', the mean and the between-buffer covariance of
 /// R, G, B, s^2 = c^T C c for the quantity's weights c, variance s^2 / N, df = M' - 1. Yuen's
 /// trimmed mean of such a pixel is its mean (G-MoN trimmed nothing), tested as Welch's.
-bool compactSummary(const Side& s, const Quantity& q, size_t p,
-                    const std::array<double, 3>& luma, SideSummary& out) {
+bool compactSummary(const Side& s, const Quantity& q, size_t p, const std::array<double, 3>& luma,
+                    SideSummary& out) {
     const StatsImage& b = s.block;
     if (!b.header.compact || b.header.M < 2 || b.buffersOf(p) != 1 ||
         b.spread.size() != b.pixelCount() * size_t(kSpreadFloats))
@@ -650,8 +650,8 @@ bool sideBuffers(const StatsBlockSource& s, int& M, std::string& err) {
 bool compactQuantities(const StatsBlockSource& s, const CompareOptions& opt, std::string& err) {
     if (!s.header().compact || opt.aovs.empty()) return true;
     err = fmt::format(
-        "{} is a compact file: its pixels without heavy tails keep the spread of R, G and B, not of "
-        "the AOVs, so aovs= cannot be tested there; compare the full files",
+        "{} is a compact file: its pixels without heavy tails keep the spread of R, G and B, not "
+        "of the AOVs, so aovs= cannot be tested there; compare the full files",
         s.name());
     return false;
 }
@@ -888,7 +888,9 @@ std::vector<std::string> compareEvidence(const CompareResult& r, const CompareOp
                         r.adaptive ? "adaptive M gives smooth pixels one buffer"
                                    : "fewer samples than buffers"));
     if (r.tile == 0 && opt.tile > 0)
-        lines.push_back("no tile tests: adaptive M or a compact file (buffer indices differ from pixel to pixel)");
+        lines.push_back(
+            "no tile tests: adaptive M or a compact file (buffer indices differ from pixel to "
+            "pixel)");
     return lines;
 }
 

@@ -85,8 +85,7 @@ bool compactKeeps(const PixelBuffers& px, const CompactRule& rule, CompactScratc
     estimateGMoN(px, PixelParams{EstimatorMode::Luminance, rule.luma}, lum, scratch.estimator);
     if (weights != nullptr) *weights = scratch.estimator.bufferWeight;
     scratch.estimator.wantWeights = false;
-    estimateGMoN(px, PixelParams{EstimatorMode::PerChannel, rule.luma}, channel,
-                 scratch.estimator);
+    estimateGMoN(px, PixelParams{EstimatorMode::PerChannel, rule.luma}, channel, scratch.estimator);
     // G-MoN trimmed something in one of the modes: the buffers are needed.
     for (int c = 0; c < 3; ++c)
         if (lum.kept[size_t(c)] != Mv || channel.kept[size_t(c)] != Mv) return true;
@@ -135,8 +134,7 @@ void bufferSpread(const PixelBuffers& px, float* out) {
             for (int e = c; e < 3; ++e) cov[c][e] += w * d[c] * d[e];
     }
     for (int c = 0; c < 3; ++c)
-        for (int e = c; e < 3; ++e)
-            out[spreadIndex(c, e)] = float(cov[c][e] / double(valid - 1));
+        for (int e = c; e < 3; ++e) out[spreadIndex(c, e)] = float(cov[c][e] / double(valid - 1));
 }
 
 bool CompactStatsSource::init(StatsBlockSource& src, const CompactRule& rule, std::string& err,
@@ -200,8 +198,8 @@ bool CompactStatsSource::read(int firstRow, int rows, unsigned /*parts*/, StatsI
             if (keep[p]) continue;
             std::copy(m.begin(), m.end(), mean.begin() + long(p * 3));
             if (A > 0)
-                applyAovWeights(weights.data(), M, full_.aov.data() + p * M * A, A,
-                                classes.data(), aovMean.data() + p * A, aovScratch);
+                applyAovWeights(weights.data(), M, full_.aov.data() + p * M * A, A, classes.data(),
+                                aovMean.data() + p * A, aovScratch);
         }
     });
     std::vector<uint32_t> m(pixels);
@@ -237,8 +235,7 @@ bool CompactStatsSource::read(int firstRow, int rows, unsigned /*parts*/, StatsI
                 std::copy(px.mean, px.mean + 3 * M, out.bufferMean.begin() + long(k * 3));
                 std::copy(px.count, px.count + M, out.bufferCount.begin() + long(k));
                 std::copy(full_.aov.begin() + long(p * M * A),
-                          full_.aov.begin() + long((p + 1) * M * A),
-                          out.aov.begin() + long(k * A));
+                          full_.aov.begin() + long((p + 1) * M * A), out.aov.begin() + long(k * A));
                 continue;
             }
             double n = 0.0;

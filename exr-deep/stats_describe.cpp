@@ -66,9 +66,10 @@ std::vector<std::string> describeStatsHeader(const StatsHeader& h) {
                     h.width, h.height, h.originX, h.originY,
                     h.adaptiveM ? "adaptive M, M_max" : "M", h.M, h.spp, printable(h.assignment)));
     if (h.compact)
-        lines.push_back(fmt::format("  compact: a pixel keeps its buffers by the rule \"{}\", "
-                                    "else their mean",
-                                    printable(h.compactRule)));
+        lines.push_back(
+            fmt::format("  compact: a pixel keeps its buffers by the rule \"{}\", "
+                        "else their mean",
+                        printable(h.compactRule)));
     lines.push_back(fmt::format("  renderer \"{}\", colour space {}, seeds {}",
                                 printable(h.renderer), printable(h.colorSpace),
                                 h.seeds.empty() ? std::string("(none)") : printable(h.seeds, 0)));

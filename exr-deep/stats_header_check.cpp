@@ -385,9 +385,10 @@ bool Checker::checkAttributes(StatsHeader& hdr) {
         if (version >= kStatsFormatVersionCompact && attr(part, layout::kAttrCompact) != nullptr) {
             if (!stringAttr(part, layout::kAttrCompact, h.compactRule)) return false;
             if (h.compactRule.empty())
-                return fail(fmt::format("part '{}': {} is empty (it names the rule that chose "
-                                        "the pixels keeping their buffers)",
-                                        pn, layout::kAttrCompact));
+                return fail(
+                    fmt::format("part '{}': {} is empty (it names the rule that chose "
+                                "the pixels keeping their buffers)",
+                                pn, layout::kAttrCompact));
             h.compact = true;
         }
         h.formatVersion = version;
@@ -557,8 +558,7 @@ bool Checker::checkChannels(int part, int M, bool compact, const std::vector<Aov
         for (const std::string& name : names) {
             const auto it = inFile.find(name);
             if (it == inFile.end())
-                return fail(
-                    fmt::format("part '{}': missing channel '{}'", pn, printable(name)));
+                return fail(fmt::format("part '{}': missing channel '{}'", pn, printable(name)));
             const exr_attr_chlist_entry_t& e = *it->second;
             if (e.pixel_type != EXR_PIXEL_FLOAT)
                 return fail(
@@ -636,7 +636,8 @@ bool Checker::run(const ReadLimits& limits, StatsHeader& hdr) {
             hdr.aovs.empty() ? std::string() : fmt::format(" and {} AOVs", hdr.aovs.size()),
             hdr.adaptiveM ? "at least " : "", double(w) * double(bytesPerPixel), limits.maxBytes));
     for (int part = 0; part < layout::kPartCount; ++part)
-        if (!checkChannels(part, hdr.M, hdr.compact, hdr.adaptiveM ? hdr.aovs : std::vector<AovChannel>()))
+        if (!checkChannels(part, hdr.M, hdr.compact,
+                           hdr.adaptiveM ? hdr.aovs : std::vector<AovChannel>()))
             return false;
     if (hasAovs_ && !checkAovChannels(hdr)) return false;
 

@@ -263,7 +263,8 @@ bool StatsImage::checkBufferLayout(std::string& why) const {
         for (size_t p = 0; p < pixels; ++p) {
             const uint64_t a = bufferOffset[p], b = bufferOffset[p + 1];
             // A compact file's pixel holds its M buffers or their mean alone.
-            if (b <= a || b - a > uint64_t(h.M) || (h.compact && b - a != 1 && b - a != uint64_t(h.M))) {
+            if (b <= a || b - a > uint64_t(h.M) ||
+                (h.compact && b - a != 1 && b - a != uint64_t(h.M))) {
                 why = fmt::format("pixel ({}, {}) has {} sub-buffers, {}",
                                   h.originX + int64_t(p % size_t(h.width)),
                                   h.originY + int64_t(p / size_t(h.width)),
@@ -309,8 +310,8 @@ bool validateStats(const StatsImage& img, unsigned parts, const std::string& wha
     if ((parts & kStatsPartAovs) && h.adaptiveM) {
         // The deep part's AOV channels: one value per buffer and AOV, read with the buffers.
         const size_t A = h.aovs.size();
-        const size_t k = img.bufferOffset.size() == pixels + 1 ? size_t(img.bufferOffset[pixels])
-                                                               : size_t(0);
+        const size_t k =
+            img.bufferOffset.size() == pixels + 1 ? size_t(img.bufferOffset[pixels]) : size_t(0);
         if (img.aov.size() != k * A) {
             err = fmt::format("{}: AOV array holds {} floats, expected {} buffers x {} AOVs", what,
                               img.aov.size(), k, A);

@@ -27,8 +27,8 @@ inline const char* const* partNames(bool adaptiveM) {
 
 /// Version 5: the optional flat part `aovs` directly after the four (fixed M only), present iff
 /// StatsHeader::aovs is non-empty and M is fixed (version 6 keeps the AOVs of a file with the
-/// adaptive layout in the deep part `vbuffers`, hasAovPart). Its StatsParts bit (kStatsPartAovs) is 1 << kAovs, and in a
-/// file that has it, it is part number kAovs.
+/// adaptive layout in the deep part `vbuffers`, hasAovPart). Its StatsParts bit (kStatsPartAovs) is
+/// 1 << kAovs, and in a file that has it, it is part number kAovs.
 inline constexpr int kAovs = 4;
 inline constexpr const char* kPartAovs = "aovs";
 /// Whether a file of `h` has the flat part `aovs`: AOVs with a fixed M.
@@ -177,7 +177,7 @@ namespace mcstat::detail {
 /// `vbuffers`, so asking for them reads the buffers too.
 inline unsigned partsToRead(const StatsHeader& h, unsigned parts) {
     return h.adaptiveM && !h.aovs.empty() && (parts & kStatsPartAovs) ? parts | kStatsPartBuffers
-                                                                       : parts;
+                                                                      : parts;
 }
 /// Sizes the arrays of the parts in `parts` (StatsParts) for img.header's pixels and `buffers`
 /// sub-buffers in total, keeping their storage; `offsets` (adaptive M) moves into bufferOffset.

@@ -341,8 +341,8 @@ bool StatsFileReader::read(int firstRow, int rows, unsigned parts, StatsImage& b
         // (rows = height) to the image, a streamed one to its block, so a file streamed a block
         // at a time is not refused for its whole size. Adaptive M: checked on the counts below.
         if (!h.adaptiveM) {
-            const double bytes = double(pixels) * double(layout::floatsPerPixel(h.M, h.aovs.size()) *
-                                                         sizeof(float));
+            const double bytes =
+                double(pixels) * double(layout::floatsPerPixel(h.M, h.aovs.size()) * sizeof(float));
             if (bytes > double(im.limits.maxBytes)) {
                 err = fmt::format(
                     "{}: rows {}..{} ({}x{} with M = {}{}) need {} bytes, exceeding "

@@ -231,8 +231,8 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
                         std::fill(px + firstAov, px + nch, 0.f);
                     } else {
                         applyAovWeights(scratch.bufferWeight.data(), size_t(pb.M),
-                                        src.aov.data() + src.bufferBegin(p) * A, A,
-                                        classes.data(), px + firstAov, aovScratch);
+                                        src.aov.data() + src.bufferBegin(p) * A, A, classes.data(),
+                                        px + firstAov, aovScratch);
                     }
                 }
                 px[0] = e.rgb[0];

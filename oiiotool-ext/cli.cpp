@@ -432,9 +432,10 @@ bool cmdCompact(State& st, const std::string& cmd, const std::vector<std::string
         return false;
     }
     if (top.header.hasPajot || top.header.hasRecords)
-        warning(format("{}: parts pajot, modes and records of {} are not kept in the compact file "
-                       "(resume or re-estimate from the full file)",
-                       cmd, top.name));
+        warning(
+            format("{}: parts pajot, modes and records of {} are not kept in the compact file "
+                   "(resume or re-estimate from the full file)",
+                   cmd, top.name));
     out.header = probe.header();
     out.name = "compact(" + top.name + ")";
     top = std::move(out);

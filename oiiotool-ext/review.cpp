@@ -644,9 +644,10 @@ bool measureFiles(State& st, QualityPlot& q, std::string& err) {
         double bytes = 0.0;
         if (q.bytes) {
             if (it.path.empty()) {
-                err = format("{}: x=bytes needs files on disk; {} is computed (write it with -o "
-                             "first)",
-                             q.cmd, it.name);
+                err = format(
+                    "{}: x=bytes needs files on disk; {} is computed (write it with -o "
+                    "first)",
+                    q.cmd, it.name);
                 return false;
             }
             bytes = double(OIIO::Filesystem::file_size(it.path)) /
@@ -708,8 +709,7 @@ bool drawQualityPlot(State& st, const QualityPlot& q, std::string& err) {
     const std::string data = qualityData(q, logRelMSE);
     auto plot = std::make_shared<OIIO::ImageBuf>();
     if (!runGnuplot(qualityScript(q.ests, logRelMSE, q.title, q.bytes), {{"data.txt", data}},
-                    "plot.png",
-                    *plot, err)) {
+                    "plot.png", *plot, err)) {
         err = format("{}: {}", q.cmd, err);
         return false;
     }

@@ -20,6 +20,8 @@
 #   NSEEDS    seed renders of the ingest and aovs sections (default 21); AOVS_RES, AOVS_SPP their
 #             size and spp in the aovs section (default "960 540", 4)
 #   REFRESH   1: render every input again (default: reuse those in OUT)
+#   COMPACT_RES, COMPACT_SPP  the file of the compact section (default "1920 1080", 64; the fewer
+#             samples per buffer, the more pixels keep their buffers: docs/compact.md)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 REPS=${REPS:-4}
@@ -151,9 +153,12 @@ if want compact; then
   # docs/compact.md: G-MoN on a compact file against the full one (goal <= 0.25x), --compact
   # against a plain rewrite of the same file (goal <= 1.5x), and --compact's peak memory against
   # the image height (flat: it streams by blocks of rows).
-  full=$out/bench-1920x1080-M21.mcstat
-  stats_file "$full" 1920 1080 64
-  small=$out/bench-1920x1080-M21-compact.mcstat
+  read -r cw ch <<<"${COMPACT_RES:-1920 1080}"
+  cspp=${COMPACT_SPP:-64}
+  full=$out/bench-${cw}x${ch}-M21.mcstat
+  [ "$cspp" = 64 ] || full=$out/bench-${cw}x${ch}-${cspp}spp-M21.mcstat
+  stats_file "$full" "$cw" "$ch" "$cspp"
+  small=${full%.mcstat}-compact.mcstat
   "$mcstat" "$full" --compact -o "$small"
   echo "== Compact: $full ($(du -h "$full" | cut -f1)) and compact ($(du -h "$small" | cut -f1)); 2 cores, medians of $REPS =="
   "$mcstat" "$small" --info | grep '^  compact: [0-9]' || true

@@ -322,10 +322,11 @@ bool parseCommandLine(int argc, const char** argv, CommandLine& cl, int& exitCod
         return false;
     }
     if (cl.compact) {
-        const char* clash = cl.reference     ? "--reference (a plain image)"
-                            : cl.adaptive    ? "--adaptive-m (its buffers are chosen while rendering)"
+        const char* clash = cl.reference  ? "--reference (a plain image)"
+                            : cl.adaptive ? "--adaptive-m (its buffers are chosen while rendering)"
                             : cl.keepSamples ? "--keep-samples (a compact file keeps no samples)"
-                            : !cl.pajotText.empty() ? "--pajot (a compact file keeps no Pajot state)"
+                            : !cl.pajotText.empty()
+                                ? "--pajot (a compact file keeps no Pajot state)"
                             : !cl.resumePath.empty()
                                 ? "--resume (resume the full file, then compact it with mcstat "
                                   "--compact)"

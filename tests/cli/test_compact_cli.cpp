@@ -68,7 +68,8 @@ TEST_F(CompactCli, GMoNOfTheCompactFileIsTheFullFilesBitForBit) {
     }
     // Channel mode on a render without AOVs.
     const std::string cmd = std::string(MCSTAT_RENDER_EXE) +
-                            " --res 40 30 --spp 90 --M 9 --seed 4 --quiet -o " + path("plain.mcstat");
+                            " --res 40 30 --spp 90 --M 9 --seed 4 --quiet -o " +
+                            path("plain.mcstat");
     ASSERT_EQ(std::system(cmd.c_str()), 0);
     r = mcstat(path("plain.mcstat") + " --dup --compact --gmon:mode=channel -o " + path("c.exr") +
                " --pop --gmon:mode=channel -o " + path("d.exr"));
@@ -89,7 +90,8 @@ TEST_F(CompactCli, TheRendererWritesTheSameCompactFile) {
                             " --res 8 8 --spp 4 --adaptive-m --compact -o " + path("x.mcstat") +
                             " 2>" + path("err.txt");
     EXPECT_NE(std::system(cmd.c_str()), 0);
-    EXPECT_NE(mcstat::testing::slurp(path("err.txt")).find("--compact cannot be combined with --adaptive-m"),
+    EXPECT_NE(mcstat::testing::slurp(path("err.txt"))
+                  .find("--compact cannot be combined with --adaptive-m"),
               std::string::npos);
 }
 
@@ -117,7 +119,8 @@ TEST_F(CompactCli, MergeAndRecompactAreRefusedWithOneLine) {
     render("a.mcstat");
     ASSERT_EQ(mcstat(path("a.mcstat") + " --compact -o " + path("small.mcstat")).code, 0);
     render("b.mcstat", "--seed 9");
-    auto r = mcstat(path("small.mcstat") + " " + path("b.mcstat") + " --merge -o " + path("m.mcstat"));
+    auto r =
+        mcstat(path("small.mcstat") + " " + path("b.mcstat") + " --merge -o " + path("m.mcstat"));
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.err.find("merge the full files, then --compact"), std::string::npos) << r.err;
     EXPECT_FALSE(OIIO::Filesystem::exists(path("m.mcstat")));

@@ -42,11 +42,13 @@ StatsImage fullImage(const std::vector<Pixel>& pixels, int M, const std::vector<
         double n = 0.0, s[3] = {0, 0, 0};
         for (int j = 0; j < M; ++j) {
             const size_t k = p * size_t(M) + size_t(j);
-            for (int c = 0; c < 3; ++c) img.bufferMean[k * 3 + c] = pixels[p].mean[size_t(j) * 3 + c];
+            for (int c = 0; c < 3; ++c)
+                img.bufferMean[k * 3 + c] = pixels[p].mean[size_t(j) * 3 + c];
             img.bufferCount[k] = pixels[p].count[size_t(j)];
             for (size_t a = 0; a < A; ++a) img.aov[k * A + a] = pixels[p].aov[size_t(j) * A + a];
             n += img.bufferCount[k];
-            for (int c = 0; c < 3; ++c) s[c] += img.bufferCount[k] * double(img.bufferMean[k * 3 + c]);
+            for (int c = 0; c < 3; ++c)
+                s[c] += img.bufferCount[k] * double(img.bufferMean[k * 3 + c]);
         }
         img.count[p] = float(n);
         for (int c = 0; c < 3; ++c) {
@@ -97,8 +99,8 @@ void expectEstimatorsAgree(const StatsImage& full, const StatsImage& small) {
                 kernel.estimate(full.pixelBuffers(p), ef, sf);
                 kernel.estimate(small.pixelBuffers(p), ec, sc);
                 const bool kept = small.buffersOf(p) == full.header.M && full.header.M > 1;
-                const std::string where = op.name + ":mode=" + mode + " pixel " + std::to_string(p) +
-                                          (kept ? " (kept)" : " (mean)");
+                const std::string where = op.name + ":mode=" + mode + " pixel " +
+                                          std::to_string(p) + (kept ? " (kept)" : " (mean)");
                 std::vector<float> af(A), ac(A);
                 if (sf.wantWeights) {
                     applyAovWeights(sf.bufferWeight.data(), sf.bufferWeight.size(),
@@ -185,15 +187,15 @@ TEST(Compact, Extremes) {
     const float big = std::numeric_limits<float>::max();
     const float den = std::numeric_limits<float>::denorm_min();
     std::vector<Pixel> px;
-    px.push_back(makePixel(7, 5, [](int, int) { return 0.f; }));                       // all zero
-    px.push_back(makePixel(7, 5, [&](int j, int) { return j == 2 ? inf : 0.25f; }));    // one Inf
-    px.push_back(makePixel(7, 5, [&](int j, int) { return j == 3 ? nan : 0.25f; }));    // one NaN
-    px.push_back(makePixel(7, 5, [](int j, int) { return j == 1 ? -5.f : 0.25f; }));    // negative
+    px.push_back(makePixel(7, 5, [](int, int) { return 0.f; }));                      // all zero
+    px.push_back(makePixel(7, 5, [&](int j, int) { return j == 2 ? inf : 0.25f; }));  // one Inf
+    px.push_back(makePixel(7, 5, [&](int j, int) { return j == 3 ? nan : 0.25f; }));  // one NaN
+    px.push_back(makePixel(7, 5, [](int j, int) { return j == 1 ? -5.f : 0.25f; }));  // negative
     px.push_back(makePixel(7, 5, [](int j, int) { return -0.25f - 0.001f * float(j); }));
-    px.push_back(makePixel(7, 5, [&](int j, int) { return den * float(j + 1); }));      // denormal
+    px.push_back(makePixel(7, 5, [&](int j, int) { return den * float(j + 1); }));  // denormal
     px.push_back(makePixel(7, 5, [&](int j, int) { return big * (0.5f + 0.01f * float(j)); }));
-    px.push_back(makePixel(7, 5, [&](int, int) { return big; }));                       // FLT_MAX
-    Pixel sparse = makePixel(7, 0, [](int j, int) { return j < 3 ? 0.5f : 0.f; });     // spp < M
+    px.push_back(makePixel(7, 5, [&](int, int) { return big; }));                   // FLT_MAX
+    Pixel sparse = makePixel(7, 0, [](int j, int) { return j < 3 ? 0.5f : 0.f; });  // spp < M
     for (int j = 0; j < 3; ++j) sparse.count[size_t(j)] = 1.f;
     px.push_back(sparse);
     px.push_back(makePixel(7, 0, [](int, int) { return 0.f; }));  // no sample at all
@@ -260,7 +262,8 @@ TEST(Compact, MarginAndZKeepMore) {
     std::mt19937 rng(5);
     std::normal_distribution<float> noise(1.f, 0.04f);  // G about 0.02: no trim (1/k = 0.1)
     std::vector<Pixel> px;
-    for (int i = 0; i < 200; ++i) px.push_back(makePixel(21, 2, [&](int, int) { return noise(rng); }));
+    for (int i = 0; i < 200; ++i)
+        px.push_back(makePixel(21, 2, [&](int, int) { return noise(rng); }));
     const StatsImage full = fullImage(px, 21, {});
     const auto keptWith = [&](double margin, double z) {
         CompactRule rule;

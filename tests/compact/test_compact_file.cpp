@@ -95,7 +95,8 @@ TEST(CompactFile, WrittenByBlocksGivesTheSameBytes) {
     std::string err;
     ASSERT_TRUE(writeStatsFile(dir.file("whole.mcstat"), small, err)) << err;
     test::writeByBlocks(dir.file("blocks.mcstat"), small, 3, 2);
-    EXPECT_EQ(test::readBytes(dir.file("whole.mcstat")), test::readBytes(dir.file("blocks.mcstat")));
+    EXPECT_EQ(test::readBytes(dir.file("whole.mcstat")),
+              test::readBytes(dir.file("blocks.mcstat")));
 }
 
 TEST(CompactFile, AnImageThatBreaksTheLayoutIsNotWritten) {
