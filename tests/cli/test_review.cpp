@@ -141,22 +141,23 @@ struct CsvRow {
     int buffers;
     long fireflies;
     std::string estimator;
+    double bytesPerPixel;
 };
 
 std::vector<CsvRow> readCsv(const std::string& file) {
     std::istringstream in(mcstat::testing::slurp(file));
     std::string line;
     std::getline(in, line);
-    EXPECT_EQ(line, "spp,buffers,estimator,relMSE,SSIM,PSNR,fireflies");
+    EXPECT_EQ(line, "spp,buffers,estimator,relMSE,SSIM,PSNR,fireflies,bytesPerPixel");
     std::vector<CsvRow> rows;
     while (std::getline(in, line)) {
         const auto f = OIIO::Strutil::splits(line, ",");
-        if (f.size() != 7) {
+        if (f.size() != 8) {
             ADD_FAILURE() << line;
             continue;
         }
         rows.push_back({std::stod(f[0]), std::stod(f[3]), std::stod(f[4]), std::stod(f[5]),
-                        std::stoi(f[1]), std::stol(f[6]), f[2]});
+                        std::stoi(f[1]), std::stol(f[6]), f[2], std::stod(f[7])});
     }
     return rows;
 }
@@ -463,6 +464,22 @@ TEST_F(ReviewCli, QualityPlotSeveralFilesAndChosenBuffers) {
     // Both files popped, the plot pushed.
     EXPECT_NE(r.out.find("qualityplot(2 files): 1200 x 480, 3 channels"), std::string::npos)
         << r.out;
+    EXPECT_EQ(rows[0].bytesPerPixel, 0.0) << "x=spp: no sizes";
+
+    // x=bytes: each file's bytes per pixel on disk (docs/compact.md draws full against compact).
+    r = mcstat("a.mcstat b.mcstat --qualityplot:x=bytes:estimators=gmon:csv=" + path("x.csv") +
+               " ref.exr");
+    ASSERT_EQ(r.code, 0) << r.err;
+    rows = readCsv(path("x.csv"));
+    ASSERT_EQ(rows.size(), 2u);
+    for (int i = 0; i < 2; ++i) {
+        const double px = double(ref().spec().width) * double(ref().spec().height);
+        const double want = double(OIIO::Filesystem::file_size(path(files[i]))) / px;
+        EXPECT_NEAR(rows[i].bytesPerPixel, want, 1e-5 * want);  // the CSV's 6 digits
+    }
+    r = mcstat("a.mcstat --qualityplot:x=bytes ref.exr");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("x=bytes plots files of different sizes"), std::string::npos) << r.err;
 
     r = mcstat("a.mcstat --qualityplot:estimators=mon:buffers=5,2:csv=" + path("k.csv") +
                " ref.exr");

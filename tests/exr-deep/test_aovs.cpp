@@ -125,7 +125,13 @@ TEST(AovFormat, RequiredVersionIsFiveForTheInputsLayout) {
     StatsHeader d = h;
     d.sourceMetadata = "{}";
     EXPECT_EQ(requiredFormatVersion(d), kStatsFormatVersionAovs);
-    EXPECT_EQ(kStatsFormatVersion, kStatsFormatVersionAovs);
+    // Version 6 holds AOVs with the deep layout (compact files).
+    StatsHeader e = h;
+    e.adaptiveM = true;
+    EXPECT_EQ(requiredFormatVersion(e), kStatsFormatVersionAdaptive) << "no AOVs: version 2";
+    e.aovs = {{"A", AovClass::Alpha, ""}};
+    EXPECT_EQ(requiredFormatVersion(e), kStatsFormatVersionCompact);
+    EXPECT_EQ(kStatsFormatVersion, kStatsFormatVersionCompact);
     EXPECT_EQ(kStatsAllParts, kStatsPartBeauty | kStatsPartBuffers | kStatsPartMoments |
                                   kStatsPartFeatures | kStatsPartAovs);
 }
@@ -207,12 +213,13 @@ TEST(AovFormat, WriterRefusesWhatTheFormatCannotHold) {
     StatsImage size = good;
     size.aov.resize(size.aov.size() + 1);
     refused(size, "array of part 'aovs' holds");
-    // Adaptive M has no part aovs.
+    // AOVs with adaptive M live in the deep part, from version 6 on (FORMAT.md "Version 6").
     StatsImage adaptive = renderImage(3, 2, 2, 1, [](int, int) { return 2; });
     adaptive.header.formatVersion = kStatsFormatVersionAovs;
     ASSERT_TRUE(adaptive.allocateAdaptive(std::vector<uint32_t>(6, 1), err)) << err;
     adaptive.header.aovs = kAovList;
-    refused(adaptive, "AOV channels with adaptive M");
+    adaptive.aov.assign(6 * kAovList.size(), 0.f);
+    refused(adaptive, "it needs version 6");
     // The streaming writer checks the header on open and each block's AOVs.
     StatsFileWriter w;
     EXPECT_FALSE(w.open(path, dup.header, err));
@@ -932,10 +939,10 @@ TEST_F(AovCorrupt, BeautyAttributes) {
 }
 
 TEST_F(AovCorrupt, NewerVersionIsRefusedFirst) {
-    // What a version-5 reader says about version 6, as a version-4 reader says about version 5.
+    // What a version-6 reader says about version 7, as a version-4 reader said about version 5.
     setIntOnAll(parts, "mcstat:formatVersion", kStatsFormatVersion + 1);
     const std::string err = readError();
-    EXPECT_TRUE(contains(err, "written by a newer mcstat (format 6); this reader knows 5")) << err;
+    EXPECT_TRUE(contains(err, "written by a newer mcstat (format 7); this reader knows 6")) << err;
 }
 
 TEST_F(AovCorrupt, PartAovsInAnOlderVersion) {
