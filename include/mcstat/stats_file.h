@@ -1,4 +1,4 @@
-// The mcstat statistics file, versions 1 and 2: in-memory form, writer, reader, validator and
+// The mcstat statistics file, versions 1 to 6: in-memory form, writer, reader, validator and
 // merge. The on-disk layout is specified in exr-deep/FORMAT.md; this header is its C++ face. No
 // function here throws: each returns false and fills `err` with a one-line message that names the
 // file (when there is one) and the problem.
