@@ -50,21 +50,23 @@ bool sameBits(const std::array<float, 3>& a, const std::array<float, 3>& b) {
 }
 
 /// Whether some valid buffer's luminance lies more than z robust sigmas from the median.
-bool outlyingBuffer(const PixelBuffers& px, const std::vector<int>& valid,
-                    const std::array<double, 3>& luma, double z, std::vector<double>& lum) {
+bool outlyingBuffer(const PixelBuffers& px, const std::array<double, 3>& luma, double z,
+                    CompactScratch& s) {
+    const std::vector<int>& valid = s.valid;
     const size_t n = valid.size();
     if (n < 3) return false;
-    lum.resize(n);
+    s.lum.resize(n);
     for (size_t i = 0; i < n; ++i) {
         const float* m = px.mean + 3 * valid[i];
-        lum[i] = luma[0] * double(m[0]) + luma[1] * double(m[1]) + luma[2] * double(m[2]);
+        s.lum[i] = luma[0] * double(m[0]) + luma[1] * double(m[1]) + luma[2] * double(m[2]);
     }
-    std::vector<double> dev(lum);
+    std::vector<double>& dev = s.deviation;
+    dev = s.lum;
     std::nth_element(dev.begin(), dev.begin() + long(n / 2), dev.end());
     const double median = dev[n / 2];
     double largest = 0.0;
     for (size_t i = 0; i < n; ++i) {
-        dev[i] = std::fabs(lum[i] - median);
+        dev[i] = std::fabs(s.lum[i] - median);
         largest = std::max(largest, dev[i]);
     }
     std::nth_element(dev.begin(), dev.begin() + long(n / 2), dev.end());
@@ -77,8 +79,7 @@ bool outlyingBuffer(const PixelBuffers& px, const std::vector<int>& valid,
 bool compactKeeps(const PixelBuffers& px, const CompactRule& rule, CompactScratch& scratch,
                   std::array<float, 3>& mean, std::vector<double>* weights) {
     int excluded = 0;
-    std::vector<int> valid;
-    const int Mv = collectValidBuffers(px, valid, excluded);
+    const int Mv = collectValidBuffers(px, scratch.valid, excluded);
     if (excluded > 0) return true;  // NaN / Inf buffers: each estimator has its own answer
     PixelEstimate lum, channel;
     scratch.estimator.wantWeights = weights != nullptr;
@@ -98,35 +99,26 @@ bool compactKeeps(const PixelBuffers& px, const CompactRule& rule, CompactScratc
                                    double(channel.gini[1]), double(channel.gini[2])});
         if (G > 0.0 && G * k >= 1.0 - rule.margin) return true;
     }
-    if (rule.z > 0.0 && outlyingBuffer(px, valid, rule.luma, rule.z, scratch.lum)) return true;
+    if (rule.z > 0.0 && outlyingBuffer(px, rule.luma, rule.z, scratch)) return true;
     mean = lum.rgb;
     return false;
 }
 
-void bufferSpread(const PixelBuffers& px, float* out) {
-    double n = 0.0, mu[3] = {0.0, 0.0, 0.0};
-    int valid = 0;
-    const auto ok = [&](int j) {
-        const float c = px.count[j];
-        const float* m = px.mean + 3 * j;
-        return std::isfinite(c) && c > 0.f && std::isfinite(m[0]) && std::isfinite(m[1]) &&
-               std::isfinite(m[2]);
-    };
-    for (int j = 0; j < px.M; ++j) {
-        if (!ok(j)) continue;
-        ++valid;
-        n += double(px.count[j]);
-        for (int c = 0; c < 3; ++c) mu[c] += double(px.count[j]) * double(px.mean[3 * j + c]);
-    }
-    out[0] = float(valid);
-    if (valid < 2) {
+void bufferSpread(const PixelBuffers& px, const std::vector<int>& valid, float* out) {
+    const size_t Mv = valid.size();
+    out[0] = float(Mv);
+    if (Mv < 2) {
         std::fill(out + 1, out + kSpreadFloats, std::numeric_limits<float>::quiet_NaN());
         return;
     }
+    double n = 0.0, mu[3] = {0.0, 0.0, 0.0};
+    for (int j : valid) {
+        n += double(px.count[j]);
+        for (int c = 0; c < 3; ++c) mu[c] += double(px.count[j]) * double(px.mean[3 * j + c]);
+    }
     for (double& m : mu) m /= n;
     double cov[3][3] = {};
-    for (int j = 0; j < px.M; ++j) {
-        if (!ok(j)) continue;
+    for (int j : valid) {
         const double w = double(px.count[j]);
         double d[3];
         for (int c = 0; c < 3; ++c) d[c] = double(px.mean[3 * j + c]) - mu[c];
@@ -134,42 +126,46 @@ void bufferSpread(const PixelBuffers& px, float* out) {
             for (int e = c; e < 3; ++e) cov[c][e] += w * d[c] * d[e];
     }
     for (int c = 0; c < 3; ++c)
-        for (int e = c; e < 3; ++e) out[spreadIndex(c, e)] = float(cov[c][e] / double(valid - 1));
+        for (int e = c; e < 3; ++e) out[spreadIndex(c, e)] = float(cov[c][e] / double(Mv - 1));
 }
 
-bool CompactStatsSource::init(StatsBlockSource& src, const CompactRule& rule, std::string& err,
-                              int nthreads) {
-    src_ = nullptr;
-    const StatsHeader& h = src.header();
-    if (!src.ready()) {
-        err = src.name() + ": no image to compact";
+bool compactHeader(const StatsHeader& full, const std::string& name, const CompactRule& rule,
+                   StatsHeader& out, std::string& err) {
+    if (full.compact) {
+        err = name + " is already compact";
         return false;
     }
-    if (h.compact) {
-        err = src.name() + " is already compact";
-        return false;
-    }
-    if (h.adaptiveM) {
+    if (full.adaptiveM) {
         err = fmt::format(
             "{} has adaptive M, whose buffers were chosen while rendering: --compact takes a "
             "fixed-M file (render or ingest with a fixed M, then --compact)",
-            src.name());
+            name);
         return false;
     }
     if (std::string why; !checkCompactRule(rule, why)) {
         err = "--compact: " + why;
         return false;
     }
+    out = full;
+    out.adaptiveM = true;
+    out.compact = true;
+    out.compactRule = compactRuleText(rule);
+    out.hasPajot = out.hasRecords = false;
+    out.formatVersion = kStatsFormatVersionCompact;
+    return true;
+}
+
+bool CompactStatsSource::init(StatsBlockSource& src, const CompactRule& rule, std::string& err,
+                              int nthreads) {
+    src_ = nullptr;
+    if (!src.ready()) {
+        err = src.name() + ": no image to compact";
+        return false;
+    }
+    if (!compactHeader(src.header(), src.name(), rule, header_, err)) return false;
     src_ = &src;
     rule_ = rule;
     nthreads_ = nthreads;
-    header_ = h;
-    header_.adaptiveM = true;
-    header_.compact = true;
-    header_.compactRule = compactRuleText(rule);
-    header_.hasPajot = header_.hasRecords = false;
-    header_.formatVersion = kStatsFormatVersionCompact;
-    kept_ = read_ = 0;
     return true;
 }
 
@@ -183,9 +179,10 @@ bool CompactStatsSource::read(int firstRow, int rows, unsigned /*parts*/, StatsI
     const unsigned all = kStatsAllParts;
     if (!src_->read(firstRow, rows, all, full_, err)) return false;
     const size_t pixels = full_.pixelCount(), M = size_t(fh.M), A = fh.aovs.size();
-    // Pass 1, per pixel in parallel: keep or not, and the mean and AOV values of those that don't.
+    // Pass 1, per pixel in parallel: keep or not; the mean, AOV values and spread of those that
+    // don't, the number of valid buffers of those that do (their buffers give the rest).
     std::vector<uint8_t> keep(pixels);
-    std::vector<float> mean(pixels * 3), aovMean(pixels * A);
+    std::vector<float> mean(pixels * 3), aovMean(pixels * A), spread(pixels * kSpreadFloats, 0.f);
     const std::vector<AovClass> classes = aovClasses(fh.aovs);
     parallelFor(0, int64_t(pixels), 1024, nthreads_, [&](int64_t b, int64_t e) {
         CompactScratch scratch;
@@ -195,7 +192,12 @@ bool CompactStatsSource::read(int firstRow, int rows, unsigned /*parts*/, StatsI
             std::array<float, 3> m{};
             const PixelBuffers px = full_.pixelBuffers(p);
             keep[p] = compactKeeps(px, rule_, scratch, m, A > 0 ? &weights : nullptr);
-            if (keep[p]) continue;
+            float* sp = spread.data() + p * size_t(kSpreadFloats);
+            if (keep[p]) {
+                sp[0] = float(scratch.valid.size());
+                continue;
+            }
+            bufferSpread(px, scratch.valid, sp);
             std::copy(m.begin(), m.end(), mean.begin() + long(p * 3));
             if (A > 0)
                 applyAovWeights(weights.data(), M, full_.aov.data() + p * M * A, A, classes.data(),
@@ -203,11 +205,7 @@ bool CompactStatsSource::read(int firstRow, int rows, unsigned /*parts*/, StatsI
         }
     });
     std::vector<uint32_t> m(pixels);
-    size_t kept = 0;
-    for (size_t p = 0; p < pixels; ++p) {
-        m[p] = keep[p] ? uint32_t(M) : 1u;
-        kept += keep[p];
-    }
+    for (size_t p = 0; p < pixels; ++p) m[p] = keep[p] ? uint32_t(M) : 1u;
     StatsImage out;
     out.header = header_;
     out.header.height = rows;
@@ -222,16 +220,13 @@ bool CompactStatsSource::read(int firstRow, int rows, unsigned /*parts*/, StatsI
     out.albedo = full_.albedo;
     out.depth = full_.depth;
     out.coverage = full_.coverage;
-    // Pass 2: the buffers (all M, or the one mean with the pixel's count) and the spread.
+    out.spread = std::move(spread);
+    // Pass 2: the buffers, all M or the one mean with the pixel's count.
     parallelFor(0, int64_t(pixels), 1024, nthreads_, [&](int64_t b, int64_t e) {
         for (size_t p = size_t(b); p < size_t(e); ++p) {
             const PixelBuffers px = full_.pixelBuffers(p);
             const size_t k = out.bufferBegin(p);
-            float* spread = out.spread.data() + p * size_t(kSpreadFloats);
-            bufferSpread(px, spread);
             if (keep[p]) {
-                // Its buffers give its spread; zeros cost nothing once compressed.
-                std::fill(spread + 1, spread + kSpreadFloats, 0.f);
                 std::copy(px.mean, px.mean + 3 * M, out.bufferMean.begin() + long(k * 3));
                 std::copy(px.count, px.count + M, out.bufferCount.begin() + long(k));
                 std::copy(full_.aov.begin() + long(p * M * A),
@@ -247,8 +242,6 @@ bool CompactStatsSource::read(int firstRow, int rows, unsigned /*parts*/, StatsI
                       out.aov.begin() + long(k * A));
         }
     });
-    kept_ += kept;
-    read_ += pixels;
     block = std::move(out);
     return validateStats(block, name(), err);
 }

@@ -202,9 +202,9 @@ class Checker {
     bool checkVersionFirst();
     bool checkParts();
     bool checkAttributes(StatsHeader& hdr);
-    /// The channels of part `part` (0..3) for M; `compact` adds part moments' spread channels,
-    /// `aovs` the deep part's AOV channels (version 6).
-    bool checkChannels(int part, int M, bool compact, const std::vector<AovChannel>& aovs);
+    /// The channels of part `part` (0..3) for `hdr`'s M; a compact file's part moments adds the
+    /// spread channels, and the deep part of version 6 the AOV channels.
+    bool checkChannels(int part, const StatsHeader& hdr);
     /// Version 5: the AOV attributes of part `aovs` into hdr.aovs (hasAovs_).
     bool checkAovAttributes(StatsHeader& hdr);
     /// Part `aovs` has exactly the channels bNNN.<name> of hdr's M and AOVs.
@@ -538,7 +538,8 @@ bool Checker::checkAovChannels(const StatsHeader& hdr) {
     return true;
 }
 
-bool Checker::checkChannels(int part, int M, bool compact, const std::vector<AovChannel>& aovs) {
+bool Checker::checkChannels(int part, const StatsHeader& hdr) {
+    const int M = hdr.M;
     const char* pn = names_[part];
     const exr_attr_chlist_t* chlist = nullptr;
     if (exr_get_channels(c_, part, &chlist) != EXR_ERR_SUCCESS || chlist == nullptr)
@@ -554,7 +555,7 @@ bool Checker::checkChannels(int part, int M, bool compact, const std::vector<Aov
     if (adaptive_ && part == layout::kBuffers) {
         std::vector<std::string> names(std::begin(layout::kDeepChannels),
                                        std::end(layout::kDeepChannels));
-        for (const AovChannel& a : aovs) names.push_back(layout::aovDeepChannel(a.name));
+        for (const AovChannel& a : hdr.aovs) names.push_back(layout::aovDeepChannel(a.name));
         for (const std::string& name : names) {
             const auto it = inFile.find(name);
             if (it == inFile.end())
@@ -578,7 +579,7 @@ bool Checker::checkChannels(int part, int M, bool compact, const std::vector<Aov
         return fail(fmt::format("part '{}' has {} buffer channel groups (bNNN.count) but {} = {}",
                                 pn, groups, layout::kAttrM, M));
     const std::vector<layout::ChannelPlace> expected =
-        layout::partChannels(part, M, false, compact);
+        layout::partChannels(part, M, false, hdr.compact);
     for (const layout::ChannelPlace& c : expected) {
         const auto it = inFile.find(c.name);
         if (it == inFile.end())
@@ -636,9 +637,7 @@ bool Checker::run(const ReadLimits& limits, StatsHeader& hdr) {
             hdr.aovs.empty() ? std::string() : fmt::format(" and {} AOVs", hdr.aovs.size()),
             hdr.adaptiveM ? "at least " : "", double(w) * double(bytesPerPixel), limits.maxBytes));
     for (int part = 0; part < layout::kPartCount; ++part)
-        if (!checkChannels(part, hdr.M, hdr.compact,
-                           hdr.adaptiveM ? hdr.aovs : std::vector<AovChannel>()))
-            return false;
+        if (!checkChannels(part, hdr)) return false;
     if (hasAovs_ && !checkAovChannels(hdr)) return false;
 
     hdr.hasPajot = hasPajot_;

@@ -421,22 +421,18 @@ bool cmdCompact(State& st, const std::string& cmd, const std::vector<std::string
     rule.margin = modifierValue(compactModifiers(), mods, "margin").real;
     rule.z = modifierValue(compactModifiers(), mods, "z").real;
     Item out;
-    out.compactInput = std::make_shared<const Item>(top);
-    out.compactRule = rule;
     // The header, and every refusal (adaptive M, already compact), before any pixel is read.
-    ItemSource src;
-    if (!openSource(st, *out.compactInput, src, err)) return false;
-    CompactStatsSource probe;
-    if (!probe.init(*src.root, rule, err, st.nthreads)) {
+    if (!compactHeader(top.header, top.name, rule, out.header, err)) {
         err = format("{}: {}", cmd, err);
         return false;
     }
+    out.compactInput = std::make_shared<const Item>(top);
+    out.compactRule = rule;
     if (top.header.hasPajot || top.header.hasRecords)
         warning(
             format("{}: parts pajot, modes and records of {} are not kept in the compact file "
                    "(resume or re-estimate from the full file)",
                    cmd, top.name));
-    out.header = probe.header();
     out.name = "compact(" + top.name + ")";
     top = std::move(out);
     return true;

@@ -413,6 +413,14 @@ bool loadSizedScene(const CommandLine& cl, Scene& scene, std::string& err) {
     return true;
 }
 
+/// The luminance weights of the OCIO config; its warning (a fallback config) is printed.
+std::array<double, 3> luma() {
+    std::string warning;
+    const std::array<double, 3> l = mcstat::lumaCoefficients(&warning);
+    if (!warning.empty()) fmt::print(stderr, "mcstat-render: warning: {}\n", warning);
+    return l;
+}
+
 /// Checks the --pajot options into `params` (with the luma weights; their warning is printed).
 bool parsePajotOptions(const CommandLine& cl, mcstat::PajotParams& params, std::string& err) {
     if (cl.pajotText != "adr" && cl.pajotText != "rot" && cl.pajotText != "hybrid") {
@@ -435,10 +443,7 @@ bool parsePajotOptions(const CommandLine& cl, mcstat::PajotParams& params, std::
     for (const Given& g : given)
         if (!mcstat::parseParamValue(g.option, *op.param(g.key), g.text, values[g.key], err))
             return false;
-    std::string warning;
-    const std::array<double, 3> luma = mcstat::lumaCoefficients(&warning);
-    if (!warning.empty()) fmt::print(stderr, "mcstat-render: warning: {}\n", warning);
-    return mcstat::pajotParamsFrom(values, luma, params, err);
+    return mcstat::pajotParamsFrom(values, luma(), params, err);
 }
 
 /// A render to do, its options checked.
@@ -645,8 +650,7 @@ bool renderStatsOutput(const CommandLine& cl, Job& job, RenderStats& stats, Timi
         std::max(img.header.formatVersion, mcstat::requiredFormatVersion(img.header));
     if (cl.compact) {  // decided now that every sample is in (docs/compact.md)
         mcstat::CompactRule rule;
-        std::string warning;
-        rule.luma = mcstat::lumaCoefficients(&warning);
+        rule.luma = luma();
         mcstat::StatsImage small;
         if (!mcstat::compactStats(img, rule, small, err, job.opt.threads)) return false;
         return mcstat::writeStatsFile(cl.outPath, small, err);

@@ -296,8 +296,12 @@ TEST(Compact, SpreadIsTheBetweenBufferCovariance) {
     Pixel one;
     one.mean = {0, 2, 1, 1, 1, 1, 2, 0, 1};
     one.count = {1, 2, 1};
+    const PixelBuffers three{one.mean.data(), one.count.data(), 3};
+    std::vector<int> valid;
+    int excluded = 0;
+    collectValidBuffers(three, valid, excluded);
     float s[kSpreadFloats];
-    bufferSpread({one.mean.data(), one.count.data(), 3}, s);
+    bufferSpread(three, valid, s);
     // mean R = (0 + 2 + 2) / 4 = 1; sum n (x - 1)^2 = 1 + 0 + 1 = 2; / (3 - 1) = 1.
     EXPECT_EQ(s[0], 3.f);
     EXPECT_FLOAT_EQ(s[spreadIndex(0, 0)], 1.f);
@@ -305,8 +309,10 @@ TEST(Compact, SpreadIsTheBetweenBufferCovariance) {
     EXPECT_FLOAT_EQ(s[spreadIndex(0, 1)], -1.f);
     EXPECT_FLOAT_EQ(s[spreadIndex(2, 2)], 0.f);
     EXPECT_FLOAT_EQ(s[spreadIndex(0, 2)], 0.f);
+    const PixelBuffers first{one.mean.data(), one.count.data(), 1};
+    collectValidBuffers(first, valid, excluded);
     float t[kSpreadFloats];
-    bufferSpread({one.mean.data(), one.count.data(), 1}, t);
+    bufferSpread(first, valid, t);
     EXPECT_EQ(t[0], 1.f);
     EXPECT_TRUE(std::isnan(t[1])) << "one buffer has no spread";
 }

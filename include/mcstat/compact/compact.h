@@ -35,24 +35,34 @@ std::string compactRuleText(const CompactRule& rule);
 /// Checks a rule's values; false with `err` (a phrase) otherwise.
 bool checkCompactRule(const CompactRule& rule, std::string& err);
 
-/// Per-thread scratch of compactPixel.
+/// Per-thread scratch of compactKeeps.
 struct CompactScratch {
     EstimatorScratch estimator;
-    std::vector<double> lum;
+    /// After compactKeeps: the pixel's valid buffers, as collectValidBuffers gives them.
+    std::vector<int> valid;
+    std::vector<double> lum, deviation;
 };
 
 /// Whether pixel `px` keeps its buffers under `rule`. When it does not, `mean` is the value G-MoN
 /// returns for it in both modes (the count-weighted mean of its valid buffers) and, with
 /// `weights`, the buffer weights G-MoN gives it in luminance mode (for the AOVs). A pixel with a
 /// NaN or infinite buffer always keeps its buffers (every estimator decides what to do with it).
+/// Either way scratch.valid lists the pixel's valid buffers afterwards.
 bool compactKeeps(const PixelBuffers& px, const CompactRule& rule, CompactScratch& scratch,
                   std::array<float, 3>& mean, std::vector<double>* weights = nullptr);
 
-/// The spread of pixel `px` (StatsImage::spread, kSpreadFloats values): its valid buffers M'
-/// and the between-buffer covariance of R, G, B, sum_j n_j (x_j - mx) (y_j - my) / (M' - 1)
-/// with mx, my the count-weighted means, accumulated in double; NaN for M' < 2. A compact file
-/// stores it for the pixels without buffers and 0 for the others (their buffers give it).
-void bufferSpread(const PixelBuffers& px, float* out);
+/// The spread of pixel `px` (StatsImage::spread, kSpreadFloats values) over its valid buffers
+/// `valid` (as collectValidBuffers gives them): their number M' and the between-buffer covariance
+/// of R, G, B, sum_j n_j (x_j - mx) (y_j - my) / (M' - 1) with mx, my the count-weighted means,
+/// accumulated in double; NaN for M' < 2. A compact file stores it for the pixels without buffers
+/// and, for the others, M' and zeros (their buffers give the rest).
+void bufferSpread(const PixelBuffers& px, const std::vector<int>& valid, float* out);
+
+/// The header of the compact file made from a file with header `full` (named `name` in
+/// messages) under `rule`: the adaptive layout, format version 6, the rule's text, no per-sample
+/// parts. False with `err` for an adaptive or already compact file, or an invalid rule.
+bool compactHeader(const StatsHeader& full, const std::string& name, const CompactRule& rule,
+                   StatsHeader& out, std::string& err);
 
 /// A compact file's rows from a fixed-M source, a block at a time (memory follows the blocks).
 /// The source must outlive this. Per-sample parts are not passed on (the caller copies them).
@@ -67,9 +77,6 @@ class CompactStatsSource final : public StatsBlockSource {
     int decodeThreads() const override { return src_->decodeThreads(); }
     int blocksHeld() const override { return src_->blocksHeld() + 1; }
     bool read(int firstRow, int rows, unsigned parts, StatsImage& block, std::string& err) override;
-    /// Pixels read so far that kept their buffers, and pixels read.
-    size_t keptPixels() const { return kept_; }
-    size_t pixelsRead() const { return read_; }
 
   private:
     StatsBlockSource* src_ = nullptr;
@@ -77,7 +84,6 @@ class CompactStatsSource final : public StatsBlockSource {
     CompactRule rule_;
     int nthreads_ = 0;
     StatsImage full_;
-    size_t kept_ = 0, read_ = 0;
 };
 
 /// compacts a whole image in memory (CompactStatsSource over a MemoryStatsSource).
