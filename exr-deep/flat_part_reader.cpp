@@ -172,6 +172,14 @@ bool FlatPartReader::open(int fd, uint64_t size, const std::string& path, int x0
     return true;
 }
 
+exr_const_context_t FlatPartReader::context() const { return impl_ ? impl_->ctxt : nullptr; }
+int FlatPartReader::fd() const { return impl_ ? impl_->io.fd : -1; }
+uint64_t FlatPartReader::size() const { return impl_ ? uint64_t(impl_->io.size) : 0; }
+int FlatPartReader::x0() const { return impl_ ? impl_->x0 : 0; }
+int FlatPartReader::y0() const { return impl_ ? impl_->y0 : 0; }
+int FlatPartReader::width() const { return impl_ ? impl_->width : 0; }
+int FlatPartReader::height() const { return impl_ ? impl_->height : 0; }
+
 bool FlatPartReader::handles(int part) const {
     if (!isOpen() || part < 0 || size_t(part) >= impl_->parts.size()) return false;
     const PartInfo& info = impl_->parts[size_t(part)];

@@ -7,6 +7,8 @@
 // file is read with pread on a descriptor the caller keeps open (the file the header check judged).
 #pragma once
 
+#include <OpenEXR/openexr.h>
+
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -59,6 +61,16 @@ class FlatPartReader {
     /// the first failing chunk in the reader's fixed order, whatever the thread count.
     Result read(const std::vector<PartSlices>& parts, int firstRow, int rows, int threads,
                 std::string& problem);
+
+    /// What open() was given and made, for a reader of the file's other parts (DeepPartReader):
+    /// the Core context (null before a successful open), the descriptor, its size, the window.
+    exr_const_context_t context() const;
+    int fd() const;
+    uint64_t size() const;
+    int x0() const;
+    int y0() const;
+    int width() const;
+    int height() const;
 
   private:
     struct Impl;

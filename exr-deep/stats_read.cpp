@@ -2,7 +2,8 @@
 // then blocks of rows of the parts asked for are decoded straight into a StatsImage's arrays, then
 // each block is validated. readStatsFile is one block of every row and part. The flat parts go
 // through OpenEXR's Core API with libdeflate for ZIP, a block's chunks in parallel
-// (flat_part_reader.h); the deep part and the optional parts through the C++ API.
+// (flat_part_reader.h); the deep part likewise (deep_part_reader.h) when its chunks are one line
+// of NONE or ZIPS, else, and the optional parts, through the C++ API.
 // Adaptive M (format 2): the block's deep sample counts are read and checked first, then the block
 // is sized for them, then the deep samples are read through per-pixel pointers.
 #include <OpenEXR/ImfDeepFrameBuffer.h>
@@ -26,6 +27,7 @@
 #include <vector>
 
 #include "deep_frame_buffer.h"
+#include "deep_part_reader.h"
 #include "fd_stream.h"
 #include "flat_part_reader.h"
 #include "mcstat/stats_file.h"
@@ -162,17 +164,30 @@ void readFlatParts(Imf::MultiPartInputFile& in, detail::FlatPartReader& flat, in
     throw std::runtime_error(problem);
 }
 
-/// Adaptive M: reads the per-pixel sample counts of the block's rows of part "vbuffers" and
-/// checks them (1..M each, total within the limits). False with `err` on a bad file; throws on
-/// read errors.
-bool readDeepCounts(Imf::MultiPartInputFile& in, const std::string& path, const ReadLimits& limits,
+/// Adaptive M: reads the per-pixel sample counts of the block's rows (from `firstRow`) of part
+/// "vbuffers", through `deep` when it takes the part, else the C++ API, and checks them (1..M each,
+/// total within the limits). False with `err` on a bad file; throws on read errors.
+bool readDeepCounts(Imf::MultiPartInputFile& in, detail::DeepPartReader& deep, int firstRow,
+                    int threads, const std::string& path, const ReadLimits& limits,
                     const StatsHeader& h, std::vector<uint32_t>& m, std::string& err) {
     const size_t pixels = size_t(h.width) * size_t(h.height);
-    m.assign(pixels, 0);
-    Imf::DeepScanLineInputPart dp(in, layout::kBuffers);
-    DeepFrameBufferSet fb(h, m.data());
-    dp.setFrameBuffer(fb.frameBuffer());
-    dp.readPixelSampleCounts(h.originY, h.originY + h.height - 1);
+    if (deep.handles()) {
+        std::string problem;
+        switch (deep.readCounts(firstRow, h.height, threads, m, problem)) {
+            case detail::DeepPartReader::Result::Ok:
+                break;
+            case detail::DeepPartReader::Result::OutOfMemory:
+                throw std::bad_alloc();
+            case detail::DeepPartReader::Result::Corrupt:
+                throw std::runtime_error(problem);
+        }
+    } else {
+        m.assign(pixels, 0);
+        Imf::DeepScanLineInputPart dp(in, layout::kBuffers);
+        DeepFrameBufferSet fb(h, m.data());
+        dp.setFrameBuffer(fb.frameBuffer());
+        dp.readPixelSampleCounts(h.originY, h.originY + h.height - 1);
+    }
     uint64_t total = 0;
     for (size_t p = 0; p < pixels; ++p) {
         if (m[p] < 1 || m[p] > uint32_t(h.M)) {
@@ -211,12 +226,31 @@ bool readDeepCounts(Imf::MultiPartInputFile& in, const std::string& path, const 
 }
 
 /// Adaptive M: reads the buffer means and counts of the block's rows of part "vbuffers" into
-/// `blk` (sized for the counts readDeepCounts returned), and its AOV channels when `aovs`; Z and A
-/// are not read. Throws on read errors.
-void readDeepBuffers(Imf::MultiPartInputFile& in, StatsImage& blk, bool aovs) {
+/// `blk` (sized for `counts`, what readDeepCounts returned), and its AOV channels when `aovs`; Z
+/// and A are not read. Through `deep` when it takes the part, else the C++ API. Throws on read
+/// errors.
+void readDeepBuffers(Imf::MultiPartInputFile& in, detail::DeepPartReader& deep, int firstRow,
+                     int threads, const std::vector<uint32_t>& counts, StatsImage& blk, bool aovs) {
     const StatsHeader& h = blk.header;
     const size_t pixels = blk.pixelCount();
     const size_t A = aovs ? h.aovs.size() : 0;
+    if (deep.handles()) {
+        std::vector<detail::DeepSlice> slices;
+        for (size_t c = 0; c < 3; ++c)
+            slices.push_back({layout::kDeepChannels[c], blk.bufferMean.data() + c, 3});
+        slices.push_back({layout::kDeepChannels[3], blk.bufferCount.data(), 1});
+        for (size_t a = 0; a < A; ++a)
+            slices.push_back({layout::aovDeepChannel(h.aovs[a].name), blk.aov.data() + a, A});
+        std::string problem;
+        switch (deep.readSamples(firstRow, h.height, counts, slices, threads, problem)) {
+            case detail::DeepPartReader::Result::Ok:
+                return;
+            case detail::DeepPartReader::Result::OutOfMemory:
+                throw std::bad_alloc();
+            case detail::DeepPartReader::Result::Corrupt:
+                throw std::runtime_error(problem);
+        }
+    }
     std::vector<uint32_t> m(pixels);
     DeepFrameBufferSet fb(h, m.data());
     for (size_t c = 0; c < 4; ++c)
@@ -266,6 +300,7 @@ struct StatsFileReader::Impl {
     std::unique_ptr<detail::FdIStream> stream;
     std::unique_ptr<Imf::MultiPartInputFile> file;
     detail::FlatPartReader flat;  // the flat parts, through the Core API and libdeflate
+    detail::DeepPartReader deep;  // adaptive M: part vbuffers, likewise
     int chunkRows = 1;
     int threads = 1;                   // decoding threads (codecThreads)
     std::vector<uint32_t> deepCounts;  // adaptive M: the block's m_p, reused
@@ -302,6 +337,10 @@ bool StatsFileReader::open(const std::string& path, std::string& err, const Read
         std::string problem;
         if (!impl->flat.open(impl->fd.get(), impl->size, path, h.originX, h.originY, h.width,
                              h.height, problem)) {
+            err = fmt::format("{}: truncated or corrupt ({})", path, problem);
+            return false;
+        }
+        if (h.adaptiveM && !impl->deep.open(impl->flat, layout::kBuffers, problem)) {
             err = fmt::format("{}: truncated or corrupt ({})", path, problem);
             return false;
         }
@@ -357,7 +396,8 @@ bool StatsFileReader::read(int firstRow, int rows, unsigned parts, StatsImage& b
         size_t buffers = 0;
         if (parts & kStatsPartBuffers) {
             if (h.adaptiveM) {
-                if (!readDeepCounts(*im.file, im.path, im.limits, h, im.deepCounts, err))
+                if (!readDeepCounts(*im.file, im.deep, firstRow, im.threads, im.path, im.limits, h,
+                                    im.deepCounts, err))
                     return false;
                 offsets.resize(pixels + 1);
                 for (size_t p = 0; p < pixels; ++p) {
@@ -375,7 +415,8 @@ bool StatsFileReader::read(int firstRow, int rows, unsigned parts, StatsImage& b
             return false;
         }
         if (h.adaptiveM && (parts & kStatsPartBuffers))
-            readDeepBuffers(*im.file, block, (parts & kStatsPartAovs) != 0);
+            readDeepBuffers(*im.file, im.deep, firstRow, im.threads, im.deepCounts, block,
+                            (parts & kStatsPartAovs) != 0);
         readFlatParts(*im.file, im.flat, firstRow, im.threads, parts, block);
     } catch (const std::bad_alloc&) {
         err = im.path + ": out of memory while reading pixels";
