@@ -151,7 +151,7 @@ bool compactHeader(const StatsHeader& full, const std::string& name, const Compa
     out.compact = true;
     out.compactRule = compactRuleText(rule);
     out.hasPajot = out.hasRecords = false;
-    out.formatVersion = kStatsFormatVersionCompact;
+    out.formatVersion = kStatsFormatVersionSlimMoments;
     return true;
 }
 
@@ -213,8 +213,6 @@ bool CompactStatsSource::read(int firstRow, int rows, unsigned /*parts*/, StatsI
     if (!out.allocateAdaptive(m, err)) return false;
     out.beauty = full_.beauty;
     out.count = full_.count;
-    out.mean = full_.mean;
-    out.variance = full_.variance;
     out.normal = full_.normal;
     out.position = full_.position;
     out.albedo = full_.albedo;

@@ -6,6 +6,7 @@
 
 #include "mcstat/core/untrusted_text.h"
 #include "mcstat/stats_file.h"
+#include "stats_layout.h"
 
 namespace mcstat {
 
@@ -74,7 +75,12 @@ std::vector<std::string> describeStatsHeader(const StatsHeader& h) {
                                 printable(h.renderer), printable(h.colorSpace),
                                 h.seeds.empty() ? std::string("(none)") : printable(h.seeds, 0)));
     if (!h.scene.empty()) lines.push_back("  scene " + printable(h.scene, 0));
-    if (h.formatVersion >= kStatsFormatVersionProvenance) {
+    const bool slim = layout::momentsOf(h) == layout::Moments::Slim;
+    if (slim)
+        lines.push_back(
+            "  variance: not kept (a compact file of version 7 keeps the spread of the buffers "
+            "--compare needs)");
+    if (h.formatVersion >= kStatsFormatVersionProvenance && !slim) {
         // What version 3 says about where the data came from (FORMAT.md, "Version 3").
         const char* variance = h.variance == kVarianceSamples ? "from every sample (Welford)"
                                : h.variance == kVarianceBuffers
@@ -92,8 +98,9 @@ std::vector<std::string> describeStatsHeader(const StatsHeader& h) {
     if (h.compact)
         lines.push_back(fmt::format(
             "  parts: beauty (R,G,B)  vbuffers (deep: {} or 1 samples R,G,B,count,Z,A{})  "
-            "moments (count, mean.RGB, variance.RGB, spread)  features ({})",
-            h.M, h.aovs.empty() ? "" : ", aov.*", features));
+            "moments (count, {}spread)  features ({})",
+            h.M, h.aovs.empty() ? "" : ", aov.*", slim ? "" : "mean.RGB, variance.RGB, ",
+            features));
     else if (h.adaptiveM)
         lines.push_back(fmt::format(
             "  parts: beauty (R,G,B)  vbuffers (deep: m_p in 1..{} samples R,G,B,count,Z,A{})  "

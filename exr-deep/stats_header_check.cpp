@@ -579,7 +579,7 @@ bool Checker::checkChannels(int part, const StatsHeader& hdr) {
         return fail(fmt::format("part '{}' has {} buffer channel groups (bNNN.count) but {} = {}",
                                 pn, groups, layout::kAttrM, M));
     const std::vector<layout::ChannelPlace> expected =
-        layout::partChannels(part, M, false, hdr.compact);
+        layout::partChannels(part, M, false, layout::momentsOf(hdr));
     for (const layout::ChannelPlace& c : expected) {
         const auto it = inFile.find(c.name);
         if (it == inFile.end())
@@ -626,10 +626,10 @@ bool Checker::run(const ReadLimits& limits, StatsHeader& hdr) {
     // rows when streamed, every row when read whole: StatsFileReader::read checks that), so here
     // the limit only refuses an image whose single row cannot be read.
     const int64_t bytesPerPixel =
-        hdr.adaptiveM
-            ? int64_t(layout::floatsPerPixel(1, hdr.aovs.size(), hdr.compact) * sizeof(float) +
-                      sizeof(uint64_t))
-            : int64_t(layout::floatsPerPixel(hdr.M, hdr.aovs.size()) * sizeof(float));
+        hdr.adaptiveM ? int64_t(layout::floatsPerPixel(1, hdr.aovs.size(), layout::momentsOf(hdr)) *
+                                    sizeof(float) +
+                                sizeof(uint64_t))
+                      : int64_t(layout::floatsPerPixel(hdr.M, hdr.aovs.size()) * sizeof(float));
     if (w > limits.maxBytes / bytesPerPixel)
         return fail(fmt::format(
             "a row of image {}x{} with {} = {}{} needs {}{} bytes, exceeding the limit of {} bytes",

@@ -109,8 +109,10 @@ bool allocateArrays(StatsImage& img, size_t buffers, std::vector<uint64_t>&& off
         t.bufferMean.assign(buffers * 3, 0.f);
         t.bufferCount.assign(buffers, 0.f);
         t.count.assign(pixels, 0.f);
-        t.mean.assign(pixels * 3, 0.f);
-        t.variance.assign(pixels * 3, 0.f);
+        if (layout::momentsOf(header) != layout::Moments::Slim) {
+            t.mean.assign(pixels * 3, 0.f);
+            t.variance.assign(pixels * 3, 0.f);
+        }
         t.normal.assign(pixels * 3, 0.f);
         t.position.assign(pixels * 3, 0.f);
         t.albedo.assign(pixels * 3, 0.f);
@@ -152,8 +154,9 @@ bool resizeParts(StatsImage& img, unsigned parts, size_t buffers, std::vector<ui
         fit(img.bufferCount, buffers, buf);
         img.bufferOffset = buf ? std::move(offsets) : std::vector<uint64_t>();
         fit(img.count, pixels, mom);
-        fit(img.mean, pixels * 3, mom);
-        fit(img.variance, pixels * 3, mom);
+        const bool slim = layout::momentsOf(h) == layout::Moments::Slim;
+        fit(img.mean, pixels * 3, mom && !slim);
+        fit(img.variance, pixels * 3, mom && !slim);
         fit(img.normal, pixels * 3, feat);
         fit(img.position, pixels * 3, feat);
         fit(img.albedo, pixels * 3, feat);
@@ -330,7 +333,7 @@ bool validateStats(const StatsImage& img, unsigned parts, const std::string& wha
     for (int part = 0; part < layout::kPartCount; ++part) {
         if (!(parts & (1u << part))) continue;  // StatsParts bits follow the part order
         for (const layout::ChannelPlace& c :
-             layout::partChannels(part, h.M, h.adaptiveM, h.compact)) {
+             layout::partChannels(part, h.M, h.adaptiveM, layout::momentsOf(h))) {
             if (c.offset != 0) continue;  // one check per array
             const std::vector<float>& a = layout::arrayOf(img, c.array);
             if (pixels > a.max_size() / c.stride || a.size() != pixels * c.stride) {

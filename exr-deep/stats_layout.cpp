@@ -90,6 +90,7 @@ bool parseFeatureList(const std::string& text, unsigned& bits, std::string& prob
 }
 
 int requiredFormatVersion(const StatsHeader& h) {
+    // A compact file of version 6 (moments with mean and variance) stays valid; --compact writes 7.
     if (h.compact || (h.adaptiveM && !h.aovs.empty())) return kStatsFormatVersionCompact;
     if (!h.aovs.empty() || h.beautyNames != std::array<std::string, 3>{"R", "G", "B"} ||
         !h.beautyPart.empty() || !h.sourceMetadata.empty())
@@ -106,7 +107,7 @@ int requiredFormatVersion(const StatsHeader& h) {
 
 namespace mcstat::layout {
 
-std::vector<ChannelPlace> partChannels(int part, int M, bool adaptiveM, bool compact) {
+std::vector<ChannelPlace> partChannels(int part, int M, bool adaptiveM, Moments moments) {
     if (adaptiveM && part == kBuffers) return {};
     const size_t m = size_t(M);
     switch (part) {
@@ -125,12 +126,15 @@ std::vector<ChannelPlace> partChannels(int part, int M, bool adaptiveM, bool com
             return ch;
         }
         case kMoments: {
-            std::vector<ChannelPlace> ch = {
-                {"count", Array::Count, 0, 1},         {"mean.R", Array::Mean, 0, 3},
-                {"mean.G", Array::Mean, 1, 3},         {"mean.B", Array::Mean, 2, 3},
-                {"variance.R", Array::Variance, 0, 3}, {"variance.G", Array::Variance, 1, 3},
-                {"variance.B", Array::Variance, 2, 3}};
-            if (compact)
+            std::vector<ChannelPlace> ch = {{"count", Array::Count, 0, 1}};
+            if (moments != Moments::Slim)
+                ch.insert(ch.end(), {{"mean.R", Array::Mean, 0, 3},
+                                     {"mean.G", Array::Mean, 1, 3},
+                                     {"mean.B", Array::Mean, 2, 3},
+                                     {"variance.R", Array::Variance, 0, 3},
+                                     {"variance.G", Array::Variance, 1, 3},
+                                     {"variance.B", Array::Variance, 2, 3}});
+            if (moments != Moments::Full)
                 for (size_t i = 0; i < size_t(kSpreadFloats); ++i)
                     ch.push_back({kSpreadChannels[i], Array::Spread, i, size_t(kSpreadFloats)});
             return ch;
@@ -159,8 +163,9 @@ std::vector<ChannelPlace> aovChannels(const StatsHeader& h) {
     return ch;
 }
 
-size_t floatsPerPixel(int M, size_t aovs, bool compact) {
-    return 3 + 4 * size_t(M) + 7 + 11 + size_t(M) * aovs + (compact ? size_t(kSpreadFloats) : 0);
+size_t floatsPerPixel(int M, size_t aovs, Moments moments) {
+    return 3 + 4 * size_t(M) + (moments == Moments::Slim ? 1 : 7) + 11 + size_t(M) * aovs +
+           (moments != Moments::Full ? size_t(kSpreadFloats) : 0);
 }
 
 uint64_t aovChannelListBytes(const StatsHeader& h) {

@@ -149,11 +149,19 @@ struct ChannelPlace {
 /// Channel name of buffer j's component, e.g. bufferChannel(7, "R") == "b007.R".
 std::string bufferChannel(int j, const char* component);
 
+/// What part moments holds: version 1's count, mean and variance (Full); in a compact file of
+/// version 6 also kSpreadChannels (WithSpread); in one of version 7 the count and kSpreadChannels
+/// only (Slim: the mean is part beauty's, FORMAT.md "Version 7").
+enum class Moments { Full, WithSpread, Slim };
+inline Moments momentsOf(const StatsHeader& h) {
+    if (!h.compact) return Moments::Full;
+    return h.formatVersion >= kStatsFormatVersionSlimMoments ? Moments::Slim : Moments::WithSpread;
+}
+
 /// Every channel of part `part` for a file with M sub-buffers, in a fixed order. For the deep part
 /// "vbuffers" use kDeepChannels (its flat channel list is empty).
-/// A compact file's part moments adds kSpreadChannels (`compact`).
 std::vector<ChannelPlace> partChannels(int part, int M, bool adaptiveM = false,
-                                       bool compact = false);
+                                       Moments moments = Moments::Full);
 
 /// The channels of part `aovs` for `h` (fixed M): bNNN.<name> of buffer j and AOV a, element
 /// offset j * A + a of the M * A floats per pixel; buffers in order, AOVs in header order. Empty
@@ -163,8 +171,8 @@ std::vector<ChannelPlace> aovChannels(const StatsHeader& h);
 /// Number of floats per pixel over all parts (3 + 4M + 7 + 11, plus M * A for `aovs` AOVs). For
 /// adaptive M (no AOVs), the floats of the flat parts plus 4 per buffer is floatsPerPixel(0) + 4 *
 /// sum(m_p) / pixels.
-/// A compact file adds kSpreadFloats (`compact`).
-size_t floatsPerPixel(int M, size_t aovs = 0, bool compact = false);
+/// A compact file adds kSpreadFloats, and from version 7 leaves out the 6 of mean and variance.
+size_t floatsPerPixel(int M, size_t aovs = 0, Moments moments = Moments::Full);
 
 /// The array of `img` a channel refers to.
 std::vector<float>& arrayOf(StatsImage& img, Array a);

@@ -125,8 +125,9 @@ void readFlatParts(Imf::MultiPartInputFile& in, detail::FlatPartReader& flat, in
         // No part aovs (no AOVs, or they are in the deep part): nothing to read.
         if (part == layout::kAovs && !layout::hasAovPart(h)) continue;
         const std::vector<layout::ChannelPlace> channels =
-            part == layout::kAovs ? layout::aovChannels(h)
-                                  : layout::partChannels(part, h.M, h.adaptiveM, h.compact);
+            part == layout::kAovs
+                ? layout::aovChannels(h)
+                : layout::partChannels(part, h.M, h.adaptiveM, layout::momentsOf(h));
         if (flat.handles(part)) {
             detail::PartSlices req;
             req.part = part;
@@ -210,10 +211,10 @@ bool readDeepCounts(Imf::MultiPartInputFile& in, detail::DeepPartReader& deep, i
         }
         total += m[p];
     }
-    const double bytes =
-        double(layout::floatsPerPixel(0, 0, h.compact) * sizeof(float) + sizeof(uint64_t)) *
-            double(pixels) +
-        double(total) * double(4 + h.aovs.size()) * sizeof(float);
+    const double bytes = double(layout::floatsPerPixel(0, 0, layout::momentsOf(h)) * sizeof(float) +
+                                sizeof(uint64_t)) *
+                             double(pixels) +
+                         double(total) * double(4 + h.aovs.size()) * sizeof(float);
     if (int64_t(total) > limits.maxDeepSamples || bytes > double(limits.maxBytes)) {
         err = fmt::format(
             "{}: part '{}' holds {} sub-buffers ({} bytes in memory), exceeding the limit of {} "

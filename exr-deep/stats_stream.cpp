@@ -16,7 +16,9 @@ int StatsBlockSource::blockRows(unsigned parts, size_t budgetBytes) const {
     size_t floats = 0;  // per pixel, over the parts read (adaptive M: at M_max, an upper bound)
     if (parts & kStatsPartBeauty) floats += 3;
     if (parts & kStatsPartBuffers) floats += 4 * size_t(h.M) + (h.adaptiveM ? 2 : 0);
-    if (parts & kStatsPartMoments) floats += 7 + (h.compact ? size_t(kSpreadFloats) : 0);
+    if (parts & kStatsPartMoments)
+        floats += (layout::momentsOf(h) == layout::Moments::Slim ? 1 : 7) +
+                  (h.compact ? size_t(kSpreadFloats) : 0);
     if (parts & kStatsPartFeatures) floats += 11;
     if (parts & kStatsPartAovs) floats += size_t(h.M) * h.aovs.size();
     const size_t rowBytes = std::max<size_t>(1, floats * sizeof(float) * size_t(h.width)) *
@@ -78,8 +80,8 @@ bool MemoryStatsSource::read(int firstRow, int rows, unsigned parts, StatsImage&
     // Every array of a part read: the same rows of the image's array.
     for (int part = 0; part < layout::kPartCount; ++part) {
         if (!(parts & (1u << part))) continue;
-        for (const layout::ChannelPlace& c :
-             layout::partChannels(part, img.header.M, img.header.adaptiveM, img.header.compact)) {
+        for (const layout::ChannelPlace& c : layout::partChannels(
+                 part, img.header.M, img.header.adaptiveM, layout::momentsOf(img.header))) {
             if (c.offset != 0) continue;  // one copy per array
             const std::vector<float>& src = layout::arrayOf(img, c.array);
             std::vector<float>& dst = layout::arrayOf(block, c.array);

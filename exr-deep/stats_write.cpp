@@ -111,7 +111,7 @@ std::vector<Imf::Header> makeHeaders(const StatsHeader& h) {
         Imf::Header hdr = detail::commonHeader(h, layout::partNames(h.adaptiveM)[part], deep);
         if (part == layout::kBeauty) Imf::addChromaticities(hdr, Imf::Chromaticities());  // Rec.709
         for (const layout::ChannelPlace& c :
-             layout::partChannels(part, h.M, h.adaptiveM, h.compact))
+             layout::partChannels(part, h.M, h.adaptiveM, layout::momentsOf(h)))
             hdr.channels().insert(c.name, Imf::Channel(Imf::FLOAT));
         if (deep) {
             for (const char* name : layout::kDeepChannels)
@@ -181,8 +181,9 @@ void writeRows(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
         }
         Imf::FrameBuffer fb;
         for (const layout::ChannelPlace& c :
-             part == layout::kAovs ? layout::aovChannels(h)
-                                   : layout::partChannels(part, h.M, h.adaptiveM, h.compact)) {
+             part == layout::kAovs
+                 ? layout::aovChannels(h)
+                 : layout::partChannels(part, h.M, h.adaptiveM, layout::momentsOf(h))) {
             const float* data = layout::arrayOf(blk, c.array).data() + c.offset;
             const size_t xStride = c.stride * sizeof(float);
             fb.insert(c.name, Imf::Slice(Imf::FLOAT, windowBase(data, h, xStride), xStride,
@@ -237,8 +238,9 @@ std::vector<detail::PartRows> partRows(const StatsImage& blk, DeepBufferRows& de
             continue;
         }
         for (const layout::ChannelPlace& c :
-             part == layout::kAovs ? layout::aovChannels(h)
-                                   : layout::partChannels(part, h.M, h.adaptiveM, h.compact)) {
+             part == layout::kAovs
+                 ? layout::aovChannels(h)
+                 : layout::partChannels(part, h.M, h.adaptiveM, layout::momentsOf(h))) {
             const float* data = layout::arrayOf(blk, c.array).data() + c.offset;
             const size_t xStride = c.stride * sizeof(float);
             // The writer only reads through the slice.

@@ -33,7 +33,9 @@ inline constexpr const char* kStatsExtension = "mcstat";
 /// Version 6 adds compact files (`mcstat --compact`, FORMAT.md "Version 6"): the layout of
 /// adaptive M decided after the samples are in, each pixel holding its M sub-buffers or one (their
 /// mean), AOVs in the deep part, and the between-buffer spread of every pixel in part moments.
-inline constexpr int kStatsFormatVersion = 6;
+/// Version 7 slims a compact file's part moments to the count and the spread: its mean was part
+/// beauty's and its per-sample variance nothing of a compact file's used (FORMAT.md "Version 7").
+inline constexpr int kStatsFormatVersion = 7;
 /// The version a fixed-M file is written with by default (readable by version-1 readers).
 inline constexpr int kStatsFormatVersionFixed = 1;
 /// The first version that can hold adaptive M.
@@ -47,6 +49,9 @@ inline constexpr int kStatsFormatVersionSamples = 4;
 inline constexpr int kStatsFormatVersionAovs = 5;
 /// The first version that can hold compact files and AOVs with the deep part `vbuffers`.
 inline constexpr int kStatsFormatVersionCompact = 6;
+/// The version `--compact` writes: a compact file whose part moments holds the count and the
+/// spread only (a version-6 compact file also holds mean.* and variance.*, and still reads).
+inline constexpr int kStatsFormatVersionSlimMoments = 7;
 
 /// What an AOV channel holds, which decides how an operation combines its sub-buffers
 /// (docs/aovs.md). Every operation computes weights from the beauty once per output pixel; the
@@ -130,8 +135,9 @@ struct StatsHeader {
     /// Version 6 (mcstat:compact): a compact file, made from a fixed-M file after its samples
     /// were in (include/mcstat/compact/compact.h). The layout is adaptive M's (adaptiveM is set),
     /// every pixel holding either its M buffers or one, the mean G-MoN returns for it; part
-    /// moments adds the between-buffer spread (StatsImage::spread). `compactRule` is the rule
-    /// that decided, as text (e.g. "gmon luma=0.2126,0.7152,0.0722 margin=0 z=0").
+    /// moments adds the between-buffer spread (StatsImage::spread); from version 7 it holds only
+    /// the count and the spread (StatsImage::mean and ::variance stay empty). `compactRule` is the
+    /// rule that decided, as text (e.g. "gmon luma=0.2126,0.7152,0.0722 margin=0 z=0").
     bool compact = false;
     std::string compactRule;
     std::string assignment = "roundrobin";  ///< sample-to-buffer rule, see FORMAT.md

@@ -61,13 +61,20 @@ void expectSame(const StatsImage& a, const StatsImage& b) {
     ASSERT_EQ(a.spread.size(), b.spread.size());
     EXPECT_EQ(0, std::memcmp(a.spread.data(), b.spread.data(), a.spread.size() * sizeof(float)));
     EXPECT_EQ(a.mean, b.mean);
+    EXPECT_EQ(a.variance, b.variance);
+    EXPECT_EQ(a.count, b.count);
     EXPECT_EQ(a.beauty, b.beauty);
 }
 
 TEST(CompactFile, RoundTripsWithAovsInTheDeepPart) {
     test::ScratchDir dir;
     const StatsImage small = compacted(sample(13, 9, 9));
-    ASSERT_EQ(small.header.formatVersion, kStatsFormatVersionCompact);
+    // Version 7: part moments holds the count and the spread, not the mean (part beauty's) nor
+    // the per-sample variance.
+    ASSERT_EQ(small.header.formatVersion, kStatsFormatVersionSlimMoments);
+    EXPECT_TRUE(small.mean.empty());
+    EXPECT_TRUE(small.variance.empty());
+    EXPECT_EQ(small.count.size(), small.pixelCount());
     size_t kept = 0;
     for (size_t p = 0; p < small.pixelCount(); ++p) kept += small.buffersOf(p) == 9;
     EXPECT_EQ(kept, (small.pixelCount() + 6) / 7) << "exactly the firefly pixels keep buffers";
@@ -87,6 +94,34 @@ TEST(CompactFile, RoundTripsWithAovsInTheDeepPart) {
     StatsCheckReport report;
     EXPECT_TRUE(checkStatsFile(path, report, err)) << err;
     EXPECT_EQ(report.subBuffers, int64_t(small.bufferCount.size()));
+}
+
+TEST(CompactFile, Version6FilesWithTheMomentsMeanAndVarianceStillRead) {
+    // What --compact wrote before version 7: part moments with count, mean.*, variance.* and the
+    // spread. It reads, and writes back, as it is.
+    test::ScratchDir dir;
+    StatsImage v6 = compacted(sample(7, 5, 5));
+    v6.header.formatVersion = kStatsFormatVersionCompact;
+    v6.mean = v6.beauty;
+    v6.variance.assign(v6.pixelCount() * 3, 0.f);
+    for (size_t i = 0; i < v6.variance.size(); ++i) v6.variance[i] = 0.125f * float(i % 11);
+    std::string err;
+    const std::string path = dir.file("v6.mcstat");
+    ASSERT_TRUE(writeStatsFile(path, v6, err)) << err;
+    StatsImage back;
+    ASSERT_TRUE(readStatsFile(path, back, err)) << err;
+    EXPECT_EQ(back.header.formatVersion, kStatsFormatVersionCompact);
+    expectSame(v6, back);
+    EXPECT_FALSE(back.variance.empty());
+    // The same image as version 7 is smaller by those six channels and reads without them.
+    StatsImage v7 = v6;
+    v7.header.formatVersion = kStatsFormatVersionSlimMoments;
+    ASSERT_TRUE(writeStatsFile(dir.file("v7.mcstat"), v7, err)) << err;
+    ASSERT_TRUE(readStatsFile(dir.file("v7.mcstat"), back, err)) << err;
+    EXPECT_TRUE(back.mean.empty());
+    EXPECT_TRUE(back.variance.empty());
+    EXPECT_EQ(back.bufferMean, v6.bufferMean);
+    EXPECT_LT(test::readBytes(dir.file("v7.mcstat")).size(), test::readBytes(path).size());
 }
 
 TEST(CompactFile, WrittenByBlocksGivesTheSameBytes) {

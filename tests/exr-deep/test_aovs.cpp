@@ -131,7 +131,11 @@ TEST(AovFormat, RequiredVersionIsFiveForTheInputsLayout) {
     EXPECT_EQ(requiredFormatVersion(e), kStatsFormatVersionAdaptive) << "no AOVs: version 2";
     e.aovs = {{"A", AovClass::Alpha, ""}};
     EXPECT_EQ(requiredFormatVersion(e), kStatsFormatVersionCompact);
-    EXPECT_EQ(kStatsFormatVersion, kStatsFormatVersionCompact);
+    e.compact = true;
+    e.compactRule = "gmon";
+    EXPECT_EQ(requiredFormatVersion(e), kStatsFormatVersionCompact)
+        << "a compact file of version 6 (moments with mean and variance) stays valid";
+    EXPECT_EQ(kStatsFormatVersion, kStatsFormatVersionSlimMoments);
     EXPECT_EQ(kStatsAllParts, kStatsPartBeauty | kStatsPartBuffers | kStatsPartMoments |
                                   kStatsPartFeatures | kStatsPartAovs);
 }
@@ -939,10 +943,10 @@ TEST_F(AovCorrupt, BeautyAttributes) {
 }
 
 TEST_F(AovCorrupt, NewerVersionIsRefusedFirst) {
-    // What a version-6 reader says about version 7, as a version-4 reader said about version 5.
+    // What a version-7 reader says about version 8, as a version-4 reader said about version 5.
     setIntOnAll(parts, "mcstat:formatVersion", kStatsFormatVersion + 1);
     const std::string err = readError();
-    EXPECT_TRUE(contains(err, "written by a newer mcstat (format 7); this reader knows 6")) << err;
+    EXPECT_TRUE(contains(err, "written by a newer mcstat (format 8); this reader knows 7")) << err;
 }
 
 TEST_F(AovCorrupt, PartAovsInAnOlderVersion) {
