@@ -10,7 +10,7 @@
 #
 # Environment: BUILD (default build), OUT (default out/extremes), RES (default "64 48"),
 # CONFIGS (default "256:8 1024:21", spp:M pairs), REF_SPP (default 8192; rendered once, reused),
-# SCENES (default: every built-in scene).
+# SCENES (default: every built-in scene; empty: none, e.g. for the negative lobes alone).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD=${BUILD:-build}
@@ -18,7 +18,7 @@ OUT=${OUT:-out/extremes}
 RES=${RES:-64 48}
 CONFIGS=${CONFIGS:-256:8 1024:21}
 REF_SPP=${REF_SPP:-8192}
-SCENES=${SCENES:-arealight caustic default dof furnace motion texture tiny}
+SCENES=${SCENES-arealight caustic default dof furnace motion texture tiny}
 LOBES=${LOBES:-1}
 mcstat=$BUILD/oiiotool-ext/mcstat
 render=$BUILD/render-fixture/mcstat-render
