@@ -110,8 +110,9 @@ double scaleFor(double factor, ScaleRule rule, const EstimatorScratch& s, int K)
             // MAD 0: more than half of the buffers share one value, and the scale is 0, the
             // selection limit (that value). In arithmetic: 1e-300 x the whole range, so that every
             // |x_j - beta| / scale stays finite (an infinite ratio would make the myriad's step
-            // 0 x inf) while every other value is still >= 1e-45 / (3.4e38 x 1e-300) ~ 1e217
-            // scales away from a float value: a weight below 1e-434, 0 in double.
+            // 0 x inf) while two distinct float channel values, at least 1e-45 apart, are still
+            // >= 1e-45 / (3.4e38 x 1e-300) ~ 3e216 scales apart: a weight below 1e-433, 0 in
+            // double.
             return 1e-300 * (s.sorted[size_t(K) - 1] - s.sorted[0]);
         }
         case ScaleRule::Range:
