@@ -74,6 +74,18 @@ bool outlyingBuffer(const PixelBuffers& px, const std::array<double, 3>& luma, d
     return largest > z * sigma;
 }
 
+/// Whether a valid buffer has a negative channel or luminance (where G-MoN's Gini inputs differ).
+bool negativeKey(const PixelBuffers& px, const std::vector<int>& valid,
+                 const std::array<double, 3>& luma) {
+    for (int j : valid) {
+        const float* m = px.mean + 3 * j;
+        if (m[0] < 0.f || m[1] < 0.f || m[2] < 0.f ||
+            luma[0] * double(m[0]) + luma[1] * double(m[1]) + luma[2] * double(m[2]) < 0.0)
+            return true;
+    }
+    return false;
+}
+
 }  // namespace
 
 bool compactKeeps(const PixelBuffers& px, const CompactRule& rule, CompactScratch& scratch,
@@ -83,10 +95,14 @@ bool compactKeeps(const PixelBuffers& px, const CompactRule& rule, CompactScratc
     if (excluded > 0) return true;  // NaN / Inf buffers: each estimator has its own answer
     PixelEstimate lum, channel;
     scratch.estimator.wantWeights = weights != nullptr;
-    estimateGMoN(px, PixelParams{EstimatorMode::Luminance, rule.luma}, lum, scratch.estimator);
+    GmonParams gp;  // G-MoN's defaults (the registry's: GiniInput::Magnitudes)
+    gp.luma = rule.luma;
+    gp.mode = EstimatorMode::Luminance;
+    estimateGMoN(px, gp, lum, scratch.estimator);
     if (weights != nullptr) *weights = scratch.estimator.bufferWeight;
     scratch.estimator.wantWeights = false;
-    estimateGMoN(px, PixelParams{EstimatorMode::PerChannel, rule.luma}, channel, scratch.estimator);
+    gp.mode = EstimatorMode::PerChannel;
+    estimateGMoN(px, gp, channel, scratch.estimator);
     // G-MoN trimmed something in one of the modes: the buffers are needed.
     for (int c = 0; c < 3; ++c)
         if (lum.kept[size_t(c)] != Mv || channel.kept[size_t(c)] != Mv) return true;
@@ -100,6 +116,20 @@ bool compactKeeps(const PixelBuffers& px, const CompactRule& rule, CompactScratc
         if (G > 0.0 && G * k >= 1.0 - rule.margin) return true;
     }
     if (rule.z > 0.0 && outlyingBuffer(px, rule.luma, rule.z, scratch)) return true;
+    // G-MoN's two Gini inputs (gini=abs, the default, and gini=shift) are the same G on a pixel
+    // without a negative mean or luminance; elsewhere the buffers stay when either form trims, so
+    // that G-MoN is exact on the compact file in both.
+    if (negativeKey(px, scratch.valid, rule.luma)) {
+        gp.gini = GiniInput::Shifted;
+        for (EstimatorMode mode : {EstimatorMode::Luminance, EstimatorMode::PerChannel}) {
+            gp.mode = mode;
+            PixelEstimate shifted;
+            estimateGMoN(px, gp, shifted, scratch.estimator);
+            for (int c = 0; c < 3; ++c)
+                if (shifted.kept[size_t(c)] != Mv) return true;
+            if (!sameBits(shifted.rgb, lum.rgb)) return true;
+        }
+    }
     mean = lum.rgb;
     return false;
 }

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include "mcstat/filters/pixel/ranking.h"
 
@@ -75,8 +76,51 @@ int distinctValues(const PixelBuffers& px, EstimatorScratch& s) {
     return int(s.sorted.size());
 }
 
-double scaleFor(double factor, bool relative, const EstimatorScratch& s, int K) {
-    return relative ? factor * (s.sorted[size_t(K) - 1] - s.sorted[0]) : factor;
+double hampelRange(const EstimatorScratch& s) {
+    const size_t n = s.order.size();
+    if (n < 2) return 0.0;
+    // The median of the ranked keys, then the median of the absolute deviations from it.
+    auto middle = [n](const auto& at) {
+        return n % 2 == 1 ? at(n / 2) : 0.5 * (at(n / 2 - 1) + at(n / 2));
+    };
+    const double med = middle([&s](size_t r) { return s.key[size_t(s.order[r])]; });
+    thread_local std::vector<double> dev;
+    dev.resize(n);
+    for (size_t r = 0; r < n; ++r) dev[r] = std::fabs(s.key[size_t(s.order[r])] - med);
+    std::nth_element(dev.begin(), dev.begin() + long(n / 2), dev.end());
+    const double upper = dev[n / 2];
+    // Even n: the lower middle value is the largest of the n / 2 below the upper one.
+    const double mad =
+        n % 2 == 1 ? upper
+                   : 0.5 * (*std::max_element(dev.begin(), dev.begin() + long(n / 2)) + upper);
+    // Hampel's identifier: 1.4826 MAD estimates a normal sigma; 3 sigma is its fence.
+    const double fence = 3.0 * 1.4826 * mad;
+    size_t lo = 0, hi = n - 1;
+    auto key = [&s](size_t r) { return s.key[size_t(s.order[r])]; };
+    while (lo < hi && !(std::fabs(key(lo) - med) <= fence)) ++lo;
+    while (hi > lo && !(std::fabs(key(hi) - med) <= fence)) --hi;
+    return key(hi) - key(lo);
+}
+
+double scaleFor(double factor, ScaleRule rule, const EstimatorScratch& s, int K) {
+    switch (rule) {
+        case ScaleRule::Hampel: {
+            const double fenced = hampelRange(s);
+            if (fenced > 0.0 || K < 2) return factor * fenced;
+            // MAD 0: more than half of the buffers share one value, and the scale is 0, the
+            // selection limit (that value). In arithmetic: 1e-300 x the whole range, so that every
+            // |x_j - beta| / scale stays finite (an infinite ratio would make the myriad's step
+            // 0 x inf) while two distinct float channel values, at least 1e-45 apart, are still
+            // >= 1e-45 / (3.4e38 x 1e-300) ~ 3e216 scales apart: a weight below 1e-433, 0 in
+            // double.
+            return 1e-300 * (s.sorted[size_t(K) - 1] - s.sorted[0]);
+        }
+        case ScaleRule::Range:
+            return factor * (s.sorted[size_t(K) - 1] - s.sorted[0]);
+        case ScaleRule::Absolute:
+            break;
+    }
+    return factor;
 }
 
 void setKeys(const PixelBuffers& px, const PixelParams& p, EstimatorScratch& s, int ch) {

@@ -1,9 +1,10 @@
 // Internal to filters/pixel/: what the M-estimators (myriad.cpp, meridian.cpp) share. Both rank
 // a pixel's valid values (luminances, or one channel), merge equal values into distinct values
 // weighted by their summed counts, and scale their cost by a factor of the values' range (Jung
-// 2016, section 4.2).
+// 2016, section 4.2), of the range within Hampel's fence (the default), or by an absolute value.
 #pragma once
 
+#include "mcstat/filters/pixel/myriad.h"  // ScaleRule
 #include "mcstat/filters/pixel/pixel_estimate.h"
 
 namespace mcstat::detail {
@@ -19,7 +20,15 @@ void setKeys(const PixelBuffers& px, const PixelParams& p, EstimatorScratch& s, 
 /// s.sorted = distinct values ascending, s.weight = their summed counts. Returns the distinct
 /// count.
 int distinctValues(const PixelBuffers& px, EstimatorScratch& s);
-/// The scale: factor x (max - min) of the distinct values when relative, else factor.
-double scaleFor(double factor, bool relative, const EstimatorScratch& s, int K);
+/// The scale (ScaleRule, myriad.h): Range: factor x (max - min) of the distinct values; Hampel:
+/// factor x (max - min) of the values within Hampel's fence (hampelRange), 1e-300 x the whole
+/// range when that is 0 (the selection limit, in finite arithmetic); Absolute: factor.
+/// After distinctValues (s.order ranked, s.sorted the K distinct values).
+double scaleFor(double factor, ScaleRule rule, const EstimatorScratch& s, int K);
+/// max - min of the valid buffers' keys x_j (s.key over s.order, ranked) within Hampel's fence
+/// |x_j - med| <= 3 x 1.4826 x MAD, med the median of the keys and MAD the median of |x_j - med|
+/// (buffers unweighted, as the ranks of the rank estimators; even counts average the two middle
+/// values). MAD = 0 (more than half of the buffers share one value) gives 0.
+double hampelRange(const EstimatorScratch& s);
 
 }  // namespace mcstat::detail

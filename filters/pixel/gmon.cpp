@@ -5,15 +5,36 @@
 
 namespace mcstat {
 
-void estimateGMoN(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out,
+void estimateGMoN(const PixelBuffers& px, const GmonParams& p, PixelEstimate& out,
                   EstimatorScratch& s) {
-    rankedTrimmedMean(px, p, {TrimRule::Gini, 0.0}, out, s);
+    rankedTrimmedMean(px, p, {TrimRule::Gini, 0.0, p.gini}, out, s);
+}
+
+ParamSpec giniParam() {
+    // Eq. 4 is defined for non-negative values, where both choices are it. Below zero, abs weighs
+    // a buffer by its distance from zero whatever its sign, so a negative firefly (the ring a
+    // Mitchell or Lanczos filter leaves around a positive one) raises G as a positive one does;
+    // shift computes G on x - min, where a negative outlier is the one zero among equal values
+    // (G ~ 1/M, no trim). Gini of deviations from the median, or of max - x, were the other
+    // candidates: both are large on every smooth pixel (the mean's efficiency lost everywhere).
+    return enumParam("gini", {"abs", "shift"}, "abs",
+                     "what the Gini coefficient is computed on: abs: the magnitudes |x| (a "
+                     "negative outlier counts as a positive one); shift: the means shifted by "
+                     "-min (blind to a negative outlier). Both are eq. 4 on non-negative means",
+                     {{"magnitude", "abs"}, {"shifted", "shift"}});
+}
+
+GiniInput giniInput(const ParamValues& values) {
+    const auto it = values.find("gini");  // absent (values bound by hand): the default
+    return it != values.end() && it->second.text == "shift" ? GiniInput::Shifted
+                                                            : GiniInput::Magnitudes;
 }
 
 namespace {
 
 PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
-    const PixelParams p = pixelParams(values, luma);
+    auto p = pixelParamsAs<GmonParams>(values, luma);
+    p.gini = giniInput(values);
     return pixelKernel(p, &estimateGMoN, /*smallestRobustM=*/4);
 }
 
@@ -25,7 +46,7 @@ Operation gmonOperation() {
     return pixelOperation(
         "gmon", "G-MoN",
         "Adaptive median of means: trims c = floor(G*floor(M/2)) means per side (eq. 4, 6)",
-        "Buisine et al. eq. 4, 6", {modeParam()}, &bind);
+        "Buisine et al. eq. 4, 6", {modeParam(), giniParam()}, &bind);
 }
 
 }  // namespace mcstat

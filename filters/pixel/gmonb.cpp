@@ -7,7 +7,7 @@ namespace mcstat {
 
 void estimateGMoNb(const PixelBuffers& px, const GmonbParams& p, PixelEstimate& out,
                    EstimatorScratch& s) {
-    rankedTrimmedMean(px, p, {TrimRule::GiniThreshold, p.threshold}, out, s);
+    rankedTrimmedMean(px, p, {TrimRule::GiniThreshold, p.threshold, p.gini}, out, s);
 }
 
 namespace {
@@ -15,6 +15,7 @@ namespace {
 PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     auto p = pixelParamsAs<GmonbParams>(values, luma);
     p.threshold = values.at("threshold").real;
+    p.gini = giniInput(values);
     return pixelKernel(p, &estimateGMoNb, /*smallestRobustM=*/3);
 }
 
@@ -24,7 +25,9 @@ Operation gmonbOperation() {
     return pixelOperation(
         "gmonb", "G-MoN_b", "Mean when the Gini coefficient G <= threshold, else MoN (eq. 5)",
         "Buisine et al. eq. 5",
-        {modeParam(), realParam("threshold", 0.0, 1.0, false, "0.25", "Gini threshold")}, &bind);
+        {modeParam(), realParam("threshold", 0.0, 1.0, false, "0.25", "Gini threshold"),
+         giniParam()},
+        &bind);
 }
 
 }  // namespace mcstat

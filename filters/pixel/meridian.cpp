@@ -210,7 +210,7 @@ void estimateMeridian(const PixelBuffers& px, const MeridianParams& p, PixelEsti
     for (int ch = lum ? -1 : 0; ch < (lum ? 0 : 3); ++ch) {
         setKeys(px, p, s, ch);
         const int K = distinctValues(px, s);
-        const double delta = scaleFor(p.delta, p.scaleRelative, s, K);
+        const double delta = scaleFor(p.delta, p.scale, s, K);
         const double value =
             s.sorted[size_t(meridianSorted(s.sorted.data(), s.weight.data(), K, delta))];
         if (lum) {
@@ -239,7 +239,7 @@ namespace {
 PixelKernel bindMeridian(const ParamValues& values, const std::array<double, 3>& luma) {
     auto p = pixelParamsAs<MeridianParams>(values, luma);
     p.delta = values.at("delta").real;
-    p.scaleRelative = values.at("scale").text == "rel";
+    p.scale = scaleRule(values);
     return pixelKernel(p, &estimateMeridian, /*smallestRobustM=*/2);
 }
 

@@ -2,7 +2,8 @@
 // scale gamma moves it from the mode (small) to the mean (large).
 // Jung, "Rendering of Teeth and Dental Restorations using Robust Statistical Estimation
 // Techniques", PhD thesis, University of Minnesota, 2016, section 4.1.3 (M-estimators) and
-// section 4.2 (scale 0.05 x input range, luminance-driven selection). Rules: myriad.h.
+// section 4.2 (scale 0.05 x input range, luminance-driven selection). Rules: myriad.h. The
+// default scale is the range within Hampel's fence, not the whole range (ScaleRule).
 #include "mcstat/filters/pixel/myriad.h"
 
 #include <algorithm>
@@ -10,6 +11,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -194,7 +196,7 @@ void estimateMyriad(const PixelBuffers& px, const MyriadParams& p, PixelEstimate
     for (int ch = lum ? -1 : 0; ch < (lum ? 0 : 3); ++ch) {
         setKeys(px, p, s, ch);
         const int K = distinctValues(px, s);
-        const double gamma = scaleFor(p.gamma, p.scaleRelative, s, K);
+        const double gamma = scaleFor(p.gamma, p.scale, s, K);
         const double beta = myriadSorted(s.sorted.data(), s.weight.data(), K, gamma);
         int kept = 0;
         double sum[3] = {0.0, 0.0, 0.0}, wsum = 0.0;
@@ -241,17 +243,24 @@ namespace {
 PixelKernel bindMyriad(const ParamValues& values, const std::array<double, 3>& luma) {
     auto p = pixelParamsAs<MyriadParams>(values, luma);
     p.gamma = values.at("gamma").real;
-    p.scaleRelative = values.at("scale").text == "rel";
+    p.scale = scaleRule(values);
     return pixelKernel(p, &estimateMyriad, /*smallestRobustM=*/2);
 }
 
 }  // namespace
 
 ParamSpec scaleParam() {
-    return enumParam("scale", {"rel", "abs"}, "rel",
-                     "rel: gamma/delta is a factor of the pixel's input range max - min; abs: an "
-                     "absolute value",
-                     {{"relative", "rel"}, {"absolute", "abs"}});
+    return enumParam("scale", {"hampel", "rel", "abs"}, "hampel",
+                     "hampel: gamma/delta is a factor of the range of the buffers within Hampel's "
+                     "fence |x - median| <= 3 x 1.4826 x MAD (one outlying buffer cannot set it); "
+                     "rel: of the whole range max - min (Jung 2016 section 4.2, the thesis' form); "
+                     "abs: an absolute value",
+                     {{"robust", "hampel"}, {"relative", "rel"}, {"absolute", "abs"}});
+}
+
+ScaleRule scaleRule(const ParamValues& values) {
+    const std::string& v = values.at("scale").text;
+    return v == "rel" ? ScaleRule::Range : v == "abs" ? ScaleRule::Absolute : ScaleRule::Hampel;
 }
 
 Operation myriadOperation() {

@@ -32,6 +32,32 @@ double giniSorted(const double* v, size_t n) {
     return std::clamp(G, 0.0, 1.0);
 }
 
+double giniMagnitudes(const double* v, size_t n) {
+    if (n < 2 || v[0] >= 0.0) return giniSorted(v, n);
+    // A buffer's distance from zero, not its signed value, is what eq. 4 weighs: the means below
+    // zero (ascending in magnitude from the last of them back to the first) merged with the others
+    // (ascending from the first), then eq. 4 in giniSorted's form. Summed in order of magnitude,
+    // as giniSorted sums.
+    size_t neg = 0;
+    while (neg < n && v[neg] < 0.0) ++neg;
+    size_t a = neg, b = neg;  // next negative is v[a - 1], next other is v[b]
+    double sum = 0.0, weighted = 0.0;
+    const double nd = double(n);
+    for (size_t j = 0; j < n; ++j) {
+        double x;
+        if (b < n && (a == 0 || v[b] <= -v[a - 1])) {
+            x = v[b++];
+        } else {
+            x = -v[--a];
+        }
+        sum += x;
+        weighted += (2.0 * double(j + 1) - nd - 1.0) * x;
+    }
+    if (!(sum > 0.0) || !std::isfinite(sum)) return 0.0;
+    const double G = weighted / (nd * sum);
+    return std::clamp(G, 0.0, 1.0);
+}
+
 int gmonTrim(double G, int M) {
     if (M < 2) return 0;
     // Section 4.3: c = floor(k - (1 - G) k), k = floor(M / 2).
@@ -136,6 +162,11 @@ inline bool needsGini(TrimRule rule) {
     return rule.kind == TrimRule::Gini || rule.kind == TrimRule::GiniThreshold;
 }
 
+/// G of the ranked keys under the rule's GiniInput.
+inline double giniOf(TrimRule rule, const double* sorted, size_t n) {
+    return rule.gini == GiniInput::Magnitudes ? giniMagnitudes(sorted, n) : giniSorted(sorted, n);
+}
+
 /// Shared body: every estimator here is "rank the valid means, trim c from each side, average the
 /// rest with counts as weights", differing only in how c is chosen. This is the general version
 /// (any M, vectors in the scratch); reduceSmall below is the fast path for M <= kSmallM and gives
@@ -163,7 +194,7 @@ void reduceGeneral(const PixelBuffers& px, const PixelParams& p, PixelEstimate& 
         double G = 0.0;
         if (needGini) {
             for (int r = 0; r < Mv; ++r) s.sorted[r] = s.key[s.order[r]];
-            G = giniSorted(s.sorted.data(), size_t(Mv));
+            G = giniOf(policy, s.sorted.data(), size_t(Mv));
         }
         const int c = trimFor(policy, G, Mv);
         weightedAverage(px, s, c, Mv - c, 0, 3, out);
@@ -178,7 +209,7 @@ void reduceGeneral(const PixelBuffers& px, const PixelParams& p, PixelEstimate& 
         double G = 0.0;
         if (needGini) {
             for (int r = 0; r < Mv; ++r) s.sorted[r] = s.key[s.order[r]];
-            G = giniSorted(s.sorted.data(), size_t(Mv));
+            G = giniOf(policy, s.sorted.data(), size_t(Mv));
         }
         const int c = trimFor(policy, G, Mv);
         weightedAverage(px, s, c, Mv - c, ch, ch + 1, out);
@@ -472,8 +503,10 @@ void weightedAverageSmall(const PixelBuffers& px, const SmallPixel& sp, int lo, 
 /// average is used when the trim turns out to be 0 (smooth pixels: G small), else recomputed.
 /// Eq. 4's weight 2 (j + 1) - n - 1 is a small integer, so stepping it by 2.0 is exact (the same
 /// doubles as before); sum and weighted sum are the lanes {1 * x, weight * x} of one vector.
+/// With GiniInput::Magnitudes and a negative key, G is giniMagnitudes' (the average is the same).
 template <int NC>
-double giniWithFullAverage(const PixelBuffers& px, const SmallPixel& sp, int c0, float* rgb) {
+double giniWithFullAverage(const PixelBuffers& px, const SmallPixel& sp, int c0, float* rgb,
+                           GiniInput input) {
     const int n = sp.n;
     const double* v = sp.sorted;
     const double shift = v[0] < 0.0 ? -v[0] : 0.0;
@@ -491,6 +524,7 @@ double giniWithFullAverage(const PixelBuffers& px, const SmallPixel& sp, int c0,
     for (int c = 0; c < NC; ++c) rgb[c] = avg.average(c);
     const double sum = gs[0], weighted = gs[1];
     if (n < 2) return 0.0;
+    if (input == GiniInput::Magnitudes && v[0] < 0.0) return giniMagnitudes(v, size_t(n));
     if (!(sum > 0.0) || !std::isfinite(sum)) return 0.0;  // all zero: perfect equality
     const double G = weighted / (nd * sum);
     return std::clamp(G, 0.0, 1.0);
@@ -505,7 +539,7 @@ void rankedReduce(const PixelBuffers& px, SmallPixel& sp, TrimRule policy, int c
     rankSmall(sp);
     if (needsGini(policy)) {
         float full[NC];
-        G = giniWithFullAverage<NC>(px, sp, c0, full);
+        G = giniWithFullAverage<NC>(px, sp, c0, full, policy.gini);
         c = trimFor(policy, G, Mv);
         if (c == 0) {
             for (int ch = 0; ch < NC; ++ch) out.rgb[size_t(c0 + ch)] = full[ch];

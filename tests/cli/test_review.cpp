@@ -318,7 +318,7 @@ TEST_F(ReviewCli, ErrorMapAndHeatmap) {
 
     // The caption says what the picture is of: the estimator, the file, M and spp, the reference;
     // the error map carries them (and the reference), so a heatmap of it read back says the same.
-    const std::string caption = "G-MoN (mode=lum) of a.mcstat (M = 5, 40 spp) vs ref.exr";
+    const std::string caption = "G-MoN (gini=abs, mode=lum) of a.mcstat (M = 5, 40 spp) vs ref.exr";
     EXPECT_EQ(hm.spec().get_string_attribute("mcstat:heatmap:caption"), caption);
     EXPECT_EQ(e.spec().get_string_attribute("mcstat.operation"), "gmon");
     EXPECT_EQ(e.spec().get_string_attribute("mcstat.errormap.reference"), "ref.exr");
@@ -335,7 +335,7 @@ TEST_F(ReviewCli, ErrorMapAndHeatmap) {
     EXPECT_EQ(ks.get_string_attribute("mcstat:heatmap:channel"), "kept");
     EXPECT_EQ(ks.get_int_attribute("mcstat:heatmap:log"), 0);
     EXPECT_EQ(ks.get_string_attribute("mcstat:heatmap:caption"),
-              "G-MoN (mode=lum) of a.mcstat (M = 5, 40 spp)");
+              "G-MoN (gini=abs, mode=lum) of a.mcstat (M = 5, 40 spp)");
 
     // The mean's firefly mask: a 0/1 legend, its swatches in the colours of the pixels.
     g = mcstat(

@@ -74,56 +74,62 @@ bool sameBits(const float* a, const float* b, size_t n) {
     return n == 0 || std::memcmp(a, b, n * sizeof(float)) == 0;  // no AOVs: empty, null data
 }
 
-/// Every per-pixel estimator of the registry, on the full and the compact image, pixel by pixel.
+/// Every per-pixel estimator of the registry, on the full and the compact image, pixel by pixel;
+/// G-MoN and G-MoN_b with both Gini inputs (gini=abs, the default, and gini=shift).
 void expectEstimatorsAgree(const StatsImage& full, const StatsImage& small) {
     ASSERT_EQ(full.pixelCount(), small.pixelCount());
     const size_t A = full.header.aovs.size();
     const std::vector<AovClass> classes = aovClasses(full.header.aovs);
     for (const Operation& op : operationRegistry()) {
         if (op.input != InputKind::BufferMeans) continue;
-        for (const char* mode : {"lum", "channel"}) {
-            PixelKernel kernel;
-            std::string err;
-            std::map<std::string, std::string> kv;
-            const ParamSpec* modeParam = op.param("mode");
-            if (modeParam != nullptr && !modeParam->fixed)
-                kv["mode"] = mode;
-            else if (std::string(mode) == "channel")
-                continue;
-            ASSERT_TRUE(bindPixelKernel(op, kv, kLuma, kernel, err)) << err;
-            EstimatorScratch sf, sc;
-            sf.wantWeights = sc.wantWeights = kernel.mode == EstimatorMode::Luminance && A > 0;
-            AovScratch as;
-            for (size_t p = 0; p < full.pixelCount(); ++p) {
-                PixelEstimate ef, ec;
-                kernel.estimate(full.pixelBuffers(p), ef, sf);
-                kernel.estimate(small.pixelBuffers(p), ec, sc);
-                const bool kept = small.buffersOf(p) == full.header.M && full.header.M > 1;
-                const std::string where = op.name + ":mode=" + mode + " pixel " +
-                                          std::to_string(p) + (kept ? " (kept)" : " (mean)");
-                std::vector<float> af(A), ac(A);
-                if (sf.wantWeights) {
-                    applyAovWeights(sf.bufferWeight.data(), sf.bufferWeight.size(),
-                                    full.aov.data() + full.bufferBegin(p) * A, A, classes.data(),
-                                    af.data(), as);
-                    applyAovWeights(sc.bufferWeight.data(), sc.bufferWeight.size(),
-                                    small.aov.data() + small.bufferBegin(p) * A, A, classes.data(),
-                                    ac.data(), as);
-                }
-                if (kept || op.name == "gmon") {
-                    // The same buffers (kept), or G-MoN's own value (exact by construction).
-                    EXPECT_TRUE(sameBits(ef.rgb.data(), ec.rgb.data(), 3))
-                        << where << ": " << ef.rgb[0] << " vs " << ec.rgb[0];
-                    EXPECT_TRUE(sameBits(af.data(), ac.data(), A)) << where << " AOVs";
-                } else {
-                    // One buffer: every estimator returns it, G-MoN's mean of the full buffers.
-                    const PixelBuffers one = small.pixelBuffers(p);
-                    ASSERT_EQ(one.M, 1) << where;
-                    if (one.count[0] > 0.f)
-                        EXPECT_TRUE(sameBits(ec.rgb.data(), one.mean, 3))
-                            << where << ": " << ec.rgb[0] << " vs " << one.mean[0];
-                    else
-                        EXPECT_EQ(ec.rgb, (std::array<float, 3>{0.f, 0.f, 0.f})) << where;
+        for (const char* gini : {"", "shift"}) {
+            if (*gini != '\0' && op.param("gini") == nullptr) continue;
+            for (const char* mode : {"lum", "channel"}) {
+                PixelKernel kernel;
+                std::string err;
+                std::map<std::string, std::string> kv;
+                if (*gini != '\0') kv["gini"] = gini;
+                const ParamSpec* modeParam = op.param("mode");
+                if (modeParam != nullptr && !modeParam->fixed)
+                    kv["mode"] = mode;
+                else if (std::string(mode) == "channel")
+                    continue;
+                ASSERT_TRUE(bindPixelKernel(op, kv, kLuma, kernel, err)) << err;
+                EstimatorScratch sf, sc;
+                sf.wantWeights = sc.wantWeights = kernel.mode == EstimatorMode::Luminance && A > 0;
+                AovScratch as;
+                for (size_t p = 0; p < full.pixelCount(); ++p) {
+                    PixelEstimate ef, ec;
+                    kernel.estimate(full.pixelBuffers(p), ef, sf);
+                    kernel.estimate(small.pixelBuffers(p), ec, sc);
+                    const bool kept = small.buffersOf(p) == full.header.M && full.header.M > 1;
+                    const std::string where = op.name + ":mode=" + mode +
+                                              (*gini ? ":gini=shift" : "") + " pixel " +
+                                              std::to_string(p) + (kept ? " (kept)" : " (mean)");
+                    std::vector<float> af(A), ac(A);
+                    if (sf.wantWeights) {
+                        applyAovWeights(sf.bufferWeight.data(), sf.bufferWeight.size(),
+                                        full.aov.data() + full.bufferBegin(p) * A, A,
+                                        classes.data(), af.data(), as);
+                        applyAovWeights(sc.bufferWeight.data(), sc.bufferWeight.size(),
+                                        small.aov.data() + small.bufferBegin(p) * A, A,
+                                        classes.data(), ac.data(), as);
+                    }
+                    if (kept || op.name == "gmon") {
+                        // The same buffers (kept), or G-MoN's own value (exact by construction).
+                        EXPECT_TRUE(sameBits(ef.rgb.data(), ec.rgb.data(), 3))
+                            << where << ": " << ef.rgb[0] << " vs " << ec.rgb[0];
+                        EXPECT_TRUE(sameBits(af.data(), ac.data(), A)) << where << " AOVs";
+                    } else {
+                        // One buffer: every estimator returns it, G-MoN's mean of the full buffers.
+                        const PixelBuffers one = small.pixelBuffers(p);
+                        ASSERT_EQ(one.M, 1) << where;
+                        if (one.count[0] > 0.f)
+                            EXPECT_TRUE(sameBits(ec.rgb.data(), one.mean, 3))
+                                << where << ": " << ec.rgb[0] << " vs " << one.mean[0];
+                        else
+                            EXPECT_EQ(ec.rgb, (std::array<float, 3>{0.f, 0.f, 0.f})) << where;
+                    }
                 }
             }
         }
@@ -203,6 +209,12 @@ TEST(Compact, Extremes) {
     EXPECT_EQ(small.buffersOf(1), 7) << "a buffer holding Inf keeps the pixel's buffers";
     EXPECT_EQ(small.buffersOf(2), 7) << "a buffer holding NaN keeps the pixel's buffers";
     EXPECT_EQ(small.buffersOf(0), 1);
+    // G-MoN's default Gini of magnitudes trims the buffer of -5 among 0.25s (G = 0.63; the shifted
+    // form saw G = 1/7 and kept the mean); the smooth mirror of a positive pixel (-0.25 - 0.001 j)
+    // is the mean by default, but gini=shift would trim it (G = 56/147 from its spread over its
+    // minimum, c = 1), so it keeps its buffers for G-MoN to stay exact in both forms.
+    EXPECT_EQ(small.buffersOf(3), 7);
+    EXPECT_EQ(small.buffersOf(4), 7);
     EXPECT_EQ(small.buffersOf(7), 1);
     const size_t k = small.bufferBegin(7);
     EXPECT_EQ(small.bufferMean[k * 3], big) << "FLT_MAX buffers average to FLT_MAX, not Inf";

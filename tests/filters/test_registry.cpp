@@ -124,7 +124,7 @@ TEST(Registry, RejectsUnknownAndBadParameters) {
                {"myriad", "gamma", "-1", "gamma"},
                {"myriad", "gamma", "inf", "gamma"},
                {"meridian", "delta", "1e999", "delta"},
-               {"meridian", "scale", "log", "scale must be 'rel' or 'abs'"},
+               {"meridian", "scale", "log", "scale must be 'hampel', 'rel' or 'abs'"},
                {"tmpe", "gamma", "1", "has no parameter 'gamma'"},
                {"myriad", "delta", "1", "has no parameter 'delta'"}};
     for (const Bad& b : bad) {
@@ -144,8 +144,14 @@ TEST(Registry, TheParameterStructsDefaultsAreTheRegistrys) {
     EXPECT_EQ(TmpeParams().alpha, def("tmpe", "alpha"));
     EXPECT_EQ(MyriadParams().gamma, def("myriad", "gamma"));
     EXPECT_EQ(MeridianParams().delta, def("meridian", "delta"));
-    EXPECT_TRUE(MyriadParams().scaleRelative);
-    EXPECT_EQ(findOperation("myriad")->param("scale")->defaultValue, "rel");
+    EXPECT_EQ(MyriadParams().scale, ScaleRule::Hampel);
+    EXPECT_EQ(MeridianParams().scale, ScaleRule::Hampel);
+    EXPECT_EQ(findOperation("myriad")->param("scale")->defaultValue, "hampel");
+    EXPECT_EQ(findOperation("meridian")->param("scale")->defaultValue, "hampel");
+    EXPECT_EQ(GmonParams().gini, GiniInput::Magnitudes);
+    EXPECT_EQ(GmonbParams().gini, GiniInput::Magnitudes);
+    EXPECT_EQ(findOperation("gmon")->param("gini")->defaultValue, "abs");
+    EXPECT_EQ(findOperation("gmonb")->param("gini")->defaultValue, "abs");
     EXPECT_EQ(PixelParams().mode, EstimatorMode::Luminance);
 }
 

@@ -31,6 +31,13 @@ double giniSorted(const double* v, size_t n) {
     return std::clamp(G, 0.0, 1.0);
 }
 
+double giniMagnitudes(const double* v, size_t n) {
+    std::vector<double> a(v, v + n);
+    for (double& x : a) x = std::fabs(x);
+    std::sort(a.begin(), a.end());
+    return giniSorted(a.data(), n);
+}
+
 int gmonTrim(double G, int M) {
     if (M < 2) return 0;
     // Section 4.3: c = floor(k - (1 - G) k), k = floor(M / 2).
@@ -138,7 +145,8 @@ void reduce(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out
         double G = 0.0;
         if (needGini) {
             for (int r = 0; r < Mv; ++r) s.sorted[r] = s.key[s.order[r]];
-            G = giniSorted(s.sorted.data(), size_t(Mv));
+            G = p.giniMagnitudes ? giniMagnitudes(s.sorted.data(), size_t(Mv))
+                                 : giniSorted(s.sorted.data(), size_t(Mv));
         }
         const int c = trimFor(policy, G, Mv, p);
         weightedAverage(px, s, c, Mv - c, 0, 3, out);
@@ -152,7 +160,8 @@ void reduce(const PixelBuffers& px, const EstimatorParams& p, PixelEstimate& out
         double G = 0.0;
         if (needGini) {
             for (int r = 0; r < Mv; ++r) s.sorted[r] = s.key[s.order[r]];
-            G = giniSorted(s.sorted.data(), size_t(Mv));
+            G = p.giniMagnitudes ? giniMagnitudes(s.sorted.data(), size_t(Mv))
+                                 : giniSorted(s.sorted.data(), size_t(Mv));
         }
         const int c = trimFor(policy, G, Mv, p);
         weightedAverage(px, s, c, Mv - c, ch, ch + 1, out);
@@ -273,7 +282,39 @@ int distinctValues(const PixelBuffers& px, EstimatorScratch& s) {
     return int(s.sorted.size());
 }
 
-double scaleFor(double factor, bool relative, const EstimatorScratch& s, int K) {
+/// The range of the valid buffers' keys within Hampel's fence |x - med| <= 3 x 1.4826 x MAD.
+double hampelRange(const EstimatorScratch& s) {
+    std::vector<double> x;
+    for (int j : s.order) x.push_back(s.key[j]);
+    std::sort(x.begin(), x.end());
+    const size_t n = x.size();
+    if (n < 2) return 0.0;
+    auto median = [](const std::vector<double>& v) {
+        const size_t m = v.size();
+        return m % 2 == 1 ? v[m / 2] : 0.5 * (v[m / 2 - 1] + v[m / 2]);
+    };
+    const double med = median(x);
+    std::vector<double> dev;
+    for (double v : x) dev.push_back(std::fabs(v - med));
+    std::sort(dev.begin(), dev.end());
+    const double fence = 3.0 * 1.4826 * median(dev);
+    double lo = 0.0, hi = 0.0;
+    bool any = false;
+    for (double v : x)
+        if (std::fabs(v - med) <= fence) {
+            if (!any) lo = v;
+            hi = v;
+            any = true;
+        }
+    return hi - lo;
+}
+
+double scaleFor(double factor, bool relative, bool hampel, const EstimatorScratch& s, int K) {
+    if (hampel) {
+        const double fenced = hampelRange(s);
+        if (fenced > 0.0 || K < 2) return factor * fenced;
+        return 1e-300 * (s.sorted[size_t(K) - 1] - s.sorted[0]);  // MAD 0: the selection limit
+    }
     return relative ? factor * (s.sorted[size_t(K) - 1] - s.sorted[0]) : factor;
 }
 
@@ -357,7 +398,7 @@ void estimateMyriad(const PixelBuffers& px, const EstimatorParams& p, PixelEstim
     for (int ch = lum ? -1 : 0; ch < (lum ? 0 : 3); ++ch) {
         setKeys(px, p, s, ch);
         const int K = distinctValues(px, s);
-        const double gamma = scaleFor(p.gamma, p.scaleRelative, s, K);
+        const double gamma = scaleFor(p.gamma, p.scaleRelative, p.scaleHampel, s, K);
         const double beta = myriadSorted(s.sorted.data(), s.weight.data(), K, gamma);
         int kept = 0;
         double sum[3] = {0.0, 0.0, 0.0}, wsum = 0.0;
@@ -398,7 +439,7 @@ void estimateMeridian(const PixelBuffers& px, const EstimatorParams& p, PixelEst
     for (int ch = lum ? -1 : 0; ch < (lum ? 0 : 3); ++ch) {
         setKeys(px, p, s, ch);
         const int K = distinctValues(px, s);
-        const double delta = scaleFor(p.delta, p.scaleRelative, s, K);
+        const double delta = scaleFor(p.delta, p.scaleRelative, p.scaleHampel, s, K);
         const double value =
             s.sorted[size_t(meridianSorted(s.sorted.data(), s.weight.data(), K, delta))];
         if (lum) {

@@ -22,11 +22,17 @@ struct EstimatorParams {
     double gamma = 0.05;
     double delta = 0.05;
     bool scaleRelative = true;
+    /// Issue 38's defaults, written here as plainly as the rest (off: the old behaviour): G-MoN's
+    /// Gini of the magnitudes |x| (gini=abs), the M-estimators' range within Hampel's fence
+    /// (scale=hampel, which takes precedence over scaleRelative).
+    bool giniMagnitudes = false;
+    bool scaleHampel = false;
 };
 using EstimatorFn = void (*)(const PixelBuffers&, const EstimatorParams&, PixelEstimate&,
                              EstimatorScratch&);
 
 double giniSorted(const double* values, size_t n);
+double giniMagnitudes(const double* values, size_t n);
 int gmonTrim(double G, int M);
 int tmpeTrim(double alpha, int M);
 int collectValidBuffers(const PixelBuffers& px, std::vector<int>& order, int& excluded);

@@ -205,14 +205,30 @@ class PixelGen {
 };
 
 /// Parameter sets: the registry defaults in both modes, plus values that move the trim and scale
-/// rules (threshold, alpha, gamma, delta, absolute scales).
+/// rules (threshold, alpha, gamma, delta, absolute scales), and the rules before issue 38.
 std::vector<ParamSet> parameterSets() {
     std::vector<ParamSet> v;
     for (auto mode : {EstimatorMode::Luminance, EstimatorMode::PerChannel}) {
+        // The registry's defaults (issue 38: gini=abs, scale=hampel).
+        ParamSet d;
+        d.ref.mode = mode;
+        d.ref.luma = kLuma;
+        d.ref.giniMagnitudes = true;
+        d.ref.scaleHampel = true;
+        d.text["mode"] = mode == EstimatorMode::Luminance ? "lum" : "channel";
+        v.push_back(d);
+        ParamSet h = d;  // the new rules with other values
+        h.ref.giniThreshold = 0.0;
+        h.ref.gamma = 1e-3;
+        h.ref.delta = 2.0;
+        h.text.insert({{"threshold", "0"}, {"gamma", "1e-3"}, {"delta", "2"}});
+        v.push_back(h);
+        // The forms before issue 38 (the papers' and this oracle's), with other values.
         ParamSet p;
         p.ref.mode = mode;
         p.ref.luma = kLuma;
-        p.text["mode"] = mode == EstimatorMode::Luminance ? "lum" : "channel";
+        p.text["mode"] = d.text["mode"];
+        p.text.insert({{"gini", "shift"}, {"scale", "rel"}});
         v.push_back(p);
         ParamSet q = p;
         q.ref.giniThreshold = 0.0;
@@ -232,6 +248,7 @@ std::vector<ParamSet> parameterSets() {
                        {"gamma", "0.5"},
                        {"delta", "1e-4"},
                        {"scale", "abs"}});
+        r.text["scale"] = "abs";  // p's "rel" stays under insert
         v.push_back(r);
         ParamSet z = p;
         z.ref.alpha = 0.0;
@@ -302,6 +319,7 @@ TEST(BitIdentity, KeysEqualInFloat) {
     std::mt19937 rng(77);
     ParamSet set;
     set.ref.luma = kLuma;
+    set.ref.giniMagnitudes = true;  // the registry default; positive keys: the same G
     const reference::EstimatorParams& p = set.ref;
     for (int M : {5, 8, 17, 21, 33, 64}) {
         std::vector<float> mean(size_t(M) * 3), count(size_t(M), 4.f);

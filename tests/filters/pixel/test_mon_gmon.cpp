@@ -222,11 +222,16 @@ TEST(Estimators, MEqualsOneGivesTheMean) {
 }
 
 TEST(Estimators, NegativeMeansFollowTheDocumentedRule) {
-    // ranks use signed values; G on the shifted set {0,1,2,3,12}: sum (2j-6)x / (5*18) = 52/90
+    // ranks use signed values; by default G is computed on the magnitudes {0,1,1,2,10}:
+    // sum (2j-6)x / (5*14) = (-2 + 0 + 4 + 40) / 70 = 42/70
     Pixel px = grey({-2, -1, 0, 1, 10});
     PixelEstimate g = run("gmon", px);
+    EXPECT_NEAR(g.gini[0], 42.0 / 70.0, 1e-6);
+    // c = floor(2 - (1 - 0.6) 2) = 1: mean of {-1, 0, 1}
+    EXPECT_FLOAT_EQ(g.rgb[0], 0.f);
+    // gini=shift: G on the shifted set {0,1,2,3,12}: sum (2j-6)x / (5*18) = 52/90, c = 1 too
+    g = runKernel("gmon", px, EstimatorMode::PerChannel, {{"gini", "shift"}});
     EXPECT_NEAR(g.gini[0], 52.0 / 90.0, 1e-6);
-    // c = floor(2 - (1 - 52/90) 2) = 1: mean of {-1, 0, 1}
     EXPECT_FLOAT_EQ(g.rgb[0], 0.f);
     EXPECT_FLOAT_EQ(run("mon", px).rgb[0], 0.f);
     EXPECT_FLOAT_EQ(run("mean", px).rgb[0], 1.6f);

@@ -25,7 +25,9 @@ using namespace mcstat::testing;
 struct Opts {
     EstimatorMode mode = EstimatorMode::PerChannel;
     double alpha = 0.25, gamma = 0.05, delta = 0.05;
-    bool relative = true;
+    /// The thesis' form (0.05 x range, section 4.2): these tests reproduce the thesis; the default
+    /// (Hampel's fence) has its own tests (test_extremes.cpp).
+    ScaleRule scale = ScaleRule::Range;
     std::array<double, 3> luma = kLuma;
 };
 
@@ -56,7 +58,7 @@ PixelEstimate run(Est fn, const Pixel& px, const Opts& o = {}) {
             MyriadParams p;
             static_cast<PixelParams&>(p) = base;
             p.gamma = o.gamma;
-            p.scaleRelative = o.relative;
+            p.scale = o.scale;
             estimateMyriad(px.view(), p, e, s);
             break;
         }
@@ -64,7 +66,7 @@ PixelEstimate run(Est fn, const Pixel& px, const Opts& o = {}) {
             MeridianParams p;
             static_cast<PixelParams&>(p) = base;
             p.delta = o.delta;
-            p.scaleRelative = o.relative;
+            p.scale = o.scale;
             estimateMeridian(px.view(), p, e, s);
             break;
         }
@@ -75,7 +77,7 @@ PixelEstimate run(Est fn, const Pixel& px, const Opts& o = {}) {
 Opts absScale(double scale, EstimatorMode mode = EstimatorMode::PerChannel) {
     Opts o;
     o.gamma = o.delta = scale;
-    o.relative = false;
+    o.scale = ScaleRule::Absolute;
     o.mode = mode;
     return o;
 }

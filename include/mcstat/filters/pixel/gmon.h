@@ -6,12 +6,24 @@
 
 #include "mcstat/filters/operation.h"
 #include "mcstat/filters/pixel/pixel_estimate.h"
+#include "mcstat/filters/pixel/ranking.h"  // GiniInput
 
 namespace mcstat {
 
+struct GmonParams : PixelParams {
+    /// What G is computed on (ranking.h): the magnitudes |x_j| by default, so that a negative
+    /// outlier is seen as a positive one is; Shifted is the form before issue 38. Both are eq. 4
+    /// on non-negative means.
+    GiniInput gini = GiniInput::Magnitudes;
+};
+
 /// G-MoN (eq. 6) with c from the Gini coefficient (eq. 4), see gmonTrim (ranking.h).
-void estimateGMoN(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out,
+void estimateGMoN(const PixelBuffers& px, const GmonParams& p, PixelEstimate& out,
                   EstimatorScratch& s);
+/// Parameter "gini" (abs / shift) of G-MoN and G-MoN_b.
+ParamSpec giniParam();
+/// GiniInput from the parsed value of giniParam (absent: the default, Magnitudes).
+GiniInput giniInput(const ParamValues& values);
 /// The registry entry "gmon".
 Operation gmonOperation();
 

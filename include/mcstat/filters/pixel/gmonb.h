@@ -4,11 +4,12 @@
 #pragma once
 
 #include "mcstat/filters/operation.h"
+#include "mcstat/filters/pixel/gmon.h"  // GmonParams
 #include "mcstat/filters/pixel/pixel_estimate.h"
 
 namespace mcstat {
 
-struct GmonbParams : PixelParams {
+struct GmonbParams : GmonParams {
     double threshold = 0.25;  ///< Gini threshold (eq. 5): mean when G <= threshold, else MoN
 };
 /// G-MoN_b (eq. 5).

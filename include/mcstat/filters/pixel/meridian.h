@@ -28,12 +28,14 @@ int meridianSorted(const double* x, const double* w, int K, double delta);
 // ---- the estimator ------------------------------------------------------------------------------
 
 struct MeridianParams : PixelParams {
-    /// Scale delta > 0 (eq. 4.8), relative to the input range or absolute, as the myriad's gamma.
+    /// Scale delta > 0 (eq. 4.8), a factor of the values' spread (ScaleRule, myriad.h) or an
+    /// absolute value, as the myriad's gamma.
     double delta = 0.05;
-    bool scaleRelative = true;
+    ScaleRule scale = ScaleRule::Hampel;
 };
 
-/// Meridian (eq. 4.8), a selection estimator, with delta = p.delta x range (relative) or p.delta.
+/// Meridian (eq. 4.8), a selection estimator, with delta = p.delta x the spread p.scale names
+/// (ScaleRule) or p.delta.
 /// PerChannel: the selected value per channel. Luminance: the RGB of the selected buffer (among
 /// buffers of equal luminance, the lowest buffer index). kept = 1 (buffers holding the value, per
 /// channel).

@@ -34,16 +34,29 @@ double myriadSorted(const double* x, const double* w, int K, double gamma);
 
 // ---- the estimator ------------------------------------------------------------------------------
 
-struct MyriadParams : PixelParams {
-    /// Scale gamma > 0 (eq. 4.7). With scaleRelative a factor of the pixel's input range (max - min
-    /// of the valid values the estimator ranks): the thesis used 0.05 x range (section 4.2).
-    /// Otherwise an absolute value.
-    double gamma = 0.05;
-    bool scaleRelative = true;
+/// Where the scale of the myriad's gamma and the meridian's delta comes from (parameter "scale").
+enum class ScaleRule {
+    /// factor x the range of the buffers within Hampel's fence |x_j - med| <= 3 x 1.4826 x MAD
+    /// (detail::hampelRange): the thesis' 0.05 x range where no buffer is an outlier, and at most
+    /// 8.9 x factor x MAD whatever one buffer (any fewer than half of them) holds. The default.
+    Hampel,
+    /// factor x the whole range max - min of the ranked values: the thesis' form (Jung 2016,
+    /// section 4.2, "0.05 times the input range"). One buffer sets it: a buffer X far away gives
+    /// gamma ~ 0.05 |X| and drags the myriad by about 4e-4 |X| at M = 7 (docs/estimators.md).
+    Range,
+    /// factor itself, in the values' units.
+    Absolute,
 };
 
-/// Myriad (eq. 4.7) with gamma = p.gamma x (max - min) of the ranked values when p.scaleRelative
-/// (the thesis' 0.05 x input range), else gamma = p.gamma.
+struct MyriadParams : PixelParams {
+    /// Scale gamma > 0 (eq. 4.7), a factor of the values' spread (ScaleRule) or an absolute value.
+    /// The thesis used 0.05 x range (section 4.2).
+    double gamma = 0.05;
+    ScaleRule scale = ScaleRule::Hampel;
+};
+
+/// Myriad (eq. 4.7) with gamma = p.gamma x the spread p.scale names (the range within Hampel's
+/// fence by default; the thesis' 0.05 x input range with ScaleRule::Range), or gamma = p.gamma.
 /// PerChannel: each channel's myriad. Luminance: beta is the myriad of the buffers' luminances Y_j
 /// and the RGB is sum n_j k_j theta_j / sum n_j k_j with the final weights k_j = gamma^2 / (gamma^2
 /// + (Y_j - beta)^2): the luminance of that colour is beta (beta is the fixed point of those
@@ -52,8 +65,10 @@ struct MyriadParams : PixelParams {
 void estimateMyriad(const PixelBuffers& px, const MyriadParams& p, PixelEstimate& out,
                     EstimatorScratch& s);
 
-/// Parameter "scale" (rel / abs) of the myriad and the meridian.
+/// Parameter "scale" (hampel / rel / abs) of the myriad and the meridian.
 ParamSpec scaleParam();
+/// ScaleRule from the parsed value of scaleParam.
+ScaleRule scaleRule(const ParamValues& values);
 /// The registry entry "myriad".
 Operation myriadOperation();
 

@@ -12,8 +12,9 @@
 //   equals the paper's unweighted average when counts are equal. Ranks, the median and the Gini
 //   coefficient use the means unweighted, as in the paper.
 // - Negative means: ranking and averaging take them as they are. The Gini coefficient (eq. 4) is
-//   defined for non-negative values, so when the smallest mean is negative it is computed on the
-//   means shifted by -min (the smallest becomes 0). Its result is clamped to [0, 1].
+//   defined for non-negative values; below zero it is computed on the magnitudes |x| by default
+//   (GiniInput::Magnitudes, ranking.h: a negative outlier counts as a positive one), or on the
+//   means shifted by -min (GiniInput::Shifted). Its result is clamped to [0, 1].
 //   A zero (or all-equal) set has G = 0: the estimators return the mean, never 0/0.
 #pragma once
 

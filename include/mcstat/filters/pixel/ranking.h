@@ -16,6 +16,17 @@
 
 namespace mcstat {
 
+/// What the Gini coefficient of G-MoN and G-MoN_b (eq. 4, defined for non-negative values) is
+/// computed on. Both are the paper's G on non-negative means, bit for bit.
+enum class GiniInput {
+    /// The magnitudes |x_j| (giniMagnitudes): a buffer far below zero weighs as one as far above
+    /// it, so a negative outlier raises G as a positive one does. The default.
+    Magnitudes,
+    /// The means shifted by -min when the smallest is negative (giniSorted): the form before issue
+    /// 38. A negative outlier becomes the one zero among equal values: G ~ 1/M, no trim.
+    Shifted,
+};
+
 /// How many means a ranked estimator trims from each side, once the valid means are ranked.
 struct TrimRule {
     enum Kind {
@@ -27,6 +38,7 @@ struct TrimRule {
     };
     Kind kind = None;
     double value = 0.0;  ///< GiniThreshold: the threshold; Fraction: alpha
+    GiniInput gini = GiniInput::Magnitudes;  ///< Gini, GiniThreshold: what G is computed on
 };
 
 /// The ranked trimmed mean of `px` under `rule`: rgb, Gini coefficient (rules that use it), kept
@@ -37,6 +49,11 @@ void rankedTrimmedMean(const PixelBuffers& px, const PixelParams& p, TrimRule ru
 /// Gini coefficient of `values` already sorted ascending (Buisine et al. eq. 4), computed in
 /// double, with the negative-value and zero-sum rules of pixel_estimate.h. n == 0 or 1 gives 0.
 double giniSorted(const double* values, size_t n);
+
+/// Gini coefficient (eq. 4) of the magnitudes |x_j| of `values` sorted ascending (GiniInput::
+/// Magnitudes): the negative values, reversed, and the others are merged into ascending order of
+/// magnitude. When values[0] >= 0 it is giniSorted(values, n), bit for bit.
+double giniMagnitudes(const double* values, size_t n);
 
 /// Number of means trimmed from each side by G-MoN (Buisine et al. section 4.3):
 /// c = floor(k - (1 - G) k) with k = floor(M/2), clamped to floor((M-1)/2) so that at least one
