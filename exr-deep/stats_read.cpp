@@ -112,6 +112,13 @@ int linesPerChunk(Imf::Compression c) {
     }
 }
 
+/// A Core reader's failure as the exception StatsFileReader::read reports (out of memory, or
+/// "truncated or corrupt" with the reader's problem).
+void throwOnFailure(detail::FlatPartReader::Result r, const std::string& problem) {
+    if (r == detail::FlatPartReader::Result::OutOfMemory) throw std::bad_alloc();
+    if (r == detail::FlatPartReader::Result::Corrupt) throw std::runtime_error(problem);
+}
+
 /// Reads the flat parts of `parts` (StatsParts) into `blk`, whose header is the block's (origin
 /// at its first row) and whose arrays are sized, rows `firstRow`.. of the file (0-based): through
 /// OpenEXR's Core API with libdeflate and the chunks on `threads` threads (flat_part_reader.h),
@@ -154,15 +161,7 @@ void readFlatParts(Imf::MultiPartInputFile& in, detail::FlatPartReader& flat, in
     }
     if (core.empty()) return;
     std::string problem;
-    switch (flat.read(core, firstRow, h.height, threads, problem)) {
-        case detail::FlatPartReader::Result::Ok:
-            return;
-        case detail::FlatPartReader::Result::OutOfMemory:
-            throw std::bad_alloc();
-        case detail::FlatPartReader::Result::Corrupt:
-            break;
-    }
-    throw std::runtime_error(problem);
+    throwOnFailure(flat.read(core, firstRow, h.height, threads, problem), problem);
 }
 
 /// Adaptive M: reads the per-pixel sample counts of the block's rows (from `firstRow`) of part
@@ -174,14 +173,7 @@ bool readDeepCounts(Imf::MultiPartInputFile& in, detail::DeepPartReader& deep, i
     const size_t pixels = size_t(h.width) * size_t(h.height);
     if (deep.handles()) {
         std::string problem;
-        switch (deep.readCounts(firstRow, h.height, threads, m, problem)) {
-            case detail::DeepPartReader::Result::Ok:
-                break;
-            case detail::DeepPartReader::Result::OutOfMemory:
-                throw std::bad_alloc();
-            case detail::DeepPartReader::Result::Corrupt:
-                throw std::runtime_error(problem);
-        }
+        throwOnFailure(deep.readCounts(firstRow, h.height, threads, m, problem), problem);
     } else {
         m.assign(pixels, 0);
         Imf::DeepScanLineInputPart dp(in, layout::kBuffers);
@@ -243,14 +235,9 @@ void readDeepBuffers(Imf::MultiPartInputFile& in, detail::DeepPartReader& deep, 
         for (size_t a = 0; a < A; ++a)
             slices.push_back({layout::aovDeepChannel(h.aovs[a].name), blk.aov.data() + a, A});
         std::string problem;
-        switch (deep.readSamples(firstRow, h.height, counts, slices, threads, problem)) {
-            case detail::DeepPartReader::Result::Ok:
-                return;
-            case detail::DeepPartReader::Result::OutOfMemory:
-                throw std::bad_alloc();
-            case detail::DeepPartReader::Result::Corrupt:
-                throw std::runtime_error(problem);
-        }
+        throwOnFailure(deep.readSamples(firstRow, h.height, counts, slices, threads, problem),
+                       problem);
+        return;
     }
     std::vector<uint32_t> m(pixels);
     DeepFrameBufferSet fb(h, m.data());
