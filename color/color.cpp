@@ -4,10 +4,12 @@
 #include <OpenColorIO/OpenColorIO.h>
 #include <strings.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <mutex>
 #include <sstream>
 
+#include "mcstat/core/colour_space.h"
 #include "mcstat/core/untrusted_text.h"
 
 namespace OCIO = OCIO_NAMESPACE;
@@ -49,11 +51,48 @@ const ActiveConfig& activeConfig() {
 
 const char* builtinOcioConfig() { return detail::kBuiltinOcioConfig; }
 
-std::array<double, 3> lumaCoefficients(std::string* warning) {
+bool lumaCoefficients(const std::string& space, std::array<double, 3>& luma, std::string& err,
+                      std::string* warning) {
     const ActiveConfig& a = activeConfig();
-    if (warning) *warning = a.warning;
+    std::string warn = a.warning;
+    const WorkingSpace* ws = findWorkingSpace(space);
+    if (!ws) {
+        err = "colour space '" + printable(space) +
+              "' is unknown (known: " + knownWorkingSpaceNames() + ")";
+        return false;
+    }
+    std::array<double, 3> fromPrimaries{};
+    if (!lumaFromChromaticities(ws->xy, fromPrimaries)) {  // the table's own values: cannot fail
+        err = "colour space '" + printable(space) + "' has degenerate chromaticities";
+        return false;
+    }
+    luma = fromPrimaries;
+    // The config's luma when the config's scene_linear space is this one.
+    const OCIO::ConstColorSpaceRcPtr sl = a.config->getColorSpace(OCIO::ROLE_SCENE_LINEAR);
+    const OCIO::ConstColorSpaceRcPtr named = a.config->getColorSpace(ws->name);
+    if (sl && named && std::string(sl->getName()) == named->getName()) {
+        std::array<double, 3> cfg{};
+        a.config->getDefaultLumaCoefs(cfg.data());
+        bool agrees = true;
+        for (size_t c = 0; c < 3; ++c)
+            agrees = agrees && std::fabs(cfg[c] - fromPrimaries[c]) <= 1e-3;
+        if (agrees) {
+            luma = cfg;
+        } else {
+            if (!warn.empty()) warn += "; ";
+            warn += "the OCIO config's luma (" + std::to_string(cfg[0]) + ", " +
+                    std::to_string(cfg[1]) + ", " + std::to_string(cfg[2]) + ") is not " +
+                    ws->name + "'s: using the Y row of its RGB-to-XYZ matrix";
+        }
+    }
+    if (warning) *warning = warn;
+    return true;
+}
+
+std::array<double, 3> lumaCoefficients(std::string* warning) {
     std::array<double, 3> luma{};
-    a.config->getDefaultLumaCoefs(luma.data());
+    std::string err;
+    lumaCoefficients(kSceneLinear, luma, err, warning);  // a known space: cannot fail
     return luma;
 }
 

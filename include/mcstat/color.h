@@ -12,8 +12,20 @@ namespace mcstat {
 /// config).
 inline constexpr const char* kSceneLinear = "lin_rec709";
 
-/// Luma coefficients of the active config (Config::getDefaultLumaCoefs). Never fails: a broken
-/// $OCIO config falls back to the built-in one, and `warning` (if non-null) says so.
+/// Luminance weights of the working space `space` (a statistics file's mcstat:colorSpace, an
+/// image's oiio:ColorSpace; any name findWorkingSpace knows, colour_space.h): the active config's
+/// luma (Config::getDefaultLumaCoefs) when the config's scene_linear colour space is `space` and
+/// its luma agrees with the space's primaries (to 1e-3: the built-in config's 0.2126, 0.7152,
+/// 0.0722 for lin_rec709), else the Y row of the RGB-to-XYZ matrix from the space's
+/// chromaticities (SMPTE RP 177), with a warning when the config's luma was set aside (ACES
+/// configs give Rec.709's luma for ACEScg). Every luminance weight in mcstat comes from here.
+/// False with `err` ("colour space 'X' is unknown; known: ...") for a space mcstat cannot place.
+/// A broken $OCIO config falls back to the built-in one, and `warning` (if non-null) says so.
+bool lumaCoefficients(const std::string& space, std::array<double, 3>& luma, std::string& err,
+                      std::string* warning = nullptr);
+
+/// lumaCoefficients of kSceneLinear (lin_rec709, the default working space): for tests and
+/// renders mcstat makes itself. A file's own space goes through the function above.
 std::array<double, 3> lumaCoefficients(std::string* warning = nullptr);
 
 /// Text of the built-in config (for docs and tests).

@@ -1,8 +1,8 @@
 // Working spaces: the luma weights computed from chromaticities (SMPTE RP 177) against the values
 // the standards and their technical bulletins publish, and the lookups by name and chromaticities.
-#include "mcstat/core/colour_space.h"
-
 #include <gtest/gtest.h>
+
+#include "mcstat/core/colour_space.h"
 
 namespace mcstat {
 namespace {
@@ -14,7 +14,8 @@ struct Published {
 
 // Rec.709: the sRGB matrix of IEC 61966-2-1 at full precision (BT.709's 0.2126, 0.7152, 0.0722
 // are these rounded to 4 digits); AP1 and AP0: ACES TB-2014-004 (AP1 to XYZ, AP0 to XYZ);
-// Display P3: the NPM of SMPTE EG 432-1 with D65; Rec.2020: BT.2020 (0.2627, 0.6780, 0.0593 rounded).
+// Display P3: the NPM of SMPTE EG 432-1 with D65; Rec.2020: BT.2020 (0.2627, 0.6780, 0.0593
+// rounded).
 const Published kPublished[] = {
     {"lin_rec709", {0.2126390059, 0.7151686788, 0.0721923154}},
     {"ACEScg", {0.2722287168, 0.6740817658, 0.0536895174}},
@@ -46,6 +47,22 @@ TEST(ColourSpace, Ap1MatrixMatchesAcesBulletin) {
             EXPECT_NEAR(m[size_t(r)][size_t(c)], published[r][c], 1e-6) << r << c;
 }
 
+TEST(ColourSpace, Rec709ToAp1MatchesTheAcesConfigsMatrix) {
+    // The ACES reference configs' Rec.709 -> ACEScg (Bradford D65 -> ACES white).
+    const double published[3][3] = {{0.6130974024, 0.3395231462, 0.0473794514},
+                                    {0.0701937225, 0.9163538791, 0.0134523985},
+                                    {0.0206155929, 0.1095697729, 0.8698146342}};
+    std::array<std::array<double, 3>, 3> m{};
+    ASSERT_TRUE(rgbToRgb(findWorkingSpace("lin_rec709")->xy, findWorkingSpace("ACEScg")->xy, m));
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+            EXPECT_NEAR(m[size_t(r)][size_t(c)], published[r][c], 1e-6) << r << c;
+    // Same white: no adaptation, and the identity for a space to itself.
+    ASSERT_TRUE(rgbToRgb(findWorkingSpace("ACEScg")->xy, findWorkingSpace("ACEScg")->xy, m));
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(m[size_t(r)][size_t(c)], r == c, 1e-12);
+}
+
 TEST(ColourSpace, DegenerateChromaticitiesAreRefused) {
     std::array<double, 3> w{};
     Chromaticities zeroY = findWorkingSpace("lin_rec709")->xy;
@@ -68,7 +85,7 @@ TEST(ColourSpace, NamesInteropIdsAndAliases) {
 
 TEST(ColourSpace, MatchChromaticitiesAsFilesStoreThem) {
     // As float, the way the attribute holds them.
-    const Chromaticities ap1{float(0.713), float(0.293), float(0.165), float(0.830),
+    const Chromaticities ap1{float(0.713), float(0.293), float(0.165),   float(0.830),
                              float(0.128), float(0.044), float(0.32168), float(0.33767)};
     ASSERT_NE(matchChromaticities(ap1), nullptr);
     EXPECT_STREQ(matchChromaticities(ap1)->name, "ACEScg");

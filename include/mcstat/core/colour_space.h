@@ -1,6 +1,7 @@
 // Working colour spaces of scene-linear RGB: what a render's pixels mean, read from its metadata
 // (colorInteropID, chromaticities, oiio:ColorSpace), kept in the statistics file and used for its
-// luminance. Pure arithmetic, no OCIO (color.h adds the config). docs/colour.md describes the rules.
+// luminance. Pure arithmetic, no OCIO (color.h adds the config). docs/colour.md describes the
+// rules.
 #pragma once
 
 #include <array>
@@ -32,6 +33,9 @@ const std::vector<WorkingSpace>& workingSpaces();
 /// alias (acescg/ap1, aces/ap0, rec709/srgb_linear/linear, p3/displayp3, rec2020); null if none.
 const WorkingSpace* findWorkingSpace(const std::string& name);
 
+/// "lin_rec709, ACEScg, ACES2065-1, lin_p3d65, lin_rec2020": for messages.
+std::string knownWorkingSpaceNames();
+
 /// The known space whose chromaticities are these within `tolerance` in x and y (files store
 /// them as float, some writers round to 3 or 4 digits); null if none.
 const WorkingSpace* matchChromaticities(const Chromaticities& c, double tolerance = 5e-4);
@@ -43,6 +47,12 @@ std::string chromaticitiesText(const Chromaticities& c);
 /// XYZ (Y = 1) as columns, scaled so that RGB (1, 1, 1) gives the white point with Y = 1. False
 /// when the chromaticities are degenerate (a y of 0, collinear primaries, non-finite values).
 bool rgbToXyz(const Chromaticities& c, std::array<std::array<double, 3>, 3>& m);
+
+/// The matrix converting linear RGB of space `from` to space `to`: XYZ through rgbToXyz, with
+/// the Bradford chromatic adaptation between the white points when they differ (as the ACES
+/// reference configs convert Rec.709 to ACEScg). False as rgbToXyz.
+bool rgbToRgb(const Chromaticities& from, const Chromaticities& to,
+              std::array<std::array<double, 3>, 3>& m);
 
 /// Luminance weights of a space: the Y row of rgbToXyz (so that Y = w . RGB, and w sums to 1).
 /// False as rgbToXyz.
