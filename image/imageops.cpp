@@ -672,7 +672,9 @@ bool displayTransform(ImageBuf& dst, const ImageBuf& src, ROI roi, int nthreads)
     }
     std::string err;
     auto* pixels = static_cast<float*>(out.localpixels());
-    if (!applyDisplayTransform(pixels, long(roi.npixels()), err)) {
+    // The pixels' working space (docs/colour.md): an ACEScg result is not shown as Rec.709.
+    const std::string space = src.spec().get_string_attribute("oiio:ColorSpace");
+    if (!applyDisplayTransform(pixels, long(roi.npixels()), err, "", "", space)) {
         dst.errorfmt("{}", err);
         return false;
     }

@@ -483,6 +483,15 @@ bool cmdThreads(State& st, const std::string& cmd, const std::vector<std::string
     return true;
 }
 
+bool cmdColorConfig(State&, const std::string& cmd, const std::vector<std::string>& args,
+                    const Modifiers&, std::string& err) {
+    if (!setColorConfig(args[0], err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
+    return true;
+}
+
 bool cmdVerbose(State& st, const std::string&, const std::vector<std::string>&, const Modifiers&,
                 std::string&) {
     st.verbose = true;
@@ -580,6 +589,14 @@ std::vector<Command> buildTable() {
          "stderr; --info adds counts",
          {},
          &cmdVerbose,
+         ""},
+        {"--colorconfig",
+         1,
+         "FILE",
+         "The OCIO config for every later command, as oiiotool's (instead of $OCIO or mcstat's "
+         "own); ocio:// URIs need OpenColorIO 2.2 (docs/colour.md)",
+         {},
+         &cmdColorConfig,
          ""},
         {"--threads",
          1,

@@ -28,14 +28,27 @@ bool lumaCoefficients(const std::string& space, std::array<double, 3>& luma, std
 /// renders mcstat makes itself. A file's own space goes through the function above.
 std::array<double, 3> lumaCoefficients(std::string* warning = nullptr);
 
+/// Makes the OCIO config `path` the active one (oiiotool's --colorconfig), instead of $OCIO or
+/// the built-in config, for everything after the call. An `ocio://` URI needs OCIO's built-in
+/// configs (OpenColorIO 2.2): with an older OCIO it is refused with a one-line error naming the
+/// version needed. False with `err` when the config cannot be read or is invalid.
+bool setColorConfig(const std::string& path, std::string& err);
+
+/// The OpenColorIO version mcstat is built with ("2.1.2").
+std::string ocioVersion();
+
 /// Text of the built-in config (for docs and tests).
 const char* builtinOcioConfig();
 
 /// Converts interleaved RGB scene-linear pixels in place to display-encoded values through the
 /// active config's display/view transform (default display and view when empty).
 /// Returns false with `err` set when the config or the transform cannot be built.
+/// `space` is the pixels' working space (colour_space.h; empty: the config's scene_linear): a space
+/// the config has goes through the config (an ACES config and ACEScg); otherwise a matrix from its
+/// chromaticities to the config's scene-linear space comes first, and `note` (if non-null) says so.
 bool applyDisplayTransform(float* rgb, long npixels, std::string& err,
-                           const std::string& display = "", const std::string& view = "");
+                           const std::string& display = "", const std::string& view = "",
+                           const std::string& space = "", std::string* note = nullptr);
 
 /// The colour space toSceneLinear converts to, as the active config names it: kSceneLinear (the
 /// colour space of every statistics file) when the config has it, else its scene_linear role.

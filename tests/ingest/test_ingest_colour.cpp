@@ -10,6 +10,7 @@
 #include <cstdio>
 
 #include "../cli/cli_support.h"
+#include "mcstat/color.h"
 #include "mcstat/core/colour_space.h"
 
 namespace mcstat::testing {
@@ -219,6 +220,43 @@ TEST_F(IngestColour, CompareAndMergeRefuseDifferentSpaces) {
     EXPECT_NE(merge.code, 0);
     EXPECT_NE(merge.err.find("colour spaces differ ('lin_rec709' vs 'ACEScg')"), std::string::npos)
         << merge.err;
+}
+
+TEST_F(IngestColour, DisplayEncodedRendersAreRefusedInOneLine) {
+    // An sRGB PNG holds display-encoded values, not scene-linear light: taken as linear, a value
+    // of about 0.5 would become 0.735. Refused, with the conversion to do.
+    std::vector<unsigned char> px(size_t(kW) * kH * 3, 188);
+    OIIO::ImageSpec spec(kW, kH, 3, OIIO::TypeDesc::UINT8);
+    auto out = OIIO::ImageOutput::create(path("s1.png"));
+    ASSERT_TRUE(out && out->open(path("s1.png"), spec));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, px.data()));
+    out->close();
+    const Result r = mcstat("--ingest:spp=8 '" + path("s1.png") + "' -o " + path("p.mcstat"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find("s1.png: oiio:ColorSpace 'sRGB' is not scene-linear"), std::string::npos)
+        << r.err;
+    EXPECT_NE(r.err.find("--colorconvert sRGB lin_rec709"), std::string::npos) << r.err;
+}
+
+TEST_F(IngestColour, ColorConfigTakesAFileAndRefusesUnsupportedUrisInOneLine) {
+    if (ocioVersion() >= "2.2") GTEST_SKIP() << "this OCIO has built-in configs";
+    const Result uri = mcstat("--colorconfig ocio://default --threads 1");
+    EXPECT_NE(uri.code, 0);
+    EXPECT_EQ(std::count(uri.err.begin(), uri.err.end(), '\n'), 1) << uri.err;
+    EXPECT_NE(uri.err.find("--colorconfig: 'ocio://default': ocio:// URIs (OCIO's built-in "
+                           "configs) need OpenColorIO 2.2 or later"),
+              std::string::npos)
+        << uri.err;
+    // A config file: mcstat's own, written out, is accepted.
+    {
+        std::FILE* f = std::fopen(path("own.ocio").c_str(), "w");
+        ASSERT_NE(f, nullptr);
+        std::fputs(builtinOcioConfig(), f);
+        std::fclose(f);
+    }
+    const Result file = mcstat("--colorconfig " + path("own.ocio") + " --threads 1");
+    EXPECT_EQ(file.code, 0) << file.err;
 }
 
 }  // namespace
