@@ -122,6 +122,20 @@ bool colourSpaceOf(const ImageSpec& spec, std::string& space, std::string& sourc
                 printable(id), knownWorkingSpaceNames());
             return false;
         }
+        // chromaticities that say otherwise make the file ambiguous: which one is right?
+        const OIIO::ParamValue* c =
+            spec.find_attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8));
+        if (c) {
+            const float* v = static_cast<const float*>(c->data());
+            const Chromaticities xy{v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]};
+            if (matchChromaticities(xy) != ws) {
+                problem = fmt::format(
+                    "colorInteropID '{}' is {} but the chromaticities ({}) are not: the file "
+                    "contradicts itself; fix its metadata",
+                    printable(id), ws->name, chromaticitiesText(xy));
+                return false;
+            }
+        }
         space = ws->name;
         source = "colorInteropID " + printable(id);
         return true;

@@ -166,6 +166,9 @@ bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string
     spec.attribute(std::string(kProvenancePrefix) + "compare.fail", r.fail ? 1 : 0);
     spec.attribute(std::string(kProvenancePrefix) + "compare.a", a.name);
     spec.attribute(std::string(kProvenancePrefix) + "compare.b", b.name);
+    // The working space whose luminance and R, G, B were tested (the maps are data, not colour:
+    // no chromaticities).
+    spec.attribute("mcstat:colorSpace", spaceA);
     for (const ParamSpec& p : compareModifiers())
         if (mods.count(p.name))
             spec.attribute(std::string(kProvenancePrefix) + "compare." + p.name, mods.at(p.name));

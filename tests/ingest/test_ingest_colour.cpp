@@ -26,7 +26,10 @@ std::vector<float> readRGB(const std::string& path, OIIO::ImageSpec& spec) {
     EXPECT_TRUE(in.read(0, 0, true, OIIO::TypeDesc::FLOAT)) << in.geterror();
     spec = in.spec();
     std::vector<float> px(size_t(spec.width) * size_t(spec.height) * 3);
-    in.get_pixels(in.roi(), OIIO::TypeDesc::FLOAT, px.data());  // R, G, B are the first three
+    OIIO::ROI rgb = in.roi();  // the first three channels: R, G, B
+    rgb.chbegin = 0;
+    rgb.chend = std::min(3, spec.nchannels);
+    in.get_pixels(rgb, OIIO::TypeDesc::FLOAT, px.data());
     return px;
 }
 
@@ -107,6 +110,10 @@ void expectLabelled(const OIIO::ImageSpec& s, const char* space, const std::stri
 
 TEST_F(IngestColour, AcesAndRec709VersionsOfTheSameRendersGiveTheSameGMoN) {
     writeBoth();
+    // The fixture renderer labels its own output.
+    OIIO::ImageSpec fixture;
+    readRGB(path("plain1.exr"), fixture);
+    EXPECT_EQ(fixture.get_string_attribute("colorInteropID"), "lin_rec709_scene");
     const Result a = mcstat("--ingest '" + path("rec709_s*.exr") + "' -o " + path("rec709.mcstat") +
                             " --gmon -o " + path("gmon709.exr"));
     ASSERT_EQ(a.code, 0) << a.err;
@@ -197,6 +204,26 @@ TEST_F(IngestColour, MixedSpacesAndUnknownSpacesAreRefusedInOneLine) {
     ASSERT_TRUE(out && out->open(path("odd.exr"), spec));
     ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, rgb.data()));
     out->close();
+    // colorInteropID and chromaticities that disagree.
+    {
+        OIIO::ImageSpec both = spec;
+        both.attribute("colorInteropID", "lin_ap1_scene");
+        const Chromaticities& c = findWorkingSpace("lin_rec709")->xy;
+        const float xy[8] = {float(c.rx), float(c.ry), float(c.gx), float(c.gy),
+                             float(c.bx), float(c.by), float(c.wx), float(c.wy)};
+        both.attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8), xy);
+        auto o2 = OIIO::ImageOutput::create(path("both.exr"));
+        ASSERT_TRUE(o2 && o2->open(path("both.exr"), both));
+        ASSERT_TRUE(o2->write_image(OIIO::TypeDesc::FLOAT, rgb.data()));
+        o2->close();
+        const Result r = mcstat("--ingest '" + path("both.exr") + "' -o " + path("b.mcstat"));
+        EXPECT_NE(r.code, 0);
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+        EXPECT_NE(r.err.find("both.exr: colorInteropID 'lin_ap1_scene' is ACEScg but the "
+                             "chromaticities (R 0.64 0.33"),
+                  std::string::npos)
+            << r.err;
+    }
     const Result odd = mcstat("--ingest '" + path("odd.exr") + "' -o " + path("o.mcstat"));
     EXPECT_NE(odd.code, 0);
     EXPECT_EQ(std::count(odd.err.begin(), odd.err.end(), '\n'), 1) << odd.err;
@@ -210,6 +237,15 @@ TEST_F(IngestColour, CompareAndMergeRefuseDifferentSpaces) {
     writeBoth();
     ASSERT_EQ(mcstat("--ingest '" + path("rec709_s*.exr") + "' -o " + path("a.mcstat")).code, 0);
     ASSERT_EQ(mcstat("--ingest '" + path("ap1_s*.exr") + "' -o " + path("b.mcstat")).code, 0);
+    // The same space: the maps say which.
+    ASSERT_EQ(mcstat("--ingest '" + path("ap1_s[1-9].exr") + "' -o " + path("b1.mcstat")).code, 0);
+    ASSERT_EQ(mcstat("--ingest '" + path("ap1_s1[0-9].exr") + "' -o " + path("b2.mcstat")).code, 0);
+    const Result same =
+        mcstat(path("b1.mcstat") + " " + path("b2.mcstat") + " --compare -o " + path("maps.exr"));
+    EXPECT_NE(same.code, 1) << same.err;  // 0 or 2 (differs): a comparison was made
+    OIIO::ImageSpec ms;
+    readRGB(path("maps.exr"), ms);
+    EXPECT_EQ(ms.get_string_attribute("mcstat:colorSpace"), "ACEScg");
     const Result cmp = mcstat(path("a.mcstat") + " " + path("b.mcstat") + " --compare");
     EXPECT_NE(cmp.code, 0);
     EXPECT_EQ(std::count(cmp.err.begin(), cmp.err.end(), '\n'), 1) << cmp.err;
