@@ -14,6 +14,7 @@
 #include <mutex>
 #include <numeric>
 
+#include "mcstat/core/colour_space.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/untrusted_text.h"
 #include "mcstat/image/imageops.h"
@@ -55,7 +56,7 @@ void gatherBuffers(const Side& s, const Quantity& q, bool sideB, size_t p,
         double v = 0.0;
         switch (q.kind) {
             case Quantity::Luminance:
-                v = luma[0] * double(m[0]) + luma[1] * double(m[1]) + luma[2] * double(m[2]);
+                v = luminance(luma, m);
                 break;
             case Quantity::Channel:
                 v = double(m[q.channel]);
@@ -110,7 +111,7 @@ double referenceValue(const Side& s, const Quantity& q, int x, int y,
                       const std::array<double, 3>& luma) {
     const float* rgb = &s.refRGB[(size_t(y) * size_t(s.ref->roi().width()) + size_t(x)) * 3];
     if (q.kind == Quantity::Channel) return double(rgb[q.channel]);
-    return luma[0] * double(rgb[0]) + luma[1] * double(rgb[1]) + luma[2] * double(rgb[2]);
+    return luminance(luma, rgb);
 }
 
 /// Counts and findings of the tasks, merged under a mutex.

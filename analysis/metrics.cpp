@@ -7,6 +7,8 @@
 #include <memory>
 #include <vector>
 
+#include "mcstat/core/colour_space.h"
+
 namespace mcstat {
 
 namespace {
@@ -82,9 +84,9 @@ PixelError pixelError(const float* x, const float* r, const DiffOptions& opt) {
     for (int c = 0; c < 3; ++c) {
         const double xc = x[c], rc = r[c];
         e.relSum += (xc - rc) * (xc - rc) / (rc * rc + opt.relmseEpsilon);
-        e.y += opt.luma[c] * xc;
-        e.yRef += opt.luma[c] * rc;
     }
+    e.y = luminance(opt.luma, x);
+    e.yRef = luminance(opt.luma, r);
     e.firefly = e.y > opt.fireflyRatio * e.yRef && e.y - e.yRef > opt.fireflyFloor;
     return e;
 }

@@ -4,10 +4,14 @@
 #include <OpenColorIO/OpenColorIO.h>
 #include <strings.h>
 
+#include <cmath>
 #include <cstdlib>
+#include <memory>
 #include <mutex>
 #include <sstream>
+#include <vector>
 
+#include "mcstat/core/colour_space.h"
 #include "mcstat/core/untrusted_text.h"
 
 namespace OCIO = OCIO_NAMESPACE;
@@ -24,48 +28,168 @@ struct ActiveConfig {
     std::string warning;  // non-empty when $OCIO was set but could not be used
 };
 
-// The config is loaded once per process: OCIO configs are immutable and thread-safe to share.
-const ActiveConfig& activeConfig() {
-    static const ActiveConfig active = [] {
-        ActiveConfig a;
-        const char* env = std::getenv("OCIO");
-        if (env && *env) {
+/// "ocio://..." needs OCIO's built-in configs (OpenColorIO 2.2); empty when this OCIO has them.
+std::string uriProblem(const std::string& uri) {
+    if (uri.rfind("ocio://", 0) != 0) return "";
+#if OCIO_VERSION_HEX < 0x02020000
+    return "'" + printable(uri) +
+           "': ocio:// URIs (OCIO's built-in configs) need OpenColorIO 2.2 or " +
+           "later; this mcstat is built with " + OCIO::GetVersion() + ": give a config file";
+#else
+    return "";
+#endif
+}
+
+ActiveConfig loadDefault() {
+    ActiveConfig a;
+    const char* env = std::getenv("OCIO");
+    if (env && *env) {
+        const std::string problem = uriProblem(env);
+        if (!problem.empty()) {
+            a.warning = "$OCIO=" + problem + "; using mcstat's built-in config";
+        } else {
             try {
                 a.config = OCIO::Config::CreateFromEnv();
                 return a;
             } catch (const std::exception& e) {
-                a.warning = std::string("$OCIO=") + env + " unusable (" + e.what() +
+                a.warning = std::string("$OCIO=") + env + " unusable (" + oneLine(e.what()) +
                             "); using mcstat's built-in config";
             }
         }
-        std::istringstream in(detail::kBuiltinOcioConfig);
-        a.config = OCIO::Config::CreateFromStream(in);  // our own text: a failure is a build bug
-        return a;
-    }();
-    return active;
+    }
+    std::istringstream in(detail::kBuiltinOcioConfig);
+    a.config = OCIO::Config::CreateFromStream(in);  // our own text: a failure is a build bug
+    return a;
+}
+
+std::mutex& configMutex() {
+    static std::mutex m;
+    return m;
+}
+/// Every config made active, kept for the process's life: a reference handed out stays valid
+/// when --colorconfig replaces the config.
+std::vector<std::unique_ptr<ActiveConfig>>& configs() {
+    static std::vector<std::unique_ptr<ActiveConfig>> v;
+    return v;
+}
+
+// The config is loaded once per process (or set by setColorConfig): OCIO configs are immutable and
+// thread-safe to share.
+const ActiveConfig& activeConfig() {
+    std::lock_guard<std::mutex> lock(configMutex());
+    if (configs().empty()) configs().push_back(std::make_unique<ActiveConfig>(loadDefault()));
+    return *configs().back();
 }
 
 }  // namespace
 
 const char* builtinOcioConfig() { return detail::kBuiltinOcioConfig; }
 
-std::array<double, 3> lumaCoefficients(std::string* warning) {
+std::string ocioVersion() { return OCIO::GetVersion(); }
+
+bool setColorConfig(const std::string& path, std::string& err) {
+    if (const std::string problem = uriProblem(path); !problem.empty()) {
+        err = problem;
+        return false;
+    }
+    auto a = std::make_unique<ActiveConfig>();
+    try {
+        a->config = OCIO::Config::CreateFromFile(path.c_str());
+        a->config->validate();
+    } catch (const std::exception& e) {
+        err = "colour config '" + printable(path) + "' unusable: " + oneLine(e.what());
+        return false;
+    }
+    std::lock_guard<std::mutex> lock(configMutex());
+    configs().push_back(std::move(a));
+    return true;
+}
+
+bool lumaCoefficients(const std::string& space, std::array<double, 3>& luma, std::string& err,
+                      std::string* warning) {
     const ActiveConfig& a = activeConfig();
-    if (warning) *warning = a.warning;
+    std::string warn = a.warning;
+    const WorkingSpace* ws = findWorkingSpace(space);
+    if (!ws) {
+        err = "colour space '" + printable(space) +
+              "' is unknown (known: " + knownWorkingSpaceNames() + ")";
+        return false;
+    }
+    std::array<double, 3> fromPrimaries{};
+    if (!lumaFromChromaticities(ws->xy, fromPrimaries)) {  // the table's own values: cannot fail
+        err = "colour space '" + printable(space) + "' has degenerate chromaticities";
+        return false;
+    }
+    luma = fromPrimaries;
+    // The config's luma when the config's scene_linear space is this one.
+    const OCIO::ConstColorSpaceRcPtr sl = a.config->getColorSpace(OCIO::ROLE_SCENE_LINEAR);
+    const OCIO::ConstColorSpaceRcPtr named = a.config->getColorSpace(ws->name);
+    if (sl && named && std::string(sl->getName()) == named->getName()) {
+        std::array<double, 3> cfg{};
+        a.config->getDefaultLumaCoefs(cfg.data());
+        bool agrees = true;
+        for (size_t c = 0; c < 3; ++c)
+            agrees = agrees && std::fabs(cfg[c] - fromPrimaries[c]) <= 1e-3;
+        if (agrees) {
+            luma = cfg;
+        } else {
+            if (!warn.empty()) warn += "; ";
+            warn += "the OCIO config's luma (" + std::to_string(cfg[0]) + ", " +
+                    std::to_string(cfg[1]) + ", " + std::to_string(cfg[2]) + ") is not " +
+                    ws->name + "'s: using the Y row of its RGB-to-XYZ matrix";
+        }
+    }
+    if (warning) *warning = warn;
+    return true;
+}
+
+std::array<double, 3> lumaCoefficients(std::string* warning) {
     std::array<double, 3> luma{};
-    a.config->getDefaultLumaCoefs(luma.data());
+    std::string err;
+    lumaCoefficients(kSceneLinear, luma, err, warning);  // a known space: cannot fail
     return luma;
 }
 
 bool applyDisplayTransform(float* rgb, long npixels, std::string& err, const std::string& display,
-                           const std::string& view) {
+                           const std::string& view, const std::string& space, std::string* note) {
     try {
         const ActiveConfig& a = activeConfig();
         const OCIO::ConstConfigRcPtr& cfg = a.config;
         std::string disp = display.empty() ? cfg->getDefaultDisplay() : display;
         std::string vw = view.empty() ? cfg->getDefaultView(disp.c_str()) : view;
+        std::string src = OCIO::ROLE_SCENE_LINEAR;
+        const WorkingSpace* ws = space.empty() ? nullptr : findWorkingSpace(space);
+        const OCIO::ConstColorSpaceRcPtr sl = cfg->getColorSpace(OCIO::ROLE_SCENE_LINEAR);
+        const WorkingSpace* slws = sl ? findWorkingSpace(sl->getName()) : nullptr;
+        if (ws && slws != ws) {
+            if (cfg->getColorSpace(ws->name)) {
+                src = ws->name;  // the config knows the space (an ACES config and ACEScg)
+            } else if (slws) {
+                // A matrix from the chromaticities to the config's scene-linear space (Bradford
+                // between the white points), then the config's view.
+                std::array<std::array<double, 3>, 3> m{};
+                if (!rgbToRgb(ws->xy, slws->xy, m)) {
+                    err = std::string("cannot convert ") + ws->name + " to " + slws->name;
+                    return false;
+                }
+                for (long p = 0; p < npixels; ++p) {
+                    float* v = rgb + 3 * p;
+                    const double r = v[0], g = v[1], b = v[2];
+                    for (size_t i = 0; i < 3; ++i)
+                        v[i] = float(m[i][0] * r + m[i][1] * g + m[i][2] * b);
+                }
+                if (note)
+                    *note = std::string(ws->name) + " shown through a matrix to " + slws->name +
+                            " and the config's " + disp + "/" + vw + " view";
+            } else {
+                err = std::string("the OCIO config has no colour space ") + ws->name +
+                      " and its scene_linear is no space mcstat knows: give a config with " +
+                      ws->name + " (--colorconfig)";
+                return false;
+            }
+        }
         auto t = OCIO::DisplayViewTransform::Create();
-        t->setSrc(OCIO::ROLE_SCENE_LINEAR);
+        t->setSrc(src.c_str());
         t->setDisplay(disp.c_str());
         t->setView(vw.c_str());
         OCIO::ConstProcessorRcPtr proc = cfg->getProcessor(t);

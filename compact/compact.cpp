@@ -15,6 +15,7 @@
 #include <limits>
 #include <memory>
 
+#include "mcstat/core/colour_space.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/filters/aov_weights.h"
 #include "mcstat/filters/pixel/gmon.h"
@@ -58,7 +59,7 @@ bool outlyingBuffer(const PixelBuffers& px, const std::array<double, 3>& luma, d
     s.lum.resize(n);
     for (size_t i = 0; i < n; ++i) {
         const float* m = px.mean + 3 * valid[i];
-        s.lum[i] = luma[0] * double(m[0]) + luma[1] * double(m[1]) + luma[2] * double(m[2]);
+        s.lum[i] = luminance(luma, m);
     }
     std::vector<double>& dev = s.deviation;
     dev = s.lum;

@@ -63,6 +63,8 @@ inline constexpr const char* kAttrSpp = "mcstat:spp";                      // in
 inline constexpr const char* kAttrAssignment = "mcstat:assignment";        // string
 inline constexpr const char* kAttrRenderer = "mcstat:renderer";            // string
 inline constexpr const char* kAttrColorSpace = "mcstat:colorSpace";        // string
+inline constexpr const char* kAttrColorInteropID =
+    "colorInteropID";  // string, part 0 (OpenEXR 3.4)
 inline constexpr const char* kAttrSeeds = "mcstat:seeds";                  // string
 /// Version 2 on: int 0 (fixed M, part "buffers") or 1 (adaptive M, part "vbuffers").
 inline constexpr const char* kAttrAdaptiveM = "mcstat:adaptiveM";

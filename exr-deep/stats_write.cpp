@@ -34,6 +34,7 @@
 #include "deep_frame_buffer.h"
 #include "extra_parts.h"
 #include "fd_stream.h"
+#include "mcstat/core/colour_space.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
 #include "mcstat/temp_file.h"
@@ -104,12 +105,27 @@ void insertAovAttributes(Imf::Header& hdr, const StatsHeader& h) {
     hdr.insert(layout::kAttrAovParts, Imf::StringVectorAttribute(parts));
 }
 
+/// Part 0, what every stock EXR tool shows, says what its RGB values are: the standard
+/// `chromaticities` of the working space and (OpenEXR 3.4's attribute, written as a plain string
+/// by older libraries) its `colorInteropID`. A space mcstat does not know gets neither: no label
+/// is better than a wrong one.
+void addColourSpace(Imf::Header& hdr, const std::string& space) {
+    const WorkingSpace* ws = findWorkingSpace(space);
+    if (!ws) return;
+    const Chromaticities& c = ws->xy;
+    Imf::addChromaticities(hdr, Imf::Chromaticities(Imath::V2f(float(c.rx), float(c.ry)),
+                                                    Imath::V2f(float(c.gx), float(c.gy)),
+                                                    Imath::V2f(float(c.bx), float(c.by)),
+                                                    Imath::V2f(float(c.wx), float(c.wy))));
+    hdr.insert(layout::kAttrColorInteropID, Imf::StringAttribute(ws->interopID));
+}
+
 std::vector<Imf::Header> makeHeaders(const StatsHeader& h) {
     std::vector<Imf::Header> headers;
     for (int part = 0; part < layout::kPartCount; ++part) {
         const bool deep = h.adaptiveM && part == layout::kBuffers;
         Imf::Header hdr = detail::commonHeader(h, layout::partNames(h.adaptiveM)[part], deep);
-        if (part == layout::kBeauty) Imf::addChromaticities(hdr, Imf::Chromaticities());  // Rec.709
+        if (part == layout::kBeauty) addColourSpace(hdr, h.colorSpace);
         for (const layout::ChannelPlace& c :
              layout::partChannels(part, h.M, h.adaptiveM, layout::momentsOf(h)))
             hdr.channels().insert(c.name, Imf::Channel(Imf::FLOAT));

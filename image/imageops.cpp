@@ -9,6 +9,7 @@
 #include <atomic>
 
 #include "mcstat/color.h"
+#include "mcstat/core/colour_space.h"
 #include "mcstat/filters/aov_weights.h"
 #include "mcstat/filters/window/filter3d.h"
 #include "mcstat/filters/window/mif.h"
@@ -78,6 +79,16 @@ OIIO::ROI displayWindowROI(const StatsHeader& h) {
                      h.displayY + h.displayHeight);
 }
 
+void labelColourSpace(ImageSpec& spec, const std::string& colorSpace) {
+    const WorkingSpace* ws = findWorkingSpace(colorSpace);
+    if (!ws) return;
+    const Chromaticities& c = ws->xy;
+    const float xy[8] = {float(c.rx), float(c.ry), float(c.gx), float(c.gy),
+                         float(c.bx), float(c.by), float(c.wx), float(c.wy)};
+    spec.attribute("chromaticities", TypeDesc(TypeDesc::FLOAT, 8), xy);
+    spec.attribute("colorInteropID", ws->interopID);
+}
+
 ImageSpec floatSpec(ROI data, const std::vector<std::string>& channels, ROI display,
                     const std::string& colorSpace) {
     if (!display.defined()) display = data;
@@ -92,6 +103,7 @@ ImageSpec floatSpec(ROI data, const std::vector<std::string>& channels, ROI disp
     spec.alpha_channel = -1;
     spec.z_channel = -1;
     if (!colorSpace.empty()) spec.attribute("oiio:ColorSpace", colorSpace);
+    labelColourSpace(spec, colorSpace);
     return spec;
 }
 
@@ -660,7 +672,9 @@ bool displayTransform(ImageBuf& dst, const ImageBuf& src, ROI roi, int nthreads)
     }
     std::string err;
     auto* pixels = static_cast<float*>(out.localpixels());
-    if (!applyDisplayTransform(pixels, long(roi.npixels()), err)) {
+    // The pixels' working space (docs/colour.md): an ACEScg result is not shown as Rec.709.
+    const std::string space = src.spec().get_string_attribute("oiio:ColorSpace");
+    if (!applyDisplayTransform(pixels, long(roi.npixels()), err, "", "", space)) {
         dst.errorfmt("{}", err);
         return false;
     }

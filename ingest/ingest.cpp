@@ -23,6 +23,8 @@
 
 #include "fd_stream.h"
 #include "flat_part_reader.h"
+#include "mcstat/color.h"
+#include "mcstat/core/colour_space.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/params.h"
 #include "mcstat/core/untrusted_text.h"
@@ -105,6 +107,73 @@ int64_t sppFromMetadata(const ImageSpec& spec, const BeautyChannels& beauty, std
     return 0;
 }
 
+bool colourSpaceOf(const ImageSpec& spec, std::string& space, std::string& source,
+                   std::string& problem) {
+    space.clear();
+    source.clear();
+    // 1. colorInteropID (OpenEXR 3.4; OIIO passes an EXR's unknown attributes by name).
+    for (const char* key : {"colorInteropID", "openexr:colorInteropID"}) {
+        const std::string id = spec.get_string_attribute(key);
+        if (id.empty()) continue;
+        const WorkingSpace* ws = findWorkingSpace(id);
+        if (!ws) {
+            problem = fmt::format(
+                "colorInteropID '{}' is not a scene-linear space mcstat knows (known: {})",
+                printable(id), knownWorkingSpaceNames());
+            return false;
+        }
+        // chromaticities that say otherwise make the file ambiguous: which one is right?
+        const OIIO::ParamValue* c =
+            spec.find_attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8));
+        if (c) {
+            const float* v = static_cast<const float*>(c->data());
+            const Chromaticities xy{v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]};
+            if (matchChromaticities(xy) != ws) {
+                problem = fmt::format(
+                    "colorInteropID '{}' is {} but the chromaticities ({}) are not: the file "
+                    "contradicts itself; fix its metadata",
+                    printable(id), ws->name, chromaticitiesText(xy));
+                return false;
+            }
+        }
+        space = ws->name;
+        source = "colorInteropID " + printable(id);
+        return true;
+    }
+    // 2. chromaticities: red, green, blue, white xy.
+    const OIIO::ParamValue* c =
+        spec.find_attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8));
+    if (c) {
+        const float* v = static_cast<const float*>(c->data());
+        const Chromaticities xy{v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]};
+        const WorkingSpace* ws = matchChromaticities(xy);
+        if (!ws) {
+            problem = fmt::format(
+                "chromaticities ({}) are those of no space mcstat knows (known: {}); convert the "
+                "renders to one of them",
+                chromaticitiesText(xy), knownWorkingSpaceNames());
+            return false;
+        }
+        space = ws->name;
+        source = "chromaticities";
+        return true;
+    }
+    // 3. oiio:ColorSpace, which OIIO sets "Linear" for any float EXR (no information).
+    const std::string cs = spec.get_string_attribute("oiio:ColorSpace");
+    if (cs.empty() || OIIO::Strutil::iequals(cs, "Linear")) return true;
+    if (const WorkingSpace* ws = findWorkingSpace(cs)) {
+        space = ws->name;
+        source = "oiio:ColorSpace " + printable(cs);
+        return true;
+    }
+    problem = fmt::format(
+        "oiio:ColorSpace '{}' is not scene-linear (a display encoding such as an sRGB PNG or "
+        "JPEG, or a space mcstat does not know): ingest takes scene-linear renders; convert "
+        "them first (e.g. oiiotool IN --colorconvert {} lin_rec709 -o OUT.exr)",
+        printable(cs), printable(cs));
+    return false;
+}
+
 /// One input file, opened, with the channels mcstat reads from it.
 struct InputFile {
     std::string path;
@@ -119,6 +188,8 @@ struct InputFile {
     FeatureChannels features;
     int64_t spp = 0;
     std::string sppKey;
+    std::string space;        ///< its working space (colourSpaceOf, or the assumed one)
+    std::string spaceSource;  ///< what said so: "colorInteropID lin_ap1_scene", "untagged: ..."
 };
 
 /// The channel names of every subimage of `in` (see listChannels); leaves `in` on some subimage.
@@ -476,6 +547,24 @@ bool readHeader(Ingest& s, size_t j, const std::string& path, std::string& err) 
         err = fmt::format("{}: {} samples per pixel exceeds 2^24", f.path, f.spp);
         return false;
     }
+    std::string problem2;
+    if (!colourSpaceOf(f.spec, f.space, f.spaceSource, problem2)) {
+        err = f.path + ": " + problem2;
+        return false;
+    }
+    if (f.space.empty()) {
+        f.space = s.opt.colorSpace.empty() ? std::string(kSceneLinear) : s.opt.colorSpace;
+        f.spaceSource = s.opt.colorSpace.empty() ? "untagged, taken as lin_rec709"
+                                                 : "untagged, colorspace=" + s.opt.colorSpace;
+    }
+    if (j > 0 && f.space != s.files[0].space) {
+        err = fmt::format(
+            "{} is {} ({}) but {} is {} ({}): the renders of one statistics file share one colour "
+            "space (convert them, or give untagged ones --ingest:colorspace=)",
+            s.files[0].path, s.files[0].space, s.files[0].spaceSource, f.path, f.space,
+            f.spaceSource);
+        return false;
+    }
     s.report.spp.push_back(f.spp);
     f.in.reset();  // closed until its pixels are read: 999 inputs must not hold 999 files open
     return true;
@@ -650,6 +739,7 @@ void fillHeader(Ingest& s) {
     h.variance = M >= 2 ? kVarianceBuffers : kVarianceUnknown;
     h.features = first.features.present;
     h.renderer = rendererOf(first.spec) + " via mcstat --ingest";
+    h.colorSpace = first.space;
     for (size_t j = 0; j < files.size(); ++j)
         h.sources += (j ? "," : "") + OIIO::Filesystem::filename(files[j].path);
     // Version 5: what the render looked like, so that a result can replace one input.

@@ -432,7 +432,6 @@ bool McstatInput::readParameters(const std::string& name, const ImageSpec& confi
     }
     m_op = est;
     m_path = path;
-    m_luma = mcstat::lumaCoefficients();
     return true;
 }
 
@@ -446,6 +445,11 @@ bool McstatInput::readHeader() {
             return false;
         }
         m_header = reader.header();
+        // The luminance of the file's own working space (docs/colour.md).
+        if (!mcstat::lumaCoefficients(m_header.colorSpace, m_luma, err)) {
+            errorfmt("{}: {}", m_path, err);
+            return false;
+        }
     }
     if (!fileIdentity(m_path, m_identity)) {
         errorfmt("{}: cannot stat the file", m_path);

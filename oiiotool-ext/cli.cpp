@@ -100,13 +100,6 @@ bool flagValue(const Modifiers& mods, const std::string& key, bool& out, std::st
 
 // ---- operation commands, one per registry entry ------------------------------------------------
 
-std::array<double, 3> luma() {
-    std::string warning;
-    const std::array<double, 3> l = lumaCoefficients(&warning);
-    if (!warning.empty()) cli::warning(warning);
-    return l;
-}
-
 bool needStatsOnTop(State& st, const std::string& cmd, std::string& err) {
     if (!needStack(st, 1, cmd, err)) return false;
     const Item& top = st.stack.back();
@@ -173,6 +166,12 @@ bool applyToTop(State& st, const std::string& cmd, const Operation& op, const Pa
                 bool diag, OIIO::ImageBuf& img, std::string& err) {
     Item& top = st.stack.back();
     bool ok = false;
+    std::array<double, 3> lw{};
+    if (!itemLuma(top, lw, err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
+    const auto luma = [&lw] { return lw; };
     if (takesImage(op)) {
         // The filter works on the first three channels: hand it R, G, B found by name. An
         // estimator's result over a file with AOVs (R, G, B first, then its AOVs, kAttrFirstAov)
@@ -209,10 +208,15 @@ bool applyToTop(State& st, const std::string& cmd, const Operation& op, const Pa
 /// top statistics file.
 bool appendTopResidual(State& st, const std::string& cmd, OIIO::ImageBuf& img, std::string& err) {
     Item& top = st.stack.back();
+    std::array<double, 3> luma{};
+    if (!itemLuma(top, luma, err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
     ItemSource again;  // a streamed source is read once more, from its first row
     if (!top.stats && !openSource(st, top, again, err)) return false;
-    if (!(top.stats ? appendResidual(img, *top.stats, luma(), st.nthreads)
-                    : appendResidual(img, *again.root, luma(), st.nthreads))) {
+    if (!(top.stats ? appendResidual(img, *top.stats, luma, st.nthreads)
+                    : appendResidual(img, *again.root, luma, st.nthreads))) {
         err = format("{}: {}", cmd, img.geterror());
         return false;
     }
@@ -258,7 +262,10 @@ bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& 
         return false;
     }
     DiffOptions opt;
-    opt.luma = lumaCoefficients();
+    if (!itemLuma(top, opt.luma, err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
     if (!parseDiffOptions(mods, cmd, opt, err)) return false;
     const auto layer = mods.find("layer");
     // R, G, B by name on both sides: a multilayer reference whose AO layer sorts before its
@@ -417,7 +424,10 @@ bool cmdCompact(State& st, const std::string& cmd, const std::vector<std::string
         return false;
     }
     CompactRule rule;
-    rule.luma = luma();
+    if (!itemLuma(top, rule.luma, err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
     rule.margin = modifierValue(compactModifiers(), mods, "margin").real;
     rule.z = modifierValue(compactModifiers(), mods, "z").real;
     Item out;
@@ -470,6 +480,15 @@ bool cmdThreads(State& st, const std::string& cmd, const std::vector<std::string
     }
     st.nthreads = int(n);
     OIIO::attribute("threads", int(n));
+    return true;
+}
+
+bool cmdColorConfig(State&, const std::string& cmd, const std::vector<std::string>& args,
+                    const Modifiers&, std::string& err) {
+    if (!setColorConfig(args[0], err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
     return true;
 }
 
@@ -570,6 +589,14 @@ std::vector<Command> buildTable() {
          "stderr; --info adds counts",
          {},
          &cmdVerbose,
+         ""},
+        {"--colorconfig",
+         1,
+         "FILE",
+         "The OCIO config for every later command, as oiiotool's (instead of $OCIO or mcstat's "
+         "own); ocio:// URIs need OpenColorIO 2.2 (docs/colour.md)",
+         {},
+         &cmdColorConfig,
          ""},
         {"--threads",
          1,
@@ -933,6 +960,27 @@ bool quiet() { return quietMode; }
 // printable() each message gives the strings it quotes from a file (core/untrusted_text.h).
 void warning(const std::string& text) {
     if (!quietMode) std::fprintf(stderr, "mcstat: warning: %s\n", oneLine(text).c_str());
+}
+
+std::string itemSpace(const Item& item) {
+    if (item.isStats()) return item.header.colorSpace;
+    const std::string s = item.image->spec().get_string_attribute("oiio:ColorSpace");
+    return s.empty() || OIIO::Strutil::iequals(s, "Linear") ? std::string(kSceneLinear) : s;
+}
+
+bool spaceLuma(const std::string& space, const std::string& what, std::array<double, 3>& luma,
+               std::string& err) {
+    std::string warn;
+    if (!lumaCoefficients(space, luma, err, &warn)) {
+        err = what + ": " + err;
+        return false;
+    }
+    if (!warn.empty()) warning(warn);
+    return true;
+}
+
+bool itemLuma(const Item& item, std::array<double, 3>& luma, std::string& err) {
+    return spaceLuma(itemSpace(item), item.name, luma, err);
 }
 
 void note(const std::string& text) {

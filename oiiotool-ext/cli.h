@@ -5,6 +5,7 @@
 
 #include <OpenImageIO/imagebuf.h>
 
+#include <array>
 #include <map>
 #include <memory>
 #include <string>
@@ -112,6 +113,16 @@ void describeOperationResult(const Item& top, const Operation& op, const ParamVa
 bool quiet();
 /// "mcstat: warning: TEXT" / "mcstat: note: TEXT" on stderr, unless quiet().
 void warning(const std::string& text);
+
+/// The working space of an item (docs/colour.md): a statistics item's mcstat:colorSpace, an
+/// image's oiio:ColorSpace (OIIO's "Linear" of an untagged float EXR read as lin_rec709).
+std::string itemSpace(const Item& item);
+/// The luminance weights of `item`'s working space (lumaCoefficients in color.h), any warning
+/// printed; false with `err` naming the item when its space is unknown.
+bool itemLuma(const Item& item, std::array<double, 3>& luma, std::string& err);
+/// The same for working space `space` of the file or image `what` names.
+bool spaceLuma(const std::string& space, const std::string& what, std::array<double, 3>& luma,
+               std::string& err);
 void note(const std::string& text);
 /// Whether a progress line belongs on stderr: a terminal, and not quiet().
 bool showProgress();

@@ -97,8 +97,22 @@ bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string
             cmd, a.name, b.name);
         return false;
     }
+    // One luminance, one meaning of R, G, B: the two sides must be in the same working space.
+    const std::string spaceA = itemSpace(a), spaceB = itemSpace(b);
+    if (spaceA != spaceB) {
+        err = format(
+            "{}: {} is in {} but {} is in {}: convert one to the other's space first (an image: "
+            "oiiotool IN --colorconvert {} {} -o OUT.exr with a config that has both; renders: "
+            "re-ingest them converted, docs/colour.md)",
+            cmd, a.name, printable(spaceA), b.name, printable(spaceB), printable(spaceB),
+            printable(spaceA));
+        return false;
+    }
     CompareOptions opt;
-    opt.luma = lumaCoefficients();
+    if (!itemLuma(a, opt.luma, err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
     opt.nthreads = st.nthreads;
     compareOptions(mods, opt);
     const auto refspp = mods.find("refspp");
@@ -152,6 +166,9 @@ bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string
     spec.attribute(std::string(kProvenancePrefix) + "compare.fail", r.fail ? 1 : 0);
     spec.attribute(std::string(kProvenancePrefix) + "compare.a", a.name);
     spec.attribute(std::string(kProvenancePrefix) + "compare.b", b.name);
+    // The working space whose luminance and R, G, B were tested (the maps are data, not colour:
+    // no chromaticities).
+    spec.attribute("mcstat:colorSpace", spaceA);
     for (const ParamSpec& p : compareModifiers())
         if (mods.count(p.name))
             spec.attribute(std::string(kProvenancePrefix) + "compare." + p.name, mods.at(p.name));

@@ -13,6 +13,7 @@
 
 #include "cli.h"
 #include "mcstat/color.h"
+#include "mcstat/core/colour_space.h"
 #include "mcstat/core/progress.h"
 #include "mcstat/filters/samples/pajot_state.h"
 #include "mcstat/image/imageops.h"
@@ -350,6 +351,10 @@ std::vector<ParamSpec> ingestModifiers() {
         intParam("spp", 1, double(1 << 24), "",
                  "samples per file; default: the files' metadata (mcstat:spp, samplesPerPixel, "
                  "cycles.<ViewLayer>.samples)"),
+        textParam("colorspace", "",
+                  "the working space of untagged renders (no colorInteropID, chromaticities or "
+                  "oiio:ColorSpace): lin_rec709 (default), ACEScg, ACES2065-1, lin_p3d65, "
+                  "lin_rec2020 or their colorInteropID (docs/colour.md)"),
         flagParam("aovs", "1",
                   "1 keeps alpha, light groups, passes, data and ID mattes per sub-buffer "
                   "(docs/aovs.md); 0 leaves out every channel but the beauty's R,G,B"),
@@ -375,6 +380,14 @@ bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>
             opt.spp = n;
         } else if (k == "aovs") {
             opt.aovs = v == "1";
+        } else if (k == "colorspace" && !v.empty()) {
+            const WorkingSpace* ws = findWorkingSpace(v);
+            if (!ws) {
+                err = format("{}: colorspace '{}' is unknown (known: {})", cmd, printable(v),
+                             knownWorkingSpaceNames());
+                return false;
+            }
+            opt.colorSpace = ws->name;
         } else if (AovClass cls; parseAovClass(k, cls)) {
             // :id=GLOB,GLOB  :data=...  :light=...  :alpha=...  (docs/aovs.md, "Classes")
             for (const std::string& g : OIIO::Strutil::splits(v, ","))

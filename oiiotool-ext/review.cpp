@@ -91,11 +91,12 @@ bool estimatorList(const std::string& list, const std::string& cmd,
 }
 
 /// --diff's thresholds (docs/metrics.md) from :eps= :ratio= :floor=, luma from the OCIO config.
-bool diffOptions(const Modifiers& mods, const std::string& cmd, DiffOptions& opt,
+bool diffOptions(const Modifiers& mods, const std::string& cmd, const Item& item, DiffOptions& opt,
                  std::string& err) {
-    std::string warning;
-    opt.luma = lumaCoefficients(&warning);
-    if (!warning.empty()) cli::warning(warning);
+    if (!itemLuma(item, opt.luma, err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
     return parseDiffOptions(mods, cmd, opt, err);
 }
 
@@ -113,7 +114,9 @@ bool runEstimator(const StatsImage& stats, const EstimatorInfo& est, int nthread
                   OIIO::ImageBuf& out, const std::string& cmd, std::string& err) {
     ParamValues defaults;
     if (!parseOperationParams(est, {}, defaults, err, cmd)) return false;
-    if (!applyOperation(out, stats, est, defaults, lumaCoefficients(), false, {}, nthreads)) {
+    std::array<double, 3> luma{};
+    if (!spaceLuma(stats.header.colorSpace, cmd, luma, err)) return false;
+    if (!applyOperation(out, stats, est, defaults, luma, false, {}, nthreads)) {
         err = format("{}: {}: {}", cmd, est.name, out.geterror());
         return false;
     }
@@ -185,7 +188,10 @@ bool parseContactSheet(State& st, const Modifiers& mods, ContactSheet& q, std::s
     q.shown = {mean};
     for (const EstimatorInfo* e : q.listed)
         if (e != mean) q.shown.push_back(e);
-    q.opt.luma = lumaCoefficients();
+    if (!itemLuma(top, q.opt.luma, err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
     return true;
 }
 
@@ -357,7 +363,7 @@ bool cmdErrorMap(State& st, const std::string& cmd, const std::vector<std::strin
     if (!topImage(st, cmd, err)) return false;
     Item& top = st.stack.back();
     DiffOptions opt;
-    if (!diffOptions(mods, cmd, opt, err)) return false;
+    if (!diffOptions(mods, cmd, top, opt, err)) return false;
     OIIO::ImageBuf ref, rgb;
     if (!readReference(args[0], mods, cmd, ref, err)) return false;
     if (!selectRGB(*top.image, "", top.name, rgb, err)) {
@@ -561,13 +567,16 @@ bool parseQualityPlot(const Modifiers& mods, QualityPlot& q, std::string& err) {
         err = format("{}: {}", cmd, err);
         return false;
     }
-    q.opt.luma = lumaCoefficients();
     return readReference(q.refName, mods, cmd, q.ref, err);
 }
 
 /// Measures every estimator over `s` against the reference: one printed line and row each.
 bool measureQuality(State& st, QualityPlot& q, const StatsImage& s, const std::string& what,
                     double spp, int buffers, std::string& err) {
+    if (!spaceLuma(s.header.colorSpace, what, q.opt.luma, err)) {
+        err = format("{}: {}", q.cmd, err);
+        return false;
+    }
     for (const EstimatorInfo* e : q.ests) {
         OIIO::ImageBuf img;
         if (!runEstimator(s, *e, st.nthreads, img, q.cmd, err)) return false;

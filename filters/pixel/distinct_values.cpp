@@ -6,6 +6,7 @@
 #include <limits>
 #include <vector>
 
+#include "mcstat/core/colour_space.h"
 #include "mcstat/filters/pixel/ranking.h"
 
 namespace mcstat::detail {
@@ -126,7 +127,7 @@ double scaleFor(double factor, ScaleRule rule, const EstimatorScratch& s, int K)
 void setKeys(const PixelBuffers& px, const PixelParams& p, EstimatorScratch& s, int ch) {
     for (int j : s.order) {
         const float* m = px.mean + 3 * j;
-        s.key[j] = ch < 0 ? p.luma[0] * m[0] + p.luma[1] * m[1] + p.luma[2] * m[2] : double(m[ch]);
+        s.key[j] = ch < 0 ? luminance(p.luma, m) : double(m[ch]);
     }
 }
 

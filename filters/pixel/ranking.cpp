@@ -11,6 +11,8 @@
 #include <cstdint>
 #include <limits>
 
+#include "mcstat/core/colour_space.h"
+
 namespace mcstat {
 
 double giniSorted(const double* v, size_t n) {
@@ -188,7 +190,7 @@ void reduceGeneral(const PixelBuffers& px, const PixelParams& p, PixelEstimate& 
     if (p.mode == EstimatorMode::Luminance) {
         for (int j : s.order) {
             const float* m = px.mean + 3 * j;
-            s.key[j] = p.luma[0] * m[0] + p.luma[1] * m[1] + p.luma[2] * m[2];
+            s.key[j] = luminance(p.luma, m);
         }
         sortByKey(s);
         double G = 0.0;

@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <limits>
 
+#include "mcstat/core/colour_space.h"
 #include "mcstat/core/moments.h"
 #include "mcstat/core/params.h"
 #include "mcstat/core/untrusted_text.h"
@@ -558,7 +559,7 @@ bool validatePajotParams(const PajotParams& p, std::string& err) {
 }
 
 float pajotLogLuminance(const float rgb[3], const std::array<double, 3>& luma) {
-    const double y = luma[0] * double(rgb[0]) + luma[1] * double(rgb[1]) + luma[2] * double(rgb[2]);
+    const double y = luminance(luma, rgb);
     if (!(y > 0.0)) return kNoMode;  // black: zero, or negative components summing to <= 0
     return float(std::log(y));
 }

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <limits>
 
+#include "mcstat/core/colour_space.h"
 #include "mcstat/stats_file.h"  // kMaxBuffers, for the overflow bound below
 
 namespace mcstat {
@@ -87,10 +88,8 @@ int rankPixel(const PixelBuffers& px, const SpatialParams& p, BufferVotes votes,
             const int j = s.valid[size_t(i)];
             const float* v = px.mean + 3 * size_t(j);
             // the keys of weightedTrimmedMean, computed the same way
-            s.ranked[size_t(i)] = {p.mode == EstimatorMode::Luminance
-                                       ? p.luma[0] * v[0] + p.luma[1] * v[1] + p.luma[2] * v[2]
-                                       : double(v[r]),
-                                   j};
+            s.ranked[size_t(i)] = {
+                p.mode == EstimatorMode::Luminance ? luminance(p.luma, v) : double(v[r]), j};
         }
         sortRanked(s);
         int32_t* o = order + size_t(r) * size_t(px.M);

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <limits>
 
+#include "mcstat/core/colour_space.h"
 #include "mcstat/filters/operation.h"
 
 namespace mcstat {
@@ -104,7 +105,7 @@ void weightedTrimmedMean(const WindowElement* elems, int n, const SpatialParams&
     if (p.mode == EstimatorMode::Luminance) {
         for (int i = 0; i < n; ++i) {
             const float* v = elems[i].rgb;
-            s.ranked[size_t(i)] = {p.luma[0] * v[0] + p.luma[1] * v[1] + p.luma[2] * v[2], i};
+            s.ranked[size_t(i)] = {luminance(p.luma, v), i};
         }
         sortRanked(s);
         out.kept.fill(trimmedAverage(elems, s, c, total - c, 0, 3, out,

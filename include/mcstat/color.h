@@ -12,9 +12,30 @@ namespace mcstat {
 /// config).
 inline constexpr const char* kSceneLinear = "lin_rec709";
 
-/// Luma coefficients of the active config (Config::getDefaultLumaCoefs). Never fails: a broken
-/// $OCIO config falls back to the built-in one, and `warning` (if non-null) says so.
+/// Luminance weights of the working space `space` (a statistics file's mcstat:colorSpace, an
+/// image's oiio:ColorSpace; any name findWorkingSpace knows, colour_space.h): the active config's
+/// luma (Config::getDefaultLumaCoefs) when the config's scene_linear colour space is `space` and
+/// its luma agrees with the space's primaries (to 1e-3: the built-in config's 0.2126, 0.7152,
+/// 0.0722 for lin_rec709), else the Y row of the RGB-to-XYZ matrix from the space's
+/// chromaticities (SMPTE RP 177), with a warning when the config's luma was set aside (ACES
+/// configs give Rec.709's luma for ACEScg). Every luminance weight in mcstat comes from here.
+/// False with `err` ("colour space 'X' is unknown; known: ...") for a space mcstat cannot place.
+/// A broken $OCIO config falls back to the built-in one, and `warning` (if non-null) says so.
+bool lumaCoefficients(const std::string& space, std::array<double, 3>& luma, std::string& err,
+                      std::string* warning = nullptr);
+
+/// lumaCoefficients of kSceneLinear (lin_rec709, the default working space): for tests and
+/// renders mcstat makes itself. A file's own space goes through the function above.
 std::array<double, 3> lumaCoefficients(std::string* warning = nullptr);
+
+/// Makes the OCIO config `path` the active one (oiiotool's --colorconfig), instead of $OCIO or
+/// the built-in config, for everything after the call. An `ocio://` URI needs OCIO's built-in
+/// configs (OpenColorIO 2.2): with an older OCIO it is refused with a one-line error naming the
+/// version needed. False with `err` when the config cannot be read or is invalid.
+bool setColorConfig(const std::string& path, std::string& err);
+
+/// The OpenColorIO version mcstat is built with ("2.1.2").
+std::string ocioVersion();
 
 /// Text of the built-in config (for docs and tests).
 const char* builtinOcioConfig();
@@ -22,8 +43,12 @@ const char* builtinOcioConfig();
 /// Converts interleaved RGB scene-linear pixels in place to display-encoded values through the
 /// active config's display/view transform (default display and view when empty).
 /// Returns false with `err` set when the config or the transform cannot be built.
+/// `space` is the pixels' working space (colour_space.h; empty: the config's scene_linear): a space
+/// the config has goes through the config (an ACES config and ACEScg); otherwise a matrix from its
+/// chromaticities to the config's scene-linear space comes first, and `note` (if non-null) says so.
 bool applyDisplayTransform(float* rgb, long npixels, std::string& err,
-                           const std::string& display = "", const std::string& view = "");
+                           const std::string& display = "", const std::string& view = "",
+                           const std::string& space = "", std::string* note = nullptr);
 
 /// The colour space toSceneLinear converts to, as the active config names it: kSceneLinear (the
 /// colour space of every statistics file) when the config has it, else its scene_linear role.

@@ -24,7 +24,19 @@ namespace mcstat {
 /// twice. An item that names an existing file is taken as it is, commas and all.
 bool expandInputs(const std::string& pattern, std::vector<std::string>& paths, std::string& err);
 
+/// What an image's metadata says about its colour space (docs/colour.md), read in this order:
+/// the string `colorInteropID` (OpenEXR 3.4), the `chromaticities` (float[8]), OIIO's
+/// `oiio:ColorSpace` (OIIO's "Linear" of any float EXR says nothing). `space` is the working
+/// space's name (findWorkingSpace), empty when the file is untagged; `source` says which
+/// attribute decided ("colorInteropID lin_ap1_scene"). False with `problem` when the tag names
+/// no space mcstat knows, or a display encoding (sRGB PNG/JPEG), which is not scene-linear.
+bool colourSpaceOf(const OIIO::ImageSpec& spec, std::string& space, std::string& source,
+                   std::string& problem);
+
 struct IngestOptions {
+    /// The working space of untagged inputs (`--ingest:colorspace=`), a name findWorkingSpace
+    /// knows; empty: lin_rec709. Tagged inputs keep their own.
+    std::string colorSpace;
     /// The beauty layer (e.g. "ViewLayer.Combined"); empty: the rules of findBeauty.
     std::string layer;
     /// Samples per pixel of every file; 0: read from each file's metadata (mcstat:spp,

@@ -413,7 +413,8 @@ bool loadSizedScene(const CommandLine& cl, Scene& scene, std::string& err) {
     return true;
 }
 
-/// The luminance weights of the OCIO config; its warning (a fallback config) is printed.
+/// The luminance weights of the renderer's working space (lin_rec709, the space it labels its
+/// output with); a warning (a fallback config) is printed.
 std::array<double, 3> luma() {
     std::string warning;
     const std::array<double, 3> l = mcstat::lumaCoefficients(&warning);

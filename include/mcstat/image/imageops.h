@@ -19,6 +19,10 @@ inline OIIO::ROI dataWindowROI(const StatsHeader& h) {
     return OIIO::ROI(h.originX, h.originX + h.width, h.originY, h.originY + h.height);
 }
 
+/// Labels `spec` with working space `colorSpace` (colour_space.h) as an EXR carries it: the
+/// `chromaticities` and the `colorInteropID`; a space mcstat does not know gets neither.
+void labelColourSpace(OIIO::ImageSpec& spec, const std::string& colorSpace);
+
 /// The display window of a statistics image (the data window unless the header says otherwise,
 /// e.g. an ingested render with overscan).
 OIIO::ROI displayWindowROI(const StatsHeader& h);
