@@ -80,9 +80,7 @@ bool negativeKey(const PixelBuffers& px, const std::vector<int>& valid,
                  const std::array<double, 3>& luma) {
     for (int j : valid) {
         const float* m = px.mean + 3 * j;
-        if (m[0] < 0.f || m[1] < 0.f || m[2] < 0.f ||
-            luma[0] * double(m[0]) + luma[1] * double(m[1]) + luma[2] * double(m[2]) < 0.0)
-            return true;
+        if (m[0] < 0.f || m[1] < 0.f || m[2] < 0.f || luminance(luma, m) < 0.0) return true;
     }
     return false;
 }

@@ -107,6 +107,16 @@ int64_t sppFromMetadata(const ImageSpec& spec, const BeautyChannels& beauty, std
     return 0;
 }
 
+/// The file's `chromaticities` attribute (red, green, blue, white xy), when it has one.
+bool chromaticitiesOf(const ImageSpec& spec, Chromaticities& xy) {
+    const OIIO::ParamValue* c =
+        spec.find_attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8));
+    if (c == nullptr) return false;
+    const float* v = static_cast<const float*>(c->data());
+    xy = Chromaticities{v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]};
+    return true;
+}
+
 bool colourSpaceOf(const ImageSpec& spec, std::string& space, std::string& source,
                    std::string& problem) {
     space.clear();
@@ -123,11 +133,7 @@ bool colourSpaceOf(const ImageSpec& spec, std::string& space, std::string& sourc
             return false;
         }
         // chromaticities that say otherwise make the file ambiguous: which one is right?
-        const OIIO::ParamValue* c =
-            spec.find_attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8));
-        if (c) {
-            const float* v = static_cast<const float*>(c->data());
-            const Chromaticities xy{v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]};
+        if (Chromaticities xy; chromaticitiesOf(spec, xy)) {
             if (matchChromaticities(xy) != ws) {
                 problem = fmt::format(
                     "colorInteropID '{}' is {} but the chromaticities ({}) are not: the file "
@@ -141,11 +147,7 @@ bool colourSpaceOf(const ImageSpec& spec, std::string& space, std::string& sourc
         return true;
     }
     // 2. chromaticities: red, green, blue, white xy.
-    const OIIO::ParamValue* c =
-        spec.find_attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8));
-    if (c) {
-        const float* v = static_cast<const float*>(c->data());
-        const Chromaticities xy{v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]};
+    if (Chromaticities xy; chromaticitiesOf(spec, xy)) {
         const WorkingSpace* ws = matchChromaticities(xy);
         if (!ws) {
             problem = fmt::format(

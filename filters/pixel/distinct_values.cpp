@@ -80,14 +80,12 @@ int distinctValues(const PixelBuffers& px, EstimatorScratch& s) {
 double hampelRange(const EstimatorScratch& s) {
     const size_t n = s.order.size();
     if (n < 2) return 0.0;
+    auto key = [&s](size_t r) { return s.key[size_t(s.order[r])]; };  // rank r's key
     // The median of the ranked keys, then the median of the absolute deviations from it.
-    auto middle = [n](const auto& at) {
-        return n % 2 == 1 ? at(n / 2) : 0.5 * (at(n / 2 - 1) + at(n / 2));
-    };
-    const double med = middle([&s](size_t r) { return s.key[size_t(s.order[r])]; });
+    const double med = n % 2 == 1 ? key(n / 2) : 0.5 * (key(n / 2 - 1) + key(n / 2));
     thread_local std::vector<double> dev;
     dev.resize(n);
-    for (size_t r = 0; r < n; ++r) dev[r] = std::fabs(s.key[size_t(s.order[r])] - med);
+    for (size_t r = 0; r < n; ++r) dev[r] = std::fabs(key(r) - med);
     std::nth_element(dev.begin(), dev.begin() + long(n / 2), dev.end());
     const double upper = dev[n / 2];
     // Even n: the lower middle value is the largest of the n / 2 below the upper one.
@@ -97,7 +95,6 @@ double hampelRange(const EstimatorScratch& s) {
     // Hampel's identifier: 1.4826 MAD estimates a normal sigma; 3 sigma is its fence.
     const double fence = 3.0 * 1.4826 * mad;
     size_t lo = 0, hi = n - 1;
-    auto key = [&s](size_t r) { return s.key[size_t(s.order[r])]; };
     while (lo < hi && !(std::fabs(key(lo) - med) <= fence)) ++lo;
     while (hi > lo && !(std::fabs(key(hi) - med) <= fence)) --hi;
     return key(hi) - key(lo);
