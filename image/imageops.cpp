@@ -707,8 +707,8 @@ bool diffImages(const ImageBuf& img, const ImageBuf& ref, const DiffOptions& opt
     ref.get_pixels(ROI(b.xbegin, b.xend, b.ybegin, b.yend, 0, 1, 0, 3), TypeDesc::FLOAT,
                    rlin.data());
     std::vector<float> disp = lin, rdisp = rlin;
-    if (!applyDisplayTransform(disp.data(), long(w) * h, err) ||
-        !applyDisplayTransform(rdisp.data(), long(w) * h, err))
+    if (!applyDisplayTransform(disp.data(), long(w) * h, err, "", "", opt.space) ||
+        !applyDisplayTransform(rdisp.data(), long(w) * h, err, "", "", opt.space))
         return false;
     out = compareImages(lin.data(), rlin.data(), disp.data(), rdisp.data(), w, h, opt);
     return true;

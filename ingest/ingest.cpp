@@ -117,6 +117,8 @@ bool chromaticitiesOf(const ImageSpec& spec, Chromaticities& xy) {
     return true;
 }
 
+}  // namespace
+
 bool colourSpaceOf(const ImageSpec& spec, std::string& space, std::string& source,
                    std::string& problem) {
     space.clear();
@@ -174,6 +176,46 @@ bool colourSpaceOf(const ImageSpec& spec, std::string& space, std::string& sourc
         "them first (e.g. oiiotool IN --colorconvert {} lin_rec709 -o OUT.exr)",
         printable(cs), printable(cs));
     return false;
+}
+
+namespace {
+
+/// The space of an input whose metadata names none (docs/colour.md): --ingest:colorspace= when
+/// given (the user's word for this ingest), else what a rule of the OCIO config's file rules other
+/// than its Default one says of the path, else lin_rec709. A rule naming a space that is not
+/// scene-linear, or one mcstat cannot place, is refused as the same tag in the file would be.
+bool untaggedSpace(const std::string& path, const IngestOptions& opt, std::string& space,
+                   std::string& source, std::string& err) {
+    if (!opt.colorSpace.empty()) {
+        space = opt.colorSpace;
+        source = "untagged, colorspace=" + opt.colorSpace;
+        return true;
+    }
+    std::string ocioName, known, why;
+    bool sceneLinear = false;
+    if (!fileRuleColorSpace(path, ocioName, known, sceneLinear, why)) {
+        err = path + ": " + why;
+        return false;
+    }
+    if (ocioName.empty()) {
+        space = kSceneLinear;
+        source = "untagged, taken as lin_rec709";
+        return true;
+    }
+    if (known.empty()) {
+        err = fmt::format(
+            "{}: the OCIO config's file rules say '{}', which is {}: ingest takes scene-linear "
+            "renders in a space it knows ({}); convert them first, or give "
+            "--ingest:colorspace=NAME",
+            path, printable(ocioName),
+            sceneLinear ? "a scene-linear space mcstat cannot place"
+                        : "not scene-linear (a display encoding or data)",
+            knownWorkingSpaceNames());
+        return false;
+    }
+    space = known;
+    source = "the OCIO config's file rules: " + printable(ocioName);
+    return true;
 }
 
 /// One input file, opened, with the channels mcstat reads from it.
@@ -554,11 +596,8 @@ bool readHeader(Ingest& s, size_t j, const std::string& path, std::string& err) 
         err = f.path + ": " + problem2;
         return false;
     }
-    if (f.space.empty()) {
-        f.space = s.opt.colorSpace.empty() ? std::string(kSceneLinear) : s.opt.colorSpace;
-        f.spaceSource = s.opt.colorSpace.empty() ? "untagged, taken as lin_rec709"
-                                                 : "untagged, colorspace=" + s.opt.colorSpace;
-    }
+    if (f.space.empty() && !untaggedSpace(f.path, s.opt, f.space, f.spaceSource, err))
+        return false;
     if (j > 0 && f.space != s.files[0].space) {
         err = fmt::format(
             "{} is {} ({}) but {} is {} ({}): the renders of one statistics file share one colour "

@@ -12,12 +12,14 @@
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
+#include <set>
 
 #include "mcstat/color.h"
 #include "mcstat/core/progress.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
+#include "mcstat/ingest.h"
 
 namespace mcstat::cli {
 
@@ -271,11 +273,16 @@ bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& 
     // R, G, B by name on both sides: a multilayer reference whose AO layer sorts before its
     // Combined pass must not be compared with AO.
     OIIO::ImageBuf ref, img;
+    std::string refSpace;
     if (!readRGB(args[0], layer == mods.end() ? std::string() : layer->second, ref, err) ||
-        !selectRGB(*top.image, "", top.name, img, err)) {
+        !selectRGB(*top.image, "", top.name, img, err) ||
+        !itemSpace(top, opt.space, err) ||
+        !imageSpace(ref.spec(), args[0], refSpace, err)) {
         err = format("{}: {}", cmd, err);
         return false;
     }
+    // One luminance and one display for both sides: the same working space (docs/colour.md).
+    if (!sameSpace(cmd, top.name, opt.space, args[0], refSpace, err)) return false;
     DiffMetrics m;
     if (!diffImages(img, ref, opt, m, err)) {
         err = format("{}: {} vs {}: {}", cmd, top.name, args[0], err);
@@ -962,10 +969,40 @@ void warning(const std::string& text) {
     if (!quietMode) std::fprintf(stderr, "mcstat: warning: %s\n", oneLine(text).c_str());
 }
 
-std::string itemSpace(const Item& item) {
-    if (item.isStats()) return item.header.colorSpace;
-    const std::string s = item.image->spec().get_string_attribute("oiio:ColorSpace");
-    return s.empty() || OIIO::Strutil::iequals(s, "Linear") ? std::string(kSceneLinear) : s;
+bool imageSpace(const OIIO::ImageSpec& spec, const std::string& what, std::string& space,
+                std::string& err) {
+    std::string source, problem;
+    if (!colourSpaceOf(spec, space, source, problem)) {
+        err = what + ": " + problem;
+        return false;
+    }
+    if (space.empty()) space = kSceneLinear;
+    return true;
+}
+
+bool itemSpace(const Item& item, std::string& space, std::string& err) {
+    if (item.isStats()) {
+        space = item.header.colorSpace;
+        return true;
+    }
+    return imageSpace(item.image->spec(), item.name, space, err);
+}
+
+bool sameSpace(const std::string& cmd, const std::string& a, const std::string& spaceA,
+               const std::string& b, const std::string& spaceB, std::string& err) {
+    if (spaceA == spaceB) return true;
+    err = format(
+        "{}: {} is in {} but {} is in {}: convert one to the other's space first (an image: "
+        "oiiotool IN --colorconvert {} {} -o OUT.exr with a config that has both; renders: "
+        "re-ingest them converted, docs/colour.md)",
+        cmd, a, printable(spaceA), b, printable(spaceB), printable(spaceB), printable(spaceA));
+    return false;
+}
+
+void noteDisplayRoute(const std::string& space) {
+    static std::set<std::string> said;
+    const std::string text = displayNote(space);
+    if (!text.empty() && said.insert(text).second) note(text);
 }
 
 bool spaceLuma(const std::string& space, const std::string& what, std::array<double, 3>& luma,
@@ -980,7 +1017,8 @@ bool spaceLuma(const std::string& space, const std::string& what, std::array<dou
 }
 
 bool itemLuma(const Item& item, std::array<double, 3>& luma, std::string& err) {
-    return spaceLuma(itemSpace(item), item.name, luma, err);
+    std::string space;
+    return itemSpace(item, space, err) && spaceLuma(space, item.name, luma, err);
 }
 
 void note(const std::string& text) {

@@ -114,9 +114,20 @@ bool quiet();
 /// "mcstat: warning: TEXT" / "mcstat: note: TEXT" on stderr, unless quiet().
 void warning(const std::string& text);
 
-/// The working space of an item (docs/colour.md): a statistics item's mcstat:colorSpace, an
-/// image's oiio:ColorSpace (OIIO's "Linear" of an untagged float EXR read as lin_rec709).
-std::string itemSpace(const Item& item);
+/// The working space of an item (docs/colour.md): a statistics item's mcstat:colorSpace; an
+/// image's as ingest reads an input's (colourSpaceOf: colorInteropID, chromaticities,
+/// oiio:ColorSpace), lin_rec709 when it names none. False with `err` naming the item when its
+/// metadata names a space mcstat cannot place.
+bool itemSpace(const Item& item, std::string& space, std::string& err);
+/// The same for an image's spec; `what` names it in errors.
+bool imageSpace(const OIIO::ImageSpec& spec, const std::string& what, std::string& space,
+                std::string& err);
+/// Refuses two working spaces that differ, with what to do: "CMD: A is in X but B is in Y: ...".
+bool sameSpace(const std::string& cmd, const std::string& a, const std::string& spaceA,
+               const std::string& b, const std::string& spaceB, std::string& err);
+/// Prints once per process the note displayNote gives for pixels of working space `space`
+/// (shown through a matrix because the config lacks the space), unless quiet().
+void noteDisplayRoute(const std::string& space);
 /// The luminance weights of `item`'s working space (lumaCoefficients in color.h), any warning
 /// printed; false with `err` naming the item when its space is unknown.
 bool itemLuma(const Item& item, std::array<double, 3>& luma, std::string& err);

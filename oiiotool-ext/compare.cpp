@@ -98,16 +98,12 @@ bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string
         return false;
     }
     // One luminance, one meaning of R, G, B: the two sides must be in the same working space.
-    const std::string spaceA = itemSpace(a), spaceB = itemSpace(b);
-    if (spaceA != spaceB) {
-        err = format(
-            "{}: {} is in {} but {} is in {}: convert one to the other's space first (an image: "
-            "oiiotool IN --colorconvert {} {} -o OUT.exr with a config that has both; renders: "
-            "re-ingest them converted, docs/colour.md)",
-            cmd, a.name, printable(spaceA), b.name, printable(spaceB), printable(spaceB),
-            printable(spaceA));
+    std::string spaceA, spaceB;
+    if (!itemSpace(a, spaceA, err) || !itemSpace(b, spaceB, err)) {
+        err = format("{}: {}", cmd, err);
         return false;
     }
+    if (!sameSpace(cmd, a.name, spaceA, b.name, spaceB, err)) return false;
     CompareOptions opt;
     if (!itemLuma(a, opt.luma, err)) {
         err = format("{}: {}", cmd, err);

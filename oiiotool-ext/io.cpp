@@ -112,9 +112,28 @@ bool makeSceneLinear(const std::string& path, OIIO::ImageBuf& rgb, std::string& 
     in->close();
     std::string space = spec.get_string_attribute("oiio:ColorSpace");
     const bool integer = !spec.format.is_floating_point();
+    // Its working space as ingest reads an input's; the pixels are labelled with it, so that
+    // the comparison can refuse a reference in another space.
+    std::string known, source, problem;
+    const bool placed = colourSpaceOf(spec, known, source, problem);
+    const bool tagged = spec.find_attribute("chromaticities") ||
+                        !spec.get_string_attribute("colorInteropID").empty() ||
+                        !spec.get_string_attribute("openexr:colorInteropID").empty();
+    if (!placed && tagged) {  // chromaticities or an ID of no space mcstat knows
+        err = format("{}: {}", path, problem);
+        return false;
+    }
+    if (placed && !(known.empty() && integer)) {
+        rgb.specmod().attribute("oiio:ColorSpace", known.empty() ? kSceneLinear : known);
+        if (integer)  // declared linear (a PNG with gamma 1): right, but lossy
+            noteOnce(
+                format("{} holds {} integer pixels ({}): values are quantised and clipped at 1; "
+                       "a float EXR reference is better",
+                       path, spec.format.c_str(), space));
+        return true;
+    }
     const bool assumed = space.empty() && integer;
     if (assumed) space = "sRGB";
-    if (space.empty()) return true;  // float data that names no colour space: scene-linear
     const OIIO::ImageSpec& rs = rgb.spec();
     if (rs.nchannels != 3 || rs.format != OIIO::TypeDesc::FLOAT || !rgb.localpixels()) {
         err = format("{}: internal: the RGB read is not 3 float channels in memory", path);
@@ -130,16 +149,20 @@ bool makeSceneLinear(const std::string& path, OIIO::ImageBuf& rgb, std::string& 
             path, why);
         return false;
     }
+    // Now in the config's scene-linear space (or already in it: a name OIIO gives linear data).
+    const std::string linear = sceneLinearName();
+    const WorkingSpace* ws = findWorkingSpace(linear);
+    rgb.specmod().attribute("oiio:ColorSpace", ws ? std::string(ws->name) : linear);
     if (converted)
         noteOnce(
             format("{} is display-encoded ({}{}); converted to scene-linear {} through OCIO "
                    "before comparing{}",
                    path, space, assumed ? ", assumed: integer pixels naming no colour space" : "",
-                   sceneLinearName(),
+                   linear,
                    integer ? " (its integer pixels are quantised and clipped at 1: a float "
                              "EXR reference is better)"
                            : ""));
-    else if (integer)  // declared linear (a PNG with gamma 1): right, but lossy
+    else if (integer)  // declared linear under a name the config has: right, but lossy
         noteOnce(
             format("{} holds {} integer pixels ({}): values are quantised and clipped at 1; "
                    "a float EXR reference is better",
@@ -551,10 +574,14 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
         // The display view of the image's R, G, B found by name (a multilayer file's AO pass
         // may come first).
         OIIO::ImageBuf rgb, disp;
-        if (!selectRGB(*top.image, "", top.name, rgb, err)) {
+        std::string space;
+        if (!selectRGB(*top.image, "", top.name, rgb, err) ||
+            !itemSpace(top, space, err)) {
             err = format("{} {}: {}", cmd, path, err);
             return false;
         }
+        rgb.specmod().attribute("oiio:ColorSpace", space);
+        noteDisplayRoute(space);
         if (!displayTransform(disp, rgb, {}, st.nthreads)) {
             err = format("{} {}: {}", cmd, path, disp.geterror());
             return false;

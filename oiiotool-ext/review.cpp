@@ -93,7 +93,7 @@ bool estimatorList(const std::string& list, const std::string& cmd,
 /// --diff's thresholds (docs/metrics.md) from :eps= :ratio= :floor=, luma from the OCIO config.
 bool diffOptions(const Modifiers& mods, const std::string& cmd, const Item& item, DiffOptions& opt,
                  std::string& err) {
-    if (!itemLuma(item, opt.luma, err)) {
+    if (!itemSpace(item, opt.space, err) || !itemLuma(item, opt.luma, err)) {
         err = format("{}: {}", cmd, err);
         return false;
     }
@@ -107,6 +107,18 @@ bool readReference(const std::string& path, const Modifiers& mods, const std::st
         return false;
     }
     return true;
+}
+
+/// Refuses a reference (read by readReference, which labels its space) in another working space
+/// than `space`, the space of `what`: one luminance and one display for both (docs/colour.md).
+bool referenceInSpace(const std::string& cmd, const std::string& what, const std::string& space,
+                      const std::string& refName, const OIIO::ImageBuf& ref, std::string& err) {
+    std::string refSpace;
+    if (!imageSpace(ref.spec(), refName, refSpace, err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
+    return sameSpace(cmd, what, space, refName, refSpace, err);
 }
 
 /// Runs `est` with its default parameters (luma from the OCIO config) on `stats`.
@@ -188,10 +200,12 @@ bool parseContactSheet(State& st, const Modifiers& mods, ContactSheet& q, std::s
     q.shown = {mean};
     for (const EstimatorInfo* e : q.listed)
         if (e != mean) q.shown.push_back(e);
-    if (!itemLuma(top, q.opt.luma, err)) {
+    if (!itemSpace(top, q.opt.space, err) || !itemLuma(top, q.opt.luma, err)) {
         err = format("{}: {}", cmd, err);
         return false;
     }
+    if (!referenceInSpace(cmd, top.name, q.opt.space, q.refName, q.ref, err)) return false;
+    noteDisplayRoute(q.opt.space);
     return true;
 }
 
@@ -365,7 +379,9 @@ bool cmdErrorMap(State& st, const std::string& cmd, const std::vector<std::strin
     DiffOptions opt;
     if (!diffOptions(mods, cmd, top, opt, err)) return false;
     OIIO::ImageBuf ref, rgb;
-    if (!readReference(args[0], mods, cmd, ref, err)) return false;
+    if (!readReference(args[0], mods, cmd, ref, err) ||
+        !referenceInSpace(cmd, top.name, opt.space, args[0], ref, err))
+        return false;
     if (!selectRGB(*top.image, "", top.name, rgb, err)) {
         err = format("{}: {}", cmd, err);
         return false;
@@ -577,6 +593,8 @@ bool measureQuality(State& st, QualityPlot& q, const StatsImage& s, const std::s
         err = format("{}: {}", q.cmd, err);
         return false;
     }
+    q.opt.space = s.header.colorSpace;
+    if (!referenceInSpace(q.cmd, what, q.opt.space, q.refName, q.ref, err)) return false;
     for (const EstimatorInfo* e : q.ests) {
         OIIO::ImageBuf img;
         if (!runEstimator(s, *e, st.nthreads, img, q.cmd, err)) return false;

@@ -20,12 +20,15 @@ inline constexpr const char* kSceneLinear = "lin_rec709";
 /// chromaticities (SMPTE RP 177), with a warning when the config's luma was set aside (ACES
 /// configs give Rec.709's luma for ACEScg). Every luminance weight in mcstat comes from here.
 /// False with `err` ("colour space 'X' is unknown; known: ...") for a space mcstat cannot place.
-/// A broken $OCIO config falls back to the built-in one, and `warning` (if non-null) says so.
+/// A broken $OCIO config file falls back to the built-in one, and `warning` (if non-null) says so;
+/// an `ocio://` URI in $OCIO that this OCIO cannot give (before 2.2) is an error naming the version
+/// needed, here and in every function below that uses the config.
 bool lumaCoefficients(const std::string& space, std::array<double, 3>& luma, std::string& err,
                       std::string* warning = nullptr);
 
-/// lumaCoefficients of kSceneLinear (lin_rec709, the default working space): for tests and
-/// renders mcstat makes itself. A file's own space goes through the function above.
+/// lumaCoefficients of kSceneLinear (lin_rec709, the default working space), for tests; when the
+/// config is unusable, the Y row of Rec.709's primaries with the error in `warning`. A file's own
+/// space, and everything but tests, goes through the function above.
 std::array<double, 3> lumaCoefficients(std::string* warning = nullptr);
 
 /// Makes the OCIO config `path` the active one (oiiotool's --colorconfig), instead of $OCIO or
@@ -39,6 +42,20 @@ std::string ocioVersion();
 
 /// Text of the built-in config (for docs and tests).
 const char* builtinOcioConfig();
+
+/// The note applyDisplayTransform gives pixels of working space `space` with the default display
+/// and view ("ACEScg shown through a matrix to lin_rec709 ..."), or "" when the config shows the
+/// space itself: what a command prints once before review pictures of such pixels.
+std::string displayNote(const std::string& space);
+
+/// What the active config's file rules (OCIO Config::getColorSpaceFromFilepath) say of `path`:
+/// `ocioName` is the config's colour space when a rule other than the Default one matches ("" when
+/// only the Default rule does); `space` its working space (findWorkingSpace of its name or one of
+/// its aliases) when that is scene-linear and known, else ""; `sceneLinear` whether its encoding
+/// is scene-linear (OCIO's "scene-linear", or none given) and not data. False with `err` when the
+/// config is unusable.
+bool fileRuleColorSpace(const std::string& path, std::string& ocioName, std::string& space,
+                        bool& sceneLinear, std::string& err);
 
 /// Converts interleaved RGB scene-linear pixels in place to display-encoded values through the
 /// active config's display/view transform (default display and view when empty).

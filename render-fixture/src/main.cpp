@@ -414,16 +414,18 @@ bool loadSizedScene(const CommandLine& cl, Scene& scene, std::string& err) {
 }
 
 /// The luminance weights of the renderer's working space (lin_rec709, the space it labels its
-/// output with); a warning (a fallback config) is printed.
-std::array<double, 3> luma() {
+/// output with); a warning (a fallback config) is printed. False with `err` when the OCIO config
+/// is unusable ($OCIO=ocio://... before OCIO 2.2).
+bool luma(std::array<double, 3>& l, std::string& err) {
     std::string warning;
-    const std::array<double, 3> l = mcstat::lumaCoefficients(&warning);
+    if (!mcstat::lumaCoefficients(mcstat::kSceneLinear, l, err, &warning)) return false;
     if (!warning.empty()) fmt::print(stderr, "mcstat-render: warning: {}\n", warning);
-    return l;
+    return true;
 }
 
-/// Checks the --pajot options into `params` (with the luma weights; their warning is printed).
-bool parsePajotOptions(const CommandLine& cl, mcstat::PajotParams& params, std::string& err) {
+/// Checks the --pajot options into `params` with the luma weights `l`.
+bool parsePajotOptions(const CommandLine& cl, const std::array<double, 3>& l,
+                       mcstat::PajotParams& params, std::string& err) {
     if (cl.pajotText != "adr" && cl.pajotText != "rot" && cl.pajotText != "hybrid") {
         err = fmt::format("--pajot: expected 'adr', 'rot' or 'hybrid', got '{}'", cl.pajotText);
         return false;
@@ -444,7 +446,7 @@ bool parsePajotOptions(const CommandLine& cl, mcstat::PajotParams& params, std::
     for (const Given& g : given)
         if (!mcstat::parseParamValue(g.option, *op.param(g.key), g.text, values[g.key], err))
             return false;
-    return mcstat::pajotParamsFrom(values, luma(), params, err);
+    return mcstat::pajotParamsFrom(values, l, params, err);
 }
 
 /// A render to do, its options checked.
@@ -454,6 +456,7 @@ struct Job {
     mcstat::PajotImage pajot;  ///< parameters from --pajot; a resumed file's state
     bool wantPajot = false;    ///< --pajot given
     int64_t maxSampleBytes = 0;
+    std::array<double, 3> luma{};  ///< the working space's luma, when --pajot or --compact needs it
 };
 
 /// Checks every option but the output's into `job` and loads the scene.
@@ -462,7 +465,9 @@ bool prepareJob(const CommandLine& cl, Job& job, std::string& err) {
     if (!loadSizedScene(cl, job.scene, err)) return false;
     // Pajot and the records (format version 4).
     job.wantPajot = !cl.pajotText.empty();
-    if (job.wantPajot && !parsePajotOptions(cl, job.pajot.params, err)) return false;
+    // Before any sample: a config that cannot give the luma fails now, not after the render.
+    if ((job.wantPajot || cl.compact) && !luma(job.luma, err)) return false;
+    if (job.wantPajot && !parsePajotOptions(cl, job.luma, job.pajot.params, err)) return false;
     long long v = 0;
     if (!parseInt(cl.maxSampleBytesText, "--max-sample-bytes", 0, (1LL << 62), v, err))
         return false;
@@ -651,7 +656,7 @@ bool renderStatsOutput(const CommandLine& cl, Job& job, RenderStats& stats, Timi
         std::max(img.header.formatVersion, mcstat::requiredFormatVersion(img.header));
     if (cl.compact) {  // decided now that every sample is in (docs/compact.md)
         mcstat::CompactRule rule;
-        rule.luma = luma();
+        rule.luma = job.luma;
         mcstat::StatsImage small;
         if (!mcstat::compactStats(img, rule, small, err, job.opt.threads)) return false;
         return mcstat::writeStatsFile(cl.outPath, small, err);

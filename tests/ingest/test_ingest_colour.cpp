@@ -2,12 +2,14 @@
 // kept in the statistics file, labelled on every result and used for the luminance. The same 21
 // seed renders in Rec.709 and in ACEScg (built here from real renders by the ACES Rec.709 -> AP1
 // matrix) give G-MoN results that agree after conversion, pixel by pixel.
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 
 #include "../cli/cli_support.h"
 #include "mcstat/color.h"
@@ -293,6 +295,153 @@ TEST_F(IngestColour, ColorConfigTakesAFileAndRefusesUnsupportedUrisInOneLine) {
     }
     const Result file = mcstat("--colorconfig " + path("own.ocio") + " --threads 1");
     EXPECT_EQ(file.code, 0) << file.err;
+}
+
+/// Small synthetic renders, no renderer: `n` files `stem`N.exr (N from 1) of a 16 x 12 gradient with
+/// a firefly in seed 3, converted to AP1 when `ap1`, tagged with their space when `tag`.
+void writeSynthetic(const std::string& stem, int n, bool ap1, bool tag) {
+    const int w = 16, h = 12;
+    for (int s = 1; s <= n; ++s) {
+        std::vector<float> rgb(size_t(w) * h * 3);
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) {
+                float* p = &rgb[(size_t(y) * w + size_t(x)) * 3];
+                const float v = 0.05f + 0.04f * float(x) + 0.01f * float(y) + 0.003f * float(s);
+                p[0] = v, p[1] = 0.7f * v + 0.02f * float(y), p[2] = 0.3f + 0.5f * v * float(s % 3);
+                if (s == 3 && x == 5 && y == 4) p[0] = p[1] = p[2] = 500.0f;
+            }
+        std::vector<float> out = rgb;
+        if (ap1)
+            for (size_t p = 0; p < rgb.size() / 3; ++p)
+                for (int r = 0; r < 3; ++r)
+                    out[p * 3 + size_t(r)] =
+                        float(kToAp1[r][0] * rgb[p * 3] + kToAp1[r][1] * rgb[p * 3 + 1] +
+                              kToAp1[r][2] * rgb[p * 3 + 2]);
+        writeRGB(stem + std::to_string(s) + ".exr", w, h, out, ap1 ? "ACEScg" : "lin_rec709", tag);
+    }
+}
+
+/// mcstat's own config with an ACEScg colour space (the ACES Rec.709 -> AP1 matrix from the
+/// reference) and file rules: names with "ap1" are ACEScg, names with "disp" sRGB.
+std::string configWithFileRules(const std::string& path) {
+    std::string text = builtinOcioConfig();
+    const std::string defaultRule = "  - !<Rule> {name: Default, colorspace: default}";
+    const size_t at = text.find(defaultRule);
+    EXPECT_NE(at, std::string::npos);
+    text.insert(at,
+                "  - !<Rule> {name: ap1, colorspace: ACEScg, pattern: \"*ap1*\", extension: exr}\n"
+                "  - !<Rule> {name: disp, colorspace: sRGB, pattern: \"*disp*\", extension: exr}\n");
+    std::string m = "[";
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c)
+            m += (r == 3 && c == 3 ? std::string("1") : r == 3 || c == 3 ? std::string("0")
+                                                                          : std::to_string(kToAp1[r][c])) +
+                 (r == 3 && c == 3 ? "]" : ", ");
+    text += "\n  - !<ColorSpace>\n    name: ACEScg\n    family: Linear\n    isdata: false\n"
+            "    encoding: scene-linear\n    from_scene_reference: !<MatrixTransform> {matrix: " +
+            m + "}\n";
+    std::FILE* f = std::fopen(path.c_str(), "w");
+    EXPECT_NE(f, nullptr);
+    std::fputs(text.c_str(), f);
+    std::fclose(f);
+    return path;
+}
+
+TEST_F(IngestColour, TheConfigsFileRulesPlaceUntaggedRendersAfterTheModifier) {
+    writeSynthetic(path("u_ap1_s"), 5, true, false);
+    writeSynthetic(path("u_disp_s"), 5, false, false);
+    const std::string cfg = configWithFileRules(path("rules.ocio"));
+    // The file rules say ACEScg: the statistics file is labelled so.
+    const Result ruled = mcstat("--colorconfig " + cfg + " --ingest '" + path("u_ap1_s*.exr") +
+                                "' -o " + path("ruled.mcstat"));
+    ASSERT_EQ(ruled.code, 0) << ruled.err;
+    expectLabelled(part0(path("ruled.mcstat")), "ACEScg", "file rules");
+    // The modifier is the user's word for this ingest: it wins over the config's rules.
+    const Result said = mcstat("--colorconfig " + cfg + " --ingest:colorspace=lin_rec709 '" +
+                               path("u_ap1_s*.exr") + "' -o " + path("said.mcstat"));
+    ASSERT_EQ(said.code, 0) << said.err;
+    expectLabelled(part0(path("said.mcstat")), "lin_rec709", "modifier");
+    // Without the rules (mcstat's own config has only the Default one): lin_rec709.
+    const Result plain =
+        mcstat("--ingest '" + path("u_ap1_s*.exr") + "' -o " + path("plain.mcstat"));
+    ASSERT_EQ(plain.code, 0) << plain.err;
+    expectLabelled(part0(path("plain.mcstat")), "lin_rec709", "no rule");
+    // A rule naming a display encoding is refused as the same tag in the file would be.
+    const Result disp = mcstat("--colorconfig " + cfg + " --ingest '" + path("u_disp_s*.exr") +
+                               "' -o " + path("disp.mcstat"));
+    EXPECT_NE(disp.code, 0);
+    EXPECT_EQ(std::count(disp.err.begin(), disp.err.end(), '\n'), 1) << disp.err;
+    EXPECT_NE(disp.err.find("u_disp_s1.exr: the OCIO config's file rules say 'sRGB', which is "
+                            "not scene-linear"),
+              std::string::npos)
+        << disp.err;
+    EXPECT_FALSE(OIIO::Filesystem::exists(path("disp.mcstat")));
+}
+
+TEST_F(IngestColour, AnOcioUriInTheEnvironmentIsAOneLineErrorWhereThisOcioHasNone) {
+    if (ocioVersion() >= "2.2") GTEST_SKIP() << "this OCIO has built-in configs";
+    writeSynthetic(path("s"), 3, false, true);
+    ASSERT_EQ(mcstat("--ingest '" + path("s*.exr") + "' -o " + path("a.mcstat")).code, 0);
+    ::setenv("OCIO", "ocio://default", 1);
+    const Result r = mcstat(path("a.mcstat") + " --gmon -o " + path("g.exr"));
+    const Result withFile = mcstat("--colorconfig " + configWithFileRules(path("c.ocio")) + " " +
+                                   path("a.mcstat") + " --gmon -o " + path("g2.exr"));
+    ::unsetenv("OCIO");
+    EXPECT_NE(r.code, 0);
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find("$OCIO='ocio://default': ocio:// URIs (OCIO's built-in configs) need "
+                         "OpenColorIO 2.2 or later"),
+              std::string::npos)
+        << r.err;
+    EXPECT_FALSE(OIIO::Filesystem::exists(path("g.exr")));
+    // --colorconfig replaces $OCIO for the command line: the URI is never needed.
+    EXPECT_EQ(withFile.code, 0) << withFile.err;
+}
+
+/// The first number after `key` in `text` (a --diff line), NaN if absent.
+double diffValue(const std::string& text, const std::string& key) {
+    const size_t at = text.find(key + " ");
+    return at == std::string::npos ? std::nan("") : std::atof(text.c_str() + at + key.size() + 1);
+}
+
+TEST_F(IngestColour, DiffAndErrorMapRefuseAReferenceInAnotherSpaceAndDisplayTheirOwn) {
+    writeSynthetic(path("a709_s"), 7, false, true);
+    writeSynthetic(path("ap1_s"), 7, true, true);
+    for (const char* k : {"a709", "ap1"}) {
+        const std::string stem = k;
+        ASSERT_EQ(mcstat("--ingest '" + path(stem + "_s*.exr") + "' -o " + path(stem + ".mcstat") +
+                         " --mean -o " + path(stem + "_ref.exr"))
+                      .code,
+                  0);
+    }
+    // The same pictures in both spaces: the same SSIM (its display values go through a display
+    // right for the space: ACEScg through a matrix to Rec.709, with a note).
+    const Result d709 = mcstat(path("a709.mcstat") + " --gmon --diff " + path("a709_ref.exr"));
+    const Result dap1 = mcstat(path("ap1.mcstat") + " --gmon --diff " + path("ap1_ref.exr"));
+    ASSERT_EQ(d709.code, 0) << d709.err;
+    ASSERT_EQ(dap1.code, 0) << dap1.err;
+    const double s709 = diffValue(d709.out, "SSIM"), sap1 = diffValue(dap1.out, "SSIM");
+    EXPECT_LT(s709, 0.9999) << d709.out;  // the firefly's pixel differs: a test that can fail
+    EXPECT_NEAR(sap1, s709, 2e-5) << d709.out << dap1.out;
+    // Review pictures of ACEScg with mcstat's own config say how they were shown.
+    const Result png = mcstat(path("ap1.mcstat") + " --gmon -o " + path("g.png"));
+    ASSERT_EQ(png.code, 0) << png.err;
+    EXPECT_NE(png.err.find("note: ACEScg shown through a matrix to lin_rec709"), std::string::npos)
+        << png.err;
+    const Result png709 = mcstat(path("a709.mcstat") + " --gmon -o " + path("g709.png"));
+    EXPECT_EQ(png709.err.find("through a matrix"), std::string::npos) << png709.err;
+    // A reference in another space is refused by --diff and --errormap, in one line.
+    for (const char* cmd : {"--diff", "--errormap"}) {
+        const Result r =
+            mcstat(path("ap1.mcstat") + " --gmon " + cmd + " " + path("a709_ref.exr") + " -o " +
+                   path("e.exr"));
+        EXPECT_NE(r.code, 0) << cmd;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+        EXPECT_NE(r.err.find(std::string(cmd) + ": gmon(") , std::string::npos) << r.err;
+        EXPECT_NE(r.err.find("is in ACEScg but " + path("a709_ref.exr") + " is in lin_rec709"),
+                  std::string::npos)
+            << r.err;
+    }
 }
 
 }  // namespace
