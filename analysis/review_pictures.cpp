@@ -253,8 +253,7 @@ bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& chan
     s.map = opt.map;
     // Errors span decades: a linear relerr map would show one firefly and black elsewhere.
     s.log = opt.log < 0 ? OIIO::Strutil::starts_with(name, "relerr") : opt.log != 0;
-    if (!roi.defined()) roi = src.roi();
-    roi = OIIO::roi_intersection(roi, src.roi());
+    roi = prepareRoi(roi, src.roi());
     std::vector<float> v(roi.npixels());
     if (!v.empty() &&
         !src.get_pixels(ROI(roi.xbegin, roi.xend, roi.ybegin, roi.yend, 0, 1, channel, channel + 1),
@@ -470,8 +469,7 @@ bool heatmap(ImageBuf& dst, const ImageBuf& src, const HeatmapOptions& opt, ROI 
         dst.errorfmt("heatmap: scale must be 1..{}, not {}", kMaxScale, opt.scale);
         return false;
     }
-    if (!roi.defined()) roi = src.roi();
-    roi = OIIO::roi_intersection(roi, src.roi());
+    roi = prepareRoi(roi, src.roi());
     if (roi.npixels() == 0) {
         dst.errorfmt("heatmap: empty region");
         return false;
@@ -657,8 +655,7 @@ bool errorImage(ImageBuf& dst, const ImageBuf& img, const ImageBuf& ref, const D
         dst.errorfmt("error map: both images need R, G, B channels");
         return false;
     }
-    if (!roi.defined()) roi = a;
-    roi = OIIO::roi_intersection(roi, a);
+    roi = prepareRoi(roi, a);
     if (roi.npixels() == 0) {
         dst.errorfmt("error map: empty region");
         return false;

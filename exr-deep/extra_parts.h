@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "core_part_writer.h"
+#include "mcstat/exr-codec/core_part_writer.h"
 #include "mcstat/sample_records.h"
 
 namespace mcstat::detail {

@@ -28,7 +28,7 @@
 
 #include "deep_frame_buffer.h"
 #include "extra_parts.h"
-#include "fd_stream.h"
+#include "mcstat/exr-codec/fd_stream.h"
 #include "mcstat/temp_file.h"
 #include "stats_layout.h"
 #include "window.h"

@@ -15,16 +15,6 @@ namespace mcstat::detail {
 /// `fd` of `size` bytes. On success fills `hdr`; on failure `err` is "<path>: <problem>".
 bool checkStatsHeaders(int fd, uint64_t size, const std::string& path, const ReadLimits& limits,
                        StatsHeader& hdr, std::string& err);
-/// checkExrAttributeSizes (stats_file.h) over an open file.
-bool checkExrAttributeSizes(int fd, uint64_t size, const std::string& path, std::string& err,
-                            int64_t maxPixels = 0);
-/// Overwrites, in every header of the OpenEXR file open as `fd` (read-write, `size` bytes), the
-/// value of the string attribute `name` with `value` of the same length: a value known only once
-/// the pixels are written (an ingest's RGB hashes in mcstat:seeds), put in place before the file
-/// is renamed onto its target. OpenEXR 3.1's exr_start_inplace_header_update is not implemented.
-/// False with "<path>: <problem>" when a header lacks it or holds it with another length.
-bool replaceStringAttribute(int fd, uint64_t size, const std::string& path, const std::string& name,
-                            const std::string& value, std::string& err);
 /// The OpenEXR file open as `fd` (`size` bytes, magic number already seen): every part's name
 /// ("" without one) and whether a part declares an mcstat:formatVersion newer than this reader's,
 /// from its headers only (checkExrAttributeSizes first, then OpenEXR's Core API). False with

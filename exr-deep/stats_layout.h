@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "mcstat/core/untrusted_text.h"
+#include "mcstat/exr-codec/exr_headers.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat::layout {
@@ -99,7 +100,7 @@ inline constexpr const char* kAttrAovParts = "mcstat:aovParts";
 inline constexpr size_t kMaxPartNameBytes = 255;
 /// Largest channel list, string vector or other structured attribute value a reader accepts
 /// (bytes); the writer refuses an `aovs` part whose channel list would be larger.
-inline constexpr uint32_t kMaxStructuredBytes = uint32_t(16) << 20;
+inline constexpr uint32_t kMaxStructuredBytes = detail::kMaxStructuredAttributeBytes;
 /// Bytes of the channel list of part `aovs` for `h` (OpenEXR's layout: name, NUL, 16 bytes per
 /// channel, a final NUL).
 uint64_t aovChannelListBytes(const StatsHeader& h);

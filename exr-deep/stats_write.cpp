@@ -1,7 +1,7 @@
 // writeStatsFile: validate, write the four parts (part 1 deep with adaptive M) to a temporary file
 // in the target's directory, rename it onto the target. On failure the temporary file is removed
 // and the target is untouched. Every part (flat, deep `vbuffers`, and writeStatsFile's version-4
-// parts) is written through OpenEXR's Core API with ISA-L's ZIP (core_part_writer.h); parts
+// parts) is written through OpenEXR's Core API with libdeflate's ZIP (core_part_writer.h); parts
 // it cannot express (CorePartWriter::supports), or every part when the environment says
 // MCSTAT_EXR_WRITER=cpp, through the C++ API with zlib.
 #include <OpenEXR/ImfChannelList.h>
@@ -30,14 +30,15 @@
 #include <limits>
 #include <memory>
 
-#include "core_part_writer.h"
+#include "mcstat/exr-codec/core_part_writer.h"
 #include "deep_frame_buffer.h"
 #include "extra_parts.h"
-#include "fd_stream.h"
+#include "mcstat/exr-codec/fd_stream.h"
 #include "mcstat/core/colour_space.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
 #include "mcstat/temp_file.h"
+#include "mcstat/exr-codec/exr_headers.h"
 #include "stats_header_check.h"
 #include "stats_layout.h"
 #include "window.h"

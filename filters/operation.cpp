@@ -54,13 +54,6 @@ ParamSpec modeParam(const std::string& help) {
         {{"luminance", "lum"}, {"rgb", "channel"}});
 }
 
-PixelParams pixelParams(const ParamValues& values, const std::array<double, 3>& luma) {
-    PixelParams p;
-    p.luma = luma;
-    const auto mode = values.find("mode");
-    if (mode != values.end() && mode->second.text == "channel") p.mode = EstimatorMode::PerChannel;
-    return p;
-}
 
 std::vector<const ParamSpec*> Operation::settable() const {
     std::vector<const ParamSpec*> v;

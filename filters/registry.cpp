@@ -45,9 +45,9 @@ const Operation* findOperation(std::string_view name) {
     return nullptr;
 }
 
-const std::vector<EstimatorInfo>& estimatorRegistry() {
-    static const std::vector<EstimatorInfo> estimators = [] {
-        std::vector<EstimatorInfo> v;
+const std::vector<Operation>& estimatorRegistry() {
+    static const std::vector<Operation> estimators = [] {
+        std::vector<Operation> v;
         for (const Operation& op : operationRegistry())
             if (op.input == InputKind::BufferMeans) v.push_back(op);
         return v;
@@ -55,8 +55,8 @@ const std::vector<EstimatorInfo>& estimatorRegistry() {
     return estimators;
 }
 
-const EstimatorInfo* findEstimator(std::string_view name) {
-    for (const EstimatorInfo& e : estimatorRegistry())
+const Operation* findEstimator(std::string_view name) {
+    for (const Operation& e : estimatorRegistry())
         if (e.name == name) return &e;
     return nullptr;
 }

@@ -183,8 +183,7 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
               bool diagnostics, ROI roi, int nthreads) {
     const StatsHeader& h = src.header;
     const ROI full = dataWindowROI(h);
-    if (!roi.defined()) roi = full;
-    roi = OIIO::roi_intersection(roi, full);
+    roi = prepareRoi(roi, full);
     // Fixed or adaptive M: consistent sub-buffer arrays make pixelBuffers(p) safe.
     if (std::string why; !src.checkBufferLayout(why)) {
         dst.errorfmt("estimate {}: statistics image has inconsistent buffer arrays ({})", est.name,
@@ -302,8 +301,7 @@ bool medianImageFilter(ImageBuf& dst, const ImageBuf& src, const SpatialParams& 
         return false;
     }
     const ROI full = src.roi();  // the data window: what the filter window is clipped to
-    if (!roi.defined()) roi = full;
-    roi = OIIO::roi_intersection(roi, full);
+    roi = prepareRoi(roi, full);
     std::vector<float> in(size_t(full.width()) * size_t(full.height()) * 3);
     if (!src.get_pixels(ROI(full.xbegin, full.xend, full.ybegin, full.yend, 0, 1, 0, 3),
                         TypeDesc::FLOAT, in.data())) {
@@ -382,8 +380,7 @@ bool filter3D(ImageBuf& dst, const StatsImage& src, const SpatialParams& params,
         return false;
     }
     const ROI full = dataWindowROI(h);
-    if (!roi.defined()) roi = full;
-    roi = OIIO::roi_intersection(roi, full);
+    roi = prepareRoi(roi, full);
     const size_t A = h.aovs.size();
     if (A > 0) {
         if (src.aov.size() != src.bufferCount.size() * A) {
@@ -478,7 +475,7 @@ bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const Par
             return estimate(dst, src, op, op.bindPixel(values, luma), diagnostics, roi, nthreads);
         case InputKind::Neighbourhood: {
             const WindowKernel kernel = op.bindWindow(values, luma);
-            const SpatialParams& params = kernel.params;
+            const SpatialParams& params = *kernel.params;
             if (kernel.over == Neighbourhood::SubBuffers)
                 return filter3D(dst, src, params, roi, nthreads);
             if (kernel.over == Neighbourhood::Image) {
@@ -487,8 +484,7 @@ bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const Par
                 // median filter over roi: each window sees the same pixels as over the whole
                 // image, since only the data window's edges clip it.
                 const ROI full = dataWindowROI(headerOf(src));
-                if (!roi.defined()) roi = full;
-                roi = OIIO::roi_intersection(roi, full);
+                roi = prepareRoi(roi, full);
                 const int rx = kernel.haloX(), ry = kernel.haloY();
                 const ROI grown = OIIO::roi_intersection(
                     ROI(roi.xbegin - rx, roi.xend + rx, roi.ybegin - ry, roi.yend + ry), full);
@@ -590,7 +586,7 @@ bool applyOperation(ImageBuf& dst, const ImageBuf& src, const Operation& op,
         dst.errorfmt("{} works on a statistics file, not on an image", op.name);
         return false;
     }
-    return medianImageFilter(dst, src, op.bindWindow(values, luma).params, roi, nthreads);
+    return medianImageFilter(dst, src, *op.bindWindow(values, luma).params, roi, nthreads);
 }
 
 bool takesImage(const Operation& op) {

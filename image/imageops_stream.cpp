@@ -33,8 +33,7 @@ bool forEachBlock(ImageBuf& dst, StatsBlockSource& reader, ROI roi, int halo, un
                   size_t budget, const char* what, BlockOp op) {
     const StatsHeader& h = reader.header();
     const ROI full = dataWindowROI(h);
-    if (!roi.defined()) roi = full;
-    roi = OIIO::roi_intersection(roi, full);
+    roi = prepareRoi(roi, full);
     roi.zbegin = 0, roi.zend = 1, roi.chbegin = 0, roi.chend = 10000;
     if (roi.width() <= 0 || roi.height() <= 0) {
         dst.errorfmt("{}: the region {} lies outside the data window {}", what, roi, full);

@@ -21,8 +21,8 @@
 #include <memory>
 #include <set>
 
-#include "fd_stream.h"
-#include "flat_part_reader.h"
+#include "mcstat/exr-codec/fd_stream.h"
+#include "mcstat/exr-codec/flat_part_reader.h"
 #include "mcstat/color.h"
 #include "mcstat/core/colour_space.h"
 #include "mcstat/core/parallel.h"
@@ -30,7 +30,7 @@
 #include "mcstat/core/untrusted_text.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
-#include "stats_header_check.h"
+#include "mcstat/exr-codec/exr_headers.h"
 
 namespace mcstat {
 

@@ -41,6 +41,7 @@
 #include "mcstat/core/untrusted_text.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
+#include "mcstat/image/operation_input.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/stats_file.h"
 
@@ -618,21 +619,25 @@ bool McstatInput::computeEstimate(Source s, Computed& out, std::string& err) {
     // Every operation returns R, G, B first; an estimator over buffer means with diagnostics
     // its gini/kept/excluded channels after them, computed by the same per-pixel call as
     // without them (so subimages 0 and 2 agree).
-    OIIO::ImageBuf img;
-    bool ok = false;
-    if (mcstat::readsSamples(*m_op)) {
-        ok = mcstat::runSamplesOperation(img, m_path, h, *m_op, m_values, m_luma, threads());
-    } else {
-        mcstat::StatsFileReader reader;
-        if (!reader.open(m_path, err, mcstat::ReadLimits(), threads())) return false;
+    // The file as the one seam takes it (image/operation_input.h): on disk for the per-sample
+    // operations, streamed by blocks of rows for the others (opened only then).
+    mcstat::StatsFileReader reader;
+    mcstat::OperationInput in;
+    in.name = m_path;
+    in.path = m_path;
+    in.header = &h;
+    in.stream = [&](std::string& e) -> mcstat::StatsBlockSource* {
+        if (!reader.open(m_path, e, mcstat::ReadLimits(), threads())) return nullptr;
         if (reader.header().width != h.width || reader.header().height != h.height ||
             reader.header().M != h.M) {
-            err = m_path + ": the file changed since it was opened";
-            return false;
+            e = m_path + ": the file changed since it was opened";
+            return nullptr;
         }
-        ok = mcstat::applyOperation(img, reader, *m_op, m_values, m_luma, s == kEstimateDiag, {},
-                                    threads());
-    }
+        return &reader;
+    };
+    OIIO::ImageBuf img;
+    const bool ok = mcstat::applyOperation(img, in, *m_op, m_values, m_luma, s == kEstimateDiag, {},
+                                           threads());
     if (!ok) {
         // Messages from the file's reader already start with its path.
         err = img.geterror();

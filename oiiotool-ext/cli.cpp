@@ -18,6 +18,7 @@
 #include "mcstat/core/progress.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
+#include "mcstat/image/operation_input.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/ingest.h"
 
@@ -167,41 +168,43 @@ class ProgressSource final : public StatsBlockSource {
 bool applyToTop(State& st, const std::string& cmd, const Operation& op, const ParamValues& values,
                 bool diag, OIIO::ImageBuf& img, std::string& err) {
     Item& top = st.stack.back();
-    bool ok = false;
-    std::array<double, 3> lw{};
-    if (!itemLuma(top, lw, err)) {
+    std::array<double, 3> luma{};
+    if (!itemLuma(top, luma, err)) {
         err = format("{}: {}", cmd, err);
         return false;
     }
-    const auto luma = [&lw] { return lw; };
-    if (takesImage(op)) {
-        // The filter works on the first three channels: hand it R, G, B found by name. An
-        // estimator's result over a file with AOVs (R, G, B first, then its AOVs, kAttrFirstAov)
-        // goes whole: the filter gives each window pixel's AOVs the beauty's weights.
-        OIIO::ImageBuf rgb;
+    // What the top holds, described once (image/operation_input.h); the operation takes what its
+    // kind needs. Progress on a terminal only: a large file or RPF takes a while.
+    Progress progress("mcstat: " + cmd, 1000, showProgress());
+    OperationInput in;
+    in.name = top.name;
+    in.imageOperationsFilterTheMean = false;  // `--mean --mif` says which image MIF filters
+    OIIO::ImageBuf rgb;
+    ItemSource src;
+    std::unique_ptr<ProgressSource> shown;
+    if (top.isStats()) {
+        in.stats = top.stats.get();
+        in.path = top.path;
+        in.header = &top.header;
+        in.progress = progress.fractionCallback();
+        // A file on disk (or a merge of files) is streamed by blocks of rows.
+        in.stream = [&](std::string& e) -> StatsBlockSource* {
+            if (!openSource(st, top, src, e)) return nullptr;
+            shown = std::make_unique<ProgressSource>(*src.root, progress);
+            return shown.get();
+        };
+    } else {
+        // An image filter works on R, G, B found by name; an estimator's result over a file with
+        // AOVs (R, G, B first, then its AOVs, kAttrFirstAov) goes whole: the filter gives each
+        // window pixel's AOVs the beauty's weights.
         const bool withAovs = top.image->spec().get_int_attribute(kAttrFirstAov, -1) == 3;
         if (!withAovs && !selectRGB(*top.image, "", top.name, rgb, err)) {
             err = format("{}: {}", cmd, err);
             return false;
         }
-        ok = applyOperation(img, withAovs ? *top.image : rgb, op, values, luma(), {}, st.nthreads);
-    } else if (readsSamples(op)) {
-        // Progress on a terminal only (RPF over a large file takes a while).
-        Progress progress("mcstat: " + cmd, 1000, showProgress());
-        ok = runSamplesOperation(img, top.path, top.header, op, values, luma(), st.nthreads,
-                                 progress.fractionCallback());
-    } else {
-        ItemSource src;  // a file on disk (or a merge of files) is streamed by blocks of rows
-        if (!top.stats && !openSource(st, top, src, err)) return false;
-        if (top.stats) {
-            ok = applyOperation(img, *top.stats, op, values, luma(), diag, {}, st.nthreads);
-        } else {
-            // Progress on a terminal only: a large file takes seconds.
-            Progress progress("mcstat: " + cmd, 1000, showProgress());
-            ProgressSource shown(*src.root, progress);
-            ok = applyOperation(img, shown, op, values, luma(), diag, {}, st.nthreads);
-        }
+        in.image = withAovs ? top.image.get() : &rgb;
     }
+    const bool ok = applyOperation(img, in, op, values, luma, diag, {}, st.nthreads);
     if (!ok) err = format("{}: {}", cmd, img.geterror());
     return ok;
 }

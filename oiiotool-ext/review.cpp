@@ -68,15 +68,15 @@ std::string modifier(const Modifiers& mods, const std::string& key, const std::s
 
 /// The registry estimators named in `list` (comma-separated), in order, each once.
 bool estimatorList(const std::string& list, const std::string& cmd,
-                   std::vector<const EstimatorInfo*>& out, std::string& err) {
+                   std::vector<const Operation*>& out, std::string& err) {
     out.clear();
     for (const std::string& name : OIIO::Strutil::splits(list, ",")) {
         const std::string n(OIIO::Strutil::strip(name));
         if (n.empty()) continue;
-        const EstimatorInfo* e = findEstimator(n);
+        const Operation* e = findEstimator(n);
         if (!e) {
             std::vector<std::string> known;
-            for (const EstimatorInfo& r : estimatorRegistry()) known.push_back(r.name);
+            for (const Operation& r : estimatorRegistry()) known.push_back(r.name);
             err = format("{}: unknown estimator '{}' (known: {})", cmd, n,
                          OIIO::Strutil::join(known, ", "));
             return false;
@@ -122,7 +122,7 @@ bool referenceInSpace(const std::string& cmd, const std::string& what, const std
 }
 
 /// Runs `est` with its default parameters (luma from the OCIO config) on `stats`.
-bool runEstimator(const StatsImage& stats, const EstimatorInfo& est, int nthreads,
+bool runEstimator(const StatsImage& stats, const Operation& est, int nthreads,
                   OIIO::ImageBuf& out, const std::string& cmd, std::string& err) {
     ParamValues defaults;
     if (!parseOperationParams(est, {}, defaults, err, cmd)) return false;
@@ -171,8 +171,8 @@ bool topImage(State& st, const std::string& cmd, std::string& err) {
 struct ContactSheet {
     std::string cmd;
     std::string refName;                       ///< the reference as given (the argument)
-    std::vector<const EstimatorInfo*> listed;  ///< modifier estimators, in order
-    std::vector<const EstimatorInfo*> shown;   ///< the mean, then the listed ones
+    std::vector<const Operation*> listed;  ///< modifier estimators, in order
+    std::vector<const Operation*> shown;   ///< the mean, then the listed ones
     OIIO::ImageBuf ref;
     DiffOptions opt;
     SheetOptions layout;  ///< the sheet's tile scale and style
@@ -196,9 +196,9 @@ bool parseContactSheet(State& st, const Modifiers& mods, ContactSheet& q, std::s
     if (!loadStats(st, top, err)) return false;
     if (!readReference(q.refName, mods, cmd, q.ref, err)) return false;
     // The mean first, then the listed estimators (the mean once even when listed).
-    const EstimatorInfo* mean = findEstimator("mean");
+    const Operation* mean = findEstimator("mean");
     q.shown = {mean};
-    for (const EstimatorInfo* e : q.listed)
+    for (const Operation* e : q.listed)
         if (e != mean) q.shown.push_back(e);
     if (!itemSpace(top, q.opt.space, err) || !itemLuma(top, q.opt.luma, err)) {
         err = format("{}: {}", cmd, err);
@@ -212,7 +212,7 @@ bool parseContactSheet(State& st, const Modifiers& mods, ContactSheet& q, std::s
 /// Runs `e` on the statistics file and measures it against the reference: prints --diff's line
 /// (to check the sheet's numbers against) and adds its tile, labelled with relMSE, SSIM and
 /// fireflies.
-bool estimatorTile(State& st, const EstimatorInfo& e, ContactSheet& q, std::string& err) {
+bool estimatorTile(State& st, const Operation& e, ContactSheet& q, std::string& err) {
     const Item& top = st.stack.back();
     OIIO::ImageBuf img;
     if (!runEstimator(*top.stats, e, st.nthreads, img, q.cmd, err)) return false;
@@ -354,7 +354,7 @@ bool cmdContactSheet(State& st, const std::string& cmd, const std::vector<std::s
     q.cmd = cmd;
     q.refName = args[0];
     if (!parseContactSheet(st, mods, q, err)) return false;
-    for (const EstimatorInfo* e : q.shown)
+    for (const Operation* e : q.shown)
         if (!estimatorTile(st, *e, q, err)) return false;
     std::fflush(stdout);
     if (!referenceTile(st, q, err) || !differenceTile(st, q, err)) return false;
@@ -466,7 +466,7 @@ struct QualityRow {
     double spp = 0.0;
     int buffers = 0;
     double bytes = 0.0;  ///< the file's bytes per pixel (x=bytes; several files only)
-    const EstimatorInfo* est = nullptr;
+    const Operation* est = nullptr;
     DiffMetrics m;
 };
 
@@ -519,7 +519,7 @@ std::string plotSafe(const std::string& s) {
     return out;
 }
 
-std::string qualityScript(const std::vector<const EstimatorInfo*>& ests, bool logRelMSE,
+std::string qualityScript(const std::vector<const Operation*>& ests, bool logRelMSE,
                           const std::string& title, bool bytes) {
     std::string s =
         "set terminal pngcairo noenhanced size 1200,480 font 'DejaVu Sans,11'\n"
@@ -551,7 +551,7 @@ struct QualityPlot {
     std::string cmd;
     std::string refName;  ///< the reference as given (the command's argument)
     size_t nfiles = 0;    ///< statistics files at the top of the stack
-    std::vector<const EstimatorInfo*> ests;
+    std::vector<const Operation*> ests;
     std::string csvPath;
     bool bytes = false;  ///< x=bytes: x is each file's size per pixel instead of its spp
     DiffOptions opt;
@@ -595,7 +595,7 @@ bool measureQuality(State& st, QualityPlot& q, const StatsImage& s, const std::s
     }
     q.opt.space = s.header.colorSpace;
     if (!referenceInSpace(q.cmd, what, q.opt.space, q.refName, q.ref, err)) return false;
-    for (const EstimatorInfo* e : q.ests) {
+    for (const Operation* e : q.ests) {
         OIIO::ImageBuf img;
         if (!runEstimator(s, *e, st.nthreads, img, q.cmd, err)) return false;
         QualityRow r{spp, buffers, 0.0, e, {}};

@@ -31,4 +31,25 @@ double scaleFor(double factor, ScaleRule rule, const EstimatorScratch& s, int K)
 /// values). MAD = 0 (more than half of the buffers share one value) gives 0.
 double hampelRange(const EstimatorScratch& s);
 
+/// The skeleton both M-estimators share: starts `out` (and the buffer weights when asked, all 0
+/// until a buffer is chosen), collects the valid buffers, then for the luminance key (ch = -1) or
+/// each channel in turn ranks the keys into distinct values and calls
+/// `reduce(ch, K, scaleFor(factor, p.scale, s, K))`, which writes that channel's estimate.
+template <class Params, class Reduce>
+void estimateLocation(const PixelBuffers& px, const Params& p, double factor, PixelEstimate& out,
+                      EstimatorScratch& s, Reduce reduce) {
+    out = PixelEstimate{};
+    s.bufferWeight.clear();
+    if (s.wantWeights && p.mode == EstimatorMode::Luminance)
+        s.bufferWeight.assign(size_t(px.M), 0.0);  // stays 0 when no buffer is valid
+    if (collectValidBuffers(px, s.order, out.excluded) == 0) return;
+    s.key.resize(size_t(px.M));
+    const bool lum = p.mode == EstimatorMode::Luminance;
+    for (int ch = lum ? -1 : 0; ch < (lum ? 0 : 3); ++ch) {
+        setKeys(px, p, s, ch);
+        const int K = distinctValues(px, s);
+        reduce(ch, K, scaleFor(factor, p.scale, s, K));
+    }
+}
+
 }  // namespace mcstat::detail

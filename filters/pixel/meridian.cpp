@@ -17,10 +17,7 @@
 namespace mcstat {
 
 using detail::clearlyLess;
-using detail::distinctValues;
 using detail::saneScale;
-using detail::scaleFor;
-using detail::setKeys;
 
 namespace {
 
@@ -199,39 +196,29 @@ int meridianSorted(const double* x, const double* w, int K, double delta) {
 
 void estimateMeridian(const PixelBuffers& px, const MeridianParams& p, PixelEstimate& out,
                       EstimatorScratch& s) {
-    out = PixelEstimate{};
-    s.bufferWeight.clear();
-    if (s.wantWeights && p.mode == EstimatorMode::Luminance)
-        s.bufferWeight.assign(size_t(px.M), 0.0);  // stays 0 when no buffer is valid
-    const int Mv = collectValidBuffers(px, s.order, out.excluded);
-    if (Mv == 0) return;
-    s.key.resize(size_t(px.M));
     const bool lum = p.mode == EstimatorMode::Luminance;
-    for (int ch = lum ? -1 : 0; ch < (lum ? 0 : 3); ++ch) {
-        setKeys(px, p, s, ch);
-        const int K = distinctValues(px, s);
-        const double delta = scaleFor(p.delta, p.scale, s, K);
+    detail::estimateLocation(px, p, p.delta, out, s, [&](int ch, int K, double delta) {
         const double value =
             s.sorted[size_t(meridianSorted(s.sorted.data(), s.weight.data(), K, delta))];
-        if (lum) {
-            // s.order is ranked by luminance, ties by buffer index: the first match is the lowest
-            // index.
-            for (int j : s.order) {
-                if (s.key[j] != value) continue;
-                for (int c = 0; c < 3; ++c) out.rgb[c] = px.mean[3 * j + c];
-                if (s.wantWeights) {  // a selection: the chosen buffer alone
-                    s.bufferWeight.assign(size_t(px.M), 0.0);
-                    s.bufferWeight[size_t(j)] = 1.0;
-                }
-                break;
-            }
-            out.kept.fill(1);
-        } else {
+        if (!lum) {
             out.rgb[ch] = float(value);
             out.kept[ch] = int(std::count_if(s.order.begin(), s.order.end(),
                                              [&](int j) { return s.key[j] == value; }));
+            return;
         }
-    }
+        // s.order is ranked by luminance, ties by buffer index: the first match is the lowest
+        // index.
+        for (int j : s.order) {
+            if (s.key[j] != value) continue;
+            for (int c = 0; c < 3; ++c) out.rgb[c] = px.mean[3 * j + c];
+            if (s.wantWeights) {  // a selection: the chosen buffer alone
+                s.bufferWeight.assign(size_t(px.M), 0.0);
+                s.bufferWeight[size_t(j)] = 1.0;
+            }
+            break;
+        }
+        out.kept.fill(1);
+    });
 }
 
 namespace {

@@ -20,10 +20,7 @@
 namespace mcstat {
 
 using detail::clearlyLess;
-using detail::distinctValues;
 using detail::saneScale;
-using detail::scaleFor;
-using detail::setKeys;
 
 namespace {
 
@@ -185,18 +182,8 @@ double myriadSorted(const double* x, const double* w, int K, double gamma) {
 
 void estimateMyriad(const PixelBuffers& px, const MyriadParams& p, PixelEstimate& out,
                     EstimatorScratch& s) {
-    out = PixelEstimate{};
-    s.bufferWeight.clear();
-    if (s.wantWeights && p.mode == EstimatorMode::Luminance)
-        s.bufferWeight.assign(size_t(px.M), 0.0);  // stays 0 when no buffer is valid
-    const int Mv = collectValidBuffers(px, s.order, out.excluded);
-    if (Mv == 0) return;
-    s.key.resize(size_t(px.M));
     const bool lum = p.mode == EstimatorMode::Luminance;
-    for (int ch = lum ? -1 : 0; ch < (lum ? 0 : 3); ++ch) {
-        setKeys(px, p, s, ch);
-        const int K = distinctValues(px, s);
-        const double gamma = scaleFor(p.gamma, p.scale, s, K);
+    detail::estimateLocation(px, p, p.gamma, out, s, [&](int ch, int K, double gamma) {
         const double beta = myriadSorted(s.sorted.data(), s.weight.data(), K, gamma);
         int kept = 0;
         double sum[3] = {0.0, 0.0, 0.0}, wsum = 0.0;
@@ -211,31 +198,30 @@ void estimateMyriad(const PixelBuffers& px, const MyriadParams& p, PixelEstimate
                 for (int c = 0; c < 3; ++c) sum[c] += nk * double(px.mean[3 * j + c]);
             }
         }
-        if (lum) {
-            if (wsum > 0.0) {
-                for (int c = 0; c < 3; ++c) out.rgb[c] = float(sum[c] / wsum);
-            } else {  // every weight underflowed (cannot happen for beta at a sample): nearest
-                      // buffer
-                const int j = s.order[0];
-                for (int c = 0; c < 3; ++c) out.rgb[c] = px.mean[3 * j + c];
-            }
-            if (s.wantWeights) {
-                // The final weights n_j k_j / sum n k (or the one buffer used above).
-                s.bufferWeight.assign(size_t(px.M), 0.0);
-                for (int j : s.order) {
-                    const double t = K == 1 ? 0.0 : (s.key[j] - beta) / saneScale(gamma);
-                    const double k = 1.0 / (1.0 + t * t);
-                    const double nk = double(px.count[j]) * k;
-                    if (wsum > 0.0) s.bufferWeight[size_t(j)] = nk / wsum;
-                }
-                if (!(wsum > 0.0)) s.bufferWeight[size_t(s.order[0])] = 1.0;
-            }
-            out.kept.fill(kept);
-        } else {
+        if (!lum) {
             out.rgb[ch] = float(beta);
             out.kept[ch] = kept;
+            return;
         }
-    }
+        if (wsum > 0.0) {
+            for (int c = 0; c < 3; ++c) out.rgb[c] = float(sum[c] / wsum);
+        } else {  // every weight underflowed (cannot happen for beta at a sample): nearest buffer
+            const int j = s.order[0];
+            for (int c = 0; c < 3; ++c) out.rgb[c] = px.mean[3 * j + c];
+        }
+        if (s.wantWeights) {
+            // The final weights n_j k_j / sum n k (or the one buffer used above).
+            s.bufferWeight.assign(size_t(px.M), 0.0);
+            for (int j : s.order) {
+                const double t = K == 1 ? 0.0 : (s.key[j] - beta) / saneScale(gamma);
+                const double k = 1.0 / (1.0 + t * t);
+                const double nk = double(px.count[j]) * k;
+                if (wsum > 0.0) s.bufferWeight[size_t(j)] = nk / wsum;
+            }
+            if (!(wsum > 0.0)) s.bufferWeight[size_t(s.order[0])] = 1.0;
+        }
+        out.kept.fill(kept);
+    });
 }
 
 namespace {

@@ -368,7 +368,7 @@ void RankedBufferGrid::filterPixel(int x, int y, PixelEstimate& out, SpatialScra
 namespace {
 
 WindowKernel bindBufferWindow(const ParamValues& values, const std::array<double, 3>& luma) {
-    return {Neighbourhood::SubBuffers, spatialParams(values, luma)};
+    return windowKernel(Neighbourhood::SubBuffers, spatialParams(values, luma));
 }
 
 }  // namespace

@@ -46,7 +46,7 @@ void wmifImage(const RGBImageView& img, const SpatialParams& p, float* out) {
 namespace {
 
 WindowKernel bindImageWindow(const ParamValues& values, const std::array<double, 3>& luma) {
-    return {Neighbourhood::Image, spatialParams(values, luma)};
+    return windowKernel(Neighbourhood::Image, spatialParams(values, luma));
 }
 
 }  // namespace

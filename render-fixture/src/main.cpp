@@ -1,6 +1,5 @@
 // mcstat-render: renders a built-in or JSON scene into an mcstat statistics file, or (with
 // --reference) into a plain mean-only EXR for high-spp reference images.
-#include <OpenEXR/ImfThreading.h>
 #include <OpenImageIO/argparse.h>
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
@@ -25,6 +24,7 @@
 #include "mcstat/core/params.h"
 #include "mcstat/core/progress.h"
 #include "mcstat/core/untrusted_text.h"
+#include "mcstat/exr-codec/fd_stream.h"
 #include "mcstat/filters/samples/pajot.h"
 #include "mcstat/filters/samples/pajot_state.h"
 #include "mcstat/image/imageops.h"
@@ -361,7 +361,7 @@ void setWriteThreads(int renderThreads) {
     // thread at 1920 pixels wide and M = 21), and a few threads already make the compression short.
     constexpr int kWriteThreads = 4;
     const int threads = std::min(mcstat::threadCount(renderThreads), kWriteThreads);
-    Imf::setGlobalThreadCount(threads > 1 ? threads : 0);
+    mcstat::detail::setOpenExrThreads(threads);
 }
 
 /// Checks the sampling options into `opt` (and sizes the writer's thread pool).

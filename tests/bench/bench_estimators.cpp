@@ -56,7 +56,7 @@ ParamValues defaults(const Operation& op, EstimatorMode mode) {
     return v;
 }
 
-void BM_Estimator(benchmark::State& state, const EstimatorInfo* est, EstimatorMode mode) {
+void BM_Estimator(benchmark::State& state, const Operation* est, EstimatorMode mode) {
     const StatsImage& img = syntheticImage(int(state.range(0)));
     const PixelKernel kernel = est->bindPixel(defaults(*est, mode), lumaCoefficients());
     OIIO::ImageBuf out;
@@ -72,7 +72,7 @@ const std::vector<int64_t> kBufferCounts = {3, 7, 17, 21};
 /// Thread scaling of the image loop: a 1920x1080 image, M = 21, luminance mode, with
 /// state.range(0) threads; real time, so that 2 threads show as a speed-up. Names:
 /// threads/NAME/1080p/THREADS.
-void BM_EstimatorThreads(benchmark::State& state, const EstimatorInfo* est) {
+void BM_EstimatorThreads(benchmark::State& state, const Operation* est) {
     constexpr int W = 1920, H = 1080;
     const StatsImage& img = syntheticImage(21, W, H);
     const PixelKernel kernel =
@@ -91,7 +91,7 @@ void BM_Neighbourhood(benchmark::State& state, const Operation* op, EstimatorMod
                       bool withMPE) {
     const StatsImage& img = syntheticImage(int(state.range(0)));
     const WindowKernel window = op->bindWindow(defaults(*op, mode), lumaCoefficients());
-    const SpatialParams& p = window.params;
+    const SpatialParams& p = *window.params;
     OIIO::ImageBuf out;
     if (window.over == Neighbourhood::SubBuffers) {
         for (auto _ : state) {

@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "deflate_codec.h"
+#include "mcstat/exr-codec/deflate_codec.h"
 #include "mcstat/core/parallel.h"
 
 namespace {

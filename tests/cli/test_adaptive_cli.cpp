@@ -77,7 +77,7 @@ std::vector<float> readRGB(const std::string& file) {
 }
 
 /// The estimator applied pixel by pixel through the library's one view of the buffers.
-std::vector<float> direct(const StatsImage& s, const EstimatorInfo& e, EstimatorMode mode) {
+std::vector<float> direct(const StatsImage& s, const Operation& e, EstimatorMode mode) {
     PixelKernel k;
     std::string err;
     std::map<std::string, std::string> kv;
@@ -99,7 +99,7 @@ TEST_F(AdaptiveCli, EveryEstimatorMatchesTheLibraryPerPixel) {
     std::string err;
     const StatsImage s = makeAdaptive();
     ASSERT_TRUE(writeStatsFile(path("a.mcstat"), s, err)) << err;
-    for (const EstimatorInfo& e : estimatorRegistry()) {
+    for (const Operation& e : estimatorRegistry()) {
         for (auto mode : {EstimatorMode::Luminance, EstimatorMode::PerChannel}) {
             const bool hasMode = !e.params.empty();
             if (!hasMode && mode == EstimatorMode::PerChannel) continue;

@@ -70,7 +70,7 @@ std::vector<float> readRGB(const std::string& file, int* nch = nullptr) {
 
 /// The estimator applied directly, for comparison with the binary's output.
 std::vector<float> direct(const StatsImage& s, const std::string& name, EstimatorMode mode) {
-    const EstimatorInfo* e = findEstimator(name);
+    const Operation* e = findEstimator(name);
     PixelKernel k;
     std::string err;
     std::map<std::string, std::string> kv;
@@ -94,7 +94,7 @@ TEST_F(Cli, EveryEstimatorMatchesTheLibrary) {
     std::string err;
     StatsImage s = makeStats();
     ASSERT_TRUE(writeStatsFile(path("f.mcstat"), s, err)) << err;
-    for (const EstimatorInfo& e : estimatorRegistry()) {
+    for (const Operation& e : estimatorRegistry()) {
         for (auto mode : {EstimatorMode::Luminance, EstimatorMode::PerChannel}) {
             const bool hasMode = !e.params.empty();
             if (!hasMode && mode == EstimatorMode::PerChannel) continue;

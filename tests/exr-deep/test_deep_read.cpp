@@ -15,9 +15,9 @@
 #include <string>
 #include <vector>
 
-#include "deep_part_reader.h"
-#include "fd_stream.h"
-#include "flat_part_reader.h"
+#include "mcstat/exr-codec/deep_part_reader.h"
+#include "mcstat/exr-codec/fd_stream.h"
+#include "mcstat/exr-codec/flat_part_reader.h"
 #include "mcstat/stats_file.h"
 #include "raw_exr.h"
 #include "sample_accumulator.h"

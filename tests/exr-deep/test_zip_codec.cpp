@@ -12,7 +12,7 @@
 #include <random>
 #include <vector>
 
-#include "deflate_codec.h"
+#include "mcstat/exr-codec/deflate_codec.h"
 
 namespace mcstat::detail {
 namespace {

@@ -26,7 +26,7 @@ using testing::Pixel;
 using testing::kernelOf;
 
 /// `est` bound to its defaults in luminance mode (or `mode`), luma kLuma.
-PixelKernel kernel(const EstimatorInfo& est, EstimatorMode mode = EstimatorMode::Luminance) {
+PixelKernel kernel(const Operation& est, EstimatorMode mode = EstimatorMode::Luminance) {
     return kernelOf(est.name, mode);
 }
 
@@ -53,7 +53,7 @@ Pixel randomPixel(std::mt19937& rng, int M) {
 
 TEST(BufferWeights, EveryEstimatorReproducesItsBeautyAndChangesNoBit) {
     std::mt19937 rng(7);
-    for (const EstimatorInfo& est : estimatorRegistry()) {
+    for (const Operation& est : estimatorRegistry()) {
         for (int trial = 0; trial < 600; ++trial) {
             const int M = 1 + trial % 40;
             const Pixel px = randomPixel(rng, M);
@@ -93,7 +93,7 @@ TEST(BufferWeights, ChannelModeGivesNone) {
     // Ranked per channel, R, G and B may come from different buffers: no one weight per buffer.
     // The mean has no mode (every channel is the count-weighted mean): its weights exist.
     const Pixel px = grey({1, 2, 3, 100, 5});
-    for (const EstimatorInfo& est : estimatorRegistry()) {
+    for (const Operation& est : estimatorRegistry()) {
         EstimatorScratch s;
         s.wantWeights = true;
         PixelEstimate e;
@@ -161,7 +161,7 @@ TEST(ApplyAovWeights, LightGroupsKeepSummingToTheBeauty) {
     // in the key light of one buffer. Every estimator's result keeps the sum.
     std::mt19937 rng(3);
     std::uniform_real_distribution<float> u(0.f, 1.f);
-    for (const EstimatorInfo& est : estimatorRegistry()) {
+    for (const Operation& est : estimatorRegistry()) {
         for (int trial = 0; trial < 100; ++trial) {
             const int M = 2 + trial % 30;
             std::vector<float> beauty, aov;

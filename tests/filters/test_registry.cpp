@@ -50,7 +50,7 @@ TEST(Registry, TheEstimatorsAreTheBufferMeansOperations) {
         if (op.input == InputKind::BufferMeans) bufferMeans.push_back(&op);
     ASSERT_EQ(estimatorRegistry().size(), bufferMeans.size());
     for (size_t i = 0; i < bufferMeans.size(); ++i) {
-        const EstimatorInfo& e = estimatorRegistry()[i];
+        const Operation& e = estimatorRegistry()[i];
         EXPECT_EQ(e.name, bufferMeans[i]->name);  // in registry order
         EXPECT_NE(e.bindPixel, nullptr) << e.name;
         EXPECT_EQ(findEstimator(e.name)->name, e.name);
@@ -209,7 +209,7 @@ TEST(Operations, EveryKernelBindsItsDefaults) {
             EXPECT_EQ(k.over, op.over) << op.name;
             EXPECT_EQ(k.haloX(), int(v.at("size").integer) / 2) << op.name;
             EXPECT_EQ(k.haloY(), int(v.at("size").integer2) / 2) << op.name;
-            EXPECT_TRUE(validateSpatialParams(k.params, err)) << op.name << ": " << err;
+            EXPECT_TRUE(validateSpatialParams(*k.params, err)) << op.name << ": " << err;
         }
     }
 }

@@ -121,7 +121,7 @@ class Plugin : public ::testing::Test {
     /// The library's own answer, as `mcstat` computes it.
     Pixels library(const std::string& est, const std::map<std::string, std::string>& kv = {},
                    bool diag = false) const {
-        const mcstat::EstimatorInfo* info = mcstat::findEstimator(est);
+        const mcstat::Operation* info = mcstat::findEstimator(est);
         EXPECT_NE(info, nullptr);
         mcstat::PixelKernel kernel;
         std::string err;

@@ -1,27 +1,33 @@
 // What an operation is: its name, its help, the paper equation it implements, the input it needs
 // and its typed parameters, and the function that binds parsed parameter values to its kernel.
 // Each operation defines one Operation in its own file (filters/pixel/gmon.cpp...), and the
-// registry (registry.h) lists them; nothing else names an operation or looks inside its
-// parameters.
+// registry (registry.h) lists them; the tools find them there by name and never look inside their
+// parameters. The few places that name one do so for what it is: the plain mean (the reference of
+// residuals and what MIF filters over a statistics file), G-MoN (the default of the plugin and of
+// contact sheets), Pajot (the renderer's online run, which its --pajot options configure).
+// This header and estimate.h name no family of operations: each family (filters/pixel,
+// filters/window, filters/samples) reaches only them (tests/architecture/check_arrows.sh).
 //
 // The kernels, by input kind (docs/architecture.md):
 // - BufferMeans: a PixelKernel estimates one pixel from its M sub-buffer means, and on request
 //   gives the convex weights of the sub-buffers it combined (applied to every AOV).
 // - Neighbourhood: a WindowKernel is a weighted trimmed mean over a window of pixels or of their
-//   sub-buffers (filters/window/window_rank.h), with its halo.
+//   sub-buffers, its parameters the window family's own (filters/window/window_rank.h), with its
+//   halo.
 // - Samples: a SamplesFn reads the per-sample records or the stored per-pixel state through an
 //   opened SampleSource and makes an image.
 #pragma once
 
 #include <array>
 #include <functional>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "mcstat/core/params.h"
-#include "mcstat/filters/pixel/pixel_estimate.h"
-#include "mcstat/filters/window/window_rank.h"
+#include "mcstat/core/pixel_buffers.h"
+#include "mcstat/filters/estimate.h"
 
 namespace mcstat {
 
@@ -55,28 +61,19 @@ struct PixelKernel {
 /// weights (from the colour config) to the operation's own parameter struct and kernel.
 using BindPixelFn = PixelKernel (*)(const ParamValues& values, const std::array<double, 3>& luma);
 
-/// The kernel of estimator `estimate` (a function of the pixel, `Params` and the output) with
-/// `params` bound: what every BufferMeans operation's bind returns. `Params` derives from
-/// PixelParams (its mode decides the diagnostics and whether weights exist).
-template <class Params>
-PixelKernel pixelKernel(const Params& params,
-                        void (*estimate)(const PixelBuffers&, const Params&, PixelEstimate&,
-                                         EstimatorScratch&),
-                        int smallestRobustM) {
-    return {[params, estimate](const PixelBuffers& px, PixelEstimate& out, EstimatorScratch& s) {
-                estimate(px, params, out, s);
-            },
-            params.mode, smallestRobustM};
-}
+
+struct SpatialParams;  // the window family's parameters (filters/window/window_rank.h)
 
 /// A Neighbourhood operation with its parameters bound: a weighted trimmed mean over the window.
 struct WindowKernel {
     Neighbourhood over = Neighbourhood::None;
-    SpatialParams params;
+    /// The window family's own parameters, bound (shared: a kernel is copied freely).
+    std::shared_ptr<const SpatialParams> params;
     /// Pixels the window reaches beyond the output pixel, each side: what a tile or a block of
     /// rows must read around itself.
-    int haloX() const { return params.windowWidth / 2; }
-    int haloY() const { return params.windowHeight / 2; }
+    int halo[2] = {0, 0};
+    int haloX() const { return halo[0]; }
+    int haloY() const { return halo[1]; }
 };
 using BindWindowFn = WindowKernel (*)(const ParamValues& values, const std::array<double, 3>& luma);
 
@@ -141,15 +138,5 @@ Operation windowOperation(const std::string& name, const std::string& title,
 /// Parameter "mode" of every operation that ranks colours (lum / channel), with the per-pixel
 /// estimators' help unless given another.
 ParamSpec modeParam(const std::string& help = "");
-/// PixelParams (mode, luma) from parsed values that hold "mode" (or not: luminance).
-PixelParams pixelParams(const ParamValues& values, const std::array<double, 3>& luma);
-/// An estimator's own `Params` (derived from PixelParams) with its PixelParams part from `values`;
-/// the caller fills in the rest.
-template <class Params>
-Params pixelParamsAs(const ParamValues& values, const std::array<double, 3>& luma) {
-    Params p;
-    static_cast<PixelParams&>(p) = pixelParams(values, luma);
-    return p;
-}
 
 }  // namespace mcstat

@@ -20,8 +20,6 @@
 
 namespace mcstat {
 
-// Former names, still used where an operation is an estimator.
-using EstimatorInfo = Operation;
 
 /// Every operation, in a stable order: the per-pixel estimators, then the neighbourhood filters,
 /// then the per-sample operations.
@@ -30,9 +28,9 @@ const std::vector<Operation>& operationRegistry();
 const Operation* findOperation(std::string_view name);
 
 /// The BufferMeans operations (the estimators over sub-buffer means), in registry order.
-const std::vector<EstimatorInfo>& estimatorRegistry();
+const std::vector<Operation>& estimatorRegistry();
 /// A BufferMeans operation; nullptr when unknown or of another kind.
-const EstimatorInfo* findEstimator(std::string_view name);
+const Operation* findEstimator(std::string_view name);
 
 /// Parses key=value parameters of `op` into `out`: every parameter, defaults (and fixed values)
 /// applied first. An unknown key or a bad value is a one-line error: the unknown key is named with

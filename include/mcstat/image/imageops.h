@@ -19,6 +19,12 @@ inline OIIO::ROI dataWindowROI(const StatsHeader& h) {
     return OIIO::ROI(h.originX, h.originX + h.width, h.originY, h.originY + h.height);
 }
 
+/// The region an operation works on, as OIIO's IBAprep sets it up: `roi` clipped to `full` (the
+/// data window), all of `full` when `roi` is undefined.
+inline OIIO::ROI prepareRoi(OIIO::ROI roi, OIIO::ROI full) {
+    return roi.defined() ? OIIO::roi_intersection(roi, full) : full;
+}
+
 /// Labels `spec` with working space `colorSpace` (colour_space.h) as an EXR carries it: the
 /// `chromaticities` and the `colorInteropID`; a space mcstat does not know gets neither.
 void labelColourSpace(OIIO::ImageSpec& spec, const std::string& colorSpace);

@@ -336,7 +336,7 @@ TEST(BitIdentity, KeysEqualInFloat) {
             }
             const PixelBuffers px{mean.data(), count.data(), M};
             for (const char* name : {"mon", "gmon", "gmonb", "tmpe"}) {
-                const EstimatorInfo& op = *findEstimator(name);
+                const Operation& op = *findEstimator(name);
                 EstimatorScratch sa, sb;
                 PixelEstimate a, b;
                 bind(op, set).estimate(px, a, sa);
@@ -409,7 +409,7 @@ TEST(BitIdentity, ImageLoopOneAndTwoThreads) {
         std::copy(mean.begin(), mean.end(), img.bufferMean.begin() + long(p) * M * 3);
         std::copy(count.begin(), count.end(), img.bufferCount.begin() + long(p) * M);
     }
-    for (const EstimatorInfo& op : estimatorRegistry())
+    for (const Operation& op : estimatorRegistry())
         for (const ParamSet& set : parameterSets()) {
             const reference::EstimatorParams& p = set.ref;
             const EstimatorMode mode = p.mode;

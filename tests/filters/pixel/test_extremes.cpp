@@ -184,7 +184,7 @@ Verdict promise(const std::string& name, const Case& c, double out) {
 TEST(Extremes, EveryEstimatorKeepsItsPromise) {
     const std::vector<double> magnitudes = {1e1, 1e2, 1e4, 1e8, 1e16, 1e30, 1e38};
     int checked = 0, within = 0;
-    for (const EstimatorInfo& est : estimatorRegistry()) {
+    for (const Operation& est : estimatorRegistry()) {
         for (EstimatorMode mode : {EstimatorMode::Luminance, EstimatorMode::PerChannel}) {
             const PixelKernel kernel = kernelOf(est.name, mode);
             EstimatorScratch s;
@@ -245,7 +245,7 @@ std::vector<float> with(float x) {
 
 TEST(Extremes, OneHugeBufferMovesNoEstimatorButTheMean) {
     for (float x : {1e30f, 3e38f})
-        for (const EstimatorInfo& est : estimatorRegistry())
+        for (const Operation& est : estimatorRegistry())
             for (EstimatorMode mode : {EstimatorMode::Luminance, EstimatorMode::PerChannel}) {
                 const PixelEstimate e = runKernel(est.name, grey(with(x)), mode);
                 for (int ch = 0; ch < 3; ++ch) {

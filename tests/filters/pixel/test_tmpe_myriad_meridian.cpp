@@ -157,7 +157,7 @@ TEST(TMPE, HandComputedAndEndpoints) {
 }
 
 TEST(MPE, MedianIsRegisteredAsMoN) {
-    const EstimatorInfo* e = findEstimator("median");
+    const Operation* e = findEstimator("median");
     ASSERT_NE(e, nullptr);
     EXPECT_NE(e->title.find("MPE"), std::string::npos);
     // The same kernel as MoN: equal results on an even and an odd set, in both modes.

@@ -20,7 +20,7 @@ int main() {
     const float count[] = {4, 4, 4, 4, 4};
     for (int j = 0; j < 5; ++j) mean[j * 3] = mean[j * 3 + 1] = mean[j * 3 + 2] = grey[j];
 
-    const mcstat::EstimatorInfo* gmon = mcstat::findEstimator("gmon");
+    const mcstat::Operation* gmon = mcstat::findEstimator("gmon");
     if (!gmon) return 1;
     mcstat::PixelKernel kernel;
     std::string err;

@@ -22,15 +22,10 @@
 #include <vector>
 
 #include "mcstat/core/pixel_buffers.h"
+#include "mcstat/filters/estimate.h"
+#include "mcstat/filters/operation.h"
 
 namespace mcstat {
-
-/// How an estimator treats colour.
-enum class EstimatorMode {
-    PerChannel,  ///< R, G and B ranked and reduced independently (each channel has its own G and c)
-    Luminance,   ///< buffers ranked by luminance; the chosen buffers' RGB are returned (hue never
-                 ///< mixes across channels of different buffers); G is computed on luminance
-};
 
 /// What every per-pixel estimator takes; an estimator with parameters of its own extends it
 /// (TmpeParams, MyriadParams...).
@@ -40,35 +35,29 @@ struct PixelParams {
     std::array<double, 3> luma{0.0, 0.0, 0.0};
 };
 
-/// An estimate and its diagnostics. In Luminance mode the three diagnostic channels are equal.
-struct PixelEstimate {
-    std::array<float, 3> rgb{0.f, 0.f, 0.f};
-    std::array<float, 3> gini{0.f, 0.f, 0.f};  ///< Gini coefficient used (0 where not computed)
-    std::array<int, 3> kept{0, 0, 0};          ///< buffers that entered the final average
-    int excluded = 0;                          ///< buffers left out for NaN/Inf values
-};
+/// The kernel of estimator `estimate` (a function of the pixel, `Params` and the output) with
+/// `params` bound: what every BufferMeans operation's bind returns. `Params` derives from
+/// PixelParams (its mode decides the diagnostics and whether weights exist).
+template <class Params>
+PixelKernel pixelKernel(const Params& params,
+                        void (*estimate)(const PixelBuffers&, const Params&, PixelEstimate&,
+                                         EstimatorScratch&),
+                        int smallestRobustM) {
+    return {[params, estimate](const PixelBuffers& px, PixelEstimate& out, EstimatorScratch& s) {
+                estimate(px, params, out, s);
+            },
+            params.mode, smallestRobustM};
+}
 
-/// Per-thread scratch space so the per-pixel functions never allocate after warm-up. The rank
-/// estimators (mean, MoN, G-MoN, G-MoN_b, TMPE) use none up to M = 64: they rank on the stack.
-struct EstimatorScratch {
-    std::vector<int> order;
-    std::vector<double> key;
-    std::vector<double> sorted;
-    std::vector<double> weight;  ///< per distinct value (filters/pixel/myriad.cpp)
-    /// Set by the caller before an estimate to also get the estimate's buffer weights (AOVs,
-    /// docs/aovs.md). Every estimator in luminance mode is a convex combination of whole buffers:
-    /// it then fills bufferWeight with px.M weights w_j >= 0 summing to 1 (0 for buffers that did
-    /// not enter, all 0 when no buffer is valid) such that rgb = sum_j w_j mean_j up to float
-    /// rounding. The same weights applied to any other channel of the buffers (applyBufferWeights)
-    /// keep every linear relation the buffers share with the beauty: AOVs that sum to the beauty
-    /// in each buffer sum to the estimate. In channel mode R, G and B are ranked separately and
-    /// no such weights exist: bufferWeight is left empty.
-    bool wantWeights = false;
-    std::vector<double> bufferWeight;
-};
-
-/// Fills `order` with the indices of the valid buffers (count > 0, count and every channel finite),
-/// in index order, and sets `excluded` to the number of NaN/Inf buffers. Returns M_v.
-int collectValidBuffers(const PixelBuffers& px, std::vector<int>& order, int& excluded);
+/// PixelParams (mode, luma) from parsed values that hold "mode" (or not: luminance).
+PixelParams pixelParams(const ParamValues& values, const std::array<double, 3>& luma);
+/// An estimator's own `Params` (derived from PixelParams) with its PixelParams part from `values`;
+/// the caller fills in the rest.
+template <class Params>
+Params pixelParamsAs(const ParamValues& values, const std::array<double, 3>& luma) {
+    Params p;
+    static_cast<PixelParams&>(p) = pixelParams(values, luma);
+    return p;
+}
 
 }  // namespace mcstat

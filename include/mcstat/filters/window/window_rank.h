@@ -57,7 +57,9 @@
 #include <vector>
 
 #include "mcstat/core/params.h"
-#include "mcstat/filters/pixel/pixel_estimate.h"
+#include "mcstat/core/pixel_buffers.h"
+#include "mcstat/filters/estimate.h"
+#include "mcstat/filters/operation.h"
 
 namespace mcstat {
 
@@ -170,6 +172,8 @@ ParamSpec centreWeightParam(const std::string& def, bool fixed);
 ParamSpec breakdownParam(const std::string& def, bool fixed);
 /// "mode": luminance or per channel.
 ParamSpec windowModeParam();
+/// The kernel of a window operation over `over` with `params` bound (its halo from the window).
+WindowKernel windowKernel(Neighbourhood over, const SpatialParams& params);
 /// SpatialParams from parsed values (size, w, alpha, mode) and the luminance weights.
 SpatialParams spatialParams(const ParamValues& values, const std::array<double, 3>& luma);
 

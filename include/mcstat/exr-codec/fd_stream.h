@@ -77,6 +77,11 @@ class FdOStream : public Imf::OStream {
 int codecThreads(int nthreads);
 inline constexpr int kMaxCodecThreads = 8;
 
+/// Sizes OpenEXR's global thread pool (the C++ API's line-block codec threads) to `threads`, none
+/// for 0 or 1 (the calling thread codes): the one place in mcstat that sizes it (codecThreads
+/// when nothing did; mcstat-render for its writes).
+void setOpenExrThreads(int threads);
+
 /// Reads `n` bytes at `offset`; returns the number read (short at end of file), -1 on error.
 int64_t preadFull(int fd, void* buf, uint64_t n, uint64_t offset);
 

@@ -1,4 +1,4 @@
-// WorkerPool: per-thread scratch (an OpenEXR decode or encode pipeline's buffers) handed out to
+// ScratchPool: per-thread scratch (an OpenEXR decode or encode pipeline's buffers) handed out to
 // the tasks of a parallel loop, so that each task reuses a free worker's buffers instead of
 // allocating its own; TranscodeBuffers, the buffers an OpenEXR Core pipeline asks its allocator
 // for. The flat-part reader and writer share both.
@@ -15,7 +15,7 @@
 namespace mcstat::detail {
 
 template <class Worker>
-class WorkerPool {
+class ScratchPool {
   public:
     /// A free worker, or a new one when every worker is in use; give it back with release().
     Worker* acquire() {

@@ -1,4 +1,4 @@
-// Internal: OpenEXR's ZIP and ZIPS chunk codec with libdeflate (inflate) and ISA-L (deflate). A ZIP
+// Internal: OpenEXR's ZIP and ZIPS chunk codec with libdeflate (inflate and deflate). A ZIP
 // chunk (OpenEXR's "Technical Introduction", Data Compression) is the chunk's bytes split into even
 // and odd bytes, each byte stored as its difference to the previous one plus 128, then deflated in
 // the zlib format; ZIPS is the same over one scan line. OpenEXR 3.1 does this with zlib; libdeflate

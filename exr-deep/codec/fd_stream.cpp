@@ -1,4 +1,4 @@
-#include "fd_stream.h"
+#include "mcstat/exr-codec/fd_stream.h"
 
 #include <OpenEXR/Iex.h>
 #include <OpenEXR/ImfThreading.h>
@@ -26,9 +26,11 @@ std::string Fd::close() {
 
 int codecThreads(int nthreads) {
     const int n = std::min(kMaxCodecThreads, mcstat::threadCount(nthreads));
-    if (n > 1 && Imf::globalThreadCount() == 0) Imf::setGlobalThreadCount(n);
+    if (n > 1 && Imf::globalThreadCount() == 0) setOpenExrThreads(n);
     return n;
 }
+
+void setOpenExrThreads(int threads) { Imf::setGlobalThreadCount(threads > 1 ? threads : 0); }
 
 int64_t preadFull(int fd, void* buf, uint64_t n, uint64_t offset) {
     auto* p = static_cast<char*>(buf);

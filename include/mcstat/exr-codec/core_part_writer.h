@@ -1,6 +1,6 @@
 // Internal: the parts of a statistics file written through OpenEXR's Core API ("OpenEXRCore" in
 // OpenEXR's documentation: exr_start_write, a part per header, then the chunks in order), ZIP and
-// ZIPS chunks compressed by ISA-L's igzip (deflate_codec.h), the chunks of each write on several
+// ZIPS chunks compressed by libdeflate (deflate_codec.h), the chunks of each write on several
 // threads (parallelFor). The bytes are standard OpenEXR: any reader opens them.
 // Flat scan-line parts (FLOAT, UINT and HALF channels) go through the Core's encode pipeline, its
 // compress_fn replaced by ZipEncoder's. Deep scan-line parts (NONE or ZIPS, one row a chunk) are
@@ -25,7 +25,7 @@
 #include <string>
 #include <vector>
 
-#include "flat_part_reader.h"
+#include "mcstat/exr-codec/flat_part_reader.h"
 
 namespace mcstat::detail {
 

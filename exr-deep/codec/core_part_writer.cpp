@@ -1,4 +1,4 @@
-#include "core_part_writer.h"
+#include "mcstat/exr-codec/core_part_writer.h"
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfChromaticitiesAttribute.h>
@@ -22,12 +22,13 @@
 #include <mutex>
 #include <new>
 
-#include "deflate_codec.h"
-#include "fd_stream.h"
+#include "mcstat/exr-codec/deflate_codec.h"
+#include "mcstat/exr-codec/core_io.h"
+#include "mcstat/exr-codec/fd_stream.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/untrusted_text.h"
+#include "mcstat/exr-codec/scratch_pool.h"
 #include "mcstat/temp_file.h"
-#include "worker_pool.h"
 
 namespace mcstat::detail {
 
@@ -35,30 +36,10 @@ namespace {
 
 /// One encoding thread's state, reused from chunk to chunk: the ZIP encoder and the pipeline's
 /// buffers (handed out by its allocation hooks).
-struct Worker {
+struct Worker : PipelineWorker {
     ZipEncoder zip;
-    TranscodeBuffers transcode;
     std::vector<uint8_t> table, data;  ///< a deep chunk's sample counts and samples, unpacked
-    std::string message;               ///< OpenEXR's first error message of the current chunk
 };
-
-thread_local Worker* tWorker = nullptr;
-
-void* workerAlloc(exr_transcoding_pipeline_buffer_id_t id, size_t n) {
-    if (tWorker == nullptr) return nullptr;
-    try {
-        return tWorker->transcode.get(int(id), n);
-    } catch (const std::bad_alloc&) {
-        return nullptr;
-    }
-}
-
-void workerFree(exr_transcoding_pipeline_buffer_id_t, void*) {}
-
-void coreError(exr_const_context_t, exr_result_t code, const char* msg) {
-    if (tWorker != nullptr && tWorker->message.empty())
-        tWorker->message = msg != nullptr ? msg : exr_get_default_error_message(code);
-}
 
 struct WriteIo {
     int fd = -1;
@@ -270,7 +251,7 @@ struct CorePartWriter::Impl {
     std::unique_ptr<TemporaryFile> spillFile;
     Fd spillFd;
     uint64_t spillSize = 0;
-    detail::WorkerPool<Worker> pool;  ///< scratch of the threads encoding chunks
+    detail::ScratchPool<Worker> pool;  ///< scratch of the threads encoding chunks
     Worker main;                      ///< the calling thread's, for the serial steps' messages
 
     ~Impl() {
@@ -304,11 +285,11 @@ struct CorePartWriter::Impl {
     /// A call from the caller's thread: OpenEXR's messages go to `main`.
     void enter() {
         main.message.clear();
-        tWorker = &main;
+        tPipelineWorker = &main;
     }
     std::string coreProblem(exr_result_t rv, const std::string& message) const {
         if (!io.error.empty()) return io.error;
-        return message.empty() ? std::string(exr_get_default_error_message(rv)) : message;
+        return coreMessage(rv, message);
     }
 };
 
@@ -374,11 +355,11 @@ bool CorePartWriter::open(int fd, const std::string& target,
     im->width = dw.max.x - dw.min.x + 1;
     im->height = dw.max.y - dw.min.y + 1;
     exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-    init.error_handler_fn = &coreError;
+    init.error_handler_fn = &pipelineError;
     init.user_data = &im->io;
     init.write_fn = &coreWrite;
     Worker& main = im->main;
-    tWorker = &main;
+    tPipelineWorker = &main;
     exr_result_t rv = exr_start_write(&im->ctxt, target.c_str(), EXR_WRITE_FILE_DIRECTLY, &init);
     // Names beyond 31 bytes need the long-names flag, which the C++ API sets exactly when an
     // attribute's name or type name or a channel's name is that long: the same here.
@@ -412,7 +393,7 @@ bool CorePartWriter::open(int fd, const std::string& target,
         }
         if (!ok) problem = fmt::format("part '{}': no chunk layout", ps.name);
     }
-    tWorker = nullptr;
+    tPipelineWorker = nullptr;
     if (!ok) return false;
     impl_ = std::move(im);
     return true;
@@ -426,7 +407,7 @@ bool CorePartWriter::Impl::openCopySource(size_t p, const std::string& path, std
         return false;
     }
     exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-    init.error_handler_fn = &coreError;
+    init.error_handler_fn = &pipelineError;
     exr_context_t src = nullptr;
     exr_result_t rv = exr_start_read(&src, path.c_str(), &init);
     int count = 0;
@@ -487,8 +468,8 @@ bool CorePartWriter::Impl::encodeFlat(Task& t, const Source& src, Worker& w,
     exr_result_t rv = exr_encoding_initialize(ctxt, t.part, &ci, &enc);
     bool ok = rv == EXR_ERR_SUCCESS && enc.channel_count == int(src.channel.size());
     if (ok) {
-        enc.alloc_fn = &workerAlloc;
-        enc.free_fn = &workerFree;
+        enc.alloc_fn = &pipelineAlloc;
+        enc.free_fn = &pipelineFree;
         const size_t stageLine = size_t(width) * sizeof(float);
         for (int c = 0; ok && c < enc.channel_count; ++c) {
             exr_coding_channel_info_t& ch = enc.channels[c];
@@ -604,7 +585,7 @@ bool CorePartWriter::Impl::copyChunk(Task& t, Worker& w) {
     if (rv != EXR_ERR_SUCCESS) {
         t.problem =
             fmt::format("part '{}': {}: the chunk of row {}: {}", ps.name, ps.copyPath, fileRow,
-                        w.message.empty() ? exr_get_default_error_message(rv) : w.message);
+                        coreMessage(rv, w.message));
         return false;
     }
     t.tableBytes = ci.sample_count_table_size;
@@ -642,12 +623,12 @@ bool CorePartWriter::Impl::encodeAll(std::vector<Task>& tasks, const std::vector
             bool ok = false;
             try {
                 w = pool.acquire();
-                tWorker = w;
+                tPipelineWorker = w;
                 ok = encode(t, src[size_t(t.part)], *w);
             } catch (const std::bad_alloc&) {
                 t.problem = "out of memory while compressing";
             }
-            tWorker = nullptr;
+            tPipelineWorker = nullptr;
             if (w != nullptr) pool.release(w);
             if (!ok) fail(i);
             std::lock_guard<std::mutex> lock(m);
@@ -672,8 +653,8 @@ bool CorePartWriter::Impl::encodeAll(std::vector<Task>& tasks, const std::vector
 
 bool CorePartWriter::Impl::toFile(Task& t) {
     // One at a time (encodeAll's lock), on any thread.
-    Worker* const saved = tWorker;
-    tWorker = &main;
+    PipelineWorker* const saved = tPipelineWorker;
+    tPipelineWorker = &main;
     main.message.clear();
     const PartState& ps = parts[size_t(t.part)];
     const int y = y0 + t.row;
@@ -682,7 +663,7 @@ bool CorePartWriter::Impl::toFile(Task& t) {
     if (rv != EXR_ERR_SUCCESS)
         t.problem = fmt::format("part '{}': the chunk of row {}: {}", ps.name, y,
                                 coreProblem(rv, main.message));
-    tWorker = saved;
+    tPipelineWorker = saved;
     return rv == EXR_ERR_SUCCESS;
 }
 
@@ -718,7 +699,7 @@ bool CorePartWriter::write(const std::vector<PartRows>& parts, int rows, std::st
     if (r0 == 0) im.direct = parts.size() == 1 || r1 == im.height;
     const auto fail = [&](std::string why) {
         problem = std::move(why);
-        tWorker = nullptr;
+        tPipelineWorker = nullptr;
         return false;
     };
     // Each part's sources, by the file's channel order.
@@ -730,7 +711,7 @@ bool CorePartWriter::write(const std::vector<PartRows>& parts, int rows, std::st
         if (!pr.copyFrom.empty()) {
             if (!ps.deep)
                 return fail(fmt::format("part '{}': only deep parts are copied", ps.name));
-            if (!im.openCopySource(p, pr.copyFrom, problem)) return tWorker = nullptr, false;
+            if (!im.openCopySource(p, pr.copyFrom, problem)) return tPipelineWorker = nullptr, false;
             continue;
         }
         if (ps.deep != (pr.counts != nullptr))
@@ -832,7 +813,7 @@ bool CorePartWriter::write(const std::vector<PartRows>& parts, int rows, std::st
         return fail("out of memory while staging rows");
     }
     const auto sink = [&](Task& t) { return im.direct ? im.toFile(t) : im.toSpill(t); };
-    if (!im.encodeAll(tasks, src, problem, sink)) return tWorker = nullptr, false;
+    if (!im.encodeAll(tasks, src, problem, sink)) return tPipelineWorker = nullptr, false;
     for (const Task& t : tasks)
         if (t.staged) im.parts[size_t(t.part)].staged = 0;
     try {
@@ -843,7 +824,7 @@ bool CorePartWriter::write(const std::vector<PartRows>& parts, int rows, std::st
         return fail("out of memory while staging rows");
     }
     im.nextRow = r1;
-    tWorker = nullptr;
+    tPipelineWorker = nullptr;
     return true;
 }
 
@@ -866,7 +847,7 @@ bool CorePartWriter::finish(std::string& problem) {
                     int64_t(sc.size)) {
                     problem = fmt::format("cannot read the spill file {} ({})",
                                           im.spillFile->path(), std::strerror(errno));
-                    tWorker = nullptr;
+                    tPipelineWorker = nullptr;
                     return false;
                 }
                 const int y = im.y0 + int(c) * ps.lines;
@@ -875,7 +856,7 @@ bool CorePartWriter::finish(std::string& problem) {
         }
     }
     if (rv == EXR_ERR_SUCCESS) rv = exr_finish(&im.ctxt);
-    tWorker = nullptr;
+    tPipelineWorker = nullptr;
     if (rv != EXR_ERR_SUCCESS || !im.io.error.empty()) {
         problem = im.coreProblem(rv, im.main.message);
         return false;

@@ -1,4 +1,4 @@
-#include "deep_part_reader.h"
+#include "mcstat/exr-codec/deep_part_reader.h"
 
 #include <fmt/format.h>
 
@@ -7,11 +7,11 @@
 #include <cstring>
 #include <new>
 
-#include "deflate_codec.h"
-#include "fd_stream.h"
+#include "mcstat/exr-codec/deflate_codec.h"
+#include "mcstat/exr-codec/fd_stream.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/untrusted_text.h"
-#include "worker_pool.h"
+#include "mcstat/exr-codec/scratch_pool.h"
 
 namespace mcstat::detail {
 
@@ -31,7 +31,7 @@ struct DeepChannel {
 /// Runs `decode(row)` for rows [0, rows) on `threads` threads with a worker each; the failure
 /// reported is the first failing row's, whatever the thread count.
 template <class Decode>
-FlatPartReader::Result forEachLine(int rows, int threads, WorkerPool<DeepWorker>& pool,
+FlatPartReader::Result forEachLine(int rows, int threads, ScratchPool<DeepWorker>& pool,
                                    std::string& problem, Decode decode) {
     using Result = FlatPartReader::Result;
     std::vector<std::string> problems(static_cast<size_t>(rows));
@@ -85,7 +85,7 @@ struct DeepPartReader::Impl {
     bool oneLine = false, allFloat = false;
     std::vector<DeepChannel> channels;  ///< in the part's (sorted) order
     size_t bytesPerSample = 0;
-    WorkerPool<DeepWorker> pool;
+    ScratchPool<DeepWorker> pool;
 
     /// The chunk of file row y0 + row, checked against the window and the file's size.
     Result chunk(int row, exr_chunk_info_t& ci, std::string& problem) const;

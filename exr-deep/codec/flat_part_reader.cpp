@@ -1,4 +1,4 @@
-#include "flat_part_reader.h"
+#include "mcstat/exr-codec/flat_part_reader.h"
 
 #include <OpenEXR/openexr.h>
 #include <fmt/format.h>
@@ -11,11 +11,12 @@
 #include <new>
 #include <unordered_map>
 
-#include "deflate_codec.h"
-#include "fd_stream.h"
+#include "mcstat/exr-codec/deflate_codec.h"
+#include "mcstat/exr-codec/core_io.h"
+#include "mcstat/exr-codec/fd_stream.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/untrusted_text.h"
-#include "worker_pool.h"
+#include "mcstat/exr-codec/scratch_pool.h"
 
 namespace mcstat::detail {
 
@@ -24,12 +25,10 @@ namespace {
 /// One decoding thread's state, reused from chunk to chunk and read to read: the ZIP decoder,
 /// the pipeline's buffers (handed out by the pipeline's allocation hooks) and the scratch rows
 /// of a chunk that reaches outside the rows asked for.
-struct Worker {
+struct Worker : PipelineWorker {
     ZipDecoder zip;
-    TranscodeBuffers transcode;
     std::unique_ptr<uint8_t[]> rows;
     size_t rowsSize = 0;
-    std::string message;  ///< OpenEXR's first error message of the current chunk
 
     uint8_t* rowScratch(size_t n) {
         if (rowsSize < n) {
@@ -41,40 +40,6 @@ struct Worker {
         return rows.get();
     }
 };
-
-/// The worker of the chunk this thread decodes: the pipeline's allocation hooks have no user
-/// pointer, and a pipeline runs on the thread that set it up.
-thread_local Worker* tWorker = nullptr;
-
-void* workerAlloc(exr_transcoding_pipeline_buffer_id_t id, size_t n) {
-    if (tWorker == nullptr) return nullptr;
-    try {
-        return tWorker->transcode.get(int(id), n);
-    } catch (const std::bad_alloc&) {
-        return nullptr;  // the pipeline reports EXR_ERR_OUT_OF_MEMORY
-    }
-}
-
-void workerFree(exr_transcoding_pipeline_buffer_id_t, void*) {}  // the worker keeps its buffers
-
-struct CoreIo {
-    int fd = -1;
-    int64_t size = 0;
-};
-
-int64_t coreRead(exr_const_context_t, void* user, void* buffer, uint64_t sz, uint64_t offset,
-                 exr_stream_error_func_ptr_t) {
-    return preadFull(static_cast<CoreIo*>(user)->fd, buffer, sz, offset);
-}
-
-int64_t coreSize(exr_const_context_t, void* user) { return static_cast<CoreIo*>(user)->size; }
-
-/// The context's error handler: the first message of the chunk the calling thread decodes (the
-/// default handler would print to stderr).
-void coreError(exr_const_context_t, exr_result_t code, const char* msg) {
-    if (tWorker != nullptr && tWorker->message.empty())
-        tWorker->message = msg != nullptr ? msg : exr_get_default_error_message(code);
-}
 
 struct PartInfo {
     std::string name;
@@ -94,12 +59,12 @@ struct Task {
 }  // namespace
 
 struct FlatPartReader::Impl {
-    CoreIo io;
+    CoreFile io;
     exr_context_t ctxt = nullptr;
     std::string path;
     int x0 = 0, y0 = 0, width = 0, height = 0;
     std::vector<PartInfo> parts;
-    detail::WorkerPool<Worker> pool;  ///< scratch of the threads decoding chunks
+    detail::ScratchPool<Worker> pool;  ///< scratch of the threads decoding chunks
 
     ~Impl() {
         if (ctxt != nullptr) exr_finish(&ctxt);
@@ -127,20 +92,16 @@ bool FlatPartReader::open(int fd, uint64_t size, const std::string& path, int x0
     im->y0 = y0;
     im->width = width;
     im->height = height;
-    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-    init.error_handler_fn = &coreError;
-    init.user_data = &im->io;
-    init.read_fn = &coreRead;
-    init.size_fn = &coreSize;
+    exr_context_initializer_t init = coreFileReader(im->io);
+    init.error_handler_fn = &pipelineError;  // each chunk's message goes to its worker
     init.flags = EXR_CONTEXT_FLAG_DISABLE_CHUNK_RECONSTRUCTION;
     Worker opener;  // collects the open's first message
-    tWorker = &opener;
+    tPipelineWorker = &opener;
     const exr_result_t rv = exr_start_read(&im->ctxt, path.c_str(), &init);
-    tWorker = nullptr;
+    tPipelineWorker = nullptr;
     if (rv != EXR_ERR_SUCCESS) {
         problem =
-            fmt::format("header: {}", opener.message.empty() ? exr_get_default_error_message(rv)
-                                                             : opener.message.c_str());
+            fmt::format("header: {}", coreMessage(rv, opener.message));
         return false;
     }
     int count = 0;
@@ -233,7 +194,7 @@ FlatPartReader::Result FlatPartReader::Impl::decode(
     exr_result_t rv = exr_read_scanline_chunk_info(ctxt, part, chunkY, &ci);
     if (rv != EXR_ERR_SUCCESS) {
         problem = fmt::format("{}: {}", where(),
-                              w.message.empty() ? exr_get_default_error_message(rv) : w.message);
+                              coreMessage(rv, w.message));
         return rv == EXR_ERR_OUT_OF_MEMORY ? Result::OutOfMemory : Result::Corrupt;
     }
     if (ci.start_y != chunkY || ci.height != chunkEnd - chunkY || ci.width != width ||
@@ -273,8 +234,8 @@ FlatPartReader::Result FlatPartReader::Impl::decode(
         result = Result::Corrupt;
     }
     if (rv == EXR_ERR_SUCCESS && result == Result::Ok) {
-        dec.alloc_fn = &workerAlloc;
-        dec.free_fn = &workerFree;
+        dec.alloc_fn = &pipelineAlloc;
+        dec.free_fn = &pipelineFree;
         size_t found = 0;
         for (size_t c = 0; c < target.size(); ++c) {
             exr_coding_channel_info_t& ch = dec.channels[c];
@@ -326,8 +287,7 @@ FlatPartReader::Result FlatPartReader::Impl::decode(
                                !w.zip.problem().empty();
         problem = fmt::format("{}: {}", where(),
                               zipFailed           ? w.zip.problem()
-                              : w.message.empty() ? std::string(exr_get_default_error_message(rv))
-                                                  : w.message);
+                              : coreMessage(rv, w.message));
         result = rv == EXR_ERR_OUT_OF_MEMORY ? Result::OutOfMemory : Result::Corrupt;
     }
     if (dec.context != nullptr) exr_decoding_destroy(ctxt, &dec);
@@ -386,14 +346,14 @@ FlatPartReader::Result FlatPartReader::read(const std::vector<PartSlices>& parts
             Result res = Result::Ok;
             try {
                 w = im.pool.acquire();
-                tWorker = w;
+                tPipelineWorker = w;
                 res = im.decode(parts[size_t(task.req)], byName[size_t(task.req)], task.y, firstRow,
                                 rows, *w, problems[size_t(t)]);
             } catch (const std::bad_alloc&) {
                 res = Result::OutOfMemory;
                 problems[size_t(t)] = "out of memory while decoding";
             }
-            tWorker = nullptr;
+            tPipelineWorker = nullptr;
             if (w != nullptr) im.pool.release(w);
             results[size_t(t)] = res;
             if (res != Result::Ok) {

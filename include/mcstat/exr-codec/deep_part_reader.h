@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "flat_part_reader.h"
+#include "mcstat/exr-codec/flat_part_reader.h"
 
 namespace mcstat::detail {
 

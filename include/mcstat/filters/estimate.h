@@ -1,0 +1,45 @@
+// What every operation's kernel computes with (operation.h): how it treats colour, the estimate
+// of one output pixel with its diagnostics, and the per-thread scratch of a per-pixel kernel.
+// Shared by every family (filters/pixel, filters/window) without one reaching into another.
+#pragma once
+
+#include <array>
+#include <vector>
+
+namespace mcstat {
+
+/// How an estimator treats colour.
+enum class EstimatorMode {
+    PerChannel,  ///< R, G and B ranked and reduced independently (each channel has its own G and c)
+    Luminance,   ///< buffers ranked by luminance; the chosen buffers' RGB are returned (hue never
+                 ///< mixes across channels of different buffers); G is computed on luminance
+};
+
+/// An estimate and its diagnostics. In Luminance mode the three diagnostic channels are equal.
+struct PixelEstimate {
+    std::array<float, 3> rgb{0.f, 0.f, 0.f};
+    std::array<float, 3> gini{0.f, 0.f, 0.f};  ///< Gini coefficient used (0 where not computed)
+    std::array<int, 3> kept{0, 0, 0};          ///< buffers that entered the final average
+    int excluded = 0;                          ///< buffers left out for NaN/Inf values
+};
+
+/// Per-thread scratch space so the per-pixel functions never allocate after warm-up. The rank
+/// estimators (mean, MoN, G-MoN, G-MoN_b, TMPE) use none up to M = 64: they rank on the stack.
+struct EstimatorScratch {
+    std::vector<int> order;
+    std::vector<double> key;
+    std::vector<double> sorted;
+    std::vector<double> weight;  ///< per distinct value (filters/pixel/myriad.cpp)
+    /// Set by the caller before an estimate to also get the estimate's buffer weights (AOVs,
+    /// docs/aovs.md). Every estimator in luminance mode is a convex combination of whole buffers:
+    /// it then fills bufferWeight with px.M weights w_j >= 0 summing to 1 (0 for buffers that did
+    /// not enter, all 0 when no buffer is valid) such that rgb = sum_j w_j mean_j up to float
+    /// rounding. The same weights applied to any other channel of the buffers (applyBufferWeights)
+    /// keep every linear relation the buffers share with the beauty: AOVs that sum to the beauty
+    /// in each buffer sum to the estimate. In channel mode R, G and B are ranked separately and
+    /// no such weights exist: bufferWeight is left empty.
+    bool wantWeights = false;
+    std::vector<double> bufferWeight;
+};
+
+}  // namespace mcstat

@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# check_arrows.sh ROOT: the include arrows of docs/architecture.md, checked. Every rule names the
+# files of one room and the mcstat headers they may include; an include outside that list is an
+# arrow pointing the wrong way. A quoted include that is not "mcstat/..." must name a header of the
+# includer's own folder (a room's private header), never another room's. Prints one line per
+# wrong arrow ("FILE:LINE: includes HEADER; ROOM may include only ...") and exits 1 when there
+# is any, 0 otherwise. Run by CTest (tests/architecture/CMakeLists.txt).
+set -uo pipefail
+root=${1:?usage: check_arrows.sh ROOT}
+cd "$root" || exit 2
+bad=0
+
+# rule ROOM ALLOWED FILES...: every '#include "mcstat/X"' in FILES must match the extended regex
+# ALLOWED (matched against X).
+rule() {
+  local room=$1 allowed=$2
+  shift 2
+  local files
+  files=$(find "$@" -maxdepth 1 -type f \( -name '*.h' -o -name '*.cpp' \) 2>/dev/null | sort)
+  [ -n "$files" ] || { echo "check_arrows: room $room: no files in $*"; bad=1; return; }
+  while IFS=: read -r file line text; do
+    local header=${text#*\"mcstat/}
+    header=${header%%\"*}
+    if ! [[ $header =~ ^($allowed)$ ]]; then
+      echo "$file:$line: includes mcstat/$header; $room may include only mcstat/($allowed)"
+      bad=1
+    fi
+  done < <(grep -Hn '^#include "mcstat/' $files)
+}
+
+core='core/[a-z_]+\.h'
+codec="$core|exr-codec/[a-z_]+\.h|temp_file\.h"
+format="$codec|stats_file\.h|sample_records\.h|temp_file\.h"
+kernel='filters/(operation|estimate)\.h'
+
+# Layer 0: core depends on nothing.
+rule core "$core" core include/mcstat/core
+# The colour config stands beside the stack.
+rule color "$core|color\.h" color
+rule color "$core" include/mcstat/color.h
+# Layer 1: OpenEXR through its Core API (no statistics file), then the file format (no operation).
+rule exr-codec "$codec" exr-deep/codec include/mcstat/exr-codec
+rule exr-deep "$format" exr-deep include/mcstat/stats_file.h include/mcstat/sample_records.h \
+  include/mcstat/temp_file.h
+# Layer 2: what an operation is names no family; each family reaches only the interface.
+rule operation "$core|$kernel" include/mcstat/filters/operation.h include/mcstat/filters/estimate.h
+rule registry "$core|$kernel" include/mcstat/filters/registry.h
+rule pixel "$core|$kernel|filters/pixel/[a-z_0-9]+\.h" filters/pixel include/mcstat/filters/pixel
+rule window "$core|$kernel|filters/window/[a-z_0-9]+\.h|stats_file\.h" filters/window \
+  include/mcstat/filters/window
+rule samples "$format|$kernel|filters/aov_weights\.h|filters/samples/[a-z_0-9]+\.h" filters/samples \
+  include/mcstat/filters/samples
+rule filters "$format|filters/.+\.h" filters include/mcstat/filters
+rule compact "$format|filters/.+\.h|compact/compact\.h" compact include/mcstat/compact
+# Pure measures: no image, no file.
+rule measures "$core|analysis/(metrics|planner|two_sample)\.h" analysis/metrics.cpp \
+  analysis/planner.cpp analysis/two_sample.cpp include/mcstat/analysis/metrics.h \
+  include/mcstat/analysis/planner.h include/mcstat/analysis/two_sample.h
+# Layer 3: images; no tool, no ingest, no review.
+rule image "$format|filters/(operation|estimate|registry|aov_weights|window/[a-z_0-9]+)\.h|image/[a-z_]+\.h|color\.h|analysis/metrics\.h" \
+  image include/mcstat/image
+# Layer 4: ingest reads renderers' EXRs through the codec, never the format's private headers.
+rule ingest "$format|image/[a-z_]+\.h|color\.h|ingest\.h|channel_naming\.h" ingest \
+  include/mcstat/ingest.h include/mcstat/channel_naming.h
+
+# Private headers: a quoted include that is not mcstat/... is a header of the includer's folder.
+while IFS=: read -r file line text; do
+  header=${text#*\"}
+  header=${header%%\"*}
+  if [ ! -f "$(dirname "$file")/$header" ]; then
+    echo "$file:$line: includes \"$header\", which is not in its own folder (another room's private header)"
+    bad=1
+  fi
+done < <(grep -rHn --include='*.h' --include='*.cpp' '^#include "' core color exr-deep filters \
+  compact analysis image ingest oiiotool-ext oiio-plugin render-fixture 2>/dev/null |
+  grep -v '^[^:]*:[0-9]*:#include "mcstat/')
+
+exit $bad
