@@ -1,6 +1,6 @@
 # `cmake --install`: the mcstat and mcstat-render executables, the OpenImageIO plugin, the static
 # libraries with their public headers, an exported CMake package (find_package(mcstat CONFIG)
-# giving mcstat::core, mcstat::filters, mcstat::exrcodec, mcstat::exrdeep, mcstat::color, mcstat::imageops, mcstat::ingest) and
+# giving mcstat::core, mcstat::filters, mcstat::exrcodec, mcstat::exrdeep, mcstat::color, mcstat::imagespec, mcstat::imageops, mcstat::ingest) and
 # mcstat.pc.
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
@@ -10,7 +10,7 @@ set(MCSTAT_INSTALL_CMAKEDIR "${CMAKE_INSTALL_LIBDIR}/cmake/mcstat"
 set(MCSTAT_INSTALL_PLUGINDIR "${CMAKE_INSTALL_LIBDIR}/OpenImageIO-plugins"
     CACHE STRING "Where mcstat.imageio.so goes; point OIIO_LIBRARY_PATH at it")
 
-set(_mcstat_libs mcstat_core mcstat_filters mcstat_compact mcstat_exrcodec mcstat_exrdeep mcstat_color mcstat_analysis mcstat_imageops
+set(_mcstat_libs mcstat_core mcstat_filters mcstat_compact mcstat_exrcodec mcstat_exrdeep mcstat_color mcstat_analysis mcstat_imagespec mcstat_imageops
                  mcstat_review mcstat_compare mcstat_ingest)
 foreach(_lib IN LISTS _mcstat_libs)
   string(REPLACE "mcstat_" "" _export_name "${_lib}")

@@ -198,20 +198,11 @@ void setRendererSampleCounts(ImageSpec& spec, int64_t spp) {
 
 }  // namespace
 
-void describeResult(ImageSpec& spec, const Operation& op, const ParamValues& values,
-                    const StatsHeader& h, std::string* warning) {
+void describeSource(ImageSpec& spec, const StatsHeader& h, std::string* warning) {
     std::string err;
     if (!applySourceMetadata(spec, h.sourceMetadata, err) && warning) *warning = err;
     setRendererSampleCounts(spec, h.spp);
-    std::string params;
-    for (const auto& [k, v] : values) {
-        const ParamSpec* ps = op.param(k);
-        if (ps && ps->fixed) continue;
-        params += (params.empty() ? "" : ",") + k + "=" + v.text;
-    }
     const std::string p = kProvenancePrefix;
-    spec.attribute(p + "operation", op.name);
-    spec.attribute(p + "parameters", params);
     spec.attribute(p + "M", h.M);
     spec.attribute(p + "spp", int(std::min<int64_t>(h.spp, INT32_MAX)));
     if (!h.sources.empty()) spec.attribute(p + "sources", printable(h.sources, 0));

@@ -28,7 +28,7 @@
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/params.h"
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/image/imageops.h"
+#include "mcstat/image/image_spec.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/exr-codec/exr_headers.h"
 

@@ -27,7 +27,7 @@
 #include "mcstat/exr-codec/fd_stream.h"
 #include "mcstat/filters/samples/pajot.h"
 #include "mcstat/filters/samples/pajot_state.h"
-#include "mcstat/image/imageops.h"
+#include "mcstat/image/image_spec.h"
 #include "mcstat/render/render.h"
 #include "mcstat/render/scene.h"
 #include "mcstat/sample_records.h"

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <limits>
 
+#include "mcstat/image/imageops.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/ingest.h"

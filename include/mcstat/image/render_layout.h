@@ -9,7 +9,6 @@
 #include <map>
 #include <string>
 
-#include "mcstat/filters/registry.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat {
@@ -30,14 +29,13 @@ bool applySourceMetadata(OIIO::ImageSpec& spec, const std::string& json, std::st
 /// `oiiotool f.mcstat -o x.exr` would lose them.
 inline constexpr const char* kProvenancePrefix = "mcstat.";
 
-/// Describes an operation's result on its spec: the source's metadata (StatsHeader::
-/// sourceMetadata), and provenance: mcstat.operation (e.g. "gmon"), mcstat.parameters
-/// ("mode=lum"), mcstat.M, mcstat.spp, mcstat.sources, mcstat.renderer. The renderers' own
-/// sample counts among the source's metadata (samplesPerPixel, cycles.<ViewLayer>.samples) are
-/// set to the result's samples per pixel (h.spp, every render together). A bad metadata text is
-/// skipped with a warning in `warning`.
-void describeResult(OIIO::ImageSpec& spec, const Operation& op, const ParamValues& values,
-                    const StatsHeader& h, std::string* warning = nullptr);
+/// Describes a result computed from `h` on its spec: the source's metadata (StatsHeader::
+/// sourceMetadata) and provenance mcstat.M, mcstat.spp, mcstat.sources, mcstat.renderer. The
+/// renderers' own sample counts among the source's metadata (samplesPerPixel,
+/// cycles.<ViewLayer>.samples) are set to the result's samples per pixel (h.spp, every render
+/// together). A bad metadata text is skipped with a warning in `warning`. describeResult
+/// (imageops.h) adds the operation.
+void describeSource(OIIO::ImageSpec& spec, const StatsHeader& h, std::string* warning = nullptr);
 
 /// How an image is encoded when written, as oiiotool's -d, --compression and -o:type= set it.
 struct ImageWriteOptions {
