@@ -111,14 +111,14 @@ class Stats:
 class Image(np.ndarray):
     """An operation's result: the (H, W, 3) float32 R, G, B, with
     channels     every channel name of the result, as `mcstat FILE --OP -o out.exr` writes them
-    all          (H, W, len(channels)): every channel
+    all_channels (H, W, len(channels)): every channel
     diagnostics  name -> (H, W): gini, kept, excluded (diag=True), the maps of other operations
     aovs         name -> (H, W): the AOVs carried with the beauty's weights
     residual     name -> (H, W): mean - robust of R, G, B and the AOVs (residual=True), else {}
     """
 
     def __array_finalize__(self, obj):
-        for name, default in (("channels", None), ("all", None), ("diagnostics", None),
+        for name, default in (("channels", None), ("all_channels", None), ("diagnostics", None),
                               ("aovs", None), ("residual", None)):
             setattr(self, name, getattr(obj, name, default))
 
@@ -126,7 +126,7 @@ class Image(np.ndarray):
 def _image(channels, pixels, aov_names):
     img = np.ascontiguousarray(pixels[..., :3]).view(Image)
     img.channels = list(channels)
-    img.all = pixels
+    img.all_channels = pixels
     img.diagnostics, img.aovs, img.residual = {}, {}, {}
     aov_names = set(aov_names)
     for i, c in enumerate(channels[3:], start=3):

@@ -31,8 +31,8 @@ struct NativeStats {
     std::string name;  ///< what messages call it: the path, or "ingest(...)"
 };
 
-/// The statistics file `path` as a file that exists and holds sub-buffers, or false with the
-/// message `mcstat` gives (no such file, a directory, a plain EXR image).
+/// False with the message `mcstat` gives for a directory or a plain EXR image where a statistics
+/// file is needed; true otherwise (the reader then names any other problem, as mcstat's does).
 bool checkStatsPath(const std::string& path, std::string& err);
 /// The header as a Python dict (docs/python.md lists the keys).
 py::dict headerDict(const StatsHeader& h);

@@ -41,11 +41,15 @@ def cli_error(*args):
 
 
 def read_exr(path):
-    """channel name -> (H, W) float32 array of an image file, through OpenImageIO."""
-    buf = oiio.ImageBuf(str(path))
-    assert buf.read(0, 0, True, oiio.FLOAT), buf.geterror()
-    px = buf.get_pixels(oiio.FLOAT)
-    return {name: px[..., i] for i, name in enumerate(buf.spec().channelnames)}
+    """channel name -> (H, W) float32 array of an image file, through OpenImageIO's reader (not
+    its cache, which would keep an overwritten file's old pixels)."""
+    inp = oiio.ImageInput.open(str(path))
+    assert inp, oiio.geterror()
+    px = inp.read_image(0, 0, 0, inp.spec().nchannels, oiio.FLOAT)
+    names = inp.spec().channelnames
+    inp.close()
+    assert px is not None, path
+    return {name: px[..., i] for i, name in enumerate(names)}
 
 
 def assert_same_channels(result, cli_exr):
@@ -54,7 +58,7 @@ def assert_same_channels(result, cli_exr):
     cli = read_exr(cli_exr)
     assert sorted(result.channels) == sorted(cli), (result.channels, list(cli))
     for i, name in enumerate(result.channels):
-        a, b = result.all[..., i], cli[name]
+        a, b = result.all_channels[..., i], cli[name]
         assert a.shape == b.shape, name
         np.testing.assert_array_equal(a.view(np.uint32)[~np.isnan(a)],
                                       b.view(np.uint32)[~np.isnan(a)], err_msg=name)

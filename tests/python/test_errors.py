@@ -19,7 +19,7 @@ def test_missing_file(tmp):
         mcstat.read(missing)
     assert str(e.value) == cli_error(missing, "--gmon", "-o", tmp / "x.exr")
     assert isinstance(e.value, RuntimeError)
-    with pytest.raises(mcstat.Error, match="no such file"):
+    with pytest.raises(mcstat.Error, match="missing.mcstat: cannot open"):
         mcstat.estimate(missing, "gmon")
 
 

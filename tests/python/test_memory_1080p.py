@@ -25,6 +25,7 @@ print(sum(v.nbytes for v in arrays), peak - before, s.buffers.shape)
 def test_1080p_read_peak_memory(tmp):
     path = render(tmp / "1080p.mcstat", res=(1920, 1080), spp=21, M=21)
     p = subprocess.run([sys.executable, "-c", PROBE, str(path)], capture_output=True, text=True)
+    path.unlink()  # 320 MB
     assert p.returncode == 0, p.stderr
     arrays, grown, shape = p.stdout.split(" ", 2)
     arrays, grown = int(arrays), int(grown)
