@@ -16,9 +16,9 @@
 #include <numeric>
 
 #include "mcstat/core/colour_space.h"
-#include "mcstat/filters/registry.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/untrusted_text.h"
+#include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 
 namespace mcstat {

@@ -1353,8 +1353,8 @@ const std::vector<ParamSpec>& ingestParams() {
         for (const char* cls : {"alpha", "light", "data", "id"})
             m.push_back(
                 textParam(cls, "",
-                          std::string("GLOB,...: the matching channels or layers are of class ") + cls +
-                              ", overriding the naming rules"));
+                          std::string("GLOB,...: the matching channels or layers are of class ") +
+                              cls + ", overriding the naming rules"));
         return m;
     }();
     return params;
@@ -1369,8 +1369,8 @@ bool parseIngestOptions(const std::map<std::string, std::string>& kv, IngestOpti
         if (spec == params.end()) {
             std::string names;
             for (const ParamSpec& p : params) names += (names.empty() ? "" : ", ") + p.name;
-            err = fmt::format("{} has no modifier '{}' (accepted: {})", context, printable(k),
-                              names);
+            err =
+                fmt::format("{} has no modifier '{}' (accepted: {})", context, printable(k), names);
             return false;
         }
         ParamValue value;

@@ -61,8 +61,7 @@ struct Source {
             name = path;
             std::string err;
             py::gil_scoped_release release;
-            if (!checkStatsPath(path, err) || !readStatsHeader(path, header, err))
-                throw Error(err);
+            if (!checkStatsPath(path, err) || !readStatsHeader(path, header, err)) throw Error(err);
         }
     }
     /// The block source (opened on first use, GIL released by the caller).
@@ -99,7 +98,8 @@ py::tuple estimate(const py::object& src, const std::string& name,
         if (readsSamples(op)) {
             if (in.path.empty())
                 throw Error(cmd + " reads the per-sample records of a statistics file on disk; " +
-                            in.name + " was computed (write it with mcstat.write and pass the path)");
+                            in.name +
+                            " was computed (write it with mcstat.write and pass the path)");
             ok = runSamplesOperation(img, in.path, in.header, op, values, luma);
         } else if (in.native) {
             ok = applyOperation(img, *in.native->img, op, values, luma, diag);
@@ -143,8 +143,8 @@ py::dict compare(const py::object& a, const py::object& b,
         throw Error("--compare: refspp is for an image reference; " + sa.name + " and " + sb.name +
                     " are statistics files");
     if (sa.header.colorSpace != sb.header.colorSpace)
-        throw Error("--compare: " + sa.name + " is in " + sa.header.colorSpace + " but " +
-                    sb.name + " is in " + sb.header.colorSpace);
+        throw Error("--compare: " + sa.name + " is in " + sa.header.colorSpace + " but " + sb.name +
+                    " is in " + sb.header.colorSpace);
     opt.luma = lumaOf(sa.header.colorSpace, sa.name);
     CompareResult r;
     {

@@ -30,8 +30,8 @@ py::array_t<float> padded(const StatsImage& img, const std::vector<float>& data,
                           float fill) {
     const StatsHeader& h = img.header;
     const size_t M = size_t(h.M);
-    py::array_t<float> out({py::ssize_t(h.height), py::ssize_t(h.width), py::ssize_t(M),
-                            py::ssize_t(per)});
+    py::array_t<float> out(
+        {py::ssize_t(h.height), py::ssize_t(h.width), py::ssize_t(M), py::ssize_t(per)});
     float* o = out.mutable_data();
     {
         py::gil_scoped_release release;
@@ -62,8 +62,7 @@ py::dict arrays(const py::object& self) {
             d["buffers"] = padded(img, img.bufferMean, 3, nan);
             d["counts"] = padded(img, img.bufferCount, 1, 0.0f).attr("reshape")(H, W, M);
             py::array_t<int32_t> m({H, W});
-            for (size_t p = 0; p < img.pixelCount(); ++p)
-                m.mutable_data()[p] = img.buffersOf(p);
+            for (size_t p = 0; p < img.pixelCount(); ++p) m.mutable_data()[p] = img.buffersOf(p);
             d["buffers_per_pixel"] = m;
         }
         d["aov"] = A > 0 && !img.aov.empty() ? py::object(padded(img, img.aov, size_t(A), nan))
@@ -98,8 +97,7 @@ std::shared_ptr<NativeStats> readFile(const std::string& path) {
 void writeFile(const NativeStats& n, const std::string& path) {
     std::string err;
     py::gil_scoped_release release;
-    if (!validateStats(*n.img, n.name, err) || !writeStatsFile(path, *n.img, err))
-        throw Error(err);
+    if (!validateStats(*n.img, n.name, err) || !writeStatsFile(path, *n.img, err)) throw Error(err);
 }
 
 /// `mcstat --ingest PATTERN` with modifiers: the renders read into memory.
@@ -153,10 +151,9 @@ py::dict headerDict(const StatsHeader& h) {
     d["height"] = h.height;
     d["data_window"] = windowDict(h.originX, h.originY, h.width, h.height);
     const bool display = h.displayWidth > 0;
-    d["display_window"] = windowDict(display ? h.displayX : h.originX,
-                                     display ? h.displayY : h.originY,
-                                     display ? h.displayWidth : h.width,
-                                     display ? h.displayHeight : h.height);
+    d["display_window"] =
+        windowDict(display ? h.displayX : h.originX, display ? h.displayY : h.originY,
+                   display ? h.displayWidth : h.width, display ? h.displayHeight : h.height);
     d["M"] = h.M;
     d["adaptive"] = h.adaptiveM;
     d["compact"] = h.compact;

@@ -15,8 +15,8 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include <array>
-#include <map>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
