@@ -74,3 +74,16 @@ def test_parameters_diagnostics_and_residual(files, tmp):
 def test_readme_line(files):
     s = mcstat.read(files["aovs"])
     assert mcstat.estimate(s, "gmon").shape == (30, 40, 3)
+
+
+def test_threads_run_side_by_side(files):
+    """The GIL is released while the C++ works: operations on threads give the serial results."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    src = files["aovs"]
+    names = ["gmon", "mon", "3dwtmf", "median"]
+    serial = [mcstat.estimate(src, n) for n in names]
+    with ThreadPoolExecutor(4) as pool:
+        threaded = list(pool.map(lambda n: mcstat.estimate(mcstat.read(src), n), names))
+    for a, b in zip(serial, threaded):
+        np.testing.assert_array_equal(a.all_channels, b.all_channels)
