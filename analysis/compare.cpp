@@ -930,11 +930,13 @@ const std::vector<ParamSpec>& compareParams() {
 
 bool parseCompareOptions(const std::map<std::string, std::string>& kv, CompareOptions& opt,
                          std::string& err, const std::string& context) {
-    Operation compare;  // the registry's parser: defaults first, unknown keys named
+    std::map<std::string, std::string> mods = kv;
+    if (!checkModifiers(context, compareParams(), mods, err)) return false;
+    Operation compare;  // the registry's parser gives the typed values
     compare.name = "compare";
     compare.params = compareParams();
     ParamValues v;
-    if (!parseOperationParams(compare, kv, v, err, context)) return false;
+    if (!parseOperationParams(compare, mods, v, err, context)) return false;
     opt.level = v.at("level").real;
     opt.trimmed = v.at("test").text == "yuen";
     opt.trim = v.at("trim").real;

@@ -1362,19 +1362,12 @@ const std::vector<ParamSpec>& ingestParams() {
 
 bool parseIngestOptions(const std::map<std::string, std::string>& kv, IngestOptions& opt,
                         std::string& err, const std::string& context) {
-    const std::vector<ParamSpec>& params = ingestParams();
-    for (const auto& [k, v] : kv) {
-        const auto spec = std::find_if(params.begin(), params.end(),
-                                       [&k = k](const ParamSpec& p) { return p.name == k; });
-        if (spec == params.end()) {
-            std::string names;
-            for (const ParamSpec& p : params) names += (names.empty() ? "" : ", ") + p.name;
-            err =
-                fmt::format("{} has no modifier '{}' (accepted: {})", context, printable(k), names);
-            return false;
-        }
-        ParamValue value;
-        if (!parseParamValue(context, *spec, v, value, err)) return false;
+    std::map<std::string, std::string> mods = kv;
+    if (!checkModifiers(context, ingestParams(), mods, err)) return false;
+    for (const auto& [k, v] : mods) {
+        ParamValue value;  // checked above; parsed again for its typed value
+        for (const ParamSpec& p : ingestParams())
+            if (p.name == k && !parseParamValue(context, p, v, value, err)) return false;
         if (k == "layer") {
             opt.layer = v;
         } else if (k == "spp") {

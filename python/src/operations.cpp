@@ -85,9 +85,16 @@ py::tuple estimate(const py::object& src, const std::string& name,
     const Operation& op = operationNamed(name);
     const std::string cmd = "--" + op.name;
     Source in(src);
-    ParamValues values;
+    // As `mcstat --OP:key=value` checks its modifiers (diag and residual among them): its errors.
+    std::map<std::string, std::string> mods = params;
+    if (diag) mods["diag"] = "1";
+    if (residual) mods["residual"] = "1";
     std::string err;
-    if (!parseOperationParams(op, params, values, err, cmd)) throw Error(err);
+    if (!checkModifiers(cmd, operationModifiers(op), mods, err)) throw Error(err);
+    mods.erase("diag");
+    mods.erase("residual");
+    ParamValues values;
+    if (!parseOperationParams(op, mods, values, err, cmd)) throw Error(err);
     const std::array<double, 3> luma = lumaOf(in.header.colorSpace, in.name);
     OIIO::ImageBuf img;
     std::unique_ptr<Source> again;  // a file is streamed once more for the residual
