@@ -5,6 +5,7 @@
 // bytes per hypothesis) with the maps; the sub-buffers are not.
 #include "mcstat/analysis/compare.h"
 
+#include <OpenImageIO/strutil.h>
 #include <fmt/format.h>
 #include <fnmatch.h>
 
@@ -17,6 +18,7 @@
 #include "mcstat/core/colour_space.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/untrusted_text.h"
+#include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 
 namespace mcstat {
@@ -893,6 +895,64 @@ std::vector<std::string> compareEvidence(const CompareResult& r, const CompareOp
             "no tile tests: adaptive M or a compact file (buffer indices differ from pixel to "
             "pixel)");
     return lines;
+}
+
+const std::vector<ParamSpec>& compareParams() {
+    static const std::vector<ParamSpec> m = [] {
+        ParamSpec aovs = textParam("aovs", "",
+                                   "AOV channels to test too, each by itself: names or globs, "
+                                   "comma-separated (e.g. *_key.*)");
+        aovs.list = true;
+        return std::vector<ParamSpec>{
+            realParam("level", 0.0, 0.5, true, "0.01",
+                      "false discovery rate (or error rate, see control) of the verdict"),
+            enumParam("test", {"welch", "yuen"}, "welch",
+                      "welch: means; yuen: trimmed means, robust to fireflies"),
+            realParam("trim", 0.0, 0.45, false, "0.2", "yuen: fraction trimmed from each end"),
+            enumParam("control", {"fdr", "fwer", "none"}, "fdr",
+                      "fdr: Benjamini-Hochberg; fwer: Holm; none: each test alone"),
+            enumParam("channels", {"luminance", "rgb"}, "luminance", "what a pixel is tested on",
+                      {{"lum", "luminance"}, {"y", "luminance"}}),
+            aovs,
+            intParam("tile", 0, 4096, "16", "tile side for the tile tests; 0: pixels only"),
+            realParam("tol", 0.0, HUGE_VAL, false, "0", "absolute tolerance (image units)"),
+            realParam("reltol", 0.0, HUGE_VAL, false, "0",
+                      "relative tolerance (fraction of the pixel's value)"),
+            flagParam("equivalence", "0",
+                      "1: show agreement within the tolerance (two one-sided tests per tile)"),
+            realParam("refspp", 0.0, HUGE_VAL, false, "0",
+                      "image reference: its samples per pixel (0: exact)"),
+            textParam("layer", "", "image reference: its RGB layer (default: its beauty)"),
+        };
+    }();
+    return m;
+}
+
+bool parseCompareOptions(const std::map<std::string, std::string>& kv, CompareOptions& opt,
+                         std::string& err, const std::string& context) {
+    std::map<std::string, std::string> mods = kv;
+    if (!checkModifiers(context, compareParams(), mods, err)) return false;
+    Operation compare;  // the registry's parser gives the typed values
+    compare.name = "compare";
+    compare.params = compareParams();
+    ParamValues v;
+    if (!parseOperationParams(compare, mods, v, err, context)) return false;
+    opt.level = v.at("level").real;
+    opt.trimmed = v.at("test").text == "yuen";
+    opt.trim = v.at("trim").real;
+    const std::string control = v.at("control").text;
+    opt.control = control == "fwer"   ? Multiplicity::FWER
+                  : control == "none" ? Multiplicity::None
+                                      : Multiplicity::FDR;
+    opt.rgb = v.at("channels").text == "rgb";
+    const std::string& aovs = v.at("aovs").text;
+    opt.aovs = aovs.empty() ? std::vector<std::string>() : OIIO::Strutil::splits(aovs, ",");
+    opt.tile = int(v.at("tile").integer);
+    opt.tol = v.at("tol").real;
+    opt.reltol = v.at("reltol").real;
+    opt.test = v.at("equivalence").integer ? TwoSampleTest::Equivalence : TwoSampleTest::Difference;
+    opt.referenceSpp = v.at("refspp").real;
+    return true;
 }
 
 }  // namespace mcstat

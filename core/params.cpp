@@ -1,6 +1,8 @@
 // Typed parameters and the one checked parser of values (include/mcstat/core/params.h).
 #include "mcstat/core/params.h"
 
+#include <OpenImageIO/strutil.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
@@ -218,6 +220,52 @@ bool parseParamValue(const std::string& context, const ParamSpec& s, const std::
     } while (start <= text.size());
     first.text = text;
     out = std::move(first);
+    return true;
+}
+
+/// At most 2 edits, or a third of the name for long ones: a slip of the keyboard.
+std::string nearestName(const std::string& name, const std::vector<std::string>& candidates) {
+    // Compared without case and leading dashes: "-gmon" and "--GMON" both mean --gmon, not --mon.
+    const auto key = [](const std::string& s) {
+        return OIIO::Strutil::lower(s.substr(std::min(s.find_first_not_of('-'), s.size())));
+    };
+    const std::string k = key(name);
+    std::string best;
+    size_t bestDistance = std::max<size_t>(2, k.size() / 3) + 1;
+    for (const std::string& c : candidates) {
+        const size_t d = OIIO::Strutil::edit_distance(k, key(c));
+        if (d < bestDistance) {
+            bestDistance = d;
+            best = c;
+        }
+    }
+    return best;
+}
+
+bool checkModifiers(const std::string& command, const std::vector<ParamSpec>& specs,
+                    std::map<std::string, std::string>& mods, std::string& err) {
+    for (const auto& [key, text] : mods) {
+        const ParamSpec* spec = nullptr;
+        for (const ParamSpec& p : specs)
+            if (p.name == key && !p.fixed) spec = &p;
+        if (spec == nullptr) {
+            std::vector<std::string> names;
+            for (const ParamSpec& p : specs)
+                if (!p.fixed) names.push_back(p.name);
+            const std::string near = nearestName(key, names);
+            err = command + " has no modifier '" + key + "'" +
+                  (near.empty() ? std::string() : " (did you mean " + near + "?)") + " (" +
+                  (names.empty() ? std::string("it takes none")
+                                 : "accepted: " + OIIO::Strutil::join(names, ", ")) +
+                  ")";
+            return false;
+        }
+        ParamValue value;
+        if (!parseParamValue(command, *spec, text, value, err)) return false;
+    }
+    for (const ParamSpec& p : specs)
+        if (!p.fixed && !p.defaultValue.empty() && !mods.count(p.name))
+            mods[p.name] = p.defaultValue;
     return true;
 }
 

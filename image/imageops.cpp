@@ -547,6 +547,18 @@ bool readsSamples(const Operation& op) { return op.input == InputKind::Samples; 
 
 bool hasDiagnostics(const Operation& op) { return op.input == InputKind::BufferMeans; }
 
+std::vector<ParamSpec> operationModifiers(const Operation& op) {
+    std::vector<ParamSpec> m;
+    for (const ParamSpec* p : op.settable()) m.push_back(*p);
+    if (hasDiagnostics(op))
+        m.push_back(flagParam("diag", "0", "1 appends channels gini, kept, excluded"));
+    if (!takesImage(op) && !readsSamples(op))
+        m.push_back(
+            flagParam("residual", "0",
+                      "1 appends residual.<channel> = mean - result for the beauty and every AOV"));
+    return m;
+}
+
 int smallestRobustM(const Operation& op, const ParamValues& values) {
     if (op.input != InputKind::BufferMeans) return 1;
     return op.bindPixel(values, {0.0, 0.0, 0.0}).smallestRobustM;

@@ -700,18 +700,11 @@ std::vector<Command> buildTable() {
          &cmdFrameOption,
          ""},
     };
-    // Every registry operation is a command; its modifiers are the operation's parameters.
+    // Every registry operation is a command; its modifiers are the operation's parameters (and
+    // diag, residual: operationModifiers).
     for (const Operation& op : operationRegistry()) {
-        Command c{"--" + op.name, 0, "", op.help, {}, &cmdOperation, op.name};
-        for (const ParamSpec* p : op.settable()) c.modifiers.push_back(*p);
-        if (hasDiagnostics(op))
-            c.modifiers.push_back(
-                flagParam("diag", "0", "1 appends channels gini, kept, excluded"));
-        if (!takesImage(op) && !readsSamples(op))
-            c.modifiers.push_back(flagParam(
-                "residual", "0",
-                "1 appends residual.<channel> = mean - result for the beauty and every AOV"));
-        t.push_back(c);
+        t.push_back(
+            {"--" + op.name, 0, "", op.help, operationModifiers(op), &cmdOperation, op.name});
     }
     t.push_back(
         {"--diff", 1, "REF",
@@ -750,56 +743,16 @@ std::vector<Command> buildTable() {
     return t;
 }
 
-/// The name among `candidates` nearest to `name` by edit distance, if near enough to be a slip of
-/// the keyboard (at most 2 edits, or a third of the name for long ones); "" otherwise.
-std::string nearestName(const std::string& name, const std::vector<std::string>& candidates) {
-    // Compared without case and leading dashes: "-gmon" and "--GMON" both mean --gmon, not --mon.
-    const auto key = [](const std::string& s) {
-        return OIIO::Strutil::lower(s.substr(std::min(s.find_first_not_of('-'), s.size())));
-    };
-    const std::string k = key(name);
-    std::string best;
-    size_t bestDistance = std::max<size_t>(2, k.size() / 3) + 1;
-    for (const std::string& c : candidates) {
-        const size_t d = OIIO::Strutil::edit_distance(k, key(c));
-        if (d < bestDistance) {
-            bestDistance = d;
-            best = c;
-        }
-    }
-    return best;
-}
-
 /// " (did you mean X?)" when a candidate is near `name`, else "".
 std::string didYouMean(const std::string& name, const std::vector<std::string>& candidates) {
     const std::string n = nearestName(name, candidates);
     return n.empty() ? std::string() : format(" (did you mean {}?)", n);
 }
 
-/// The one check of a command's modifiers: each must be one it declares, of its type and range
-/// (parseParamValue, the parser of the registry's parameters); then the defaults of those not
-/// given (an empty default: unset) are filled in, so that a command reads every value from `mods`.
+/// The one check of a command's modifiers (core/params.h), defaults filled in, so that a command
+/// reads every value from `mods`.
 bool checkModifiers(const Command& c, Modifiers& mods, std::string& err) {
-    for (const auto& [key, text] : mods) {
-        const ParamSpec* spec = nullptr;
-        for (const ParamSpec& p : c.modifiers)
-            if (p.name == key && !p.fixed) spec = &p;
-        if (spec == nullptr) {
-            std::vector<std::string> names;
-            for (const ParamSpec& p : c.modifiers)
-                if (!p.fixed) names.push_back(p.name);
-            err = format("{} has no modifier '{}'{} ({})", c.name, key, didYouMean(key, names),
-                         names.empty() ? std::string("it takes none")
-                                       : "accepted: " + OIIO::Strutil::join(names, ", "));
-            return false;
-        }
-        ParamValue value;
-        if (!parseParamValue(c.name, *spec, text, value, err)) return false;
-    }
-    for (const ParamSpec& p : c.modifiers)
-        if (!p.fixed && !p.defaultValue.empty() && !mods.count(p.name))
-            mods[p.name] = p.defaultValue;
-    return true;
+    return mcstat::checkModifiers(c.name, c.modifiers, mods, err);
 }
 
 const std::vector<Command>& table() {

@@ -18,66 +18,7 @@ namespace mcstat::cli {
 
 using OIIO::Strutil::fmt::format;
 
-const std::vector<ParamSpec>& compareModifiers() {
-    static const std::vector<ParamSpec> m = [] {
-        ParamSpec aovs = textParam("aovs", "",
-                                   "AOV channels to test too, each by itself: names or globs, "
-                                   "comma-separated (e.g. *_key.*)");
-        aovs.list = true;
-        return std::vector<ParamSpec>{
-            realParam("level", 0.0, 0.5, true, "0.01",
-                      "false discovery rate (or error rate, see control) of the verdict"),
-            enumParam("test", {"welch", "yuen"}, "welch",
-                      "welch: means; yuen: trimmed means, robust to fireflies"),
-            realParam("trim", 0.0, 0.45, false, "0.2", "yuen: fraction trimmed from each end"),
-            enumParam("control", {"fdr", "fwer", "none"}, "fdr",
-                      "fdr: Benjamini-Hochberg; fwer: Holm; none: each test alone"),
-            enumParam("channels", {"luminance", "rgb"}, "luminance", "what a pixel is tested on",
-                      {{"lum", "luminance"}, {"y", "luminance"}}),
-            aovs,
-            intParam("tile", 0, 4096, "16", "tile side for the tile tests; 0: pixels only"),
-            realParam("tol", 0.0, HUGE_VAL, false, "0", "absolute tolerance (image units)"),
-            realParam("reltol", 0.0, HUGE_VAL, false, "0",
-                      "relative tolerance (fraction of the pixel's value)"),
-            flagParam("equivalence", "0",
-                      "1: show agreement within the tolerance (two one-sided tests per tile)"),
-            realParam("refspp", 0.0, HUGE_VAL, false, "0",
-                      "image reference: its samples per pixel (0: exact)"),
-            textParam("layer", "", "image reference: its RGB layer (default: its beauty)"),
-        };
-    }();
-    return m;
-}
-
-namespace {
-
-/// The value of modifier `name` (checkModifiers filled in its default).
-ParamValue modifierValue(const Modifiers& mods, const std::string& name) {
-    return cli::modifierValue(compareModifiers(), mods, name);
-}
-
-bool compareOptions(const Modifiers& mods, CompareOptions& opt) {
-    opt.level = modifierValue(mods, "level").real;
-    opt.trimmed = modifierValue(mods, "test").text == "yuen";
-    opt.trim = modifierValue(mods, "trim").real;
-    const std::string control = modifierValue(mods, "control").text;
-    opt.control = control == "fwer"   ? Multiplicity::FWER
-                  : control == "none" ? Multiplicity::None
-                                      : Multiplicity::FDR;
-    opt.rgb = modifierValue(mods, "channels").text == "rgb";
-    const auto aovs = mods.find("aovs");
-    if (aovs != mods.end() && !aovs->second.empty())
-        opt.aovs = OIIO::Strutil::splits(aovs->second, ",");
-    opt.tile = int(modifierValue(mods, "tile").integer);
-    opt.tol = modifierValue(mods, "tol").real;
-    opt.reltol = modifierValue(mods, "reltol").real;
-    opt.test = modifierValue(mods, "equivalence").integer ? TwoSampleTest::Equivalence
-                                                          : TwoSampleTest::Difference;
-    opt.referenceSpp = modifierValue(mods, "refspp").real;
-    return true;
-}
-
-}  // namespace
+const std::vector<ParamSpec>& compareModifiers() { return compareParams(); }
 
 bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string>&,
                 const Modifiers& mods, std::string& err) {
@@ -110,7 +51,7 @@ bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string
         return false;
     }
     opt.nthreads = st.nthreads;
-    compareOptions(mods, opt);
+    if (!parseCompareOptions(mods, opt, err, cmd)) return false;
     const auto refspp = mods.find("refspp");
     if (a.isStats() && b.isStats() && refspp != mods.end() && refspp->second != "0") {
         err = format("{}: refspp is for an image reference; {} and {} are statistics files", cmd,

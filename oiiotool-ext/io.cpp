@@ -366,57 +366,12 @@ bool selectRGB(const OIIO::ImageBuf& src, const std::string& layer, const std::s
     return true;
 }
 
-std::vector<ParamSpec> ingestModifiers() {
-    std::vector<ParamSpec> m = {
-        textParam("layer", "",
-                  "the beauty layer, e.g. ViewLayer.Combined; default: plain R,G,B, else "
-                  "Blender's <ViewLayer>.Combined, else an AOV named RGBA/beauty/Ci/C"),
-        intParam("spp", 1, double(1 << 24), "",
-                 "samples per file; default: the files' metadata (mcstat:spp, samplesPerPixel, "
-                 "cycles.<ViewLayer>.samples)"),
-        textParam("colorspace", "",
-                  "the working space of untagged renders (no colorInteropID, chromaticities or "
-                  "oiio:ColorSpace): lin_rec709 (default), ACEScg, ACES2065-1, lin_p3d65, "
-                  "lin_rec2020 or their colorInteropID (docs/colour.md)"),
-        flagParam("aovs", "1",
-                  "1 keeps alpha, light groups, passes, data and ID mattes per sub-buffer "
-                  "(docs/aovs.md); 0 leaves out every channel but the beauty's R,G,B"),
-    };
-    for (const char* cls : {"alpha", "light", "data", "id"})
-        m.push_back(
-            textParam(cls, "",
-                      std::string("GLOB,...: the matching channels or layers are of class ") + cls +
-                          ", overriding the naming rules"));
-    return m;
-}
+std::vector<ParamSpec> ingestModifiers() { return ingestParams(); }
 
 bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>& args,
                const Modifiers& mods, std::string& err) {
-    // The values are checked and the defaults filled in by the command table (checkModifiers).
     IngestOptions opt;
-    for (const auto& [k, v] : mods) {
-        if (k == "layer") {
-            opt.layer = v;
-        } else if (k == "spp") {
-            int64_t n = 0;
-            parseIntegerText(v, n);
-            opt.spp = n;
-        } else if (k == "aovs") {
-            opt.aovs = v == "1";
-        } else if (k == "colorspace" && !v.empty()) {
-            const WorkingSpace* ws = findWorkingSpace(v);
-            if (!ws) {
-                err = format("{}: colorspace '{}' is unknown (known: {})", cmd, printable(v),
-                             knownWorkingSpaceNames());
-                return false;
-            }
-            opt.colorSpace = ws->name;
-        } else if (AovClass cls; parseAovClass(k, cls)) {
-            // :id=GLOB,GLOB  :data=...  :light=...  :alpha=...  (docs/aovs.md, "Classes")
-            for (const std::string& g : OIIO::Strutil::splits(v, ","))
-                if (!g.empty()) opt.classOverrides.emplace_back(g, cls);
-        }
-    }
+    if (!parseIngestOptions(mods, opt, err, cmd)) return false;
     std::vector<std::string> paths;
     if (!expandInputs(args[0], paths, err)) {
         err = format("{}: {}", cmd, err);

@@ -19,6 +19,8 @@ packages=(
   blender python3-numpy python3-openimageio  # tests/aovs: real Cycles renders through ingest, checked in Python
   graphviz                               # dot: docs/images/architecture.png is drawn from architecture.dot
   slurm-wlm munge                        # farm/: a shot's seeds as Slurm tasks (tests/farm runs a one-node cluster)
+  pybind11-dev python3-dev python3-pytest  # python/: the mcstat Python module and its pytest suite (Debian's python3)
+  python3-matplotlib                     # python/examples/plot_pixel.py plots a pixel's sub-buffers
 )
 
 missing=()

@@ -10,10 +10,12 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
 #include "mcstat/channel_naming.h"
+#include "mcstat/core/params.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat {
@@ -62,6 +64,15 @@ struct IngestOptions {
     /// the class it gets instead of classifyAov's.
     std::vector<std::pair<std::string, AovClass>> classOverrides;
 };
+
+/// `mcstat --ingest`'s modifiers (and Python's mcstat.ingest keyword arguments): layer, spp,
+/// colorspace, aovs, and the class overrides alpha, light, data, id (GLOB,...).
+const std::vector<ParamSpec>& ingestParams();
+/// Parses key=value modifiers (ingestParams()) into `opt`, each through the one parser
+/// (parseParamValue, `context` naming the command); an unknown key or colour space is a one-line
+/// error. Keys not given leave `opt` as it is.
+bool parseIngestOptions(const std::map<std::string, std::string>& kv, IngestOptions& opt,
+                        std::string& err, const std::string& context = "--ingest");
 
 /// What ingest found and warns about (the caller prints the warnings).
 struct IngestReport {

@@ -16,10 +16,12 @@
 
 #include <array>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
 #include "mcstat/analysis/two_sample.h"
+#include "mcstat/core/params.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat {
@@ -46,6 +48,16 @@ struct CompareOptions {
     int nthreads = 0;
     std::function<void(double)> progress;  ///< fraction done, or empty
 };
+
+/// The comparison's parameters as `mcstat --compare:key=value` and Python's mcstat.compare take
+/// them: level, test, trim, control, channels, aovs, tile, tol, reltol, equivalence, refspp, layer.
+const std::vector<ParamSpec>& compareParams();
+/// Parses key=value parameters (compareParams(), defaults for those not given) into `opt`; luma,
+/// nthreads and progress are left as they are. False with the one-line error of the one parser
+/// (parseParamValue, `context` naming the command) or for an unknown key. `layer` and `refspp`
+/// concern an image reference; the caller reads them from `kv`.
+bool parseCompareOptions(const std::map<std::string, std::string>& kv, CompareOptions& opt,
+                         std::string& err, const std::string& context = "--compare");
 
 /// One hypothesis worth reporting: where, on what, and what was found.
 struct CompareFinding {

@@ -61,6 +61,18 @@ std::string describeParam(const ParamSpec& spec);
 bool parseParamValue(const std::string& context, const ParamSpec& spec, const std::string& text,
                      ParamValue& out, std::string& err);
 
+/// The candidate nearest to `name` by edit distance (case and leading dashes ignored: "-gmon" and
+/// "--GMON" both mean --gmon), or "" when none is near: for "did you mean" suggestions.
+std::string nearestName(const std::string& name, const std::vector<std::string>& candidates);
+
+/// The one check of a command's modifiers (`mcstat --CMD:key=value`, and the keyword arguments of
+/// the Python module): each key must be one of `specs` that is not fixed, its value of its type
+/// and range (parseParamValue, context `command`); then the defaults of those not given (an empty
+/// default: unset) are filled into `mods`. False with one line: "--gmon has no modifier 'mdoe'
+/// (did you mean mode?) (accepted: mode, gini, diag, residual)", or parseParamValue's.
+bool checkModifiers(const std::string& command, const std::vector<ParamSpec>& specs,
+                    std::map<std::string, std::string>& mods, std::string& err);
+
 /// The low-level number syntax parseParamValue uses (and nothing else does): the whole text is a
 /// base-10 integer / a finite number, without surrounding spaces.
 bool parseIntegerText(const std::string& text, int64_t& out);

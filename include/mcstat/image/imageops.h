@@ -90,6 +90,10 @@ bool takesImage(const Operation& op);
 bool readsSamples(const Operation& op);
 /// - hasDiagnostics: applyOperation's `diagnostics` adds channels (gini, kept, excluded);
 bool hasDiagnostics(const Operation& op);
+/// - operationModifiers: the modifiers of `mcstat --OP` (and of Python's mcstat.estimate): its
+///   settable parameters, then `diag` when hasDiagnostics, `residual` unless it takes an image or
+///   reads samples (checkModifiers in core/params.h checks them);
+std::vector<ParamSpec> operationModifiers(const Operation& op);
 /// - smallestRobustM: the smallest M at which its result can differ from the plain mean (1: at
 ///   any M, and for operations that are not per-pixel estimators).
 int smallestRobustM(const Operation& op, const ParamValues& values);

@@ -1,0 +1,227 @@
+"""mcstat from Python: statistics files (.mcstat) as numpy arrays, every registry operation and
+the noise-aware comparison, each equal to the ``mcstat`` command line bit for bit
+(docs/python.md).
+
+    import mcstat
+    s = mcstat.read("scene.mcstat")           # s.mean (H, W, 3), s.buffers (H, W, M, 3), ...
+    img = mcstat.estimate(s, "gmon", mode="lum")  # (H, W, 3) float32, as `mcstat --gmon`
+    r = mcstat.compare("a.mcstat", "b.mcstat", test="yuen")
+    print(r.verdict, r.exit_code)
+
+Only numpy arrays, dicts, lists, str and numbers cross the boundary: no OpenImageIO or pybind11
+object is handed out, so the module mixes with OIIO's own bindings (pybind11 in 2.4, nanobind
+from 3.2) and with OpenEXR's.
+"""
+
+import numpy as np
+
+from . import _mcstat
+from ._mcstat import Error
+
+__all__ = ["Error", "Stats", "Image", "CompareResult", "read", "read_header", "blocks", "write",
+           "ingest", "estimate", "operations", "compare"]
+
+
+def _text(value):
+    """A keyword argument as the command line's modifier text (core/params.h parses it)."""
+    if isinstance(value, (bool, np.bool_)):
+        return "1" if value else "0"
+    if isinstance(value, (float, np.floating)):
+        return repr(float(value))
+    if isinstance(value, tuple):  # a size: (5, 5) -> "5x5"
+        return "x".join(_text(v) for v in value)
+    if isinstance(value, list):  # a list: [3, 5, 7] -> "3,5,7"
+        return ",".join(_text(v) for v in value)
+    return str(value)
+
+
+def _params(kwargs):
+    return {k: _text(v) for k, v in kwargs.items()}
+
+
+def _aov_dict(channels, aov):
+    """name -> view of the AOV array: channels named LAYER.X consecutively grouped as
+    (H, W, M, n) under LAYER, any other channel (H, W, M) under its own name."""
+    out = {}
+    i = 0
+    while aov is not None and i < len(channels):
+        layer = channels[i].rpartition(".")[0]
+        j = i + 1
+        if layer:
+            while j < len(channels) and channels[j].rpartition(".")[0] == layer:
+                j += 1
+            out[layer] = aov[..., i:j]
+        else:
+            out[channels[i]] = aov[..., i]
+        i = j
+    return out
+
+
+class Stats:
+    """A statistics image (a file read whole, an ingest, or one block of rows of a file).
+
+    mean     (H, W, 3) float32   the plain mean of every sample (part beauty)
+    buffers  (H, W, M, 3)        sub-buffer means; adaptive M and compact files: NaN where a
+                                 pixel holds fewer than M buffers (buffers_per_pixel says how many)
+    counts   (H, W, M)           samples per sub-buffer (0 where absent)
+    buffers_per_pixel (H, W) int32, adaptive layouts only (None for fixed M)
+    count    (H, W)              samples per pixel; variance (H, W, 3) their variance
+    aovs     dict                AOV name -> (H, W, M, n) or (H, W, M) (aov_channels: every name)
+    features dict                'N', 'P', 'Albedo' (H, W, 3), 'Z', 'A' (H, W): those the file holds
+    header   dict                M, spp, seeds, colour_space, width, height, data_window, ...
+
+    For a fixed-M file the arrays are views of the image mcstat holds (no copy): writing into
+    them changes what write() writes and what estimate() sees. Adaptive layouts' buffers, counts
+    and AOVs are padded copies.
+    """
+
+    def __init__(self, native, first_row=0):
+        self._native = native
+        self.name = native.name
+        self.header = native.header
+        self.first_row = first_row
+        a = native.arrays()
+        self.mean = a["mean"]
+        self.buffers = a["buffers"]
+        self.counts = a["counts"]
+        self.buffers_per_pixel = a.get("buffers_per_pixel")
+        self.count = a["count"]
+        self.variance = a["variance"]
+        self.spread = a["spread"]
+        held = set(filter(None, self.header["features"].split(",")))
+        self.features = {k: v for k, v in a["features"].items() if k in held and v is not None}
+        self.aov_channels = [c["name"] for c in self.header["aovs"]]
+        self.aov = a["aov"]
+        self.aovs = _aov_dict(self.aov_channels, self.aov)
+
+    @property
+    def M(self):
+        return self.header["M"]
+
+    @property
+    def shape(self):
+        return (self.header["height"], self.header["width"], self.header["M"])
+
+    def __repr__(self):
+        h = self.header
+        return "<mcstat.Stats {} {}x{} M={} spp={}>".format(self.name, h["width"], h["height"],
+                                                          h["M"], h["spp"])
+
+
+class Image(np.ndarray):
+    """An operation's result: the (H, W, 3) float32 R, G, B, with
+    channels     every channel name of the result, as `mcstat FILE --OP -o out.exr` writes them
+    all_channels (H, W, len(channels)): every channel
+    diagnostics  name -> (H, W): gini, kept, excluded (diag=True), the maps of other operations
+    aovs         name -> (H, W): the AOVs carried with the beauty's weights
+    residual     name -> (H, W): mean - robust of R, G, B and the AOVs (residual=True), else {}
+    """
+
+    def __array_finalize__(self, obj):
+        for name, default in (("channels", None), ("all_channels", None), ("diagnostics", None),
+                              ("aovs", None), ("residual", None)):
+            setattr(self, name, getattr(obj, name, default))
+
+
+def _image(channels, pixels, aov_names):
+    img = np.ascontiguousarray(pixels[..., :3]).view(Image)
+    img.channels = list(channels)
+    img.all_channels = pixels
+    img.diagnostics, img.aovs, img.residual = {}, {}, {}
+    aov_names = set(aov_names)
+    for i, c in enumerate(channels[3:], start=3):
+        if c.startswith("residual."):
+            img.residual[c[len("residual."):]] = pixels[..., i]
+        elif c in aov_names:
+            img.aovs[c] = pixels[..., i]
+        else:
+            img.diagnostics[c] = pixels[..., i]
+    return img
+
+
+def _source(s):
+    """A Stats' image, or a path (str or os.PathLike) to a statistics file."""
+    if isinstance(s, Stats):
+        return s._native
+    return str(s.__fspath__() if hasattr(s, "__fspath__") else s)
+
+
+def read(path):
+    """The statistics file `path` whole, validated (mcstat.Error with mcstat's one-line message)."""
+    return Stats(_mcstat._read(_source(path)))
+
+
+def read_header(path):
+    """The headers only (cheap): the dict Stats.header holds."""
+    return _mcstat._read_header(_source(path))
+
+
+def blocks(path, rows=64):
+    """Streams the statistics file `path` by blocks of `rows` rows (the last may be shorter):
+    yields Stats of those rows only (first_row says where they start), so that memory follows
+    the block and not the image."""
+    reader = _mcstat._BlockReader(_source(path))
+    height = reader.height
+    rows = max(1, int(rows))
+    for y in range(0, height, rows):
+        yield Stats(reader.read(y, min(rows, height - y)), first_row=y)
+
+
+def write(s, path):
+    """Writes the Stats `s` as the statistics file `path` (atomically: a temporary file renamed),
+    the same bytes `mcstat IN -o path` writes for the same image."""
+    _mcstat._write(s._native, _source(path))
+
+
+def ingest(paths, **modifiers):
+    """Renders of one image, one EXR per seed, as a Stats (one sub-buffer per file): `mcstat
+    --ingest:key=value PATTERN`. `paths`: a glob, a comma-separated list, or a list of either;
+    modifiers: layer, spp, colorspace, aovs and the class overrides alpha, light, data, id."""
+    if not isinstance(paths, str):
+        paths = ",".join(str(p) for p in paths)
+    return Stats(_mcstat._ingest(paths, _params(modifiers)))
+
+
+def operations():
+    """Every registry operation: name, title, help, its parameters (name, default, accepts)."""
+    return _mcstat._operations()
+
+
+def estimate(s, name="gmon", *, diag=False, residual=False, **params):
+    """Registry operation `name` over `s` (a Stats, or a path: a file is streamed by blocks of
+    rows; per-sample operations such as pajot and rpf need the path) with its parameters as
+    keyword arguments, parsed as `mcstat --NAME:key=value` parses them (True/False: 1/0, a tuple
+    (5, 5): 5x5, a list: comma-separated). Returns an Image: (H, W, 3) R, G, B, with the AOVs, the
+    diagnostics (diag=True) and the residual (residual=True) as attributes. Equal to `mcstat FILE
+    --NAME -o out.exr` bit for bit."""
+    src = _source(s)
+    header = s.header if isinstance(s, Stats) else read_header(src)
+    channels, pixels = _mcstat._estimate(src, name, _params(params), bool(diag), bool(residual))
+    return _image(channels, pixels, [c["name"] for c in header["aovs"]])
+
+
+class CompareResult:
+    """What `mcstat A B --compare` found: verdict (its line), fail, exit_code (0 same, 2
+    different, as the command's), evidence (its lines), the counts (pixels, pixels_tested,
+    pixels_differing, tiles, tiles_tested, tiles_differing, ...), strongest and strongest_tile
+    (dicts: x, y, quantity, a, b, p, z, difference, se) and maps (name -> (H, W): p, z, effect,
+    differs, tile.p, tile.z, tile.differs, per quantity)."""
+
+    def __init__(self, d):
+        channels, pixels = d.pop("maps")
+        self.maps = {c: pixels[..., i] for i, c in enumerate(channels)}
+        self.__dict__.update(d)
+        self.exit_code = 2 if self.fail else 0
+
+    def __bool__(self):
+        return not self.fail
+
+    def __repr__(self):
+        return "<mcstat.CompareResult {}>".format(self.verdict)
+
+
+def compare(a, b, **params):
+    """Are the renders `a` and `b` (Stats or paths) the same image up to their noise? `mcstat A B
+    --compare:key=value`: test ("welch", "yuen"), level, control, channels, aovs, tile, tol,
+    reltol, equivalence, trim. Returns a CompareResult."""
+    return CompareResult(_mcstat._compare(_source(a), _source(b), _params(params)))

@@ -1,0 +1,198 @@
+// Registry operations and the noise-aware comparison for Python, through the dispatcher the CLI
+// uses (image/imageops.h, analysis/compare.h): equal to `mcstat FILE --OP` bit for bit.
+#include "bindings.h"
+#include "mcstat/analysis/compare.h"
+#include "mcstat/filters/registry.h"
+#include "mcstat/image/imageops.h"
+
+namespace mcstat::python {
+
+namespace {
+
+const Operation& operationNamed(const std::string& name) {
+    const Operation* op = findOperation(name);
+    if (op != nullptr) return *op;
+    std::string names;
+    for (const Operation& o : operationRegistry()) names += (names.empty() ? "" : ", ") + o.name;
+    throw Error("unknown operation '" + name + "' (operations: " + names + ")");
+}
+
+py::list operations() {
+    py::list out;
+    for (const Operation& op : operationRegistry()) {
+        py::dict d;
+        d["name"] = op.name;
+        d["title"] = op.title;
+        d["help"] = op.help;
+        d["takes_image"] = takesImage(op);
+        d["reads_samples"] = readsSamples(op);
+        d["has_diagnostics"] = hasDiagnostics(op);
+        py::list params;
+        for (const ParamSpec& p : op.params) {
+            if (p.fixed) continue;
+            py::dict q;
+            q["name"] = p.name;
+            q["default"] = p.defaultValue;
+            q["accepts"] = describeParam(p);
+            q["help"] = p.help;
+            params.append(q);
+        }
+        d["params"] = params;
+        out.append(d);
+    }
+    return out;
+}
+
+/// A statistics source for Python: an image in memory (a handle) or a file streamed by blocks.
+struct Source {
+    std::shared_ptr<NativeStats> native;
+    std::string path;
+    std::unique_ptr<StatsBlockSource> stream;
+    StatsHeader header;
+    std::string name;
+
+    explicit Source(const py::object& obj) {
+        if (py::isinstance<NativeStats>(obj)) {
+            native = obj.cast<std::shared_ptr<NativeStats>>();
+            header = native->img->header;
+            name = native->name;
+        } else {
+            path = obj.cast<std::string>();
+            name = path;
+            std::string err;
+            py::gil_scoped_release release;
+            if (!checkStatsPath(path, err) || !readStatsHeader(path, header, err)) throw Error(err);
+        }
+    }
+    /// The block source (opened on first use, GIL released by the caller).
+    StatsBlockSource& blocks() {
+        if (!stream) {
+            if (native) {
+                stream = std::make_unique<MemoryStatsSource>(native->img, name);
+            } else {
+                auto reader = std::make_unique<StatsFileReader>();
+                std::string err;
+                if (!reader->open(path, err)) throw Error(err);
+                stream = std::move(reader);
+            }
+        }
+        return *stream;
+    }
+};
+
+py::tuple estimate(const py::object& src, const std::string& name,
+                   const std::map<std::string, std::string>& params, bool diag, bool residual) {
+    const Operation& op = operationNamed(name);
+    const std::string cmd = "--" + op.name;
+    Source in(src);
+    // As `mcstat --OP:key=value` checks its modifiers (diag and residual among them): its errors.
+    std::map<std::string, std::string> mods = params;
+    if (diag) mods["diag"] = "1";
+    if (residual) mods["residual"] = "1";
+    std::string err;
+    if (!checkModifiers(cmd, operationModifiers(op), mods, err)) throw Error(err);
+    mods.erase("diag");
+    mods.erase("residual");
+    ParamValues values;
+    if (!parseOperationParams(op, mods, values, err, cmd)) throw Error(err);
+    const std::array<double, 3> luma = lumaOf(in.header.colorSpace, in.name);
+    OIIO::ImageBuf img;
+    std::unique_ptr<Source> again;  // a file is streamed once more for the residual
+    if (residual && !in.native) again = std::make_unique<Source>(src);
+    {
+        py::gil_scoped_release release;
+        bool ok = false;
+        if (readsSamples(op)) {
+            if (in.path.empty())
+                throw Error(cmd + " reads the per-sample records of a statistics file on disk; " +
+                            in.name +
+                            " was computed (write it with mcstat.write and pass the path)");
+            ok = runSamplesOperation(img, in.path, in.header, op, values, luma);
+        } else if (in.native) {
+            ok = applyOperation(img, *in.native->img, op, values, luma, diag);
+        } else {
+            ok = applyOperation(img, in.blocks(), op, values, luma, diag);
+        }
+        if (!ok) throw Error(cmd + ": " + img.geterror());
+        if (residual) {
+            ok = in.native ? appendResidual(img, *in.native->img, luma)
+                           : appendResidual(img, again->blocks(), luma);
+            if (!ok) throw Error(cmd + ": " + img.geterror());
+        }
+    }
+    return imageArrays(img);
+}
+
+py::dict findingDict(const CompareFinding& f) {
+    py::dict d;
+    if (!f.valid) return d;
+    d["tile"] = f.tile;
+    d["x"] = f.x;
+    d["y"] = f.y;
+    d["quantity"] = f.quantity;
+    d["a"] = f.a;
+    d["b"] = f.b;
+    d["p"] = f.result.p;
+    d["z"] = f.result.z;
+    d["difference"] = f.result.difference;
+    d["se"] = f.result.se;
+    return d;
+}
+
+py::dict compare(const py::object& a, const py::object& b,
+                 const std::map<std::string, std::string>& params) {
+    Source sa(a), sb(b);
+    CompareOptions opt;
+    std::string err;
+    if (!parseCompareOptions(params, opt, err, "--compare")) throw Error(err);
+    const auto refspp = params.find("refspp");
+    if (refspp != params.end() && refspp->second != "0")
+        throw Error("--compare: refspp is for an image reference; " + sa.name + " and " + sb.name +
+                    " are statistics files");
+    if (sa.header.colorSpace != sb.header.colorSpace)
+        throw Error("--compare: " + sa.name + " is in " + sa.header.colorSpace + " but " + sb.name +
+                    " is in " + sb.header.colorSpace);
+    opt.luma = lumaOf(sa.header.colorSpace, sa.name);
+    CompareResult r;
+    {
+        py::gil_scoped_release release;
+        if (!compareStats(sa.blocks(), sb.blocks(), opt, r, err)) throw Error("--compare: " + err);
+    }
+    py::dict d;
+    d["verdict"] = compareVerdict(r, opt);
+    d["evidence"] = py::cast(compareEvidence(r, opt));
+    d["fail"] = r.fail;
+    d["identical"] = r.identical;
+    d["quantities"] = py::cast(r.quantities);
+    d["Ma"] = r.Ma;
+    d["Mb"] = r.Mb;
+    d["tile"] = r.tile;
+    d["pixels"] = r.pixels;
+    d["pixels_tested"] = r.pixelsTested;
+    d["pixels_differing"] = r.pixelsRejected;
+    d["tiles"] = r.tiles;
+    d["tiles_tested"] = r.tilesTested;
+    d["tiles_differing"] = r.tilesRejected;
+    d["non_finite_one_side"] = r.nonFiniteOneSide;
+    d["non_finite_both"] = r.nonFiniteBoth;
+    d["few_buffers"] = r.fewBuffers;
+    d["constant_equal"] = r.constantEqual;
+    d["hypotheses"] = r.hypotheses;
+    d["threshold"] = r.threshold;
+    d["tile_threshold"] = r.tileThreshold;
+    d["strongest"] = findingDict(r.strongest);
+    d["strongest_tile"] = findingDict(r.strongestTile);
+    d["maps"] = imageArrays(r.maps);
+    return d;
+}
+
+}  // namespace
+
+void bindOperations(py::module_& m) {
+    m.def("_operations", &operations);
+    m.def("_estimate", &estimate, py::arg("src"), py::arg("name"), py::arg("params"),
+          py::arg("diag"), py::arg("residual"));
+    m.def("_compare", &compare, py::arg("a"), py::arg("b"), py::arg("params"));
+}
+
+}  // namespace mcstat::python
