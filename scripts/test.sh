@@ -14,8 +14,13 @@ ctest --test-dir build --output-on-failure -j2
 # 16 s for analysis/compare.cpp), which keeps CI within its 30 minutes.
 scripts/build.sh build-asan -DMCSTAT_WERROR=ON -DMCSTAT_SANITIZE=ON -DMCSTAT_BUILD_BENCHMARKS=OFF \
   -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG"
+# Left out under the sanitizers besides the `slow` label: three tests whose code every other test
+# of their suite runs too, and which measure bytes or statistics over many runs (28, 23 and 15 s
+# under ASan); the normal suite above runs them. CI's whole run stayed within 30 minutes by 15 s
+# without this (29 min 47 s on 2026-11-27).
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-  ctest --test-dir build-asan --output-on-failure -j2 -LE slow
+  ctest --test-dir build-asan --output-on-failure -j2 -LE slow \
+  -E '^(MergeN\.SixtyFourFilesGiveTheSameBytesInAnyOrder|CompareCli\.FalseAlarmsOverSeedPairsStayNearTheLevel|RpfFile\.BeatsTheInputOnDepthOfField)$'
 
 # Coverage-guided fuzzing, bounded: the six targets at once for 60 s of wall time (tests/fuzz/).
 scripts/fuzz.sh "${MCSTAT_FUZZ_SECONDS:-60}"
