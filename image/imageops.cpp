@@ -7,12 +7,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <memory>
 
 #include "mcstat/color.h"
 #include "mcstat/core/colour_space.h"
 #include "mcstat/filters/aov_weights.h"
-#include "mcstat/filters/window/filter3d.h"
-#include "mcstat/filters/window/mif.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/sample_records.h"
 
@@ -25,26 +24,26 @@ using OIIO::TypeDesc;
 
 namespace {
 
-/// Fills `dst` (an RGB float image already reset to `roi`, then `A` AOV channels) in parallel:
-/// `pixel(x, y, e, scratch)` computes each output pixel; every chunk of work has its own scratch,
-/// so threads share nothing. With A > 0 the filter leaves its weighted elements in the scratch
-/// (SpatialScratch::wantWeights) and `aovOf(scratch, element, buffer)` points at an element's A
-/// values, to which those weights are applied (docs/aovs.md).
-template <class PixelFn, class AovOf>
+/// Fills `dst` (an RGB float image already reset to `roi`, then `A` AOV channels) in parallel with
+/// a window kernel's pass: image pixel (x, y) is the pass's pixel (x - ox, y - oy). Every chunk of
+/// work has its own scratch, so threads share nothing. With A > 0 the pass leaves its weighted
+/// elements in the scratch (WindowScratch::wantWeights) and `aovOf(scratch, element, buffer)`
+/// points at an element's A values, to which those weights are applied (docs/aovs.md).
+template <class AovOf>
 void fillFiltered(ImageBuf& dst, ROI roi, int nthreads, size_t A, const AovClass* classes,
-                  PixelFn pixel, AovOf aovOf) {
+                  const WindowPass& pass, int ox, int oy, AovOf aovOf) {
     float* const base = static_cast<float*>(dst.localpixels());
     const size_t nch = 3 + A;
     OIIO::ImageBufAlgo::parallel_image(roi, nthreads, [&](ROI r) {
-        SpatialScratch scratch;
-        scratch.wantWeights = A > 0;
+        const std::unique_ptr<WindowScratch> scratch = pass.newScratch();
+        scratch->wantWeights = A > 0;
         PixelEstimate e;
         AovScratch as;
         std::vector<double> w;
         std::vector<float> values;
         for (int y = r.ybegin; y < r.yend; ++y)
             for (int x = r.xbegin; x < r.xend; ++x) {
-                pixel(x, y, e, scratch);
+                pass.filterPixel(x - ox, y - oy, e, *scratch);
                 float* px =
                     base +
                     (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
@@ -54,22 +53,14 @@ void fillFiltered(ImageBuf& dst, ROI roi, int nthreads, size_t A, const AovClass
                 if (A == 0) continue;
                 w.clear();
                 values.clear();
-                for (const auto& el : scratch.weights) {
+                for (const auto& el : scratch->weights) {
                     w.push_back(el.weight);
-                    const float* v = aovOf(scratch, el.element, el.buffer);
+                    const float* v = aovOf(*scratch, el.element, el.buffer);
                     values.insert(values.end(), v, v + A);
                 }
                 applyAovWeights(w.data(), w.size(), values.data(), A, classes, px + 3, as);
             }
     });
-}
-
-/// fillFiltered without AOVs (no element is ever looked up).
-template <class PixelFn>
-void fillRGB(ImageBuf& dst, ROI roi, int nthreads, PixelFn pixel) {
-    static const float kNoAov = 0.f;
-    fillFiltered(dst, roi, nthreads, 0, nullptr, pixel,
-                 [](const SpatialScratch&, int, int) { return &kNoAov; });
 }
 
 }  // namespace
@@ -238,16 +229,14 @@ ImageSpec rgbSpec(ROI roi, ROI full, const std::string& colorSpace) {
 
 }  // namespace
 
-bool medianImageFilter(ImageBuf& dst, const ImageBuf& src, const SpatialParams& params, ROI roi,
-                       int nthreads) {
-    std::string err;
-    if (!validateSpatialParams(params, err)) {
-        dst.errorfmt("median image filter: {}", err);
+bool windowFilter(ImageBuf& dst, const ImageBuf& src, const WindowKernel& kernel, ROI roi,
+                  int nthreads) {
+    if (kernel.over != Neighbourhood::Image) {
+        dst.errorfmt("{}: filters the sub-buffers of a statistics file, not an image", kernel.name);
         return false;
     }
     if (src.nchannels() < 3) {
-        dst.errorfmt("median image filter needs R, G, B channels; the image has {}",
-                     src.nchannels());
+        dst.errorfmt("{} needs R, G, B channels; the image has {}", kernel.name, src.nchannels());
         return false;
     }
     const ROI full = src.roi();  // the data window: what the filter window is clipped to
@@ -255,32 +244,40 @@ bool medianImageFilter(ImageBuf& dst, const ImageBuf& src, const SpatialParams& 
     std::vector<float> in(size_t(full.width()) * size_t(full.height()) * 3);
     if (!src.get_pixels(ROI(full.xbegin, full.xend, full.ybegin, full.yend, 0, 1, 0, 3),
                         TypeDesc::FLOAT, in.data())) {
-        dst.errorfmt("median image filter: {}", src.geterror());
+        dst.errorfmt("{}: {}", kernel.name, src.geterror());
+        return false;
+    }
+    const RGBImageView view{in.data(), full.width(), full.height()};
+    std::string err;
+    const std::unique_ptr<WindowPass> pass = kernel.begin(
+        WindowInput{&view, nullptr}, roi.xbegin - full.xbegin, roi.ybegin - full.ybegin,
+        roi.xend - full.xbegin, roi.yend - full.ybegin, nthreads, err);
+    if (!pass) {
+        dst.errorfmt("{}: {}", kernel.name, err);
         return false;
     }
     std::string colorSpace = src.spec().get_string_attribute("oiio:ColorSpace", "lin_rec709");
-    const RGBImageView view{in.data(), full.width(), full.height()};
     int firstAov = 0;
     std::vector<AovClass> classes;
     if (!imageAovs(src.spec(), firstAov, classes)) {
         dst.reset(rgbSpec(roi, src.roi_full(), colorSpace), OIIO::InitializePixels::No);
-        fillRGB(dst, roi, nthreads, [&](int x, int y, PixelEstimate& e, SpatialScratch& scratch) {
-            wmifPixel(view, x - full.xbegin, y - full.ybegin, params, e, scratch);
-        });
+        static const float kNoAov = 0.f;  // never read: no AOV channel
+        fillFiltered(dst, roi, nthreads, 0, nullptr, *pass, full.xbegin, full.ybegin,
+                     [](const WindowScratch&, int, int) { return &kNoAov; });
         return true;
     }
     // AOVs (docs/aovs.md): the window pixels' weights, from the beauty, applied to each.
-    if (params.mode != EstimatorMode::Luminance) {
+    if (kernel.mode != EstimatorMode::Luminance) {
         dst.errorfmt(
-            "median image filter: mode=channel keeps different pixels for R, G and B, so no one "
-            "weight per pixel exists for the image's {} AOV channels; use mode=lum",
-            classes.size());
+            "{}: mode=channel keeps different pixels for R, G and B, so no one weight per pixel "
+            "exists for the image's {} AOV channels; use mode=lum",
+            kernel.name, classes.size());
         return false;
     }
     const size_t A = classes.size(), nch = size_t(src.nchannels());
     std::vector<float> all(size_t(full.width()) * size_t(full.height()) * nch);
     if (!src.get_pixels(full, TypeDesc::FLOAT, all.data())) {
-        dst.errorfmt("median image filter: {}", src.geterror());
+        dst.errorfmt("{}: {}", kernel.name, src.geterror());
         return false;
     }
     ImageSpec spec = rgbSpec(roi, src.roi_full(), colorSpace);
@@ -296,59 +293,48 @@ bool medianImageFilter(ImageBuf& dst, const ImageBuf& src, const SpatialParams& 
     spec.attribute(kAttrFirstAov, 3);
     spec.attribute(kAttrAovClasses, src.spec().get_string_attribute(kAttrAovClasses));
     dst.reset(spec, OIIO::InitializePixels::No);
-    fillFiltered(
-        dst, roi, nthreads, A, classes.data(),
-        [&](int x, int y, PixelEstimate& e, SpatialScratch& scratch) {
-            wmifPixel(view, x - full.xbegin, y - full.ybegin, params, e, scratch);
-        },
-        [&](const SpatialScratch& scratch, int element, int) {
-            const auto [xx, yy] = scratch.source[size_t(element)];
-            return all.data() + (size_t(yy) * size_t(full.width()) + size_t(xx)) * nch +
-                   size_t(firstAov);
-        });
+    fillFiltered(dst, roi, nthreads, A, classes.data(), *pass, full.xbegin, full.ybegin,
+                 [&](const WindowScratch& scratch, int element, int) {
+                     const auto [xx, yy] = scratch.source[size_t(element)];
+                     return all.data() + (size_t(yy) * size_t(full.width()) + size_t(xx)) * nch +
+                            size_t(firstAov);
+                 });
     return true;
 }
 
-ImageBuf medianImageFilter(const ImageBuf& src, const SpatialParams& params, ROI roi,
-                           int nthreads) {
+ImageBuf windowFilter(const ImageBuf& src, const WindowKernel& kernel, ROI roi, int nthreads) {
     ImageBuf dst;
-    medianImageFilter(dst, src, params, roi, nthreads);
+    windowFilter(dst, src, kernel, roi, nthreads);
     return dst;
 }
 
-bool filter3D(ImageBuf& dst, const StatsImage& src, const SpatialParams& params, ROI roi,
-              int nthreads) {
+bool windowFilter(ImageBuf& dst, const StatsImage& src, const WindowKernel& kernel, ROI roi,
+                  int nthreads) {
     const StatsHeader& h = src.header;
-    std::string err;
-    if (!validateSpatialParams(params, err)) {
-        dst.errorfmt("3D filter: {}", err);
+    if (kernel.over != Neighbourhood::SubBuffers) {
+        dst.errorfmt("{}: filters an image, not the sub-buffers of a statistics file", kernel.name);
         return false;
     }
     // Fixed or adaptive M: the view hands each pixel's own buffers (StatsImage::pixelBuffers).
     if (std::string why; !src.checkBufferLayout(why)) {
-        dst.errorfmt("3D filter: statistics image has inconsistent buffer arrays ({})", why);
+        dst.errorfmt("{}: statistics image has inconsistent buffer arrays ({})", kernel.name, why);
         return false;
     }
     const ROI full = dataWindowROI(h);
     roi = prepareRoi(roi, full);
     const size_t A = h.aovs.size();
-    if (A > 0) {
-        if (src.aov.size() != src.bufferCount.size() * A) {
-            dst.errorfmt("3D filter: statistics image has {} AOV values for {} AOV channels",
-                         src.aov.size(), A);
-            return false;
-        }
-        if (params.mode != EstimatorMode::Luminance) {
-            dst.errorfmt(
-                "3D filter: mode=channel keeps different sub-buffers for R, G and B, so no one "
-                "weight per sub-buffer exists for the file's {} AOV channels (they would stop "
-                "adding up to the beauty); use mode=lum",
-                A);
-            return false;
-        }
-        dst.reset(aovResultSpec(roi, h, h.colorSpace), OIIO::InitializePixels::No);
-    } else {
-        dst.reset(floatSpec(roi, {"R", "G", "B"}, h), OIIO::InitializePixels::No);
+    if (A > 0 && src.aov.size() != src.bufferCount.size() * A) {
+        dst.errorfmt("{}: statistics image has {} AOV values for {} AOV channels", kernel.name,
+                     src.aov.size(), A);
+        return false;
+    }
+    if (A > 0 && kernel.mode != EstimatorMode::Luminance) {
+        dst.errorfmt(
+            "{}: mode=channel keeps different sub-buffers for R, G and B, so no one weight per "
+            "sub-buffer exists for the file's {} AOV channels (they would stop adding up to the "
+            "beauty); use mode=lum",
+            kernel.name, A);
+        return false;
     }
     // Adaptive M: a pixel's M_p buffers hold n / M_p samples each next to one-buffer pixels of n,
     // so every sample votes once (BufferVotes::PerSample); fixed M: one vote per buffer (eq. 5.19).
@@ -359,45 +345,32 @@ bool filter3D(ImageBuf& dst, const StatsImage& src, const SpatialParams& params,
             return img->pixelBuffers(size_t(y) * size_t(img->header.width) + size_t(x));
         },
         h.adaptiveM ? BufferVotes::PerSample : BufferVotes::PerBuffer};
-    // Eq. 5.24: sort each pixel's buffers once (the ROI grown by the window radius, clipped to the
-    // data window), then every output pixel merges its window's sorted lists. Both passes split the
-    // image over threads; each pixel's ranking and each output pixel depend on nothing else, so the
-    // result does not depend on the thread count.
-    const int rx = params.windowWidth / 2, ry = params.windowHeight / 2;
-    const int gx0 = std::max(0, roi.xbegin - h.originX - rx);
-    const int gx1 = std::min(h.width, roi.xend - h.originX + rx);
-    const int gy0 = std::max(0, roi.ybegin - h.originY - ry);
-    const int gy1 = std::min(h.height, roi.yend - h.originY + ry);
-    RankedBufferGrid grid;
-    grid.reset(view, params, gx0, gy0, gx1, gy1);
-    if (gx1 > gx0 && gy1 > gy0)
-        OIIO::ImageBufAlgo::parallel_image(
-            ROI(gx0 + h.originX, gx1 + h.originX, gy0 + h.originY, gy1 + h.originY), nthreads,
-            [&](ROI r) {
-                SpatialScratch scratch;
-                grid.sortRect(r.xbegin - h.originX, r.ybegin - h.originY, r.xend - h.originX,
-                              r.yend - h.originY, scratch);
-            });
+    std::string err;
+    const std::unique_ptr<WindowPass> pass =
+        kernel.begin(WindowInput{nullptr, &view}, roi.xbegin - h.originX, roi.ybegin - h.originY,
+                     roi.xend - h.originX, roi.yend - h.originY, nthreads, err);
+    if (!pass) {
+        dst.errorfmt("{}: {}", kernel.name, err);
+        return false;
+    }
+    dst.reset(A > 0 ? aovResultSpec(roi, h, h.colorSpace) : floatSpec(roi, {"R", "G", "B"}, h),
+              OIIO::InitializePixels::No);
     // AOVs (docs/aovs.md): every (window pixel, sub-buffer) keeps the weight it had in the
     // beauty's trimmed average.
     const std::vector<AovClass> classes = aovClasses(h.aovs);
-    fillFiltered(
-        dst, roi, nthreads, A, classes.data(),
-        [&](int x, int y, PixelEstimate& e, SpatialScratch& scratch) {
-            grid.filterPixel(x - h.originX, y - h.originY, e, scratch);
-        },
-        [&](const SpatialScratch& scratch, int list, int buffer) {
-            const auto [xx, yy] = scratch.source[size_t(list)];
-            const size_t k =
-                src.bufferBegin(size_t(yy) * size_t(h.width) + size_t(xx)) + size_t(buffer);
-            return src.aov.data() + k * A;
-        });
+    fillFiltered(dst, roi, nthreads, A, classes.data(), *pass, h.originX, h.originY,
+                 [&](const WindowScratch& scratch, int list, int buffer) {
+                     const auto [xx, yy] = scratch.source[size_t(list)];
+                     const size_t k = src.bufferBegin(size_t(yy) * size_t(h.width) + size_t(xx)) +
+                                      size_t(buffer);
+                     return src.aov.data() + k * A;
+                 });
     return true;
 }
 
-ImageBuf filter3D(const StatsImage& src, const SpatialParams& params, ROI roi, int nthreads) {
+ImageBuf windowFilter(const StatsImage& src, const WindowKernel& kernel, ROI roi, int nthreads) {
     ImageBuf dst;
-    filter3D(dst, src, params, roi, nthreads);
+    windowFilter(dst, src, kernel, roi, nthreads);
     return dst;
 }
 
@@ -416,7 +389,7 @@ bool plainMean(ImageBuf& dst, Source& src, const std::array<double, 3>& luma, RO
 }
 
 /// applyOperation over an image in memory or a streamed source: the same calls, each with its
-/// own overloads of estimate() and filter3D().
+/// own overloads of estimate() and windowFilter().
 template <class Source>
 bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const ParamValues& values,
                       const std::array<double, 3>& luma, bool diagnostics, ROI roi, int nthreads) {
@@ -425,9 +398,8 @@ bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const Par
             return estimate(dst, src, op, op.bindPixel(values, luma), diagnostics, roi, nthreads);
         case InputKind::Neighbourhood: {
             const WindowKernel kernel = op.bindWindow(values, luma);
-            const SpatialParams& params = *kernel.params;
             if (kernel.over == Neighbourhood::SubBuffers)
-                return filter3D(dst, src, params, roi, nthreads);
+                return windowFilter(dst, src, kernel, roi, nthreads);
             if (kernel.over == Neighbourhood::Image) {
                 // The plain mean as the "mean" estimator computes it (`mcstat f --mean --mif`)
                 // over roi grown by the window's radius (clipped to the data window), then the
@@ -443,7 +415,7 @@ bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const Par
                     dst.errorfmt("{}: {}", op.name, mean.geterror());
                     return false;
                 }
-                return medianImageFilter(dst, mean, params, roi, nthreads);
+                return windowFilter(dst, mean, kernel, roi, nthreads);
             }
             break;
         }
@@ -536,7 +508,7 @@ bool applyOperation(ImageBuf& dst, const ImageBuf& src, const Operation& op,
         dst.errorfmt("{} works on a statistics file, not on an image", op.name);
         return false;
     }
-    return medianImageFilter(dst, src, *op.bindWindow(values, luma).params, roi, nthreads);
+    return windowFilter(dst, src, op.bindWindow(values, luma), roi, nthreads);
 }
 
 bool takesImage(const Operation& op) {

@@ -11,7 +11,6 @@
 #include <future>
 #include <vector>
 
-#include "mcstat/filters/window/filter3d.h"
 #include "mcstat/image/imageops.h"
 
 namespace mcstat {
@@ -134,29 +133,28 @@ ImageBuf estimate(StatsBlockSource& src, const Operation& est, const PixelKernel
     return dst;
 }
 
-bool filter3D(ImageBuf& dst, StatsBlockSource& src, const SpatialParams& params, ROI roi,
-              int nthreads) {
+bool windowFilter(ImageBuf& dst, StatsBlockSource& src, const WindowKernel& kernel, ROI roi,
+                  int nthreads) {
     dst.clear();
     if (!src.ready()) {
-        dst.errorfmt("3D filter: the source holds no image");
+        dst.errorfmt("{}: the source holds no image", kernel.name);
         return false;
     }
-    std::string err;
-    if (!validateSpatialParams(params, err)) {
-        dst.errorfmt("3D filter: {}", err);
+    if (kernel.over != Neighbourhood::SubBuffers) {
+        dst.errorfmt("{}: filters an image, not the sub-buffers of a statistics file", kernel.name);
         return false;
     }
     // The halo re-decodes up to two chunks per block: a larger block keeps that small.
     const unsigned parts = kStatsPartBuffers | (src.header().aovs.empty() ? 0u : kStatsPartAovs);
-    return forEachBlock(dst, src, roi, params.windowHeight / 2, parts, 4 * kStreamBlockBytes,
-                        "3D filter", [&](ImageBuf& out, const StatsImage& block, ROI rows) {
-                            return filter3D(out, block, params, rows, nthreads);
+    return forEachBlock(dst, src, roi, kernel.haloY(), parts, 4 * kStreamBlockBytes,
+                        kernel.name.c_str(), [&](ImageBuf& out, const StatsImage& block, ROI rows) {
+                            return windowFilter(out, block, kernel, rows, nthreads);
                         });
 }
 
-ImageBuf filter3D(StatsBlockSource& src, const SpatialParams& params, ROI roi, int nthreads) {
+ImageBuf windowFilter(StatsBlockSource& src, const WindowKernel& kernel, ROI roi, int nthreads) {
     ImageBuf dst;
-    filter3D(dst, src, params, roi, nthreads);
+    windowFilter(dst, src, kernel, roi, nthreads);
     return dst;
 }
 

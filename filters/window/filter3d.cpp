@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "mcstat/core/colour_space.h"
+#include "mcstat/filters/window/window_kernel.h"
 #include "mcstat/stats_file.h"  // kMaxBuffers, for the overflow bound below
 
 namespace mcstat {

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "mcstat/filters/window/window_kernel.h"
+
 namespace mcstat {
 
 void wmifPixel(const RGBImageView& img, int x, int y, const SpatialParams& p, PixelEstimate& out,

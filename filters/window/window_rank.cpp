@@ -173,13 +173,4 @@ SpatialParams spatialParams(const ParamValues& values, const std::array<double, 
     return p;
 }
 
-WindowKernel windowKernel(Neighbourhood over, const SpatialParams& params) {
-    WindowKernel k;
-    k.over = over;
-    k.params = std::make_shared<const SpatialParams>(params);
-    k.halo[0] = params.windowWidth / 2;
-    k.halo[1] = params.windowHeight / 2;
-    return k;
-}
-
 }  // namespace mcstat

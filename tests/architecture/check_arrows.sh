@@ -56,11 +56,11 @@ rule compact "$format|filters/.+\.h|compact/compact\.h" compact include/mcstat/c
 rule measures "$core|analysis/(metrics|planner|two_sample)\.h" analysis/metrics.cpp \
   analysis/planner.cpp analysis/two_sample.cpp include/mcstat/analysis/metrics.h \
   include/mcstat/analysis/planner.h include/mcstat/analysis/two_sample.h
-# Layer 3: the specs of images (below the operations), then the image layer; no tool, no ingest,
-# no review.
+# Layer 3: the specs of images (below the operations), then the image layer, which runs every
+# operation through its kernel and names no family; no tool, no ingest, no review.
 rule imagespec "$format|image/(image_spec|render_layout)\.h" image/image_spec.cpp \
   image/render_layout.cpp include/mcstat/image/image_spec.h include/mcstat/image/render_layout.h
-rule image "$format|filters/(operation|estimate|registry|aov_weights|window/[a-z_0-9]+)\.h|image/[a-z_]+\.h|color\.h|analysis/metrics\.h" \
+rule image "$format|filters/(operation|estimate|registry|aov_weights)\.h|image/[a-z_]+\.h|color\.h|analysis/metrics\.h" \
   image include/mcstat/image
 # Layer 4: ingest reads renderers' EXRs through the codec, never the format's private headers,
 # and sets up images through the spec library, not the operations.

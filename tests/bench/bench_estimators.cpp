@@ -15,7 +15,6 @@
 
 #include "mcstat/color.h"
 #include "mcstat/filters/registry.h"
-#include "mcstat/filters/window/window_rank.h"
 #include "mcstat/image/imageops.h"
 
 using namespace mcstat;
@@ -91,20 +90,19 @@ void BM_Neighbourhood(benchmark::State& state, const Operation* op, EstimatorMod
                       bool withMPE) {
     const StatsImage& img = syntheticImage(int(state.range(0)));
     const WindowKernel window = op->bindWindow(defaults(*op, mode), lumaCoefficients());
-    const SpatialParams& p = *window.params;
     OIIO::ImageBuf out;
     if (window.over == Neighbourhood::SubBuffers) {
         for (auto _ : state) {
-            filter3D(out, img, p, {}, 1);
+            windowFilter(out, img, window, {}, 1);
             benchmark::DoNotOptimize(out.localpixels());
         }
     } else {
         const Operation& est = *findOperation(withMPE ? "median" : "mean");
-        const PixelKernel kernel = est.bindPixel(defaults(est, mode), p.luma);
+        const PixelKernel kernel = est.bindPixel(defaults(est, mode), lumaCoefficients());
         OIIO::ImageBuf src = estimate(img, est, kernel, false, {}, 1);
         for (auto _ : state) {
             if (withMPE) estimate(src, img, est, kernel, false, {}, 1);
-            medianImageFilter(out, src, p, {}, 1);
+            windowFilter(out, src, window, {}, 1);
             benchmark::DoNotOptimize(out.localpixels());
         }
     }

@@ -12,6 +12,7 @@
 #include "mcstat/filters/pixel/myriad.h"
 #include "mcstat/filters/pixel/tmpe.h"
 #include "mcstat/filters/registry.h"
+#include "mcstat/filters/window/window_rank.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
@@ -209,7 +210,27 @@ TEST(Operations, EveryKernelBindsItsDefaults) {
             EXPECT_EQ(k.over, op.over) << op.name;
             EXPECT_EQ(k.haloX(), int(v.at("size").integer) / 2) << op.name;
             EXPECT_EQ(k.haloY(), int(v.at("size").integer2) / 2) << op.name;
-            EXPECT_TRUE(validateSpatialParams(*k.params, err)) << op.name << ": " << err;
+            // its defaults prepare a pass over a one-pixel input of its kind
+            const float rgb[3] = {1.f, 2.f, 3.f}, n[1] = {1.f};
+            const RGBImageView image{rgb, 1, 1};
+            const PixelBuffers one{rgb, n, 1};
+            const BufferView buffers{1, 1, &one, [](const void* c, int, int) {
+                                         return *static_cast<const PixelBuffers*>(c);
+                                     }};
+            const WindowInput in = k.over == Neighbourhood::Image ? WindowInput{&image, nullptr}
+                                                                  : WindowInput{nullptr, &buffers};
+            const auto pass = k.begin(in, 0, 0, 1, 1, 1, err);
+            ASSERT_TRUE(pass) << op.name << ": " << err;
+            const auto scratch = pass->newScratch();
+            PixelEstimate e;
+            pass->filterPixel(0, 0, e, *scratch);
+            EXPECT_EQ(e.rgb, (std::array<float, 3>{1.f, 2.f, 3.f})) << op.name;
+            // and refuse an input of the other kind in one line
+            const WindowInput other = k.over == Neighbourhood::Image
+                                          ? WindowInput{nullptr, &buffers}
+                                          : WindowInput{&image, nullptr};
+            EXPECT_FALSE(k.begin(other, 0, 0, 1, 1, 1, err)) << op.name;
+            EXPECT_FALSE(err.empty()) << op.name;
         }
     }
 }

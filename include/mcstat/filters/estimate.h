@@ -1,9 +1,11 @@
 // What every operation's kernel computes with (operation.h): how it treats colour, the estimate
-// of one output pixel with its diagnostics, and the per-thread scratch of a per-pixel kernel.
+// of one output pixel with its diagnostics, and the per-thread scratch of a per-pixel kernel and
+// of a window kernel's pass.
 // Shared by every family (filters/pixel, filters/window) without one reaching into another.
 #pragma once
 
 #include <array>
+#include <utility>
 #include <vector>
 
 namespace mcstat {
@@ -40,6 +42,26 @@ struct EstimatorScratch {
     /// no such weights exist: bufferWeight is left empty.
     bool wantWeights = false;
     std::vector<double> bufferWeight;
+};
+
+/// Per-thread scratch of a window kernel's pass (operation.h: WindowPass). The family derives its
+/// own scratch from it; the image layer reads only the weights it asked for. AOVs (docs/aovs.md),
+/// luminance mode: with wantWeights set by the caller, a filtered pixel leaves in `weights` every
+/// element that entered its average with its share (the shares sum to 1). An element is a window
+/// pixel source[element] (over an image: buffer -1) or buffer `buffer` of the window pixel
+/// source[element] (over sub-buffers). Empty in channel mode, where R, G and B keep different
+/// elements. `source` (window pixels, coordinates of the pass's input) is filled whenever
+/// wantWeights is set.
+struct WindowScratch {
+    struct WeightedElement {
+        int element;  ///< index into source
+        int buffer;   ///< the sub-buffer j, or -1 for an image pixel
+        double weight;
+    };
+    virtual ~WindowScratch() = default;
+    bool wantWeights = false;
+    std::vector<WeightedElement> weights;
+    std::vector<std::pair<int, int>> source;
 };
 
 }  // namespace mcstat

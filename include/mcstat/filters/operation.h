@@ -12,8 +12,8 @@
 // - BufferMeans: a PixelKernel estimates one pixel from its M sub-buffer means, and on request
 //   gives the convex weights of the sub-buffers it combined (applied to every AOV).
 // - Neighbourhood: a WindowKernel is a weighted trimmed mean over a window of pixels or of their
-//   sub-buffers, its parameters the window family's own (filters/window/window_rank.h), with its
-//   halo.
+//   sub-buffers, with its halo; it prepares a WindowPass over an input, which estimates any
+//   output pixel (its parameters stay the window family's own, filters/window/window_kernel.h).
 // - Samples: a SamplesFn reads the per-sample records or the stored per-pixel state through an
 //   opened SampleSource and makes an image.
 #pragma once
@@ -61,19 +61,48 @@ struct PixelKernel {
 /// weights (from the colour config) to the operation's own parameter struct and kernel.
 using BindPixelFn = PixelKernel (*)(const ParamValues& values, const std::array<double, 3>& luma);
 
+/// What a Neighbourhood operation's pass reads: the pixels of an RGB image (Neighbourhood::Image)
+/// or the sub-buffers of a grid of pixels (SubBuffers). Pixel coordinates start at 0 at the
+/// input's first pixel; windows are clipped to [0, width) x [0, height).
+struct WindowInput {
+    const RGBImageView* image = nullptr;  ///< Image
+    const BufferView* buffers = nullptr;  ///< SubBuffers
+    int width() const { return image ? image->width : buffers ? buffers->width : 0; }
+    int height() const { return image ? image->height : buffers ? buffers->height : 0; }
+};
 
-struct SpatialParams;  // the window family's parameters (filters/window/window_rank.h)
+/// One run of a window kernel over one input, prepared for a rectangle of output pixels (the 3D
+/// filters sort each pixel's buffers there once, Jung eq. 5.24); then any thread asks it for any
+/// pixel of the rectangle, each thread with its own scratch. Every output pixel depends on the
+/// input alone, so results do not depend on the thread count.
+class WindowPass {
+  public:
+    virtual ~WindowPass() = default;
+    /// A scratch for one thread; its wantWeights asks filterPixel for the AOV weights.
+    virtual std::unique_ptr<WindowScratch> newScratch() const = 0;
+    /// The estimate of output pixel (x, y) of the input (inside the prepared rectangle).
+    virtual void filterPixel(int x, int y, PixelEstimate& out, WindowScratch& s) const = 0;
+};
 
 /// A Neighbourhood operation with its parameters bound: a weighted trimmed mean over the window.
+/// The family's parameters live in the closure of `begin` (filters/window/window_kernel.h).
 struct WindowKernel {
     Neighbourhood over = Neighbourhood::None;
-    /// The window family's own parameters, bound (shared: a kernel is copied freely).
-    std::shared_ptr<const SpatialParams> params;
+    /// What error messages call it ("3D filter", "median image filter").
+    std::string name;
+    /// Luminance: one weight per window element exists, so AOVs can follow the beauty.
+    EstimatorMode mode = EstimatorMode::Luminance;
     /// Pixels the window reaches beyond the output pixel, each side: what a tile or a block of
     /// rows must read around itself.
     int halo[2] = {0, 0};
     int haloX() const { return halo[0]; }
     int haloY() const { return halo[1]; }
+    /// Prepares a pass over `in` for the output pixels [x0, x1) x [y0, y1) of `in`, on nthreads
+    /// threads (0: all); null with a one-line `err` for parameters out of range or an input of
+    /// the wrong kind.
+    std::function<std::unique_ptr<WindowPass>(const WindowInput& in, int x0, int y0, int x1, int y1,
+                                              int nthreads, std::string& err)>
+        begin;
 };
 using BindWindowFn = WindowKernel (*)(const ParamValues& values, const std::array<double, 3>& luma);
 

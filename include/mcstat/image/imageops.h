@@ -9,7 +9,6 @@
 
 #include "mcstat/analysis/metrics.h"
 #include "mcstat/filters/registry.h"
-#include "mcstat/filters/window/window_rank.h"
 #include "mcstat/image/image_spec.h"
 #include "mcstat/stats_file.h"
 
@@ -41,35 +40,37 @@ bool estimate(OIIO::ImageBuf& dst, const StatsImage& src, const Operation& est,
 OIIO::ImageBuf estimate(const StatsImage& src, const Operation& est, const PixelKernel& kernel,
                         bool diagnostics = false, OIIO::ROI roi = {}, int nthreads = 0);
 
-/// Jung's (weighted) median image filter WMIF / MIF (eq. 5.6-5.8, centre weight eq. 5.28; see
-/// filters/window/window_rank.h) over the R, G, B channels (the first three) of `src`, within `roi`
-/// (default: src's data window). The window is clipped to src's data window, never to `roi`, so a
-/// tile's result equals the same pixels of the whole image. The result has channels R, G, B, and
-/// when `src` carries AOVs (kAttrFirstAov, an estimator's result over a file with AOVs) those AOVs
-/// too, each with the window pixels' weights from the beauty (luminance mode only).
-/// Every output pixel depends on the input alone: identical for any `nthreads`.
-bool medianImageFilter(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, const SpatialParams& params,
-                       OIIO::ROI roi = {}, int nthreads = 0);
-OIIO::ImageBuf medianImageFilter(const OIIO::ImageBuf& src, const SpatialParams& params,
-                                 OIIO::ROI roi = {}, int nthreads = 0);
+/// A window operation (Neighbourhood::Image: Jung's (weighted) median image filter WMIF / MIF,
+/// eq. 5.6-5.8, centre weight eq. 5.28) with its kernel bound (`op.bindWindow(values, luma)`, or
+/// windowKernel in filters/window/window_kernel.h) over the R, G, B channels (the first three) of
+/// `src`, within `roi` (default: src's data window). The window is clipped to src's data window,
+/// never to `roi`, so a tile's result equals the same pixels of the whole image. The result has
+/// channels R, G, B, and when `src` carries AOVs (kAttrFirstAov, an estimator's result over a file
+/// with AOVs) those AOVs too, each with the window pixels' weights from the beauty (luminance mode
+/// only). Every output pixel depends on the input alone: identical for any `nthreads`.
+bool windowFilter(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, const WindowKernel& kernel,
+                  OIIO::ROI roi = {}, int nthreads = 0);
+OIIO::ImageBuf windowFilter(const OIIO::ImageBuf& src, const WindowKernel& kernel,
+                            OIIO::ROI roi = {}, int nthreads = 0);
 
-/// Jung's 3D filters 3DWTMF / 3DWMF / 3DMF (eq. 5.19-5.21, see filters/window/window_rank.h) over
-/// the sub-buffers of `src`, within `roi` (default: the data window; the window is clipped to the
-/// data window). Buffers vote once each (BufferVotes::PerBuffer) in a fixed-M image and with their
-/// sample counts (PerSample) when src.header.adaptiveM. The result has channels R, G, B, then the
-/// file's AOVs, each with the weight every (window pixel, sub-buffer) had in the beauty's average
-/// (luminance mode only; channel mode is refused with AOVs). Identical for any `nthreads`.
-bool filter3D(OIIO::ImageBuf& dst, const StatsImage& src, const SpatialParams& params,
-              OIIO::ROI roi = {}, int nthreads = 0);
-OIIO::ImageBuf filter3D(const StatsImage& src, const SpatialParams& params, OIIO::ROI roi = {},
-                        int nthreads = 0);
+/// A window operation over sub-buffers (Neighbourhood::SubBuffers: Jung's 3D filters 3DWTMF /
+/// 3DWMF / 3DMF, eq. 5.19-5.21) over the sub-buffers of `src`, within `roi` (default: the data
+/// window; the window is clipped to the data window). Buffers vote once each
+/// (BufferVotes::PerBuffer) in a fixed-M image and with their sample counts (PerSample) when
+/// src.header.adaptiveM. The result has channels R, G, B, then the file's AOVs, each with the
+/// weight every (window pixel, sub-buffer) had in the beauty's average (luminance mode only;
+/// channel mode is refused with AOVs). Identical for any `nthreads`.
+bool windowFilter(OIIO::ImageBuf& dst, const StatsImage& src, const WindowKernel& kernel,
+                  OIIO::ROI roi = {}, int nthreads = 0);
+OIIO::ImageBuf windowFilter(const StatsImage& src, const WindowKernel& kernel, OIIO::ROI roi = {},
+                            int nthreads = 0);
 
 /// Runs registry operation `op` with parsed `values` (parseOperationParams) over the statistics
 /// image `src`, whatever its input kind: BufferMeans through estimate() (with `diagnostics`, its
-/// gini/kept/excluded channels follow R, G, B), Neighbourhood over SubBuffers through filter3D,
-/// over an Image through medianImageFilter applied to the plain mean of the sub-buffers (the
-/// "mean" estimator: the same as `mcstat f --mean --mif`). Samples
-/// operations need the file itself (runSamplesOperation). `luma` as lumaCoefficients() gives it.
+/// gini/kept/excluded channels follow R, G, B), Neighbourhood through windowFilter (over an Image:
+/// applied to the plain mean of the sub-buffers, the "mean" estimator, as `mcstat f --mean --mif`
+/// does). Samples operations need the file itself (runSamplesOperation). `luma` as
+/// lumaCoefficients() gives it.
 bool applyOperation(OIIO::ImageBuf& dst, const StatsImage& src, const Operation& op,
                     const ParamValues& values, const std::array<double, 3>& luma,
                     bool diagnostics = false, OIIO::ROI roi = {}, int nthreads = 0);
@@ -121,10 +122,10 @@ bool estimate(OIIO::ImageBuf& dst, StatsBlockSource& src, const Operation& est,
               int nthreads = 0);
 OIIO::ImageBuf estimate(StatsBlockSource& src, const Operation& est, const PixelKernel& kernel,
                         bool diagnostics = false, OIIO::ROI roi = {}, int nthreads = 0);
-bool filter3D(OIIO::ImageBuf& dst, StatsBlockSource& src, const SpatialParams& params,
-              OIIO::ROI roi = {}, int nthreads = 0);
-OIIO::ImageBuf filter3D(StatsBlockSource& src, const SpatialParams& params, OIIO::ROI roi = {},
-                        int nthreads = 0);
+bool windowFilter(OIIO::ImageBuf& dst, StatsBlockSource& src, const WindowKernel& kernel,
+                  OIIO::ROI roi = {}, int nthreads = 0);
+OIIO::ImageBuf windowFilter(StatsBlockSource& src, const WindowKernel& kernel, OIIO::ROI roi = {},
+                            int nthreads = 0);
 bool applyOperation(OIIO::ImageBuf& dst, StatsBlockSource& src, const Operation& op,
                     const ParamValues& values, const std::array<double, 3>& luma,
                     bool diagnostics = false, OIIO::ROI roi = {}, int nthreads = 0);

@@ -22,12 +22,14 @@
 #include <vector>
 
 #include "filters/pixel/pixel_support.h"
+#include "filters/window/window_support.h"
 #include "mcstat/filters/window/filter3d.h"
 #include "mcstat/filters/window/mif.h"
 #include "mcstat/filters/window/window_rank.h"
 #include "mcstat/image/imageops.h"
 
 using namespace mcstat;
+using mcstat::testing::filter3D;
 using mcstat::testing::kInf;
 using mcstat::testing::kLuma;
 using mcstat::testing::kNaN;

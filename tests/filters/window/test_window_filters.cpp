@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "filters/pixel/pixel_support.h"
+#include "filters/window/window_support.h"
 #include "mcstat/filters/pixel/median.h"
 #include "mcstat/filters/pixel/tmpe.h"
 #include "mcstat/filters/window/filter3d.h"
@@ -16,9 +17,11 @@
 #include "mcstat/image/imageops.h"
 
 using namespace mcstat;
+using mcstat::testing::filter3D;
 using mcstat::testing::kInf;
 using mcstat::testing::kLuma;
 using mcstat::testing::kNaN;
+using mcstat::testing::medianImageFilter;
 
 namespace {
 

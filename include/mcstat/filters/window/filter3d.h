@@ -14,33 +14,6 @@ namespace mcstat {
 
 // ---- 3D filters over pixel buffers --------------------------------------------------------------
 
-/// How the buffers of a 3D filter's window vote in the ranking (docs/spatial_filters.md).
-enum class BufferVotes {
-    /// One vote per buffer, eq. 5.19: buffer j of pixel q is w_q copies and its count n_j weighs
-    /// the average (r_i n_i). For fixed-M files, whose buffers hold equal counts up to one sample.
-    PerBuffer,
-    /// One vote per sample, for adaptive M (M_p buffers of n / M_p samples next to one-buffer
-    /// pixels of n samples): buffer j of pixel q is w_q n_j copies in the ranking, each copy one
-    /// sample in the average (sum r_i x_i / sum r_i). n_j must be an integer in [1,
-    /// kMaxBufferVoteCount],
-    /// else the buffer is invalid (excluded). Sums of copies stay below 2^63 for any window, centre
-    /// weight and count allowed and up to 500,000 buffers per pixel (kMaxBuffers is 999): at most
-    /// (kMaxCentreWeight + 255^2 - 1) * M * 2^24 < 1.8e16 for M = 999.
-    PerSample,
-};
-
-/// Read access to a width x height grid of pixels' sub-buffers: at(x, y) returns pixel (x, y)'s
-/// buffers. Each pixel may have its own M (adaptive buffer counts); the filters never assume a
-/// fixed M. `votes` says how buffers vote: filter3D takes PerSample for adaptive-M statistics
-/// (StatsHeader::adaptiveM), PerBuffer otherwise; a view built by hand chooses.
-struct BufferView {
-    int width = 0, height = 0;
-    const void* ctx = nullptr;
-    PixelBuffers (*fn)(const void* ctx, int x, int y) = nullptr;
-    BufferVotes votes = BufferVotes::PerBuffer;
-    PixelBuffers at(int x, int y) const { return fn(ctx, x, y); }
-};
-
 /// The fixed-M arrays of a StatsImage: means [(p*M + j)*3 + c], counts [p*M + j], p = y*width + x.
 struct FixedBufferGrid {
     const float* bufferMean = nullptr;

@@ -13,12 +13,6 @@ namespace mcstat {
 
 // ---- MIF / WMIF over an RGB image ---------------------------------------------------------------
 
-/// An interleaved RGB float image: pixel (x, y) at rgb[(y * width + x) * 3 + c].
-struct RGBImageView {
-    const float* rgb = nullptr;
-    int width = 0, height = 0;
-};
-
 /// WMIF(w(w_c), k x l) at pixel (x, y) (eq. 5.6 with the weights of eq. 5.28; MIF, eq. 5.8, for
 /// centreWeight = 1; alpha < 0.5 gives the weighted trimmed mean filter WTMIF of section 5.1.2).
 void wmifPixel(const RGBImageView& img, int x, int y, const SpatialParams& p, PixelEstimate& out,

@@ -121,7 +121,7 @@ struct RankedList {
 };
 
 /// Per-thread scratch so the per-pixel functions do not allocate after warm-up.
-struct SpatialScratch {
+struct SpatialScratch : WindowScratch {
     std::vector<WindowElement> elems;
     std::vector<std::pair<double, int>> ranked;  ///< (rank key, element index)
     std::vector<int> valid;                      ///< collectValidBuffers' output
@@ -133,20 +133,8 @@ struct SpatialScratch {
     std::vector<int> treeList, cursor;
     std::vector<int32_t> order;
     std::vector<uint64_t> key;
-    /// AOVs (docs/aovs.md), luminance mode: with wantWeights set by the caller, a filtered pixel
-    /// leaves in `weights` every element that entered its average with its share (the shares sum
-    /// to 1): MIF/WMIF's element i is the window pixel source[i]; a 3D filter's element (list l,
-    /// buffer j) is buffer j of the window pixel source[l]. Empty in channel mode, where R, G and B
-    /// keep different elements. `source` (window pixels, image coordinates of the view) is
-    /// filled whenever wantWeights is set.
-    struct WeightedElement {
-        int element;  ///< MIF: element index; 3D: list index
-        int buffer;   ///< 3D: the buffer j; MIF: -1
-        double weight;
-    };
-    bool wantWeights = false;
-    std::vector<WeightedElement> weights;
-    std::vector<std::pair<int, int>> source;
+    // wantWeights, weights, source: WindowScratch (estimate.h). MIF/WMIF's element i is the
+    // window pixel source[i]; a 3D filter's element (list l, buffer j) is buffer j of source[l].
 };
 
 /// The weighted trimmed mean of eq. 5.6 / 5.19 over elems (rules at the top of this file);
@@ -172,8 +160,6 @@ ParamSpec centreWeightParam(const std::string& def, bool fixed);
 ParamSpec breakdownParam(const std::string& def, bool fixed);
 /// "mode": luminance or per channel.
 ParamSpec windowModeParam();
-/// The kernel of a window operation over `over` with `params` bound (its halo from the window).
-WindowKernel windowKernel(Neighbourhood over, const SpatialParams& params);
 /// SpatialParams from parsed values (size, w, alpha, mode) and the luminance weights.
 SpatialParams spatialParams(const ParamValues& values, const std::array<double, 3>& luma);
 
