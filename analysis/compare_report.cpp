@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -349,14 +350,11 @@ std::string compareHtml(const CompareResult& r, const CompareOptions& opt,
         "<figcaption id=\"flip-caption\">B: {}</figcaption><figcaption>(hover: "
         "A)</figcaption></figure>\n",
         size, a, b, b);
-    s += fmt::format(
-        "<figure><img class=\"px\" src=\"a.png\" {} alt=\"A\"><figcaption>A: "
-        "{}</figcaption></figure>\n",
-        size, a);
-    s += fmt::format(
-        "<figure><img class=\"px\" src=\"b.png\" {} alt=\"B\"><figcaption>B: "
-        "{}</figcaption></figure>\n",
-        size, b);
+    for (const auto& [side, label] : {std::pair{'a', a}, std::pair{'b', b}})
+        s += fmt::format(
+            "<figure><img class=\"px\" src=\"{0}.png\" {1} alt=\"{2}\"><figcaption>{2}: "
+            "{3}</figcaption></figure>\n",
+            side, size, char(std::toupper(side)), label);
     s += "<figure><img src=\"heatmap.png\" alt=\"z, b - a in standard errors\"><figcaption>z: b - "
          "a in "
          "standard errors</figcaption></figure>\n";
