@@ -41,6 +41,8 @@ struct Side {
     StatsBlockSource* src = nullptr;
     const OIIO::ImageBuf* ref = nullptr;
     std::vector<float> refRGB;  ///< the reference's R, G, B, row by row from its data window
+    /// The reference's per-sample variance of R, G, B (Mitsuba 3's variance image), or empty.
+    std::vector<float> refVar;
     StatsImage block;
     int aovCount = 0;
 };
@@ -116,6 +118,35 @@ double referenceValue(const Side& s, const Quantity& q, int x, int y,
     return luminance(luma, rgb);
 }
 
+/// The reference's per-sample variance of quantity `q` at pixel (x, y): a channel's, or for the
+/// luminance sum w_c^2 var_c (the variance image holds no covariances: R, G and B of one pixel are
+/// taken as independent, which understates the luminance's variance where they correlate).
+double referenceVariance(const Side& s, const Quantity& q, int x, int y,
+                         const std::array<double, 3>& luma) {
+    const float* v = &s.refVar[(size_t(y) * size_t(s.ref->roi().width()) + size_t(x)) * 3];
+    if (q.kind == Quantity::Channel) return double(v[q.channel]);
+    return luma[0] * luma[0] * v[0] + luma[1] * luma[1] * v[1] + luma[2] * luma[2] * v[2];
+}
+
+/// A side's R, G, B mean at pixel `local` of the block (x, y in the image): the count-weighted mean
+/// of its non-empty buffers, or the reference's values.
+void rgbMean(const Side& s, size_t local, int x, int y, float* out) {
+    if (s.ref) {
+        const float* rgb = &s.refRGB[(size_t(y) * size_t(s.ref->roi().width()) + size_t(x)) * 3];
+        std::copy(rgb, rgb + 3, out);
+        return;
+    }
+    const PixelBuffers pb = s.block.pixelBuffers(local);
+    double sum[3] = {0.0, 0.0, 0.0}, n = 0.0;
+    for (int j = 0; j < pb.M; ++j) {
+        const double c = double(pb.count[j]);
+        if (!(c > 0.0)) continue;
+        for (int k = 0; k < 3; ++k) sum[k] += c * double(pb.mean[size_t(j) * 3 + size_t(k)]);
+        n += c;
+    }
+    for (int k = 0; k < 3; ++k) out[k] = n > 0.0 ? float(sum[k] / n) : kNaNf;
+}
+
 /// Counts and findings of the tasks, merged under a mutex.
 struct Tally {
     size_t pixelsTested = 0, nonFiniteOneSide = 0, nonFiniteBoth = 0, constantEqual = 0;
@@ -156,8 +187,27 @@ class Comparison {
         if (opt_.referenceSpp > 0.0 && samples > 0.0)
             sb.variance *= 1.0 + samples / opt_.referenceSpp;
     }
+    /// The reference side's summary at (x, y): exact, or with its variance image's noise.
+    SideSummary referenceSummary(const Quantity& q, int x, int y) const {
+        SideSummary sa = exactSummary(referenceValue(a_, q, x, y, opt_.luma));
+        if (!a_.refVar.empty() && opt_.referenceSpp > 0.0) {  // Mitsuba's rule needs no K
+            sa.variance = referenceVariance(a_, q, x, y, opt_.luma) / opt_.referenceSpp;
+            sa.df = opt_.referenceSpp - 1.0;
+        }
+        return sa;
+    }
+    /// One pixel's test: Welch's (or the one-sample t) by default, Mitsuba's z-test on request.
+    TwoSampleResult testPixel(const SideSummary& sa, const SideSummary& sb, const Quantity& q,
+                              int x, int y, double nb) const {
+        if (opt_.rule == CompareOptions::Rule::Mitsuba)
+            return mitsubaZTest(sb.estimate, nb, sa.estimate,
+                                referenceVariance(a_, q, x, y, opt_.luma), opt_.varianceFloor);
+        return welchTest(sa, sb, margin(sa.estimate, sb.estimate), opt_.test);
+    }
     void finish();
+    void finishMitsuba();
     void buildMaps();
+    void buildMeans();
 
     Side& a_;
     Side& b_;
@@ -169,6 +219,7 @@ class Comparison {
     // Per quantity q: pixel arrays [q * P + p], tile arrays [q * T + t].
     std::vector<float> p_, z_, effect_, aEst_, tileP_, tileZ_, tileEffect_, tileA_;
     std::vector<uint8_t> pixelNonFinite_;  ///< 1 one side, 2 both
+    std::vector<float> meanA_, meanB_;     ///< R, G, B per pixel (CompareOptions::keepMeans)
     Tally tally_;
     std::mutex mutex_;
 };
@@ -242,7 +293,7 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
     const size_t Ma = size_t(a_.ref ? 0 : out_.Ma), Mb = size_t(out_.Mb);
     const size_t Q = q_.size();
     std::vector<double> sumA(Q * Ma, 0.0), cntA(Q * Ma, 0.0), sumB(Q * Mb, 0.0), cntB(Q * Mb, 0.0),
-        refSum(Q, 0.0);
+        refSum(Q, 0.0), refVarSum(Q, 0.0);
     std::vector<uint8_t> tileBad(Q, 0);
     for (int y = y0; y < y1; ++y) {
         for (int x = x0; x < x1; ++x) {
@@ -250,6 +301,10 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
             const size_t pix = size_t(y) * size_t(W) + size_t(x);
             uint8_t nonFinite = 0;
             bool tested = false;
+            if (opt_.keepMeans) {
+                rgbMean(a_, local, x, y, &meanA_[pix * 3]);
+                rgbMean(b_, local, x, y, &meanB_[pix * 3]);
+            }
             for (size_t qi = 0; qi < Q; ++qi) {
                 const Quantity& q = q_[qi];
                 SideSummary sa, sb;
@@ -257,10 +312,12 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
                 double nb = 0.0;
                 for (double c : cb) nb += c > 0.0 ? c : 0.0;
                 if (a_.ref) {
-                    const double r = referenceValue(a_, q, x, y, opt_.luma);
-                    sa = exactSummary(r);
-                    referenceNoise(sb, nb);
-                    if (tiles) refSum[qi] += r;
+                    sa = referenceSummary(q, x, y);
+                    if (a_.refVar.empty()) referenceNoise(sb, nb);
+                    if (tiles) {
+                        refSum[qi] += sa.estimate;
+                        refVarSum[qi] += sa.variance;
+                    }
                 } else {
                     sa = sideSummary(a_, q, false, local, va, ca);
                 }
@@ -287,8 +344,7 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
                     if (one) tally.allZero = false;
                     continue;
                 }
-                const TwoSampleResult r =
-                    welchTest(sa, sb, margin(sa.estimate, sb.estimate), opt_.test);
+                const TwoSampleResult r = testPixel(sa, sb, q, x, y, nb);
                 p_[h] = float(r.p);
                 z_[h] = float(r.z);
                 effect_[h] = float(r.difference);
@@ -327,9 +383,16 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
         SideSummary sb = summarize(vb, cb), sa;
         if (a_.ref) {
             sa = exactSummary(refSum[qi] / n);
-            double nb = 0.0;
-            for (double c : cb) nb += c > 0.0 ? c : 0.0;
-            referenceNoise(sb, nb);
+            if (!a_.refVar.empty()) {
+                // The reference's pixels are independent: the tile mean's variance is the sum of
+                // theirs over n^2.
+                sa.variance = refVarSum[qi] / (n * n);
+                sa.df = opt_.referenceSpp - 1.0;
+            } else {
+                double nb = 0.0;
+                for (double c : cb) nb += c > 0.0 ? c : 0.0;
+                referenceNoise(sb, nb);
+            }
         } else {
             va.assign(sumA.begin() + long(qi * Ma), sumA.begin() + long((qi + 1) * Ma));
             ca.assign(cntA.begin() + long(qi * Ma), cntA.begin() + long((qi + 1) * Ma));
@@ -396,6 +459,10 @@ bool Comparison::run(std::string& err) {
     tileZ_.assign(Q * T_, kNaNf);
     tileEffect_.assign(Q * T_, kNaNf);
     tileA_.assign(Q * T_, kNaNf);
+    if (opt_.keepMeans) {
+        meanA_.assign(3 * P_, kNaNf);
+        meanB_.assign(3 * P_, kNaNf);
+    }
 
     // Blocks of rows: whole tiles, whole chunks of both files (no chunk decoded twice), about
     // 64 MB of decoded buffers per side.
@@ -416,7 +483,31 @@ bool Comparison::run(std::string& err) {
     }
     finish();
     buildMaps();
+    buildMeans();
     return true;
+}
+
+/// Mitsuba 3's verdict (src/render/tests/test_renders.py): every pixel's channel tests at the
+/// Sidak level 1 - (1 - level)^(1 / pixels); a pass when at least passFraction of the pixels pass,
+/// counting passed channel tests / channels. A channel test without a p-value (NaN) does not pass,
+/// as NaN > alpha is false there.
+void Comparison::finishMitsuba() {
+    const double alpha = out_.threshold;
+    out_.channelTests = p_.size();
+    out_.channelTestsPassed =
+        size_t(std::count_if(p_.begin(), p_.end(), [&](float p) { return double(p) > alpha; }));
+    out_.fail =
+        double(out_.channelTestsPassed) / double(q_.size()) < opt_.passFraction * double(P_);
+}
+
+void Comparison::buildMeans() {
+    if (!opt_.keepMeans) return;
+    const OIIO::ROI data(out_.originX, out_.originX + out_.width, out_.originY,
+                         out_.originY + out_.height, 0, 1, 0, 3);
+    for (auto [img, v] : {std::pair{&out_.meanA, &meanA_}, std::pair{&out_.meanB, &meanB_}}) {
+        img->reset(floatSpec(data, {"R", "G", "B"}), OIIO::InitializePixels::No);
+        img->set_pixels(data, OIIO::TypeFloat, v->data());
+    }
 }
 
 void Comparison::finish() {
@@ -432,7 +523,12 @@ void Comparison::finish() {
 
     const bool equivalence = opt_.test == TwoSampleTest::Equivalence;
     size_t mp = 0, mt = 0;
-    if (!equivalence) {
+    if (opt_.rule == CompareOptions::Rule::Mitsuba) {
+        // Sidak: 1 - (1 - level)^(1 / pixels), the pixels' count as Mitsuba 3 takes it (all of
+        // them; its three channel tests per pixel are not counted).
+        out_.threshold = -std::expm1(std::log1p(-opt_.level) / double(P_));
+        out_.hypotheses = p_.size();
+    } else if (!equivalence) {
         // Two families, pixels and tiles, each at half the level (Bonferroni over the two), so
         // that the verdict's error rate stays at the level: one family would drown a few hundred
         // tiles among millions of pixels, whose count sets the step-up's slope.
@@ -542,6 +638,7 @@ void Comparison::finish() {
         out_.fail =
             (T_ > 0 ? tileNot : pixNot) > 0 || out_.hypotheses == 0 || out_.nonFiniteOneSide > 0;
     }
+    if (opt_.rule == CompareOptions::Rule::Mitsuba) finishMitsuba();
     if (out_.identical) out_.fail = false;
 }
 
@@ -623,6 +720,41 @@ bool checkOptions(const CompareOptions& opt, std::string& err) {
     return true;
 }
 
+/// The reference's variance image (Mitsuba 3's `_var.exr`) and the rule against what they need.
+bool checkReferenceVariance(const OIIO::ImageBuf* var, const OIIO::ImageBuf& ref,
+                            const std::string& refName, const CompareOptions& opt,
+                            std::string& err) {
+    const bool mitsuba = opt.rule == CompareOptions::Rule::Mitsuba;
+    if (!var) {
+        if (mitsuba)
+            err = fmt::format(
+                "rule=mitsuba tests against the reference's per-sample variance: give "
+                "refvar=VAR.exr with {}",
+                refName);
+        return !mitsuba;
+    }
+    if (var->nchannels() < 3 || var->roi().width() != ref.roi().width() ||
+        var->roi().height() != ref.roi().height()) {
+        err = fmt::format("{}'s variance image is {}x{} with {} channels; {} is {}x{} (R, G, B)",
+                          refName, var->roi().width(), var->roi().height(), var->nchannels(),
+                          refName, ref.roi().width(), ref.roi().height());
+        return false;
+    }
+    if (!(opt.referenceSpp > 1.0) && !mitsuba) {
+        err = fmt::format(
+            "refvar gives {}'s per-sample variance: refspp=K (its samples per pixel, > 1) "
+            "turns it into the variance of its mean",
+            refName);
+        return false;
+    }
+    if (mitsuba && (opt.trimmed || opt.test == TwoSampleTest::Equivalence || opt.tol > 0.0 ||
+                    opt.reltol > 0.0)) {
+        err = "rule=mitsuba is Mitsuba 3's z-test: no test=yuen, equivalence, tol or reltol";
+        return false;
+    }
+    return true;
+}
+
 /// The result's data window (the statistics file's) and whether tiles are tested: a tile averages
 /// a buffer index over its pixels, and with adaptive M (compact files too) the indices do not
 /// line up.
@@ -676,6 +808,13 @@ bool compareStats(StatsBlockSource& a, StatsBlockSource& b, const CompareOptions
             hb.originX, hb.originY);
         return false;
     }
+    if (opt.rule == CompareOptions::Rule::Mitsuba) {
+        err = fmt::format(
+            "rule=mitsuba tests a render against a reference image and its variance (refvar=); "
+            "{} and {} are statistics files",
+            a.name(), b.name());
+        return false;
+    }
     if (!sideBuffers(a, out.Ma, err) || !sideBuffers(b, out.Mb, err) ||
         !compactQuantities(a, opt, err) || !compactQuantities(b, opt, err))
         return false;
@@ -690,9 +829,16 @@ bool compareStats(StatsBlockSource& a, StatsBlockSource& b, const CompareOptions
 }
 
 bool compareStatsToImage(const OIIO::ImageBuf& ref, const std::string& refName, StatsBlockSource& b,
-                         const CompareOptions& opt, CompareResult& out, std::string& err) {
+                         const CompareOptions& options, CompareResult& out, std::string& err,
+                         const OIIO::ImageBuf* refVar) {
     out = CompareResult();
-    if (!checkOptions(opt, err)) return false;
+    CompareOptions opt = options;
+    if (!checkOptions(opt, err) || !checkReferenceVariance(refVar, ref, refName, opt, err))
+        return false;
+    if (opt.rule == CompareOptions::Rule::Mitsuba) {
+        opt.rgb = true;  // Mitsuba tests each channel; no tiles
+        opt.tile = 0;
+    }
     const StatsHeader& hb = b.header();
     const OIIO::ROI win = ref.roi();
     if (ref.nchannels() < 3) {
@@ -725,6 +871,16 @@ bool compareStatsToImage(const OIIO::ImageBuf& ref, const std::string& refName, 
     if (!ref.get_pixels(rgb, OIIO::TypeFloat, sa.refRGB.data())) {
         err = fmt::format("{}: {}", refName, ref.geterror());
         return false;
+    }
+    if (refVar) {
+        sa.refVar.resize(sa.refRGB.size());
+        OIIO::ROI vr = refVar->roi();
+        vr.chbegin = 0;
+        vr.chend = 3;
+        if (!refVar->get_pixels(vr, OIIO::TypeFloat, sa.refVar.data())) {
+            err = fmt::format("{}'s variance: {}", refName, refVar->geterror());
+            return false;
+        }
     }
     sb.src = &b;
     sb.aovCount = int(hb.aovs.size());
@@ -803,7 +959,27 @@ std::string findingText(const CompareFinding& f, const CompareResult& r,
 
 }  // namespace
 
+/// Mitsuba 3's verdict: a few failing channel tests pass (its pass fraction).
+std::string mitsubaVerdict(const CompareResult& r, const CompareOptions& opt) {
+    const std::string how = fmt::format(
+        "Mitsuba 3's rule: z-tests against the reference's variance floored at {:g}, "
+        "Sidak-corrected level {:.3g} ({} over {} pixels), {} of the channel tests must pass",
+        opt.varianceFloor, r.threshold, percentText(opt.level), r.pixels,
+        percentText(opt.passFraction));
+    const size_t failed = r.channelTests - r.channelTestsPassed;
+    if (r.identical) return fmt::format("IDENTICAL: every pixel equals the reference ({})", how);
+    if (r.fail)
+        return fmt::format(
+            "DIFFERENT: {} of {} pixels differ in {}: {} of {} channel tests failed ({})",
+            r.pixelsRejected, r.pixels, quantitiesText(r), failed, r.channelTests, how);
+    return fmt::format(
+        "SAME: {} of {} pixels differ in {}, {} of {} channel tests failed: within "
+        "what the rule allows ({})",
+        r.pixelsRejected, r.pixels, quantitiesText(r), failed, r.channelTests, how);
+}
+
 std::string compareVerdict(const CompareResult& r, const CompareOptions& opt) {
+    if (opt.rule == CompareOptions::Rule::Mitsuba) return mitsubaVerdict(r, opt);
     const std::string how = fmt::format("{}, {}", testText(r, opt), controlText(opt));
     if (r.identical)
         return fmt::format(
@@ -846,9 +1022,16 @@ std::vector<std::string> compareEvidence(const CompareResult& r, const CompareOp
                           r.tiles, r.tilesRejected, equivalence ? "not shown equivalent" : "differ")
             : std::string("; no tile tests")));
     auto thr = [](double t) { return t < 0 ? std::string("none") : fmt::format("{:.3g}", t); };
-    lines.push_back(fmt::format("tested: {} hypotheses; largest p-value rejected: pixels {}{}",
-                                r.hypotheses, thr(r.threshold),
-                                r.tile > 0 ? ", tiles " + thr(r.tileThreshold) : std::string()));
+    if (opt.rule == CompareOptions::Rule::Mitsuba)
+        lines.push_back(fmt::format(
+            "tested: {} channel tests at level {:.3g}; {} passed ({:.4g}%, {} needed)",
+            r.channelTests, r.threshold, r.channelTestsPassed,
+            r.channelTests ? 100.0 * double(r.channelTestsPassed) / double(r.channelTests) : 0.0,
+            percentText(opt.passFraction)));
+    else
+        lines.push_back(fmt::format(
+            "tested: {} hypotheses; largest p-value rejected: pixels {}{}", r.hypotheses,
+            thr(r.threshold), r.tile > 0 ? ", tiles " + thr(r.tileThreshold) : std::string()));
     const char* label = equivalence ? "least equivalent" : (r.fail ? "strongest" : "largest |z|");
     if (r.strongest.valid)
         lines.push_back(fmt::format("{}: {}", label, findingText(r.strongest, r, opt)));
@@ -890,7 +1073,7 @@ std::vector<std::string> compareEvidence(const CompareResult& r, const CompareOp
                         r.fewBuffers,
                         r.adaptive ? "adaptive M gives smooth pixels one buffer"
                                    : "fewer samples than buffers"));
-    if (r.tile == 0 && opt.tile > 0)
+    if (r.tile == 0 && opt.tile > 0 && opt.rule != CompareOptions::Rule::Mitsuba)
         lines.push_back(
             "no tile tests: adaptive M or a compact file (buffer indices differ from pixel to "
             "pixel)");
@@ -923,6 +1106,18 @@ const std::vector<ParamSpec>& compareParams() {
             realParam("refspp", 0.0, HUGE_VAL, false, "0",
                       "image reference: its samples per pixel (0: exact)"),
             textParam("layer", "", "image reference: its RGB layer (default: its beauty)"),
+            textParam("refvar", "",
+                      "image reference: its per-sample variance image (Mitsuba 3's _var.exr)"),
+            enumParam("rule", {"mcstat", "mitsuba"}, "mcstat",
+                      "mitsuba: Mitsuba 3's render-test rule against refvar (docs/compare.md)"),
+            realParam("varfloor", 0.0, HUGE_VAL, false, "1e-4",
+                      "rule=mitsuba: floor of the reference's variance"),
+            realParam("passfraction", 0.0, 1.0, false, "0.9975",
+                      "rule=mitsuba: fraction of channel tests that must pass"),
+            textParam("junit", "", "write the verdict as JUnit XML to this file"),
+            textParam("json", "", "write the verdict and its numbers as JSON to this file"),
+            textParam("html", "", "write a report page (A, B, heatmap, numbers) into this folder"),
+            textParam("name", "", "the test's name in the reports (default: A vs B)"),
         };
     }();
     return m;
@@ -952,6 +1147,10 @@ bool parseCompareOptions(const std::map<std::string, std::string>& kv, CompareOp
     opt.reltol = v.at("reltol").real;
     opt.test = v.at("equivalence").integer ? TwoSampleTest::Equivalence : TwoSampleTest::Difference;
     opt.referenceSpp = v.at("refspp").real;
+    opt.rule = v.at("rule").text == "mitsuba" ? CompareOptions::Rule::Mitsuba
+                                              : CompareOptions::Rule::Mcstat;
+    opt.varianceFloor = v.at("varfloor").real;
+    opt.passFraction = v.at("passfraction").real;
     return true;
 }
 

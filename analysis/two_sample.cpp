@@ -120,6 +120,23 @@ double studentTail(double t, double df) {
     return boost::math::cdf(boost::math::complement(dist, t));
 }
 
+TwoSampleResult mitsubaZTest(double mean, double samples, double ref, double refVariance,
+                             double varianceFloor) {
+    TwoSampleResult r;
+    r.difference = mean - ref;
+    r.df = kInf;
+    const double var = std::max(refVariance, varianceFloor);
+    if (!std::isfinite(r.difference) || !(samples > 0.0) || !(var > 0.0) || std::isnan(var)) {
+        r.z = r.p = kNaN;
+        return r;
+    }
+    r.se = std::sqrt(var / samples);
+    r.z = r.difference / r.se;
+    // 2 (1 - Phi(|z|)) = erfc(|z| / sqrt 2), without cancellation in the far tail.
+    r.p = std::erfc(std::fabs(r.z) / std::sqrt(2.0));
+    return r;
+}
+
 TwoSampleResult welchTest(const SideSummary& a, const SideSummary& b, double margin,
                           TwoSampleTest test) {
     TwoSampleResult r;

@@ -1,7 +1,7 @@
 # `cmake --install`: the mcstat and mcstat-render executables, the OpenImageIO plugin, the static
 # libraries with their public headers, an exported CMake package (find_package(mcstat CONFIG)
-# giving mcstat::core, mcstat::filters, mcstat::exrcodec, mcstat::exrdeep, mcstat::color, mcstat::imagespec, mcstat::imageops, mcstat::ingest) and
-# mcstat.pc.
+# giving mcstat::core, mcstat::filters, mcstat::exrcodec, mcstat::exrdeep, mcstat::color, mcstat::imagespec, mcstat::imageops, mcstat::ingest,
+# mcstat::compare, mcstat::compare_report, mcstat_EXECUTABLE and mcstat_add_render_test) and mcstat.pc.
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
@@ -11,7 +11,7 @@ set(MCSTAT_INSTALL_PLUGINDIR "${CMAKE_INSTALL_LIBDIR}/OpenImageIO-plugins"
     CACHE STRING "Where mcstat.imageio.so goes; point OIIO_LIBRARY_PATH at it")
 
 set(_mcstat_libs mcstat_core mcstat_filters mcstat_compact mcstat_exrcodec mcstat_exrdeep mcstat_color mcstat_analysis mcstat_imagespec mcstat_imageops
-                 mcstat_review mcstat_compare mcstat_ingest)
+                 mcstat_review mcstat_compare mcstat_compare_report mcstat_ingest)
 foreach(_lib IN LISTS _mcstat_libs)
   string(REPLACE "mcstat_" "" _export_name "${_lib}")
   set_target_properties(${_lib} PROPERTIES EXPORT_NAME ${_export_name})
@@ -33,14 +33,16 @@ install(EXPORT mcstatTargets
   NAMESPACE mcstat::
   FILE mcstatTargets.cmake
   DESTINATION "${MCSTAT_INSTALL_CMAKEDIR}" COMPONENT dev)
+set(MCSTAT_INSTALL_EXECUTABLE "${CMAKE_INSTALL_BINDIR}/mcstat")
 configure_package_config_file("${CMAKE_CURRENT_LIST_DIR}/mcstatConfig.cmake.in"
   "${PROJECT_BINARY_DIR}/mcstatConfig.cmake"
   INSTALL_DESTINATION "${MCSTAT_INSTALL_CMAKEDIR}"
-  PATH_VARS MCSTAT_INSTALL_PLUGINDIR)
+  PATH_VARS MCSTAT_INSTALL_PLUGINDIR MCSTAT_INSTALL_EXECUTABLE)
 write_basic_package_version_file("${PROJECT_BINARY_DIR}/mcstatConfigVersion.cmake"
   VERSION "${PROJECT_VERSION}"
   COMPATIBILITY SameMinorVersion)
 install(FILES "${PROJECT_BINARY_DIR}/mcstatConfig.cmake" "${PROJECT_BINARY_DIR}/mcstatConfigVersion.cmake"
+              "${CMAKE_CURRENT_LIST_DIR}/mcstatRenderTest.cmake"
   DESTINATION "${MCSTAT_INSTALL_CMAKEDIR}" COMPONENT dev)
 
 # pkg-config: the .pc file is written at install time so that `cmake --install --prefix P` gives P.

@@ -37,6 +37,7 @@ struct Item {
     CompactRule compactRule;
     /// Renders not read yet (`--ingest`): their headers, read block by block when used.
     std::shared_ptr<const IngestSource> ingest;
+    std::vector<std::string> files;  ///< the renders an --ingest reads (for --compare's reports)
     std::shared_ptr<OIIO::ImageBuf> image;  ///< set for image items
     /// An image computed from a statistics file: that file's header, so that -o writes the result
     /// laid out as the input render was (names, parts, AOVs; render_layout.h). Null otherwise.

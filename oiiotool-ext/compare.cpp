@@ -7,9 +7,11 @@
 
 #include <OpenImageIO/strutil.h>
 
+#include <chrono>
 #include <cstdio>
 
 #include "cli.h"
+#include "mcstat/analysis/compare_report.h"
 #include "mcstat/color.h"
 #include "mcstat/core/progress.h"
 #include "mcstat/image/render_layout.h"
@@ -19,6 +21,32 @@ namespace mcstat::cli {
 using OIIO::Strutil::fmt::format;
 
 const std::vector<ParamSpec>& compareModifiers() { return compareParams(); }
+
+namespace {
+
+/// An item as the reports name it: its name and the files it was read from.
+CompareReportSide reportSide(const Item& item) {
+    CompareReportSide s;
+    s.name = item.name;
+    s.files = item.files;
+    if (s.files.empty() && !item.path.empty()) s.files.push_back(item.path);
+    return s;
+}
+
+/// The reference's variance image (refvar=), read as its R, G, B; none when not asked for.
+bool readReferenceVariance(const Modifiers& mods, const std::string& cmd, OIIO::ImageBuf& var,
+                           bool& given, std::string& err) {
+    const auto it = mods.find("refvar");
+    given = it != mods.end() && !it->second.empty();
+    if (!given) return true;
+    if (!readRGB(it->second, "", var, err)) {
+        err = format("{}: refvar: {}", cmd, err);
+        return false;
+    }
+    return true;
+}
+
+}  // namespace
 
 bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string>&,
                 const Modifiers& mods, std::string& err) {
@@ -52,12 +80,21 @@ bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string
     }
     opt.nthreads = st.nthreads;
     if (!parseCompareOptions(mods, opt, err, cmd)) return false;
+    CompareReportRequest report = compareReportRequest(mods);
+    report.a = reportSide(a);
+    report.b = reportSide(b);
+    opt.keepMeans = report.needsMeans();
     const auto refspp = mods.find("refspp");
-    if (a.isStats() && b.isStats() && refspp != mods.end() && refspp->second != "0") {
-        err = format("{}: refspp is for an image reference; {} and {} are statistics files", cmd,
-                     a.name, b.name);
+    const auto refvar = mods.find("refvar");
+    if (a.isStats() && b.isStats() &&
+        ((refspp != mods.end() && refspp->second != "0") ||
+         (refvar != mods.end() && !refvar->second.empty()))) {
+        err = format("{}: {} is for an image reference; {} and {} are statistics files", cmd,
+                     refspp != mods.end() && refspp->second != "0" ? "refspp" : "refvar", a.name,
+                     b.name);
         return false;
     }
+    const auto start = std::chrono::steady_clock::now();
     Progress progress("compare", 1000, showProgress());
     opt.progress = progress.fractionCallback();
     CompareResult r;
@@ -79,9 +116,12 @@ bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string
             err = format("{}: {}", cmd, err);
             return false;
         }
+        OIIO::ImageBuf var;
+        bool hasVar = false;
+        if (!readReferenceVariance(mods, cmd, var, hasVar, err)) return false;
         ItemSource src;
         if (!openSource(st, stats, src, err)) return false;
-        ok = compareStatsToImage(rgb, image.name, *src.root, opt, r, err);
+        ok = compareStatsToImage(rgb, image.name, *src.root, opt, r, err, hasVar ? &var : nullptr);
         what = format("{} vs reference {}", stats.name, image.name);
     }
     progress.finish();
@@ -96,6 +136,12 @@ bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string
         std::printf("  %s\n", oneLine(line).c_str());
     std::fflush(stdout);
     if (r.fail) st.exitStatus = 2;
+    report.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (report.any() && !writeCompareReports(r, opt, report, err, st.nthreads)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
 
     auto maps = std::make_shared<OIIO::ImageBuf>(std::move(r.maps));
     OIIO::ImageSpec& spec = maps->specmod();

@@ -422,6 +422,7 @@ bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>
     item.name = format("ingest({})", args[0]);
     item.header = src->header();
     item.ingest = std::move(src);
+    item.files = paths;
     st.stack.push_back(std::move(item));
     return true;
 }

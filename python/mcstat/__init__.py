@@ -220,8 +220,11 @@ class CompareResult:
         return "<mcstat.CompareResult {}>".format(self.verdict)
 
 
-def compare(a, b, **params):
+def compare(a, b, maps=None, **params):
     """Are the renders `a` and `b` (Stats or paths) the same image up to their noise? `mcstat A B
     --compare:key=value`: test ("welch", "yuen"), level, control, channels, aovs, tile, tol,
-    reltol, equivalence, trim. Returns a CompareResult."""
-    return CompareResult(_mcstat._compare(_source(a), _source(b), _params(params)))
+    reltol, equivalence, trim; the reports junit=FILE, json=FILE, html=DIR and their name
+    (docs/compare.md). maps=PATH writes the maps as an EXR (`-o maps.exr`). Returns a
+    CompareResult."""
+    return CompareResult(_mcstat._compare(_source(a), _source(b), _params(params),
+                                          str(maps) if maps else ""))

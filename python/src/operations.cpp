@@ -2,8 +2,11 @@
 // uses (image/imageops.h, analysis/compare.h): equal to `mcstat FILE --OP` bit for bit.
 #include "bindings.h"
 #include "mcstat/analysis/compare.h"
+#include "mcstat/analysis/compare_report.h"
+#include "mcstat/core/untrusted_text.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
+#include "mcstat/temp_file.h"
 
 namespace mcstat::python {
 
@@ -139,8 +142,18 @@ py::dict findingDict(const CompareFinding& f) {
     return d;
 }
 
+/// Writes the maps to `path` (an EXR, through a temporary file renamed onto it).
+void writeMaps(const OIIO::ImageBuf& maps, const std::string& path) {
+    std::string err;
+    if (!checkOutputTarget(path, err)) throw Error("--compare: " + err);
+    TemporaryFile tmp(path, ".exr");
+    if (!maps.write(tmp.path(), OIIO::TypeFloat, "openexr"))
+        throw Error("--compare: " + path + ": " + libraryMessage(maps.geterror()));
+    if (!tmp.commit(err)) throw Error("--compare: " + err);
+}
+
 py::dict compare(const py::object& a, const py::object& b,
-                 const std::map<std::string, std::string>& params) {
+                 const std::map<std::string, std::string>& params, const std::string& mapsPath) {
     Source sa(a), sb(b);
     CompareOptions opt;
     std::string err;
@@ -153,10 +166,22 @@ py::dict compare(const py::object& a, const py::object& b,
         throw Error("--compare: " + sa.name + " is in " + sa.header.colorSpace + " but " + sb.name +
                     " is in " + sb.header.colorSpace);
     opt.luma = lumaOf(sa.header.colorSpace, sa.name);
+    CompareReportRequest report = compareReportRequest(params);
+    report.a.name = sa.name;
+    report.b.name = sb.name;
+    for (CompareReportSide* s : {&report.a, &report.b})
+        if (py::isinstance<py::str>(s == &report.a ? a : b)) s->files.push_back(s->name);
+    opt.keepMeans = report.needsMeans();
     CompareResult r;
     {
         py::gil_scoped_release release;
+        const auto start = std::chrono::steady_clock::now();
         if (!compareStats(sa.blocks(), sb.blocks(), opt, r, err)) throw Error("--compare: " + err);
+        report.seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        if (report.any() && !writeCompareReports(r, opt, report, err, opt.nthreads))
+            throw Error("--compare: " + err);
+        if (!mapsPath.empty()) writeMaps(r.maps, mapsPath);
     }
     py::dict d;
     d["verdict"] = compareVerdict(r, opt);
@@ -192,7 +217,8 @@ void bindOperations(py::module_& m) {
     m.def("_operations", &operations);
     m.def("_estimate", &estimate, py::arg("src"), py::arg("name"), py::arg("params"),
           py::arg("diag"), py::arg("residual"));
-    m.def("_compare", &compare, py::arg("a"), py::arg("b"), py::arg("params"));
+    m.def("_compare", &compare, py::arg("a"), py::arg("b"), py::arg("params"),
+          py::arg("maps") = std::string());
 }
 
 }  // namespace mcstat::python

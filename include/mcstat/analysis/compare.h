@@ -45,17 +45,31 @@ struct CompareOptions {
     /// render itself (its noise is then modelled with the statistics file's per-sample variance);
     /// 0: the reference is taken as exact.
     double referenceSpp = 0.0;
+    /// The decision rule. Mcstat: the tests and the multiple-testing control above. Mitsuba:
+    /// Mitsuba 3's render-test rule (mitsuba-renderer/mitsuba3, src/render/tests/test_renders.py),
+    /// for a statistics file against a reference mean image with its per-sample variance image: per
+    /// pixel and channel R, G, B, z = |b - ref| sqrt(N_b / max(var, varianceFloor)) (N_b the file's
+    /// samples at the pixel), a two-sided normal p-value, the Sidak level
+    /// 1 - (1 - level)^(1 / pixels), and a pass when at least passFraction of the pixels' channel
+    /// tests pass; no tiles (docs/compare.md, "Mitsuba 3's references").
+    enum class Rule { Mcstat, Mitsuba } rule = Rule::Mcstat;
+    double varianceFloor = 1e-4;   ///< Mitsuba: the floor of the reference's variance
+    double passFraction = 0.9975;  ///< Mitsuba: the fraction of channel tests that must pass
+    /// Keep both sides' RGB means (CompareResult::meanA, meanB) for a report's pictures.
+    bool keepMeans = false;
     int nthreads = 0;
     std::function<void(double)> progress;  ///< fraction done, or empty
 };
 
 /// The comparison's parameters as `mcstat --compare:key=value` and Python's mcstat.compare take
-/// them: level, test, trim, control, channels, aovs, tile, tol, reltol, equivalence, refspp, layer.
+/// them: level, test, trim, control, channels, aovs, tile, tol, reltol, equivalence, refspp, layer,
+/// refvar, rule, varfloor, passfraction, and the reports' junit, json, html and name
+/// (compare_report.h).
 const std::vector<ParamSpec>& compareParams();
 /// Parses key=value parameters (compareParams(), defaults for those not given) into `opt`; luma,
 /// nthreads and progress are left as they are. False with the one-line error of the one parser
-/// (parseParamValue, `context` naming the command) or for an unknown key. `layer` and `refspp`
-/// concern an image reference; the caller reads them from `kv`.
+/// (parseParamValue, `context` naming the command) or for an unknown key. `layer` and `refvar`
+/// concern an image reference and the reports their files; the caller reads them from `kv`.
 bool parseCompareOptions(const std::map<std::string, std::string>& kv, CompareOptions& opt,
                          std::string& err, const std::string& context = "--compare");
 
@@ -110,6 +124,11 @@ struct CompareResult {
     /// with tiles tile.p<s>, tile.z<s>, tile.differs<s> (each pixel its tile's). Differences test:
     /// "differs" means rejected; equivalence test: not shown equivalent.
     OIIO::ImageBuf maps;
+    /// With CompareOptions::keepMeans: each side's R, G, B mean over the data window (a reference
+    /// image: its values).
+    OIIO::ImageBuf meanA, meanB;
+    /// Mitsuba's rule: the channel tests that passed and the fraction of them it needs.
+    size_t channelTests = 0, channelTestsPassed = 0;
 };
 
 /// Compares `b` against `a` (b - a), both statistics sources of one image (same data window; M
@@ -120,12 +139,16 @@ bool compareStats(StatsBlockSource& a, StatsBlockSource& b, const CompareOptions
 
 /// One-sample comparison of `b` against a reference image `ref` (R, G, B: its first three
 /// channels, pixels paired by their place in each data window, same size), exact or with
-/// opt.referenceSpp samples per pixel. AOVs cannot be asked for, nor Yuen's test (a trimmed mean
-/// is not the mean a reference holds). Anti-conservative on heavy-tailed pixels: a render that has
-/// not yet seen a pixel's rare paths has a lower mean and a smaller spread there than the converged
-/// reference (docs/compare.md); prefer compareStats against a stored statistics file.
+/// opt.referenceSpp samples per pixel. With `refVar` (R, G, B per-sample variances of the
+/// reference, as Mitsuba 3 stores them; needs opt.referenceSpp > 0) the reference's noise is
+/// var / referenceSpp per pixel instead of b's own scaled, and opt.rule may be Mitsuba. AOVs cannot
+/// be asked for, nor Yuen's test (a trimmed mean is not the mean a reference holds).
+/// Anti-conservative on heavy-tailed pixels: a render that has not yet seen a pixel's rare paths
+/// has a lower mean and a smaller spread there than the converged reference (docs/compare.md);
+/// prefer compareStats against a stored statistics file.
 bool compareStatsToImage(const OIIO::ImageBuf& ref, const std::string& refName, StatsBlockSource& b,
-                         const CompareOptions& opt, CompareResult& out, std::string& err);
+                         const CompareOptions& opt, CompareResult& out, std::string& err,
+                         const OIIO::ImageBuf* refVar = nullptr);
 
 /// The verdict in one line, e.g. "DIFFERENT: 9576 of 16384 pixels and 61 of 64 tiles differ in
 /// luminance (Welch's t on M = 21 + 21 sub-buffers, false discovery rate 1%)".

@@ -89,6 +89,15 @@ enum class TwoSampleTest {
 TwoSampleResult welchTest(const SideSummary& a, const SideSummary& b, double margin = 0.0,
                           TwoSampleTest test = TwoSampleTest::Difference);
 
+/// Mitsuba 3's render-test z-test of one channel (mitsuba-renderer/mitsuba3,
+/// src/render/tests/test_renders.py, z_test): a render's mean `mean` of `samples` samples against
+/// a reference value `ref` whose per-sample variance `refVariance` stands for the render's own,
+/// floored at `varianceFloor`: z = (mean - ref) sqrt(samples / max(refVariance, varianceFloor)),
+/// p = 2 (1 - Phi(|z|)). The reference's own noise is not counted. NaN p for a non-finite input
+/// or no samples.
+TwoSampleResult mitsubaZTest(double mean, double samples, double ref, double refVariance,
+                             double varianceFloor);
+
 /// P(T > t) for Student's t with `df` degrees of freedom (df = Inf: the standard normal), exact in
 /// its far tail (no cancellation): Boost.Math's complement of the cdf.
 double studentTail(double t, double df);
