@@ -1,7 +1,9 @@
-# `cmake --install`: the mcstat and mcstat-render executables, the OpenImageIO plugin, the static
-# libraries with their public headers, an exported CMake package (find_package(mcstat CONFIG)
-# giving mcstat::core, mcstat::filters, mcstat::exrcodec, mcstat::exrdeep, mcstat::color, mcstat::imagespec, mcstat::imageops, mcstat::ingest,
-# mcstat::compare, mcstat::compare_report, mcstat_EXECUTABLE and mcstat_add_render_test) and mcstat.pc.
+# `cmake --install`: the mcstat and mcstat-render executables, the OpenImageIO plugin, the
+# libraries (static, or shared with -DBUILD_SHARED_LIBS=ON) with their public headers and LICENSE,
+# an exported CMake package (find_package(mcstat CONFIG) giving mcstat::core, mcstat::filters,
+# mcstat::exrcodec, mcstat::exrdeep, mcstat::color, mcstat::imagespec, mcstat::imageops,
+# mcstat::ingest, mcstat::compare, mcstat::compare_report, mcstat_EXECUTABLE and
+# mcstat_add_render_test) and mcstat.pc.
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
@@ -19,7 +21,12 @@ endforeach()
 
 install(TARGETS ${_mcstat_libs}
   EXPORT mcstatTargets
-  ARCHIVE DESTINATION "${CMAKE_INSTALL_LIBDIR}" COMPONENT dev)
+  ARCHIVE DESTINATION "${CMAKE_INSTALL_LIBDIR}" COMPONENT dev
+  LIBRARY DESTINATION "${CMAKE_INSTALL_LIBDIR}" COMPONENT dev)
+install(FILES "${PROJECT_BINARY_DIR}/include/mcstat/version.h"
+  DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}/mcstat" COMPONENT dev)
+install(FILES "${PROJECT_SOURCE_DIR}/LICENSE"
+  DESTINATION "${CMAKE_INSTALL_DOCDIR}" COMPONENT dev)
 install(DIRECTORY "${PROJECT_SOURCE_DIR}/include/mcstat"
   DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}" COMPONENT dev
   FILES_MATCHING PATTERN "*.h")

@@ -44,10 +44,7 @@
 #include "mcstat/image/operation_input.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/stats_file.h"
-
-#ifndef MCSTAT_VERSION
-#define MCSTAT_VERSION "unknown"
-#endif
+#include "mcstat/version.h"
 
 OIIO_PLUGIN_NAMESPACE_BEGIN
 

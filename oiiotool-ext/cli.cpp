@@ -21,6 +21,7 @@
 #include "mcstat/image/operation_input.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/ingest.h"
+#include "mcstat/version.h"
 
 namespace mcstat::cli {
 

@@ -16,9 +16,9 @@ from 3.2) and with OpenEXR's.
 import numpy as np
 
 from . import _mcstat
-from ._mcstat import Error
+from ._mcstat import Error, __version__
 
-__all__ = ["Error", "Stats", "Image", "CompareResult", "read", "read_header", "blocks", "write",
+__all__ = ["__version__", "Error", "Stats", "Image", "CompareResult", "read", "read_header", "blocks", "write",
            "ingest", "estimate", "operations", "compare"]
 
 

@@ -5,6 +5,7 @@
 
 #include "bindings.h"
 #include "mcstat/color.h"
+#include "mcstat/version.h"
 
 namespace mcstat::python {
 
@@ -48,6 +49,7 @@ py::tuple imageArrays(const OIIO::ImageBuf& img) {
 PYBIND11_MODULE(_mcstat, m) {
     using namespace mcstat::python;
     m.doc() = "mcstat's C++ library for Python: see the mcstat package and docs/python.md";
+    m.attr("__version__") = MCSTAT_VERSION;  // the project's one version (mcstat/version.h)
     py::register_exception<Error>(m, "Error", PyExc_RuntimeError);
     bindStats(m);
     bindOperations(m);

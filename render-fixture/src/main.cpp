@@ -33,6 +33,7 @@
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
 #include "mcstat/temp_file.h"
+#include "mcstat/version.h"
 
 namespace {
 

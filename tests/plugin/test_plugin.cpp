@@ -26,6 +26,7 @@
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/stats_file.h"
+#include "mcstat/version.h"
 
 namespace {
 
@@ -677,6 +678,18 @@ class PluginApi : public Plugin {
         return in;
     }
 };
+
+TEST(PluginVersion, IsTheProjectsOne) {
+    // OIIO lists a plugin's <format>_imageio_library_version in "library_list"; it is the version
+    // CMake defines once (mcstat/version.h), as `mcstat --version` prints it.
+    void* so = dlopen((std::string(MCSTAT_PLUGIN_DIR) + "/mcstat.imageio.so").c_str(), RTLD_NOW);
+    ASSERT_TRUE(so) << dlerror();
+    using VersionFn = const char* (*)();
+    const auto fn = reinterpret_cast<VersionFn>(dlsym(so, "mcstat_imageio_library_version"));
+    ASSERT_TRUE(fn);
+    EXPECT_EQ(std::string(fn()), std::string("mcstat ") + MCSTAT_VERSION);
+    dlclose(so);
+}
 
 TEST_F(PluginApi, ReadsChannelSubsetsAndRejectsBadRequests) {
     auto in = reader(stats);

@@ -106,3 +106,12 @@ def test_ingest_gives_the_command_lines_file(tmp):
     t = mcstat.ingest([tmp / "seed_1.exr", tmp / "seed_2.exr"], spp=8, aovs=False)
     assert t.header["M"] == 2 and t.header["spp"] == 16
     np.testing.assert_array_equal(t.buffers, s.buffers[:, :, :2])
+
+
+def test_version_is_the_projects_one():
+    # the module, the command line and the renderer report the version CMake defines once
+    # (include/mcstat/version.h, generated from project(mcstat VERSION ...))
+    assert mcstat.__version__ == run(CLI, "--version").stdout.split()[1]
+    assert run(RENDER, "--version").stdout.split() == ["mcstat-render", mcstat.__version__]
+    major, minor, patch = (int(p) for p in mcstat.__version__.split("."))
+    assert (major, minor, patch) >= (0, 1, 0)
