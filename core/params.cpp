@@ -205,21 +205,28 @@ bool parseOne(const std::string& context, const ParamSpec& s, const std::string&
 
 }  // namespace
 
-bool parseParamValue(const std::string& context, const ParamSpec& s, const std::string& text,
-                     ParamValue& out, std::string& err) {
-    if (!s.list) return parseOne(context, s, text, out, err);
-    // A list: every element a value of the type; the first one's value, the whole text.
+bool parseParamList(const std::string& context, const ParamSpec& s, const std::string& text,
+                    std::vector<ParamValue>& out, std::string& err) {
+    out.clear();
     size_t start = 0;
-    ParamValue first;
     do {
         const size_t comma = std::min(text.find(',', start), text.size());
         ParamValue v;
         if (!parseOne(context, s, text.substr(start, comma - start), v, err)) return false;
-        if (start == 0) first = v;
+        out.push_back(std::move(v));
         start = comma + 1;
     } while (start <= text.size());
-    first.text = text;
-    out = std::move(first);
+    return true;
+}
+
+bool parseParamValue(const std::string& context, const ParamSpec& s, const std::string& text,
+                     ParamValue& out, std::string& err) {
+    if (!s.list) return parseOne(context, s, text, out, err);
+    // A list: every element a value of the type; the first one's value, the whole text.
+    std::vector<ParamValue> all;
+    if (!parseParamList(context, s, text, all, err)) return false;
+    out = std::move(all.front());
+    out.text = text;
     return true;
 }
 

@@ -35,8 +35,6 @@ bool parseInt(const std::string& s, long lo, long hi, long& out) {
     return true;
 }
 
-bool parseDouble(const std::string& s, double& out) { return parseRealText(s, out); }
-
 std::vector<ParamSpec> diffModifiers(bool neps) {
     std::vector<ParamSpec> m = {
         realParam("ratio", 0.0, HUGE_VAL, false, "2",
@@ -53,22 +51,15 @@ std::vector<ParamSpec> diffModifiers(bool neps) {
     return m;
 }
 
-bool parseDiffOptions(const Modifiers& mods, const std::string& cmd, DiffOptions& opt,
-                      std::string& err) {
-    for (const auto& [k, v] : mods) {
-        double* target = k == "ratio"   ? &opt.fireflyRatio
-                         : k == "floor" ? &opt.fireflyFloor
-                         : k == "eps"   ? &opt.relmseEpsilon
-                         : k == "neps"  ? &opt.normEpsilon
-                                        : nullptr;
-        if (target == nullptr) continue;  // not a metric's modifier (e.g. layer)
-        // Checked against diffModifiers() by the command table (checkModifiers).
-        if (!parseDouble(v, *target)) {
-            err = format("{}: {} is not a number: '{}'", cmd, k, v);
-            return false;
-        }
-    }
-    return true;
+void readDiffOptions(const Modifiers& mods, DiffOptions& opt) {
+    // Checked against diffModifiers() by the command table (checkModifiers), defaults filled in.
+    const std::vector<ParamSpec> specs = diffModifiers(true);
+    const std::pair<const char*, double*> metrics[] = {{"ratio", &opt.fireflyRatio},
+                                                       {"floor", &opt.fireflyFloor},
+                                                       {"eps", &opt.relmseEpsilon},
+                                                       {"neps", &opt.normEpsilon}};
+    for (const auto& [key, target] : metrics)
+        if (mods.count(key)) *target = modifierValue(specs, mods, key).real;
 }
 
 void printDiffLine(const std::string& name, const DiffMetrics& m) {
@@ -272,7 +263,7 @@ bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& 
         err = format("{}: {}", cmd, err);
         return false;
     }
-    if (!parseDiffOptions(mods, cmd, opt, err)) return false;
+    readDiffOptions(mods, opt);
     const auto layer = mods.find("layer");
     // R, G, B by name on both sides: a multilayer reference whose AO layer sorts before its
     // Combined pass must not be compared with AO.
@@ -871,9 +862,22 @@ bool splitModifiers(const std::string& arg, std::string& name, Modifiers& mods, 
 ParamValue modifierValue(const std::vector<ParamSpec>& specs, const Modifiers& mods,
                          const std::string& name) {
     ParamValue v;
+    const auto it = mods.find(name);
+    if (it == mods.end()) return v;  // no default, not given: unset
     std::string ignored;  // checkModifiers has parsed the same text with the same spec
     for (const ParamSpec& p : specs)
-        if (p.name == name) parseParamValue("modifier", p, mods.at(name), v, ignored);
+        if (p.name == name) parseParamValue("modifier", p, it->second, v, ignored);
+    return v;
+}
+
+std::vector<ParamValue> modifierList(const std::vector<ParamSpec>& specs, const Modifiers& mods,
+                                     const std::string& name) {
+    std::vector<ParamValue> v;
+    const auto it = mods.find(name);
+    if (it == mods.end()) return v;
+    std::string ignored;  // as above: already checked
+    for (const ParamSpec& p : specs)
+        if (p.name == name) parseParamList("modifier", p, it->second, v, ignored);
     return v;
 }
 

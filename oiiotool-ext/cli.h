@@ -47,10 +47,15 @@ struct Item {
 
 using Modifiers = std::map<std::string, std::string>;
 
-/// The typed value of modifier `name` of a command whose modifiers are `specs`, once the one check
-/// (checkModifiers) has accepted them and filled in their defaults.
+/// The one way a command reads its modifiers: the typed value of modifier `name` of a command
+/// whose modifiers are `specs`, once the one check (checkModifiers) has accepted them and filled
+/// in their defaults. A modifier without a default that was not given is unset: ParamValue{}
+/// (empty text, numbers 0); `mods.count(name)` says whether it was given.
 ParamValue modifierValue(const std::vector<ParamSpec>& specs, const Modifiers& mods,
                          const std::string& name);
+/// The elements of list modifier `name` (ParamSpec::list), typed; empty when unset.
+std::vector<ParamValue> modifierList(const std::vector<ParamSpec>& specs, const Modifiers& mods,
+                                     const std::string& name);
 
 struct State {
     std::vector<Item> stack;
@@ -83,7 +88,6 @@ struct Command {
 /// parseRealText in mcstat/filters/registry.h); registry operations and --plan parse with
 /// parseParamValue.
 bool parseInt(const std::string& s, long lo, long hi, long& out);
-bool parseDouble(const std::string& s, double& out);
 
 /// The modifiers of the metrics (ratio, floor, eps and, with `neps`, neps) and REF's `layer`, as
 /// --diff and the review commands declare them.
@@ -92,9 +96,8 @@ std::vector<ParamSpec> diffModifiers(bool neps);
 std::vector<ParamSpec> ingestModifiers();
 
 /// The metrics' modifiers of --diff and the review commands (ratio, floor, eps, neps; others are
-/// left alone) into `opt`, whose luma the caller sets.
-bool parseDiffOptions(const Modifiers& mods, const std::string& cmd, DiffOptions& opt,
-                      std::string& err);
+/// left alone; the command table has checked them) into `opt`, whose luma the caller sets.
+void readDiffOptions(const Modifiers& mods, DiffOptions& opt);
 /// The one line --diff prints for image `name` (the review commands print the same).
 void printDiffLine(const std::string& name, const DiffMetrics& m);
 

@@ -19,45 +19,23 @@ const std::vector<ParamSpec>& planParams() {
     static const std::vector<ParamSpec> params = [] {
         auto real = [](const std::string& name, double hi, const std::string& def,
                        const std::string& help) {
-            ParamSpec s;
-            s.name = name;
-            s.type = ParamType::Real;
-            s.min = 0.0;
-            s.minOpen = true;
-            s.max = hi;
-            s.defaultValue = def;
-            s.help = help;
-            return s;
+            return realParam(name, 0.0, hi, true, def, help);
         };
         auto oddInt = [](const std::string& name, const std::string& def, const std::string& help) {
-            ParamSpec s;
-            s.name = name;
-            s.type = ParamType::Int;
-            s.min = 1;
-            s.max = 101;
+            ParamSpec s = intParam(name, 1, 101, def, help);
             s.odd = true;
-            s.defaultValue = def;
-            s.help = help;
             return s;
         };
-        ParamSpec json;
-        json.name = "json";
-        json.type = ParamType::Flag;
-        json.defaultValue = "0";
-        json.help = "1 prints JSON instead of tables";
+        ParamSpec m = oddInt("m", "3,5,7", "buffer counts of the hybrid tables, comma-separated");
+        m.list = true;
         return std::vector<ParamSpec>{
             real("np", 1e6, "1", "overestimated pixels tolerated per image"),
             real("width", 1e9, "1920", "image width in pixels"),
             real("height", 1e9, "1080", "image height in pixels"),
-            json,
+            flagParam("json", "0", "1 prints JSON instead of tables"),
             oddInt("maxm", "21", "largest buffer count M considered"),
             oddInt("maxk", "15", "largest window side k considered"),
-            [&] {
-                ParamSpec m =
-                    oddInt("m", "3,5,7", "buffer counts of the hybrid tables, comma-separated");
-                m.list = true;
-                return m;
-            }(),
+            m,
             real("p", 1.0, "0.001", "probability of a rare sample: the minimum spp to include one"),
             real("certainty", 1.0, "0.99", "confidence of including it, below 1"),
         };
@@ -78,55 +56,25 @@ struct PlanOptions {
     bool json = false;
 };
 
-/// Parses mods[key] (or the default) with `key`'s spec; a comma-separated list for "m".
-bool value(const Modifiers& mods, const std::string& key, std::vector<ParamValue>& out,
-           std::string& err) {
-    const ParamSpec* spec = nullptr;
-    for (const ParamSpec& s : planParams())
-        if (s.name == key) spec = &s;
-    auto it = mods.find(key);
-    const std::string& text = it == mods.end() ? spec->defaultValue : it->second;
-    out.clear();
-    size_t start = 0;
-    do {
-        const size_t comma =
-            key == "m" ? std::min(text.find(',', start), text.size()) : text.size();
-        ParamValue v;
-        if (!parseParamValue("--plan", *spec, text.substr(start, comma - start), v, err))
-            return false;
-        out.push_back(v);
-        start = comma + 1;
-    } while (start <= text.size());
-    return true;
-}
-
+/// The modifiers (checked by the command table against planParams(), defaults filled in).
 bool parse(const Modifiers& mods, PlanOptions& o, std::string& err) {
-    std::vector<ParamValue> v;
-    auto one = [&](const std::string& key) { return value(mods, key, v, err); };
-    if (!one("np")) return false;
-    o.np = v[0].real;
-    if (!one("width")) return false;
-    o.width = v[0].real;
-    if (!one("height")) return false;
-    o.height = v[0].real;
-    if (!one("p")) return false;
-    o.p = v[0].real;
-    if (!one("certainty")) return false;
-    o.certainty = v[0].real;
+    const std::vector<ParamSpec>& specs = planParams();
+    const auto value = [&](const std::string& key) { return modifierValue(specs, mods, key); };
+    o.np = value("np").real;
+    o.width = value("width").real;
+    o.height = value("height").real;
+    o.p = value("p").real;
+    o.certainty = value("certainty").real;
     if (o.certainty >= 1.0) {
         err =
             "--plan: certainty must be below 1 (no finite spp includes a sample with certainty 1)";
         return false;
     }
-    if (!one("maxm")) return false;
-    o.maxm = int(v[0].integer);
-    if (!one("maxk")) return false;
-    o.maxk = int(v[0].integer);
-    if (!one("m")) return false;
+    o.maxm = int(value("maxm").integer);
+    o.maxk = int(value("maxk").integer);
     o.ms.clear();
-    for (const ParamValue& m : v) o.ms.push_back(int(m.integer));
-    if (!one("json")) return false;
-    o.json = v[0].integer != 0;
+    for (const ParamValue& m : modifierList(specs, mods, "m")) o.ms.push_back(int(m.integer));
+    o.json = value("json").integer != 0;
     return true;
 }
 

@@ -38,32 +38,58 @@ using OIIO::Strutil::fmt::format;
 
 // ---- modifiers ----------------------------------------------------------------------------------
 
-bool intModifier(const Modifiers& mods, const std::string& key, long lo, long hi, long& out,
-                 const std::string& cmd, std::string& err) {
-    auto it = mods.find(key);
-    if (it == mods.end()) return true;
-    if (!parseInt(it->second, lo, hi, out)) {
-        err = format("{}: modifier {} must be an integer in {}..{}, not '{}'", cmd, key, lo, hi,
-                     it->second);
-        return false;
-    }
-    return true;
+// Each command's modifiers, declared once: the command table checks them (checkModifiers) and
+// generates --help from them, and the commands read them through them (modifierValue).
+
+/// :scale=N, the integer upscaling of the review pictures.
+ParamSpec scaleModifier() {
+    return intParam("scale", 1, 64, "", "integer tile upscaling; default: tiles >= 256 px wide");
 }
 
-/// A modifier the command table has checked against its ParamSpec (checkModifiers): the value
-/// when given, `out` untouched otherwise.
-void checkedReal(const Modifiers& mods, const std::string& key, double& out) {
-    if (auto it = mods.find(key); it != mods.end()) parseRealText(it->second, out);
-}
-void checkedInt(const Modifiers& mods, const std::string& key, long& out) {
-    int64_t v = 0;
-    if (auto it = mods.find(key); it != mods.end() && parseIntegerText(it->second, v))
-        out = long(v);
+/// :layer=, REF's RGB layer.
+ParamSpec layerModifier() { return diffModifiers(false).back(); }
+
+const std::vector<ParamSpec>& contactSheetModifiers() {
+    static const std::vector<ParamSpec> specs = {
+        textParam("estimators", "gmon", "registry names, comma-separated"), scaleModifier(),
+        layerModifier(),
+        textParam("compare", "",
+                  "FILE.mcstat: a last tile, --compare of FILE against the top file (z-scores, "
+                  "verdict)")};
+    return specs;
 }
 
-std::string modifier(const Modifiers& mods, const std::string& key, const std::string& def) {
-    auto it = mods.find(key);
-    return it == mods.end() ? def : it->second;
+const std::vector<ParamSpec>& heatmapModifiers() {
+    static const std::vector<ParamSpec> specs = {
+        textParam("channel", "", "default: relerr if present, else the first"),
+        textParam("map", "",
+                  "OIIO colour map or cool-warm (diverging); default inferno, cool-warm for the "
+                  "signed maps of --compare (z, effect)"),
+        realParam("min", -HUGE_VAL, HUGE_VAL, false, "", "default: the data range"),
+        realParam("max", -HUGE_VAL, HUGE_VAL, false, "", "default: the data range"),
+        enumParam("log", {"auto", "0", "1"}, "auto", "auto: log10 for relerr*, else linear",
+                  {{"on", "1"}, {"off", "0"}}),
+        scaleModifier()};
+    return specs;
+}
+
+const std::vector<ParamSpec>& qualityPlotModifiers() {
+    static const std::vector<ParamSpec> specs = {
+        textParam("estimators", "mean,mon,gmon", "registry names, comma-separated"),
+        [] {
+            ParamSpec k = intParam("buffers", 1, kMaxBuffers, "",
+                                   "one file: the values of k, comma-separated, each at most M; "
+                                   "default 1,3,...,M");
+            k.list = true;
+            return k;
+        }(),
+        textParam("csv", "",
+                  "FILE: spp,buffers,estimator,relMSE,SSIM,PSNR,fireflies,bytesPerPixel"),
+        enumParam("x", {"spp", "bytes"}, "spp",
+                  "the x axis: samples per pixel, or (several files) each file's bytes per pixel "
+                  "on disk, e.g. full against compact (docs/compact.md)"),
+        layerModifier()};
+    return specs;
 }
 
 /// The registry estimators named in `list` (comma-separated), in order, each once.
@@ -97,12 +123,13 @@ bool diffOptions(const Modifiers& mods, const std::string& cmd, const Item& item
         err = format("{}: {}", cmd, err);
         return false;
     }
-    return parseDiffOptions(mods, cmd, opt, err);
+    readDiffOptions(mods, opt);
+    return true;
 }
 
 bool readReference(const std::string& path, const Modifiers& mods, const std::string& cmd,
                    OIIO::ImageBuf& ref, std::string& err) {
-    if (!readRGB(path, modifier(mods, "layer", ""), ref, err)) {
+    if (!readRGB(path, modifierValue(diffModifiers(false), mods, "layer").text, ref, err)) {
         err = format("{}: {}", cmd, err);
         return false;
     }
@@ -189,10 +216,11 @@ bool parseContactSheet(State& st, const Modifiers& mods, ContactSheet& q, std::s
     const std::string& cmd = q.cmd;
     if (!topStats(st, cmd, err)) return false;
     Item& top = st.stack.back();
-    if (!estimatorList(modifier(mods, "estimators", "gmon"), cmd, q.listed, err)) return false;
-    long scale = defaultReviewScale(top.header.width);
-    checkedInt(mods, "scale", scale);
-    q.layout.scale = int(scale);
+    const std::vector<ParamSpec>& specs = contactSheetModifiers();
+    if (!estimatorList(modifierValue(specs, mods, "estimators").text, cmd, q.listed, err))
+        return false;
+    q.layout.scale = int(mods.count("scale") ? modifierValue(specs, mods, "scale").integer
+                                             : defaultReviewScale(top.header.width));
     if (!loadStats(st, top, err)) return false;
     if (!readReference(q.refName, mods, cmd, q.ref, err)) return false;
     // The mean first, then the listed estimators (the mean once even when listed).
@@ -358,7 +386,7 @@ bool cmdContactSheet(State& st, const std::string& cmd, const std::vector<std::s
         if (!estimatorTile(st, *e, q, err)) return false;
     std::fflush(stdout);
     if (!referenceTile(st, q, err) || !differenceTile(st, q, err)) return false;
-    const std::string other = modifier(mods, "compare", "");
+    const std::string other = modifierValue(contactSheetModifiers(), mods, "compare").text;
     if (!other.empty() && !compareTile(st, q, other, err)) return false;
     auto sheet = std::make_shared<OIIO::ImageBuf>();
     if (!contactSheet(*sheet, q.tiles, q.layout, {}, st.nthreads)) {
@@ -416,7 +444,8 @@ bool cmdHeatmap(State& st, const std::string& cmd, const std::vector<std::string
     if (!topImage(st, cmd, err)) return false;
     Item& top = st.stack.back();
     HeatmapOptions opt;
-    opt.channel = modifier(mods, "channel", "");
+    const std::vector<ParamSpec>& specs = heatmapModifiers();
+    opt.channel = modifierValue(specs, mods, "channel").text;
     // The maps of --compare: the signed effect in standard errors on a diverging map centred on
     // 0, the verdict written above it.
     const OIIO::ImageSpec& src = top.image->spec();
@@ -442,14 +471,13 @@ bool cmdHeatmap(State& st, const std::string& cmd, const std::vector<std::string
             src.get_string_attribute(std::string(kProvenancePrefix) + "errormap.image", top.name);
         opt.caption = provenanceCaption(src, OIIO::Filesystem::filename(innermostName(of)));
     }
-    opt.map = modifier(mods, "map", opt.map);
-    checkedReal(mods, "min", opt.min);
-    checkedReal(mods, "max", opt.max);
-    const std::string log = modifier(mods, "log", "auto");
-    opt.log = log == "1" || log == "on" ? 1 : log == "0" || log == "off" ? 0 : -1;
-    long scale = defaultReviewScale(top.image->spec().width);
-    checkedInt(mods, "scale", scale);
-    opt.scale = int(scale);
+    if (mods.count("map")) opt.map = modifierValue(specs, mods, "map").text;
+    if (mods.count("min")) opt.min = modifierValue(specs, mods, "min").real;
+    if (mods.count("max")) opt.max = modifierValue(specs, mods, "max").real;
+    const std::string log = modifierValue(specs, mods, "log").text;  // canonical: auto, 0, 1
+    opt.log = log == "1" ? 1 : log == "0" ? 0 : -1;
+    opt.scale = int(mods.count("scale") ? modifierValue(specs, mods, "scale").integer
+                                        : defaultReviewScale(top.image->spec().width));
     auto out = std::make_shared<OIIO::ImageBuf>();
     if (!heatmap(*out, *top.image, opt, {}, st.nthreads)) {
         err = format("{}: {}: {}", cmd, top.name, out->geterror());
@@ -563,10 +591,11 @@ struct QualityPlot {
 /// Checks --qualityplot's modifiers into `q` and reads the reference.
 bool parseQualityPlot(const Modifiers& mods, QualityPlot& q, std::string& err) {
     const std::string& cmd = q.cmd;
-    if (!estimatorList(modifier(mods, "estimators", "mean,mon,gmon"), cmd, q.ests, err))
+    const std::vector<ParamSpec>& specs = qualityPlotModifiers();
+    if (!estimatorList(modifierValue(specs, mods, "estimators").text, cmd, q.ests, err))
         return false;
-    q.csvPath = modifier(mods, "csv", "");
-    q.bytes = modifier(mods, "x", "spp") == "bytes";
+    q.csvPath = modifierValue(specs, mods, "csv").text;
+    q.bytes = modifierValue(specs, mods, "x").text == "bytes";
     if (q.bytes && q.nfiles < 2) {
         err = format(
             "{}: x=bytes plots files of different sizes, one point each; the stack holds {} (push "
@@ -616,12 +645,15 @@ bool measureQuality(State& st, QualityPlot& q, const StatsImage& s, const std::s
 /// The buffer counts k of the nested subsets: modifier buffers, else 1, 3, 5, ... and M.
 bool subsetSizes(const Modifiers& mods, int M, const std::string& cmd, std::vector<long>& ks,
                  std::string& err) {
-    if (auto it = mods.find("buffers"); it != mods.end()) {
-        for (const std::string& s : OIIO::Strutil::splits(it->second, ",")) {
-            Modifiers one{{"buffers", s}};
-            long k = 0;
-            if (!intModifier(one, "buffers", 1, M, k, cmd, err)) return false;
-            ks.push_back(k);
+    if (mods.count("buffers")) {
+        // Each k checked by the command table against [1, kMaxBuffers]; here against this M.
+        for (const ParamValue& k : modifierList(qualityPlotModifiers(), mods, "buffers")) {
+            if (k.integer > M) {
+                err = format("{}: modifier buffers must be an integer in 1..{}, not '{}'", cmd, M,
+                             k.text);
+                return false;
+            }
+            ks.push_back(long(k.integer));
         }
     } else {
         for (long k = 1; k <= M; k += 2) ks.push_back(k);
@@ -772,69 +804,24 @@ bool cmdQualityPlot(State& st, const std::string& cmd, const std::vector<std::st
 
 }  // namespace
 
-/// :scale=N, the integer upscaling of the review pictures.
-ParamSpec scaleModifier() {
-    return intParam("scale", 1, 64, "", "integer tile upscaling; default: tiles >= 256 px wide");
-}
-
-/// :layer=, REF's RGB layer.
-ParamSpec layerModifier() { return diffModifiers(false).back(); }
-
 void appendReviewCommands(std::vector<Command>& t) {
-    t.push_back({"--contactsheet",
-                 1,
-                 "REF",
+    t.push_back({"--contactsheet", 1, "REF",
                  "Contact sheet of the top statistics file: mean | each estimator | REF | "
                  "relative error of the last estimator, labelled, with relMSE, SSIM, fireflies "
                  "(docs/review.md)",
-                 {textParam("estimators", "gmon", "registry names, comma-separated"),
-                  scaleModifier(), layerModifier(),
-                  textParam("compare", "",
-                            "FILE.mcstat: a last tile, --compare of FILE against the top file "
-                            "(z-scores, verdict)")},
-                 &cmdContactSheet,
-                 ""});
+                 contactSheetModifiers(), &cmdContactSheet, ""});
     t.push_back({"--errormap", 1, "REF",
                  "Replace the top image by its per-pixel error against REF: channels relerr "
                  "(relMSE's per-pixel term) and firefly (1/0)",
                  diffModifiers(false), &cmdErrorMap, ""});
-    t.push_back({"--heatmap",
-                 0,
-                 "",
+    t.push_back({"--heatmap", 0, "",
                  "Replace the top image by a heatmap of one channel with a colour bar "
                  "(display-referred; NaN/Inf magenta)",
-                 {textParam("channel", "", "default: relerr if present, else the first"),
-                  textParam("map", "",
-                            "OIIO colour map or cool-warm (diverging); default inferno, "
-                            "cool-warm for the signed maps of --compare (z, effect)"),
-                  realParam("min", -HUGE_VAL, HUGE_VAL, false, "", "default: the data range"),
-                  realParam("max", -HUGE_VAL, HUGE_VAL, false, "", "default: the data range"),
-                  enumParam("log", {"auto", "0", "1"}, "auto",
-                            "auto: log10 for relerr*, else linear", {{"on", "1"}, {"off", "0"}}),
-                  scaleModifier()},
-                 &cmdHeatmap,
-                 ""});
-    t.push_back({"--qualityplot",
-                 1,
-                 "REF",
+                 heatmapModifiers(), &cmdHeatmap, ""});
+    t.push_back({"--qualityplot", 1, "REF",
                  "Plot relMSE and SSIM against spp (gnuplot): the first k buffers of the top "
                  "statistics file, or one point per statistics file on top of the stack",
-                 {textParam("estimators", "mean,mon,gmon", "registry names, comma-separated"),
-                  [] {
-                      ParamSpec k = intParam("buffers", 1, kMaxBuffers, "",
-                                             "one file: the values of k, comma-separated, each "
-                                             "at most M; default 1,3,...,M");
-                      k.list = true;
-                      return k;
-                  }(),
-                  textParam("csv", "",
-                            "FILE: spp,buffers,estimator,relMSE,SSIM,PSNR,fireflies,bytesPerPixel"),
-                  enumParam("x", {"spp", "bytes"}, "spp",
-                            "the x axis: samples per pixel, or (several files) each file's bytes "
-                            "per pixel on disk, e.g. full against compact (docs/compact.md)"),
-                  layerModifier()},
-                 &cmdQualityPlot,
-                 ""});
+                 qualityPlotModifiers(), &cmdQualityPlot, ""});
 }
 
 }  // namespace mcstat::cli

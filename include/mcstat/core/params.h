@@ -60,6 +60,11 @@ std::string describeParam(const ParamSpec& spec);
 /// `err` is the one line "<context>: <key> must be <describeParam>, not '<text>'".
 bool parseParamValue(const std::string& context, const ParamSpec& spec, const std::string& text,
                      ParamValue& out, std::string& err);
+/// The elements of a list parameter's text (ParamSpec::list: comma-separated), each parsed and
+/// checked with `spec` as parseParamValue parses one value; false with a one-line `err` naming
+/// `context` at the first bad element.
+bool parseParamList(const std::string& context, const ParamSpec& spec, const std::string& text,
+                    std::vector<ParamValue>& out, std::string& err);
 
 /// The candidate nearest to `name` by edit distance (case and leading dashes ignored: "-gmon" and
 /// "--GMON" both mean --gmon), or "" when none is near: for "did you mean" suggestions.
