@@ -15,7 +15,7 @@
 #include <sstream>
 #include <string>
 
-#include "mcstat/filters/samples/pajot_state.h"
+#include "mcstat/filters/samples/sample_delaying_state.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
 #include "pajot_reference.h"
@@ -50,7 +50,7 @@ TEST_F(PajotFile, RecordsHoldEverySampleInOrderAndReadBackByBlocks) {
     ASSERT_TRUE(readStatsFile(f, img, err)) << err;
     EXPECT_EQ(img.header.formatVersion, 4);
     EXPECT_TRUE(img.header.hasRecords);
-    EXPECT_FALSE(img.header.hasPajot);
+    EXPECT_FALSE(img.header.hasState());
     SampleRecordsReader rd;
     ASSERT_TRUE(rd.open(f, err)) << err;
     SampleBlock block;
@@ -222,7 +222,7 @@ TEST_F(PajotFile, MergingOrRewritingDropsThePerSamplePartsWithAWarning) {
     StatsHeader h;
     std::string err;
     ASSERT_TRUE(readStatsHeader(ab, h, err)) << err;
-    EXPECT_FALSE(h.hasPajot);
+    EXPECT_FALSE(h.hasState());
     EXPECT_FALSE(h.hasRecords);
     EXPECT_EQ(h.formatVersion, 1);  // the lowest version that holds what remains
     EXPECT_EQ(h.spp, 16);
@@ -253,7 +253,9 @@ TEST_F(PajotFile, RefusalsAreOneLineErrorsBeforeAnyWork) {
     r = mcstat(path("s.mcstat") + " --pajot:n=0 -o " + path("o.exr"));
     EXPECT_NE(r.err.find("n must be"), std::string::npos) << r.err;
     r = render("--scene tiny --pajot fast -o " + path("y.mcstat"));
-    EXPECT_NE(r.err.find("--pajot: expected 'adr', 'rot' or 'hybrid'"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("--pajot: method must be 'stored', 'adr', 'rot' or 'hybrid', not 'fast'"),
+              std::string::npos)
+        << r.err;
     // Resume: a file without Pajot's state cannot continue it; --spp is the total.
     r = render("--scene tiny --spp 8 --pajot hybrid --resume " + path("plain.mcstat") + " -o " +
                path("z.mcstat"));
