@@ -209,11 +209,6 @@ bool parseOne(const std::string& context, const ParamSpec& s, const std::string&
 bool parseParamValue(const std::string& context, const ParamSpec& s, const std::string& text,
                      ParamValue& out, std::string& err) {
     if (!s.list) return parseOne(context, s, text, out, err);
-    if (text.empty() && s.defaultValue.empty()) {  // an unset list (its default)
-        out = ParamValue{};
-        out.type = s.type;
-        return true;
-    }
     // A list: every element a value of the type; the first one's value, the whole text.
     size_t start = 0;
     ParamValue first;

@@ -24,11 +24,11 @@ namespace {
 /// The luminance weights of the log-luminance (section 3): the colour config's unless given; a
 /// stored run names its own.
 ParamSpec lumaParam() {
-    ParamSpec s = realParam("luma", -HUGE_VAL, HUGE_VAL, false, "",
-                            "luminance weights R,G,B of the log-luminance (default: the working "
-                            "colour space's)");
-    s.list = true;
-    return s;
+    // Text, not a list of reals: an empty default means the colour config's (pajotParamsFrom
+    // reads the three numbers with the one number syntax).
+    return textParam("luma", "",
+                     "luminance weights R,G,B of the log-luminance (default: the working colour "
+                     "space's)");
 }
 
 /// The parameters asked for: method "stored" takes the online run's (or, with records only, the
@@ -174,7 +174,7 @@ bool pajotParamsFrom(const ParamValues& v, const std::array<double, 3>& luma, Pa
     p.T = int(v.at("t").integer);
     p.delta = v.at("delta").real;
     p.luma = luma;
-    const std::string& given = v.at("luma").text;  // checked by parseParamValue: numbers
+    const std::string& given = v.at("luma").text;
     if (!given.empty()) {
         std::vector<double> w;
         for (size_t start = 0; start <= given.size();) {

@@ -36,8 +36,7 @@ struct ParamSpec {
     /// Fixed by the operation, not a modifier: the value is always defaultValue (e.g. 3DMF's
     /// centre weight 1). Listed so that the operation's whole configuration is in the registry.
     bool fixed = false;
-    /// A comma-separated list of such values (e.g. buffer counts "3,5,7"): each is checked. With
-    /// an empty default the parameter is unset (empty text) unless given.
+    /// A comma-separated list of such values (e.g. buffer counts "3,5,7"): each is checked.
     bool list = false;
 };
 

@@ -64,7 +64,6 @@ struct PixelKernel {
 /// weights (from the colour config) to the operation's own parameter struct and kernel.
 using BindPixelFn = PixelKernel (*)(const ParamValues& values, const std::array<double, 3>& luma);
 
-
 struct SpatialParams;  // the window family's parameters (filters/window/window_rank.h)
 
 /// A Neighbourhood operation with its parameters bound: a weighted trimmed mean over the window.
