@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "mcstat/core/parallel.h"
+#include "mcstat/core/untrusted_text.h"
 #include "mcstat/filters/aov_weights.h"
 #include "mcstat/filters/samples/sample_delaying_kde.h"
 #include "mcstat/filters/samples/sample_delaying_state.h"
@@ -185,7 +186,7 @@ bool pajotParamsFrom(const ParamValues& v, const std::array<double, 3>& luma, Pa
             start = comma + 1;
         }
         if (w.size() != 3) {
-            err = "pajot: luma must be three weights R,G,B, not '" + given + "'";
+            err = "pajot: luma must be three weights R,G,B, not '" + printable(given) + "'";
             return false;
         }
         p.luma = {w[0], w[1], w[2]};
@@ -205,15 +206,17 @@ std::string pajotParamText(const PajotParams& p) {
 
 bool pajotParamsFromText(const std::string& text, PajotParams& p, std::string& problem) {
     std::map<std::string, std::string> kv;
-    if (!parseParamText(text, kv, problem)) return false;
-    for (const char* key : {"method", "n", "delayed", "t", "delta", "luma"})
-        if (kv.count(key) == 0) {
-            problem = std::string("no ") + key + " in '" + text + "'";
-            return false;
-        }
     ParamValues values;
-    return parseOperationParams(pajotOperation(), kv, values, problem) &&
-           pajotParamsFrom(values, p.luma, p, problem);
+    bool ok = parseParamText(text, kv, problem);
+    for (const char* key : {"method", "n", "delayed", "t", "delta", "luma"})
+        if (ok && kv.count(key) == 0) {
+            problem = std::string("no ") + key + " in '" + text + "'";
+            ok = false;
+        }
+    ok = ok && parseOperationParams(pajotOperation(), kv, values, problem) &&
+         pajotParamsFrom(values, p.luma, p, problem);
+    if (!ok) problem = printable(problem, 300);  // the text is the file's: untrusted
+    return ok;
 }
 
 bool pajotSamples(const SamplesRequest& req, OperationImage& out, std::string& err) {
