@@ -179,7 +179,8 @@ bool compactHeader(const StatsHeader& full, const std::string& name, const Compa
     out.adaptiveM = true;
     out.compact = true;
     out.compactRule = compactRuleText(rule);
-    out.hasPajot = out.hasRecords = false;
+    out.state = StateOwner();  // per-sample state and records stay in the full file
+    out.hasRecords = false;
     out.formatVersion = kStatsFormatVersionSlimMoments;
     return true;
 }

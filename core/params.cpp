@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <charconv>
 #include <cstdio>
 #include <cstdlib>
 
@@ -247,6 +248,46 @@ std::string nearestName(const std::string& name, const std::vector<std::string>&
         }
     }
     return best;
+}
+
+bool parseParamText(const std::string& text, std::map<std::string, std::string>& kv,
+                    std::string& problem) {
+    kv.clear();
+    if (text.empty()) return true;
+    std::string last;
+    for (const std::string& item : OIIO::Strutil::splits(text, ":")) {
+        const size_t eq = item.find('=');
+        const unsigned char first = item.empty() ? 0 : static_cast<unsigned char>(item[0]);
+        const bool startsKey = std::isalpha(first) || first == '_';
+        if (!last.empty() && !startsKey && eq == std::string::npos) {
+            kv[last] += ":" + item;  // the value goes on
+            continue;
+        }
+        if (eq == std::string::npos || eq == 0) {
+            problem = "'" + item + "' is not name=value";
+            return false;
+        }
+        last = item.substr(0, eq);
+        if (kv.count(last)) {
+            problem =
+                "'" + last + "' given twice ('" + kv[last] + "' and '" + item.substr(eq + 1) + "')";
+            return false;
+        }
+        kv[last] = item.substr(eq + 1);
+    }
+    return true;
+}
+
+std::string paramText(const std::map<std::string, std::string>& kv) {
+    std::string out;
+    for (const auto& [key, value] : kv) out += (out.empty() ? "" : ":") + key + "=" + value;
+    return out;
+}
+
+std::string realText(double v) {
+    char buf[64];
+    const auto r = std::to_chars(buf, buf + sizeof buf, v);  // shortest round trip
+    return std::string(buf, r.ptr);
 }
 
 bool checkModifiers(const std::string& command, const std::vector<ParamSpec>& specs,

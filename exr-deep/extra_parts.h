@@ -18,12 +18,12 @@ Imf::Header commonHeader(const StatsHeader& h, const std::string& name, bool dee
 /// Checks the extras against the image (sizes, version 4); `err` names `path`.
 bool checkExtras(const std::string& path, const StatsImage& img, const StatsExtras& extras,
                  std::string& err);
-/// Appends the headers of parts pajot, modes, records as `extras` asks.
+/// Appends the headers of the state parts and part records as `extras` asks.
 void appendExtraHeaders(std::vector<Imf::Header>& headers, const StatsHeader& h,
                         const StatsExtras& extras);
-/// Bytes per pixel of the widest array the flat part `pajot` of `extras` points into.
+/// Bytes per pixel of the widest array the flat state part of `extras` points into.
 size_t extraPixelBytes(const StatsExtras& extras);
-/// Appends the rows of parts pajot, modes, records as `extras` asks for the Core writer (`img`:
+/// Appends the rows of the state parts and records as `extras` asks for the Core writer (`img`:
 /// the whole image; the rows point into `extras`).
 void appendExtraRows(std::vector<PartRows>& rows, const StatsImage& img, const StatsExtras& extras);
 /// Writes those parts (after the four) through the C++ API; throws on failure.

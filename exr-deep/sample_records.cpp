@@ -1,8 +1,8 @@
 // Format version 4's optional parts (FORMAT.md "Version 4: samples and modes"): the per-sample
 // part `records`, written by blocks of rows to a temporary deep file and moved chunk by chunk into
 // the statistics file, read back by blocks of rows; and an operation's per-pixel state, parts
-// `pajot` (flat: FLOAT and UINT channels) and `modes` (deep: FLOAT records), stored as given and
-// read back by name (what they mean: filters/samples/pajot_state.cpp).
+// an operation's state parts (flat: FLOAT and UINT channels; deep: FLOAT records), stored as given
+// with their owner and read back by name (what they mean: the owner's OperationState).
 #include "mcstat/sample_records.h"
 
 #include <OpenEXR/ImfChannelList.h>
@@ -28,6 +28,7 @@
 
 #include "deep_frame_buffer.h"
 #include "extra_parts.h"
+#include "mcstat/core/params.h"
 #include "mcstat/exr-codec/fd_stream.h"
 #include "mcstat/temp_file.h"
 #include "stats_layout.h"
@@ -413,7 +414,7 @@ bool SampleRecordsReader::read(int y0, int rows, SampleBlock& block, std::string
     return true;
 }
 
-// ---- parts pajot and modes: an operation's per-pixel state -------------------------------------
+// ---- state parts with an owner: an operation's per-pixel state ---------------------------------
 
 namespace {
 
@@ -465,20 +466,33 @@ bool checkExtras(const std::string& path, const StatsImage& img, const StatsExtr
     const bool any = extras.state != nullptr || !extras.recordsFile.empty();
     if (any && h.formatVersion < kStatsFormatVersionSamples) {
         err = fmt::format(
-            "{}: parts pajot, modes and records need format version {} (header "
+            "{}: state parts and records need format version {} (header "
             "says {})",
             path, kStatsFormatVersionSamples, h.formatVersion);
         return false;
     }
     if (extras.state != nullptr) {
         const PixelStateParts& s = *extras.state;
+        const StateOwner& o = s.owner;
+        std::map<std::string, std::string> kv;
+        std::string problem;
+        if (o.operation.empty() || o.operation.size() > layout::kMaxStateOwner ||
+            !layout::validStatePartName(o.flatPart) || !layout::validStatePartName(o.deepPart) ||
+            o.flatPart == o.deepPart || o.params.size() > layout::kMaxStateParams ||
+            !parseParamText(o.params, kv, problem)) {
+            err = path + ": state parts '" + printable(o.flatPart) + "', '" +
+                  printable(o.deepPart) + "' of '" + printable(o.operation) +
+                  "': not an owner, part names and parameter text the format stores";
+            return false;
+        }
         const size_t pixels = img.pixelCount();
         const uint64_t total =
             std::accumulate(s.recordCounts.begin(), s.recordCounts.end(), uint64_t(0));
         if (s.floats.size() != pixels * s.floatChannels.size() ||
             s.words.size() != pixels * s.uintChannels.size() || s.recordCounts.size() != pixels ||
             s.records.size() != total * s.recordChannels.size()) {
-            err = path + ": the per-pixel state (parts pajot, modes) does not match the image size";
+            err = path + ": the per-pixel state (parts " + printable(o.flatPart) + ", " +
+                  printable(o.deepPart) + ") does not match the image size";
             return false;
         }
     }
@@ -489,17 +503,19 @@ void appendExtraHeaders(std::vector<Imf::Header>& headers, const StatsHeader& h,
                         const StatsExtras& extras) {
     if (extras.state != nullptr) {
         const PixelStateParts& s = *extras.state;
-        Imf::Header flat = commonHeader(h, layout::kPartPajot, false);
+        Imf::Header flat = commonHeader(h, s.owner.flatPart, false);
         for (const std::string& c : s.floatChannels)
             flat.channels().insert(c, Imf::Channel(Imf::FLOAT));
         for (const std::string& c : s.uintChannels)
             flat.channels().insert(c, Imf::Channel(Imf::UINT));
-        flat.insert(layout::kAttrPajot, Imf::StringAttribute(s.params));
+        flat.insert(layout::kAttrStateOwner, Imf::StringAttribute(s.owner.operation));
+        flat.insert(layout::kAttrStateParams, Imf::StringAttribute(s.owner.params));
         headers.push_back(std::move(flat));
-        Imf::Header deep = commonHeader(h, layout::kPartModes, true);
+        Imf::Header deep = commonHeader(h, s.owner.deepPart, true);
         for (const std::string& c : s.recordChannels)
             deep.channels().insert(c, Imf::Channel(Imf::FLOAT));
-        deep.insert(layout::kAttrPajot, Imf::StringAttribute(s.params));
+        deep.insert(layout::kAttrStateOwner, Imf::StringAttribute(s.owner.operation));
+        deep.insert(layout::kAttrStateParams, Imf::StringAttribute(s.owner.params));
         headers.push_back(std::move(deep));
     }
     if (!extras.recordsFile.empty()) {
@@ -549,7 +565,7 @@ void appendExtraRows(std::vector<PartRows>& rows, const StatsImage& img,
     const size_t width = size_t(img.header.width);
     if (extras.state != nullptr) {
         const PixelStateParts& s = *extras.state;
-        // Part pajot: pixel-interleaved floats and words (the writer only reads them).
+        // The flat state part: pixel-interleaved floats and words (the writer only reads them).
         PartRows flat;
         const size_t nf = s.floatChannels.size(), nu = s.uintChannels.size();
         auto* fl = const_cast<char*>(reinterpret_cast<const char*>(s.floats.data()));
@@ -561,7 +577,7 @@ void appendExtraRows(std::vector<PartRows>& rows, const StatsImage& img,
             flat.slices.push_back({s.uintChannels[c], words + c * sizeof(uint32_t),
                                    nu * sizeof(uint32_t), nu * sizeof(uint32_t) * width});
         rows.push_back(std::move(flat));
-        // Part modes: every pixel's records contiguous, in scanline order.
+        // The deep state part: every pixel's records contiguous, in scanline order.
         PartRows deep;
         const size_t nc = s.recordChannels.size();
         deep.counts = s.recordCounts.data();
@@ -587,10 +603,8 @@ bool readPixelStateParts(const std::string& path, PixelStateParts& out, std::str
     StatsHeader h;
     if (!readStatsHeader(path, h, err, limits)) return false;
     if (header) *header = h;
-    if (!h.hasPajot) {
-        err = path +
-              ": no Pajot state (parts 'pajot' and 'modes'); render with mcstat-render "
-              "--pajot";
+    if (!h.hasState()) {
+        err = path + ": holds no operation's state parts";
         return false;
     }
     try {
@@ -598,11 +612,7 @@ bool readPixelStateParts(const std::string& path, PixelStateParts& out, std::str
         const int flatPart = layout::firstExtraPart(h), deepPart = flatPart + 1;
         const Imf::Header& fh = in.header(flatPart);
         PixelStateParts r;
-        const auto* pa = fh.findTypedAttribute<Imf::StringAttribute>(layout::kAttrPajot);
-        if (pa == nullptr)
-            throw std::runtime_error(
-                fmt::format("part 'pajot': attribute {}: missing", layout::kAttrPajot));
-        r.params = pa->value();
+        r.owner = h.state;  // owner, parameters and names, checked with the headers
         for (auto it = fh.channels().begin(); it != fh.channels().end(); ++it) {
             if (it.channel().type == Imf::FLOAT) r.floatChannels.emplace_back(it.name());
             if (it.channel().type == Imf::UINT) r.uintChannels.emplace_back(it.name());
@@ -612,9 +622,9 @@ bool readPixelStateParts(const std::string& path, PixelStateParts& out, std::str
         const uint64_t flatBytes =
             uint64_t(pixels) * (r.floatChannels.size() + r.uintChannels.size()) * 4;
         if (flatBytes > uint64_t(limits.maxBytes))
-            throw std::runtime_error(
-                fmt::format("part 'pajot' holds {} channels, beyond the limits",
-                            r.floatChannels.size() + r.uintChannels.size()));
+            throw std::runtime_error(fmt::format("part '{}' holds {} channels, beyond the limits",
+                                                 printable(h.state.flatPart),
+                                                 r.floatChannels.size() + r.uintChannels.size()));
         r.floats.resize(pixels * r.floatChannels.size());
         r.words.resize(pixels * r.uintChannels.size());
         {
@@ -634,14 +644,14 @@ bool readPixelStateParts(const std::string& path, PixelStateParts& out, std::str
         if (total > uint64_t(limits.maxDeepSamples) ||
             total * std::max<size_t>(r.recordChannels.size(), 1) * sizeof(float) >
                 uint64_t(limits.maxBytes))
-            throw std::runtime_error(
-                fmt::format("part 'modes' holds {} records, beyond the limits", total));
+            throw std::runtime_error(fmt::format("part '{}' holds {} records, beyond the limits",
+                                                 printable(h.state.deepPart), total));
         r.records.resize(total * r.recordChannels.size());
         pointRecords(r, *set);
         dp.readPixels(window.min.y, window.max.y);
         out = std::move(r);
     } catch (const std::bad_alloc&) {
-        err = path + ": out of memory while reading the Pajot state";
+        err = path + ": out of memory while reading the state parts";
         return false;
     } catch (const std::exception& e) {
         err = fmt::format("{}: {}", path, libraryMessage(e.what()));

@@ -43,7 +43,7 @@ bool checkStatsFile(const std::string& path, StatsCheckReport& report, std::stri
 
     // 3. Every row of the four parts, by blocks; read() checks each count and, with buffers and
     //    moments both decoded, that the buffer counts sum to the moments count.
-    const int extraSteps = (h.hasRecords ? 1 : 0) + (h.hasPajot ? 1 : 0);
+    const int extraSteps = (h.hasRecords ? 1 : 0) + (h.hasState() ? 1 : 0);
     const double shareOfParts = 1.0 / double(1 + extraSteps);
     StatsImage block;
     const int rows = reader.blockRows(kStatsAllParts);
@@ -70,12 +70,12 @@ bool checkStatsFile(const std::string& path, StatsCheckReport& report, std::stri
         }
         done += shareOfParts;
     }
-    if (h.hasPajot) {
-        // The parts' shapes and sizes; what they mean the Pajot operation checks
-        // (readPajotParts, which `mcstat --check` runs too).
+    if (h.hasState()) {
+        // The parts' shapes and sizes; what they mean their owner checks (its registry entry's
+        // OperationState::describe, which `mcstat --check` runs too).
         PixelStateParts state;
         if (!readPixelStateParts(path, state, err, limits)) return false;
-        report.pajot = true;
+        report.state = true;
         if (progress) progress(1.0);
     }
     return true;

@@ -13,6 +13,8 @@
 #include <map>
 #include <vector>
 
+#include "mcstat/core/params.h"
+#include "mcstat/core/untrusted_text.h"
 #include "mcstat/exr-codec/core_io.h"
 #include "mcstat/exr-codec/exr_headers.h"
 #include "mcstat/exr-codec/fd_stream.h"
@@ -168,6 +170,12 @@ class Checker {
     bool declaresAdaptive() const;
     bool checkVersionFirst();
     bool checkParts();
+    /// Whether part `part` is the flat part of state parts with an owner: it carries
+    /// mcstat:stateOwner, or (files written before the owner was recorded) "mcstat:" + its name.
+    bool isStatePart(int part) const;
+    /// The state parts at `part` and `part + 1` into state_: the owner, its parameter text (in the
+    /// one grammar, core/params.h) and the parts' names, each checked.
+    bool checkStateParts(int part, int n);
     bool checkAttributes(StatsHeader& hdr);
     /// The channels of part `part` (0..3) for `hdr`'s M; a compact file's part moments adds the
     /// spread channels, and the deep part of version 6 the AOV channels.
@@ -188,7 +196,11 @@ class Checker {
     std::string path_;
     int nparts_ = 0;
     bool adaptive_ = false;
-    bool hasPajot_ = false, hasRecords_ = false, hasAovs_ = false;
+    bool hasRecords_ = false, hasAovs_ = false;
+    /// State parts with an owner (FORMAT.md): the owner read by checkStateParts; the flat part's
+    /// index (the deep one follows), -1 without.
+    StateOwner state_;
+    int stateFlat_ = -1;
     /// The part carrying the AOV attributes: `aovs`, or (version 6, adaptive layout) `vbuffers`.
     int aovPart_ = layout::kAovs;
     const char* const* names_ = layout::kPartNames;
@@ -213,6 +225,56 @@ bool Checker::checkVersionFirst() {
     return true;
 }
 
+bool Checker::isStatePart(int part) const {
+    const exr_attribute_t* owner = attr(part, layout::kAttrStateOwner);
+    if (owner != nullptr) return true;
+    const exr_attribute_t* legacy = attr(part, ("mcstat:" + partName(part)).c_str());
+    return legacy != nullptr && legacy->type == EXR_ATTR_STRING;
+}
+
+bool Checker::checkStateParts(int part, int n) {
+    StateOwner s;
+    s.flatPart = partName(part);
+    if (part + 1 >= n || partName(part + 1) == layout::kPartRecords)
+        return fail(fmt::format("state part '{}' at index {} is not followed by its deep part",
+                                printable(s.flatPart), part));
+    s.deepPart = partName(part + 1);
+    if (!layout::validStatePartName(s.flatPart) || !layout::validStatePartName(s.deepPart) ||
+        s.flatPart == s.deepPart)
+        return fail(fmt::format("state parts '{}' and '{}': not names an operation may choose",
+                                printable(s.flatPart), printable(s.deepPart)));
+    if (attr(part, layout::kAttrStateOwner) != nullptr) {
+        std::string deepOwner;
+        if (!stringAttr(part, layout::kAttrStateOwner, s.operation) ||
+            !stringAttr(part, layout::kAttrStateParams, s.params) ||
+            !stringAttr(part + 1, layout::kAttrStateOwner, deepOwner))
+            return false;
+        if (deepOwner != s.operation)
+            return fail(fmt::format("state parts '{}' and '{}' name different owners ('{}', '{}')",
+                                    printable(s.flatPart), printable(s.deepPart),
+                                    printable(s.operation, 40), printable(deepOwner, 40)));
+    } else {  // written before the owner was recorded: the flat part's name is the owner
+        s.operation = s.flatPart;
+        if (!stringAttr(part, ("mcstat:" + s.flatPart).c_str(), s.params)) return false;
+        s.params = layout::legacyStateParams(s.params);
+    }
+    if (s.operation.empty() || s.operation.size() > layout::kMaxStateOwner ||
+        s.operation.find('\0') != std::string::npos)
+        return fail(fmt::format("part '{}': attribute '{}' is not an operation's name ('{}')",
+                                printable(s.flatPart), layout::kAttrStateOwner,
+                                printable(s.operation, 40)));
+    std::map<std::string, std::string> kv;
+    std::string problem;
+    if (s.params.size() > layout::kMaxStateParams)
+        return fail(fmt::format("part '{}': parameter text of {} bytes, beyond {}",
+                                printable(s.flatPart), s.params.size(), layout::kMaxStateParams));
+    if (!parseParamText(s.params, kv, problem))
+        return fail(fmt::format("part '{}': parameters '{}': {}", printable(s.flatPart),
+                                printable(s.params, 80), printable(problem, 120)));
+    state_ = std::move(s);
+    return true;
+}
+
 bool Checker::checkParts() {
     const int n = nparts_;
     std::string found;
@@ -233,8 +295,8 @@ bool Checker::checkParts() {
         return fail(fmt::format("missing part '{}' (parts found: {}; expected {})", names_[n],
                                 found, expected));
     // Version 5: part aovs right after the four (fixed M only). Version 4: optional parts after
-    // those, in the order pajot, modes, records (pajot and modes together). Older versions have
-    // exactly four parts.
+    // those, in this order: the state parts of one owner (flat, then deep), then records. Older
+    // versions have exactly four parts.
     int extra = layout::kPartCount;
     const exr_attribute_t* v0 = attr(0, layout::kAttrFormatVersion);
     const int version0 = v0 != nullptr && v0->type == EXR_ATTR_INT ? v0->i : 0;
@@ -247,11 +309,9 @@ bool Checker::checkParts() {
         ++extra;
     }
     if (version0 >= kStatsFormatVersionSamples) {
-        if (extra < n && partName(extra) == layout::kPartPajot) {
-            if (extra + 1 >= n || partName(extra + 1) != layout::kPartModes)
-                return fail(fmt::format("part '{}' at index {} is not followed by part '{}'",
-                                        layout::kPartPajot, extra, layout::kPartModes));
-            hasPajot_ = true;
+        if (extra < n && partName(extra) != layout::kPartRecords && isStatePart(extra)) {
+            if (!checkStateParts(extra, n)) return false;
+            stateFlat_ = extra;
             extra += 2;
         }
         if (extra < n && partName(extra) == layout::kPartRecords) {
@@ -264,16 +324,17 @@ bool Checker::checkParts() {
             "extra part '{}' at index {} (the file has the 4 parts {}{})",
             printable(partName(extra)), extra, expected,
             version0 >= kStatsFormatVersionAovs
-                ? ", then optionally aovs, then optionally pajot and modes, then records"
+                ? ", then optionally aovs, then optionally an operation's state parts, then records"
             : version0 >= kStatsFormatVersionSamples
-                ? ", then optionally pajot and modes, then records"
+                ? ", then optionally an operation's state parts, then records"
                 : ""));
     exr_attr_box2i_t dw0{}, disp0{};
     for (int part = 0; part < n; ++part) {
         exr_storage_t storage = EXR_STORAGE_LAST_TYPE;
         const std::string raw = part < layout::kPartCount ? names_[part] : partName(part);
         const std::string pname = printable(raw);  // for the messages
-        const bool deep = (adaptive_ && part == layout::kBuffers) || raw == layout::kPartModes ||
+        const bool deep = (adaptive_ && part == layout::kBuffers) ||
+                          (stateFlat_ >= 0 && part == stateFlat_ + 1) ||
                           raw == layout::kPartRecords;
         const exr_storage_t want = deep ? EXR_STORAGE_DEEP_SCANLINE : EXR_STORAGE_SCANLINE;
         if (exr_get_storage(c_, part, &storage) != EXR_ERR_SUCCESS || storage != want)
@@ -607,9 +668,9 @@ bool Checker::run(const ReadLimits& limits, StatsHeader& hdr) {
         if (!checkChannels(part, hdr)) return false;
     if (hasAovs_ && !checkAovChannels(hdr)) return false;
 
-    hdr.hasPajot = hasPajot_;
+    hdr.state = state_;
     hdr.hasRecords = hasRecords_;
-    if ((hasPajot_ || hasRecords_) && hdr.formatVersion < kStatsFormatVersionSamples)
+    if ((hdr.hasState() || hasRecords_) && hdr.formatVersion < kStatsFormatVersionSamples)
         return fail("optional parts need format version 4");
     hdr.width = int(w);
     hdr.height = int(h);

@@ -14,6 +14,21 @@ std::string bufferChannel(int j, const char* component) {
 
 std::string aovDeepChannel(const std::string& name) { return "aov." + name; }
 
+std::string legacyStateParams(const std::string& text) {
+    std::string out = text;
+    for (char& c : out) c = c == ',' ? ':' : c == ':' ? ',' : c;
+    return out;
+}
+
+bool validStatePartName(const std::string& name) {
+    if (name.empty() || name.size() > 255 || name == kPartAovs || name == kPartRecords)
+        return false;
+    for (const char* own :
+         {kPartNames[0], kPartNames[1], kPartNames[2], kPartNames[3], kPartNamesAdaptive[kBuffers]})
+        if (name == own) return false;
+    return true;
+}
+
 bool knownAssignment(const std::string& assignment, bool adaptiveM, std::string& problem,
                      bool compact) {
     if (assignment == kAssignmentRoundRobin) return true;
@@ -89,13 +104,23 @@ bool parseFeatureList(const std::string& text, unsigned& bits, std::string& prob
     return true;
 }
 
+std::string optionalPartsText(const StatsHeader& h) {
+    std::vector<std::string> names;
+    if (h.hasState()) names = {h.state.flatPart, h.state.deepPart};
+    if (h.hasRecords) names.emplace_back(layout::kPartRecords);
+    std::string out;
+    for (size_t i = 0; i < names.size(); ++i)
+        out += (i == 0 ? "" : i + 1 == names.size() ? " and " : ", ") + printable(names[i]);
+    return names.empty() ? out : (names.size() == 1 ? "part " : "parts ") + out;
+}
+
 int requiredFormatVersion(const StatsHeader& h) {
     // A compact file of version 6 (moments with mean and variance) stays valid; --compact writes 7.
     if (h.compact || (h.adaptiveM && !h.aovs.empty())) return kStatsFormatVersionCompact;
     if (!h.aovs.empty() || h.beautyNames != std::array<std::string, 3>{"R", "G", "B"} ||
         !h.beautyPart.empty() || !h.sourceMetadata.empty())
         return kStatsFormatVersionAovs;
-    if (h.hasPajot || h.hasRecords) return kStatsFormatVersionSamples;
+    if (h.hasState() || h.hasRecords) return kStatsFormatVersionSamples;
     if (h.assignment == kAssignmentPerFile || h.variance != kVarianceSamples ||
         h.features != kAllFeatures || !h.sources.empty())
         return kStatsFormatVersionProvenance;

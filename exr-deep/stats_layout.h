@@ -39,18 +39,30 @@ inline bool hasAovPart(const StatsHeader& h) { return !h.aovs.empty() && !h.adap
 std::string aovDeepChannel(const std::string& name);
 /// Number of StatsParts bits: the four parts and `aovs` (bit `part` is kStatsPart* of that part).
 inline constexpr int kPartBits = 5;
-/// Index in the file of the first version-4 part (pajot, or records): after the four and `aovs`.
+/// Index in the file of the first version-4 part (a state part, or records): after the four and
+/// `aovs`.
 inline int firstExtraPart(const StatsHeader& h) { return kPartCount + (hasAovPart(h) ? 1 : 0); }
 
-/// Version 4: the optional parts after the four (and `aovs`), in this order when present (pajot
-/// and modes always together).
-inline constexpr const char* kPartPajot = "pajot";
-inline constexpr const char* kPartModes = "modes";
+/// Version 4: the optional parts after the four (and `aovs`), in this order when present: the
+/// state parts of one owner (a flat and a deep part, named by their owner), then records.
 inline constexpr const char* kPartRecords = "records";
 /// Version 4 on, parts records: the fields present (kRecordFieldsBase and later optional ones).
 inline constexpr const char* kAttrRecordFields = "mcstat:recordFields";
-/// Version 4 on, parts pajot and modes: the parameters of the online estimate (pajotParamsText).
-inline constexpr const char* kAttrPajot = "mcstat:pajot";
+/// State parts (FORMAT.md "State parts with an owner"): the owning operation's registry name and
+/// its parameter text ("key=value:key=value"), on both parts.
+inline constexpr const char* kAttrStateOwner = "mcstat:stateOwner";
+inline constexpr const char* kAttrStateParams = "mcstat:stateParams";
+/// Files written before the owner was recorded name no owner: the flat part's name is the owner,
+/// its parameters the attribute "mcstat:" + that name, written with ',' between the items and ':'
+/// within a list. legacyStateParams turns that into the one grammar (the two separators swapped).
+std::string legacyStateParams(const std::string& text);
+/// The longest owner name and parameter text a reader takes (the header walk bounds every
+/// attribute; these keep messages and --info short).
+inline constexpr size_t kMaxStateOwner = 200;
+inline constexpr size_t kMaxStateParams = 4096;
+/// Whether `name` can name a state part: not empty, at most 255 bytes, and not the name of a
+/// part of the format's own (the four, aovs, records).
+bool validStatePartName(const std::string& name);
 
 /// Channels of the deep part "vbuffers", one deep sample per sub-buffer: the buffer's mean and
 /// count, and Z = buffer index j, A = 1 for generic deep tools (readers ignore Z and A).

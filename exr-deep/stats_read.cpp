@@ -73,7 +73,8 @@ using detail::windowOf;
 /// Checks that the file opened by the C++ API is the file the header check saw.
 void checkSameFile(const Imf::MultiPartInputFile& in, const StatsHeader& h) {
     // Same open file as the header check; guard anyway against it changing under us.
-    const int expected = layout::firstExtraPart(h) + (h.hasPajot ? 2 : 0) + (h.hasRecords ? 1 : 0);
+    const int expected =
+        layout::firstExtraPart(h) + (h.hasState() ? 2 : 0) + (h.hasRecords ? 1 : 0);
     if (in.parts() != expected) throw std::runtime_error("file changed while reading");
     if (layout::hasAovPart(h)) {
         const Imf::Header& ph = in.header(layout::kAovs);

@@ -200,8 +200,9 @@ bool writeStatsFile(const std::string& path, StatsBlockSource& src, std::string&
     }
     const StatsHeader& h = src.header();
     StatsHeader out = h;
-    if (out.hasPajot || out.hasRecords) {  // the four parts only, in the lowest version for them
-        out.hasPajot = out.hasRecords = false;
+    if (out.hasState() || out.hasRecords) {  // the four parts only, in the lowest version for them
+        out.state = StateOwner();
+        out.hasRecords = false;
         out.formatVersion = requiredFormatVersion(out);
     }
     StatsFileWriter writer;
@@ -213,7 +214,8 @@ bool writeStatsFile(const std::string& path, StatsBlockSource& src, std::string&
             err = path + ": " + err;
             return false;
         }
-        block.header.hasPajot = block.header.hasRecords = false;
+        block.header.state = StateOwner();
+        block.header.hasRecords = false;
         block.header.formatVersion = out.formatVersion;
         if (!writer.write(block, err)) return false;
     }

@@ -68,4 +68,25 @@ const ParamSpec* Operation::param(std::string_view key) const {
     return nullptr;
 }
 
+bool parseOperationParams(const Operation& op, const std::map<std::string, std::string>& kv,
+                          ParamValues& out, std::string& err, const std::string& context) {
+    const std::string ctx = context.empty() ? op.name : context;
+    out.clear();
+    // Defaults first, so every parameter is set the same way whether given or not.
+    for (const ParamSpec& p : op.params)
+        if (!parseParamValue(ctx, p, p.defaultValue, out[p.name], err)) return false;
+    for (const auto& [key, value] : kv) {
+        const ParamSpec* p = op.param(key);
+        if (p == nullptr || p->fixed) {
+            const std::vector<const ParamSpec*> keys = op.settable();
+            std::string accepted = keys.empty() ? "it takes no parameters" : "accepted: ";
+            for (size_t i = 0; i < keys.size(); ++i) accepted += (i ? ", " : "") + keys[i]->name;
+            err = "estimator '" + op.name + "' has no parameter '" + key + "' (" + accepted + ")";
+            return false;
+        }
+        if (!parseParamValue(ctx, *p, value, out[key], err)) return false;
+    }
+    return true;
+}
+
 }  // namespace mcstat

@@ -9,8 +9,8 @@
 #include "mcstat/filters/pixel/meridian.h"
 #include "mcstat/filters/pixel/myriad.h"
 #include "mcstat/filters/pixel/tmpe.h"
-#include "mcstat/filters/samples/pajot.h"
 #include "mcstat/filters/samples/rpf.h"
+#include "mcstat/filters/samples/sample_delaying.h"
 #include "mcstat/filters/window/filter3d.h"
 #include "mcstat/filters/window/mif.h"
 
@@ -59,27 +59,6 @@ const Operation* findEstimator(std::string_view name) {
     for (const Operation& e : estimatorRegistry())
         if (e.name == name) return &e;
     return nullptr;
-}
-
-bool parseOperationParams(const Operation& op, const std::map<std::string, std::string>& kv,
-                          ParamValues& out, std::string& err, const std::string& context) {
-    const std::string ctx = context.empty() ? op.name : context;
-    out.clear();
-    // Defaults first, so every parameter is set the same way whether given or not.
-    for (const ParamSpec& p : op.params)
-        if (!parseParamValue(ctx, p, p.defaultValue, out[p.name], err)) return false;
-    for (const auto& [key, value] : kv) {
-        const ParamSpec* p = op.param(key);
-        if (p == nullptr || p->fixed) {
-            const std::vector<const ParamSpec*> keys = op.settable();
-            std::string accepted = keys.empty() ? "it takes no parameters" : "accepted: ";
-            for (size_t i = 0; i < keys.size(); ++i) accepted += (i ? ", " : "") + keys[i]->name;
-            err = "estimator '" + op.name + "' has no parameter '" + key + "' (" + accepted + ")";
-            return false;
-        }
-        if (!parseParamValue(ctx, *p, value, out[key], err)) return false;
-    }
-    return true;
 }
 
 bool bindPixelKernel(const Operation& op, const std::map<std::string, std::string>& kv,

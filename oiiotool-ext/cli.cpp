@@ -440,11 +440,11 @@ bool cmdCompact(State& st, const std::string& cmd, const std::vector<std::string
     }
     out.compactInput = std::make_shared<const Item>(top);
     out.compactRule = rule;
-    if (top.header.hasPajot || top.header.hasRecords)
+    if (top.header.hasState() || top.header.hasRecords)
         warning(
-            format("{}: parts pajot, modes and records of {} are not kept in the compact file "
-                   "(resume or re-estimate from the full file)",
-                   cmd, top.name));
+            format("{}: {} of {} are not kept in the compact file (resume or re-estimate "
+                   "from the full file)",
+                   cmd, optionalPartsText(top.header), top.name));
     out.name = "compact(" + top.name + ")";
     top = std::move(out);
     return true;
@@ -826,33 +826,16 @@ bool cmdHelp(State&, const std::string&, const std::vector<std::string>&, const 
     std::exit(0);
 }
 
-/// Splits "--gmon:mode=channel:diag=1" into "--gmon" and {mode: channel, diag: 1}. As in oiiotool,
-/// a value may hold ':' where what follows cannot start a modifier (a digit, a sign, a dot), so
-/// "-o:compression=dwaa:45" gives {compression: dwaa:45}. A modifier given twice is refused: which
-/// one would count is a guess.
+/// Splits "--gmon:mode=channel:diag=1" into "--gmon" and {mode: channel, diag: 1}, the modifiers
+/// by the one grammar of parameter text (core/params.h parseParamText: "-o:compression=dwaa:45"
+/// gives {compression: dwaa:45}; a modifier given twice is refused).
 bool splitModifiers(const std::string& arg, std::string& name, Modifiers& mods, std::string& err) {
-    std::vector<std::string> parts = OIIO::Strutil::splits(arg, ":");
-    name = parts[0];
-    std::string last;
-    for (size_t i = 1; i < parts.size(); ++i) {
-        const size_t eq = parts[i].find('=');
-        const unsigned char first = parts[i].empty() ? 0 : static_cast<unsigned char>(parts[i][0]);
-        const bool startsName = std::isalpha(first) || first == '_';
-        if (!last.empty() && !startsName && eq == std::string::npos) {
-            mods[last] += ":" + parts[i];  // the value goes on
-            continue;
-        }
-        if (eq == std::string::npos || eq == 0) {
-            err = format("{}: modifier '{}' is not name=value", name, parts[i]);
-            return false;
-        }
-        last = parts[i].substr(0, eq);
-        if (mods.count(last)) {
-            err = format("{}: modifier '{}' given twice ('{}' and '{}')", name, last, mods[last],
-                         parts[i].substr(eq + 1));
-            return false;
-        }
-        mods[last] = parts[i].substr(eq + 1);
+    const size_t colon = arg.find(':');
+    name = arg.substr(0, colon);
+    std::string problem;
+    if (colon != std::string::npos && !parseParamText(arg.substr(colon + 1), mods, problem)) {
+        err = format("{}: modifier {}", name, problem);
+        return false;
     }
     return true;
 }

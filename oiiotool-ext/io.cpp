@@ -15,7 +15,7 @@
 #include "mcstat/color.h"
 #include "mcstat/core/colour_space.h"
 #include "mcstat/core/progress.h"
-#include "mcstat/filters/samples/pajot_state.h"
+#include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/ingest.h"
@@ -502,14 +502,12 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
             return false;
         }
         const StatsHeader& h = top.header;
-        if (h.hasPajot || h.hasRecords) {
+        if (h.hasState() || h.hasRecords) {
             // The per-sample parts belong to one render's samples in their order: a merge cannot
             // combine them and this tool holds only the four statistics parts in memory. The file
             // written is the lowest version that holds what remains.
-            warning(
-                format("{}: parts pajot, modes and records of {} are not written (only the "
-                       "four statistics parts are)",
-                       path, top.name));
+            warning(format("{}: {} of {} are not written (only the four statistics parts are)",
+                           path, optionalPartsText(h), top.name));
         }
         // Block by block (a file converted, a merge of files): never the whole image in memory.
         // writeStatsFile over a source writes the four parts in the lowest version for them.
@@ -552,53 +550,26 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
     return written(writeImageAtomically(*top.image, path, opt, err, &overflow));
 }
 
-/// pajotParamsText for the eye: each number as the shortest text that reads back as the same
-/// double ("luma=0.2126:0.7152:0.0722"); the attribute keeps 17 significant digits
-/// ("0.21260000000000001") so that the text gives the parameters back exactly.
-std::string pajotParamsDisplay(const PajotParams& p) {
-    std::string out;
-    for (const std::string& item : OIIO::Strutil::splits(pajotParamsText(p), ",")) {
-        const size_t eq = item.find('=');
-        std::string values;
-        for (const std::string& v : OIIO::Strutil::splits(item.substr(eq + 1), ":")) {
-            char* end = nullptr;
-            const double d = std::strtod(v.c_str(), &end);
-            values +=
-                (values.empty() ? "" : ":") + (!v.empty() && *end == '\0' ? format("{}", d) : v);
-        }
-        out += (out.empty() ? "" : ",") + item.substr(0, eq + 1) + values;
+/// The state parts an operation keeps in the file, described by their owner's registry entry
+/// (OperationState::describe, every value checked), or, for an owner this mcstat does not know
+/// (a file from a newer mcstat), by what the format says of them: kept, not read.
+bool describeState(const std::string& path, const StatsHeader& h, std::string& text,
+                   std::string& err) {
+    const Operation* op = findOperation(h.state.operation);
+    if (op == nullptr || op->state.describe == nullptr) {
+        text = format(
+            "  {}, {} (state parts of '{}', an operation this mcstat does not know: "
+            "their shapes checked, their meaning not; parameters {})\n",
+            printable(h.state.flatPart), printable(h.state.deepPart), printable(h.state.operation),
+            printable(h.state.params));
+        return true;
     }
-    return out;
-}
-
-/// Pajot's online state in numbers (docs/pajot.md): what the benchmark's tables report.
-bool printPajotSummary(const std::string& path, std::string& err) {
-    PajotImage pj;
-    if (!readPajotParts(path, pj, err)) return false;
-    int64_t single = 0, extended = 0, delayed = 0, discarded = 0, taken = 0, bytes = 0,
-            learning = 0, rotOnly = 0;
-    for (const PajotState& s : pj.pixels) {
-        const PajotCounts c = PajotPixel(s).counts();
-        single += c.singleModes;
-        extended += c.extendedModes;
-        delayed += c.delayed;
-        bytes += c.bytes;
-        discarded += s.discarded;
-        taken += s.taken;
-        learning += s.phase == PajotPhase::Learning;
-        rotOnly += s.phase == PajotPhase::ROT;
+    PixelStateParts parts;
+    if (!readPixelStateParts(path, parts, err)) return false;
+    if (!op->state.describe(parts, h.width, text, err)) {
+        err = path + ": " + err;
+        return false;
     }
-    const double n = double(std::max<size_t>(1, pj.pixels.size()));
-    std::printf(
-        "  pajot (online, %s): modes per pixel %.3f single, %.3f extended; %.2f bytes per "
-        "pixel (%.3f image buffers of 12 bytes)\n",
-        pajotParamsDisplay(pj.params).c_str(), double(single) / n, double(extended) / n,
-        double(bytes) / n, double(bytes) / n / 12.0);
-    std::printf(
-        "  pajot: samples delayed %.4f %% (%lld of %lld), discarded %lld; pixels still "
-        "learning %lld, on ROT alone %lld\n",
-        taken ? 100.0 * double(delayed) / double(taken) : 0.0, (long long)delayed, (long long)taken,
-        (long long)discarded, (long long)learning, (long long)rotOnly);
     return true;
 }
 
@@ -640,7 +611,11 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
             "  records (deep: every sample in the order taken; fields %s; %lld bytes each)\n",
             fields.c_str(), static_cast<long long>(recordBytesOnDisk(records.available().size())));
     }
-    if (h.hasPajot && !printPajotSummary(top.path, err)) return false;
+    if (h.hasState()) {
+        std::string text;
+        if (!describeState(top.path, h, text, err)) return false;
+        std::fputs(text.c_str(), stdout);
+    }
     std::printf(
         "  checked: the headers and chunk table only; --check reads and validates every "
         "value\n");
@@ -720,10 +695,8 @@ bool cmdCheck(State& st, const std::string& cmd, const std::vector<std::string>&
     progress.finish();
     if (!ok) return false;
     const StatsHeader& h = r.header;
-    if (r.pajot) {  // the Pajot operation's own check of what its parts mean
-        PajotImage pajot;
-        if (!readPajotParts(top.path, pajot, err)) return false;
-    }
+    std::string stateText;  // the owner's own check of what its parts mean
+    if (r.state && !describeState(top.path, h, stateText, err)) return false;
     std::printf("%s: valid mcstat statistics file, format %d, %d x %d, %s %d\n",
                 oneLine(top.name).c_str(), h.formatVersion, h.width, h.height,
                 h.adaptiveM ? "adaptive M, M_max" : "M", h.M);
@@ -733,7 +706,13 @@ bool cmdCheck(State& st, const std::string& cmd, const std::vector<std::string>&
         "means (allowed)\n",
         (long long)r.pixels, (long long)r.subBuffers, (long long)r.nonFinite);
     if (h.hasRecords) std::printf("  records: %lld samples decoded\n", (long long)r.records);
-    if (r.pajot) std::printf("  pajot, modes: decoded and checked\n");
+    if (r.state) {
+        const bool known = findOperation(h.state.operation) != nullptr;
+        std::printf("  %s, %s: decoded%s\n", printable(h.state.flatPart).c_str(),
+                    printable(h.state.deepPart).c_str(),
+                    known ? " and checked" : " (their owner unknown to this mcstat)");
+        std::fputs(stateText.c_str(), stdout);
+    }
     return true;
 }
 

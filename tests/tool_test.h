@@ -18,6 +18,7 @@ namespace mcstat::testing {
 struct ToolRun {
     int code = 0;     ///< exit status; -1 when the tool did not exit normally
     std::string err;  ///< everything it wrote to stderr
+    std::string out;  ///< everything it wrote to stdout
 };
 
 inline std::string slurp(const std::string& path) {
@@ -44,9 +45,9 @@ class ToolTest : public ::testing::Test {
     }
     std::string path(const std::string& n) const { return dir + "/" + n; }
     ToolRun run(const std::string& exe, const std::string& args) const {
-        const std::string e = path("stderr.txt");
-        const int status = std::system((exe + " " + args + " >/dev/null 2>" + e).c_str());
-        return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(e)};
+        const std::string e = path("stderr.txt"), o = path("stdout.txt");
+        const int status = std::system((exe + " " + args + " >" + o + " 2>" + e).c_str());
+        return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(e), slurp(o)};
     }
     ToolRun render(const std::string& args) const {
         return run(MCSTAT_RENDER_EXE, "--quiet " + args);

@@ -4,10 +4,11 @@
 //   by nature, so it is written and read by blocks of rows: SampleRecordsWriter streams a render's
 //   rows to a temporary file, which writeStatsFile copies chunk by chunk (no decoding) into the
 //   final file; SampleRecordsReader reads rows [y0, y1) at a time.
-// - `pajot` (flat) and `modes` (deep): an operation's per-pixel state (PixelStateParts), stored
-//   exactly, so that a render resumed from the file continues bit for bit. The format stores the
-//   parts' channels and checks their shapes; the operation that owns them gives them meaning
-//   (Pajot's online state: include/mcstat/filters/samples/pajot_state.h).
+// - state parts with an owner, a flat and a deep part: an operation's per-pixel state
+//   (PixelStateParts), stored exactly, so that a render resumed from the file continues bit for
+//   bit. The format stores the parts' channels, their owner and its parameter text, and checks
+//   their shapes; the operation that owns them (its registry entry's OperationState) names the
+//   parts and gives them meaning.
 // No function throws; each returns false with a one-line `err` naming the file.
 #pragma once
 
@@ -137,14 +138,14 @@ class SampleRecordsReader {
     std::unique_ptr<Impl> impl_;
 };
 
-/// Per-pixel state an operation keeps in a statistics file (parts `pajot` and `modes`, FORMAT.md
-/// "Version 4: samples and modes"): a flat part of FLOAT and UINT channels (one value each per
-/// pixel) and a deep part of FLOAT channels (any number of records per pixel), both carrying the
-/// text attribute mcstat:pajot (the operation's parameters). Channels are found by name: the
-/// writer writes the channels listed, the reader returns every FLOAT and UINT channel the file
-/// holds (in the file's order), and the operation looks up the ones it needs.
+/// Per-pixel state an operation keeps in a statistics file (FORMAT.md "State parts with an
+/// owner"): a flat part of FLOAT and UINT channels (one value each per pixel) and a deep part of
+/// FLOAT channels (any number of records per pixel), both carrying the owner's name and its
+/// parameter text. Channels are found by name: the writer writes the channels listed, the reader
+/// returns every FLOAT and UINT channel the file holds (in the file's order), and the operation
+/// looks up the ones it needs.
 struct PixelStateParts {
-    std::string params;                                    ///< attribute mcstat:pajot
+    StateOwner owner;  ///< the owning operation, its parameters and the parts' names
     std::vector<std::string> floatChannels, uintChannels;  ///< the flat part's channels
     std::vector<float> floats;                             ///< [p * floatChannels.size() + c]
     std::vector<uint32_t> words;                           ///< [p * uintChannels.size() + c]
@@ -154,7 +155,7 @@ struct PixelStateParts {
 };
 /// What writeStatsFile adds to the four parts (format version 4).
 struct StatsExtras {
-    const PixelStateParts* state = nullptr;  ///< parts pajot and modes
+    const PixelStateParts* state = nullptr;  ///< the state parts, named by their owner
     std::string recordsFile;                 ///< a closed SampleRecordsWriter's file: part records
 };
 
@@ -175,7 +176,7 @@ class SampleSource {
     /// Restricts readRecords to `channels` (SampleRecordsReader::select).
     virtual bool selectRecordChannels(const std::vector<std::string>& channels,
                                       std::string& err) = 0;
-    /// Parts pajot and modes (header().hasPajot).
+    /// The state parts (header().hasState()).
     virtual bool readPixelState(PixelStateParts& out, std::string& err) = 0;
     /// The file name, for messages.
     virtual const std::string& path() const = 0;
@@ -184,10 +185,9 @@ class SampleSource {
 std::unique_ptr<SampleSource> openSampleSource(const std::string& path, std::string& err,
                                                const ReadLimits& limits = ReadLimits());
 
-/// Reads parts `pajot` and `modes` of a statistics file (the whole state: small next to records),
-/// their sizes checked against the limits before anything is allocated. An error names the file;
-/// a file without the parts is one ("render with mcstat-render --pajot"). With `header`, the
-/// file's headers (read and checked on the way) too.
+/// Reads the state parts of a statistics file (the whole state: small next to records), their
+/// sizes checked against the limits before anything is allocated. An error names the file; a file
+/// without state parts is one. With `header`, the file's headers (read and checked on the way).
 bool readPixelStateParts(const std::string& path, PixelStateParts& out, std::string& err,
                          const ReadLimits& limits = ReadLimits(), StatsHeader* header = nullptr);
 

@@ -25,8 +25,9 @@ inline constexpr const char* kStatsExtension = "mcstat";
 /// ("mcstat:variance") and which features hold data ("mcstat:features"); see FORMAT.md. The
 /// writer writes header.formatVersion as given, which must be at least requiredFormatVersion():
 /// a rendered fixed-M image keeps version 1 (what every reader knows).
-/// Version 4 adds optional parts after the four: per-sample records (`records`) and Pajot's online
-/// state (`pajot`, `modes`); include/mcstat/sample_records.h reads and writes them.
+/// Version 4 adds optional parts after the four: per-sample records (`records`) and the state parts
+/// an operation owns (a flat and a deep part, StateOwner); include/mcstat/sample_records.h reads
+/// and writes them.
 /// Version 5 adds the input render's own layout (files made by `mcstat --ingest` from production
 /// renders): the part `aovs` (every AOV, alpha, light group, data pass and ID matte per
 /// sub-buffer), the input's channel names of the beauty and its metadata (FORMAT.md "Version 5").
@@ -43,7 +44,7 @@ inline constexpr int kStatsFormatVersionAdaptive = 2;
 /// The first version that can hold provenance: assignment "perfile", mcstat:variance other than
 /// "samples", features absent (mcstat:features), mcstat:sources.
 inline constexpr int kStatsFormatVersionProvenance = 3;
-/// The first version that can hold the optional parts records, pajot and modes.
+/// The first version that can hold the optional parts: records and state parts with an owner.
 inline constexpr int kStatsFormatVersionSamples = 4;
 /// The first version that can hold AOVs (part `aovs`), beauty channel names and source metadata.
 inline constexpr int kStatsFormatVersionAovs = 5;
@@ -122,6 +123,21 @@ bool parseFeatureList(const std::string& text, unsigned& bits, std::string& prob
 /// Largest number of sub-buffers a file may declare (channel names use three digits).
 inline constexpr int kMaxBuffers = 999;
 
+/// Version 4 on: the per-pixel state an operation keeps in the file (FORMAT.md "State parts with an
+/// owner"): a flat and a deep part after the four (and `aovs`), before `records`, both carrying the
+/// owning operation's registry name and its parameter text. The format stores them and checks
+/// their shapes; the operation (found by name in the registry) gives them meaning.
+struct StateOwner {
+    std::string operation;           ///< mcstat:stateOwner, a registry name; empty: no state parts
+    std::string params;              ///< mcstat:stateParams, "key=value:key=value" (core/params.h)
+    std::string flatPart, deepPart;  ///< the parts' names, the operation's choice
+    bool operator==(const StateOwner& o) const {
+        return operation == o.operation && params == o.params && flatPart == o.flatPart &&
+               deepPart == o.deepPart;
+    }
+    bool operator!=(const StateOwner& o) const { return !(*this == o); }
+};
+
 /// Header data shared by every part of a statistics file.
 struct StatsHeader {
     int formatVersion = kStatsFormatVersionFixed;  ///< 1, or 2 (required for adaptiveM)
@@ -155,7 +171,8 @@ struct StatsHeader {
     std::string sources;  ///< mcstat:sources: comma-separated input file names (ingest)
     // Version 4: which optional parts follow the four (set by the reader; the writer writes what
     // it is given, see sample_records.h).
-    bool hasPajot = false;    ///< parts `pajot` and `modes`: Pajot's online state
+    StateOwner state;  ///< state parts with an owner (state.operation empty: none)
+    bool hasState() const { return !state.operation.empty(); }
     bool hasRecords = false;  ///< part `records`: every sample
     // Version 5: what the input render looked like, so that an output can replace one input.
     /// Part `aovs`: these channels per sub-buffer, in this order (fixed M only). Empty: no part.
@@ -182,6 +199,9 @@ struct StatsHeader {
 /// provenance (assignment perfile, variance not "samples", absent features, sources), 2 for
 /// adaptive M, else 1.
 int requiredFormatVersion(const StatsHeader& h);
+/// The version-4 parts `h` declares, for messages: "parts flat, deep and records", "part
+/// records"; empty when none.
+std::string optionalPartsText(const StatsHeader& h);
 
 /// Whole statistics file in memory. Pixel (x, y) of the data window has index p = y * width + x.
 /// Every array is float32 as on disk; the producer accumulates in double and rounds once when
@@ -446,7 +466,7 @@ struct StatsCheckReport {
     int64_t subBuffers = 0;       ///< pixels * M, or with adaptive M the deep samples of vbuffers
     int64_t nonFinite = 0;        ///< NaN or Inf sub-buffer means (allowed: FORMAT.md)
     int64_t records = 0;          ///< samples of part records (0 without it)
-    bool pajot = false;           ///< parts pajot and modes were read
+    bool state = false;           ///< the state parts (header.state) were read
     bool openexrChecked = false;  ///< OpenEXR's own checker (exrcheck's) ran and passed
 };
 
@@ -493,7 +513,7 @@ std::vector<std::string> describeStatsHeader(const StatsHeader& h);
 /// more (`mcstat f --check`): the headers and chunk table (as readStatsHeader), OpenEXR's own
 /// checker (Imf::checkOpenEXRFile, in its reduced-memory mode), then every row of every part
 /// decoded by blocks with every count checked (finite, integral, 0..2^24, the buffer counts of a
-/// pixel summing to its count), part records by blocks and parts pajot and modes. Memory follows
+/// pixel summing to its count), part records by blocks and the state parts. Memory follows
 /// the blocks, not the image. `progress` (0..1) is called between blocks when set. False with the
 /// first problem as one line naming the file.
 bool checkStatsFile(const std::string& path, StatsCheckReport& report, std::string& err,

@@ -189,7 +189,7 @@ def operations():
 
 def estimate(s, name="gmon", *, diag=False, residual=False, **params):
     """Registry operation `name` over `s` (a Stats, or a path: a file is streamed by blocks of
-    rows; per-sample operations such as pajot and rpf need the path) with its parameters as
+    rows; per-sample operations, those of input kind Samples, need the path) with its parameters as
     keyword arguments, parsed as `mcstat --NAME:key=value` parses them (True/False: 1/0, a tuple
     (5, 5): 5x5, a list: comma-separated). Returns an Image: (H, W, 3) R, G, B, with the AOVs, the
     diagnostics (diag=True) and the residual (residual=True) as attributes. Equal to `mcstat FILE

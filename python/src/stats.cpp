@@ -167,7 +167,7 @@ py::dict headerDict(const StatsHeader& h) {
     d["variance"] = h.variance;
     d["features"] = featureListText(h.features);
     d["sources"] = h.sources;
-    d["has_pajot"] = h.hasPajot;
+    d["state_owner"] = h.state.operation;  // the operation owning state parts, "" for none
     d["has_records"] = h.hasRecords;
     py::list aovs;
     for (const AovChannel& a : h.aovs) {

@@ -15,6 +15,8 @@
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
+#include <map>
+#include <memory>
 #include <string>
 #include <thread>
 
@@ -25,8 +27,7 @@
 #include "mcstat/core/progress.h"
 #include "mcstat/core/untrusted_text.h"
 #include "mcstat/exr-codec/fd_stream.h"
-#include "mcstat/filters/samples/pajot.h"
-#include "mcstat/filters/samples/pajot_state.h"
+#include "mcstat/filters/registry.h"
 #include "mcstat/image/image_spec.h"
 #include "mcstat/render/render.h"
 #include "mcstat/render/scene.h"
@@ -424,38 +425,33 @@ bool luma(std::array<double, 3>& l, std::string& err) {
     return true;
 }
 
-/// Checks the --pajot options into `params` with the luma weights `l`.
-bool parsePajotOptions(const CommandLine& cl, const std::array<double, 3>& l,
-                       mcstat::PajotParams& params, std::string& err) {
-    if (cl.pajotText != "adr" && cl.pajotText != "rot" && cl.pajotText != "hybrid") {
-        err = fmt::format("--pajot: expected 'adr', 'rot' or 'hybrid', got '{}'", cl.pajotText);
+/// The operation the renderer runs online with --pajot (the one it knows by its flag).
+const char* const kOnlineOperation = "pajot";
+
+/// The --pajot options as the Pajot entry's parameters, parsed and range-checked by the registry
+/// (parseOperationParams) as `mcstat --pajot:method=...:n=...` parses them.
+bool parsePajotOptions(const CommandLine& cl, mcstat::ParamValues& values, std::string& err) {
+    const mcstat::Operation* op = mcstat::findOperation(kOnlineOperation);
+    if (op == nullptr || op->state.start == nullptr) {
+        err = "--pajot: this build has no online operation";
         return false;
     }
-    // The values are the Pajot operation's parameters, parsed and range-checked by its registry
-    // entry as `mcstat --pajot:n=...` parses them.
-    const mcstat::Operation op = mcstat::pajotOperation();
-    struct Given {
-        const char *key, *option;
-        const std::string& text;
-    };
-    const Given given[] = {{"method", "--pajot", cl.pajotText},
-                           {"n", "--pajot-n", cl.pajotNText},
-                           {"delayed", "--pajot-delayed", cl.pajotDelayedText},
-                           {"t", "--pajot-t", cl.pajotTText},
-                           {"delta", "--pajot-delta", cl.pajotDeltaText}};
-    mcstat::ParamValues values;
-    for (const Given& g : given)
-        if (!mcstat::parseParamValue(g.option, *op.param(g.key), g.text, values[g.key], err))
-            return false;
-    return mcstat::pajotParamsFrom(values, l, params, err);
+    const std::map<std::string, std::string> kv = {{"method", cl.pajotText},
+                                                   {"n", cl.pajotNText},
+                                                   {"delayed", cl.pajotDelayedText},
+                                                   {"t", cl.pajotTText},
+                                                   {"delta", cl.pajotDeltaText}};
+    return mcstat::parseOperationParams(*op, kv, values, err, "--pajot");
 }
 
 /// A render to do, its options checked.
 struct Job {
     RenderOptions opt;
     Scene scene;
-    mcstat::PajotImage pajot;  ///< parameters from --pajot; a resumed file's state
-    bool wantPajot = false;    ///< --pajot given
+    mcstat::ParamValues pajotValues;  ///< --pajot's parameters (the registry entry's)
+    bool wantPajot = false;           ///< --pajot given
+    /// The online run (--pajot, or a resumed file's state), started once the size is known.
+    std::unique_ptr<mcstat::OnlineRun> online;
     int64_t maxSampleBytes = 0;
     std::array<double, 3> luma{};  ///< the working space's luma, when --pajot or --compact needs it
 };
@@ -468,7 +464,7 @@ bool prepareJob(const CommandLine& cl, Job& job, std::string& err) {
     job.wantPajot = !cl.pajotText.empty();
     // Before any sample: a config that cannot give the luma fails now, not after the render.
     if ((job.wantPajot || cl.compact) && !luma(job.luma, err)) return false;
-    if (job.wantPajot && !parsePajotOptions(cl, job.luma, job.pajot.params, err)) return false;
+    if (job.wantPajot && !parsePajotOptions(cl, job.pajotValues, err)) return false;
     long long v = 0;
     if (!parseInt(cl.maxSampleBytesText, "--max-sample-bytes", 0, (1LL << 62), v, err))
         return false;
@@ -506,22 +502,37 @@ bool renderReferenceOutput(const CommandLine& cl, const Job& job, RenderStats& s
                              job.opt.spp, err);
 }
 
-/// --resume: takes the resumed file's Pajot state into `pajot`, if it has one.
-bool resumePajot(const CommandLine& cl, const mcstat::StatsHeader& ph, bool wantPajot,
-                 mcstat::PajotImage& pajot, std::string& err) {
-    if (ph.hasPajot) {
-        mcstat::PajotImage stored;
-        if (!mcstat::readPajotParts(cl.resumePath, stored, err)) return false;
-        if (wantPajot &&
-            mcstat::pajotParamsText(stored.params) != mcstat::pajotParamsText(pajot.params)) {
-            err = fmt::format("{}: rendered with Pajot {}, not {}", cl.resumePath,
-                              mcstat::pajotParamsText(stored.params),
-                              mcstat::pajotParamsText(pajot.params));
-            return false;
-        }
-        pajot = std::move(stored);
-    } else if (wantPajot) {
+/// Starts the online run: --pajot's, continuing the state parts of the resumed file `ph` (when
+/// it has some). The owner's registry entry decodes the state and checks that --pajot's
+/// parameters are the resumed run's.
+bool startOnline(const CommandLine& cl, const mcstat::StatsHeader* ph, Job& job, std::string& err) {
+    const bool resumed = ph != nullptr && ph->hasState();
+    if (!resumed && !job.wantPajot) return true;
+    if (!resumed && ph != nullptr) {
         err = cl.resumePath + ": has no Pajot state to continue (rendered without --pajot)";
+        return false;
+    }
+    const std::string name = resumed ? ph->state.operation : kOnlineOperation;
+    const mcstat::Operation* op = mcstat::findOperation(name);
+    if (op == nullptr || op->state.start == nullptr) {
+        err = cl.resumePath + ": holds the state of '" + mcstat::printable(name) +
+              "', which this renderer cannot continue";
+        return false;
+    }
+    if (resumed && job.wantPajot && name != kOnlineOperation) {
+        err = cl.resumePath + ": holds the state of '" + mcstat::printable(name) +
+              "', not of --pajot";
+        return false;
+    }
+    mcstat::ParamValues values = job.pajotValues;  // without --pajot: the defaults, "stored"
+    if (!job.wantPajot && !mcstat::parseOperationParams(*op, {}, values, err)) return false;
+    mcstat::PixelStateParts parts;
+    if (resumed && !mcstat::readPixelStateParts(cl.resumePath, parts, err)) return false;
+    const size_t pixels = size_t(job.scene.width) * size_t(job.scene.height);
+    job.online =
+        op->state.start(values, job.luma, job.scene.width, pixels, resumed ? &parts : nullptr, err);
+    if (!job.online) {
+        err = (resumed ? cl.resumePath : std::string("--pajot")) + ": " + err;
         return false;
     }
     return true;
@@ -575,7 +586,7 @@ bool prepareResume(const CommandLine& cl, Job& job, mcstat::StatsImage& prev, st
     opt.M = ph.M;
     opt.firstSample = ph.spp;
     opt.spp = totalSpp - ph.spp;
-    return resumePajot(cl, ph, job.wantPajot, job.pajot, err);
+    return startOnline(cl, &ph, job, err);
 }
 
 /// --keep-samples: opens the records next to the output and has the render write them.
@@ -616,16 +627,16 @@ bool renderStatsOutput(const CommandLine& cl, Job& job, RenderStats& stats, Timi
     mcstat::StatsImage prev;
     const int64_t totalSpp = job.opt.spp;
     if (!cl.resumePath.empty() && !prepareResume(cl, job, prev, err)) return false;
-    const bool pajotOn = job.wantPajot || prev.header.hasPajot;
+    if (cl.resumePath.empty() && !startOnline(cl, nullptr, job, err)) return false;
     mcstat::SampleRecordsWriter records;
     RenderExtras extras;
-    if (pajotOn) extras.pajot = &job.pajot;
+    extras.online = job.online.get();
     if (cl.keepSamples && !openRecords(cl, job, records, extras, err)) return false;
-    if (job.wantPajot && job.pajot.params.learning > totalSpp)
+    if (job.wantPajot && job.online->learningSamples() > totalSpp)
         fmt::print(stderr,
                    "mcstat-render: warning: --pajot-n {} exceeds --spp {}: no pixel ends its "
                    "learning phase, and the Pajot estimate is the plain mean\n",
-                   job.pajot.params.learning, totalSpp);
+                   job.online->learningSamples(), totalSpp);
     mcstat::StatsImage img;
     timings.renderClock = Stopwatch();
     if (!render(job.scene, job.opt, img, err, &stats, &extras)) return false;
@@ -639,19 +650,19 @@ bool renderStatsOutput(const CommandLine& cl, Job& job, RenderStats& stats, Timi
     }
     timings.renderDone();
     mcstat::StatsExtras ex;
-    mcstat::PixelStateParts pajotParts;
-    if (pajotOn) {
-        if (!mcstat::encodePajotState(job.pajot, pajotParts, err)) {
+    mcstat::PixelStateParts state;
+    if (job.online) {
+        if (!job.online->encode(state, err)) {
             err = cl.outPath + ": " + err;
             return false;
         }
-        ex.state = &pajotParts;
+        ex.state = &state;
+        img.header.state = state.owner;
     }
     if (cl.keepSamples) {
         if (!records.close(err)) return false;
         ex.recordsFile = records.path();
     }
-    img.header.hasPajot = pajotOn;
     img.header.hasRecords = cl.keepSamples;
     img.header.formatVersion =
         std::max(img.header.formatVersion, mcstat::requiredFormatVersion(img.header));

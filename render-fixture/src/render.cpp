@@ -244,14 +244,13 @@ StatsImage newStatsImage(const Scene& scene, const RenderOptions& opt, int M) {
     return img;
 }
 
-/// Pajot's per-pixel estimators of a render (RenderExtras::pajot), or none.
-struct PajotPixels {
-    PajotParams params;
-    std::vector<PajotPixel> pixels;
-    bool on() const { return !pixels.empty(); }
+/// The online run of a render (RenderExtras::online), or none.
+struct OnlineFeed {
+    OnlineRun* run = nullptr;
+    bool on() const { return run != nullptr; }
     void add(size_t p, const Vec3& L) {
         const float rgb[3] = {float(L[0]), float(L[1]), float(L[2])};
-        pixels[p].add(rgb, params);  // refuses non-finite values (the renderer counts those)
+        run->add(p, rgb);  // refuses non-finite values (the renderer counts those)
     }
 };
 
@@ -441,7 +440,7 @@ float recordValue(const PathSample& s, RecordValue v, const double* aov) {
 /// in order, so memory holds one block of samples, never the image's. Returns false only when
 /// the sink fails.
 bool renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsImage& img,
-                      std::atomic<int64_t>& dropped, PajotPixels& pajot,
+                      std::atomic<int64_t>& dropped, OnlineFeed& online,
                       const std::function<bool(const SampleBlock&, std::string&)>& records,
                       const std::vector<std::string>* recordChannels, double& seconds,
                       std::string& err) {
@@ -474,7 +473,7 @@ bool renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsI
             for (int64_t i = first; i < end; ++i) {
                 const PathSample s = ctx.samplePixel(opt.seed, x, y, i);
                 if (!acc.add(i, s)) ++rowDropped;
-                if (pajot.on()) pajot.add(p, s.L);
+                if (online.on()) online.add(p, s.L);
                 if (rec) {
                     if (recordAovs) fixtureAovValues(s, aov);
                     for (RecordValue v : values) rec->samples.push_back(recordValue(s, v, aov));
@@ -521,7 +520,7 @@ bool renderRoundRobin(const RenderContext& ctx, const RenderOptions& opt, StatsI
 /// order) and grows buffer counts, so nothing is shared while threads run and the result is
 /// bit-identical for any thread count.
 bool renderGrowing(const RenderContext& ctx, const RenderOptions& opt, StatsImage& img,
-                   std::atomic<int64_t>& dropped, RenderStats& stats, PajotPixels& pajot,
+                   std::atomic<int64_t>& dropped, RenderStats& stats, OnlineFeed& online,
                    std::string& err) {
     const Scene& scene = ctx.scene;
     const size_t width = size_t(scene.width), pixels = width * size_t(scene.height);
@@ -547,7 +546,7 @@ bool renderGrowing(const RenderContext& ctx, const RenderOptions& opt, StatsImag
                 for (int64_t i = begin; i < end; ++i) {
                     const PathSample s = ctx.samplePixel(opt.seed, x, y, i);
                     if (!px.add(s)) ++rowDropped;
-                    if (pajot.on()) pajot.add(p, s.L);
+                    if (online.on()) online.add(p, s.L);
                 }
             }
             dropped.fetch_add(rowDropped, std::memory_order_relaxed);
@@ -608,26 +607,8 @@ bool render(const Scene& scene, const RenderOptions& opt, StatsImage& out, std::
         err = "a resumed render (first sample > 0) needs fixed M";
         return false;
     }
-    PajotPixels pajot;
-    if (extras && extras->pajot) {
-        if (!validatePajotParams(extras->pajot->params, err)) return false;
-        pajot.params = extras->pajot->params;
-        const size_t pixels = size_t(scene.width) * size_t(scene.height);
-        std::vector<PajotState>& states = extras->pajot->pixels;
-        if (!states.empty() && states.size() != pixels) {
-            err = "the Pajot state to resume has " + std::to_string(states.size()) +
-                  " pixels, the image " + std::to_string(pixels);
-            return false;
-        }
-        try {
-            pajot.pixels.resize(pixels);
-            for (size_t p = 0; p < states.size(); ++p)
-                pajot.pixels[p] = PajotPixel(std::move(states[p]));
-        } catch (const std::exception& e) {
-            err = std::string("cannot allocate the Pajot state: ") + e.what();
-            return false;
-        }
-    }
+    OnlineFeed online;
+    if (extras) online.run = extras->online;
     const int M = opt.adaptiveM ? opt.mMax : opt.M;
     const uint64_t cells = uint64_t(scene.width) * uint64_t(scene.height) * uint64_t(M);
     if (scene.width < 1 || scene.height < 1 || cells > (uint64_t(1) << 30)) {
@@ -642,7 +623,7 @@ bool render(const Scene& scene, const RenderOptions& opt, StatsImage& out, std::
     StatsImage img = newStatsImage(scene, opt, M);
     std::atomic<int64_t> dropped{0};
     if (growing) {
-        if (!renderGrowing(ctx, opt, img, dropped, st, pajot, err)) return false;
+        if (!renderGrowing(ctx, opt, img, dropped, st, online, err)) return false;
     } else {
         if (opt.adaptiveM) {
             AdaptivePlan plan;
@@ -658,7 +639,7 @@ bool render(const Scene& scene, const RenderOptions& opt, StatsImage& out, std::
         }
         double seconds = 0;
         static const std::function<bool(const SampleBlock&, std::string&)> kNoRecords;
-        if (!renderRoundRobin(ctx, opt, img, dropped, pajot,
+        if (!renderRoundRobin(ctx, opt, img, dropped, online,
                               extras && extras->records ? extras->records : kNoRecords,
                               extras ? &extras->recordChannels : nullptr, seconds, err))
             return false;
@@ -666,17 +647,6 @@ bool render(const Scene& scene, const RenderOptions& opt, StatsImage& out, std::
     }
     st.nonFiniteSamples = dropped.load();
     if (opt.adaptiveM) st.meanBuffers = double(img.bufferCount.size()) / double(img.pixelCount());
-    if (pajot.on()) {
-        PajotImage& pj = *extras->pajot;
-        const size_t pixels = pajot.pixels.size();
-        pj.estimate.resize(pixels * 3);
-        pj.pixels.resize(pixels);
-        for (size_t p = 0; p < pixels; ++p) {
-            const std::array<float, 3> e = pajot.pixels[p].estimate();
-            std::copy(e.begin(), e.end(), pj.estimate.begin() + std::ptrdiff_t(p * 3));
-            pj.pixels[p] = std::move(pajot.pixels[p].state());
-        }
-    }
     if (stats) *stats = std::move(st);
     out = std::move(img);
     return true;

@@ -79,4 +79,19 @@ done < <(grep -rHn --include='*.h' --include='*.cpp' '^#include "' core color ex
   compact analysis image ingest oiiotool-ext oiio-plugin render-fixture 2>/dev/null |
   grep -v '^[^:]*:[0-9]*:#include "mcstat/')
 
+# Operation state parts are generic (issue 35): the format and the tools know state parts by their
+# owner, so Pajot is named only by its own files (named after the method, density-based sample
+# delaying), its registry line and the renderer's flag (render-fixture/src/main.cpp).
+while IFS= read -r file; do
+  case $file in
+    filters/samples/sample_delaying* | include/mcstat/filters/samples/sample_delaying* | \
+      scripts/bench_sample_delaying.sh | filters/registry.cpp | render-fixture/src/main.cpp) ;;
+    *)
+      echo "$file: names Pajot; only its own files (sample_delaying*), filters/registry.cpp and render-fixture/src/main.cpp may"
+      bad=1
+      ;;
+  esac
+done < <(grep -rIli --exclude='*.md' pajot core color exr-deep filters compact analysis image ingest \
+  oiiotool-ext oiio-plugin render-fixture include python scripts CMakeLists.txt 2>/dev/null | sort)
+
 exit $bad

@@ -186,8 +186,9 @@ TEST_F(Cli, InfoAndHelp) {
     for (const Operation& op : operationRegistry()) {
         EXPECT_NE(h.out.find("  --" + op.name + " "), std::string::npos) << op.name;
         for (const ParamSpec* p : op.settable())
-            EXPECT_NE(h.out.find(":" + p->name + "=" + p->defaultValue + " (" + describeParam(*p) +
-                                 "; " + p->help + ")"),
+            EXPECT_NE(h.out.find(":" + p->name + "=" + p->defaultValue + " (" +
+                                 (p->type == ParamType::Text ? "" : describeParam(*p) + "; ") +
+                                 p->help + ")"),
                       std::string::npos)
                 << op.name << " " << p->name;
     }

@@ -208,8 +208,8 @@ TEST_F(ContentCli, InfoPrintsPajotLumaAsWritten) {
     render("--M 4 --pajot hybrid --pajot-n 4", "pj.mcstat");
     const auto r = mcstat(path("pj.mcstat") + " --info");
     ASSERT_EQ(r.code, 0) << r.err;
-    EXPECT_NE(r.out.find("pajot (online, method=hybrid,n=4,delayed=64,t=2,delta=0,"
-                         "luma=0.2126:0.7152:0.0722)"),
+    EXPECT_NE(r.out.find("pajot (online, delayed=64:delta=0:luma=0.2126,0.7152,0.0722:"
+                         "method=hybrid:n=4:t=2)"),
               std::string::npos)
         << r.out;
     EXPECT_EQ(r.out.find("0.21260000000000001"), std::string::npos) << r.out;

@@ -86,7 +86,7 @@ void expectHeaderEq(const StatsHeader& a, const StatsHeader& b) {
     EXPECT_EQ(a.displayY, b.displayY);
     EXPECT_EQ(a.displayWidth, b.displayWidth);
     EXPECT_EQ(a.displayHeight, b.displayHeight);
-    EXPECT_EQ(a.hasPajot, b.hasPajot);
+    EXPECT_EQ(a.state, b.state);
     EXPECT_EQ(a.hasRecords, b.hasRecords);
 }
 
@@ -404,7 +404,8 @@ TEST(AovFile, VersionFourPartsFollowPartAovs) {
     ASSERT_TRUE(rw.close(err)) << err;
     // An operation's per-pixel state (Pajot's, in practice): named channels, stored as given.
     PixelStateParts state;
-    state.params = "method=hybrid,n=50,delayed=64,t=2,delta=0,luma=0.2126:0.7152:0.0722";
+    state.owner = {"pajot", "delayed=64:delta=0:luma=0.2126,0.7152,0.0722:method=hybrid:n=50:t=2",
+                   "pajot", "modes"};
     // Listed in OpenEXR's order (by name), the order the reader gives them back in.
     state.floatChannels = {"B", "G", "R"};
     state.floats.assign(img.pixelCount() * 3, 0.25f);
@@ -427,11 +428,11 @@ TEST(AovFile, VersionFourPartsFollowPartAovs) {
     EXPECT_EQ(in.header(7).name(), "records");
     StatsImage back;
     ASSERT_TRUE(readStatsFile(path, back, err)) << err;
-    EXPECT_TRUE(back.header.hasPajot && back.header.hasRecords);
+    EXPECT_TRUE(back.header.state == state.owner && back.header.hasRecords);
     expectBitEqual(back.aov, img.aov, "aov");
     PixelStateParts st;
     ASSERT_TRUE(readPixelStateParts(path, st, err)) << err;
-    EXPECT_EQ(st.params, state.params);
+    EXPECT_EQ(st.owner, state.owner);
     EXPECT_EQ(st.floatChannels, state.floatChannels);
     EXPECT_EQ(st.floats, state.floats);
     EXPECT_EQ(st.uintChannels, state.uintChannels);
@@ -446,14 +447,14 @@ TEST(AovFile, VersionFourPartsFollowPartAovs) {
     EXPECT_EQ(rb.counts, b.counts);
     StatsCheckReport report;
     ASSERT_TRUE(checkStatsFile(path, report, err)) << err;
-    EXPECT_TRUE(report.pajot);
+    EXPECT_TRUE(report.state);
     EXPECT_EQ(report.records, int64_t(total));
     // Rewriting (as -o f.mcstat does) keeps part aovs and drops the version-4 parts.
     MemoryStatsSource src(std::make_shared<const StatsImage>(back), "memory");
     ASSERT_TRUE(writeStatsFile(dir.file("y.mcstat"), src, err)) << err;
     StatsImage y;
     ASSERT_TRUE(readStatsFile(dir.file("y.mcstat"), y, err)) << err;
-    EXPECT_FALSE(y.header.hasPajot || y.header.hasRecords);
+    EXPECT_FALSE(y.header.hasState() || y.header.hasRecords);
     EXPECT_EQ(y.header.formatVersion, 5);
     expectBitEqual(y.aov, img.aov, "aov");
 }

@@ -158,11 +158,14 @@ class CoreWrite : public testing::Test {
         // 37 x 21, M = 3: an odd width (ZIP's byte halves unequal), a version-4 header.
         img = renderImage(37, 21, 3, 11, [](int x, int y) { return (x * 5 + y * 3) % 7; });
         img.header.formatVersion = kStatsFormatVersionSamples;
-        img.header.hasPajot = img.header.hasRecords = true;
+        img.header.hasRecords = true;
         const size_t pixels = img.pixelCount();
         std::mt19937 rng(3);
         // Part pajot: FLOAT channels with special values and UINT words of every bit pattern.
-        state.params = "method=hybrid,n=50,delayed=64,t=2,delta=0,luma=0.2126:0.7152:0.0722";
+        state.owner = {"pajot",
+                       "delayed=64:delta=0:luma=0.2126,0.7152,0.0722:method=hybrid:n=50:t=2",
+                       "pajot", "modes"};
+        img.header.state = state.owner;
         state.floatChannels = {"B", "G", "R", "delayed"};
         state.uintChannels = {"sum.R.hi", "sum.R.lo"};
         for (size_t i = 0; i < pixels * 4; ++i)

@@ -3,7 +3,7 @@
 // parts `pajot` and `modes`, and the per-sample operations (Pajot, RPF) over what was accepted.
 #include "fuzz_support.h"
 #include "mcstat/filters/registry.h"
-#include "mcstat/filters/samples/pajot_state.h"
+#include "mcstat/filters/samples/sample_delaying_state.h"
 #include "mcstat/sample_records.h"
 
 using namespace mcstat;

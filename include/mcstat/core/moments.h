@@ -1,8 +1,8 @@
 // The one variance accumulator: a running mean and sum of squared deviations, updated one value at
 // a time (Welford 1962: numerically stable even when the mean dwarfs the spread) and pooled
 // exactly (Chan, Golub and LeVeque 1979), so that a statistics file's moments, their merge across
-// seeds and the renderer's and Pajot's running statistics all agree in one arithmetic. Header
-// only: it sits in the innermost loops.
+// seeds and the renderer's and the online operations' running statistics all agree in one
+// arithmetic. Header only: it sits in the innermost loops.
 #pragma once
 
 #include <cmath>

@@ -78,6 +78,20 @@ std::string nearestName(const std::string& name, const std::vector<std::string>&
 bool checkModifiers(const std::string& command, const std::vector<ParamSpec>& specs,
                     std::map<std::string, std::string>& mods, std::string& err);
 
+/// The one grammar of parameter text: "key=value:key=value", as a command's modifiers are written
+/// (`--gmon:mode=channel:diag=1`) and as an operation's parameters are stored in a statistics file
+/// (FORMAT.md "State parts with an owner"). As in oiiotool, a value may hold ':' where what follows
+/// cannot start a key (a digit, a sign, a dot): "compression=dwaa:45". A key given twice is
+/// refused (which one would count is a guess). On failure `problem` is one line without context.
+/// Empty text is no keys.
+bool parseParamText(const std::string& text, std::map<std::string, std::string>& kv,
+                    std::string& problem);
+/// `kv` in that grammar, keys in the map's order: what parseParamText reads back as `kv`.
+std::string paramText(const std::map<std::string, std::string>& kv);
+/// The shortest text of `v` that parseRealText reads back as exactly `v` ("0.2126", not
+/// "0.21260000000000001"): parameter text that people read and that gives its values back.
+std::string realText(double v);
+
 /// The low-level number syntax parseParamValue uses (and nothing else does): the whole text is a
 /// base-10 integer / a finite number, without surrounding spaces.
 bool parseIntegerText(const std::string& text, int64_t& out);

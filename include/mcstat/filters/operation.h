@@ -4,7 +4,9 @@
 // registry (registry.h) lists them; the tools find them there by name and never look inside their
 // parameters. The few places that name one do so for what it is: the plain mean (the reference of
 // residuals and what MIF filters over a statistics file), G-MoN (the default of the plugin and of
-// contact sheets), Pajot (the renderer's online run, which its --pajot options configure).
+// contact sheets), and the renderer's flag of the one operation it runs online. An operation that
+// keeps per-pixel state in a statistics file says what the state is through its OperationState
+// hooks, so that the format and the tools stay generic (FORMAT.md "State parts with an owner").
 // This header and estimate.h name no family of operations: each family (filters/pixel,
 // filters/window, filters/samples) reaches only them (tests/architecture/check_arrows.sh).
 //
@@ -19,6 +21,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -134,6 +137,43 @@ struct SamplesRequest {
 /// provide its input (e.g. no per-sample part) or is bad.
 using SamplesFn = bool (*)(const SamplesRequest&, OperationImage& out, std::string& err);
 
+struct PixelStateParts;  // sample_records.h: an operation's state as a statistics file stores it
+
+/// A renderer's online run of an operation that keeps per-pixel state (OperationState::start):
+/// every sample goes to its pixel, in the order taken.
+class OnlineRun {
+  public:
+    virtual ~OnlineRun() = default;
+    /// Sample `rgb` (float32 radiance) of pixel `p`. Pixels are independent: threads may feed
+    /// different pixels at once. Non-finite samples are refused (the renderer counts those).
+    virtual void add(size_t p, const float rgb[3]) = 0;
+    /// The state as its parts store it (owner, part names, parameter text), once, at the end of
+    /// the run (it may move the state out); false with one line when a value does not fit.
+    virtual bool encode(PixelStateParts& out, std::string& err) = 0;
+    /// The run's parameters, the text its parts carry (parseParamText's grammar).
+    virtual std::string paramText() const = 0;
+    /// The smallest number of samples a pixel needs before the run is more than a plain mean,
+    /// for the renderer's warning (0: none).
+    virtual int64_t learningSamples() const = 0;
+};
+
+/// The hooks of an operation that keeps per-pixel state in a statistics file: the format stores
+/// "state parts with an owner" (the operation's registry name) and knows nothing else of them.
+struct OperationState {
+    std::string flatPart, deepPart;  ///< the parts' names on disk, the operation's own
+    /// For --info and --check: lines ("  NAME ...\n") describing state `parts` of an image
+    /// `width` pixels wide, every value checked; false with one line (no file name) when bad.
+    bool (*describe)(const PixelStateParts& parts, int width, std::string& text,
+                     std::string& err) = nullptr;
+    /// Starts an online run over `pixels` pixels with `values` (parseOperationParams) and the
+    /// luminance weights `luma`, continuing `resume` when not null (a resumed render: its own
+    /// parameters, which `values` must equal unless they ask for the stored ones). Null with one
+    /// line in `err`.
+    std::unique_ptr<OnlineRun> (*start)(const ParamValues& values,
+                                        const std::array<double, 3>& luma, int width, size_t pixels,
+                                        const PixelStateParts* resume, std::string& err) = nullptr;
+};
+
 struct Operation {
     std::string name;      ///< command name without dashes, e.g. "gmon"
     std::string title;     ///< e.g. "G-MoN"
@@ -145,6 +185,7 @@ struct Operation {
     BindWindowFn bindWindow = nullptr;         ///< Neighbourhood
     Neighbourhood over = Neighbourhood::None;  ///< Neighbourhood: what bindWindow's kernel reads
     SamplesFn samples = nullptr;               ///< Samples
+    OperationState state;  ///< an operation that keeps state in the file: its hooks (else empty)
 
     /// Parameters a user may set (params without the fixed ones).
     std::vector<const ParamSpec*> settable() const;
@@ -163,6 +204,13 @@ Operation samplesOperation(const std::string& name, const std::string& title,
 Operation windowOperation(const std::string& name, const std::string& title,
                           const std::string& help, const std::string& equation, Neighbourhood over,
                           std::vector<ParamSpec> params, BindWindowFn bind);
+
+/// Parses key=value parameters of `op` into `out` (modifiers, or a state part's parameter text
+/// split by parseParamText): every parameter, defaults (and fixed values) applied first. An
+/// unknown key or a bad value is a one-line error: the unknown key is named with the accepted
+/// ones; a bad value as parseParamValue says, with `context` (default: op.name).
+bool parseOperationParams(const Operation& op, const std::map<std::string, std::string>& kv,
+                          ParamValues& out, std::string& err, const std::string& context = "");
 
 /// Parameter "mode" of every operation that ranks colours (lum / channel), with the per-pixel
 /// estimators' help unless given another.

@@ -32,11 +32,7 @@ const std::vector<Operation>& estimatorRegistry();
 /// A BufferMeans operation; nullptr when unknown or of another kind.
 const Operation* findEstimator(std::string_view name);
 
-/// Parses key=value parameters of `op` into `out`: every parameter, defaults (and fixed values)
-/// applied first. An unknown key or a bad value is a one-line error: the unknown key is named with
-/// the accepted ones; a bad value as parseParamValue says, with `context` (default: op.name).
-bool parseOperationParams(const Operation& op, const std::map<std::string, std::string>& kv,
-                          ParamValues& out, std::string& err, const std::string& context = "");
+// parseOperationParams (operation.h) parses an operation's key=value parameters.
 
 /// A BufferMeans operation's kernel with parameters `kv` over its defaults and the luminance
 /// weights `luma`: parseOperationParams, then the operation's bindPixel. False with `err` for a

@@ -1,7 +1,8 @@
 // A deliberately plain re-implementation of Pajot et al. 2011's per-pixel estimator (Algorithm 1
 // with the learning phase of section 4.1, ADR's update of section 4.2 with eq. 3-4, ROT's eq. 5 of
 // section 4.4, the hybrid switch of section 4.6), with the conventions of
-// include/mcstat/filters/samples/pajot_kde.h, for the tests that pin PajotPixel to it bit for bit.
+// include/mcstat/filters/samples/sample_delaying_kde.h, for the tests that pin PajotPixel to it bit
+// for bit.
 //
 // Plain on purpose: every density is a scan over all modes, recomputed wherever it is needed; every
 // log is taken where the equation has it; nothing is cached, reused or reordered; floor and ceil
@@ -19,7 +20,7 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/filters/samples/pajot_kde.h"
+#include "mcstat/filters/samples/sample_delaying_kde.h"
 
 namespace mcstat::pajot_ref {
 

@@ -1,6 +1,6 @@
 // Pajot et al. 2011: the per-pixel estimator against hand-worked distributions and eq. 3-5
 // computed here the slow, obvious way, and every numerical edge of
-// include/mcstat/filters/samples/pajot_kde.h.
+// include/mcstat/filters/samples/sample_delaying_kde.h.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -8,7 +8,7 @@
 #include <random>
 #include <vector>
 
-#include "mcstat/filters/samples/pajot_kde.h"
+#include "mcstat/filters/samples/sample_delaying_kde.h"
 
 namespace mcstat {
 namespace {

@@ -12,10 +12,14 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
 
-#include "mcstat/filters/samples/pajot_state.h"
+#include "mcstat/core/params.h"
+#include "mcstat/filters/registry.h"
+#include "mcstat/filters/samples/sample_delaying.h"
+#include "mcstat/filters/samples/sample_delaying_state.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
 #include "pajot_reference.h"
@@ -50,7 +54,7 @@ TEST_F(PajotFile, RecordsHoldEverySampleInOrderAndReadBackByBlocks) {
     ASSERT_TRUE(readStatsFile(f, img, err)) << err;
     EXPECT_EQ(img.header.formatVersion, 4);
     EXPECT_TRUE(img.header.hasRecords);
-    EXPECT_FALSE(img.header.hasPajot);
+    EXPECT_FALSE(img.header.hasState());
     SampleRecordsReader rd;
     ASSERT_TRUE(rd.open(f, err)) << err;
     SampleBlock block;
@@ -222,7 +226,7 @@ TEST_F(PajotFile, MergingOrRewritingDropsThePerSamplePartsWithAWarning) {
     StatsHeader h;
     std::string err;
     ASSERT_TRUE(readStatsHeader(ab, h, err)) << err;
-    EXPECT_FALSE(h.hasPajot);
+    EXPECT_FALSE(h.hasState());
     EXPECT_FALSE(h.hasRecords);
     EXPECT_EQ(h.formatVersion, 1);  // the lowest version that holds what remains
     EXPECT_EQ(h.spp, 16);
@@ -253,13 +257,141 @@ TEST_F(PajotFile, RefusalsAreOneLineErrorsBeforeAnyWork) {
     r = mcstat(path("s.mcstat") + " --pajot:n=0 -o " + path("o.exr"));
     EXPECT_NE(r.err.find("n must be"), std::string::npos) << r.err;
     r = render("--scene tiny --pajot fast -o " + path("y.mcstat"));
-    EXPECT_NE(r.err.find("--pajot: expected 'adr', 'rot' or 'hybrid'"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("--pajot: method must be 'stored', 'adr', 'rot' or 'hybrid', not 'fast'"),
+              std::string::npos)
+        << r.err;
     // Resume: a file without Pajot's state cannot continue it; --spp is the total.
     r = render("--scene tiny --spp 8 --pajot hybrid --resume " + path("plain.mcstat") + " -o " +
                path("z.mcstat"));
     EXPECT_NE(r.err.find("has no Pajot state to continue"), std::string::npos) << r.err;
     r = render("--scene tiny --spp 8 --resume " + path("s.mcstat") + " -o " + path("z.mcstat"));
     EXPECT_NE(r.err.find("already has 8 samples per pixel"), std::string::npos) << r.err;
+}
+
+// The parameter text the state parts carry is the registry's one grammar: written by
+// pajotParamText, read back through parseParamText and parseOperationParams, every double exact.
+TEST(StateParams, KeyValueTextRoundTripsThroughTheRegistry) {
+    PajotParams p;
+    p.method = PajotMethod::ROT;
+    p.learning = 17;
+    p.maxDelayed = 3;
+    p.T = 5;
+    p.delta = 0.1 + 0.2;  // not a short decimal: the shortest exact text is longer
+    p.luma = {0.3439664, 0.7281661, -0.0721325};  // ACES2065-1: a negative weight
+    const std::string text = pajotParamText(p);
+    EXPECT_NE(text.find("luma=0.3439664,0.7281661,-0.0721325:method=rot"), std::string::npos)
+        << text;  // lists by ',', items by ':'
+    std::map<std::string, std::string> kv;
+    std::string err;
+    ASSERT_TRUE(parseParamText(text, kv, err)) << err;
+    EXPECT_EQ(paramText(kv), text);
+    ParamValues values;
+    ASSERT_TRUE(parseOperationParams(*findOperation("pajot"), kv, values, err)) << err;
+    PajotParams back;
+    ASSERT_TRUE(pajotParamsFromText(text, back, err)) << err;
+    EXPECT_EQ(back.method, p.method);
+    EXPECT_EQ(back.learning, p.learning);
+    EXPECT_EQ(back.maxDelayed, p.maxDelayed);
+    EXPECT_EQ(back.T, p.T);
+    EXPECT_EQ(std::memcmp(&back.delta, &p.delta, sizeof p.delta), 0);
+    EXPECT_EQ(std::memcmp(back.luma.data(), p.luma.data(), sizeof p.luma), 0);
+    // One grammar, one parser: bad text is refused with the registry's own messages.
+    EXPECT_FALSE(pajotParamsFromText("method=adr:n=0:delayed=1:t=1:delta=0:luma=1,0,0", back, err));
+    EXPECT_NE(err.find("n must be"), std::string::npos) << err;
+    EXPECT_FALSE(pajotParamsFromText("method=adr:n=5:delayed=1:t=1:delta=0", back, err));
+    EXPECT_NE(err.find("no luma"), std::string::npos) << err;
+    EXPECT_FALSE(pajotParamsFromText("method=adr:n=5:n=6", back, err));
+    EXPECT_NE(err.find("given twice"), std::string::npos) << err;
+}
+
+// Files written before the owner was recorded (attribute mcstat:pajot, ',' between items) read
+// as state parts owned by "pajot", their parameters in the one grammar, and decode.
+TEST(StateParams, FilesWrittenBeforeTheOwnerAttributeStillRead) {
+    const std::string file =
+        std::string(MCSTAT_SOURCE_DIR) + "/tests/fuzz/corpus/records/pajot.mcstat";
+    StatsHeader h;
+    std::string err;
+    ASSERT_TRUE(readStatsHeader(file, h, err)) << err;
+    EXPECT_EQ(h.state.operation, "pajot");
+    EXPECT_EQ(h.state.flatPart, "pajot");
+    EXPECT_EQ(h.state.deepPart, "modes");
+    EXPECT_NE(h.state.params.find("method="), std::string::npos) << h.state.params;
+    EXPECT_EQ(h.state.params.find(",n="), std::string::npos) << h.state.params;
+    PajotImage pj;
+    ASSERT_TRUE(readPajotParts(file, pj, err)) << err;
+    EXPECT_EQ(pj.pixels.size(), size_t(h.width) * size_t(h.height));
+}
+
+// A file written by a newer mcstat whose state parts belong to an operation this one does not
+// know: the file reads, --info and --check name the owner and say it is unknown, the operations
+// over the sub-buffers work, and the one that needs its own state says the file has none.
+TEST_F(PajotFile, StatePartsOfAnUnknownOwnerAreKeptUnread) {
+    ASSERT_EQ(render("--scene tiny --spp 8 -o " + path("plain.mcstat")).code, 0);
+    StatsImage img;
+    std::string err;
+    ASSERT_TRUE(readStatsFile(path("plain.mcstat"), img, err)) << err;
+    PixelStateParts state;
+    state.owner = {"futureop", "level=3:weights=1,2", "future", "futurerecs"};
+    state.floatChannels = {"x"};
+    state.floats.assign(img.pixelCount(), 1.5f);
+    state.recordChannels = {"A", "Z", "v"};
+    state.recordCounts.assign(img.pixelCount(), 1);
+    for (size_t p = 0; p < img.pixelCount(); ++p)
+        state.records.insert(state.records.end(), {1.f, float(p), 2.f});
+    img.header.state = state.owner;
+    img.header.formatVersion =
+        std::max(img.header.formatVersion, requiredFormatVersion(img.header));
+    StatsExtras extras;
+    extras.state = &state;
+    const std::string f = path("future.mcstat");
+    ASSERT_TRUE(writeStatsFile(f, img, extras, err)) << err;
+    StatsHeader h;
+    ASSERT_TRUE(readStatsHeader(f, h, err)) << err;
+    EXPECT_EQ(h.state, state.owner);
+    ToolRun r = mcstat(f + " --info");
+    ASSERT_EQ(r.code, 0) << r.err;
+    std::string text = r.out;
+    EXPECT_NE(text.find("future, futurerecs (state parts of 'futureop', an operation this mcstat "
+                        "does not know"),
+              std::string::npos)
+        << text;
+    r = mcstat(f + " --check");
+    ASSERT_EQ(r.code, 0) << r.err;
+    text = r.out;
+    EXPECT_NE(text.find("future, futurerecs: decoded (their owner unknown to this mcstat)"),
+              std::string::npos)
+        << text;
+    EXPECT_EQ(mcstat(f + " --gmon -o " + path("g.exr")).code, 0);
+    r = mcstat(f + " --pajot -o " + path("p.exr"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("neither per-sample records nor Pajot's online state"), std::string::npos)
+        << r.err;
+    // A renderer cannot continue a state it does not know.
+    r = render("--scene tiny --spp 16 --resume " + f + " -o " + path("more.mcstat"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("holds the state of 'futureop', which this renderer cannot continue"),
+              std::string::npos)
+        << r.err;
+}
+
+// --info and --check describe Pajot's state through its registry entry's hook.
+TEST_F(PajotFile, InfoAndCheckDescribeTheStateThroughTheRegistry) {
+    ASSERT_EQ(render("--scene tiny --spp 8 --pajot rot --pajot-n 4 -o " + path("s.mcstat")).code,
+              0);
+    const Operation* op = findOperation("pajot");
+    ASSERT_NE(op, nullptr);
+    EXPECT_EQ(op->state.flatPart, "pajot");
+    EXPECT_EQ(op->state.deepPart, "modes");
+    ToolRun r = mcstat(path("s.mcstat") + " --check");
+    ASSERT_EQ(r.code, 0) << r.err;
+    std::string text = r.out;
+    EXPECT_NE(text.find("pajot, modes: decoded and checked"), std::string::npos) << text;
+    EXPECT_NE(text.find("pajot (online, delayed=64:delta=0:luma="), std::string::npos) << text;
+    EXPECT_NE(text.find("method=rot:n=4:t=2): modes per pixel"), std::string::npos) << text;
+    r = mcstat(path("s.mcstat") + " --info");
+    ASSERT_EQ(r.code, 0) << r.err;
+    text = r.out;
+    EXPECT_NE(text.find("pajot: samples delayed"), std::string::npos) << text;
 }
 
 }  // namespace

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/filters/samples/pajot_kde.h"
+#include "mcstat/filters/samples/sample_delaying_kde.h"
 #include "pajot_reference.h"
 
 namespace mcstat {
@@ -352,8 +352,8 @@ std::vector<float> logStream(LogKind kind, int count, uint64_t seed) {
 
 TEST(PajotReferenceAdr, CertifiedUpdatesKeepEveryDecision) {
     // Without a trace an update decides its merges from bounds of eq. 4's G when they settle them
-    // (filters/samples/pajot_kde.cpp, adrGeometricMeanBounds). Every sample goes through that
-    // update, through the traced update (the exact G, which also records what the bounds
+    // (filters/samples/sample_delaying_kde.cpp, adrGeometricMeanBounds). Every sample goes through
+    // that update, through the traced update (the exact G, which also records what the bounds
     // decided) and through the plain reference; the modes must agree after every sample, the
     // bounds must hold G and agree with the exact decisions wherever they settled them, and they
     // must settle a good share of the updates (else the test tests nothing).

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/filters/samples/pajot_state.h"
+#include "mcstat/filters/operation.h"
 #include "mcstat/render/scene.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/stats_file.h"
@@ -70,13 +70,12 @@ struct RenderOptions {
 /// mirror and glass).
 std::vector<AovChannel> fixtureAovChannels();
 
-/// What a render produces besides the StatsImage (format version 4, docs/pajot.md).
+/// What a render produces besides the StatsImage (format version 4).
 struct RenderExtras {
-    /// Pajot's online estimate: when non-null, every sample also goes, as float32 RGB (the values
-    /// the records keep), in the order taken, to its pixel's PajotPixel with pajot->params. On
-    /// entry pajot->pixels is empty (a new render) or the state a resumed render continues from;
-    /// on return it holds every pixel's state and estimate.
-    PajotImage* pajot = nullptr;
+    /// An operation's online run (its registry entry's OperationState::start, new or continuing
+    /// a resumed file's state): when non-null, every sample also goes to it, as float32 RGB (the
+    /// values the records keep), in the order taken, pixel by pixel.
+    OnlineRun* online = nullptr;
     /// Per-sample records (--keep-samples): called with consecutive blocks of whole rows, in
     /// order, each pixel's samples in the order taken, with `recordChannels` (R, G, B, Z =
     /// first-hit distance or +inf, then the channels of recordFieldsFor's fields). Returning

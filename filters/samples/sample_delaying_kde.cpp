@@ -1,18 +1,16 @@
 // Pajot et al. 2011, Algorithm 1 with the learning phase (section 4.1), ADR (section 4.2, eq. 4),
 // ROT (section 4.4, eq. 5) and the hybrid switch (section 4.6). The rules the paper leaves open are
-// listed in include/mcstat/filters/samples/pajot_kde.h; docs/pajot.md explains them.
-#include "mcstat/filters/samples/pajot_kde.h"
+// listed in include/mcstat/filters/samples/sample_delaying_kde.h; docs/pajot.md explains them.
+#include "mcstat/filters/samples/sample_delaying_kde.h"
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <cstdlib>
 #include <limits>
 
 #include "mcstat/core/colour_space.h"
 #include "mcstat/core/moments.h"
 #include "mcstat/core/params.h"
-#include "mcstat/core/untrusted_text.h"
 
 namespace mcstat {
 
@@ -669,76 +667,6 @@ float lastExtendedUpperBound(const std::vector<PajotMode>& modes) {
     for (auto it = modes.rbegin(); it != modes.rend(); ++it)
         if (it->extended()) return it->hi;
     return kNoMode;
-}
-
-// ---- Pajot's parameters as text -----------------------------------------------------------------
-
-std::string pajotParamsText(const PajotParams& p) {
-    char buf[256];
-    std::snprintf(buf, sizeof buf,
-                  "method=%s,n=%d,delayed=%d,t=%d,delta=%.17g,luma=%.17g:%.17g:%.17g",
-                  pajotMethodName(p.method), p.learning, p.maxDelayed, p.T, p.delta, p.luma[0],
-                  p.luma[1], p.luma[2]);
-    return buf;
-}
-
-bool parsePajotParamsText(const std::string& text, PajotParams& p, std::string& problem) {
-    PajotParams out;
-    size_t pos = 0;
-    int seen = 0;
-    while (pos < text.size()) {
-        size_t comma = text.find(',', pos);
-        if (comma == std::string::npos) comma = text.size();
-        const std::string item = text.substr(pos, comma - pos);
-        pos = comma + 1;
-        const size_t eq = item.find('=');
-        if (eq == std::string::npos) {
-            problem = "'" + printable(item) + "' is not key=value";
-            return false;
-        }
-        const std::string k = item.substr(0, eq), v = item.substr(eq + 1);
-        if (k == "method") {
-            if (!parsePajotMethod(v, out.method)) {
-                problem = "unknown method '" + printable(v) + "'";
-                return false;
-            }
-        } else if (k == "luma") {
-            // Three numbers separated by ':' (the one number syntax, core/params.h).
-            const size_t a = v.find(':'), b = a == std::string::npos ? a : v.find(':', a + 1);
-            if (b == std::string::npos || !parseRealText(v.substr(0, a), out.luma[0]) ||
-                !parseRealText(v.substr(a + 1, b - a - 1), out.luma[1]) ||
-                !parseRealText(v.substr(b + 1), out.luma[2])) {
-                problem = "bad luma '" + printable(v) + "'";
-                return false;
-            }
-        } else {
-            double d = 0.0;
-            if (!parseRealText(v, d)) {
-                problem = "bad value '" + printable(item) + "'";
-                return false;
-            }
-            if (k == "n")
-                out.learning = int(d);
-            else if (k == "delayed")
-                out.maxDelayed = int(d);
-            else if (k == "t")
-                out.T = int(d);
-            else if (k == "delta")
-                out.delta = d;
-            else {
-                problem = "unknown key '" + printable(k) + "'";
-                return false;
-            }
-        }
-        ++seen;
-    }
-    if (seen != 6) {
-        problem = "expected method, n, delayed, t, delta and luma";
-        return false;
-    }
-    if (!validatePajotParams(out, problem)) return false;
-    p = out;
-    return true;
 }
 
 // ---- the per-pixel estimator --------------------------------------------------------------------

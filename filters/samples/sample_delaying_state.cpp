@@ -1,20 +1,27 @@
-// Pajot's online state <-> the per-pixel state parts of a statistics file
-// (include/mcstat/filters/samples/pajot_state.h).
-#include "mcstat/filters/samples/pajot_state.h"
+// Density-based sample delaying's online state (Pajot, Barthe and Paulin, GI 2011) <-> its state
+// parts in a statistics file, and the registry entry's state hooks
+// (include/mcstat/filters/samples/sample_delaying_state.h).
+#include "mcstat/filters/samples/sample_delaying_state.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
+#include <memory>
 #include <string>
 
 #include "mcstat/core/untrusted_text.h"
+#include "mcstat/filters/samples/sample_delaying.h"
 
 namespace mcstat {
 
 namespace {
 
 constexpr double kMaxExactCount = 16777216.0;  // 2^24: counts are float32 in the file
+/// The parts' names, as every file since format 4 has them.
+constexpr const char* kFlatPart = "pajot";
+constexpr const char* kDeepPart = "modes";
 
 /// Flat part `pajot`: FLOAT channels, then UINT pairs holding doubles' bit patterns.
 const std::vector<std::string> kPajotFloats = {"R",        "G",         "B",     "delayed",
@@ -137,7 +144,10 @@ bool encodePajotState(const PajotImage& pj, PixelStateParts& out, std::string& e
             return false;
         }
     PixelStateParts r;
-    r.params = pajotParamsText(pj.params);
+    r.owner.operation = kPajotName;
+    r.owner.params = pajotParamText(pj.params);
+    r.owner.flatPart = kFlatPart;
+    r.owner.deepPart = kDeepPart;
     r.floatChannels = kPajotFloats;
     r.uintChannels = kPajotWords;
     r.recordChannels = kModeChannels;
@@ -187,8 +197,13 @@ bool encodePajotState(const PajotImage& pj, PixelStateParts& out, std::string& e
 bool decodePajotState(const PixelStateParts& parts, int width, PajotImage& pj, std::string& err) {
     PajotImage r;
     std::string problem;
-    if (!parsePajotParamsText(parts.params, r.params, problem)) {
-        err = "part 'pajot': attribute mcstat:pajot: " + problem;
+    if (parts.owner.operation != kPajotName) {
+        err = "the state parts belong to '" + printable(parts.owner.operation) + "', not " +
+              kPajotName;
+        return false;
+    }
+    if (!pajotParamsFromText(parts.owner.params, r.params, problem)) {
+        err = "part '" + printable(parts.owner.flatPart) + "': parameters: " + problem;
         return false;
     }
     std::vector<size_t> fi, wi, ri;
@@ -247,6 +262,115 @@ bool readPajotState(SampleSource& src, PajotImage& out, std::string& err) {
         return false;
     }
     return true;
+}
+
+namespace {
+
+/// --info and --check: the state in numbers (docs/pajot.md), what the benchmark's tables report.
+bool describePajotState(const PixelStateParts& parts, int width, std::string& text,
+                        std::string& err) {
+    PajotImage pj;
+    if (!decodePajotState(parts, width, pj, err)) return false;
+    int64_t single = 0, extended = 0, delayed = 0, discarded = 0, taken = 0, bytes = 0,
+            learning = 0, rotOnly = 0;
+    for (const PajotState& s : pj.pixels) {
+        const PajotCounts c = PajotPixel(s).counts();
+        single += c.singleModes;
+        extended += c.extendedModes;
+        delayed += c.delayed;
+        bytes += c.bytes;
+        discarded += s.discarded;
+        taken += s.taken;
+        learning += s.phase == PajotPhase::Learning;
+        rotOnly += s.phase == PajotPhase::ROT;
+    }
+    const double n = double(std::max<size_t>(1, pj.pixels.size()));
+    char line[512];
+    std::snprintf(line, sizeof line,
+                  "  pajot (online, %s): modes per pixel %.3f single, %.3f extended; %.2f bytes "
+                  "per pixel (%.3f image buffers of 12 bytes)\n",
+                  pajotParamText(pj.params).c_str(), double(single) / n, double(extended) / n,
+                  double(bytes) / n, double(bytes) / n / 12.0);
+    text = line;
+    std::snprintf(line, sizeof line,
+                  "  pajot: samples delayed %.4f %% (%lld of %lld), discarded %lld; pixels still "
+                  "learning %lld, on ROT alone %lld\n",
+                  taken ? 100.0 * double(delayed) / double(taken) : 0.0, (long long)delayed,
+                  (long long)taken, (long long)discarded, (long long)learning, (long long)rotOnly);
+    text += line;
+    return true;
+}
+
+/// The renderer's online run: one PajotPixel per pixel, fed float32 RGB in the order taken.
+class PajotRun : public OnlineRun {
+  public:
+    PajotParams params;
+    std::vector<PajotPixel> pixels;
+
+    void add(size_t p, const float rgb[3]) override {
+        pixels[p].add(rgb, params);  // refuses non-finite values (the renderer counts those)
+    }
+    bool encode(PixelStateParts& out, std::string& err) override {
+        PajotImage pj;
+        pj.params = params;
+        pj.estimate.resize(pixels.size() * 3);
+        pj.pixels.resize(pixels.size());
+        for (size_t p = 0; p < pixels.size(); ++p) {
+            const std::array<float, 3> e = pixels[p].estimate();
+            std::copy(e.begin(), e.end(), pj.estimate.begin() + std::ptrdiff_t(p * 3));
+            pj.pixels[p] = std::move(pixels[p].state());  // once, at the end of the run
+        }
+        return encodePajotState(pj, out, err);
+    }
+    std::string paramText() const override { return pajotParamText(params); }
+    int64_t learningSamples() const override { return params.learning; }
+};
+
+std::unique_ptr<OnlineRun> startPajotRun(const ParamValues& values,
+                                         const std::array<double, 3>& luma, int width,
+                                         size_t pixels, const PixelStateParts* resume,
+                                         std::string& err) {
+    auto run = std::make_unique<PajotRun>();
+    const bool stored = values.at("method").text == "stored";
+    if (!stored || resume == nullptr) {
+        if (!pajotParamsFrom(values, luma, run->params, err)) return nullptr;
+    }
+    try {
+        run->pixels.resize(pixels);
+        if (resume != nullptr) {
+            PajotImage pj;
+            if (!decodePajotState(*resume, width, pj, err)) return nullptr;
+            if (!stored && pajotParamText(pj.params) != pajotParamText(run->params)) {
+                err = "rendered with pajot " + pajotParamText(pj.params) + ", not " +
+                      pajotParamText(run->params);
+                return nullptr;
+            }
+            if (pj.pixels.size() != pixels) {
+                err = "the state to resume has " + std::to_string(pj.pixels.size()) +
+                      " pixels, the image " + std::to_string(pixels);
+                return nullptr;
+            }
+            run->params = pj.params;
+            for (size_t p = 0; p < pixels; ++p)
+                run->pixels[p] = PajotPixel(std::move(pj.pixels[p]));
+        }
+    } catch (const std::exception& e) {
+        err = std::string("cannot allocate the Pajot state: ") + e.what();
+        return nullptr;
+    }
+    if (!validatePajotParams(run->params, err)) return nullptr;
+    return run;
+}
+
+}  // namespace
+
+OperationState pajotStateHooks() {
+    OperationState s;
+    s.flatPart = kFlatPart;
+    s.deepPart = kDeepPart;
+    s.describe = &describePajotState;
+    s.start = &startPajotRun;
+    return s;
 }
 
 }  // namespace mcstat

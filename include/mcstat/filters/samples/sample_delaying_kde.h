@@ -57,11 +57,6 @@ struct PajotParams {
     std::array<double, 3> luma{0.2126, 0.7152, 0.0722};  ///< from the colour config (color.h)
 };
 
-/// "method=hybrid,n=50,delayed=64,t=2,delta=0,luma=0.2126:0.7152:0.0722" (delta and luma with
-/// 17 significant digits, so the text gives the parameters back exactly): attribute mcstat:pajot.
-std::string pajotParamsText(const PajotParams& p);
-bool parsePajotParamsText(const std::string& text, PajotParams& p, std::string& problem);
-
 /// Range checks of PajotParams; `err` is one line naming the parameter.
 bool validatePajotParams(const PajotParams& p, std::string& err);
 

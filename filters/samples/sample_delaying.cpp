@@ -1,23 +1,36 @@
+// Density-based sample delaying (Pajot, Barthe and Paulin, "Sample-Space Bright Spots Removal
+// Using Density Estimation", GI 2011, Algorithm 1), the registry's operation "pajot".
 // `mcstat FILE --pajot` and the plugin's `?estimator=pajot` (docs/pajot.md, "Offline"): Pajot's
 // estimate recomputed from the per-sample records, pixel by pixel in the order the samples were
 // taken, through the same PajotPixel the renderer feeds, so that it equals the online result bit
 // for bit; or, without records, the online result the file stores. Reads through SampleSource
 // (exr-deep opens the file), by blocks of rows: memory holds one block of samples.
-#include "mcstat/filters/samples/pajot.h"
+#include "mcstat/filters/samples/sample_delaying.h"
 
 #include <algorithm>
 #include <cmath>
 #include <vector>
 
 #include "mcstat/core/parallel.h"
+#include "mcstat/core/untrusted_text.h"
 #include "mcstat/filters/aov_weights.h"
-#include "mcstat/filters/samples/pajot_kde.h"
-#include "mcstat/filters/samples/pajot_state.h"
+#include "mcstat/filters/samples/sample_delaying_kde.h"
+#include "mcstat/filters/samples/sample_delaying_state.h"
 #include "mcstat/sample_records.h"
 
 namespace mcstat {
 
 namespace {
+
+/// The luminance weights of the log-luminance (section 3): the colour config's unless given; a
+/// stored run names its own.
+ParamSpec lumaParam() {
+    // Text, not a list of reals: an empty default means the colour config's (pajotParamsFrom
+    // reads the three numbers with the one number syntax).
+    return textParam("luma", "",
+                     "luminance weights R,G,B of the log-luminance (default: the working colour "
+                     "space's)");
+}
 
 /// The parameters asked for: method "stored" takes the online run's (or, with records only, the
 /// paper's defaults) and ignores the other keys.
@@ -41,9 +54,9 @@ bool requestedParams(const SamplesRequest& req, const PajotImage* stored, PajotP
 /// holds for its own parameters only.
 bool storedResult(const std::string& path, const PajotImage& stored, const PajotParams& p,
                   size_t pixels, OperationImage& out, std::string& err) {
-    if (pajotParamsText(p) != pajotParamsText(stored.params)) {
-        err = path + ": holds the online result for " + pajotParamsText(stored.params) +
-              "; computing " + pajotParamsText(p) +
+    if (pajotParamText(p) != pajotParamText(stored.params)) {
+        err = path + ": holds the online result for " + pajotParamText(stored.params) +
+              "; computing " + pajotParamText(p) +
               " needs per-sample records (render with --keep-samples), or use method=stored";
         return false;
     }
@@ -162,7 +175,48 @@ bool pajotParamsFrom(const ParamValues& v, const std::array<double, 3>& luma, Pa
     p.T = int(v.at("t").integer);
     p.delta = v.at("delta").real;
     p.luma = luma;
+    const std::string& given = v.at("luma").text;
+    if (!given.empty()) {
+        std::vector<double> w;
+        for (size_t start = 0; start <= given.size();) {
+            const size_t comma = std::min(given.find(',', start), given.size());
+            double d = 0.0;
+            if (!parseRealText(given.substr(start, comma - start), d)) break;
+            w.push_back(d);
+            start = comma + 1;
+        }
+        if (w.size() != 3) {
+            err = "pajot: luma must be three weights R,G,B, not '" + printable(given) + "'";
+            return false;
+        }
+        p.luma = {w[0], w[1], w[2]};
+    }
     return validatePajotParams(p, err);
+}
+
+std::string pajotParamText(const PajotParams& p) {
+    return paramText(
+        {{"method", pajotMethodName(p.method)},
+         {"n", std::to_string(p.learning)},
+         {"delayed", std::to_string(p.maxDelayed)},
+         {"t", std::to_string(p.T)},
+         {"delta", realText(p.delta)},
+         {"luma", realText(p.luma[0]) + "," + realText(p.luma[1]) + "," + realText(p.luma[2])}});
+}
+
+bool pajotParamsFromText(const std::string& text, PajotParams& p, std::string& problem) {
+    std::map<std::string, std::string> kv;
+    ParamValues values;
+    bool ok = parseParamText(text, kv, problem);
+    for (const char* key : {"method", "n", "delayed", "t", "delta", "luma"})
+        if (ok && kv.count(key) == 0) {
+            problem = std::string("no ") + key + " in '" + text + "'";
+            ok = false;
+        }
+    ok = ok && parseOperationParams(pajotOperation(), kv, values, problem) &&
+         pajotParamsFrom(values, p.luma, p, problem);
+    if (!ok) problem = printable(problem, 300);  // the text is the file's: untrusted
+    return ok;
 }
 
 bool pajotSamples(const SamplesRequest& req, OperationImage& out, std::string& err) {
@@ -173,7 +227,8 @@ bool pajotSamples(const SamplesRequest& req, OperationImage& out, std::string& e
     }
     const StatsHeader& h = src->header();
     const std::string& path = src->path();
-    if (!h.hasRecords && !h.hasPajot) {
+    const bool haveStored = h.state.operation == kPajotName;
+    if (!h.hasRecords && !haveStored) {
         err = path +
               ": has neither per-sample records nor Pajot's online state: render with "
               "mcstat-render --keep-samples (to compute it here, any parameters) or --pajot "
@@ -181,7 +236,6 @@ bool pajotSamples(const SamplesRequest& req, OperationImage& out, std::string& e
         return false;
     }
     PajotImage stored;
-    const bool haveStored = h.hasPajot;
     if (haveStored && !readPajotState(*src, stored, err)) return false;
     PajotParams p;
     if (!requestedParams(req, haveStored ? &stored : nullptr, p, err)) return false;
@@ -215,8 +269,8 @@ Operation pajotOperation() {
         "method", {"stored", "adr", "rot", "hybrid"}, "stored",
         "stored: the parameters of the render's online run (hybrid, n=50 when the file has only "
         "records), the other keys ignored; adr (eq. 4), rot (eq. 5), hybrid (section 4.6)");
-    return samplesOperation(
-        "pajot", "Pajot (ADR/ROT)",
+    Operation op = samplesOperation(
+        kPajotName, "Pajot (ADR/ROT)",
         "Pajot et al.: samples above the last extended kernel-density mode of log-luminance are "
         "delayed (Algorithm 1); from the per-sample records, or the stored online result",
         "Pajot et al. Algorithm 1, eq. 3-5",
@@ -225,10 +279,11 @@ Operation pajotOperation() {
                   "bound of the dubious list; when full the brightest is discarded"),
          intParam("t", 1, 1e6, "2", "hybrid: successive close maxima before ROT alone"),
          realParam("delta", 0.0, HUGE_VAL, false, "0",
-                   "hybrid: largest |m_rot - m_adr| / |m_adr| counted as close")},
+                   "hybrid: largest |m_rot - m_adr| / |m_adr| counted as close"),
+         lumaParam()},
         &pajotSamples);
+    op.state = pajotStateHooks();
+    return op;
 }
 
-// Sen and Darabi 2011 (docs/rpf.md): every sample's colour, screen position, random parameters
-// and scene features, filtered by the dependency of colour on the random parameters.
 }  // namespace mcstat
