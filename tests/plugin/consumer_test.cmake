@@ -2,7 +2,9 @@
 # consumer project against it with find_package(mcstat CONFIG), runs it and checks its output;
 # then compiles the same main.cpp with the flags of the installed mcstat.pc.
 # Variables: BUILD_DIR (mcstat build tree), SOURCE_DIR (consumer sources), WORK_DIR (scratch),
-# CXX (compiler), EXTRA_FLAGS (compile and link flags, e.g. sanitizers; may be empty).
+# CXX (compiler), EXTRA_FLAGS (compile and link flags, e.g. sanitizers; may be empty), SHARED
+# (the build's BUILD_SHARED_LIBS: the libraries are .so files, found at run time through the
+# installed tools' RPATH, CMake's RPATH for the consumer, and -rpath for the pkg-config build).
 foreach(_v BUILD_DIR SOURCE_DIR WORK_DIR CXX)
   if(NOT DEFINED ${_v})
     message(FATAL_ERROR "consumer_test.cmake: ${_v} is not set")
@@ -30,10 +32,18 @@ function(check_output what text)
   endforeach()
 endfunction()
 
+if(SHARED)
+  set(_lib lib/libmcstat_filters.so)
+  set(_rpath "-Wl,-rpath,${_prefix}/lib")
+else()
+  set(_lib lib/libmcstat_filters.a)
+  set(_rpath "")
+endif()
 run_step("cmake --install" "${CMAKE_COMMAND}" --install "${BUILD_DIR}" --prefix "${_prefix}")
 foreach(_f lib/cmake/mcstat/mcstatConfig.cmake lib/pkgconfig/mcstat.pc
            lib/OpenImageIO-plugins/mcstat.imageio.so bin/mcstat bin/mcstat-render
-           include/mcstat/filters/registry.h lib/libmcstat_filters.a)
+           include/mcstat/filters/registry.h include/mcstat/version.h share/doc/mcstat/LICENSE
+           ${_lib})
   if(NOT EXISTS "${_prefix}/${_f}")
     message(FATAL_ERROR "cmake --install did not install ${_f}")
   endif()
@@ -56,7 +66,10 @@ string(STRIP "${step_output}" _pc_flags)
 separate_arguments(_pc_flags UNIX_COMMAND "${_pc_flags}")
 separate_arguments(_extra UNIX_COMMAND "${EXTRA_FLAGS}")
 run_step("compile with pkg-config flags" "${CXX}" -std=c++17 ${_extra} "${SOURCE_DIR}/main.cpp"
-  -o "${WORK_DIR}/consumer-pc" ${_pc_flags})
+  -o "${WORK_DIR}/consumer-pc" ${_pc_flags} ${_rpath})
 run_step("run the pkg-config consumer" "${WORK_DIR}/consumer-pc")
 check_output("consumer (pkg-config)" "${step_output}")
+
+# 3. The installed tool runs from the prefix (with shared libraries: through its RPATH).
+run_step("the installed mcstat" "${_prefix}/bin/mcstat" --version)
 message(STATUS "consumer: CMake package and pkg-config builds print the expected G-MoN value")
