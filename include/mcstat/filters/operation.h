@@ -70,8 +70,6 @@ using BindPixelFn = PixelKernel (*)(const ParamValues& values, const std::array<
 struct WindowInput {
     const RGBImageView* image = nullptr;  ///< Image
     const BufferView* buffers = nullptr;  ///< SubBuffers
-    int width() const { return image ? image->width : buffers ? buffers->width : 0; }
-    int height() const { return image ? image->height : buffers ? buffers->height : 0; }
 };
 
 /// One run of a window kernel over one input, prepared for a rectangle of output pixels (the 3D
