@@ -524,10 +524,19 @@ std::vector<ParamSpec> operationModifiers(const Operation& op) {
     for (const ParamSpec* p : op.settable()) m.push_back(*p);
     if (hasDiagnostics(op))
         m.push_back(flagParam("diag", "0", "1 appends channels gini, kept, excluded"));
-    if (!takesImage(op) && !readsSamples(op))
+    if (!takesImage(op) && !readsSamples(op)) {
         m.push_back(
             flagParam("residual", "0",
                       "1 appends residual.<channel> = mean - result for the beauty and every AOV"));
+        m.push_back(flagParam(
+            "removed", "0",
+            "1 appends removed.Y, .se, .z, .zlocal, .significant: the light taken, its standard "
+            "error, and where the buffers support it (docs/removed-light.md)"));
+        m.push_back(intParam("removedradius", 0, 16, "2",
+                             "with removed=1: radius of the window of removed.zlocal"));
+        m.push_back(realParam("removedz", 0.0, 1e6, true, "3",
+                              "with removed=1: removed.significant where removed.zlocal > this"));
+    }
     return m;
 }
 

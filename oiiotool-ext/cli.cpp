@@ -19,6 +19,7 @@
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/operation_input.h"
+#include "mcstat/image/removed_light_layers.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/ingest.h"
 #include "mcstat/version.h"
@@ -220,6 +221,26 @@ bool appendTopResidual(State& st, const std::string& cmd, OIIO::ImageBuf& img, s
     return true;
 }
 
+/// Appends the removed-light layers (removed_light_layers.h) to `img`, the result of an operation
+/// over the top statistics file, before any residual channel.
+bool appendTopRemovedLight(State& st, const std::string& cmd, const RemovedLightOptions& opt,
+                           OIIO::ImageBuf& img, std::string& err) {
+    Item& top = st.stack.back();
+    std::array<double, 3> luma{};
+    if (!itemLuma(top, luma, err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
+    ItemSource again;  // a streamed source is read once more, from its first row
+    if (!top.stats && !openSource(st, top, again, err)) return false;
+    if (!(top.stats ? appendRemovedLight(img, *top.stats, luma, opt, st.nthreads)
+                    : appendRemovedLight(img, *again.root, luma, opt, st.nthreads))) {
+        err = format("{}: {}", cmd, img.geterror());
+        return false;
+    }
+    return true;
+}
+
 /// Every registry operation's command: its parameters from the modifiers, then the dispatcher
 /// over the top of the stack, which the result replaces.
 bool cmdOperation(State& st, const std::string& cmd, const std::vector<std::string>&,
@@ -227,15 +248,23 @@ bool cmdOperation(State& st, const std::string& cmd, const std::vector<std::stri
     const Operation& op = *findOperation(cmd.substr(2));
     if (!checkOperationInput(st, cmd, op, err)) return false;
     Modifiers opMods = mods;
-    bool diag = false, residual = false;
-    if (!flagValue(mods, "diag", diag, err) || !flagValue(mods, "residual", residual, err))
+    bool diag = false, residual = false, removed = false;
+    if (!flagValue(mods, "diag", diag, err) || !flagValue(mods, "residual", residual, err) ||
+        !flagValue(mods, "removed", removed, err))
         return false;
-    opMods.erase("diag");
-    opMods.erase("residual");
+    RemovedLightOptions removedOpt;
+    if (removed) {
+        const std::vector<ParamSpec> specs = operationModifiers(op);
+        removedOpt.radius = int(modifierValue(specs, mods, "removedradius").integer);
+        removedOpt.zLimit = modifierValue(specs, mods, "removedz").real;
+    }
+    for (const char* k : {"diag", "residual", "removed", "removedradius", "removedz"})
+        opMods.erase(k);
     ParamValues values;
     if (!parseOperationParams(op, opMods, values, err, cmd)) return false;
     auto img = std::make_shared<OIIO::ImageBuf>();
     if (!applyToTop(st, cmd, op, values, diag, *img, err)) return false;
+    if (removed && !appendTopRemovedLight(st, cmd, removedOpt, *img, err)) return false;
     if (residual && !appendTopResidual(st, cmd, *img, err)) return false;
     // The operation and every parameter (given, default or fixed) as the result's metadata.
     img->specmod().attribute("mcstat:estimator", op.name);

@@ -127,11 +127,13 @@ def _image(channels, pixels, aov_names):
     img = np.ascontiguousarray(pixels[..., :3]).view(Image)
     img.channels = list(channels)
     img.all_channels = pixels
-    img.diagnostics, img.aovs, img.residual = {}, {}, {}
+    img.diagnostics, img.aovs, img.residual, img.removed = {}, {}, {}, {}
     aov_names = set(aov_names)
     for i, c in enumerate(channels[3:], start=3):
         if c.startswith("residual."):
             img.residual[c[len("residual."):]] = pixels[..., i]
+        elif c.startswith("removed."):
+            img.removed[c[len("removed."):]] = pixels[..., i]
         elif c in aov_names:
             img.aovs[c] = pixels[..., i]
         else:
@@ -192,8 +194,9 @@ def estimate(s, name="gmon", *, diag=False, residual=False, **params):
     rows; per-sample operations, those of input kind Samples, need the path) with its parameters as
     keyword arguments, parsed as `mcstat --NAME:key=value` parses them (True/False: 1/0, a tuple
     (5, 5): 5x5, a list: comma-separated). Returns an Image: (H, W, 3) R, G, B, with the AOVs, the
-    diagnostics (diag=True) and the residual (residual=True) as attributes. Equal to `mcstat FILE
-    --NAME -o out.exr` bit for bit."""
+    diagnostics (diag=True), the residual (residual=True) and the removed-light layers (removed=True,
+    with removedradius and removedz: Y, se, z, zlocal, significant; docs/removed-light.md) as
+    attributes. Equal to `mcstat FILE --NAME -o out.exr` bit for bit."""
     src = _source(s)
     header = s.header if isinstance(s, Stats) else read_header(src)
     channels, pixels = _mcstat._estimate(src, name, _params(params), bool(diag), bool(residual))

@@ -6,6 +6,7 @@
 #include "mcstat/core/untrusted_text.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
+#include "mcstat/image/removed_light_layers.h"
 #include "mcstat/temp_file.h"
 
 namespace mcstat::python {
@@ -93,15 +94,31 @@ py::tuple estimate(const py::object& src, const std::string& name,
     if (diag) mods["diag"] = "1";
     if (residual) mods["residual"] = "1";
     std::string err;
-    if (!checkModifiers(cmd, operationModifiers(op), mods, err)) throw Error(err);
-    mods.erase("diag");
-    mods.erase("residual");
+    const std::vector<ParamSpec> specs = operationModifiers(op);
+    if (!checkModifiers(cmd, specs, mods, err)) throw Error(err);
+    // removed=True (removedradius, removedz): the removed-light layers, as the command's.
+    const auto value = [&](const char* key) {
+        ParamValue v;
+        for (const ParamSpec& p : specs)
+            if (p.name == key && !parseParamValue(cmd, p, mods.at(key), v, err)) throw Error(err);
+        return v;
+    };
+    const bool removed = mods.count("removed") && value("removed").integer != 0;
+    RemovedLightOptions removedOpt;
+    if (removed) {
+        removedOpt.radius = int(value("removedradius").integer);
+        removedOpt.zLimit = value("removedz").real;
+    }
+    for (const char* k : {"diag", "residual", "removed", "removedradius", "removedz"})
+        mods.erase(k);
     ParamValues values;
     if (!parseOperationParams(op, mods, values, err, cmd)) throw Error(err);
     const std::array<double, 3> luma = lumaOf(in.header.colorSpace, in.name);
     OIIO::ImageBuf img;
-    std::unique_ptr<Source> again;  // a file is streamed once more for the residual
+    // A file is streamed once more for the removed light and once more for the residual.
+    std::unique_ptr<Source> again, againRemoved;
     if (residual && !in.native) again = std::make_unique<Source>(src);
+    if (removed && !in.native) againRemoved = std::make_unique<Source>(src);
     {
         py::gil_scoped_release release;
         bool ok = false;
@@ -117,6 +134,11 @@ py::tuple estimate(const py::object& src, const std::string& name,
             ok = applyOperation(img, in.blocks(), op, values, luma, diag);
         }
         if (!ok) throw Error(cmd + ": " + img.geterror());
+        if (removed) {
+            ok = in.native ? appendRemovedLight(img, *in.native->img, luma, removedOpt)
+                           : appendRemovedLight(img, againRemoved->blocks(), luma, removedOpt);
+            if (!ok) throw Error(cmd + ": " + img.geterror());
+        }
         if (residual) {
             ok = in.native ? appendResidual(img, *in.native->img, luma)
                            : appendResidual(img, again->blocks(), luma);

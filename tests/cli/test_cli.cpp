@@ -163,6 +163,39 @@ TEST_F(Cli, DiagnosticsAndParameters) {
     EXPECT_EQ(readRGB(path("b.exr")), readRGB(path("m.exr")));
 }
 
+TEST_F(Cli, RemovedLightLayersSayTheFireflyIsNoise) {
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(), err)) << err;
+    Result r = mcstat(path("f.mcstat") + " --median:removed=1:residual=1 -o " + path("r.exr"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    OIIO::ImageBuf d(path("r.exr"));
+    ASSERT_TRUE(d.read());
+    ASSERT_EQ(d.nchannels(), 3 + 5 + 3);  // R, G, B; removed.*; residual.R, G, B
+    const auto ch = [&](const char* n) {
+        const int c = d.spec().channelindex(n);
+        EXPECT_GE(c, 3) << n;
+        return c;
+    };
+    // The firefly's buffer is one of five: z close to 1 (the other buffers differ a little),
+    // alone in its window, so not significant; what it removed is what residual says.
+    EXPECT_NEAR(d.getchannel(5, 5, 0, ch("removed.z")), 1.0, 0.01);
+    EXPECT_NEAR(d.getchannel(5, 5, 0, ch("removed.zlocal")), 1.0, 0.01);
+    EXPECT_EQ(d.getchannel(5, 5, 0, ch("removed.significant")), 0.f);
+    const float y = 0.2126f * d.getchannel(5, 5, 0, ch("residual.R")) +
+                    0.7152f * d.getchannel(5, 5, 0, ch("residual.G")) +
+                    0.0722f * d.getchannel(5, 5, 0, ch("residual.B"));
+    EXPECT_NEAR(d.getchannel(5, 5, 0, ch("removed.Y")), y, 1e-3 * y);
+    EXPECT_EQ(d.spec().get_int_attribute("mcstat:removed:radius"), 2);
+    // A limit or radius out of range is refused by name, and nothing is written.
+    r = mcstat(path("f.mcstat") + " --median:removed=1:removedz=0 -o " + path("z.exr"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("removedz"), std::string::npos) << r.err;
+    r = mcstat(path("f.mcstat") + " --median:removed=1:removedradius=17 -o " + path("z.exr"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("removedradius"), std::string::npos) << r.err;
+    EXPECT_FALSE(OIIO::Filesystem::exists(path("z.exr")));
+}
+
 TEST_F(Cli, ThreadCountDoesNotChangeOutput) {
     std::string err;
     ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(9), err)) << err;

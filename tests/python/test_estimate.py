@@ -64,6 +64,13 @@ def test_parameters_diagnostics_and_residual(files, tmp):
     # robust + residual = mean, up to one rounding
     np.testing.assert_allclose(r + np.stack([r.residual[c] for c in "RGB"], -1),
                                mcstat.estimate(s, "mean"), rtol=1e-6, atol=1e-6)
+    r = mcstat.estimate(src, "gmon", removed=True, removedradius=1)
+    assert_same_channels(r, cli_result(tmp, src, "gmon", ":removed=1:removedradius=1"))
+    assert set(r.removed) == {"Y", "se", "z", "zlocal", "significant"}
+    # removed.Y is the residual's luminance (the file is Rec.709)
+    both = mcstat.estimate(s, "gmon", removed=True, residual=True)
+    y = sum(w * both.residual[c] for w, c in zip((0.2126, 0.7152, 0.0722), "RGB"))
+    np.testing.assert_allclose(both.removed["Y"], y, rtol=1e-4, atol=1e-4)  # float residual
     r = mcstat.estimate(src, "3dwtmf", size=(5, 5))
     assert_same_channels(r, cli_result(tmp, src, "3dwtmf", ":size=5x5"))
     r = mcstat.estimate(mcstat.read(render(tmp / "plain.mcstat")), "gmon", mode="channel")
