@@ -232,8 +232,11 @@ bool cmdOperation(State& st, const std::string& cmd, const std::vector<std::stri
         return false;
     opMods.erase("diag");
     opMods.erase("residual");
+    ParamValues ci;  // ci, ciaovs: the interval layers (docs/confidence.md)
+    if (!takeConfidenceModifiers(cmd, opMods, ci, err)) return false;
     ParamValues values;
     if (!parseOperationParams(op, opMods, values, err, cmd)) return false;
+    values.insert(ci.begin(), ci.end());
     auto img = std::make_shared<OIIO::ImageBuf>();
     if (!applyToTop(st, cmd, op, values, diag, *img, err)) return false;
     if (residual && !appendTopResidual(st, cmd, *img, err)) return false;
@@ -889,6 +892,14 @@ void describeOperationResult(const Item& top, const Operation& op, const ParamVa
                        "--plan for the M a target error needs",
                        op.name, h.M, minM, minM));
     }
+    // Confidence intervals over too few buffers for their level are the buffers' range.
+    if (const int ciM = smallestIntervalM(op, values); ciM > 0 && (h.adaptiveM || h.M < ciM))
+        warning(
+            format("--{}:ci={}: {}the interval reaches its level from M = {} valid "
+                   "sub-buffers; below that it is their full range ([-inf, inf] for one), "
+                   "wider and of lower coverage (docs/confidence.md)",
+                   op.name, values.at("ci").text,
+                   h.adaptiveM ? "adaptive M: " : format("over M = {} sub-buffers ", h.M), ciM));
     // Operations that do not carry AOVs yet say so rather than drop them silently.
     const int carried = img.nchannels();
     size_t missing = 0;

@@ -96,8 +96,11 @@ py::tuple estimate(const py::object& src, const std::string& name,
     if (!checkModifiers(cmd, operationModifiers(op), mods, err)) throw Error(err);
     mods.erase("diag");
     mods.erase("residual");
+    ParamValues ci;  // ci, ciaovs: the interval layers (docs/confidence.md)
+    if (!takeConfidenceModifiers(cmd, mods, ci, err)) throw Error(err);
     ParamValues values;
     if (!parseOperationParams(op, mods, values, err, cmd)) throw Error(err);
+    values.insert(ci.begin(), ci.end());
     const std::array<double, 3> luma = lumaOf(in.header.colorSpace, in.name);
     OIIO::ImageBuf img;
     std::unique_ptr<Source> again;  // a file is streamed once more for the residual
