@@ -152,6 +152,13 @@ void bindConfidence(PixelKernel& kernel, const ParamValues& values);
 /// after the diagnostics and before the AOVs.
 inline constexpr const char* kCiLowPrefix = "ci_low.";
 inline constexpr const char* kCiHighPrefix = "ci_high.";
+/// The name of intervalWidthImage's channel, which --heatmap:channel=ciwidth draws.
+inline constexpr const char* kCiWidthChannel = "ciwidth";
+/// One channel "ciwidth", the interval's relative width per pixel, sum_c (ci_high.c - ci_low.c) /
+/// sum_c |c| over R, G, B (the width of the channels' average over its value): 0 where the
+/// interval has zero width, +inf where it is wider than a zero estimate or unbounded (one buffer),
+/// NaN where there is none. False (an error on `dst`) when `src` has no ci_low.R ... ci_high.B.
+bool intervalWidthImage(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src);
 /// The interval channels `kernel` (bound with bindConfidence) adds over a file with header `h`.
 std::vector<std::string> intervalChannels(const PixelKernel& kernel, const StatsHeader& h);
 
