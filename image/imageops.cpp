@@ -598,17 +598,29 @@ std::vector<ParamSpec> confidenceModifiers() {
                                 "confidence interval per pixel from its sub-buffers "
                                 "(docs/confidence.md)");
     level.maxOpen = true;
-    return {level, flagParam("ciaovs", "0", "1 (with ci): intervals for every AOV too")};
+    return {level, flagParam("ciaovs", "", "1 (with ci): intervals for every AOV too")};
 }
 
 bool takeConfidenceModifiers(const std::string& context, std::map<std::string, std::string>& mods,
                              ParamValues& out, std::string& err) {
+    ParamValues given;
     for (const ParamSpec& spec : confidenceModifiers()) {
         const auto it = mods.find(spec.name);
         if (it == mods.end()) continue;
-        if (!parseParamValue(context, spec, it->second, out[spec.name], err)) return false;
+        if (!parseParamValue(context, spec, it->second, given[spec.name], err)) return false;
         mods.erase(it);
     }
+    // Only what asks for layers goes on: a result without them keeps the parameters it had.
+    const bool aovs = given.count("ciaovs") && given.at("ciaovs").integer != 0;
+    if (!given.count("ci")) {
+        if (aovs) {
+            err = context + ": ciaovs=1 needs ci=LEVEL";
+            return false;
+        }
+        return true;
+    }
+    out["ci"] = given.at("ci");
+    if (aovs) out["ciaovs"] = given.at("ciaovs");
     return true;
 }
 

@@ -151,10 +151,24 @@ TEST_F(ConfidenceCli, BadLevelIsOneLine) {
                              level + "'\n")
             << level;
     }
+    const auto a = mcstat(path("f.mcstat") + " --gmon:ciaovs=1 -o " + path("g.exr"));
+    EXPECT_NE(a.code, 0);
+    EXPECT_EQ(a.err, "mcstat: --gmon: ciaovs=1 needs ci=LEVEL\n");
     // Estimators without an interval do not take it.
     const auto r = mcstat(path("f.mcstat") + " --myriad:ci=0.9 -o " + path("m.exr"));
     EXPECT_NE(r.code, 0);
     EXPECT_NE(r.err.find("--myriad has no modifier 'ci'"), std::string::npos) << r.err;
+}
+
+TEST_F(ConfidenceCli, WithoutCiNothingChanges) {
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(), err)) << err;
+    ASSERT_EQ(mcstat(path("f.mcstat") + " --gmon -o " + path("g.exr")).code, 0);
+    OIIO::ImageBuf g(path("g.exr"));
+    ASSERT_TRUE(g.read());
+    EXPECT_EQ(g.nchannels(), 3);
+    EXPECT_EQ(g.spec().get_string_attribute("mcstat.parameters"), "gini=abs,mode=lum");
+    EXPECT_EQ(g.spec().find_attribute("mcstat:ciLevel"), nullptr);
 }
 
 TEST_F(ConfidenceCli, TooFewBuffersWarns) {

@@ -75,7 +75,7 @@ std::string nearestName(const std::string& name, const std::vector<std::string>&
 /// the Python module): each key must be one of `specs` that is not fixed, its value of its type
 /// and range (parseParamValue, context `command`); then the defaults of those not given (an empty
 /// default: unset) are filled into `mods`. False with one line: "--gmon has no modifier 'mdoe'
-/// (did you mean mode?) (accepted: mode, gini, diag, residual)", or parseParamValue's.
+/// (did you mean mode?) (accepted: mode, gini, diag, ci, ciaovs, residual)", or parseParamValue's.
 bool checkModifiers(const std::string& command, const std::vector<ParamSpec>& specs,
                     std::map<std::string, std::string>& mods, std::string& err);
 
