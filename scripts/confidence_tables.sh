@@ -18,7 +18,7 @@ mkdir -p "$work"
 echo "## Synthetic pixels"
 echo
 MCSTAT_CONFIDENCE_TABLE=1 "$build/tests/filters/pixel/test_filters_pixel" \
-  --gtest_filter=ConfidenceCoverage.SyntheticPixels | grep '^|'
+  --gtest_filter='Distributions/ConfidenceCoverage.SyntheticPixels/*' | grep '^|'
 echo
 
 echo "## Fixture scenes (64x48, reference $refspp spp, 4 seeds, level 0.95)"
