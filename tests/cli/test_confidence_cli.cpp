@@ -179,3 +179,33 @@ TEST_F(ConfidenceCli, TooFewBuffersWarns) {
     EXPECT_EQ(r.code, 0);
     EXPECT_NE(r.err.find("only from 11 valid sub-buffers"), std::string::npos) << r.err;
 }
+
+TEST_F(ConfidenceCli, HeatmapOfTheRelativeWidthAndContactSheetTile) {
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(), err)) << err;
+    // --heatmap:channel=ciwidth draws sum (high - low) / sum |estimate| on a log scale. Pixel
+    // (0, 0) of the mean: width 2 * 1.9970582 per channel over the value 4: 0.99853.
+    auto r =
+        mcstat(path("f.mcstat") + " --mean:ci=0.95 --heatmap:channel=ciwidth -o " + path("w.exr"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    OIIO::ImageBuf w(path("w.exr"));
+    ASSERT_TRUE(w.read());
+    EXPECT_EQ(w.spec().get_string_attribute("mcstat:heatmap:channel"), "ciwidth");
+    EXPECT_EQ(w.spec().get_int_attribute("mcstat:heatmap:log"), 1);
+    // Pixel 2 (one buffer) is unbounded: +inf, counted as non-finite.
+    EXPECT_GE(w.spec().get_int_attribute("mcstat:heatmap:nonFinite"), 1);
+    EXPECT_LE(w.spec().get_float_attribute("mcstat:heatmap:min"), 0.99853f);
+    EXPECT_GE(w.spec().get_float_attribute("mcstat:heatmap:max"), 0.99853f);
+    // Without :ci there is nothing to draw: one line naming the missing channel.
+    r = mcstat(path("f.mcstat") + " --mean --heatmap:channel=ciwidth -o " + path("w2.exr"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_NE(r.err.find("has no channel ci_low.R"), std::string::npos) << r.err;
+    // The contact sheet's :ci=LEVEL adds one tile after the relative error.
+    ASSERT_EQ(mcstat(path("f.mcstat") + " --mean -o " + path("ref.exr")).code, 0);
+    r = mcstat(path("f.mcstat") + " --contactsheet:estimators=gmon:ci=0.9 " + path("ref.exr") +
+               " -o " + path("sheet.exr"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    OIIO::ImageBuf sheet(path("sheet.exr"));
+    ASSERT_TRUE(sheet.read());
+    EXPECT_EQ(sheet.spec().get_int_attribute("mcstat:sheet:tiles"), 5);  // mean gmon ref err ci
+}
