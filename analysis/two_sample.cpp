@@ -8,6 +8,8 @@
 #include <cmath>
 #include <limits>
 
+#include "mcstat/core/location_stats.h"
+
 namespace mcstat {
 
 namespace {
@@ -30,31 +32,21 @@ using Policy = boost::math::policies::policy<
 
 SideSummary meanSummary(const double* values, const double* counts, int M) {
     SideSummary s;
-    double n = 0.0, sum = 0.0;
+    std::vector<double> y, n;  // the non-empty buffers
     for (int j = 0; j < M; ++j) {
         const double w = counts ? counts[j] : 1.0;
         if (!(w > 0.0)) continue;
         if (!std::isfinite(values[j])) s.finite = false;
-        n += w;
-        sum += w * values[j];
-        ++s.buffers;
+        y.push_back(values[j]);
+        n.push_back(w);
     }
-    if (s.buffers == 0 || !s.finite) {
-        s.estimate = s.buffers == 0 ? kNaN : sum / n;
-        return s;
-    }
-    s.estimate = sum / n;
-    if (s.buffers < 2) return s;
-    // Second pass about the mean: no cancellation for values far from 0.
-    double ss = 0.0;
-    for (int j = 0; j < M; ++j) {
-        const double w = counts ? counts[j] : 1.0;
-        if (!(w > 0.0)) continue;
-        const double d = values[j] - s.estimate;
-        ss += w * d * d;
-    }
-    s.df = s.buffers - 1;
-    s.variance = ss / s.df / n;
+    s.buffers = int(y.size());
+    // The arithmetic is core's, shared with the per-pixel confidence intervals.
+    const LocationSummary l = weightedMeanSummary(y.data(), n.data(), s.buffers);
+    s.estimate = l.estimate;
+    if (s.buffers == 0 || !s.finite) return s;
+    s.variance = l.variance;
+    s.df = l.df;
     return s;
 }
 
@@ -75,24 +67,11 @@ SideSummary trimmedSummary(const double* values, const double* counts, int M, do
     std::sort(y.begin(), y.end());
     const int m = s.buffers;
     const int g = int(std::floor(std::clamp(trim, 0.0, 0.4999) * m));
-    const int h = m - 2 * g;
-    double sum = 0.0;
-    for (int j = g; j < m - g; ++j) sum += y[size_t(j)];
-    s.estimate = sum / h;
-    if (h < 2) return s;
-    // Winsorized values: the g smallest become y[g], the g largest y[m - g - 1].
-    auto wins = [&](int j) { return y[size_t(std::clamp(j, g, m - g - 1))]; };
-    double wsum = 0.0;
-    for (int j = 0; j < m; ++j) wsum += wins(j);
-    const double wmean = wsum / m;
-    double ss = 0.0;
-    for (int j = 0; j < m; ++j) {
-        const double d = wins(j) - wmean;
-        ss += d * d;
-    }
-    // (M' - 1) s_w^2 / (h (h - 1)) with s_w^2 = ss / (M' - 1).
-    s.variance = ss / (double(h) * (h - 1));
-    s.df = h - 1;
+    // Yuen's winsorised variance: core's, shared with the per-pixel confidence intervals.
+    const LocationSummary l = yuenSummary(y.data(), m, g);
+    s.estimate = l.estimate;
+    s.variance = l.variance;
+    s.df = l.df;
     return s;
 }
 

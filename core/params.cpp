@@ -26,7 +26,7 @@ std::string numberText(double v, bool integer) {
 }
 
 bool inRange(const ParamSpec& s, double v) {
-    return (s.minOpen ? v > s.min : v >= s.min) && v <= s.max;
+    return (s.minOpen ? v > s.min : v >= s.min) && (s.maxOpen ? v < s.max : v <= s.max);
 }
 
 bool parseBoundedInt(const ParamSpec& s, const std::string& text, int64_t& out) {
@@ -148,7 +148,7 @@ std::string describeParam(const ParamSpec& s) {
                        numberText(s.min, false);
             }
             return "a number in " + std::string(s.minOpen ? "(" : "[") + numberText(s.min, false) +
-                   ", " + numberText(s.max, false) + "]";
+                   ", " + numberText(s.max, false) + (s.maxOpen ? ")" : "]");
     }
     return "";
 }

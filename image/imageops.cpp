@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <memory>
 
 #include "mcstat/color.h"
@@ -150,6 +151,15 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
         }
     }
     std::vector<std::string> names = estimatorChannels(kernel.mode, diagnostics);
+    // Confidence intervals (docs/confidence.md): per channel, over the valid buffers' values.
+    const size_t firstCi = names.size();
+    const std::vector<std::string> ciNames = intervalChannels(kernel, h);
+    names.insert(names.end(), ciNames.begin(), ciNames.end());
+    const bool ci = !ciNames.empty();
+    std::vector<size_t> ciAov;  // the AOVs with intervals (ciAovs: all but the labels)
+    if (ci && kernel.ciAovs)
+        for (size_t a = 0; a < A; ++a)
+            if (h.aovs[a].cls != AovClass::Id) ciAov.push_back(a);
     const size_t firstAov = names.size();
     for (const std::string& n : aovOutputChannels(h)) names.push_back(n);
     const std::vector<AovClass> classes = aovClasses(h.aovs);
@@ -158,6 +168,7 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
     spec.z_channel = aovDepthChannel(h, firstAov);
     setAovAttributes(spec, h, firstAov);
     spec.attribute("mcstat:estimator", est.name);
+    if (ci) spec.attribute("mcstat:ciLevel", float(kernel.ciLevel));
     dst.reset(spec, OIIO::InitializePixels::No);
 
     // Written straight into the local float buffer: ImageBuf::setpixel converts per call.
@@ -169,6 +180,8 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
         scratch.wantWeights = A > 0;
         AovScratch aovScratch;
         PixelEstimate e;
+        std::vector<int> valid;
+        std::vector<double> values, counts;
         for (int y = r.ybegin; y < r.yend; ++y)
             for (int x = r.xbegin; x < r.xend; ++x) {
                 const size_t p = size_t(y - h.originY) * size_t(h.width) + size_t(x - h.originX);
@@ -190,6 +203,40 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
                 px[0] = e.rgb[0];
                 px[1] = e.rgb[1];
                 px[2] = e.rgb[2];
+                if (ci) {
+                    int excluded = 0;
+                    const int m = collectValidBuffers(pb, valid, excluded);
+                    values.resize(size_t(m));
+                    counts.resize(size_t(m));
+                    for (int i = 0; i < m; ++i) counts[size_t(i)] = pb.count[valid[size_t(i)]];
+                    float* lo = px + firstCi;
+                    float* hi = lo + 3;
+                    for (int c = 0; c < 3; ++c) {
+                        for (int i = 0; i < m; ++i)
+                            values[size_t(i)] = pb.mean[3 * valid[size_t(i)] + c];
+                        const ValueInterval iv =
+                            kernel.interval(values.data(), counts.data(), m, kernel.ciLevel);
+                        lo[c] = float(iv.low);
+                        hi[c] = float(iv.high);
+                    }
+                    // An AOV's interval: the same rule over its values in the beauty's valid
+                    // buffers (non-finite AOV values left out).
+                    const float* aov = A > 0 ? src.aov.data() + src.bufferBegin(p) * A : nullptr;
+                    for (size_t i = 0; i < ciAov.size(); ++i) {
+                        int k = 0;
+                        for (int b : valid) {
+                            const float v = aov[size_t(b) * A + ciAov[i]];
+                            if (!std::isfinite(v)) continue;
+                            values[size_t(k)] = v;
+                            counts[size_t(k)] = pb.count[b];
+                            ++k;
+                        }
+                        const ValueInterval iv =
+                            kernel.interval(values.data(), counts.data(), k, kernel.ciLevel);
+                        lo[6 + 2 * i] = float(iv.low);
+                        lo[7 + 2 * i] = float(iv.high);
+                    }
+                }
                 if (diagnostics) {
                     if (kernel.mode == EstimatorMode::Luminance) {
                         px[3] = e.gini[0];
@@ -394,8 +441,11 @@ template <class Source>
 bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const ParamValues& values,
                       const std::array<double, 3>& luma, bool diagnostics, ROI roi, int nthreads) {
     switch (op.input) {
-        case InputKind::BufferMeans:
-            return estimate(dst, src, op, op.bindPixel(values, luma), diagnostics, roi, nthreads);
+        case InputKind::BufferMeans: {
+            PixelKernel kernel = op.bindPixel(values, luma);
+            bindConfidence(kernel, values);
+            return estimate(dst, src, op, kernel, diagnostics, roi, nthreads);
+        }
         case InputKind::Neighbourhood: {
             const WindowKernel kernel = op.bindWindow(values, luma);
             if (kernel.over == Neighbourhood::SubBuffers)
@@ -524,6 +574,8 @@ std::vector<ParamSpec> operationModifiers(const Operation& op) {
     for (const ParamSpec* p : op.settable()) m.push_back(*p);
     if (hasDiagnostics(op))
         m.push_back(flagParam("diag", "0", "1 appends channels gini, kept, excluded"));
+    if (hasIntervals(op))
+        for (const ParamSpec& p : confidenceModifiers()) m.push_back(p);
     if (!takesImage(op) && !readsSamples(op)) {
         m.push_back(
             flagParam("residual", "0",
@@ -538,6 +590,125 @@ std::vector<ParamSpec> operationModifiers(const Operation& op) {
                               "with removed=1: removed.significant where removed.zlocal > this"));
     }
     return m;
+}
+
+bool hasIntervals(const Operation& op) {
+    if (op.input != InputKind::BufferMeans) return false;
+    ParamValues defaults;
+    std::string err;
+    if (!parseOperationParams(op, {}, defaults, err)) return false;
+    return bool(op.bindPixel(defaults, {0.0, 0.0, 0.0}).interval);
+}
+
+std::vector<ParamSpec> confidenceModifiers() {
+    // The one declaration of the level: open at both ends (0 and 1 are no intervals).
+    ParamSpec level = realParam("ci", 0.0, 1.0, true, "",
+                                "LEVEL in (0, 1): append layers ci_low, ci_high (R, G, B), a "
+                                "confidence interval per pixel from its sub-buffers "
+                                "(docs/confidence.md)");
+    level.maxOpen = true;
+    return {level, flagParam("ciaovs", "", "1 (with ci): intervals for every AOV too")};
+}
+
+bool takeConfidenceModifiers(const std::string& context, std::map<std::string, std::string>& mods,
+                             ParamValues& out, std::string& err) {
+    ParamValues given;
+    for (const ParamSpec& spec : confidenceModifiers()) {
+        const auto it = mods.find(spec.name);
+        if (it == mods.end()) continue;
+        if (!parseParamValue(context, spec, it->second, given[spec.name], err)) return false;
+        mods.erase(it);
+    }
+    // Only what asks for layers goes on: a result without them keeps the parameters it had.
+    const bool aovs = given.count("ciaovs") && given.at("ciaovs").integer != 0;
+    if (!given.count("ci")) {
+        if (aovs) {
+            err = context + ": ciaovs=1 needs ci=LEVEL";
+            return false;
+        }
+        return true;
+    }
+    out["ci"] = given.at("ci");
+    if (aovs) out["ciaovs"] = given.at("ciaovs");
+    return true;
+}
+
+void bindConfidence(PixelKernel& kernel, const ParamValues& values) {
+    const auto level = values.find("ci");
+    kernel.ciLevel = level == values.end() || !kernel.interval ? 0.0 : level->second.real;
+    const auto aovs = values.find("ciaovs");
+    kernel.ciAovs = aovs != values.end() && aovs->second.integer != 0;
+}
+
+std::vector<std::string> intervalChannels(const PixelKernel& kernel, const StatsHeader& h) {
+    std::vector<std::string> names;
+    if (!(kernel.ciLevel > 0.0) || !kernel.interval) return names;
+    for (const char* prefix : {kCiLowPrefix, kCiHighPrefix})
+        for (const char* c : {"R", "G", "B"}) names.push_back(prefix + std::string(c));
+    if (kernel.ciAovs)
+        for (const AovChannel& a : h.aovs)
+            if (a.cls != AovClass::Id) {
+                names.push_back(kCiLowPrefix + a.name);
+                names.push_back(kCiHighPrefix + a.name);
+            }
+    return names;
+}
+
+bool intervalWidthImage(ImageBuf& dst, const ImageBuf& src) {
+    const ImageSpec& in = src.spec();
+    int lo[3], hi[3], est[3];
+    for (int c = 0; c < 3; ++c) {
+        const std::string n(1, "RGB"[c]);
+        est[c] = in.channelindex(n);
+        lo[c] = in.channelindex(kCiLowPrefix + n);
+        hi[c] = in.channelindex(kCiHighPrefix + n);
+        if (est[c] < 0 || lo[c] < 0 || hi[c] < 0) {
+            dst.errorfmt("the image has no channel {}{} (an estimator's result with :ci=LEVEL)",
+                         est[c] < 0  ? ""
+                         : lo[c] < 0 ? kCiLowPrefix
+                                     : kCiHighPrefix,
+                         n);
+            return false;
+        }
+    }
+    ImageSpec spec(in.width, in.height, 1, TypeDesc::FLOAT);
+    spec.x = in.x;
+    spec.y = in.y;
+    spec.full_x = in.full_x;
+    spec.full_y = in.full_y;
+    spec.full_width = in.full_width;
+    spec.full_height = in.full_height;
+    spec.channelnames = {kCiWidthChannel};
+    spec.extra_attribs = in.extra_attribs;  // provenance: the heatmap's caption
+    dst.reset(spec);
+    std::vector<float> px(size_t(in.nchannels));
+    for (OIIO::ImageBuf::Iterator<float> it(dst); !it.done(); ++it) {
+        src.getpixel(it.x(), it.y(), px.data(), in.nchannels);
+        double width = 0.0, value = 0.0;
+        for (int c = 0; c < 3; ++c) {
+            width += double(px[size_t(hi[c])]) - double(px[size_t(lo[c])]);
+            value += std::fabs(double(px[size_t(est[c])]));
+        }
+        it[0] = float(width == 0.0 ? 0.0 : value > 0.0 ? width / value : HUGE_VAL);
+        if (std::isnan(width)) it[0] = NAN;
+    }
+    return true;
+}
+
+int smallestIntervalM(const Operation& op, const ParamValues& values) {
+    if (op.input != InputKind::BufferMeans) return 0;
+    PixelKernel kernel = op.bindPixel(values, {0.0, 0.0, 0.0});
+    bindConfidence(kernel, values);
+    if (!(kernel.ciLevel > 0.0)) return 0;
+    // Asked of the kernel itself on distinct values: the first m whose interval is not `full`.
+    std::vector<double> v, n;
+    for (int m = 1; m <= kMaxBuffers; ++m) {
+        v.resize(size_t(m));
+        n.assign(size_t(m), 1.0);
+        for (int i = 0; i < m; ++i) v[size_t(i)] = i;
+        if (!kernel.interval(v.data(), n.data(), m, kernel.ciLevel).full) return m;
+    }
+    return kMaxBuffers + 1;
 }
 
 int smallestRobustM(const Operation& op, const ParamValues& values) {

@@ -102,8 +102,12 @@ std::vector<std::string> operationChannels(const Operation& op, const ParamValue
             for (const std::string& n : aovOutputChannels(*header)) names.push_back(n);
         return names;
     }
-    std::vector<std::string> names =
-        estimatorChannels(op.bindPixel(values, {0.0, 0.0, 0.0}).mode, diagnostics);
+    PixelKernel kernel = op.bindPixel(values, {0.0, 0.0, 0.0});
+    bindConfidence(kernel, values);
+    std::vector<std::string> names = estimatorChannels(kernel.mode, diagnostics);
+    const StatsHeader none;  // without a header: the beauty's intervals only
+    for (const std::string& n : intervalChannels(kernel, header ? *header : none))
+        names.push_back(n);
     if (header)
         for (const std::string& n : aovOutputChannels(*header)) names.push_back(n);
     return names;

@@ -260,8 +260,11 @@ bool cmdOperation(State& st, const std::string& cmd, const std::vector<std::stri
     }
     for (const char* k : {"diag", "residual", "removed", "removedradius", "removedz"})
         opMods.erase(k);
+    ParamValues ci;  // ci, ciaovs: the interval layers (docs/confidence.md)
+    if (!takeConfidenceModifiers(cmd, opMods, ci, err)) return false;
     ParamValues values;
     if (!parseOperationParams(op, opMods, values, err, cmd)) return false;
+    values.insert(ci.begin(), ci.end());
     auto img = std::make_shared<OIIO::ImageBuf>();
     if (!applyToTop(st, cmd, op, values, diag, *img, err)) return false;
     if (removed && !appendTopRemovedLight(st, cmd, removedOpt, *img, err)) return false;
@@ -918,6 +921,14 @@ void describeOperationResult(const Item& top, const Operation& op, const ParamVa
                        "--plan for the M a target error needs",
                        op.name, h.M, minM, minM));
     }
+    // Confidence intervals over too few buffers for their level are the buffers' range.
+    if (const int ciM = smallestIntervalM(op, values); ciM > 0 && (h.adaptiveM || h.M < ciM))
+        warning(format(
+            "--{}:ci={}{}: the interval reaches its level only from {} valid "
+            "sub-buffers; below that it is their full range ([-inf, inf] for one), of "
+            "lower coverage (docs/confidence.md)",
+            op.name, values.at("ci").text,
+            h.adaptiveM ? " with adaptive M" : format(" over M = {} sub-buffers", h.M), ciM));
     // Operations that do not carry AOVs yet say so rather than drop them silently.
     const int carried = img.nchannels();
     size_t missing = 0;

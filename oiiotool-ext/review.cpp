@@ -55,13 +55,23 @@ const std::vector<ParamSpec>& contactSheetModifiers() {
         layerModifier(),
         textParam("compare", "",
                   "FILE.mcstat: a last tile, --compare of FILE against the top file (z-scores, "
-                  "verdict)")};
+                  "verdict)"),
+        [] {  // the estimators' own :ci modifier (one declaration of the level, imageops.h)
+            ParamSpec ci = confidenceModifiers().front();
+            ci.help =
+                "LEVEL in (0, 1): a tile of the relative width of the last listed "
+                "estimator's confidence interval at LEVEL (docs/confidence.md)";
+            return ci;
+        }()};
     return specs;
 }
 
 const std::vector<ParamSpec>& heatmapModifiers() {
     static const std::vector<ParamSpec> specs = {
-        textParam("channel", "", "default: relerr if present, else the first"),
+        textParam("channel", "",
+                  "default: relerr if present, else the first; ciwidth: the relative width of "
+                  "the confidence interval of an estimator's result with :ci=LEVEL (log scale, "
+                  "docs/confidence.md)"),
         textParam("map", "",
                   "OIIO colour map or cool-warm (diverging); default inferno, cool-warm for the "
                   "signed maps of --compare (z, effect)"),
@@ -312,6 +322,47 @@ bool differenceTile(State& st, ContactSheet& q, std::string& err) {
     return true;
 }
 
+/// With :ci=LEVEL, a tile of the relative width of the last listed estimator's confidence interval
+/// at LEVEL (log scale), its colour bar under it.
+bool intervalTile(State& st, ContactSheet& q, const ParamValue& level, std::string& err) {
+    const Item& top = st.stack.back();
+    const Operation& e = *q.listed.back();
+    if (!hasIntervals(e)) {
+        err = format("{}: ci: {} has no confidence interval (docs/confidence.md)", q.cmd, e.name);
+        return false;
+    }
+    ParamValues values;
+    if (!parseOperationParams(e, {}, values, err, q.cmd)) return false;
+    values["ci"] = level;
+    OIIO::ImageBuf img, width;
+    if (!applyOperation(img, *top.stats, e, values, q.opt.luma, false, {}, st.nthreads) ||
+        !intervalWidthImage(width, img)) {
+        err = format("{}: {}: {}", q.cmd, e.name,
+                     img.has_error() ? img.geterror() : width.geterror());
+        return false;
+    }
+    HeatmapOptions hopt;
+    hopt.channel = kCiWidthChannel;
+    hopt.log = 1;
+    hopt.colorBar = false;
+    int channel = 0;
+    ColorScale cs;
+    SheetTile tile;
+    if (!resolveColorScale(width, hopt, channel, cs, err) ||
+        !heatmap(tile.image, width, hopt, {}, st.nthreads)) {
+        err = format("{}: {}", q.cmd, err.empty() ? tile.image.geterror() : err);
+        return false;
+    }
+    cs.label = "interval width / value (log scale)";
+    if (!colorBar(tile.footer, top.header.width * q.layout.scale, cs, q.layout.style)) {
+        err = format("{}: {}", q.cmd, tile.footer.geterror());
+        return false;
+    }
+    tile.title = format("{} CI: {}", level.text, e.title);
+    q.tiles.push_back(std::move(tile));
+    return true;
+}
+
 /// With :compare=FILE, the last tile: --compare of FILE (a) against the top statistics file (b),
 /// its z-scores on a diverging map with their colour bar, titled with the verdict's first word. The
 /// verdict line is printed as --compare prints it; the exit status is --compare's to give.
@@ -386,6 +437,9 @@ bool cmdContactSheet(State& st, const std::string& cmd, const std::vector<std::s
         if (!estimatorTile(st, *e, q, err)) return false;
     std::fflush(stdout);
     if (!referenceTile(st, q, err) || !differenceTile(st, q, err)) return false;
+    if (mods.count("ci") &&
+        !intervalTile(st, q, modifierValue(contactSheetModifiers(), mods, "ci"), err))
+        return false;
     const std::string other = modifierValue(contactSheetModifiers(), mods, "compare").text;
     if (!other.empty() && !compareTile(st, q, other, err)) return false;
     auto sheet = std::make_shared<OIIO::ImageBuf>();
@@ -478,8 +532,20 @@ bool cmdHeatmap(State& st, const std::string& cmd, const std::vector<std::string
     opt.log = log == "1" ? 1 : log == "0" ? 0 : -1;
     opt.scale = int(mods.count("scale") ? modifierValue(specs, mods, "scale").integer
                                         : defaultReviewScale(top.image->spec().width));
+    // The confidence interval's relative width (its channels ci_low.*, ci_high.*), on a log scale
+    // unless asked otherwise: widths span decades between flat and noisy regions.
+    const OIIO::ImageBuf* of = top.image.get();
+    OIIO::ImageBuf width;
+    if (opt.channel == kCiWidthChannel && src.channelindex(kCiWidthChannel) < 0) {
+        if (!intervalWidthImage(width, *top.image)) {
+            err = format("{}: {}: {}", cmd, top.name, width.geterror());
+            return false;
+        }
+        of = &width;
+        if (opt.log < 0) opt.log = 1;
+    }
     auto out = std::make_shared<OIIO::ImageBuf>();
-    if (!heatmap(*out, *top.image, opt, {}, st.nthreads)) {
+    if (!heatmap(*out, *of, opt, {}, st.nthreads)) {
         err = format("{}: {}: {}", cmd, top.name, out->geterror());
         return false;
     }

@@ -1,6 +1,7 @@
 // G-MoN (gmon.h): the ranked trimmed mean with the Gini-driven trim.
 #include "mcstat/filters/pixel/gmon.h"
 
+#include "mcstat/filters/pixel/confidence.h"
 #include "mcstat/filters/pixel/ranking.h"
 
 namespace mcstat {
@@ -35,7 +36,13 @@ namespace {
 PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     auto p = pixelParamsAs<GmonParams>(values, luma);
     p.gini = giniInput(values);
-    return pixelKernel(p, &estimateGMoN, /*smallestRobustM=*/4);
+    PixelKernel k = pixelKernel(p, &estimateGMoN, /*smallestRobustM=*/4);
+    // The median of means' order-statistic interval (confidence.h: G-MoN estimates a location
+    // between the median of means and the mean; the median's interval is exact whatever the tails).
+    k.interval = [](double* v, const double*, int m, double level) {
+        return medianInterval(v, m, level);
+    };
+    return k;
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 // G-MoN_b (gmonb.h): the ranked trimmed mean, nothing or all but the middle trimmed.
 #include "mcstat/filters/pixel/gmonb.h"
 
+#include "mcstat/filters/pixel/confidence.h"
 #include "mcstat/filters/pixel/ranking.h"
 
 namespace mcstat {
@@ -16,7 +17,12 @@ PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     auto p = pixelParamsAs<GmonbParams>(values, luma);
     p.threshold = values.at("threshold").real;
     p.gini = giniInput(values);
-    return pixelKernel(p, &estimateGMoNb, /*smallestRobustM=*/3);
+    PixelKernel k = pixelKernel(p, &estimateGMoNb, /*smallestRobustM=*/3);
+    // The median of means' order-statistic interval, as for G-MoN (confidence.h).
+    k.interval = [](double* v, const double*, int m, double level) {
+        return medianInterval(v, m, level);
+    };
+    return k;
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 // The plain mean (Buisine et al. 2021, eq. 1): the ranked trimmed mean with nothing trimmed.
 #include "mcstat/filters/pixel/mean.h"
 
+#include "mcstat/filters/pixel/confidence.h"
 #include "mcstat/filters/pixel/ranking.h"
 
 namespace mcstat {
@@ -14,7 +15,12 @@ namespace {
 
 PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     const PixelParams p = pixelParams(values, luma);
-    return pixelKernel(p, &estimateMean, /*smallestRobustM=*/1);
+    PixelKernel k = pixelKernel(p, &estimateMean, /*smallestRobustM=*/1);
+    // Student's t interval with the batch-means standard error (confidence.h).
+    k.interval = [](double* v, const double* n, int m, double level) {
+        return meanInterval(v, n, m, level);
+    };
+    return k;
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 // Median of means / MPE (median.h): the ranked trimmed mean trimming all but the middle.
 #include "mcstat/filters/pixel/median.h"
 
+#include "mcstat/filters/pixel/confidence.h"
 #include "mcstat/filters/pixel/ranking.h"
 
 namespace mcstat {
@@ -14,7 +15,12 @@ namespace {
 
 PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     const PixelParams p = pixelParams(values, luma);
-    return pixelKernel(p, &estimateMoN, /*smallestRobustM=*/3);
+    PixelKernel k = pixelKernel(p, &estimateMoN, /*smallestRobustM=*/3);
+    // The exact order-statistic interval for the median of the buffer means (confidence.h).
+    k.interval = [](double* v, const double*, int m, double level) {
+        return medianInterval(v, m, level);
+    };
+    return k;
 }
 
 }  // namespace

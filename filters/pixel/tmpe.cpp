@@ -1,6 +1,7 @@
 // TMPE (tmpe.h): the ranked trimmed mean trimming a fraction alpha per side.
 #include "mcstat/filters/pixel/tmpe.h"
 
+#include "mcstat/filters/pixel/confidence.h"
 #include "mcstat/filters/pixel/ranking.h"
 
 namespace mcstat {
@@ -28,7 +29,12 @@ namespace {
 PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     auto p = pixelParamsAs<TmpeParams>(values, luma);
     p.alpha = values.at("alpha").real;
-    return pixelKernel(p, &estimateTMPE, firstTrimmingM(p.alpha));
+    PixelKernel k = pixelKernel(p, &estimateTMPE, firstTrimmingM(p.alpha));
+    // Yuen's interval with TMPE's own trim per side (confidence.h).
+    k.interval = [alpha = p.alpha](double* v, const double*, int m, double level) {
+        return yuenInterval(v, m, tmpeTrim(alpha, m), level);
+    };
+    return k;
 }
 
 }  // namespace

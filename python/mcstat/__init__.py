@@ -115,11 +115,14 @@ class Image(np.ndarray):
     diagnostics  name -> (H, W): gini, kept, excluded (diag=True), the maps of other operations
     aovs         name -> (H, W): the AOVs carried with the beauty's weights
     residual     name -> (H, W): mean - robust of R, G, B and the AOVs (residual=True), else {}
+    ci_low, ci_high  name -> (H, W): the confidence interval's bounds of R, G, B (and of the AOVs
+                 with ciaovs=True) when ci=LEVEL was given (docs/confidence.md), else {}
     """
 
     def __array_finalize__(self, obj):
         for name, default in (("channels", None), ("all_channels", None), ("diagnostics", None),
-                              ("aovs", None), ("residual", None)):
+                              ("aovs", None), ("residual", None), ("ci_low", None),
+                              ("ci_high", None)):
             setattr(self, name, getattr(obj, name, default))
 
 
@@ -128,12 +131,17 @@ def _image(channels, pixels, aov_names):
     img.channels = list(channels)
     img.all_channels = pixels
     img.diagnostics, img.aovs, img.residual, img.removed = {}, {}, {}, {}
+    img.ci_low, img.ci_high = {}, {}
     aov_names = set(aov_names)
     for i, c in enumerate(channels[3:], start=3):
         if c.startswith("residual."):
             img.residual[c[len("residual."):]] = pixels[..., i]
         elif c.startswith("removed."):
             img.removed[c[len("removed."):]] = pixels[..., i]
+        elif c.startswith("ci_low."):
+            img.ci_low[c[len("ci_low."):]] = pixels[..., i]
+        elif c.startswith("ci_high."):
+            img.ci_high[c[len("ci_high."):]] = pixels[..., i]
         elif c in aov_names:
             img.aovs[c] = pixels[..., i]
         else:
@@ -194,9 +202,10 @@ def estimate(s, name="gmon", *, diag=False, residual=False, **params):
     rows; per-sample operations, those of input kind Samples, need the path) with its parameters as
     keyword arguments, parsed as `mcstat --NAME:key=value` parses them (True/False: 1/0, a tuple
     (5, 5): 5x5, a list: comma-separated). Returns an Image: (H, W, 3) R, G, B, with the AOVs, the
-    diagnostics (diag=True), the residual (residual=True) and the removed-light layers (removed=True,
-    with removedradius and removedz: Y, se, z, zlocal, significant; docs/removed-light.md) as
-    attributes. Equal to `mcstat FILE --NAME -o out.exr` bit for bit."""
+    diagnostics (diag=True), the residual (residual=True), the removed-light layers (removed=True,
+    with removedradius and removedz: Y, se, z, zlocal, significant; docs/removed-light.md) and the
+    confidence interval (ci=0.95, ciaovs=True for the AOVs' too: ci_low, ci_high) as attributes.
+    Equal to `mcstat FILE --NAME -o out.exr` bit for bit."""
     src = _source(s)
     header = s.header if isinstance(s, Stats) else read_header(src)
     channels, pixels = _mcstat._estimate(src, name, _params(params), bool(diag), bool(residual))

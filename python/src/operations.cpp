@@ -111,8 +111,11 @@ py::tuple estimate(const py::object& src, const std::string& name,
     }
     for (const char* k : {"diag", "residual", "removed", "removedradius", "removedz"})
         mods.erase(k);
+    ParamValues ci;  // ci, ciaovs: the interval layers (docs/confidence.md)
+    if (!takeConfidenceModifiers(cmd, mods, ci, err)) throw Error(err);
     ParamValues values;
     if (!parseOperationParams(op, mods, values, err, cmd)) throw Error(err);
+    values.insert(ci.begin(), ci.end());
     const std::array<double, 3> luma = lumaOf(in.header.colorSpace, in.name);
     OIIO::ImageBuf img;
     // A file is streamed once more for the removed light and once more for the residual.

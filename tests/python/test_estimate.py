@@ -78,6 +78,28 @@ def test_parameters_diagnostics_and_residual(files, tmp):
     assert not np.array_equal(r, mcstat.estimate(tmp / "plain.mcstat", "gmon"))
 
 
+def test_confidence_interval_layers(files, tmp):
+    """ci=LEVEL (docs/confidence.md): the same layers as `mcstat --gmon:ci=0.95`, in memory and
+    streamed, and with ciaovs=True every AOV but the labels gets its own."""
+    src = files["aovs"]
+    s = mcstat.read(src)
+    r = mcstat.estimate(s, "gmon", ci=0.95)
+    assert_same_channels(r, cli_result(tmp, src, "gmon", ":ci=0.95"))
+    np.testing.assert_array_equal(r.all_channels, mcstat.estimate(src, "gmon", ci=0.95).all_channels)
+    assert set(r.ci_low) == set(r.ci_high) == {"R", "G", "B"}
+    for c in "RGB":
+        assert np.all(r.ci_low[c] <= r.ci_high[c])
+    a = mcstat.estimate(s, "mean", ci=0.9, ciaovs=True)
+    assert_same_channels(a, cli_result(tmp, src, "mean", ":ci=0.9:ciaovs=1"))
+    assert len(a.ci_low) == 3 + 19 and len(a.aovs) == 19
+    for c in a.ci_low:  # the mean lies in the middle of its t interval
+        v = a[..., "RGB".index(c)] if c in "RGB" else a.aovs[c]
+        tol = 1e-5 * (1 + np.abs(v))  # the interval in double, the estimate in float
+        assert np.all(a.ci_low[c] <= v + tol) and np.all(v <= a.ci_high[c] + tol)
+    with pytest.raises(mcstat.Error, match="ci must be a number in \\(0, 1\\)"):
+        mcstat.estimate(s, "gmon", ci=1)
+
+
 def test_readme_line(files):
     s = mcstat.read(files["aovs"])
     assert mcstat.estimate(s, "gmon").shape == (30, 40, 3)

@@ -15,7 +15,7 @@ namespace mcstat {
 
 enum class ParamType {
     Int,   ///< an integer in [min, max] (odd when ParamSpec::odd)
-    Real,  ///< a finite number in [min, max] (min excluded when minOpen)
+    Real,  ///< a finite number in [min, max] (min excluded when minOpen, max when maxOpen)
     Enum,  ///< one of ParamSpec::choices (or an alias of one)
     Size,  ///< "KxL" or "K" (K x K): integers in [min, max] (odd when ParamSpec::odd)
     Flag,  ///< 0 or 1 (also true/false, on/off)
@@ -27,6 +27,7 @@ struct ParamSpec {
     ParamType type = ParamType::Real;
     double min = 0.0, max = 0.0;       ///< Int, Real, Size; +-HUGE_VAL for no bound
     bool minOpen = false;              ///< Real: min itself is excluded
+    bool maxOpen = false;              ///< Real: max itself is excluded
     bool odd = false;                  ///< Int, Size: only odd values
     std::string defaultValue;          ///< as text; parses with parseParamValue
     std::vector<std::string> choices;  ///< Enum: the accepted values, the canonical ones
@@ -74,7 +75,7 @@ std::string nearestName(const std::string& name, const std::vector<std::string>&
 /// the Python module): each key must be one of `specs` that is not fixed, its value of its type
 /// and range (parseParamValue, context `command`); then the defaults of those not given (an empty
 /// default: unset) are filled into `mods`. False with one line: "--gmon has no modifier 'mdoe'
-/// (did you mean mode?) (accepted: mode, gini, diag, residual)", or parseParamValue's.
+/// (did you mean mode?) (accepted: mode, gini, diag, ci, ciaovs, residual)", or parseParamValue's.
 bool checkModifiers(const std::string& command, const std::vector<ParamSpec>& specs,
                     std::map<std::string, std::string>& mods, std::string& err);
 

@@ -25,6 +25,14 @@ struct PixelEstimate {
     int excluded = 0;                          ///< buffers left out for NaN/Inf values
 };
 
+/// A confidence interval for one channel of one pixel (filters/pixel/confidence.h): [low, high]
+/// at the level asked for, or wider when the pixel's buffers cannot give that level (`full`: the
+/// interval is then the range of the values, [-inf, +inf] for one value). No value: NaN.
+struct ValueInterval {
+    double low = 0.0, high = 0.0;
+    bool full = false;
+};
+
 /// Per-thread scratch space so the per-pixel functions never allocate after warm-up. The rank
 /// estimators (mean, MoN, G-MoN, G-MoN_b, TMPE) use none up to M = 64: they rank on the stack.
 struct EstimatorScratch {

@@ -59,6 +59,15 @@ struct PixelKernel {
     /// The smallest number of sub-buffers at which the estimate can differ from the plain mean
     /// (1: at every M). Below it the CLI and the plugin say that the result is the mean.
     int smallestRobustM = 1;
+    /// The confidence interval of what `estimate` estimates (filters/pixel/confidence.h), over one
+    /// channel's values in the pixel's m valid buffers (`values` may be reordered; `counts` the
+    /// buffers' sample counts) at `level` in (0, 1); null: the estimator has none.
+    std::function<ValueInterval(double* values, const double* counts, int m, double level)>
+        interval;
+    /// Set by the caller (the image layer, from the modifiers ci and ciaovs): the level of the
+    /// interval layers ci_low / ci_high to add (0: none), and whether the AOVs get them too.
+    double ciLevel = 0.0;
+    bool ciAovs = false;
 };
 /// Binds parsed values (every parameter of the operation, defaults applied) and the luminance
 /// weights (from the colour config) to the operation's own parameter struct and kernel.

@@ -95,6 +95,13 @@ bool hasDiagnostics(const Operation& op);
 ///   settable parameters, then `diag` when hasDiagnostics, `residual` unless it takes an image or
 ///   reads samples (checkModifiers in core/params.h checks them);
 std::vector<ParamSpec> operationModifiers(const Operation& op);
+/// - hasIntervals: it is a per-pixel estimator with a confidence interval (PixelKernel::interval,
+///   filters/pixel/confidence.h), so operationModifiers lists `ci` and `ciaovs`;
+bool hasIntervals(const Operation& op);
+/// - smallestIntervalM: with values' `ci`, the smallest number of valid buffers at which the
+///   interval reaches that level (below it the interval is the buffers' range, or [-inf, inf] for
+///   one buffer); 0 when no interval is asked for.
+int smallestIntervalM(const Operation& op, const ParamValues& values);
 /// - smallestRobustM: the smallest M at which its result can differ from the plain mean (1: at
 ///   any M, and for operations that are not per-pixel estimators).
 int smallestRobustM(const Operation& op, const ParamValues& values);
@@ -129,6 +136,31 @@ OIIO::ImageBuf windowFilter(StatsBlockSource& src, const WindowKernel& kernel, O
 bool applyOperation(OIIO::ImageBuf& dst, StatsBlockSource& src, const Operation& op,
                     const ParamValues& values, const std::array<double, 3>& luma,
                     bool diagnostics = false, OIIO::ROI roi = {}, int nthreads = 0);
+
+/// The confidence-interval modifiers of an estimator with intervals (issue 37, docs/confidence.md):
+/// `ci` a level in (0, 1) (unset: no interval layers) and `ciaovs` (1: the AOVs get intervals too).
+std::vector<ParamSpec> confidenceModifiers();
+/// Moves `ci` and `ciaovs` (already checked by checkModifiers) out of `mods` into `out`, parsed, so
+/// that the rest are the operation's own parameters (parseOperationParams); applyOperation reads
+/// them from its `values` (merge `out` into them). False with parseParamValue's line.
+bool takeConfidenceModifiers(const std::string& context, std::map<std::string, std::string>& mods,
+                             ParamValues& out, std::string& err);
+/// Sets kernel.ciLevel and kernel.ciAovs from `values` (its `ci` and `ciaovs`, when present).
+void bindConfidence(PixelKernel& kernel, const ParamValues& values);
+/// Prefixes of the interval layers: ci_low.R, ci_low.G, ci_low.B, ci_high.R, ci_high.G, ci_high.B,
+/// then with ciAovs ci_low.<aov>, ci_high.<aov> for every AOV but the labels (class id); they come
+/// after the diagnostics and before the AOVs.
+inline constexpr const char* kCiLowPrefix = "ci_low.";
+inline constexpr const char* kCiHighPrefix = "ci_high.";
+/// The name of intervalWidthImage's channel, which --heatmap:channel=ciwidth draws.
+inline constexpr const char* kCiWidthChannel = "ciwidth";
+/// One channel "ciwidth", the interval's relative width per pixel, sum_c (ci_high.c - ci_low.c) /
+/// sum_c |c| over R, G, B (the width of the channels' average over its value): 0 where the
+/// interval has zero width, +inf where it is wider than a zero estimate or unbounded (one buffer),
+/// NaN where there is none. False (an error on `dst`) when `src` has no ci_low.R ... ci_high.B.
+bool intervalWidthImage(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src);
+/// The interval channels `kernel` (bound with bindConfidence) adds over a file with header `h`.
+std::vector<std::string> intervalChannels(const PixelKernel& kernel, const StatsHeader& h);
 
 /// Prefix of the residual channels appendResidual adds.
 inline constexpr const char* kResidualPrefix = "residual.";

@@ -43,10 +43,12 @@ PixelKernel pixelKernel(const Params& params,
                         void (*estimate)(const PixelBuffers&, const Params&, PixelEstimate&,
                                          EstimatorScratch&),
                         int smallestRobustM) {
-    return {[params, estimate](const PixelBuffers& px, PixelEstimate& out, EstimatorScratch& s) {
-                estimate(px, params, out, s);
-            },
-            params.mode, smallestRobustM};
+    PixelKernel k;
+    k.estimate = [params, estimate](const PixelBuffers& px, PixelEstimate& out,
+                                    EstimatorScratch& s) { estimate(px, params, out, s); };
+    k.mode = params.mode;
+    k.smallestRobustM = smallestRobustM;
+    return k;
 }
 
 /// PixelParams (mode, luma) from parsed values that hold "mode" (or not: luminance).

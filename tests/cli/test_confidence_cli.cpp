@@ -1,0 +1,211 @@
+// `mcstat --OP:ci=LEVEL` end to end (docs/confidence.md): the interval layers, their values against
+// the intervals computed here by hand, the extremes (a NaN buffer, one valid buffer) and the
+// one-line errors of a bad level.
+#include <OpenImageIO/imagebuf.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "cli_support.h"
+#include "mcstat/stats_file.h"
+
+using namespace mcstat;
+
+namespace {
+
+class ConfidenceCli : public mcstat::testing::CliFixture {};
+
+constexpr int kM = 9;
+// Pixel 0's buffers (grey): sorted 1 1 2 3 4 5 5 6 9 (filters/pixel/test_confidence.cpp).
+const float kNine[kM] = {3, 1, 4, 1, 5, 9, 2, 6, 5};
+
+/// 8x6, M = 9 buffers of 4 samples; pixel 0 holds kNine, pixel 1 a NaN buffer among kNine's
+/// first eight, pixel 2 one valid buffer (the rest empty), the others colour-varying noise.
+StatsImage makeStats() {
+    StatsImage s;
+    s.header.width = 8;
+    s.header.height = 6;
+    s.header.M = kM;
+    s.header.spp = 4 * kM;
+    s.header.renderer = "test_confidence_cli";
+    s.header.seeds = "7";
+    std::string err;
+    EXPECT_TRUE(s.allocate(err)) << err;
+    for (size_t p = 0; p < s.pixelCount(); ++p) {
+        double sum[3] = {0, 0, 0}, n = 0;
+        for (int j = 0; j < kM; ++j) {
+            float count = 4.f;
+            for (int c = 0; c < 3; ++c) {
+                float v = 0.1f + 0.05f * float((j * 7 + int(p) * 3 + c * 5) % 11);
+                if (p <= 1) v = kNine[j];
+                if (p == 1 && j == 8) v = std::nanf("");
+                s.bufferMean[(p * kM + j) * 3 + c] = v;
+            }
+            if (p == 2 && j > 0) count = 0.f;
+            s.bufferCount[p * kM + j] = count;
+            for (int c = 0; c < 3; ++c)
+                if (std::isfinite(s.bufferMean[(p * kM + j) * 3 + c]))
+                    sum[c] += count * s.bufferMean[(p * kM + j) * 3 + c];
+            n += count;  // the moments count every sample, a NaN buffer's too
+        }
+        s.count[p] = float(n);
+        for (int c = 0; c < 3; ++c) {
+            s.mean[p * 3 + c] = s.beauty[p * 3 + c] = float(sum[c] / std::max(n, 1.0));
+            s.variance[p * 3 + c] = 0.01f;
+        }
+        s.coverage[p] = 1.f;
+    }
+    return s;
+}
+
+/// Channel `name` of pixel (x, y) of `img`.
+float at(const OIIO::ImageBuf& img, const std::string& name, int x, int y) {
+    const int c = img.spec().channelindex(name);
+    EXPECT_GE(c, 0) << name;
+    return c < 0 ? NAN : img.getchannel(x, y, 0, c);
+}
+
+}  // namespace
+
+TEST_F(ConfidenceCli, AddsSixFiniteChannelsAroundTheEstimate) {
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(), err)) << err;
+    for (const char* op : {"mean", "mon", "median", "gmon", "gmonb", "tmpe"}) {
+        const std::string out = path(std::string(op) + ".exr");
+        const auto r = mcstat(path("f.mcstat") + " --" + op + ":ci=0.95 -o " + out);
+        ASSERT_EQ(r.code, 0) << op << ": " << r.err;
+        OIIO::ImageBuf img(out);
+        ASSERT_TRUE(img.read()) << img.geterror();
+        // Exactly R, G, B and the six interval channels.
+        ASSERT_EQ(img.nchannels(), 9) << op;
+        for (const char* c : {"R", "G", "B", "ci_low.R", "ci_low.G", "ci_low.B", "ci_high.R",
+                              "ci_high.G", "ci_high.B"})
+            EXPECT_GE(img.spec().channelindex(c), 0) << op << " " << c;
+        // Finite and low <= high wherever two or more buffers are valid; low <= estimate <= high
+        // on the grey pixels (0, 0), (1, 0) for every estimator, and everywhere for the mean (the
+        // centre of its t interval). (On colour-varying pixels a luminance-ranked estimate takes
+        // one buffer's colour, which need not lie in each channel's interval: docs/confidence.md.)
+        for (int y = 0; y < 6; ++y)
+            for (int x = 0; x < 8; ++x) {
+                if (y == 0 && x == 2) continue;  // one valid buffer: [-inf, inf] (below)
+                for (const char* c : {"R", "G", "B"}) {
+                    const float lo = at(img, std::string("ci_low.") + c, x, y);
+                    const float hi = at(img, std::string("ci_high.") + c, x, y);
+                    const float e = at(img, c, x, y);
+                    EXPECT_TRUE(std::isfinite(lo) && std::isfinite(hi)) << op << " " << x << y;
+                    EXPECT_LE(lo, hi) << op << " " << x << y;
+                    if ((y == 0 && x < 2) || std::string(op) == "mean") {
+                        EXPECT_LE(lo, e) << op << " " << x << y;
+                        EXPECT_LE(e, hi) << op << " " << x << y;
+                    }
+                }
+            }
+        // One valid buffer: no interval, [-inf, inf].
+        EXPECT_EQ(at(img, "ci_low.G", 2, 0), -INFINITY) << op;
+        EXPECT_EQ(at(img, "ci_high.G", 2, 0), INFINITY) << op;
+    }
+}
+
+TEST_F(ConfidenceCli, ValuesByHand) {
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(), err)) << err;
+    ASSERT_EQ(mcstat(path("f.mcstat") + " --mon:ci=0.95 -o " + path("mon.exr")).code, 0);
+    ASSERT_EQ(mcstat(path("f.mcstat") + " --mean:ci=0.95 -o " + path("mean.exr")).code, 0);
+    OIIO::ImageBuf mon(path("mon.exr")), mean(path("mean.exr"));
+    // M = 9 at 0.95: order statistics 2 and 8 of 1 1 2 3 4 5 5 6 9: [1, 6].
+    EXPECT_EQ(at(mon, "ci_low.R", 0, 0), 1.f);
+    EXPECT_EQ(at(mon, "ci_high.B", 0, 0), 6.f);
+    // The NaN buffer is left out: 8 valid, sorted 1 1 2 3 4 5 6 9 (kNine without its last 5).
+    // M = 8 at 0.95: k = 2 covers P(2 <= Bin(8, 1/2) <= 6) = 1 - 18/256 = 0.9297 < 0.95, k = 1
+    // covers 1 - 2/256 = 0.9922: [x_(1), x_(8)] = [1, 9].
+    EXPECT_EQ(at(mon, "ci_low.G", 1, 0), 1.f);
+    EXPECT_EQ(at(mon, "ci_high.G", 1, 0), 9.f);
+    // Student: 4 +- 2.3060041 sqrt(0.75) = [2.0029418, 5.9970582].
+    EXPECT_NEAR(at(mean, "ci_low.R", 0, 0), 2.0029418f, 1e-5);
+    EXPECT_NEAR(at(mean, "ci_high.R", 0, 0), 5.9970582f, 1e-5);
+}
+
+TEST_F(ConfidenceCli, WithDiagnosticsResidualAndStreamed) {
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(), err)) << err;
+    // With the diagnostics and the residual: the layers in between, the level in the metadata.
+    const auto r =
+        mcstat(path("f.mcstat") + " --gmon:ci=0.9:diag=1:residual=1 -o " + path("g.exr"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    OIIO::ImageBuf g(path("g.exr"));
+    ASSERT_TRUE(g.read());
+    EXPECT_EQ(g.nchannels(), 3 + 3 + 6 + 3);  // R G B, gini kept excluded, ci x 6, residual x 3
+    EXPECT_EQ(g.spec().get_float_attribute("mcstat:ciLevel"), 0.9f);
+}
+
+TEST_F(ConfidenceCli, BadLevelIsOneLine) {
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(), err)) << err;
+    for (const char* level : {"0", "1", "-1", "abc", "1.5", "nan"}) {
+        const auto r = mcstat(path("f.mcstat") + " --gmon:ci=" + level + " -o " + path("g.exr"));
+        EXPECT_NE(r.code, 0) << level;
+        EXPECT_EQ(r.err, std::string("mcstat: --gmon: ci must be a number in (0, 1), not '") +
+                             level + "'\n")
+            << level;
+    }
+    const auto a = mcstat(path("f.mcstat") + " --gmon:ciaovs=1 -o " + path("g.exr"));
+    EXPECT_NE(a.code, 0);
+    EXPECT_EQ(a.err, "mcstat: --gmon: ciaovs=1 needs ci=LEVEL\n");
+    // Estimators without an interval do not take it.
+    const auto r = mcstat(path("f.mcstat") + " --myriad:ci=0.9 -o " + path("m.exr"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_NE(r.err.find("--myriad has no modifier 'ci'"), std::string::npos) << r.err;
+}
+
+TEST_F(ConfidenceCli, WithoutCiNothingChanges) {
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(), err)) << err;
+    ASSERT_EQ(mcstat(path("f.mcstat") + " --gmon -o " + path("g.exr")).code, 0);
+    OIIO::ImageBuf g(path("g.exr"));
+    ASSERT_TRUE(g.read());
+    EXPECT_EQ(g.nchannels(), 3);
+    EXPECT_EQ(g.spec().get_string_attribute("mcstat.parameters"), "gini=abs,mode=lum");
+    EXPECT_EQ(g.spec().find_attribute("mcstat:ciLevel"), nullptr);
+}
+
+TEST_F(ConfidenceCli, TooFewBuffersWarns) {
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(), err)) << err;
+    // 0.999 needs 11 buffers for the median's interval (1 - 2^-10 = 0.99902 >= 0.999).
+    const auto r = mcstat(path("f.mcstat") + " --mon:ci=0.999 -o " + path("m.exr"));
+    EXPECT_EQ(r.code, 0);
+    EXPECT_NE(r.err.find("only from 11 valid sub-buffers"), std::string::npos) << r.err;
+}
+
+TEST_F(ConfidenceCli, HeatmapOfTheRelativeWidthAndContactSheetTile) {
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(), err)) << err;
+    // --heatmap:channel=ciwidth draws sum (high - low) / sum |estimate| on a log scale. Pixel
+    // (0, 0) of the mean: width 2 * 1.9970582 per channel over the value 4: 0.99853.
+    auto r =
+        mcstat(path("f.mcstat") + " --mean:ci=0.95 --heatmap:channel=ciwidth -o " + path("w.exr"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    OIIO::ImageBuf w(path("w.exr"));
+    ASSERT_TRUE(w.read());
+    EXPECT_EQ(w.spec().get_string_attribute("mcstat:heatmap:channel"), "ciwidth");
+    EXPECT_EQ(w.spec().get_int_attribute("mcstat:heatmap:log"), 1);
+    // Pixel 2 (one buffer) is unbounded: +inf, counted as non-finite.
+    EXPECT_GE(w.spec().get_int_attribute("mcstat:heatmap:nonFinite"), 1);
+    EXPECT_LE(w.spec().get_float_attribute("mcstat:heatmap:min"), 0.99853f);
+    EXPECT_GE(w.spec().get_float_attribute("mcstat:heatmap:max"), 0.99853f);
+    // Without :ci there is nothing to draw: one line naming the missing channel.
+    r = mcstat(path("f.mcstat") + " --mean --heatmap:channel=ciwidth -o " + path("w2.exr"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_NE(r.err.find("has no channel ci_low.R"), std::string::npos) << r.err;
+    // The contact sheet's :ci=LEVEL adds one tile after the relative error.
+    ASSERT_EQ(mcstat(path("f.mcstat") + " --mean -o " + path("ref.exr")).code, 0);
+    r = mcstat(path("f.mcstat") + " --contactsheet:estimators=gmon:ci=0.9 " + path("ref.exr") +
+               " -o " + path("sheet.exr"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    OIIO::ImageBuf sheet(path("sheet.exr"));
+    ASSERT_TRUE(sheet.read());
+    EXPECT_EQ(sheet.spec().get_int_attribute("mcstat:sheet:tiles"), 5);  // mean gmon ref err ci
+}

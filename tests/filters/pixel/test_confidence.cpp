@@ -1,0 +1,137 @@
+// Confidence intervals per pixel (filters/pixel/confidence.h, core/location_stats.h) against
+// values computed by hand, and through each estimator's registry entry (PixelKernel::interval).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "mcstat/core/location_stats.h"
+#include "mcstat/filters/pixel/confidence.h"
+#include "pixel_support.h"
+
+using namespace mcstat;
+using namespace mcstat::testing;
+
+namespace {
+
+// M = 9 buffer means; sorted: 1 1 2 3 4 5 5 6 9.
+const std::vector<double> kNine = {3, 1, 4, 1, 5, 9, 2, 6, 5};
+
+ValueInterval kernelInterval(const std::string& name, std::vector<double> v, double level,
+                             std::map<std::string, std::string> kv = {}) {
+    const PixelKernel k = kernelOf(name, EstimatorMode::Luminance, std::move(kv));
+    EXPECT_TRUE(bool(k.interval)) << name;
+    const std::vector<double> n(v.size(), 1.0);
+    return k.interval(v.data(), n.data(), int(v.size()), level);
+}
+
+}  // namespace
+
+TEST(Confidence, BinomialRanks) {
+    // P(k <= Bin(9, 1/2) <= 9 - k) = 1 - 2 sum_{i<k} C(9, i) / 512:
+    // k = 1: 1 - 2/512 = 0.99609; k = 2: 1 - 2 (1 + 9)/512 = 0.96094; k = 3: 1 - 2 * 46/512 =
+    // 0.82031.
+    EXPECT_NEAR(medianIntervalCoverage(9, 1), 1.0 - 2.0 / 512, 1e-12);
+    EXPECT_NEAR(medianIntervalCoverage(9, 2), 1.0 - 20.0 / 512, 1e-12);
+    EXPECT_NEAR(medianIntervalCoverage(9, 3), 1.0 - 92.0 / 512, 1e-12);
+    EXPECT_EQ(medianIntervalRank(9, 0.95), 2);
+    EXPECT_EQ(medianIntervalRank(9, 0.99), 1);
+    EXPECT_EQ(medianIntervalRank(9, 0.80), 3);
+    // The full range of m buffers covers with 1 - 2^(1-m): 0.9375 for m = 5, 0.96875 for m = 6.
+    EXPECT_EQ(medianIntervalRank(5, 0.95), 0);
+    EXPECT_EQ(medianIntervalRank(6, 0.95), 1);
+    EXPECT_EQ(medianIntervalRank(7, 0.99), 0);
+    EXPECT_EQ(medianIntervalRank(8, 0.99), 1);
+    // M = 15: P(Bin <= 3) = (1 + 15 + 105 + 455) / 32768, so k = 4 covers 0.96484.
+    EXPECT_EQ(medianIntervalRank(15, 0.95), 4);
+    EXPECT_NEAR(medianIntervalCoverage(15, 4), 1.0 - 2.0 * 576 / 32768, 1e-12);
+}
+
+TEST(Confidence, MedianOfNineByHand) {
+    // k = 2 at 0.95: [x_(2), x_(8)] = [1, 6]; at 0.99 k = 1: [x_(1), x_(9)] = [1, 9].
+    for (const char* name : {"mon", "median", "gmon", "gmonb"}) {
+        const ValueInterval a = kernelInterval(name, kNine, 0.95);
+        EXPECT_EQ(a.low, 1.0) << name;
+        EXPECT_EQ(a.high, 6.0) << name;
+        EXPECT_FALSE(a.full) << name;
+        const ValueInterval b = kernelInterval(name, kNine, 0.99);
+        EXPECT_EQ(b.low, 1.0) << name;
+        EXPECT_EQ(b.high, 9.0) << name;
+    }
+    // Too few buffers for the level: the range, flagged (M = 5 at 0.95).
+    std::vector<double> five = {2, 8, 4, 6, 5};
+    const ValueInterval r = medianInterval(five.data(), 5, 0.95);
+    EXPECT_EQ(r.low, 2.0);
+    EXPECT_EQ(r.high, 8.0);
+    EXPECT_TRUE(r.full);
+}
+
+TEST(Confidence, StudentMeanOfNineByHand) {
+    // mean = 36 / 9 = 4; squared deviations 9 9 4 1 0 1 1 4 25 sum to 54; s^2 = 54 / 8 = 6.75;
+    // SE = sqrt(6.75 / 9) = sqrt(0.75) = 0.8660254; t_{0.975, 8} = 2.3060041;
+    // half width 1.9970582: [2.0029418, 5.9970582].
+    const ValueInterval a = kernelInterval("mean", kNine, 0.95);
+    EXPECT_NEAR(a.low, 2.0029418, 1e-6);
+    EXPECT_NEAR(a.high, 5.9970582, 1e-6);
+    EXPECT_FALSE(a.full);
+    // Counts weigh the mean and the standard error (the batch-means SE, meanSummary's):
+    // values 1, 3 with counts 3, 1: mean 1.5; s^2 = (3 * 0.25 + 1 * 2.25) / 1 = 3; var = 3 / 4;
+    // t_{0.975, 1} = 12.706205; half = 12.706205 * sqrt(0.75) = 11.003896.
+    const double v[2] = {1, 3}, n[2] = {3, 1};
+    const ValueInterval w = meanInterval(v, n, 2, 0.95);
+    EXPECT_NEAR(w.low, 1.5 - 11.003896, 1e-5);
+    EXPECT_NEAR(w.high, 1.5 + 11.003896, 1e-5);
+}
+
+TEST(Confidence, YuenForTmpeByHand) {
+    // TMPE alpha = 0.25, M = 9: g = floor(2.25) = 2 cut per side, h = 5: 2 3 4 5 5, mean 3.8.
+    // Winsorised: 2 2 2 3 4 5 5 5 5, mean 33/9; sum of squared deviations 16; variance
+    // 16 / (5 * 4) = 0.8, SE 0.8944272; t_{0.975, 4} = 2.7764451; half 2.4833280:
+    // [1.3166720, 6.2833280].
+    const ValueInterval a = kernelInterval("tmpe", kNine, 0.95, {{"alpha", "0.25"}});
+    EXPECT_NEAR(a.low, 1.3166720, 1e-6);
+    EXPECT_NEAR(a.high, 6.2833280, 1e-6);
+    // alpha = 0 is the mean: the t interval.
+    const ValueInterval m = kernelInterval("tmpe", kNine, 0.95, {{"alpha", "0"}});
+    EXPECT_NEAR(m.low, 2.0029418, 1e-6);
+    // alpha = 0.5 is the median (one value left): the order-statistic interval.
+    const ValueInterval d = kernelInterval("tmpe", kNine, 0.95, {{"alpha", "0.5"}});
+    EXPECT_EQ(d.low, 1.0);
+    EXPECT_EQ(d.high, 6.0);
+}
+
+TEST(Confidence, Extremes) {
+    const double inf = std::numeric_limits<double>::infinity();
+    for (const char* name : {"mean", "mon", "gmon", "gmonb", "tmpe"}) {
+        // No buffer: NaN; one: anything, [-inf, inf], flagged.
+        const ValueInterval none = kernelInterval(name, {}, 0.95);
+        EXPECT_TRUE(std::isnan(none.low) && std::isnan(none.high)) << name;
+        const ValueInterval one = kernelInterval(name, {7}, 0.95);
+        EXPECT_EQ(one.low, -inf) << name;
+        EXPECT_EQ(one.high, inf) << name;
+        EXPECT_TRUE(one.full) << name;
+        // All equal: zero width.
+        const ValueInterval eq = kernelInterval(name, std::vector<double>(9, 0.25), 0.95);
+        EXPECT_EQ(eq.low, 0.25) << name;
+        EXPECT_EQ(eq.high, 0.25) << name;
+        // Negatives and float's largest values: finite, ordered, no overflow in the SE.
+        const ValueInterval big =
+            kernelInterval(name, {3e38, -3e38, 1e38, 2e38, -1e38, 0, 3e38, -2e38, 1e38}, 0.95);
+        EXPECT_TRUE(std::isfinite(big.low) && std::isfinite(big.high)) << name;
+        EXPECT_LE(big.low, big.high) << name;
+        const ValueInterval neg = kernelInterval(name, {-3, -1, -4, -1, -5, -9, -2, -6, -5}, 0.95);
+        EXPECT_LT(neg.low, -3.0) << name;
+        EXPECT_GT(neg.high, -5.0) << name;
+    }
+    // The estimators without an interval say so.
+    EXPECT_FALSE(bool(kernelOf("myriad").interval));
+    EXPECT_FALSE(bool(kernelOf("meridian").interval));
+}
+
+TEST(Confidence, StudentQuantile) {
+    EXPECT_NEAR(studentQuantile(0.975, 8), 2.3060041, 1e-6);
+    EXPECT_NEAR(studentQuantile(0.975, 1e9), 1.9599640, 1e-6);  // the normal
+    EXPECT_TRUE(std::isnan(studentQuantile(1.0, 5)));
+    EXPECT_TRUE(std::isnan(studentQuantile(0.9, 0)));
+}
