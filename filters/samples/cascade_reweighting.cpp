@@ -37,6 +37,10 @@ bool validateReweightParams(const ReweightParams& p, std::string& err) {
         err = "reweight: kappa must be a number > 0";
         return false;
     }
+    if (p.spread < 0 || p.spread > 64) {
+        err = "reweight: spread must be an integer in [0, 64], not " + std::to_string(p.spread);
+        return false;
+    }
     for (double w : p.luma)
         if (!std::isfinite(w)) {
             err = "reweight: luma must be three finite weights";
@@ -108,6 +112,7 @@ void reweightImage(const CascadeImage& img, const ReweightParams& p, std::vector
             for (int k = 0; k < 3; ++k) v[k] += s[size_t(j) * 3 + size_t(k)] / scale[size_t(j)];
         return lum(p.luma, v);
     };
+    std::vector<double> removed(p.spread > 0 ? pixels * 3 : 0, 0.0);
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) {
             const size_t pix = size_t(y) * size_t(W) + size_t(x);
@@ -137,7 +142,35 @@ void reweightImage(const CascadeImage& img, const ReweightParams& p, std::vector
                 if (weights) (*weights)[pix * size_t(C) + size_t(i)] = float(w);
             }
             for (int k = 0; k < 3; ++k) rgb[pix * 3 + size_t(k)] = float(e[k]);
+            if (p.spread > 0)
+                for (int i = 0; i < C; ++i)
+                    for (int k = 0; k < 3; ++k)
+                        removed[pix * 3 + size_t(k)] += s[size_t(i) * 3 + size_t(k)] / N;
+            if (p.spread > 0)
+                for (int k = 0; k < 3; ++k) removed[pix * 3 + size_t(k)] -= e[k];
         }
+    if (p.spread <= 0) return;
+    // The removed energy of every pixel, scattered evenly over the image pixels of its window:
+    // the window clipped to the image, so nothing leaves it.
+    std::vector<double> add(pixels * 3, 0.0);
+    const int r = p.spread;
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            const size_t pix = size_t(y) * size_t(W) + size_t(x);
+            const int x0 = std::max(0, x - r), x1 = std::min(W - 1, x + r);
+            const int y0 = std::max(0, y - r), y1 = std::min(H - 1, y + r);
+            const double share = 1.0 / double((x1 - x0 + 1) * (y1 - y0 + 1));
+            for (int qy = y0; qy <= y1; ++qy)
+                for (int qx = x0; qx <= x1; ++qx)
+                    for (int k = 0; k < 3; ++k)
+                        add[(size_t(qy) * size_t(W) + size_t(qx)) * 3 + size_t(k)] +=
+                            share * removed[pix * 3 + size_t(k)];
+        }
+    for (size_t q = 0; q < pixels; ++q) {
+        if (img.n[q] == 0) continue;  // no samples: stays 0
+        for (int k = 0; k < 3; ++k)
+            rgb[q * 3 + size_t(k)] = float(double(rgb[q * 3 + size_t(k)]) + add[q * 3 + size_t(k)]);
+    }
 }
 
 }  // namespace mcstat

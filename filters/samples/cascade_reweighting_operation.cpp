@@ -220,6 +220,7 @@ bool reweightParamsFrom(const ParamValues& v, const std::array<double, 3>& luma,
     p.base = v.at("base").real;
     p.start = v.at("start").real;
     p.kappa = v.at("kappa").real;
+    p.spread = int(v.at("spread").integer);
     p.luma = luma;
     const std::string& given = v.at("luma").text;
     if (!given.empty()) {
@@ -428,6 +429,9 @@ Operation reweightOperation() {
          realParam("start", 0.0, 1e30, true, "1", "luminance scale of cascade 0"),
          realParam("kappa", 0.0, 1e9, true, "32",
                    "samples a cascade's scale needs to be trusted (larger: more removed)"),
+         intParam("spread", 0, 64, "0",
+                  "not the paper's: r > 0 scatters each pixel's removed energy evenly over its "
+                  "(2r+1)^2 window, keeping the image's energy (0: the paper's method)"),
          lumaParam()},
         &reweightSamples);
     op.state = cascadeStateHooks();

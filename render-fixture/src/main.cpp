@@ -456,10 +456,12 @@ bool parseReweightOptions(const CommandLine& cl, mcstat::ParamValues& values, st
         err = "--reweight-params: " + err;
         return false;
     }
-    if (kv.count("kappa") != 0) {
-        err = "--reweight-params: kappa is chosen when reweighting (mcstat --reweight:kappa=K)";
-        return false;
-    }
+    for (const char* later : {"kappa", "spread"})
+        if (kv.count(later) != 0) {
+            err = std::string("--reweight-params: ") + later +
+                  " is chosen when reweighting (mcstat --reweight:" + later + "=...)";
+            return false;
+        }
     return mcstat::parseOperationParams(*op, kv, values, err, "--reweight-params");
 }
 

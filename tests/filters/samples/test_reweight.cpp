@@ -130,6 +130,26 @@ TEST(Reweight, ALoneFireflyInA3x3ImageIsRemovedByHand) {
     for (int q : {0, 1, 2, 3, 5, 6, 7, 8}) EXPECT_FLOAT_EQ(out[size_t(q) * 3 + 1], 1.f) << q;
 }
 
+TEST(Reweight, SpreadKeepsTheImagesEnergy) {
+    // The 3x3 image with the centre's firefly (above), kappa 1, spread 1: the centre's removed
+    // 64/4 = 16 is scattered evenly over its 3x3 window (16/9 each); the image's total is the
+    // mean's. Spread 2 on a 3x3 image: every pixel's window is the whole image.
+    ReweightParams p = grey(3, 1.0);
+    std::vector<std::vector<float>> s(9, std::vector<float>{1, 1, 1, 1});
+    s[4] = {1, 1, 64, 1};
+    const double meanTotal = 8 * 1.0 + 16.75;
+    for (int r : {1, 2}) {
+        p.spread = r;
+        std::vector<float> out;
+        reweightImage(imageOf(3, 3, p, s), p, out);
+        double total = 0;
+        for (size_t q = 0; q < 9; ++q) total += out[q * 3];
+        EXPECT_NEAR(total, meanTotal, 1e-5) << r;
+        EXPECT_NEAR(out[4 * 3], 0.75 + 16.0 / 9.0, 1e-5) << r;
+        EXPECT_NEAR(out[0], 1.0 + 16.0 / 9.0, 1e-5) << r;
+    }
+}
+
 TEST(Reweight, APartialWeightByHand) {
     // 3 cascades, kappa 4: colour factor = (1 + 0.6 * 7) * (1 - 1/4) + 1/4 = 4.15. Every pixel of
     // a 3x3 image has seven samples of 1 and one of 64 (N = 8; block = local everywhere).

@@ -38,6 +38,10 @@ struct ReweightParams {
     double base = 8.0;    ///< ratio between neighbouring cascades' scales (idem)
     double start = 1.0;   ///< scale of cascade 0 (idem)
     double kappa = 32.0;  ///< samples a scale needs to be reliable (viewer default, rw.html)
+    /// Not the paper's: 0 is its method. r > 0 scatters what the weights removed from each pixel
+    /// (its mean minus its estimate, RGB) evenly over the image pixels of its (2r+1)^2 window,
+    /// so that the image's total energy is the mean's (docs/reweighting.md, "Energy").
+    int spread = 0;
     std::array<double, 3> luma{0.2126, 0.7152, 0.0722};  ///< from the colour config (color.h)
 };
 
@@ -84,7 +88,8 @@ struct CascadeImage {
 ///   colour   = max(lum(E_(i-1)), 0.05) * N / (kappa s_i) * mix(1 + 0.6 (base - 1), 1, min(1,
 ///   1/kappa)) w_i      = clamp((r + colour) / 2, 0, 1),   E_i = E_(i-1) + w_i S_i(p) / N
 /// (E_(-1) = 0; the missing neighbours of cascades 0 and count-1 are left out). Optionally each
-/// pixel's weights into `weights` ([p * count + i]). Deterministic; pixels independent.
+/// pixel's weights into `weights` ([p * count + i]). With p.spread > 0 the removed energy is then
+/// scattered (ReweightParams::spread). Deterministic.
 void reweightImage(const CascadeImage& img, const ReweightParams& p, std::vector<float>& rgb,
                    std::vector<float>* weights = nullptr);
 
