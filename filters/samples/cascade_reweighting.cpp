@@ -92,12 +92,35 @@ void splatSample(CascadePixel& px, const float rgb[3], const ReweightParams& p) 
     ++px.n;
 }
 
+void scatterRemoved(int width, int height, int radius, size_t nch,
+                    const std::vector<double>& removed, std::vector<double>& add) {
+    add.assign(size_t(width) * size_t(height) * nch, 0.0);
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            const size_t pix = size_t(y) * size_t(width) + size_t(x);
+            const int x0 = std::max(0, x - radius), x1 = std::min(width - 1, x + radius);
+            const int y0 = std::max(0, y - radius), y1 = std::min(height - 1, y + radius);
+            const double share = 1.0 / double((x1 - x0 + 1) * (y1 - y0 + 1));
+            for (int qy = y0; qy <= y1; ++qy)
+                for (int qx = x0; qx <= x1; ++qx)
+                    for (size_t k = 0; k < nch; ++k)
+                        add[(size_t(qy) * size_t(width) + size_t(qx)) * nch + k] +=
+                            share * removed[pix * nch + k];
+        }
+}
+
+void sampleShares(double y, const ReweightParams& p, const double* w, double& kept, double& taken) {
+    const CascadeSplit s = splitSample(y, p);
+    kept = w[s.lower] * s.wLower + w[s.lower + 1] * s.wUpper;
+    taken = s.wLower + s.wUpper;
+}
+
 void reweightImage(const CascadeImage& img, const ReweightParams& p, std::vector<float>& rgb,
-                   std::vector<float>* weights) {
+                   std::vector<double>* weights) {
     const int W = img.width, H = img.height, C = img.count;
     const size_t pixels = size_t(W) * size_t(H);
-    rgb.assign(pixels * 3, 0.f);
-    if (weights) weights->assign(pixels * size_t(C), 0.f);
+    std::vector<double> est(pixels * 3, 0.0);
+    if (weights) weights->assign(pixels * size_t(C), 0.0);
     std::vector<double> scale(size_t(std::max(C, 0)));
     for (int i = 0; i < C; ++i) scale[size_t(i)] = p.start * std::pow(p.base, i);
     const double oneOverK = 1.0 / p.kappa;
@@ -120,7 +143,7 @@ void reweightImage(const CascadeImage& img, const ReweightParams& p, std::vector
             if (n == 0) continue;  // no samples: 0
             const double N = double(n);
             const double* s = img.sum.data() + pix * size_t(C) * 3;
-            double e[3] = {0.0, 0.0, 0.0};
+            double* e = est.data() + pix * 3;
             for (int i = 0; i < C; ++i) {
                 double block = 0.0;
                 for (int dy = -1; dy <= 1; ++dy)
@@ -139,38 +162,24 @@ void reweightImage(const CascadeImage& img, const ReweightParams& p, std::vector
                 double w = std::clamp((r + colour) * 0.5, 0.0, 1.0);
                 if (!(oneOverK < 1e6)) w = 1.0;  // the reference's switch: kappa <= 1e-6 is off
                 for (int k = 0; k < 3; ++k) e[k] += w * s[size_t(i) * 3 + size_t(k)] / N;
-                if (weights) (*weights)[pix * size_t(C) + size_t(i)] = float(w);
+                if (weights) (*weights)[pix * size_t(C) + size_t(i)] = w;
             }
-            for (int k = 0; k < 3; ++k) rgb[pix * 3 + size_t(k)] = float(e[k]);
             if (p.spread > 0)
-                for (int i = 0; i < C; ++i)
-                    for (int k = 0; k < 3; ++k)
-                        removed[pix * 3 + size_t(k)] += s[size_t(i) * 3 + size_t(k)] / N;
-            if (p.spread > 0)
-                for (int k = 0; k < 3; ++k) removed[pix * 3 + size_t(k)] -= e[k];
+                for (int k = 0; k < 3; ++k) {
+                    double all = 0.0;
+                    for (int i = 0; i < C; ++i) all += s[size_t(i) * 3 + size_t(k)] / N;
+                    removed[pix * 3 + size_t(k)] = all - e[k];
+                }
         }
-    if (p.spread <= 0) return;
-    // The removed energy of every pixel, scattered evenly over the image pixels of its window:
-    // the window clipped to the image, so nothing leaves it.
-    std::vector<double> add(pixels * 3, 0.0);
-    const int r = p.spread;
-    for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x) {
-            const size_t pix = size_t(y) * size_t(W) + size_t(x);
-            const int x0 = std::max(0, x - r), x1 = std::min(W - 1, x + r);
-            const int y0 = std::max(0, y - r), y1 = std::min(H - 1, y + r);
-            const double share = 1.0 / double((x1 - x0 + 1) * (y1 - y0 + 1));
-            for (int qy = y0; qy <= y1; ++qy)
-                for (int qx = x0; qx <= x1; ++qx)
-                    for (int k = 0; k < 3; ++k)
-                        add[(size_t(qy) * size_t(W) + size_t(qx)) * 3 + size_t(k)] +=
-                            share * removed[pix * 3 + size_t(k)];
-        }
-    for (size_t q = 0; q < pixels; ++q) {
-        if (img.n[q] == 0) continue;  // no samples: stays 0
-        for (int k = 0; k < 3; ++k)
-            rgb[q * 3 + size_t(k)] = float(double(rgb[q * 3 + size_t(k)]) + add[q * 3 + size_t(k)]);
+    if (p.spread > 0) {
+        std::vector<double> add;
+        scatterRemoved(W, H, p.spread, 3, removed, add);
+        for (size_t q = 0; q < pixels; ++q)
+            if (img.n[q] > 0)  // no samples: stays 0
+                for (size_t k = 0; k < 3; ++k) est[q * 3 + k] += add[q * 3 + k];
     }
+    rgb.resize(pixels * 3);
+    for (size_t i = 0; i < pixels * 3; ++i) rgb[i] = float(est[i]);
 }
 
 }  // namespace mcstat

@@ -17,6 +17,7 @@
 
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/untrusted_text.h"
+#include "mcstat/filters/aov_weights.h"
 
 namespace mcstat {
 
@@ -99,6 +100,101 @@ bool cascadesFromRecords(SampleSource& src, const ReweightParams& p, int nthread
         };
         parallelFor(0, int64_t(block.counts.size()), 0, std::min(threadCount(nthreads), n), work);
     }
+    return true;
+}
+
+/// The per-sample AOVs the records hold (channels "aov.<name>"), weighted as the beauty weights
+/// its samples (docs/aovs.md): sample k of a pixel counts kept_k / N (sampleShares), so light
+/// AOVs are sum_k kept_k x_k / N and sum to the beauty; alpha and data passes are the average with
+/// those weights; id mattes the label of the sample of largest weight. With spread, the light
+/// AOVs' removed part is scattered as the beauty's is. Adds the channels to `out`.
+bool recordAovs(SampleSource& src, const ReweightParams& p, const std::vector<double>& weights,
+                const CascadeImage& img, OperationImage& out, std::string& err) {
+    const StatsHeader& h = src.header();
+    const std::vector<std::string> available = src.recordChannels();
+    std::vector<std::string> channels, names;
+    std::vector<AovClass> classes;
+    for (const AovChannel& a : h.aovs) {
+        const std::string name = std::string(kRecordAovPrefix) + a.name;
+        if (std::find(available.begin(), available.end(), name) == available.end()) continue;
+        channels.push_back(name);
+        names.push_back(a.name);
+        classes.push_back(a.cls);
+    }
+    if (channels.empty()) return true;
+    if (!src.selectRecordChannels(channels, err)) return false;
+    const size_t A = channels.size(), pixels = img.n.size(), C = size_t(img.count);
+    std::vector<float> convex(pixels * A, 0.f);
+    std::vector<double> light(pixels * A, 0.0), removed(p.spread > 0 ? pixels * A : 0, 0.0);
+    const int rows = blockRows(h);
+    SampleBlock block;
+    for (int y0 = 0; y0 < h.height; y0 += rows) {
+        const int nrows = std::min(rows, h.height - y0);
+        if (!src.readRecords(y0, nrows, block, err)) return false;
+        const size_t stride = block.stride();
+        const int at[3] = {block.channel("R"), block.channel("G"), block.channel("B")};
+        std::vector<size_t> aovAt;
+        for (const std::string& c : channels) aovAt.push_back(size_t(block.channel(c)));
+        std::vector<double> u, t;
+        std::vector<float> x;
+        AovScratch scratch;
+        size_t first = 0;
+        for (size_t i = 0; i < block.counts.size(); ++i) {
+            const size_t pix = size_t(y0) * size_t(h.width) + i, n = block.counts[i];
+            const float* smp = block.samples.data() + first * stride;
+            first += n;
+            if (img.n[pix] == 0) continue;
+            const double N = double(img.n[pix]);
+            u.assign(n, 0.0);
+            t.assign(n, 0.0);
+            x.resize(n * A);
+            for (size_t k = 0; k < n; ++k) {
+                const float* c = smp + k * stride;
+                for (size_t a = 0; a < A; ++a) x[k * A + a] = c[aovAt[a]];
+                const float rgb[3] = {c[at[0]], c[at[1]], c[at[2]]};
+                if (!std::isfinite(rgb[0]) || !std::isfinite(rgb[1]) || !std::isfinite(rgb[2]))
+                    continue;
+                const double Y =
+                    p.luma[0] * rgb[0] + p.luma[1] * double(rgb[1]) + p.luma[2] * double(rgb[2]);
+                if (!std::isfinite(Y)) continue;
+                double kept = 0.0, taken = 0.0;
+                sampleShares(Y, p, weights.data() + pix * C, kept, taken);
+                u[k] = kept / N;
+                t[k] = taken / N;
+            }
+            applyAovWeights(u.data(), n, x.data(), A, classes.data(), convex.data() + pix * A,
+                            scratch);
+            for (size_t a = 0; a < A; ++a) {
+                if (classes[a] != AovClass::Light) continue;
+                double e = 0.0, all = 0.0;
+                for (size_t k = 0; k < n; ++k) {
+                    const double v = x[k * A + a];
+                    if (!std::isfinite(v)) continue;
+                    e += u[k] * v;
+                    all += t[k] * v;
+                }
+                light[pix * A + a] = e;
+                if (p.spread > 0) removed[pix * A + a] = all - e;
+            }
+        }
+    }
+    if (p.spread > 0) {
+        std::vector<double> add;
+        scatterRemoved(h.width, h.height, p.spread, A, removed, add);
+        for (size_t q = 0; q < pixels; ++q)
+            if (img.n[q] > 0)
+                for (size_t a = 0; a < A; ++a) light[q * A + a] += add[q * A + a];
+    }
+    const size_t nch = 3 + A;
+    std::vector<float> px(pixels * nch);
+    for (size_t q = 0; q < pixels; ++q) {
+        for (size_t c = 0; c < 3; ++c) px[q * nch + c] = out.pixels[q * 3 + c];
+        for (size_t a = 0; a < A; ++a)
+            px[q * nch + 3 + a] =
+                classes[a] == AovClass::Light ? float(light[q * A + a]) : convex[q * A + a];
+    }
+    out.pixels = std::move(px);
+    out.channels.insert(out.channels.end(), names.begin(), names.end());
     return true;
 }
 
@@ -412,7 +508,10 @@ bool reweightSamples(const SamplesRequest& req, OperationImage& out, std::string
     out.width = h.width;
     out.height = h.height;
     out.channels = {"R", "G", "B"};
-    reweightImage(img, p, out.pixels);
+    std::vector<double> weights;
+    reweightImage(img, p, out.pixels, &weights);
+    // The AOVs follow from the records (the stored cascades hold none).
+    if (h.hasRecords && !h.aovs.empty()) return recordAovs(*src, p, weights, img, out, err);
     return true;
 }
 

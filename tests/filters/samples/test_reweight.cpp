@@ -115,16 +115,17 @@ TEST(Reweight, ALoneFireflyInA3x3ImageIsRemovedByHand) {
     s[4] = {1, 1, 64, 1};
     const CascadeImage img = imageOf(3, 3, p, s);
     EXPECT_EQ(img.sum[(4 * 3 + 2) * 3], 64.0);
-    std::vector<float> out, w;
+    std::vector<float> out;
+    std::vector<double> w;
     reweightImage(img, p, out, &w);
     // Centre, cascade 0: counts c_0 = S_0 + S_1/8 = 3 here, 4 around; block mean 35/9 - 1 >= 0,
     // so r = local - 1 = 2, w_0 = clamp((2 + colour) / 2) = 1; E = 3/4.
     // Cascade 1: c_1 = S_0 + S_1/8 + S_2/64 = 4, w_1 = 1, S_1 = 0: E stays 3/4.
     // Cascade 2: c_2 = S_1/8 + S_2/64 = 1 here, 0 around: global = 1/9 - 1 < 0, so r = -8/9;
     // colour = max(0.75, 0.05) * N / (kappa * 64) = 0.046875; w_2 = clamp((-8/9 + 0.046875)/2) = 0.
-    EXPECT_EQ(w[4 * 3 + 0], 1.f);
-    EXPECT_EQ(w[4 * 3 + 1], 1.f);
-    EXPECT_EQ(w[4 * 3 + 2], 0.f);
+    EXPECT_EQ(w[4 * 3 + 0], 1.0);
+    EXPECT_EQ(w[4 * 3 + 1], 1.0);
+    EXPECT_EQ(w[4 * 3 + 2], 0.0);
     EXPECT_FLOAT_EQ(out[4 * 3 + 0], 0.75f);
     // Every other pixel keeps its mean 1 (a corner's clamped block holds the centre once).
     for (int q : {0, 1, 2, 3, 5, 6, 7, 8}) EXPECT_FLOAT_EQ(out[size_t(q) * 3 + 1], 1.f) << q;
@@ -161,11 +162,12 @@ TEST(Reweight, APartialWeightByHand) {
     //   E = 0.8378125 + w_2 * 64 / 8 = 1.272427734375 (the mean is 8.875).
     const ReweightParams p = grey(3, 4.0);
     const std::vector<std::vector<float>> s(9, std::vector<float>{1, 1, 1, 64, 1, 1, 1, 1});
-    std::vector<float> out, w;
+    std::vector<float> out;
+    std::vector<double> w;
     reweightImage(imageOf(3, 3, p, s), p, out, &w);
     for (size_t q = 0; q < 9; ++q) {
         EXPECT_NEAR(w[q * 3 + 0], 0.9575, 1e-7) << q;
-        EXPECT_EQ(w[q * 3 + 1], 1.f) << q;
+        EXPECT_EQ(w[q * 3 + 1], 1.0) << q;
         EXPECT_NEAR(w[q * 3 + 2], 0.054326904296875, 1e-7) << q;
         EXPECT_NEAR(out[q * 3], 1.272427734375, 1e-6) << q;
     }

@@ -91,6 +91,16 @@ struct CascadeImage {
 /// pixel's weights into `weights` ([p * count + i]). With p.spread > 0 the removed energy is then
 /// scattered (ReweightParams::spread). Deterministic.
 void reweightImage(const CascadeImage& img, const ReweightParams& p, std::vector<float>& rgb,
-                   std::vector<float>* weights = nullptr);
+                   std::vector<double>* weights = nullptr);
+
+/// What the estimate keeps of one sample of luminance `y` given its pixel's cascade weights `w`
+/// (reweightImage's): `kept` = w_j wLower + w_(j+1) wUpper and `taken` = wLower + wUpper (1 but
+/// above the top scale). The estimate is sum_k kept_k rgb_k / N exactly, so the AOVs follow the
+/// beauty with the same per-sample weights (docs/aovs.md).
+void sampleShares(double y, const ReweightParams& p, const double* w, double& kept, double& taken);
+/// The spread variant's step: each pixel's `removed` (nch values) added evenly to the image
+/// pixels of its (2 radius + 1)^2 window, clipped to the image; `add` gets the sums.
+void scatterRemoved(int width, int height, int radius, size_t nch,
+                    const std::vector<double>& removed, std::vector<double>& add);
 
 }  // namespace mcstat
