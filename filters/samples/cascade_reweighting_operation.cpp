@@ -525,7 +525,7 @@ Operation reweightOperation() {
         "Zirr, Hanika, Dachsbacher 2018; details of the authors' reference implementation",
         {intParam("count", 2, 16, "6", "number of cascades"),
          realParam("base", 1.0, 1e6, true, "8", "ratio of neighbouring cascades' scales"),
-         realParam("start", 0.0, 1e30, true, "1", "luminance scale of cascade 0"),
+         realParam("start", 0.0, HUGE_VAL, true, "1", "luminance scale of cascade 0"),
          realParam("kappa", 0.0, 1e9, true, "32",
                    "samples a cascade's scale needs to be trusted (larger: more removed)"),
          intParam("spread", 0, 64, "0",

@@ -560,7 +560,9 @@ bool startOnline(const CommandLine& cl, const mcstat::StatsHeader* ph, Job& job,
     const std::string flag = "--" + job.onlineName;
     if (!resumed && !wanted) return true;
     if (!resumed && ph != nullptr) {
-        err = cl.resumePath + ": has no state of " + flag + " to continue (rendered without it)";
+        err = cl.resumePath + ": has no " +
+              (job.wantPajot ? std::string("Pajot state") : std::string("reweighting cascades")) +
+              " to continue (rendered without " + flag + ")";
         return false;
     }
     const std::string name = resumed ? ph->state.operation : job.onlineName;

@@ -1,7 +1,8 @@
 // Cascade reweighting end to end: mcstat-render --reweight stores the cascades as state parts
 // owned by "reweight"; `mcstat --reweight` reweights them, or the cascades it builds from the
 // per-sample records of a --keep-samples render of the same samples, and both give the same
-// image bit for bit; --info describes the parts; the refusals are one-line errors.
+// image bit for bit; --info describes the parts; the refusals are one-line errors; a resumed render
+// continues the cascades exactly.
 #include <OpenImageIO/imagebuf.h>
 #include <gtest/gtest.h>
 
@@ -38,8 +39,8 @@ std::vector<float> pixelsOf(const std::string& file, int& nch) {
 TEST_F(ReweightFile, OnlineCascadesAndOfflineRecordsGiveTheSameImageBitForBit) {
     const std::string on = path("on.mcstat"), off = path("off.mcstat");
     // The default scene (its caustic makes fireflies), small, the same seed: the same samples.
-    ASSERT_EQ(render("--res 40 30 --spp 48 --M 4 --reweight -o " + on).code, 0);
-    ASSERT_EQ(render("--res 40 30 --spp 48 --M 4 --threads 1 --keep-samples -o " + off).code, 0);
+    ASSERT_EQ(render("--res 32 24 --spp 32 --M 4 --reweight -o " + on).code, 0);
+    ASSERT_EQ(render("--res 32 24 --spp 32 --M 4 --threads 1 --keep-samples -o " + off).code, 0);
     StatsImage img;
     std::string err;
     ASSERT_TRUE(readStatsFile(on, img, err)) << err;
@@ -59,16 +60,17 @@ TEST_F(ReweightFile, OnlineCascadesAndOfflineRecordsGiveTheSameImageBitForBit) {
         ASSERT_EQ(nb, 3);
         ASSERT_EQ(pa.size(), pb.size());
         EXPECT_EQ(std::memcmp(pa.data(), pb.data(), pa.size() * sizeof(float)), 0) << mods;
-        // The reweighted image holds less light than the mean (fireflies removed), not none.
+        // The reweighted image holds less light than the mean (fireflies removed), not none; at
+        // 32 spp kappa 32 (the default) trusts little even of the base cascade.
         double sumRw = 0, sumMean = 0;
         for (float v : pa) sumRw += v;
         for (size_t q = 0; q < img.beauty.size(); ++q) sumMean += img.beauty[q];
-        EXPECT_GT(sumRw, 0.2 * sumMean) << mods;
+        EXPECT_GT(sumRw, (mods.empty() ? 0.05 : 0.5) * sumMean) << mods;
         EXPECT_LE(sumRw, sumMean * (1 + 1e-6)) << mods;
     }
 }
 
-TEST_F(ReweightFile, InfoDescribesThePartsAndRefusalsAreOneLine) {
+TEST_F(ReweightFile, InfoAndCheckDescribeTheParts) {
     const std::string s = path("s.mcstat");
     ASSERT_EQ(
         render("--scene tiny --spp 8 --reweight --reweight-params base=4:count=5 -o " + s).code, 0);
@@ -78,7 +80,16 @@ TEST_F(ReweightFile, InfoDescribesThePartsAndRefusalsAreOneLine) {
     EXPECT_NE(r.out.find("share of the luminance per cascade"), std::string::npos) << r.out;
     r = mcstat(s + " --check");
     EXPECT_EQ(r.code, 0) << r.err << r.out;
+    r = render("--scene tiny --spp 4 --reweight --pajot rot -o " + path("x.mcstat"));
+    EXPECT_NE(r.err.find("cannot be combined"), std::string::npos) << r.err;
+}
+
+TEST_F(ReweightFile, RefusalsAreOneLineErrors) {
+    const std::string s = path("s.mcstat");
+    ASSERT_EQ(
+        render("--scene tiny --spp 8 --reweight --reweight-params base=4:count=5 -o " + s).code, 0);
     // The stored shape is used when asked for; another shape needs the records.
+    ToolRun r;
     r = mcstat(s + " --reweight -o " + path("o.exr"));
     EXPECT_NE(r.code, 0);
     EXPECT_NE(r.err.find("needs per-sample records"), std::string::npos) << r.err;
@@ -92,8 +103,6 @@ TEST_F(ReweightFile, InfoDescribesThePartsAndRefusalsAreOneLine) {
     r = render("--scene tiny --spp 4 --reweight --reweight-params base=0.5 -o " + path("x.mcstat"));
     EXPECT_NE(r.code, 0);
     EXPECT_NE(r.err.find("base must be"), std::string::npos) << r.err;
-    r = render("--scene tiny --spp 4 --reweight --pajot rot -o " + path("x.mcstat"));
-    EXPECT_NE(r.err.find("cannot be combined"), std::string::npos) << r.err;
     // A file with neither cascades nor records.
     ASSERT_EQ(render("--scene tiny --spp 4 -o " + path("plain.mcstat")).code, 0);
     r = mcstat(path("plain.mcstat") + " --reweight -o " + path("o.exr"));
