@@ -9,6 +9,7 @@
 #include "mcstat/filters/pixel/meridian.h"
 #include "mcstat/filters/pixel/myriad.h"
 #include "mcstat/filters/pixel/tmpe.h"
+#include "mcstat/filters/samples/cascade_reweighting_operation.h"
 #include "mcstat/filters/samples/rpf.h"
 #include "mcstat/filters/samples/sample_delaying.h"
 #include "mcstat/filters/window/filter3d.h"
@@ -33,8 +34,9 @@ const std::vector<Operation>& operationRegistry() {
         mifOperation(), wmifOperation(), filter3dmfOperation(), filter3dwmfOperation(),
         filter3dwtmfOperation(),
         // Over every sample (filters/samples/).
-        pajotOperation(),  // Pajot et al. 2011
-        rpfOperation(),    // Sen and Darabi 2011
+        pajotOperation(),     // Pajot et al. 2011
+        rpfOperation(),       // Sen and Darabi 2011
+        reweightOperation(),  // Zirr, Hanika and Dachsbacher 2018
     };
     return registry;
 }

@@ -131,6 +131,8 @@ struct CommandLine {
     std::string pajotText,
         pajotNText = "50", pajotDelayedText = "64", pajotTText = "2", pajotDeltaText = "0",
         maxSampleBytesText = std::to_string(mcstat::kDefaultMaxRecordBytes), resumePath;
+    bool reweight = false;       ///< --reweight: the cascades of Zirr et al. 2018 online
+    std::string reweightParams;  ///< --reweight-params: the entry's key=value text
     bool help = false;
 };
 
@@ -208,6 +210,17 @@ void addPerSampleOptions(OIIO::ArgParse& ap, CommandLine& cl) {
     ap.arg("--pajot-delta D")
         .help("with --pajot hybrid: largest |m_rot - m_adr| / |m_adr| counted as close (default 0)")
         .action([&](OIIO::cspan<const char*> a) { cl.pajotDeltaText = a[1]; });
+    ap.arg("--reweight")
+        .help(
+            "Zirr et al. 2018 online: every sample is split by its luminance between cascades of "
+            "geometric scales, which the file keeps (docs/reweighting.md; mcstat --reweight "
+            "reweights them). Adds parts cascades and cascades.deep (format 4)")
+        .action([&](OIIO::cspan<const char*>) { cl.reweight = true; });
+    ap.arg("--reweight-params TEXT")
+        .help(
+            "with --reweight: the cascades' shape as key=value:key=value, keys count (6), base "
+            "(8), start (1), luma (default: the working space's)")
+        .action([&](OIIO::cspan<const char*> a) { cl.reweightParams = a[1]; });
     ap.arg("--keep-samples")
         .help(
             "keep every sample in the deep part records (format 4), written by blocks of rows: "
@@ -329,6 +342,7 @@ bool parseCommandLine(int argc, const char** argv, CommandLine& cl, int& exitCod
                             : cl.keepSamples ? "--keep-samples (a compact file keeps no samples)"
                             : !cl.pajotText.empty()
                                 ? "--pajot (a compact file keeps no Pajot state)"
+                            : cl.reweight ? "--reweight (a compact file keeps no cascades)"
                             : !cl.resumePath.empty()
                                 ? "--resume (resume the full file, then compact it with mcstat "
                                   "--compact)"
@@ -425,8 +439,31 @@ bool luma(std::array<double, 3>& l, std::string& err) {
     return true;
 }
 
-/// The operation the renderer runs online with --pajot (the one it knows by its flag).
+/// The operations the renderer runs online, each known by its flag: --pajot and --reweight.
 const char* const kOnlineOperation = "pajot";
+const char* const kReweightOperation = "reweight";
+
+/// --reweight-params as the reweighting entry's parameters, parsed and range-checked by the
+/// registry (parseOperationParams) as `mcstat --reweight:count=...` parses them.
+bool parseReweightOptions(const CommandLine& cl, mcstat::ParamValues& values, std::string& err) {
+    const mcstat::Operation* op = mcstat::findOperation(kReweightOperation);
+    if (op == nullptr || op->state.start == nullptr) {
+        err = "--reweight: this build has no online reweighting";
+        return false;
+    }
+    std::map<std::string, std::string> kv;
+    if (!mcstat::parseParamText(cl.reweightParams, kv, err)) {
+        err = "--reweight-params: " + err;
+        return false;
+    }
+    for (const char* later : {"kappa", "spread"})
+        if (kv.count(later) != 0) {
+            err = std::string("--reweight-params: ") + later +
+                  " is chosen when reweighting (mcstat --reweight:" + later + "=...)";
+            return false;
+        }
+    return mcstat::parseOperationParams(*op, kv, values, err, "--reweight-params");
+}
 
 /// The --pajot options as the Pajot entry's parameters, parsed and range-checked by the registry
 /// (parseOperationParams) as `mcstat --pajot:method=...:n=...` parses them.
@@ -448,8 +485,10 @@ bool parsePajotOptions(const CommandLine& cl, mcstat::ParamValues& values, std::
 struct Job {
     RenderOptions opt;
     Scene scene;
-    mcstat::ParamValues pajotValues;  ///< --pajot's parameters (the registry entry's)
+    mcstat::ParamValues pajotValues;  ///< --pajot's or --reweight's parameters (the entry's)
     bool wantPajot = false;           ///< --pajot given
+    /// The operation asked to run online (--pajot or --reweight), empty for none.
+    std::string onlineName;
     /// The online run (--pajot, or a resumed file's state), started once the size is known.
     std::unique_ptr<mcstat::OnlineRun> online;
     int64_t maxSampleBytes = 0;
@@ -462,9 +501,19 @@ bool prepareJob(const CommandLine& cl, Job& job, std::string& err) {
     if (!loadSizedScene(cl, job.scene, err)) return false;
     // Pajot and the records (format version 4).
     job.wantPajot = !cl.pajotText.empty();
+    if (job.wantPajot && cl.reweight) {
+        err = "--pajot and --reweight cannot be combined: a file keeps one operation's state";
+        return false;
+    }
+    if (!cl.reweightParams.empty() && !cl.reweight) {
+        err = "--reweight-params needs --reweight";
+        return false;
+    }
+    job.onlineName = job.wantPajot ? kOnlineOperation : cl.reweight ? kReweightOperation : "";
     // Before any sample: a config that cannot give the luma fails now, not after the render.
-    if ((job.wantPajot || cl.compact) && !luma(job.luma, err)) return false;
+    if ((!job.onlineName.empty() || cl.compact) && !luma(job.luma, err)) return false;
     if (job.wantPajot && !parsePajotOptions(cl, job.pajotValues, err)) return false;
+    if (cl.reweight && !parseReweightOptions(cl, job.pajotValues, err)) return false;
     long long v = 0;
     if (!parseInt(cl.maxSampleBytesText, "--max-sample-bytes", 0, (1LL << 62), v, err))
         return false;
@@ -488,10 +537,10 @@ struct Timings {
 /// --reference: renders the mean alone and writes it as a plain RGB EXR.
 bool renderReferenceOutput(const CommandLine& cl, const Job& job, RenderStats& stats,
                            Timings& timings, std::string& err) {
-    if (job.wantPajot || cl.keepSamples || !cl.resumePath.empty() || cl.aovs) {
+    if (!job.onlineName.empty() || cl.keepSamples || !cl.resumePath.empty() || cl.aovs) {
         err =
-            "--reference writes a plain EXR: --pajot, --keep-samples, --aovs and --resume "
-            "do not apply";
+            "--reference writes a plain EXR: --pajot, --reweight, --keep-samples, --aovs and "
+            "--resume do not apply";
         return false;
     }
     std::vector<float> rgb;
@@ -507,32 +556,36 @@ bool renderReferenceOutput(const CommandLine& cl, const Job& job, RenderStats& s
 /// parameters are the resumed run's.
 bool startOnline(const CommandLine& cl, const mcstat::StatsHeader* ph, Job& job, std::string& err) {
     const bool resumed = ph != nullptr && ph->hasState();
-    if (!resumed && !job.wantPajot) return true;
+    const bool wanted = !job.onlineName.empty();
+    const std::string flag = "--" + job.onlineName;
+    if (!resumed && !wanted) return true;
     if (!resumed && ph != nullptr) {
-        err = cl.resumePath + ": has no Pajot state to continue (rendered without --pajot)";
+        err = cl.resumePath + ": has no " +
+              (job.wantPajot ? std::string("Pajot state") : std::string("reweighting cascades")) +
+              " to continue (rendered without " + flag + ")";
         return false;
     }
-    const std::string name = resumed ? ph->state.operation : kOnlineOperation;
+    const std::string name = resumed ? ph->state.operation : job.onlineName;
     const mcstat::Operation* op = mcstat::findOperation(name);
     if (op == nullptr || op->state.start == nullptr) {
         err = cl.resumePath + ": holds the state of '" + mcstat::printable(name) +
               "', which this renderer cannot continue";
         return false;
     }
-    if (resumed && job.wantPajot && name != kOnlineOperation) {
-        err = cl.resumePath + ": holds the state of '" + mcstat::printable(name) +
-              "', not of --pajot";
+    if (resumed && wanted && name != job.onlineName) {
+        err = cl.resumePath + ": holds the state of '" + mcstat::printable(name) + "', not of " +
+              flag;
         return false;
     }
-    mcstat::ParamValues values = job.pajotValues;  // without --pajot: the defaults, "stored"
-    if (!job.wantPajot && !mcstat::parseOperationParams(*op, {}, values, err)) return false;
+    mcstat::ParamValues values = job.pajotValues;  // without the flag: the defaults, "stored"
+    if (!wanted && !mcstat::parseOperationParams(*op, {}, values, err)) return false;
     mcstat::PixelStateParts parts;
     if (resumed && !mcstat::readPixelStateParts(cl.resumePath, parts, err)) return false;
     const size_t pixels = size_t(job.scene.width) * size_t(job.scene.height);
     job.online =
         op->state.start(values, job.luma, job.scene.width, pixels, resumed ? &parts : nullptr, err);
     if (!job.online) {
-        err = (resumed ? cl.resumePath : std::string("--pajot")) + ": " + err;
+        err = (resumed ? cl.resumePath : flag) + ": " + err;
         return false;
     }
     return true;
