@@ -202,43 +202,40 @@ bool applyToTop(State& st, const std::string& cmd, const Operation& op, const Pa
     return ok;
 }
 
-/// Appends the residual channels (mean - robust) to `img`, the result of an operation over the
-/// top statistics file.
-bool appendTopResidual(State& st, const std::string& cmd, OIIO::ImageBuf& img, std::string& err) {
+/// Appends layers computed again from the top statistics file to `img`, an operation's result
+/// over it: `append(img, source, luma)` over the file in memory, or over a new stream of it from
+/// its first row (a streamed source is read once more).
+template <class Append>
+bool appendFromTop(State& st, const std::string& cmd, OIIO::ImageBuf& img, std::string& err,
+                   Append append) {
     Item& top = st.stack.back();
     std::array<double, 3> luma{};
     if (!itemLuma(top, luma, err)) {
         err = format("{}: {}", cmd, err);
         return false;
     }
-    ItemSource again;  // a streamed source is read once more, from its first row
+    ItemSource again;
     if (!top.stats && !openSource(st, top, again, err)) return false;
-    if (!(top.stats ? appendResidual(img, *top.stats, luma, st.nthreads)
-                    : appendResidual(img, *again.root, luma, st.nthreads))) {
+    if (!(top.stats ? append(img, *top.stats, luma) : append(img, *again.root, luma))) {
         err = format("{}: {}", cmd, img.geterror());
         return false;
     }
     return true;
 }
 
-/// Appends the removed-light layers (removed_light_layers.h) to `img`, the result of an operation
-/// over the top statistics file, before any residual channel.
+/// Appends the residual channels (mean - robust) to `img`.
+bool appendTopResidual(State& st, const std::string& cmd, OIIO::ImageBuf& img, std::string& err) {
+    return appendFromTop(st, cmd, img, err, [&](OIIO::ImageBuf& i, auto& src, const auto& luma) {
+        return appendResidual(i, src, luma, st.nthreads);
+    });
+}
+
+/// Appends the removed-light layers (removed_light_layers.h) to `img`, before any residual.
 bool appendTopRemovedLight(State& st, const std::string& cmd, const RemovedLightOptions& opt,
                            OIIO::ImageBuf& img, std::string& err) {
-    Item& top = st.stack.back();
-    std::array<double, 3> luma{};
-    if (!itemLuma(top, luma, err)) {
-        err = format("{}: {}", cmd, err);
-        return false;
-    }
-    ItemSource again;  // a streamed source is read once more, from its first row
-    if (!top.stats && !openSource(st, top, again, err)) return false;
-    if (!(top.stats ? appendRemovedLight(img, *top.stats, luma, opt, st.nthreads)
-                    : appendRemovedLight(img, *again.root, luma, opt, st.nthreads))) {
-        err = format("{}: {}", cmd, img.geterror());
-        return false;
-    }
-    return true;
+    return appendFromTop(st, cmd, img, err, [&](OIIO::ImageBuf& i, auto& src, const auto& luma) {
+        return appendRemovedLight(i, src, luma, opt, st.nthreads);
+    });
 }
 
 /// Every registry operation's command: its parameters from the modifiers, then the dispatcher
