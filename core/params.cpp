@@ -109,6 +109,20 @@ bool parseUnsignedText(const std::string& text, uint64_t& out) {
     return true;
 }
 
+bool parseRealTriple(const std::string& text, std::array<double, 3>& out) {
+    std::vector<double> w;
+    for (size_t start = 0; start <= text.size();) {
+        const size_t comma = std::min(text.find(',', start), text.size());
+        double d = 0.0;
+        if (!parseRealText(text.substr(start, comma - start), d)) return false;
+        w.push_back(d);
+        start = comma + 1;
+    }
+    if (w.size() != 3) return false;
+    out = {w[0], w[1], w[2]};
+    return true;
+}
+
 bool parseRealText(const std::string& text, double& out) {
     if (text.empty() || std::isspace(static_cast<unsigned char>(text[0]))) return false;
     char* end = nullptr;

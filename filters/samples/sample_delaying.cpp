@@ -176,20 +176,9 @@ bool pajotParamsFrom(const ParamValues& v, const std::array<double, 3>& luma, Pa
     p.delta = v.at("delta").real;
     p.luma = luma;
     const std::string& given = v.at("luma").text;
-    if (!given.empty()) {
-        std::vector<double> w;
-        for (size_t start = 0; start <= given.size();) {
-            const size_t comma = std::min(given.find(',', start), given.size());
-            double d = 0.0;
-            if (!parseRealText(given.substr(start, comma - start), d)) break;
-            w.push_back(d);
-            start = comma + 1;
-        }
-        if (w.size() != 3) {
-            err = "pajot: luma must be three weights R,G,B, not '" + printable(given) + "'";
-            return false;
-        }
-        p.luma = {w[0], w[1], w[2]};
+    if (!given.empty() && !parseRealTriple(given, p.luma)) {
+        err = "pajot: luma must be three weights R,G,B, not '" + printable(given) + "'";
+        return false;
     }
     return validatePajotParams(p, err);
 }

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <array>
 #include <map>
 #include <string>
 #include <utility>
@@ -97,6 +98,9 @@ std::string realText(double v);
 /// base-10 integer / a finite number, without surrounding spaces.
 bool parseIntegerText(const std::string& text, int64_t& out);
 bool parseRealText(const std::string& text, double& out);
+/// Three comma-separated reals ("0.2126,0.7152,0.0722": luminance weights stored in a state
+/// part's parameter text), each as parseRealText reads it; false unless exactly three.
+bool parseRealTriple(const std::string& text, std::array<double, 3>& out);
 /// The whole text is a base-10 integer in [0, 2^64 - 1] (seeds), no sign, no spaces.
 bool parseUnsignedText(const std::string& text, uint64_t& out);
 
