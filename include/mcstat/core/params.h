@@ -4,9 +4,9 @@
 // range-checked in one place, and error messages and --help describe it the same way.
 #pragma once
 
+#include <array>
 #include <cmath>
 #include <cstdint>
-#include <array>
 #include <map>
 #include <string>
 #include <utility>
