@@ -9,22 +9,22 @@ namespace mcstat {
 
 namespace {
 
-bool validBuffer(const PixelBuffers& px, int j) {
-    const float* m = px.mean + 3 * j;
-    return px.count[j] > 0.f && std::isfinite(m[0]) && std::isfinite(m[1]) && std::isfinite(m[2]);
-}
-
 double lumaOf(const float* rgb, const std::array<double, 3>& luma) {
     return luma[0] * double(rgb[0]) + luma[1] * double(rgb[1]) + luma[2] * double(rgb[2]);
 }
 
 }  // namespace
 
+bool isValidBuffer(const PixelBuffers& px, int j) {
+    const float* m = px.mean + 3 * j;
+    return px.count[j] > 0.f && std::isfinite(m[0]) && std::isfinite(m[1]) && std::isfinite(m[2]);
+}
+
 LumaSpread lumaSpread(const PixelBuffers& px, const std::array<double, 3>& luma) {
     LumaSpread out;
     double n = 0.0, sum = 0.0;
     for (int j = 0; j < px.M; ++j) {
-        if (!validBuffer(px, j)) continue;
+        if (!isValidBuffer(px, j)) continue;
         ++out.valid;
         n += double(px.count[j]);
         sum += double(px.count[j]) * lumaOf(px.mean + 3 * j, luma);
@@ -35,7 +35,7 @@ LumaSpread lumaSpread(const PixelBuffers& px, const std::array<double, 3>& luma)
     // Second pass over deviations: no cancellation of two large sums of squares.
     double ss = 0.0;
     for (int j = 0; j < px.M; ++j) {
-        if (!validBuffer(px, j)) continue;
+        if (!isValidBuffer(px, j)) continue;
         const double dev = lumaOf(px.mean + 3 * j, luma) - out.mean;
         ss += double(px.count[j]) * dev * dev;
     }

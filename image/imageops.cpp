@@ -671,14 +671,7 @@ bool intervalWidthImage(ImageBuf& dst, const ImageBuf& src) {
             return false;
         }
     }
-    ImageSpec spec(in.width, in.height, 1, TypeDesc::FLOAT);
-    spec.x = in.x;
-    spec.y = in.y;
-    spec.full_x = in.full_x;
-    spec.full_y = in.full_y;
-    spec.full_width = in.full_width;
-    spec.full_height = in.full_height;
-    spec.channelnames = {kCiWidthChannel};
+    ImageSpec spec = floatSpec(src.roi(), {kCiWidthChannel}, src.roi_full());
     spec.extra_attribs = in.extra_attribs;  // provenance: the heatmap's caption
     dst.reset(spec);
     std::vector<float> px(size_t(in.nchannels));

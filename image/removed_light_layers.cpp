@@ -32,12 +32,8 @@ PixelKernel spreadKernel(const std::array<double, 3>& luma) {
         if (!s.wantWeights) return;
         s.bufferWeight.assign(size_t(px.M), 0.0);
         double n = 0.0;
-        for (int j = 0; j < px.M; ++j) {
-            const float* m = px.mean + 3 * j;
-            if (px.count[j] > 0.f && std::isfinite(m[0]) && std::isfinite(m[1]) &&
-                std::isfinite(m[2]))
-                n += (s.bufferWeight[size_t(j)] = double(px.count[j]));
-        }
+        for (int j = 0; j < px.M; ++j)
+            if (isValidBuffer(px, j)) n += (s.bufferWeight[size_t(j)] = double(px.count[j]));
         if (n > 0.0)
             for (double& w : s.bufferWeight) w /= n;
     };
@@ -59,16 +55,17 @@ bool appendTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
         return false;
     }
     const size_t n = roi.npixels();
-    std::vector<float> rgb(n * 3), sp(n * 3);
-    robust.get_pixels(ROI(roi.xbegin, roi.xend, roi.ybegin, roi.yend, 0, 1, 0, 3),
-                      OIIO::TypeDesc::FLOAT, rgb.data());
+    const int nin = robust.spec().nchannels;
+    std::vector<float> in(n * size_t(nin)), sp(n * 3);
+    robust.get_pixels(roi, OIIO::TypeDesc::FLOAT, in.data());
     spread.get_pixels(ROI(roi.xbegin, roi.xend, roi.ybegin, roi.yend, 0, 1, 0, 3),
                       OIIO::TypeDesc::FLOAT, sp.data());
     std::vector<float> d(n), se(n), z(n), zlocal(n);
     double removed = 0.0, total = 0.0, variance = 0.0;
     for (size_t p = 0; p < n; ++p) {
-        const double y = luma[0] * double(rgb[3 * p]) + luma[1] * double(rgb[3 * p + 1]) +
-                         luma[2] * double(rgb[3 * p + 2]);
+        const float* rgb = in.data() + p * size_t(nin);
+        const double y =
+            luma[0] * double(rgb[0]) + luma[1] * double(rgb[1]) + luma[2] * double(rgb[2]);
         const double dp = double(sp[3 * p]) - y;
         d[p] = std::isfinite(dp) ? float(dp) : 0.f;
         se[p] = sp[3 * p + 1];
@@ -86,7 +83,6 @@ bool appendTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
 
     const std::vector<std::string> names = {"Y", "se", "z", "zlocal", "significant"};
     ImageSpec spec = robust.spec();
-    const int nin = spec.nchannels;
     for (const std::string& c : names) spec.channelnames.push_back(kRemovedPrefix + c);
     spec.nchannels = nin + int(names.size());
     spec.channelformats.clear();
@@ -100,8 +96,6 @@ bool appendTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
     spec.attribute("mcstat:removed:radius", opt.radius);
     spec.attribute("mcstat:removed:zLimit", float(opt.zLimit));
     ImageBuf out(spec);
-    std::vector<float> in(n * size_t(nin));
-    robust.get_pixels(roi, OIIO::TypeDesc::FLOAT, in.data());
     float* o = static_cast<float*>(out.localpixels());
     const size_t nout = size_t(spec.nchannels);
     for (size_t p = 0; p < n; ++p) {

@@ -42,19 +42,6 @@ std::vector<std::string> wordChannels(int count) {
     return w;
 }
 
-void putDouble(uint32_t* w, double d) {
-    uint64_t bits = 0;
-    std::memcpy(&bits, &d, sizeof bits);
-    w[0] = uint32_t(bits >> 32);
-    w[1] = uint32_t(bits & 0xffffffffu);
-}
-double getDouble(const uint32_t* w) {
-    const uint64_t bits = (uint64_t(w[0]) << 32) | uint64_t(w[1]);
-    double d = 0;
-    std::memcpy(&d, &bits, sizeof d);
-    return d;
-}
-
 ParamSpec lumaParam() {
     return textParam("luma", "",
                      "luminance weights R,G,B of the split and the reliabilities (default: the "
@@ -366,7 +353,7 @@ bool encodeCascadeState(const CascadeImage& img, const std::vector<uint64_t>& sk
         for (size_t i = 0; i < C; ++i)
             for (size_t c = 0; c < 3; ++c) {
                 const double s = img.sum[(q * C + i) * 3 + c];
-                putDouble(w + 2 + (i * 3 + c) * 2, s);
+                putStateDouble(w + 2 + (i * 3 + c) * 2, s);
                 mean[c] += s;
             }
         for (size_t c = 0; c < 3; ++c)
@@ -431,7 +418,7 @@ bool decodeCascadeState(const PixelStateParts& parts, int width, CascadeImage& i
         sk[q] = w[at[1]];
         for (size_t i = 0; i < C * 3; ++i) {
             const uint32_t pair[2] = {w[at[2 + 2 * i]], w[at[3 + 2 * i]]};
-            const double d = getDouble(pair);
+            const double d = getStateDouble(pair);
             if (!std::isfinite(d)) {
                 err = "pixel (" + std::to_string(q % size_t(width)) + ", " +
                       std::to_string(q / size_t(width)) + "): part '" +

@@ -36,19 +36,6 @@ const std::vector<std::string> kModeChannels = {"kind", "lo", "hi", "count", "R"
                                                 "G",    "B",  "Z",  "A"};
 enum RecordKind { kAdrMode = 1, kRotSingle = 2, kDelayed = 3, kLearning = 4 };
 
-void putDouble(uint32_t* w, double d) {
-    uint64_t bits = 0;
-    std::memcpy(&bits, &d, sizeof bits);
-    w[0] = uint32_t(bits >> 32);
-    w[1] = uint32_t(bits & 0xffffffffu);
-}
-double getDouble(const uint32_t* w) {
-    const uint64_t bits = (uint64_t(w[0]) << 32) | uint64_t(w[1]);
-    double d = 0;
-    std::memcpy(&d, &bits, sizeof d);
-    return d;
-}
-
 size_t recordCount(const PajotState& s) {
     return s.modes.size() + s.rotSingles.size() + s.delayed.size() + s.learning.size();
 }
@@ -95,9 +82,9 @@ bool decodePixel(const float* f, const uint32_t* w, const float* const* rec, uin
     s.mAdr = f[9];
     s.mRot = f[10];
     s.rotN = count(f[11], "rotN");
-    for (size_t c = 0; c < 3; ++c) s.sum[c] = getDouble(w + 2 * c);
-    s.rotMean = getDouble(w + 6);
-    s.rotM2 = getDouble(w + 8);
+    for (size_t c = 0; c < 3; ++c) s.sum[c] = getStateDouble(w + 2 * c);
+    s.rotMean = getStateDouble(w + 6);
+    s.rotM2 = getStateDouble(w + 8);
     for (uint32_t i = 0; i < n && ok; ++i) {
         const float* x = rec[i];
         const int64_t kind = count(x[0], "kind");
@@ -168,9 +155,9 @@ bool encodePajotState(const PajotImage& pj, PixelStateParts& out, std::string& e
         f[10] = s.mRot;
         f[11] = float(s.rotN);
         uint32_t* w = r.words.data() + p * nw;
-        for (size_t c = 0; c < 3; ++c) putDouble(w + 2 * c, s.sum[c]);
-        putDouble(w + 6, s.rotMean);
-        putDouble(w + 8, s.rotM2);
+        for (size_t c = 0; c < 3; ++c) putStateDouble(w + 2 * c, s.sum[c]);
+        putStateDouble(w + 6, s.rotMean);
+        putStateDouble(w + 8, s.rotM2);
         r.recordCounts[p] = uint32_t(recordCount(s));
         size_t index = 0;
         auto put = [&](int kind, float lo, float hi, float n, const float* rgb) {

@@ -13,6 +13,7 @@
 #pragma once
 
 #include <cstdint>
+#include <cstring>
 #include <memory>
 #include <string>
 #include <vector>
@@ -153,6 +154,22 @@ struct PixelStateParts {
     std::vector<uint32_t> recordCounts;                    ///< [p]: records of pixel p
     std::vector<float> records;  ///< [k * recordChannels.size() + c], pixels in scanline order
 };
+/// A double kept exactly in two UINT words of a state part (high 32 bits, then low): how an
+/// operation stores running sums it must resume bit for bit (sample delaying's, the cascades).
+inline void putStateDouble(uint32_t* w, double d) {
+    uint64_t bits = 0;
+    std::memcpy(&bits, &d, sizeof bits);
+    w[0] = uint32_t(bits >> 32);
+    w[1] = uint32_t(bits & 0xffffffffu);
+}
+/// The double putStateDouble stored in w[0], w[1].
+inline double getStateDouble(const uint32_t* w) {
+    const uint64_t bits = (uint64_t(w[0]) << 32) | uint64_t(w[1]);
+    double d = 0;
+    std::memcpy(&d, &bits, sizeof d);
+    return d;
+}
+
 /// What writeStatsFile adds to the four parts (format version 4).
 struct StatsExtras {
     const PixelStateParts* state = nullptr;  ///< the state parts, named by their owner

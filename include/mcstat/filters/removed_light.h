@@ -33,6 +33,9 @@ struct LumaSpread {
     int valid = 0;      ///< buffers with count > 0 and finite R, G, B (pixel_estimate.h's rule)
 };
 
+/// Whether buffer j of px is valid by pixel_estimate.h's rule: count > 0 and R, G, B finite.
+bool isValidBuffer(const PixelBuffers& px, int j);
+
 /// Mean and standard error of the luminance `luma` . rgb over px's valid buffers, in double.
 /// Buffer j of count n_j has variance sigma^2 / n_j, so with N = sum n_j and M_v valid buffers,
 /// sigma^2 = sum n_j (Y_j - mean)^2 / (M_v - 1) and se = sqrt(sigma^2 / N); equal counts give the
