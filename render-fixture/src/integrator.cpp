@@ -182,4 +182,13 @@ PathSample samplePixel(const Camera& camera, const PathIntegrator& integrator, i
     return s;
 }
 
+void clampSample(PathSample& s, double limit) {
+    if (!(limit > 0.0)) return;
+    const double sum = std::abs(s.L[0]) + std::abs(s.L[1]) + std::abs(s.L[2]);
+    if (!std::isfinite(sum) || sum <= limit) return;
+    const double scale = limit / sum;
+    s.L = s.L * scale;
+    for (Vec3& part : s.lightPath) part = part * scale;
+}
+
 }  // namespace mcstat::render

@@ -84,4 +84,12 @@ class PathIntegrator {
 PathSample samplePixel(const Camera& camera, const PathIntegrator& integrator, int width,
                        uint64_t seed, int x, int y, int64_t index);
 
+/// A renderer's clamp, as Cycles' "Clamp" settings limit a contribution: when the sum of the
+/// sample's channel magnitudes |R| + |G| + |B| exceeds `limit`, the sample and its light-path
+/// split are scaled by limit / sum, so its hue and the split's sum to it are kept. Cycles clamps
+/// direct and indirect light separately; this clamps the whole path sample. Biased by design: the
+/// light above the limit is lost. `limit` <= 0 leaves the sample alone, as does a non-finite sum
+/// (the film counts and drops such samples; scaling infinity would make a NaN of it).
+void clampSample(PathSample& s, double limit);
+
 }  // namespace mcstat::render

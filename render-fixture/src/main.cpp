@@ -15,6 +15,7 @@
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <memory>
 #include <string>
@@ -131,6 +132,7 @@ struct CommandLine {
     std::string pajotText,
         pajotNText = "50", pajotDelayedText = "64", pajotTText = "2", pajotDeltaText = "0",
         maxSampleBytesText = std::to_string(mcstat::kDefaultMaxRecordBytes), resumePath;
+    std::string clampText;       ///< --clamp: the renderer's clamp (empty: off)
     bool reweight = false;       ///< --reweight: the cascades of Zirr et al. 2018 online
     std::string reweightParams;  ///< --reweight-params: the entry's key=value text
     bool help = false;
@@ -154,6 +156,13 @@ void addSamplingOptions(OIIO::ArgParse& ap, CommandLine& cl) {
             "sub-buffers, 1..999; sample i goes to buffer i mod M; spp < M leaves buffers "
             "empty (default 8; ignored with --reference)")
         .action([&](OIIO::cspan<const char*> a) { cl.mText = a[1]; });
+    ap.arg("--clamp C")
+        .help(
+            "the renderer's clamp, as Cycles' Clamp settings: a sample whose |R| + |G| + |B| "
+            "exceeds C is scaled down to C (hue and AOV sums kept; the light above C is lost). "
+            "C > 0; the file's mcstat:scene records it, so clamped and unclamped renders never "
+            "merge (default: off)")
+        .action([&](OIIO::cspan<const char*> a) { cl.clampText = a[1]; });
     ap.arg("--adaptive-m")
         .help(
             "adaptive buffer count (Jung eq. 4.15): pixel p gets M_p in 1..M_max buffers (odd) "
@@ -393,6 +402,13 @@ bool parseRenderOptions(const CommandLine& cl, RenderOptions& opt, std::string& 
     if (!parseSeed(cl.seedText, opt.seed, err)) return false;
     opt.adaptiveM = cl.adaptive;
     opt.aovs = cl.aovs;
+    if (!cl.clampText.empty()) {
+        const mcstat::ParamSpec spec = mcstat::realParam(
+            "clamp", 0.0, std::numeric_limits<double>::max(), true, "", "the renderer's clamp");
+        mcstat::ParamValue clamp;
+        if (!mcstat::parseParamValue("--clamp", spec, cl.clampText, clamp, err)) return false;
+        opt.clamp = clamp.real;
+    }
     if (!parseInt(cl.mMaxText, "--m-max", 1, mcstat::kMaxBuffers, v, err)) return false;
     opt.mMax = int(v);
     if (cl.adaptive && opt.mMax % 2 == 0) {

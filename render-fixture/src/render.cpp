@@ -21,6 +21,7 @@
 #include "film.h"
 #include "integrator.h"
 #include "lights.h"
+#include "mcstat/core/params.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/progress.h"
 #include "rng.h"
@@ -38,17 +39,21 @@ struct RenderContext {
     LightSet lights;
     Camera camera;
     PathIntegrator integrator;
+    double clamp = 0.0;  ///< RenderOptions::clamp
 
-    explicit RenderContext(const Scene& s)
+    RenderContext(const Scene& s, const RenderOptions& opt)
         : scene(s),
           lights(s),
           camera(s.camera, s.width, s.height, s.hasMotion()),
-          integrator(s, accel, lights) {}
+          integrator(s, accel, lights),
+          clamp(opt.clamp) {}
 
     /// The camera sample `index` of pixel (x, y): box filter, jittered uniformly in the pixel;
     /// then, only with a lens, the lens point; then, only with motion, the time (Camera::sample).
     PathSample samplePixel(uint64_t seed, int x, int y, int64_t index) const {
-        return mcstat::render::samplePixel(camera, integrator, scene.width, seed, x, y, index);
+        PathSample s = mcstat::render::samplePixel(camera, integrator, scene.width, seed, x, y, index);
+        clampSample(s, clamp);
+        return s;
     }
 };
 
@@ -170,7 +175,7 @@ bool planAdaptive(const Scene& scene, const RenderOptions& opt, AdaptivePlan& pl
     RenderOptions o = opt;
     o.adaptiveM = true;
     if (!validateOptions(o, err)) return false;
-    RenderContext ctx(scene);
+    RenderContext ctx(scene, opt);
     if (!ctx.accel.build(scene, err)) return false;
     return planAdaptive(ctx, o, plan, err);
 }
@@ -234,6 +239,7 @@ StatsImage newStatsImage(const Scene& scene, const RenderOptions& opt, int M) {
         opt.adaptiveM && opt.strategy == AdaptiveStrategy::Grow ? "leastcount" : "roundrobin";
     h.renderer = kRendererName;
     h.scene = scene.identity;
+    if (opt.clamp > 0.0) h.scene += " clamp " + mcstat::realText(opt.clamp);
     h.colorSpace = "lin_rec709";
     h.seeds = std::to_string(opt.seed);
     if (opt.adaptiveM) h.formatVersion = kStatsFormatVersionAdaptive;
@@ -616,7 +622,7 @@ bool render(const Scene& scene, const RenderOptions& opt, StatsImage& out, std::
               std::to_string(scene.height) + " with M=" + std::to_string(M) + " is out of range";
         return false;
     }
-    RenderContext ctx(scene);
+    RenderContext ctx(scene, opt);
     if (!ctx.accel.build(scene, err)) return false;
 
     RenderStats st;
@@ -660,7 +666,7 @@ bool renderReference(const Scene& scene, const RenderOptions& opt, std::vector<f
         err = scene.source + ": image size out of range";
         return false;
     }
-    RenderContext ctx(scene);
+    RenderContext ctx(scene, opt);
     if (!ctx.accel.build(scene, err)) return false;
 
     rgb.assign(size_t(scene.width) * size_t(scene.height) * 3, 0.0f);

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "film.h"
+#include "integrator.h"
 #include "mcstat/render/render.h"
 #include "mcstat/render/scene.h"
 #include "render_test_util.h"
@@ -568,3 +569,99 @@ TEST(RenderCausticScene, FocusesARealCaustic) {
     EXPECT_GT(caustic, 10 * litFloor);
     EXPECT_GT(litFloor, 0.0);
 }
+
+// ---------------------------------------------------------------------------------------------
+// The renderer's clamp (clampSample; Cycles' rule: |R| + |G| + |B| at most the limit).
+
+namespace clamp_tests {
+
+PathSample sampleWith(const Vec3& L, const Vec3& first, const Vec3& second) {
+    PathSample s;
+    s.L = L;
+    s.lightPath[0] = first;
+    s.lightPath[1] = second;
+    return s;
+}
+
+TEST(RenderClamp, ScalesASampleAboveTheLimitAndItsLightPathSplitAlike) {
+    // |2| + |1| + |-1| = 4 > 2: scaled by 2/4, hue and sign kept.
+    PathSample s = sampleWith(Vec3(2, 1, -1), Vec3(1.5, 1, 0), Vec3(0.5, 0, -1));
+    clampSample(s, 2.0);
+    EXPECT_DOUBLE_EQ(s.L[0], 1.0);
+    EXPECT_DOUBLE_EQ(s.L[1], 0.5);
+    EXPECT_DOUBLE_EQ(s.L[2], -0.5);
+    for (int c = 0; c < 3; ++c)
+        EXPECT_DOUBLE_EQ(s.lightPath[0][c] + s.lightPath[1][c], s.L[c]) << c;
+    EXPECT_DOUBLE_EQ(s.lightPath[0][0], 0.75);
+}
+
+TEST(RenderClamp, LeavesSamplesAtOrBelowTheLimitNonFiniteOnesAndAnOffLimitAlone) {
+    const double denormal = std::numeric_limits<double>::denorm_min();
+    for (const Vec3& L : {Vec3(1, 0.5, 0.5), Vec3(0, 0, 0), Vec3(denormal, 0, 0)}) {
+        PathSample s = sampleWith(L, L, Vec3(0, 0, 0));
+        clampSample(s, 2.0);  // sums 2, 0, a denormal: at or below the limit
+        EXPECT_EQ(s.L[0], L[0]);
+        EXPECT_EQ(s.L[2], L[2]);
+    }
+    const double inf = std::numeric_limits<double>::infinity();
+    PathSample s = sampleWith(Vec3(inf, 1, 1), Vec3(0, 0, 0), Vec3(0, 0, 0));
+    clampSample(s, 2.0);  // scaling would make inf * 0 = NaN: left for the film to drop
+    EXPECT_EQ(s.L[0], inf);
+    EXPECT_EQ(s.L[1], 1.0);
+    s = sampleWith(Vec3(std::nan(""), 5, 5), Vec3(0, 0, 0), Vec3(0, 0, 0));
+    clampSample(s, 2.0);
+    EXPECT_TRUE(std::isnan(s.L[0]));
+    EXPECT_EQ(s.L[1], 5.0);
+    for (double off : {0.0, -1.0}) {
+        s = sampleWith(Vec3(1e38, 1e38, 1e38), Vec3(0, 0, 0), Vec3(0, 0, 0));
+        clampSample(s, off);
+        EXPECT_EQ(s.L[0], 1e38);
+    }
+    s = sampleWith(Vec3(1e300, 1e300, 1e300), Vec3(0, 0, 0), Vec3(0, 0, 0));
+    clampSample(s, 3.0);  // the sum is finite (3e300): every channel becomes 1
+    EXPECT_DOUBLE_EQ(s.L[0], 1.0);
+}
+
+TEST(RenderClamp, FurnaceBelowEverySampleGivesExactlyAThirdOfTheLimit) {
+    // Every furnace sample sees the emitter (Le = 1 per channel) first, so |R|+|G|+|B| >= 3 and
+    // grey: with the limit 1 every sample becomes (1/3, 1/3, 1/3), whatever its path.
+    RenderOptions opt = options(64, 4);
+    opt.clamp = 1.0;
+    const StatsImage img = mustRender(mustLoad("furnace"), opt);
+    for (size_t i = 0; i < img.beauty.size(); ++i) ASSERT_NEAR(img.beauty[i], 1.0 / 3.0, 1e-6) << i;
+    for (float v : img.variance) ASSERT_LE(v, 1e-12);
+    EXPECT_NE(img.header.scene.find(" clamp 1"), std::string::npos) << img.header.scene;
+    // Unclamped, the same furnace averages Le / (1 - rho) = 2.
+    const StatsImage plain = mustRender(mustLoad("furnace"), options(64, 4));
+    EXPECT_EQ(plain.header.scene.find("clamp"), std::string::npos);
+}
+
+TEST(RenderClamp, ALimitAboveEverySampleChangesNoBitButTheSceneIdentity) {
+    RenderOptions opt = options(16, 3);
+    const StatsImage plain = mustRender(mustLoad("caustic"), opt);
+    opt.clamp = 1e30;
+    const StatsImage clamped = mustRender(mustLoad("caustic"), opt);
+    expectIdentical(plain, clamped);
+    EXPECT_EQ(clamped.header.scene, plain.header.scene + " clamp 1e+30");
+}
+
+TEST(RenderClamp, LowersTheCausticsFireflyPixelsAndIsBitIdenticalForAnyThreadCount) {
+    RenderOptions opt = options(32, 4, 7, 1);
+    const StatsImage plain = mustRender(mustLoad("caustic"), opt);
+    opt.clamp = 1.0;
+    const StatsImage one = mustRender(mustLoad("caustic"), opt);
+    opt.threads = 3;
+    expectIdentical(one, mustRender(mustLoad("caustic"), opt));
+    double maxPlain = 0, maxClamped = 0, sumPlain = 0, sumClamped = 0;
+    for (size_t i = 0; i < plain.beauty.size(); ++i) {
+        maxPlain = std::max(maxPlain, double(plain.beauty[i]));
+        maxClamped = std::max(maxClamped, double(one.beauty[i]));
+        sumPlain += plain.beauty[i];
+        sumClamped += one.beauty[i];
+    }
+    EXPECT_LE(maxClamped, 1.0 + 1e-6);  // a channel of a mean of clamped samples
+    EXPECT_GT(maxPlain, 1.0);           // the caustic has samples above the limit
+    EXPECT_LT(sumClamped, sumPlain);    // the light above the limit is lost
+}
+
+}  // namespace clamp_tests

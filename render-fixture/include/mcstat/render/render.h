@@ -60,6 +60,10 @@ struct RenderOptions {
     /// geometry) and a light-path split of the beauty (fixtureAovChannels), per sub-buffer, and
     /// per sample in the records with --keep-samples. Fixed M only (the part aovs is).
     bool aovs = false;
+    /// The renderer's clamp (clampSample, as Cycles' Clamp): every sample, the pilot's too, is
+    /// scaled down so that |R| + |G| + |B| <= clamp. 0 = off. A clamped render is another
+    /// estimate of the scene: its mcstat:scene says so, so it never merges with an unclamped one.
+    double clamp = 0.0;
 };
 
 /// The AOV channels a render with RenderOptions::aovs writes, in their order: "A" (class
