@@ -758,6 +758,7 @@ std::vector<Command> buildTable() {
                  "overestimated pixel (docs/planner.md); needs no input",
                  planParams(), &cmdPlan, ""});
     appendReviewCommands(t);  // review.cpp: contact sheet, heatmaps, quality-vs-spp plot
+    appendTradeCommands(t);   // trade_plot.cpp: the speed/accuracy trade
     t.push_back({"--dup", 0, "", "Duplicate the top of the stack", {}, &cmdDup, ""});
     t.push_back({"--pop", 0, "", "Remove the top of the stack", {}, &cmdPop, ""});
     t.push_back({"--swap", 0, "", "Exchange the top two stack entries", {}, &cmdSwap, ""});

@@ -218,5 +218,7 @@ const std::vector<ParamSpec>& planParams();
 // Implemented in review.cpp: pictures for review tools (contact sheet, heatmaps, quality plot).
 /// Appends the review commands to the command table.
 void appendReviewCommands(std::vector<Command>& table);
+/// trade_plot.cpp: --tradeplot.
+void appendTradeCommands(std::vector<Command>& table);
 
 }  // namespace mcstat::cli

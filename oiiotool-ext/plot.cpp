@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -16,6 +17,8 @@
 #include <string>
 #include <utility>
 #include <vector>
+
+#include "plot.h"
 
 extern char** environ;
 
@@ -61,8 +64,17 @@ std::string firstLine(const std::string& path) {
 
 }  // namespace
 
-/// Whether an executable "gnuplot" is on $PATH (what posix_spawnp will search), so a command can
-/// refuse before computing anything.
+std::string plotSafe(const std::string& s) {
+    std::string out;
+    for (char c : s) {
+        const bool ok = std::isalnum(static_cast<unsigned char>(c)) ||
+                        std::string(" ._-/+,=()[]:").find(c) != std::string::npos;
+        out += ok ? c : '_';
+    }
+    return out;
+}
+
+// $PATH is what posix_spawnp will search.
 bool haveGnuplot(std::string& err) {
     const char* path = std::getenv("PATH");
     for (const std::string& d : OIIO::Strutil::splits(path ? path : "", ":")) {
@@ -73,9 +85,6 @@ bool haveGnuplot(std::string& err) {
     return false;
 }
 
-/// Runs gnuplot on `script` in a temporary directory holding `dataFiles` (name, content); the
-/// script writes the PNG `pngName` (a plain name in that directory), which is returned in `out` as
-/// RGB float. False with a one-line `err` when gnuplot is missing, fails or writes no image.
 bool runGnuplot(const std::string& script,
                 const std::vector<std::pair<std::string, std::string>>& dataFiles,
                 const std::string& pngName, OIIO::ImageBuf& out, std::string& err) {

@@ -23,14 +23,9 @@
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
+#include "plot.h"
 
 namespace mcstat::cli {
-
-// Defined in plot.cpp.
-bool haveGnuplot(std::string& err);
-bool runGnuplot(const std::string& script,
-                const std::vector<std::pair<std::string, std::string>>& dataFiles,
-                const std::string& pngName, OIIO::ImageBuf& out, std::string& err);
 
 namespace {
 
@@ -599,18 +594,6 @@ bool bufferSubset(const StatsImage& src, int k, StatsImage& out, std::string& er
     }
     out.header.spp = std::llround(total / double(std::max<size_t>(1, src.pixelCount())));
     return true;
-}
-
-/// Keeps only characters that mean nothing to gnuplot inside a single-quoted string (no quotes,
-/// backquotes, backslashes, '@' or '&'), so a file name can go into a title safely.
-std::string plotSafe(const std::string& s) {
-    std::string out;
-    for (char c : s) {
-        const bool ok = std::isalnum(static_cast<unsigned char>(c)) ||
-                        std::string(" ._-/+,=()[]:").find(c) != std::string::npos;
-        out += ok ? c : '_';
-    }
-    return out;
 }
 
 std::string qualityScript(const std::vector<const Operation*>& ests, bool logRelMSE,

@@ -9,7 +9,7 @@
 #   SECTIONS="file height" scripts/bench.sh
 #
 # Environment:
-#   SECTIONS  any of: estimators threads file height compare compact goals ingest aovs render
+#   SECTIONS  any of: estimators threads file height compare compact goals ingest aovs render trade
 #             (default: all)
 #   REPS      runs per command, alternated, medians reported (default 4)
 #   BASELINE  a folder holding an older build's mcstat and mcstat.imageio.so: the file table then
@@ -25,7 +25,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 REPS=${REPS:-4}
-SECTIONS=${SECTIONS:-estimators threads file height compare compact goals ingest aovs render}
+SECTIONS=${SECTIONS:-estimators threads file height compare compact goals ingest aovs render trade}
 BUILD=${BUILD:-build}
 BASELINE=${BASELINE:-}
 if [ "${SKIP_BUILD:-0}" != 1 ]; then
@@ -437,4 +437,10 @@ fi
 if want render; then
   # bench_render.sh has sections of its own: this one's SECTIONS (from the environment) is not them.
   if [ -x scripts/bench_render.sh ]; then SKIP_BUILD=1 BUILD="$BUILD" REPS="$REPS" SECTIONS="1 2" scripts/bench_render.sh; fi
+fi
+
+if want trade; then
+  # The speed/accuracy trade of every method family on every fixture scene (docs/trade.md);
+  # about 25 minutes, its own environment (SCENES, SPPS, SEEDS, ...: scripts/trade.sh).
+  SKIP_BUILD=1 BUILD="$BUILD" OUT="$out/trade" scripts/trade.sh
 fi

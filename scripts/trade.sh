@@ -1,0 +1,224 @@
+#!/usr/bin/env bash
+# scripts/trade.sh: the speed/accuracy trade of every method family (docs/trade.md). Renders every
+# fixture scene at several spp with independent seeds, runs every method on the same renders, and
+# writes one row per scene, method, spp and seed to $OUT/trade.csv: wall seconds (render +
+# estimate, this machine), bytes per pixel of what the method needs on disk, and the --diff
+# metrics against a high-spp reference (relMSE, SSIM, PSNR, fireflies, nbias, nnoise). Then prints
+# the tables of docs/trade.md (scripts/trade_tables.py) and draws relMSE against time and against
+# bytes per pixel for every scene with `mcstat --tradeplot`. Not part of the tests; part of
+# scripts/bench.sh (section trade). About 25 minutes on 2 cores with the defaults.
+#
+# Methods: the mean; the renderer's clamp (mcstat-render --clamp C, Cycles' rule) and oiiotool's
+# (--clamp:max=C/3 on the mean, per channel); oiiotool's 3x3 median of the mean; MoN, G-MoN,
+# G-MoN_b; Jung's TMPE, myriad, meridian, MPE+MIF, TMPE+WMIF, 3DMF, 3DWMF, 3DWTMF; Pajot's
+# ADR/ROT/hybrid run online by the renderer; the reweighting (Zirr et al.) run online; RPF from
+# --keep-samples; G-MoN of a compact file. Time of a method = the wall time of the render it
+# needs (process start to exit) + the time mcstat -v reports for reading the file and running
+# the method's commands (for oiiotool, the whole oiiotool process). The mean also at MEAN_SPPS,
+# for equal-time comparisons.
+#
+# Environment:
+#   SCENES     fixture scenes (default: all eight)
+#   SPPS       samples per pixel of every method (default "16 64 256")
+#   SEEDS      independent seeds per spp (default 5)
+#   RES        image size (default "64 48")
+#   BUFFERS    sub-buffers M of the statistics files (default 9)
+#   REF_SPP    samples of each of the two references per scene (default 4096)
+#   RPF_SPPS   spp at which RPF runs (default 16: RPF, single-threaded, takes 4 s at 16 spp here)
+#   MEAN_SPPS  extra spp of the mean alone (default 1024)
+#   CLAMPS     clamp limits C, as |R|+|G|+|B| (default "3 30")
+#   BUILD      build folder (default build); SKIP_BUILD=1 uses it as it is
+#   OUT        output folder (default out/trade); rows are appended only for a fresh table
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BUILD=${BUILD:-build}
+OUT=${OUT:-out/trade}
+SCENES=${SCENES:-default caustic dof furnace motion texture arealight tiny}
+SPPS=${SPPS:-16 64 256}
+SEEDS=${SEEDS:-5}
+RES=${RES:-64 48}
+BUFFERS=${BUFFERS:-9}
+REF_SPP=${REF_SPP:-4096}
+RPF_SPPS=${RPF_SPPS:-16}
+MEAN_SPPS=${MEAN_SPPS:-1024}
+CLAMPS=${CLAMPS:-3 30}
+if [ "${SKIP_BUILD:-0}" != 1 ]; then
+  scripts/install-deps.sh
+  scripts/build.sh "$BUILD" >/dev/null
+fi
+mcstat=$BUILD/oiiotool-ext/mcstat
+render=$BUILD/render-fixture/mcstat-render
+command -v oiiotool >/dev/null || { echo "trade: oiiotool is missing (scripts/install-deps.sh)" >&2; exit 1; }
+mkdir -p "$OUT"
+table=$OUT/trade.csv
+read -r W H <<<"$RES"
+pixels=$((W * H))
+echo "scene,method,spp,seed,seconds,bytesPerPixel,relMSE,SSIM,PSNR,fireflies,pixels,nbias,nnoise" >"$table"
+log=$OUT/last
+start=$SECONDS
+
+# run CMD...: runs CMD with its output in $log.out / $log.err; stops the script if it fails.
+run() {
+  if ! "$@" >"$log.out" 2>"$log.err"; then
+    echo "trade: failed: $*" >&2
+    tail -5 "$log.err" >&2
+    exit 1
+  fi
+}
+# timed VAR CMD...: run, and VAR = its wall seconds.
+timed() {
+  local -n _seconds=$1
+  shift
+  local t0=$EPOCHREALTIME
+  run "$@"
+  _seconds=$(awk -v a="$t0" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.4f", b - a }')
+}
+bytes_pp() { awk -v b="$(stat -c %s "$1")" -v p="$pixels" 'BEGIN { printf "%.1f", b / p }'; }
+add() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.4f", a + b }'; }
+
+# segments: from mcstat -v's stderr ($log.err) and stdout ($log.out) of a run made of
+# "--dup CMDS... --diff REF --pop" segments, one line per segment: "SECONDS METRICS", SECONDS the
+# file's read time plus the segment's commands (all but --dup, --diff, --pop; -o too when
+# $with_output is 1), METRICS the --diff line's numbers as CSV.
+segments() {
+  local with_output=${1:-0}
+  awk -v out="$with_output" '
+    / read .* in [0-9.]+ s$/ { read += $(NF - 1) }
+    /^mcstat: [^ ]+ done in / {
+      c = $2
+      if (c == "--pop") { n++; next }
+      if (c == "--dup" || c == "--diff" || (c == "-o" && !out)) next
+      t[n] += $(NF - 1)
+    }
+    END { for (i = 0; i <= n; i++) printf "%.4f\n", read + t[i] }' "$log.err" >"$log.times"
+  metrics <"$log.out" >"$log.metrics"
+  paste -d' ' "$log.times" <(cat "$log.metrics")
+}
+# metrics: every --diff line on stdin as relMSE,SSIM,PSNR,fireflies,pixels,nbias,nnoise.
+metrics() {
+  awk '/ relMSE / {
+    for (i = 1; i <= NF; i++) {
+      if ($i == "relMSE") r = $(i + 1); if ($i == "SSIM") s = $(i + 1); if ($i == "PSNR") p = $(i + 1)
+      if ($i == "fireflies") { f = $(i + 1); px = $(i + 3) }
+      if ($i == "nbias") b = $(i + 1); if ($i == "nnoise") z = $(i + 1)
+    }
+    printf "%s,%s,%s,%s,%s,%s,%s\n", r, s, p, f, px, b, z }'
+}
+# row SCENE METHOD SPP SEED SECONDS BYTES METRICS
+row() { echo "$1,$2,$3,$4,$5,$6,$7" >>"$table"; }
+progress() { [ -t 2 ] && printf '\rtrade: %-60s %4d s' "$1" "$((SECONDS - start))" >&2 || true; }
+
+# The statistics-file methods, "NAME|COMMANDS", each run as --dup COMMANDS --diff REF --pop.
+stat_methods=(
+  "MoN|--mon" "G-MoN|--gmon" "G-MoN_b|--gmonb" "TMPE|--tmpe" "myriad|--myriad"
+  "meridian|--meridian" "MPE+MIF|--median --mif" "TMPE+WMIF|--tmpe --wmif" "3DMF|--3dmf"
+  "3DWMF|--3dwmf" "3DWTMF|--3dwtmf"
+)
+
+for scene in $SCENES; do
+  dir=$OUT/$scene
+  mkdir -p "$dir"
+  ref=$dir/ref.exr
+  # Two references with seeds no method uses: the second measures the first's own noise
+  # (E relMSE(ref2 vs ref) = 2 x the reference's share of any method's relMSE).
+  progress "$scene: references"
+  run "$render" --scene "$scene" --res $RES --spp "$REF_SPP" --seed 1000001 --reference --quiet -o "$ref"
+  run "$render" --scene "$scene" --res $RES --spp "$REF_SPP" --seed 1000002 --reference --quiet -o "$dir/ref2.exr"
+  run "$mcstat" "$dir/ref2.exr" --diff "$ref"
+  IFS=, read -r rel rest < <(metrics <"$log.out")
+  row "$scene" reference "$REF_SPP" 0 0 0 "$(awk -v r="$rel" 'BEGIN { printf "%.6g", r / 2 }'),$rest"
+
+  for seed in $(seq "$SEEDS"); do
+    for spp in $SPPS; do
+      progress "$scene seed $seed spp $spp"
+      f=$dir/s$seed-$spp
+      timed t_render "$render" --scene "$scene" --res $RES --spp "$spp" --M "$BUFFERS" --seed "$seed" --quiet -o "$f.mcstat"
+      stats_bytes=$(bytes_pp "$f.mcstat")
+      # The mean (written for oiiotool), then every statistics-file method, in one mcstat -v run.
+      args=(-v "$f.mcstat" --dup --mean -o "$f-mean.exr" --diff "$ref" --pop)
+      for m in "${stat_methods[@]}"; do args+=(--dup ${m#*|} --diff "$ref" --pop); done
+      run "$mcstat" "${args[@]}"
+      mapfile -t seg < <(segments)
+      mean_bytes=$(bytes_pp "$f-mean.exr")
+      read -r t met <<<"${seg[0]}"
+      t_mean=$(add "$t_render" "$t")
+      row "$scene" mean "$spp" "$seed" "$t_mean" "$mean_bytes" "$met"
+      for i in "${!stat_methods[@]}"; do
+        read -r t met <<<"${seg[$((i + 1))]}"
+        row "$scene" "${stat_methods[$i]%%|*}" "$spp" "$seed" "$(add "$t_render" "$t")" "$stats_bytes" "$met"
+      done
+
+      # oiiotool on the mean image: clamp per channel, 3x3 median.
+      diffs=()
+      names=()
+      for c in $CLAMPS; do
+        v=$(awk -v c="$c" 'BEGIN { printf "%.6g", c / 3 }')
+        timed t "oiiotool" "$f-mean.exr" --clamp:max="$v" -o "$f-oclamp$c.exr"
+        names+=("clamp $c (oiiotool)|$(add "$t_mean" "$t")")
+        diffs+=("$f-oclamp$c.exr" --diff "$ref")
+      done
+      timed t "oiiotool" "$f-mean.exr" --median 3x3 -o "$f-omedian.exr"
+      names+=("median 3x3 (oiiotool)|$(add "$t_mean" "$t")")
+      diffs+=("$f-omedian.exr" --diff "$ref")
+      run "$mcstat" "${diffs[@]}"
+      mapfile -t met < <(metrics <"$log.out")
+      for i in "${!names[@]}"; do
+        row "$scene" "${names[$i]%%|*}" "$spp" "$seed" "${names[$i]#*|}" "$mean_bytes" "${met[$i]}"
+      done
+
+      # G-MoN of the compact file (the compaction runs when -o writes it).
+      run "$mcstat" -v "$f.mcstat" --dup --compact -o "$f-compact.mcstat" --pop
+      t_compact=$(segments 1 | head -1 | cut -d' ' -f1)
+      run "$mcstat" -v "$f-compact.mcstat" --dup --gmon --diff "$ref" --pop
+      read -r t met < <(segments)
+      row "$scene" "G-MoN (compact)" "$spp" "$seed" "$(add "$(add "$t_render" "$t_compact")" "$t")" \
+        "$(bytes_pp "$f-compact.mcstat")" "$met"
+
+      # The renderer's clamp: another render, its mean.
+      for c in $CLAMPS; do
+        timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M 1 --seed "$seed" --clamp "$c" --quiet -o "$f-rclamp.mcstat"
+        run "$mcstat" -v "$f-rclamp.mcstat" --dup --mean -o "$f-rclamp.exr" --diff "$ref" --pop
+        read -r t met < <(segments)
+        row "$scene" "clamp $c (renderer)" "$spp" "$seed" "$(add "$t_r" "$t")" "$(bytes_pp "$f-rclamp.exr")" "$met"
+      done
+
+      # Online per-sample methods: Pajot's three, the reweighting.
+      for online in "Pajot ADR|--pajot adr|--pajot" "Pajot ROT|--pajot rot|--pajot" \
+        "Pajot hybrid|--pajot hybrid|--pajot" "reweight|--reweight|--reweight"; do
+        IFS='|' read -r name flags cmd <<<"$online"
+        timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M "$BUFFERS" --seed "$seed" $flags --quiet -o "$f-online.mcstat"
+        run "$mcstat" -v "$f-online.mcstat" --dup $cmd --diff "$ref" --pop
+        read -r t met < <(segments)
+        row "$scene" "$name" "$spp" "$seed" "$(add "$t_r" "$t")" "$(bytes_pp "$f-online.mcstat")" "$met"
+      done
+
+      # RPF from the per-sample records.
+      if [[ " $RPF_SPPS " == *" $spp "* ]]; then
+        timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M "$BUFFERS" --seed "$seed" --keep-samples --quiet -o "$f-samples.mcstat"
+        run "$mcstat" -v "$f-samples.mcstat" --dup --rpf --diff "$ref" --pop
+        read -r t met < <(segments)
+        row "$scene" RPF "$spp" "$seed" "$(add "$t_r" "$t")" "$(bytes_pp "$f-samples.mcstat")" "$met"
+        rm -f "$f-samples.mcstat"
+      fi
+      rm -f "$f-online.mcstat" "$f-rclamp.mcstat" "$f-rclamp.exr" "$f"-oclamp*.exr "$f-omedian.exr"
+    done
+    # The mean alone at more samples: the curve every method's time is weighed against.
+    for spp in $MEAN_SPPS; do
+      progress "$scene seed $seed mean at spp $spp"
+      f=$dir/s$seed-$spp
+      timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M 1 --seed "$seed" --quiet -o "$f.mcstat"
+      run "$mcstat" -v "$f.mcstat" --dup --mean -o "$f-mean.exr" --diff "$ref" --pop
+      read -r t met < <(segments)
+      row "$scene" mean "$spp" "$seed" "$(add "$t_r" "$t")" "$(bytes_pp "$f-mean.exr")" "$met"
+    done
+  done
+done
+[ -t 2 ] && echo >&2
+echo "trade: $(($(wc -l <"$table") - 1)) rows in $table, measured in $((SECONDS - start)) s"
+
+# The pictures: relMSE against time and against bytes per pixel, per scene.
+for scene in $SCENES; do
+  "$mcstat" --tradeplot:scene="$scene":x=seconds "$table" -o "$OUT/trade-$scene-time.png"
+  "$mcstat" --tradeplot:scene="$scene":x=bytes "$table" -o "$OUT/trade-$scene-bytes.png"
+done
+PYTHONPATH= /usr/bin/python3 scripts/trade_tables.py "$table"
