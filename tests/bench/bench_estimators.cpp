@@ -16,6 +16,7 @@
 #include "mcstat/color.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
+#include "mcstat/image/removed_light_layers.h"
 
 using namespace mcstat;
 
@@ -84,6 +85,32 @@ void BM_EstimatorThreads(benchmark::State& state, const Operation* est) {
     state.SetItemsProcessed(int64_t(state.iterations()) * W * H);
 }
 
+/// What the layers of issue 37 cost on top of an estimate (docs/confidence.md,
+/// docs/removed-light.md): a 1920x1080 image, M = 21, luminance mode, all cores, real time. `what`:
+/// "" the estimate alone, "ci" with its 0.95 confidence interval layers, "removed" with the
+/// removed-light layers (appendRemovedLight, radius 2). Names: layers/NAME[+ci|+removed]/1080p.
+void BM_Layers(benchmark::State& state, const Operation* est, const std::string& what) {
+    constexpr int W = 1920, H = 1080;
+    const StatsImage& img = syntheticImage(21, W, H);
+    ParamValues values = defaults(*est, EstimatorMode::Luminance);
+    if (what == "ci") {
+        ParamValue level;
+        level.real = 0.95;
+        level.text = "0.95";
+        values["ci"] = level;
+    }
+    PixelKernel kernel = est->bindPixel(values, lumaCoefficients());
+    bindConfidence(kernel, values);
+    OIIO::ImageBuf out;
+    for (auto _ : state) {
+        estimate(out, img, *est, kernel, false, {}, 0);
+        if (what == "removed" && !appendRemovedLight(out, img, lumaCoefficients()))
+            throw std::runtime_error(out.geterror());
+        benchmark::DoNotOptimize(out.localpixels());
+    }
+    state.SetItemsProcessed(int64_t(state.iterations()) * W * H);
+}
+
 /// A Neighbourhood operation over the sub-buffers (3D filters) or over an image (MIF, WMIF; with
 /// `withMPE` the MPE estimate is part of the timing: MPE+MIF).
 void BM_Neighbourhood(benchmark::State& state, const Operation* op, EstimatorMode mode,
@@ -136,6 +163,16 @@ const bool registered = [] {
             ->Arg(2)
             ->UseRealTime()
             ->Unit(benchmark::kMillisecond);
+    for (const char* name : {"mean", "gmon", "tmpe"})
+        for (const char* what : {"", "ci", "removed"}) {
+            if (std::string(name) == "mean" && std::string(what) == "removed") continue;  // none
+            const std::string label = std::string("layers/") + name +
+                                      (*what ? std::string("+") + what : std::string()) + "/1080p";
+            benchmark::RegisterBenchmark(label.c_str(), BM_Layers, findEstimator(name),
+                                         std::string(what))
+                ->UseRealTime()
+                ->Unit(benchmark::kMillisecond);
+        }
     return true;
 }();
 
