@@ -2,7 +2,8 @@
 # scripts/fuzz.sh [SECONDS] [TARGET...]: builds the libFuzzer targets (tests/fuzz/) with clang under
 # ASan+UBSan in $BUILD (default build-fuzz) and runs each for SECONDS (default 60) of wall time,
 # $JOBS at once (default: all of them, sharing the cores), starting from the seed corpus tests/fuzz/corpus/T
-# and the inputs earlier runs kept ($BUILD/corpus/T). Any finding (crash, leak, timeout, out of
+# and the inputs earlier runs kept ($BUILD/corpus/T), with the saved findings (tests/fuzz/regressions/T)
+# run first with them. Any finding (crash, leak, timeout, out of
 # memory, a broken contract) is saved under $BUILD/findings/T/ and makes the script fail. Each run
 # appends one line to $BUILD/fuzz-ledger.tsv (date, target, wall and CPU seconds, executions,
 # coverage, features, findings) and the script prints the totals: docs/fuzzing.md reports them.
@@ -33,13 +34,17 @@ run_one() {
   local t=$1 corpus="$build/corpus/$1" findings="$build/findings/$1" log="$build/logs/$1.log"
   mkdir -p "$corpus" "$findings" "$build/logs"
   local rc=0 before start
+  # Saved findings run first with the corpus, every run (libFuzzer adds new inputs to the first
+  # folder only, so these stay as they are).
+  local regressions=()
+  [ -d "tests/fuzz/regressions/$t" ] && regressions=("tests/fuzz/regressions/$t")
   before=$(ls "$findings" | wc -l)
   start=$(date +%s)
   ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=0 UBSAN_OPTIONS=print_stacktrace=1 \
     /usr/bin/time -o "$build/logs/$t.time" -f '%U %S' \
     nice -n "${NICE:-0}" "$build/tests/fuzz/fuzz_$t" -max_total_time="$seconds" -timeout=30 \
     -rss_limit_mb="${RSS_MB:-3072}" -malloc_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$findings/" \
-    "$corpus" "tests/fuzz/corpus/$t" >"$log" 2>&1 || rc=$?
+    "$corpus" "tests/fuzz/corpus/$t" ${regressions[@]+"${regressions[@]}"} >"$log" 2>&1 || rc=$?
   local execs cov ft found cpu
   cpu=$(awk '/^[0-9.]+ [0-9.]+$/ { printf "%.0f", $1 + $2 }' "$build/logs/$t.time")
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
