@@ -14,7 +14,8 @@
 # ADR/ROT/hybrid run online by the renderer; the reweighting (Zirr et al.) run online; RPF from
 # --keep-samples; G-MoN of a compact file. Time of a method = the wall time of the render it
 # needs (process start to exit) + the time mcstat -v reports for reading the file and running
-# the method's commands (for oiiotool, the whole oiiotool process). The mean also at MEAN_SPPS,
+# the method's commands (for oiiotool, the whole oiiotool process, after the mean's time). The
+# mean is a plain render (M = 1, what a renderer writes) and also runs at MEAN_SPPS: the curve
 # for equal-time comparisons.
 #
 # Environment:
@@ -82,7 +83,7 @@ add() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.4f", a + b }'; }
 # $with_output is 1), METRICS the --diff line's numbers as CSV.
 segments() {
   local with_output=${1:-0}
-  awk -v out="$with_output" '
+  awk -v out="$with_output" 'BEGIN { n = 0 }
     / read .* in [0-9.]+ s$/ { read += $(NF - 1) }
     /^mcstat: [^ ]+ done in / {
       c = $2
@@ -132,19 +133,22 @@ for scene in $SCENES; do
     for spp in $SPPS; do
       progress "$scene seed $seed spp $spp"
       f=$dir/s$seed-$spp
+      # The plain render (M = 1, as a renderer writes its beauty) and its mean: the baseline.
+      timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M 1 --seed "$seed" --quiet -o "$f-plain.mcstat"
+      run "$mcstat" -v "$f-plain.mcstat" --dup --mean -o "$f-mean.exr" --diff "$ref" --pop
+      read -r t met < <(segments)
+      t_mean=$(add "$t_r" "$t")
+      mean_bytes=$(bytes_pp "$f-mean.exr")
+      row "$scene" mean "$spp" "$seed" "$t_mean" "$mean_bytes" "$met"
+      # The statistics file (M sub-buffers) and every method over it, in one mcstat -v run.
       timed t_render "$render" --scene "$scene" --res $RES --spp "$spp" --M "$BUFFERS" --seed "$seed" --quiet -o "$f.mcstat"
       stats_bytes=$(bytes_pp "$f.mcstat")
-      # The mean (written for oiiotool), then every statistics-file method, in one mcstat -v run.
-      args=(-v "$f.mcstat" --dup --mean -o "$f-mean.exr" --diff "$ref" --pop)
+      args=(-v "$f.mcstat")
       for m in "${stat_methods[@]}"; do args+=(--dup ${m#*|} --diff "$ref" --pop); done
       run "$mcstat" "${args[@]}"
       mapfile -t seg < <(segments)
-      mean_bytes=$(bytes_pp "$f-mean.exr")
-      read -r t met <<<"${seg[0]}"
-      t_mean=$(add "$t_render" "$t")
-      row "$scene" mean "$spp" "$seed" "$t_mean" "$mean_bytes" "$met"
       for i in "${!stat_methods[@]}"; do
-        read -r t met <<<"${seg[$((i + 1))]}"
+        read -r t met <<<"${seg[$i]}"
         row "$scene" "${stat_methods[$i]%%|*}" "$spp" "$seed" "$(add "$t_render" "$t")" "$stats_bytes" "$met"
       done
 
@@ -186,7 +190,7 @@ for scene in $SCENES; do
       for online in "Pajot ADR|--pajot adr|--pajot" "Pajot ROT|--pajot rot|--pajot" \
         "Pajot hybrid|--pajot hybrid|--pajot" "reweight|--reweight|--reweight"; do
         IFS='|' read -r name flags cmd <<<"$online"
-        timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M "$BUFFERS" --seed "$seed" $flags --quiet -o "$f-online.mcstat"
+        timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M 1 --seed "$seed" $flags --quiet -o "$f-online.mcstat"
         run "$mcstat" -v "$f-online.mcstat" --dup $cmd --diff "$ref" --pop
         read -r t met < <(segments)
         row "$scene" "$name" "$spp" "$seed" "$(add "$t_r" "$t")" "$(bytes_pp "$f-online.mcstat")" "$met"
@@ -194,13 +198,13 @@ for scene in $SCENES; do
 
       # RPF from the per-sample records.
       if [[ " $RPF_SPPS " == *" $spp "* ]]; then
-        timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M "$BUFFERS" --seed "$seed" --keep-samples --quiet -o "$f-samples.mcstat"
+        timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M 1 --seed "$seed" --keep-samples --quiet -o "$f-samples.mcstat"
         run "$mcstat" -v "$f-samples.mcstat" --dup --rpf --diff "$ref" --pop
         read -r t met < <(segments)
         row "$scene" RPF "$spp" "$seed" "$(add "$t_r" "$t")" "$(bytes_pp "$f-samples.mcstat")" "$met"
         rm -f "$f-samples.mcstat"
       fi
-      rm -f "$f-online.mcstat" "$f-rclamp.mcstat" "$f-rclamp.exr" "$f"-oclamp*.exr "$f-omedian.exr"
+      rm -f "$f-plain.mcstat" "$f-online.mcstat" "$f-rclamp.mcstat" "$f-rclamp.exr" "$f"-oclamp*.exr "$f-omedian.exr"
     done
     # The mean alone at more samples: the curve every method's time is weighed against.
     for spp in $MEAN_SPPS; do
