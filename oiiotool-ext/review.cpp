@@ -17,12 +17,12 @@
 #include <utility>
 
 #include "cli.h"
-#include "mcstat/analysis/compare.h"
-#include "mcstat/analysis/review_pictures.h"
 #include "mcstat/color.h"
+#include "mcstat/compare/compare.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
+#include "mcstat/review/review_pictures.h"
 
 namespace mcstat::cli {
 

@@ -1,9 +1,9 @@
 // Pictures for review tools: heatmaps with a colour bar and contact sheets
-// (include/mcstat/analysis/review_pictures.h, docs/review.md). Everything drawn goes through
+// (include/mcstat/review/review_pictures.h, docs/review.md). Everything drawn goes through
 // ImageBufAlgo (color_map, render_text, fill, paste, resample); the only pixels written by hand are
 // data: the positions on the colour scale that color_map turns into colours, and the non-finite
 // mask.
-#include "mcstat/analysis/review_pictures.h"
+#include "mcstat/review/review_pictures.h"
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebufalgo.h>

@@ -1,9 +1,9 @@
-// Noise-aware comparison of two renders from their sub-buffers (include/mcstat/analysis/compare.h,
+// Noise-aware comparison of two renders from their sub-buffers (include/mcstat/compare/compare.h,
 // docs/compare.md). Both sides are read by the same blocks of rows, aligned to the tiles, so a
 // tile is always whole inside one block; a block's tiles are the parallel tasks, each testing its
 // pixels and then itself. The multiple-testing threshold needs every p-value, so they are kept (4
 // bytes per hypothesis) with the maps; the sub-buffers are not.
-#include "mcstat/analysis/compare.h"
+#include "mcstat/compare/compare.h"
 
 #include <OpenImageIO/strutil.h>
 #include <fmt/format.h>
