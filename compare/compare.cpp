@@ -620,27 +620,25 @@ void Comparison::findStrongest(size_t& pixRejected, size_t& tileRejected) {
     }
 }
 
+/// Of `n` pixels or tiles (quantity qi's p-value of place i at p[qi * n + i], Q quantities), how
+/// many have a tested quantity not rejected at `thr`.
+size_t countNotRejected(const std::vector<float>& p, size_t n, size_t Q, double thr) {
+    size_t count = 0;
+    for (size_t i = 0; i < n; ++i)
+        for (size_t qi = 0; qi < Q; ++qi) {
+            const float pv = p[qi * n + i];
+            if (!std::isnan(pv) && !rejectedAt(pv, thr)) {
+                ++count;
+                break;
+            }
+        }
+    return count;
+}
+
 void Comparison::countNotEquivalent(size_t& pixNot, size_t& tileNot) const {
     // Rejected means "shown equivalent": what counts is what was not.
-    const size_t Q = q_.size();
-    pixNot = 0;
-    tileNot = 0;
-    for (size_t p = 0; p < P_; ++p)
-        for (size_t qi = 0; qi < Q; ++qi) {
-            const float pv = p_[qi * P_ + p];
-            if (!std::isnan(pv) && !rejectedAt(pv, out_.threshold)) {
-                ++pixNot;
-                break;
-            }
-        }
-    for (size_t t = 0; t < T_; ++t)
-        for (size_t qi = 0; qi < Q; ++qi) {
-            const float pv = tileP_[qi * T_ + t];
-            if (!std::isnan(pv) && !rejectedAt(pv, out_.tileThreshold)) {
-                ++tileNot;
-                break;
-            }
-        }
+    pixNot = countNotRejected(p_, P_, q_.size(), out_.threshold);
+    tileNot = countNotRejected(tileP_, T_, q_.size(), out_.tileThreshold);
 }
 
 void Comparison::finish() {
