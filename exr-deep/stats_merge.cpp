@@ -262,6 +262,150 @@ bool mergeHeaders(const StatsHeader& a, const StatsHeader& b, StatsHeader& out, 
     return mergeHeaders(std::vector<const StatsHeader*>{&a, &b}, out, err);
 }
 
+namespace {
+
+/// Allocates the merged image's buffers: the inputs' M, which with adaptive M must agree pixel by
+/// pixel.
+bool allocateMerged(const std::vector<const StatsImage*>& in, StatsImage& r, std::string& err) {
+    const size_t n = in.size(), pixels = r.pixelCount();
+    if (!r.header.adaptiveM) return r.allocate(err);
+    // Buffer j of a pixel holds the samples i = j mod m_p of each input; with different m_p the
+    // buffers hold different sample sets and cannot be combined without the samples.
+    std::vector<uint32_t> m(pixels);
+    for (size_t p = 0; p < pixels; ++p) {
+        for (size_t i = 1; i < n; ++i)
+            if (in[i]->buffersOf(p) != in[0]->buffersOf(p)) {
+                err = fmt::format(
+                    "cannot merge: adaptive M differs at pixel ({}, {}): {} vs {} sub-buffers "
+                    "(adaptive renders merge only with the same buffer count per pixel: "
+                    "mcstat-render --m-strategy pilot with the same --pilot-seed, --pilot and "
+                    "--m-max)",
+                    r.header.originX + int64_t(p % size_t(r.header.width)),
+                    r.header.originY + int64_t(p / size_t(r.header.width)), in[0]->buffersOf(p),
+                    in[i]->buffersOf(p));
+                return false;
+            }
+        m[p] = uint32_t(in[0]->buffersOf(p));
+    }
+    return r.allocateAdaptive(m, err);
+}
+
+/// Pixel p's sub-buffers: count-weighted means, counts add; with their AOVs.
+void mergeBuffers(const std::vector<const StatsImage*>& in, const std::vector<bool>& isId,
+                  StatsImage& r, size_t p) {
+    const size_t n = in.size(), A = isId.size();
+    const size_t k0 = r.bufferBegin(p), m = size_t(r.buffersOf(p));
+    for (size_t j = 0; j < m; ++j) {
+        const size_t k = k0 + j;
+        WeightedMean mean[3];
+        double count = 0.0;
+        for (const StatsImage* s : in) {
+            const size_t ks = s->bufferBegin(p) + j;
+            const double w = s->bufferCount[ks];
+            for (size_t c = 0; c < 3; ++c) mean[c].add(w, s->bufferMean[ks * 3 + c]);
+            count += w;
+        }
+        for (size_t c = 0; c < 3; ++c) r.bufferMean[k * 3 + c] = float(mean[c].value());
+        r.bufferCount[k] = float(count);
+        // AOVs (version 5): as the buffer means, except labels, taken whole from the
+        // input whose buffer holds the most samples (the first such; an empty buffer
+        // never wins over a later one, so the last input's when all are empty).
+        // That input depends on the buffer only: found once for all its labels.
+        size_t best = 0;
+        if (A > 0)
+            for (size_t i = 1; i < n; ++i)
+                if (in[best]->bufferCount[k] == 0.f ||
+                    in[i]->bufferCount[k] > in[best]->bufferCount[k])
+                    best = i;
+        for (size_t a = 0; a < A; ++a) {
+            if (isId[a]) {
+                r.aov[k * A + a] = in[best]->aov[k * A + a];
+            } else {
+                WeightedMean v;
+                for (const StatsImage* s : in) v.add(s->bufferCount[k], s->aov[k * A + a]);
+                r.aov[k * A + a] = float(v.value());
+            }
+        }
+    }
+}
+
+/// Pixel p's count, mean, variance and beauty; returns the merged count (in double).
+double mergeMoments(const std::vector<const StatsImage*>& in, StatsImage& r, size_t p) {
+    const size_t n = in.size();
+    // Moments: the pooled mean and sum of squared deviations of every input's samples,
+    // M2 = sum_i [M2_i + n_i (mean_i - mean)^2] with M2_i = variance_i (n_i - 1), the
+    // one-pass form of Chan et al.'s pairwise update (core/moments.h).
+    double total = 0.0;
+    for (const StatsImage* s : in) total += s->count[p];
+    r.count[p] = float(total);
+    size_t nonEmpty = 0, only = 0;
+    for (size_t i = 0; i < n; ++i)
+        if (in[i]->count[p] > 0.f) {
+            ++nonEmpty;
+            only = i;
+        }
+    for (size_t c = 0; c < 3; ++c) {
+        const size_t e = p * 3 + c;
+        double mean = 0.0, var = 0.0;
+        if (nonEmpty == 1) {  // that input's values, bit for bit
+            mean = in[only]->mean[e];
+            var = in[only]->variance[e];
+        } else if (nonEmpty > 1) {
+            WeightedMean wm;
+            for (const StatsImage* s : in) wm.add(s->count[p], s->mean[e]);
+            mean = wm.value();
+            double m2 = 0.0;
+            for (const StatsImage* s : in) {
+                const double ni = s->count[p];
+                if (ni == 0.0) continue;
+                const double d = double(s->mean[e]) - mean;
+                m2 += RunningMoments::fromVariance(ni, s->mean[e], s->variance[e]).m2 + ni * d * d;
+            }
+            var = total > 1.0 ? m2 / (total - 1.0) : 0.0;
+        }
+        // Version 3: a variance estimated from the buffers is re-estimated from the
+        // merged buffers (its definition, FORMAT.md); an unknown one stays unknown.
+        if (r.header.variance == kVarianceBuffers)
+            var = bufferVariance(r, p, c, mean);
+        else if (r.header.variance == kVarianceUnknown)
+            var = std::numeric_limits<double>::quiet_NaN();
+        r.mean[e] = float(mean);
+        r.variance[e] = float(var);
+        r.beauty[e] = float(mean);
+    }
+    return total;
+}
+
+/// Pixel p's features: N, P, Z weighted by hit counts, Albedo by sample counts, A recomputed
+/// from the merged count `total`. `hits` is scratch of one entry per input.
+void mergeFeatures(const std::vector<const StatsImage*>& in, double total, StatsImage& r, size_t p,
+                   std::vector<double>& hits) {
+    const size_t n = in.size();
+    double allHits = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+        hits[i] = hitsOf(in[i]->coverage[p], in[i]->count[p]);
+        allHits += hits[i];
+    }
+    for (size_t c = 0; c < 3; ++c) {
+        const size_t e = p * 3 + c;
+        WeightedMean normal, position, albedo;
+        for (size_t i = 0; i < n; ++i) {
+            normal.add(hits[i], in[i]->normal[e]);
+            position.add(hits[i], in[i]->position[e]);
+            albedo.add(in[i]->count[p], in[i]->albedo[e]);
+        }
+        r.normal[e] = float(normal.value());
+        r.position[e] = float(position.value());
+        r.albedo[e] = float(albedo.value());
+    }
+    WeightedMean depth;
+    for (size_t i = 0; i < n; ++i) depth.add(hits[i], in[i]->depth[p]);
+    r.depth[p] = allHits == 0.0 ? std::numeric_limits<float>::infinity() : float(depth.value());
+    r.coverage[p] = total == 0.0 ? 0.f : float(allHits / total);
+}
+
+}  // namespace
+
 bool mergeStats(const std::vector<const StatsImage*>& in, StatsImage& out, std::string& err,
                 int nthreads) {
     const size_t n = in.size();
@@ -274,137 +418,18 @@ bool mergeStats(const std::vector<const StatsImage*>& in, StatsImage& out, std::
     }
     StatsImage r;
     if (!mergeHeaders(headers, r.header, err)) return false;
-    const size_t pixels = r.pixelCount();
-    if (r.header.adaptiveM) {
-        // Buffer j of a pixel holds the samples i = j mod m_p of each input; with different m_p the
-        // buffers hold different sample sets and cannot be combined without the samples.
-        std::vector<uint32_t> m(pixels);
-        for (size_t p = 0; p < pixels; ++p) {
-            for (size_t i = 1; i < n; ++i)
-                if (in[i]->buffersOf(p) != in[0]->buffersOf(p)) {
-                    err = fmt::format(
-                        "cannot merge: adaptive M differs at pixel ({}, {}): {} vs {} sub-buffers "
-                        "(adaptive renders merge only with the same buffer count per pixel: "
-                        "mcstat-render --m-strategy pilot with the same --pilot-seed, --pilot and "
-                        "--m-max)",
-                        r.header.originX + int64_t(p % size_t(r.header.width)),
-                        r.header.originY + int64_t(p / size_t(r.header.width)), in[0]->buffersOf(p),
-                        in[i]->buffersOf(p));
-                    return false;
-                }
-            m[p] = uint32_t(in[0]->buffersOf(p));
-        }
-        if (!r.allocateAdaptive(m, err)) return false;
-    } else if (!r.allocate(err)) {
-        return false;
-    }
+    if (!allocateMerged(in, r, err)) return false;
 
     const size_t A = r.header.aovs.size();  // fixed M only (the header checks refuse others)
     std::vector<bool> isId(A);
     for (size_t a = 0; a < A; ++a) isId[a] = r.header.aovs[a].cls == AovClass::Id;
     // Per pixel, independent of every other pixel: any split over threads gives the same bits.
-    parallelFor(0, int64_t(pixels), 0, nthreads, [&](int64_t pBegin, int64_t pEnd) {
+    parallelFor(0, int64_t(r.pixelCount()), 0, nthreads, [&](int64_t pBegin, int64_t pEnd) {
         std::vector<double> hits(n);
         for (size_t p = size_t(pBegin); p < size_t(pEnd); ++p) {
-            // Sub-buffers: count-weighted means, counts add.
-            const size_t k0 = r.bufferBegin(p), m = size_t(r.buffersOf(p));
-            for (size_t j = 0; j < m; ++j) {
-                const size_t k = k0 + j;
-                WeightedMean mean[3];
-                double count = 0.0;
-                for (const StatsImage* s : in) {
-                    const size_t ks = s->bufferBegin(p) + j;
-                    const double w = s->bufferCount[ks];
-                    for (size_t c = 0; c < 3; ++c) mean[c].add(w, s->bufferMean[ks * 3 + c]);
-                    count += w;
-                }
-                for (size_t c = 0; c < 3; ++c) r.bufferMean[k * 3 + c] = float(mean[c].value());
-                r.bufferCount[k] = float(count);
-                // AOVs (version 5): as the buffer means, except labels, taken whole from the
-                // input whose buffer holds the most samples (the first such; an empty buffer
-                // never wins over a later one, so the last input's when all are empty).
-                // That input depends on the buffer only: found once for all its labels.
-                size_t best = 0;
-                if (A > 0)
-                    for (size_t i = 1; i < n; ++i)
-                        if (in[best]->bufferCount[k] == 0.f ||
-                            in[i]->bufferCount[k] > in[best]->bufferCount[k])
-                            best = i;
-                for (size_t a = 0; a < A; ++a) {
-                    if (isId[a]) {
-                        r.aov[k * A + a] = in[best]->aov[k * A + a];
-                    } else {
-                        WeightedMean v;
-                        for (const StatsImage* s : in) v.add(s->bufferCount[k], s->aov[k * A + a]);
-                        r.aov[k * A + a] = float(v.value());
-                    }
-                }
-            }
-            // Moments: the pooled mean and sum of squared deviations of every input's samples,
-            // M2 = sum_i [M2_i + n_i (mean_i - mean)^2] with M2_i = variance_i (n_i - 1), the
-            // one-pass form of Chan et al.'s pairwise update (core/moments.h).
-            double total = 0.0;
-            for (const StatsImage* s : in) total += s->count[p];
-            r.count[p] = float(total);
-            size_t nonEmpty = 0, only = 0;
-            for (size_t i = 0; i < n; ++i)
-                if (in[i]->count[p] > 0.f) {
-                    ++nonEmpty;
-                    only = i;
-                }
-            for (size_t c = 0; c < 3; ++c) {
-                const size_t e = p * 3 + c;
-                double mean = 0.0, var = 0.0;
-                if (nonEmpty == 1) {  // that input's values, bit for bit
-                    mean = in[only]->mean[e];
-                    var = in[only]->variance[e];
-                } else if (nonEmpty > 1) {
-                    WeightedMean wm;
-                    for (const StatsImage* s : in) wm.add(s->count[p], s->mean[e]);
-                    mean = wm.value();
-                    double m2 = 0.0;
-                    for (const StatsImage* s : in) {
-                        const double ni = s->count[p];
-                        if (ni == 0.0) continue;
-                        const double d = double(s->mean[e]) - mean;
-                        m2 += RunningMoments::fromVariance(ni, s->mean[e], s->variance[e]).m2 +
-                              ni * d * d;
-                    }
-                    var = total > 1.0 ? m2 / (total - 1.0) : 0.0;
-                }
-                // Version 3: a variance estimated from the buffers is re-estimated from the
-                // merged buffers (its definition, FORMAT.md); an unknown one stays unknown.
-                if (r.header.variance == kVarianceBuffers)
-                    var = bufferVariance(r, p, c, mean);
-                else if (r.header.variance == kVarianceUnknown)
-                    var = std::numeric_limits<double>::quiet_NaN();
-                r.mean[e] = float(mean);
-                r.variance[e] = float(var);
-                r.beauty[e] = float(mean);
-            }
-            // Features: N, P, Z weighted by hit counts, Albedo by sample counts, A recomputed.
-            double allHits = 0.0;
-            for (size_t i = 0; i < n; ++i) {
-                hits[i] = hitsOf(in[i]->coverage[p], in[i]->count[p]);
-                allHits += hits[i];
-            }
-            for (size_t c = 0; c < 3; ++c) {
-                const size_t e = p * 3 + c;
-                WeightedMean normal, position, albedo;
-                for (size_t i = 0; i < n; ++i) {
-                    normal.add(hits[i], in[i]->normal[e]);
-                    position.add(hits[i], in[i]->position[e]);
-                    albedo.add(in[i]->count[p], in[i]->albedo[e]);
-                }
-                r.normal[e] = float(normal.value());
-                r.position[e] = float(position.value());
-                r.albedo[e] = float(albedo.value());
-            }
-            WeightedMean depth;
-            for (size_t i = 0; i < n; ++i) depth.add(hits[i], in[i]->depth[p]);
-            r.depth[p] =
-                allHits == 0.0 ? std::numeric_limits<float>::infinity() : float(depth.value());
-            r.coverage[p] = total == 0.0 ? 0.f : float(allHits / total);
+            mergeBuffers(in, isId, r, p);
+            const double total = mergeMoments(in, r, p);
+            mergeFeatures(in, total, r, p, hits);
         }
     });
     out = std::move(r);

@@ -148,6 +148,12 @@ bool windowFilter(ImageBuf& dst, StatsBlockSource& src, const WindowKernel& kern
         dst.errorfmt("{}: filters an image, not the sub-buffers of a statistics file", kernel.name);
         return false;
     }
+    // Parameters out of range (a hand-built kernel's) fail here, before the first block is read.
+    std::string err;
+    if (kernel.check && !kernel.check(err)) {
+        dst.errorfmt("{}: {}", kernel.name, err);
+        return false;
+    }
     // The halo re-decodes up to two chunks per block: a larger block keeps that small.
     const unsigned parts = kStatsPartBuffers | (src.header().aovs.empty() ? 0u : kStatsPartAovs);
     return forEachBlock(dst, src, roi, kernel.haloY(), parts, 4 * kStreamBlockBytes,

@@ -427,29 +427,14 @@ bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>
     return true;
 }
 
-bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>& args,
-               const Modifiers& mods, std::string& err) {
-    if (st.stack.empty()) {
-        err = format(
-            "{} {}: nothing on the stack to write (arguments run left to right: name a file or a "
-            "command that makes an image before -o, e.g. mcstat FILE --gmon -o {})",
-            cmd, args[0], args[0]);
-        return false;
-    }
-    Item& top = st.stack.back();
-    const std::string& path = args[0];
-    if (path.empty()) {
-        err = format("{}: an empty file name", cmd);
-        return false;
-    }
-    if (st.noClobber && OIIO::Filesystem::exists(path)) {
-        // oiiotool's --no-clobber: an existing output is kept, and the run goes on.
-        warning(path + " exists; not overwritten (--no-clobber)");
-        return true;
-    }
-    const std::string ext = lowerExtension(path);
-    // -d and --compression for every output, -o:type= and :compression= for this one.
-    ImageWriteOptions opt = st.write;
+namespace {
+
+/// The write options of -o: -d and --compression for every output, -o:type= and :compression=
+/// for this one, checked against what `top` is and what `path`'s extension `ext` holds.
+bool outputOptions(const State& st, const std::string& cmd, const std::string& path,
+                   const std::string& ext, const Item& top, const Modifiers& mods,
+                   ImageWriteOptions& opt, std::string& err) {
+    opt = st.write;
     const auto type = mods.find("type");
     const auto compression = mods.find("compression");
     if (type != mods.end()) {
@@ -484,6 +469,38 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
             cmd, path, ext);
         return false;
     }
+    return true;
+}
+
+/// -o of a statistics file: block by block, the four statistics parts.
+bool writeStatsItem(State& st, const std::string& cmd, const std::string& path,
+                    const std::string& ext, Item& top, std::string& err) {
+    if (ext != kStatsExtension) {
+        err = format(
+            "{} {}: {} is a statistics file; write it as .{} or apply an estimator "
+            "first (e.g. --gmon)",
+            cmd, path, top.name, kStatsExtension);
+        return false;
+    }
+    const StatsHeader& h = top.header;
+    if (h.hasState() || h.hasRecords) {
+        // The per-sample parts belong to one render's samples in their order: a merge cannot
+        // combine them and this tool holds only the four statistics parts in memory. The file
+        // written is the lowest version that holds what remains.
+        warning(format("{}: {} of {} are not written (only the four statistics parts are)", path,
+                       optionalPartsText(h), top.name));
+    }
+    // Block by block (a file converted, a merge of files): never the whole image in memory.
+    // writeStatsFile over a source writes the four parts in the lowest version for them.
+    ItemSource src;
+    if (!openSource(st, top, src, err)) return false;
+    return writeStatsFile(path, *src.root, err, st.nthreads);
+}
+
+/// -o of an image: as it is when display-referred, its display view for a display format, else
+/// laid out as the render it was computed from (or as it is).
+bool writeImageItem(State& st, const std::string& cmd, const std::string& path,
+                    const std::string& ext, Item& top, ImageWriteOptions& opt, std::string& err) {
     size_t overflow = 0;
     auto written = [&](bool ok) {
         if (ok && overflow > 0)
@@ -493,28 +510,6 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
                        path, overflow));
         return ok;
     };
-    if (top.isStats()) {
-        if (ext != kStatsExtension) {
-            err = format(
-                "{} {}: {} is a statistics file; write it as .{} or apply an estimator "
-                "first (e.g. --gmon)",
-                cmd, path, top.name, kStatsExtension);
-            return false;
-        }
-        const StatsHeader& h = top.header;
-        if (h.hasState() || h.hasRecords) {
-            // The per-sample parts belong to one render's samples in their order: a merge cannot
-            // combine them and this tool holds only the four statistics parts in memory. The file
-            // written is the lowest version that holds what remains.
-            warning(format("{}: {} of {} are not written (only the four statistics parts are)",
-                           path, optionalPartsText(h), top.name));
-        }
-        // Block by block (a file converted, a merge of files): never the whole image in memory.
-        // writeStatsFile over a source writes the four parts in the lowest version for them.
-        ItemSource src;
-        if (!openSource(st, top, src, err)) return false;
-        return writeStatsFile(path, *src.root, err, st.nthreads);
-    }
     if (ext == kStatsExtension) {
         err = format("{} {}: {} is an image, not a statistics file", cmd, path, top.name);
         return false;
@@ -529,8 +524,7 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
         // may come first).
         OIIO::ImageBuf rgb, disp;
         std::string space;
-        if (!selectRGB(*top.image, "", top.name, rgb, err) ||
-            !itemSpace(top, space, err)) {
+        if (!selectRGB(*top.image, "", top.name, rgb, err) || !itemSpace(top, space, err)) {
             err = format("{} {}: {}", cmd, path, err);
             return false;
         }
@@ -548,6 +542,35 @@ bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>
     if (top.layout && needsRenderLayout(*top.layout))
         return written(writeRenderLike(*top.image, *top.layout, path, opt, err, &overflow));
     return written(writeImageAtomically(*top.image, path, opt, err, &overflow));
+}
+
+}  // namespace
+
+bool cmdOutput(State& st, const std::string& cmd, const std::vector<std::string>& args,
+               const Modifiers& mods, std::string& err) {
+    if (st.stack.empty()) {
+        err = format(
+            "{} {}: nothing on the stack to write (arguments run left to right: name a file or a "
+            "command that makes an image before -o, e.g. mcstat FILE --gmon -o {})",
+            cmd, args[0], args[0]);
+        return false;
+    }
+    Item& top = st.stack.back();
+    const std::string& path = args[0];
+    if (path.empty()) {
+        err = format("{}: an empty file name", cmd);
+        return false;
+    }
+    if (st.noClobber && OIIO::Filesystem::exists(path)) {
+        // oiiotool's --no-clobber: an existing output is kept, and the run goes on.
+        warning(path + " exists; not overwritten (--no-clobber)");
+        return true;
+    }
+    const std::string ext = lowerExtension(path);
+    ImageWriteOptions opt;
+    if (!outputOptions(st, cmd, path, ext, top, mods, opt, err)) return false;
+    if (top.isStats()) return writeStatsItem(st, cmd, path, ext, top, err);
+    return writeImageItem(st, cmd, path, ext, top, opt, err);
 }
 
 /// The state parts an operation keeps in the file, described by their owner's registry entry
@@ -573,34 +596,19 @@ bool describeState(const std::string& path, const StatsHeader& h, std::string& t
     return true;
 }
 
-bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&, const Modifiers&,
-             std::string& err) {
-    if (st.stack.empty()) {
-        err = format(
-            "{0}: nothing on the stack to describe (arguments run left to right: put the file "
-            "first, mcstat FILE {0})",
-            cmd);
-        return false;
-    }
-    Item& top = st.stack.back();
-    if (!top.isStats()) {
-        const OIIO::ImageSpec& s = top.image->spec();
-        std::vector<std::string> names;
-        for (const std::string& n : s.channelnames) names.push_back(printable(n));
-        std::printf("%s: %d x %d, %d channels (%s), %s\n", oneLine(top.name).c_str(), s.width,
-                    s.height, s.nchannels, OIIO::Strutil::join(names, ",").c_str(),
-                    s.format.c_str());
-        return true;
-    }
-    if (!settleIngest(st, top, err)) {  // the seeds of renders are their RGB hashes
-        err = format("{}: {}", cmd, err);
-        return false;
-    }
-    const StatsHeader& h = top.header;
-    // Every string below comes from the file: printable() (core/untrusted_text.h).
-    std::printf("%s: mcstat statistics file, format %d\n", oneLine(top.name).c_str(),
-                h.formatVersion);
-    for (const std::string& line : describeStatsHeader(h)) std::printf("%s\n", line.c_str());
+namespace {
+
+/// --info of an image: its size, channels and pixel type.
+void printImageInfo(const Item& top) {
+    const OIIO::ImageSpec& s = top.image->spec();
+    std::vector<std::string> names;
+    for (const std::string& n : s.channelnames) names.push_back(printable(n));
+    std::printf("%s: %d x %d, %d channels (%s), %s\n", oneLine(top.name).c_str(), s.width, s.height,
+                s.nchannels, OIIO::Strutil::join(names, ",").c_str(), s.format.c_str());
+}
+
+/// --info of a statistics file's per-sample records and state parts, when it has them.
+bool printOptionalParts(const Item& top, const StatsHeader& h, std::string& err) {
     if (h.hasRecords) {
         SampleRecordsReader records;
         if (!records.open(top.path, err)) return false;
@@ -616,12 +624,11 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
         if (!describeState(top.path, h, text, err)) return false;
         std::fputs(text.c_str(), stdout);
     }
-    std::printf(
-        "  checked: the headers and chunk table only; --check reads and validates every "
-        "value\n");
-    if (!st.verbose && !h.adaptiveM) return true;
-    if (!loadStats(st, top, err)) return false;
-    const StatsImage& s = *top.stats;
+    return true;
+}
+
+/// --info of the buffers a compact file keeps, or of adaptive M's per-pixel counts.
+void printBufferLayout(const StatsHeader& h, const StatsImage& s) {
     if (h.compact) {  // which pixels kept their buffers (FORMAT.md "Version 6")
         size_t kept = 0;
         for (size_t p = 0; p < s.pixelCount(); ++p) kept += h.M > 1 && s.buffersOf(p) == h.M;
@@ -631,7 +638,6 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
             "mean; %zu sub-buffers = %.4f image buffers\n",
             kept, s.pixelCount(), 100.0 * double(kept) / px, h.M, s.bufferCount.size(),
             double(s.bufferCount.size()) / px);
-        if (!st.verbose) return true;
     } else if (h.adaptiveM) {  // Jung's adaptive M: the per-pixel buffer counts
         int mmin = h.M, mmax = 0;
         for (size_t p = 0; p < s.pixelCount(); ++p) {
@@ -644,8 +650,11 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
             mmin, double(s.bufferCount.size()) / double(std::max<size_t>(1, s.pixelCount())), mmax,
             h.M, s.bufferCount.size(),
             double(s.bufferCount.size()) / double(std::max<size_t>(1, s.pixelCount())));
-        if (!st.verbose) return true;
     }
+}
+
+/// --info -v: the samples per pixel, the empty sub-buffers and the non-finite values.
+void printSampleCounts(const StatsImage& s) {
     double nmin = INFINITY, nmax = 0.0, ntotal = 0.0;
     long emptyBuffers = 0, nonFinite = 0;
     for (size_t p = 0; p < s.pixelCount(); ++p) {
@@ -659,6 +668,44 @@ bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&,
                 ntotal / double(std::max<size_t>(1, s.pixelCount())));
     std::printf("  empty sub-buffers: %ld of %zu; non-finite sub-buffer values: %ld\n",
                 emptyBuffers, s.bufferCount.size(), nonFinite);
+}
+
+}  // namespace
+
+bool cmdInfo(State& st, const std::string& cmd, const std::vector<std::string>&, const Modifiers&,
+             std::string& err) {
+    if (st.stack.empty()) {
+        err = format(
+            "{0}: nothing on the stack to describe (arguments run left to right: put the file "
+            "first, mcstat FILE {0})",
+            cmd);
+        return false;
+    }
+    Item& top = st.stack.back();
+    if (!top.isStats()) {
+        printImageInfo(top);
+        return true;
+    }
+    if (!settleIngest(st, top, err)) {  // the seeds of renders are their RGB hashes
+        err = format("{}: {}", cmd, err);
+        return false;
+    }
+    const StatsHeader& h = top.header;
+    // Every string below comes from the file: printable() (core/untrusted_text.h).
+    std::printf("%s: mcstat statistics file, format %d\n", oneLine(top.name).c_str(),
+                h.formatVersion);
+    for (const std::string& line : describeStatsHeader(h)) std::printf("%s\n", line.c_str());
+    if (!printOptionalParts(top, h, err)) return false;
+    std::printf(
+        "  checked: the headers and chunk table only; --check reads and validates every "
+        "value\n");
+    if (!st.verbose && !h.adaptiveM) return true;
+    if (!loadStats(st, top, err)) return false;
+    const StatsImage& s = *top.stats;
+    // A compact file or adaptive M: its buffers (all that is printed without -v).
+    printBufferLayout(h, s);
+    if (!st.verbose) return true;
+    printSampleCounts(s);
     return true;
 }
 

@@ -1,6 +1,6 @@
 // Pictures for review tools (docs/review.md): --contactsheet, --errormap, --heatmap, --qualityplot.
-// The image operations live in analysis/review_pictures.cpp
-// (include/mcstat/analysis/review_pictures.h); this file parses modifiers, reads the reference,
+// The image operations live in review/review_pictures.cpp
+// (include/mcstat/review/review_pictures.h); this file parses modifiers, reads the reference,
 // computes the estimates and metrics, and for the plot writes the CSV and the gnuplot script
 // (plot.cpp runs gnuplot).
 #include <OpenImageIO/filesystem.h>
@@ -17,12 +17,12 @@
 #include <utility>
 
 #include "cli.h"
-#include "mcstat/analysis/compare.h"
-#include "mcstat/analysis/review_pictures.h"
 #include "mcstat/color.h"
+#include "mcstat/compare/compare.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
+#include "mcstat/review/review_pictures.h"
 #include "plot.h"
 
 namespace mcstat::cli {

@@ -16,7 +16,7 @@ phase "tests"
 
 # -O1 -g1: what the sanitizers' documentation asks for (optimised, frames kept; line tables give
 # every report its file and line), and compiled in less than half the time of -O2 -g (37 s against
-# 16 s for analysis/compare.cpp), which keeps CI within its 30 minutes.
+# 16 s for compare/compare.cpp), which keeps CI within its 30 minutes.
 scripts/build.sh build-asan -DMCSTAT_WERROR=ON -DMCSTAT_SANITIZE=ON -DMCSTAT_BUILD_BENCHMARKS=OFF \
   -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG"
 phase "sanitizer build"

@@ -282,6 +282,21 @@ struct CorePartWriter::Impl {
     bool toSpill(Task& t);
     /// Opens the file part `p`'s chunks are copied from and checks it holds such a part.
     bool openCopySource(size_t p, const std::string& path, std::string& problem);
+    /// Binds each part's rows of a write of `rows` rows to the file's channels (`src`, by part);
+    /// opens the parts copied from another file. False with `problem`.
+    bool bindSources(const std::vector<PartRows>& rows, int count, std::vector<Source>& src,
+                     std::string& problem);
+    /// Creates the spill file (chunks that cannot go to the file in its order yet). False with
+    /// `problem`.
+    bool openSpill(std::string& problem);
+    /// Copies rows [from, to) of the write that starts at row r0 (`rows`, bound as `src`) into
+    /// flat part p's stage, after the rows staged already.
+    void stageRows(size_t p, const PartRows& rows, const Source& src, int r0, int from, int to);
+    /// The chunks that rows [r0, r1) complete, in file order (`tasks`), staging the rows that
+    /// complete a staged chunk; `leftover` gets each part's rows that start a chunk the write
+    /// does not complete (to stage after the tasks are written).
+    void planChunks(const std::vector<PartRows>& rows, const std::vector<Source>& src, int r0,
+                    int r1, std::vector<Task>& tasks, std::vector<std::pair<int, int>>& leftover);
     /// A call from the caller's thread: OpenEXR's messages go to `main`.
     void enter() {
         main.message.clear();
@@ -687,6 +702,127 @@ bool CorePartWriter::Impl::toSpill(Task& t) {
     return true;
 }
 
+bool CorePartWriter::Impl::bindSources(const std::vector<PartRows>& rows, int count,
+                                       std::vector<Source>& src, std::string& problem) {
+    // Each part's sources, by the file's channel order.
+    for (size_t p = 0; p < rows.size(); ++p) {
+        const PartRows& pr = rows[p];
+        const PartState& ps = parts[p];
+        src[p].rows = &pr;
+        if (!pr.copyFrom.empty()) {
+            if (!ps.deep) {
+                problem = fmt::format("part '{}': only deep parts are copied", ps.name);
+                return false;
+            }
+            if (!openCopySource(p, pr.copyFrom, problem)) return false;
+            continue;
+        }
+        if (ps.deep != (pr.counts != nullptr)) {
+            problem =
+                fmt::format("part '{}': {} rows for a {} part", ps.name,
+                            pr.counts != nullptr ? "deep" : "flat", ps.deep ? "deep" : "flat");
+            return false;
+        }
+        for (const std::string& c : ps.channels) {
+            size_t i = 0;
+            if (ps.deep)
+                while (i < pr.deep.size() && pr.deep[i].name != c) ++i;
+            else
+                while (i < pr.slices.size() && pr.slices[i].name != c) ++i;
+            if (i == (ps.deep ? pr.deep.size() : pr.slices.size())) {
+                problem = fmt::format("part '{}': no data for channel '{}'", ps.name, c);
+                return false;
+            }
+            src[p].channel.push_back(i);
+        }
+        if (ps.deep) {
+            src[p].rowStart.assign(size_t(count) + 1, 0);
+            const size_t w = size_t(width);
+            for (size_t r = 0; r < size_t(count); ++r) {
+                uint64_t sum = 0;
+                for (size_t x = 0; x < w; ++x) sum += pr.counts[r * w + x];
+                src[p].rowStart[r + 1] = src[p].rowStart[r] + sum;
+            }
+        }
+    }
+    return true;
+}
+
+bool CorePartWriter::Impl::openSpill(std::string& problem) {
+    spillFile = std::make_unique<TemporaryFile>(target, ".spill");
+    spillFd = Fd(::open(spillFile->path().c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600));
+    if (spillFd.get() < 0) {
+        problem = fmt::format("cannot create the spill file {} ({})", spillFile->path(),
+                              std::strerror(errno));
+        spillFile->remove();
+        return false;
+    }
+    return true;
+}
+
+void CorePartWriter::Impl::stageRows(size_t p, const PartRows& rows, const Source& src, int r0,
+                                     int from, int to) {
+    PartState& ps = parts[p];
+    const size_t w = size_t(width), line = w * sizeof(float);
+    const std::vector<FloatSlice>& sl = rows.slices;
+    const size_t need = ps.channels.size() * size_t(ps.lines) * line;
+    if (ps.stageBytes < need) {
+        ps.stage.reset();
+        ps.stageBytes = 0;
+        ps.stage.reset(new uint8_t[need]);
+        ps.stageBytes = need;
+    }
+    for (size_t c = 0; c < ps.channels.size(); ++c) {
+        const FloatSlice& s = sl[src.channel[c]];
+        const size_t eb = ps.channelBytes[c];
+        for (int r = from; r < to; ++r) {
+            uint8_t* dst =
+                ps.stage.get() + (c * size_t(ps.lines) + size_t(ps.staged + r - from)) * line;
+            const char* row = s.base + size_t(r - r0) * s.lineStride;
+            for (size_t x = 0; x < w; ++x) std::memcpy(dst + x * eb, row + x * s.pixelStride, eb);
+        }
+    }
+    ps.staged += to - from;
+}
+
+void CorePartWriter::Impl::planChunks(const std::vector<PartRows>& rows,
+                                      const std::vector<Source>& src, int r0, int r1,
+                                      std::vector<Task>& tasks,
+                                      std::vector<std::pair<int, int>>& leftover) {
+    for (size_t p = 0; p < rows.size(); ++p) {
+        PartState& ps = parts[p];
+        int row = r0;
+        if (ps.staged > 0) {  // complete the staged chunk first
+            const int start = r0 - ps.staged;
+            const int end = std::min(start + ps.lines, height);
+            const int take = std::min(end, r1) - r0;
+            stageRows(p, rows[p], src[p], r0, r0, r0 + take);
+            row += take;
+            if (start + ps.staged == end) {
+                Task t;
+                t.part = int(p);
+                t.row = start;
+                t.rows = end - start;
+                t.staged = true;
+                tasks.push_back(std::move(t));
+            }
+        }
+        for (; row < r1; row += ps.lines) {
+            const int end = std::min(row + ps.lines, height);
+            if (end > r1) {
+                leftover[p] = {row, r1};
+                break;
+            }
+            Task t;
+            t.part = int(p);
+            t.row = row;
+            t.rows = end - row;
+            t.srcRow = row - r0;
+            tasks.push_back(std::move(t));
+        }
+    }
+}
+
 bool CorePartWriter::write(const std::vector<PartRows>& parts, int rows, std::string& problem) {
     if (!impl_ || rows < 1 || rows > impl_->height - impl_->nextRow ||
         parts.size() != impl_->parts.size()) {
@@ -702,113 +838,15 @@ bool CorePartWriter::write(const std::vector<PartRows>& parts, int rows, std::st
         tPipelineWorker = nullptr;
         return false;
     };
-    // Each part's sources, by the file's channel order.
     std::vector<Source> src(parts.size());
-    for (size_t p = 0; p < parts.size(); ++p) {
-        const PartRows& pr = parts[p];
-        const PartState& ps = im.parts[p];
-        src[p].rows = &pr;
-        if (!pr.copyFrom.empty()) {
-            if (!ps.deep)
-                return fail(fmt::format("part '{}': only deep parts are copied", ps.name));
-            if (!im.openCopySource(p, pr.copyFrom, problem)) return tPipelineWorker = nullptr, false;
-            continue;
-        }
-        if (ps.deep != (pr.counts != nullptr))
-            return fail(fmt::format("part '{}': {} rows for a {} part", ps.name,
-                                    pr.counts != nullptr ? "deep" : "flat",
-                                    ps.deep ? "deep" : "flat"));
-        for (const std::string& c : ps.channels) {
-            size_t i = 0;
-            if (ps.deep)
-                while (i < pr.deep.size() && pr.deep[i].name != c) ++i;
-            else
-                while (i < pr.slices.size() && pr.slices[i].name != c) ++i;
-            if (i == (ps.deep ? pr.deep.size() : pr.slices.size()))
-                return fail(fmt::format("part '{}': no data for channel '{}'", ps.name, c));
-            src[p].channel.push_back(i);
-        }
-        if (ps.deep) {
-            src[p].rowStart.assign(size_t(rows) + 1, 0);
-            const size_t w = size_t(im.width);
-            for (size_t r = 0; r < size_t(rows); ++r) {
-                uint64_t sum = 0;
-                for (size_t x = 0; x < w; ++x) sum += pr.counts[r * w + x];
-                src[p].rowStart[r + 1] = src[p].rowStart[r] + sum;
-            }
-        }
-    }
-    if (!im.direct && !im.spillFile) {
-        im.spillFile = std::make_unique<TemporaryFile>(im.target, ".spill");
-        im.spillFd =
-            Fd(::open(im.spillFile->path().c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600));
-        if (im.spillFd.get() < 0) {
-            const std::string why = fmt::format("cannot create the spill file {} ({})",
-                                                im.spillFile->path(), std::strerror(errno));
-            im.spillFile->remove();
-            return fail(why);
-        }
-    }
-    const auto stageRows = [&](size_t p, int from, int to) {  // rows [from, to) of the write
-        PartState& ps = im.parts[p];
-        const size_t w = size_t(im.width), line = w * sizeof(float);
-        const std::vector<FloatSlice>& sl = parts[p].slices;
-        const size_t need = ps.channels.size() * size_t(ps.lines) * line;
-        if (ps.stageBytes < need) {
-            ps.stage.reset();
-            ps.stageBytes = 0;
-            ps.stage.reset(new uint8_t[need]);
-            ps.stageBytes = need;
-        }
-        for (size_t c = 0; c < ps.channels.size(); ++c) {
-            const FloatSlice& s = sl[src[p].channel[c]];
-            const size_t eb = ps.channelBytes[c];
-            for (int r = from; r < to; ++r) {
-                uint8_t* dst =
-                    ps.stage.get() + (c * size_t(ps.lines) + size_t(ps.staged + r - from)) * line;
-                const char* row = s.base + size_t(r - r0) * s.lineStride;
-                for (size_t x = 0; x < w; ++x)
-                    std::memcpy(dst + x * eb, row + x * s.pixelStride, eb);
-            }
-        }
-        ps.staged += to - from;
-    };
+    if (!im.bindSources(parts, rows, src, problem)) return tPipelineWorker = nullptr, false;
+    if (!im.direct && !im.spillFile && !im.openSpill(problem))
+        return tPipelineWorker = nullptr, false;
     // The chunks this write completes, in file order when it is the whole image.
     std::vector<Task> tasks;
     std::vector<std::pair<int, int>> leftover(parts.size(), {r1, r1});
     try {
-        for (size_t p = 0; p < parts.size(); ++p) {
-            PartState& ps = im.parts[p];
-            int row = r0;
-            if (ps.staged > 0) {  // complete the staged chunk first
-                const int start = r0 - ps.staged;
-                const int end = std::min(start + ps.lines, im.height);
-                const int take = std::min(end, r1) - r0;
-                stageRows(p, r0, r0 + take);
-                row += take;
-                if (start + ps.staged == end) {
-                    Task t;
-                    t.part = int(p);
-                    t.row = start;
-                    t.rows = end - start;
-                    t.staged = true;
-                    tasks.push_back(std::move(t));
-                }
-            }
-            for (; row < r1; row += ps.lines) {
-                const int end = std::min(row + ps.lines, im.height);
-                if (end > r1) {
-                    leftover[p] = {row, r1};
-                    break;
-                }
-                Task t;
-                t.part = int(p);
-                t.row = row;
-                t.rows = end - row;
-                t.srcRow = row - r0;
-                tasks.push_back(std::move(t));
-            }
-        }
+        im.planChunks(parts, src, r0, r1, tasks, leftover);
     } catch (const std::bad_alloc&) {
         return fail("out of memory while staging rows");
     }
@@ -819,7 +857,7 @@ bool CorePartWriter::write(const std::vector<PartRows>& parts, int rows, std::st
     try {
         for (size_t p = 0; p < parts.size(); ++p)
             if (leftover[p].first < leftover[p].second)
-                stageRows(p, leftover[p].first, leftover[p].second);
+                im.stageRows(p, parts[p], src[p], r0, leftover[p].first, leftover[p].second);
     } catch (const std::bad_alloc&) {
         return fail("out of memory while staging rows");
     }

@@ -66,6 +66,7 @@ WindowKernel windowKernel(Neighbourhood over, const SpatialParams& params) {
     k.mode = params.mode;
     k.halo[0] = params.windowWidth / 2;
     k.halo[1] = params.windowHeight / 2;
+    k.check = [params](std::string& err) { return validateSpatialParams(params, err); };
     k.begin = [over, params](const WindowInput& in, int x0, int y0, int x1, int y1, int nthreads,
                              std::string& err) -> std::unique_ptr<WindowPass> {
         if (!validateSpatialParams(params, err)) return nullptr;

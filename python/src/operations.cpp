@@ -1,8 +1,8 @@
 // Registry operations and the noise-aware comparison for Python, through the dispatcher the CLI
-// uses (image/imageops.h, analysis/compare.h): equal to `mcstat FILE --OP` bit for bit.
+// uses (image/imageops.h, compare/compare.h): equal to `mcstat FILE --OP` bit for bit.
 #include "bindings.h"
-#include "mcstat/analysis/compare.h"
-#include "mcstat/analysis/compare_report.h"
+#include "mcstat/compare/compare.h"
+#include "mcstat/compare/compare_report.h"
 #include "mcstat/core/untrusted_text.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"

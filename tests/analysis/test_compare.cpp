@@ -1,4 +1,4 @@
-// compareStats / compareStatsToImage (include/mcstat/analysis/compare.h) on synthetic statistics
+// compareStats / compareStatsToImage (include/mcstat/compare/compare.h) on synthetic statistics
 // images with known differences: what is found, where, what the maps hold, the extremes.
 #include <OpenImageIO/imagebufalgo.h>
 #include <gtest/gtest.h>
@@ -9,7 +9,7 @@
 #include <memory>
 #include <random>
 
-#include "mcstat/analysis/compare.h"
+#include "mcstat/compare/compare.h"
 #include "mcstat/image/imageops.h"
 
 namespace mcstat {

@@ -13,8 +13,8 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
-#include "mcstat/analysis/compare.h"
-#include "mcstat/analysis/compare_report.h"
+#include "mcstat/compare/compare.h"
+#include "mcstat/compare/compare_report.h"
 #include "mcstat/image/imageops.h"
 
 namespace mcstat {

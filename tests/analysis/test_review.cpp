@@ -1,4 +1,4 @@
-// Review pictures (include/mcstat/analysis/review_pictures.h): the per-pixel error map against
+// Review pictures (include/mcstat/review/review_pictures.h): the per-pixel error map against
 // hand-computed values, heatmap colours against their colour bar, non-finite pixels, and the
 // contact sheet's layout and pixels.
 #include <OpenImageIO/imagebuf.h>
@@ -14,8 +14,8 @@
 #include <vector>
 
 #include "mcstat/analysis/metrics.h"
-#include "mcstat/analysis/review_pictures.h"
 #include "mcstat/image/imageops.h"
+#include "mcstat/review/review_pictures.h"
 
 using namespace mcstat;
 

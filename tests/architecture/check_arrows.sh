@@ -52,10 +52,8 @@ rule samples "$format|$kernel|filters/aov_weights\.h|filters/samples/[a-z_0-9]+\
   include/mcstat/filters/samples
 rule filters "$format|filters/.+\.h" filters include/mcstat/filters
 rule compact "$format|filters/.+\.h|compact/compact\.h" compact include/mcstat/compact
-# Pure measures: no image, no file.
-rule measures "$core|analysis/(metrics|planner|two_sample)\.h" analysis/metrics.cpp \
-  analysis/planner.cpp analysis/two_sample.cpp include/mcstat/analysis/metrics.h \
-  include/mcstat/analysis/planner.h include/mcstat/analysis/two_sample.h
+# Layer 2, the measures (analysis/): no image, no file.
+rule measures "$core|analysis/(metrics|planner|two_sample)\.h" analysis include/mcstat/analysis
 # Layer 3: the specs of images (below the operations), then the image layer, which runs every
 # operation through its kernel and names no family; no tool, no ingest, no review.
 rule imagespec "$format|image/(image_spec|render_layout)\.h" image/image_spec.cpp \
@@ -66,6 +64,14 @@ rule image "$format|filters/(operation|estimate|registry|aov_weights|removed_lig
 # and sets up images through the spec library, not the operations.
 rule ingest "$format|image/(image_spec|render_layout)\.h|color\.h|ingest\.h|channel_naming\.h" ingest \
   include/mcstat/ingest.h include/mcstat/channel_naming.h
+# Layer 4 on the image layer: the review pictures and the comparison stand on the image layer and
+# the measures, through the registry (no family of operations), and on no tool, no ingest and not
+# on each other; only the comparison's reports draw with the review pictures.
+onimage="$format|filters/(operation|estimate|registry)\.h|image/[a-z_]+\.h|analysis/(metrics|planner|two_sample)\.h"
+rule review "$onimage|review/review_pictures\.h" review include/mcstat/review
+rule compare "$onimage|compare/compare\.h" compare/compare.cpp include/mcstat/compare/compare.h
+rule compare-report "$onimage|compare/(compare|compare_report)\.h|review/review_pictures\.h" \
+  compare/compare_report.cpp include/mcstat/compare/compare_report.h
 
 # Private headers: a quoted include that is not mcstat/... is a header of the includer's folder.
 while IFS=: read -r file line text; do
@@ -76,7 +82,7 @@ while IFS=: read -r file line text; do
     bad=1
   fi
 done < <(grep -rHn --include='*.h' --include='*.cpp' '^#include "' core color exr-deep filters \
-  compact analysis image ingest oiiotool-ext oiio-plugin render-fixture 2>/dev/null |
+  compact analysis image ingest review compare oiiotool-ext oiio-plugin render-fixture 2>/dev/null |
   grep -v '^[^:]*:[0-9]*:#include "mcstat/')
 
 # Operation state parts are generic (issue 35): the format and the tools know state parts by their
@@ -92,6 +98,6 @@ while IFS= read -r file; do
       ;;
   esac
 done < <(grep -rIli --exclude='*.md' pajot core color exr-deep filters compact analysis image ingest \
-  oiiotool-ext oiio-plugin render-fixture include python scripts CMakeLists.txt 2>/dev/null | sort)
+  review compare oiiotool-ext oiio-plugin render-fixture include python scripts CMakeLists.txt 2>/dev/null | sort)
 
 exit $bad

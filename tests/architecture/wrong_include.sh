@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
 # wrong_include.sh ROOT: check_arrows.sh must fail on a copy of the source with arrows pointing the
 # wrong way, naming each: a per-pixel estimator that includes the image layer, the operation
-# interface that includes a family, ingest that includes a private header of exr-deep, and a tool
-# that names Pajot (state parts are generic: only the method's own files name it).
+# interface that includes a family, ingest that includes a private header of exr-deep, the review
+# pictures that include the comparison (two rooms of layer 4), and a tool that names Pajot (state
+# parts are generic: only the method's own files name it).
 set -euo pipefail
 root=$(cd "${1:?usage: wrong_include.sh ROOT}" && pwd)
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-for d in core color exr-deep filters compact analysis image ingest oiiotool-ext oiio-plugin \
-  render-fixture include; do
+for d in core color exr-deep filters compact analysis image ingest review compare oiiotool-ext \
+  oiio-plugin render-fixture include; do
   cp -r "$root/$d" "$tmp/$d"
 done
 "$root/tests/architecture/check_arrows.sh" "$tmp" >/dev/null ||
@@ -17,6 +18,7 @@ sed -i '0,/^#include "mcstat\//s//#include "mcstat\/image\/imageops.h"\n&/' "$tm
 sed -i '0,/^#include "mcstat\//s//#include "mcstat\/filters\/pixel\/pixel_estimate.h"\n&/' \
   "$tmp/include/mcstat/filters/operation.h"
 sed -i '0,/^#include "mcstat\//s//#include "stats_layout.h"\n&/' "$tmp/ingest/ingest.cpp"
+sed -i '0,/^#include "mcstat\//s//#include "mcstat\/compare\/compare.h"\n&/' "$tmp/review/review_pictures.cpp"
 # A tool that names Pajot: state parts are described through the registry entry's hooks.
 echo '// printPajotSummary' >>"$tmp/oiiotool-ext/io.cpp"
 set +e
@@ -28,8 +30,9 @@ echo "$out"
 for want in "filters/pixel/gmon.cpp:[0-9]*: includes mcstat/image/imageops.h; pixel may include only" \
   "include/mcstat/filters/operation.h:[0-9]*: includes mcstat/filters/pixel/pixel_estimate.h; operation may include only" \
   "ingest/ingest.cpp:[0-9]*: includes \"stats_layout.h\", which is not in its own folder" \
+  "review/review_pictures.cpp:[0-9]*: includes mcstat/compare/compare.h; review may include only" \
   "oiiotool-ext/io.cpp: names Pajot; only its own files"; do
   grep -q "$want" <<<"$out" || { echo "missing: $want"; exit 1; }
 done
-[ "$(wc -l <<<"$out")" -eq 4 ] || { echo "expected exactly 4 lines"; exit 1; }
-echo "ok: the three wrong arrows and the tool naming Pajot are named"
+[ "$(wc -l <<<"$out")" -eq 5 ] || { echo "expected exactly 5 lines"; exit 1; }
+echo "ok: the four wrong arrows and the tool naming Pajot are named"

@@ -15,10 +15,10 @@
 #include <vector>
 
 #include "cli_support.h"
-#include "mcstat/analysis/review_pictures.h"
 #include "mcstat/color.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
+#include "mcstat/review/review_pictures.h"
 #include "mcstat/stats_file.h"
 
 using namespace mcstat;

@@ -20,6 +20,7 @@
 
 #include "filters/pixel/pixel_support.h"
 #include "mcstat/filters/registry.h"
+#include "mcstat/filters/window/window_kernel.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/stats_file.h"
 
@@ -369,6 +370,54 @@ TEST_F(Stream, ARegionOutsideTheImageIsAnError) {
     EXPECT_NE(out.geterror().find("outside the data window"), std::string::npos);
     StatsFileReader closed;
     EXPECT_FALSE(estimate(out, closed, gmon, kernel));
+}
+
+/// A source that counts the blocks read through it (each read forwarded to `inner`).
+class CountingSource final : public StatsBlockSource {
+  public:
+    explicit CountingSource(StatsBlockSource& inner) : inner_(inner) {}
+    const StatsHeader& header() const override { return inner_.header(); }
+    const std::string& name() const override { return inner_.name(); }
+    int chunkRows() const override { return inner_.chunkRows(); }
+    bool read(int firstRow, int rows, unsigned parts, StatsImage& block,
+              std::string& err) override {
+        ++reads;
+        return inner_.read(firstRow, rows, parts, block, err);
+    }
+    int reads = 0;
+
+  private:
+    StatsBlockSource& inner_;
+};
+
+TEST_F(Stream, AHandBuiltInvalidWindowFailsBeforeAnyBlockIsRead) {
+    const std::string path = file("f.mcstat");
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path, makeImage(8, 40, 2, false, 4), err)) << err;
+    SpatialParams params;
+    params.luma = kLuma;
+    params.windowWidth = 4;  // even: out of range (what spatialParams' parser never builds)
+    std::string why;
+    ASSERT_FALSE(validateSpatialParams(params, why));
+    const WindowKernel bad = windowKernel(Neighbourhood::SubBuffers, params);
+    {
+        StatsFileReader reader;
+        ASSERT_TRUE(reader.open(path, err)) << err;
+        CountingSource counted(reader);
+        OIIO::ImageBuf out;
+        EXPECT_FALSE(windowFilter(out, counted, bad));
+        EXPECT_EQ(0, counted.reads);
+        EXPECT_EQ(bad.name + ": " + why, out.geterror());
+    }
+    // The same kernel with a valid window reads the file.
+    params.windowWidth = 3;
+    StatsFileReader reader;
+    ASSERT_TRUE(reader.open(path, err)) << err;
+    CountingSource counted(reader);
+    OIIO::ImageBuf out;
+    EXPECT_TRUE(windowFilter(out, counted, windowKernel(Neighbourhood::SubBuffers, params)))
+        << out.geterror();
+    EXPECT_GT(counted.reads, 0);
 }
 
 }  // namespace

@@ -113,6 +113,9 @@ struct WindowKernel {
     std::function<std::unique_ptr<WindowPass>(const WindowInput& in, int x0, int y0, int x1, int y1,
                                               int nthreads, std::string& err)>
         begin;
+    /// Checks the parameters without an input (begin checks them again): a streamed pass calls
+    /// it before it reads the first block. False with a one-line `err`; empty: nothing to check.
+    std::function<bool(std::string& err)> check;
 };
 using BindWindowFn = WindowKernel (*)(const ParamValues& values, const std::array<double, 3>& luma);
 

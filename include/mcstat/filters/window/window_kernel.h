@@ -10,7 +10,8 @@
 namespace mcstat {
 
 /// The kernel of a window operation over `over` with `params` bound: its halo from the window, its
-/// mode, and a `begin` that validates `params` (validateSpatialParams) and prepares
+/// mode, a `check` that validates `params` (validateSpatialParams) before any input is read, and
+/// a `begin` that validates them again and prepares
 /// - over an image (Neighbourhood::Image): WMIF / MIF at each output pixel (mif.h: wmifPixel);
 /// - over sub-buffers (SubBuffers): the 3D filters, each pixel's buffers of the output rectangle
 ///   grown by the halo (clipped to the input) sorted once over nthreads threads, then every output

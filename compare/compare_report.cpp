@@ -1,6 +1,6 @@
 // Reports of a noise-aware comparison: JUnit XML, JSON and a review page
-// (include/mcstat/analysis/compare_report.h, docs/compare.md "Reports for CI").
-#include "mcstat/analysis/compare_report.h"
+// (include/mcstat/compare/compare_report.h, docs/compare.md "Reports for CI").
+#include "mcstat/compare/compare_report.h"
 
 #include <OpenImageIO/imagebuf.h>
 #include <fmt/format.h>
@@ -15,8 +15,8 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "mcstat/analysis/review_pictures.h"
 #include "mcstat/core/untrusted_text.h"
+#include "mcstat/review/review_pictures.h"
 #include "mcstat/temp_file.h"
 
 namespace mcstat {

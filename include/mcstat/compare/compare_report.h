@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/analysis/compare.h"
+#include "mcstat/compare/compare.h"
 
 namespace mcstat {
 

@@ -1,9 +1,9 @@
 // Pictures for review tools: heatmaps with a colour bar and contact sheets
-// (include/mcstat/analysis/review_pictures.h, docs/review.md). Everything drawn goes through
+// (include/mcstat/review/review_pictures.h, docs/review.md). Everything drawn goes through
 // ImageBufAlgo (color_map, render_text, fill, paste, resample); the only pixels written by hand are
 // data: the positions on the colour scale that color_map turns into colours, and the non-finite
 // mask.
-#include "mcstat/analysis/review_pictures.h"
+#include "mcstat/review/review_pictures.h"
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebufalgo.h>
@@ -464,6 +464,141 @@ ImageBuf colorBar(int width, const ColorScale& scale, const ReviewStyle& style) 
     return dst;
 }
 
+namespace {
+
+/// The heatmap's pixels, one per pixel of `roi`: channel `ch` of `src` colour-mapped on `cs` and
+/// made display-referred, a non-finite value in kNonFiniteColor. False with `err`.
+bool heatmapPixels(ImageBuf& map, const ImageBuf& src, ROI roi, int ch, const ColorScale& cs,
+                   int nthreads, std::string& err) {
+    const int w = roi.width(), h = roi.height();
+    // Data: each pixel's position on the scale, and which pixels are NaN / Inf (3 channels, to
+    // mask the RGB below).
+    std::vector<float> v(size_t(w) * size_t(h));
+    if (!src.get_pixels(ROI(roi.xbegin, roi.xend, roi.ybegin, roi.yend, 0, 1, ch, ch + 1),
+                        TypeDesc::FLOAT, v.data())) {
+        err = src.geterror();
+        return false;
+    }
+    std::vector<float> tv(v.size()), nfv(v.size() * 3), keepv(v.size() * 3);
+    for (size_t p = 0; p < v.size(); ++p) {
+        const double t = colorScalePosition(cs, v[p]);
+        const bool bad = std::isnan(t);
+        tv[p] = bad ? 0.f : float(t);
+        for (int c = 0; c < 3; ++c) {
+            nfv[p * 3 + c] = bad ? 1.f : 0.f;
+            keepv[p * 3 + c] = bad ? 0.f : 1.f;
+        }
+    }
+    ImageBuf t(ImageSpec(w, h, 1, TypeDesc::FLOAT)), nf(ImageSpec(w, h, 3, TypeDesc::FLOAT)),
+        keep(ImageSpec(w, h, 3, TypeDesc::FLOAT));
+    t.set_pixels(t.roi(), TypeDesc::FLOAT, tv.data());
+    nf.set_pixels(nf.roi(), TypeDesc::FLOAT, nfv.data());
+    keep.set_pixels(keep.roi(), TypeDesc::FLOAT, keepv.data());
+
+    // OIIO's colour maps are scene-linear; the display view makes them display-referred (with the
+    // built-in config, the maps' published sRGB values), as the contact sheet's image tiles are.
+    ImageBuf mapped, disp, magenta;
+    if (!colorMap(mapped, t, cs.map, nthreads) || !displayTransform(disp, mapped) ||
+        !IBA::mul(magenta, nf, OIIO::cspan<float>(kNonFiniteColor), {}, nthreads) ||
+        !IBA::mad(map, disp, keep, magenta, {}, nthreads)) {
+        err = mapped.geterror() + disp.geterror() + magenta.geterror() + map.geterror();
+        return false;
+    }
+    return true;
+}
+
+/// A heatmap's picture and where its parts are: the map, and the colour bar (or binary legend).
+struct HeatmapLayout {
+    ImageBuf out, bar;
+    int mapX = 0, mapY = 0, barX = 0, barY = 0, barH = 0;
+};
+
+/// Lays out the picture: the scaled map (mapW x mapH) under the caption's lines, above a colour
+/// bar `barW` wide when opt.colorBar. False with `err`.
+bool layoutHeatmap(HeatmapLayout& L, ImageBuf& scaled, const ColorScale& cs,
+                   const HeatmapOptions& opt, long long mapW, long long mapH, int barW,
+                   const std::vector<std::string>& caption, int nthreads, std::string& err) {
+    const int m = opt.style.margin;
+    const int captionH = caption.empty() ? 0 : int(caption.size()) * opt.style.lineHeight() + m / 2;
+    ImageBuf& out = L.out;
+    if (!opt.colorBar && caption.empty()) {
+        out = std::move(scaled);
+    } else if (!opt.colorBar) {
+        out = canvas(int(mapW) + 2 * m, m + captionH + int(mapH) + m, opt.style.background);
+        L.mapX = m;
+        L.mapY = m + captionH;
+        if (!IBA::paste(out, L.mapX, L.mapY, 0, 0, scaled, {}, nthreads)) {
+            err = out.geterror();
+            return false;
+        }
+    } else {
+        if (!colorBar(L.bar, barW, cs, opt.style)) {
+            err = L.bar.geterror();
+            return false;
+        }
+        const int cw = int(std::max<long long>(mapW, barW)) + 2 * m;
+        const int chh = m + captionH + int(mapH) + m + L.bar.spec().height + m;
+        out = canvas(cw, chh, opt.style.background);
+        L.mapX = m;
+        L.mapY = m + captionH;
+        L.barX = m;
+        L.barY = L.mapY + int(mapH) + m;
+        L.barH = L.bar.spec().get_int_attribute("mcstat:colorbar:height");
+        if (!IBA::paste(out, L.mapX, L.mapY, 0, 0, scaled, {}, nthreads) ||
+            !IBA::paste(out, L.barX, L.barY, 0, 0, L.bar, {}, nthreads)) {
+            err = out.geterror();
+            return false;
+        }
+    }
+    for (size_t i = 0; i < caption.size(); ++i)
+        if (!drawText(out, m, m + int(i) * opt.style.lineHeight(), caption[i], opt.style)) {
+            err = out.geterror();
+            return false;
+        }
+    return true;
+}
+
+/// The heatmap's spec attributes (docs/review.md): its channel, scale and where its parts are.
+void tagHeatmap(ImageSpec& spec, const ImageBuf& src, int ch, const ColorScale& cs,
+                const HeatmapOptions& opt, const HeatmapLayout& L, long long mapW, long long mapH,
+                int barW) {
+    spec.channelnames = {"R", "G", "B"};
+    spec.attribute("mcstat:heatmap:channel", src.spec().channel_name(ch));
+    spec.attribute("mcstat:heatmap:map", cs.map);
+    spec.attribute("mcstat:heatmap:min", TypeDesc::DOUBLE, &cs.lo);
+    spec.attribute("mcstat:heatmap:max", TypeDesc::DOUBLE, &cs.hi);
+    spec.attribute("mcstat:heatmap:log", cs.log ? 1 : 0);
+    spec.attribute("mcstat:heatmap:binary", cs.binary ? 1 : 0);
+    if (!opt.caption.empty())
+        spec.attribute("mcstat:heatmap:caption",
+                       OIIO::Strutil::replace(opt.caption, "\n", " ", true));
+    spec.attribute("mcstat:heatmap:nonFinite", int(std::min<long>(cs.nonFinite, 0x7fffffff)));
+    spec.attribute("mcstat:heatmap:scale", opt.scale);
+    spec.attribute("mcstat:heatmap:x", L.mapX);
+    spec.attribute("mcstat:heatmap:y", L.mapY);
+    spec.attribute("mcstat:heatmap:width", int(mapW));
+    spec.attribute("mcstat:heatmap:height", int(mapH));
+    const ImageSpec& bar = L.bar.spec();
+    if (opt.colorBar && cs.binary) {
+        spec.attribute("mcstat:legend:binary", 1);
+        for (const char* sw : {"swatch0", "swatch1"}) {
+            const std::string p = format("mcstat:legend:{}:", sw);
+            if (bar.get_int_attribute(p + "width") <= 0) continue;
+            spec.attribute(p + "x", L.barX + bar.get_int_attribute(p + "x"));
+            spec.attribute(p + "y", L.barY + bar.get_int_attribute(p + "y"));
+            spec.attribute(p + "width", bar.get_int_attribute(p + "width"));
+            spec.attribute(p + "height", bar.get_int_attribute(p + "height"));
+        }
+    } else if (opt.colorBar) {
+        spec.attribute("mcstat:colorbar:x", L.barX);
+        spec.attribute("mcstat:colorbar:y", L.barY);
+        spec.attribute("mcstat:colorbar:width", barW);
+        spec.attribute("mcstat:colorbar:height", L.barH);
+    }
+}
+
+}  // namespace
+
 bool heatmap(ImageBuf& dst, const ImageBuf& src, const HeatmapOptions& opt, ROI roi, int nthreads) {
     if (opt.scale < 1 || opt.scale > kMaxScale) {
         dst.errorfmt("heatmap: scale must be 1..{}, not {}", kMaxScale, opt.scale);
@@ -491,117 +626,23 @@ bool heatmap(ImageBuf& dst, const ImageBuf& src, const HeatmapOptions& opt, ROI 
     // The caption's lines, wrapped to the width of the picture (at least the colour bar's).
     const int textW = int(std::max<long long>(mapW, barW));
     const std::vector<std::string> caption = wrapText(opt.caption, textW, opt.style.fontSize);
-    const int captionH = caption.empty() ? 0 : int(caption.size()) * opt.style.lineHeight() + m / 2;
 
-    // Data: each pixel's position on the scale, and which pixels are NaN / Inf (3 channels, to
-    // mask the RGB below).
-    std::vector<float> v(size_t(w) * size_t(h));
-    if (!src.get_pixels(ROI(roi.xbegin, roi.xend, roi.ybegin, roi.yend, 0, 1, ch, ch + 1),
-                        TypeDesc::FLOAT, v.data())) {
-        dst.errorfmt("heatmap: {}", src.geterror());
+    ImageBuf map, scaled;
+    if (!heatmapPixels(map, src, roi, ch, cs, nthreads, err)) {
+        dst.errorfmt("heatmap: {}", err);
         return false;
     }
-    std::vector<float> tv(v.size()), nfv(v.size() * 3), keepv(v.size() * 3);
-    for (size_t p = 0; p < v.size(); ++p) {
-        const double t = colorScalePosition(cs, v[p]);
-        const bool bad = std::isnan(t);
-        tv[p] = bad ? 0.f : float(t);
-        for (int c = 0; c < 3; ++c) {
-            nfv[p * 3 + c] = bad ? 1.f : 0.f;
-            keepv[p * 3 + c] = bad ? 0.f : 1.f;
-        }
-    }
-    ImageBuf t(ImageSpec(w, h, 1, TypeDesc::FLOAT)), nf(ImageSpec(w, h, 3, TypeDesc::FLOAT)),
-        keep(ImageSpec(w, h, 3, TypeDesc::FLOAT));
-    t.set_pixels(t.roi(), TypeDesc::FLOAT, tv.data());
-    nf.set_pixels(nf.roi(), TypeDesc::FLOAT, nfv.data());
-    keep.set_pixels(keep.roi(), TypeDesc::FLOAT, keepv.data());
-
-    // OIIO's colour maps are scene-linear; the display view makes them display-referred (with the
-    // built-in config, the maps' published sRGB values), as the contact sheet's image tiles are.
-    ImageBuf mapped, disp, magenta, map;
-    if (!colorMap(mapped, t, cs.map, nthreads) || !displayTransform(disp, mapped) ||
-        !IBA::mul(magenta, nf, OIIO::cspan<float>(kNonFiniteColor), {}, nthreads) ||
-        !IBA::mad(map, disp, keep, magenta, {}, nthreads)) {
-        std::string e = mapped.geterror() + disp.geterror() + magenta.geterror() + map.geterror();
-        dst.errorfmt("heatmap: {}", e);
-        return false;
-    }
-    ImageBuf scaled;
     if (!upscale(scaled, map, opt.scale, nthreads)) {
         dst.errorfmt("heatmap: {}", scaled.geterror());
         return false;
     }
-    ImageBuf out, bar;
-    int mapX = 0, mapY = 0, barX = 0, barY = 0, barH = 0;
-    if (!opt.colorBar && caption.empty()) {
-        out = std::move(scaled);
-    } else if (!opt.colorBar) {
-        out = canvas(int(mapW) + 2 * m, m + captionH + int(mapH) + m, opt.style.background);
-        mapX = m;
-        mapY = m + captionH;
-        if (!IBA::paste(out, mapX, mapY, 0, 0, scaled, {}, nthreads)) {
-            dst.errorfmt("heatmap: {}", out.geterror());
-            return false;
-        }
-    } else {
-        if (!colorBar(bar, barW, cs, opt.style)) {
-            dst.errorfmt("heatmap: {}", bar.geterror());
-            return false;
-        }
-        const int cw = int(std::max<long long>(mapW, barW)) + 2 * m;
-        const int chh = m + captionH + int(mapH) + m + bar.spec().height + m;
-        out = canvas(cw, chh, opt.style.background);
-        mapX = m;
-        mapY = m + captionH;
-        barX = m;
-        barY = mapY + int(mapH) + m;
-        barH = bar.spec().get_int_attribute("mcstat:colorbar:height");
-        if (!IBA::paste(out, mapX, mapY, 0, 0, scaled, {}, nthreads) ||
-            !IBA::paste(out, barX, barY, 0, 0, bar, {}, nthreads)) {
-            dst.errorfmt("heatmap: {}", out.geterror());
-            return false;
-        }
+    HeatmapLayout layout;
+    if (!layoutHeatmap(layout, scaled, cs, opt, mapW, mapH, barW, caption, nthreads, err)) {
+        dst.errorfmt("heatmap: {}", err);
+        return false;
     }
-    for (size_t i = 0; i < caption.size(); ++i)
-        if (!drawText(out, m, m + int(i) * opt.style.lineHeight(), caption[i], opt.style)) {
-            dst.errorfmt("heatmap: {}", out.geterror());
-            return false;
-        }
-    ImageSpec& spec = out.specmod();
-    spec.channelnames = {"R", "G", "B"};
-    spec.attribute("mcstat:heatmap:channel", src.spec().channel_name(ch));
-    spec.attribute("mcstat:heatmap:map", cs.map);
-    spec.attribute("mcstat:heatmap:min", TypeDesc::DOUBLE, &cs.lo);
-    spec.attribute("mcstat:heatmap:max", TypeDesc::DOUBLE, &cs.hi);
-    spec.attribute("mcstat:heatmap:log", cs.log ? 1 : 0);
-    spec.attribute("mcstat:heatmap:binary", cs.binary ? 1 : 0);
-    if (!opt.caption.empty())
-        spec.attribute("mcstat:heatmap:caption",
-                       OIIO::Strutil::replace(opt.caption, "\n", " ", true));
-    spec.attribute("mcstat:heatmap:nonFinite", int(std::min<long>(cs.nonFinite, 0x7fffffff)));
-    spec.attribute("mcstat:heatmap:scale", opt.scale);
-    spec.attribute("mcstat:heatmap:x", mapX);
-    spec.attribute("mcstat:heatmap:y", mapY);
-    spec.attribute("mcstat:heatmap:width", int(mapW));
-    spec.attribute("mcstat:heatmap:height", int(mapH));
-    if (opt.colorBar && cs.binary) {
-        spec.attribute("mcstat:legend:binary", 1);
-        for (const char* sw : {"swatch0", "swatch1"}) {
-            const std::string p = format("mcstat:legend:{}:", sw);
-            if (bar.spec().get_int_attribute(p + "width") <= 0) continue;
-            spec.attribute(p + "x", barX + bar.spec().get_int_attribute(p + "x"));
-            spec.attribute(p + "y", barY + bar.spec().get_int_attribute(p + "y"));
-            spec.attribute(p + "width", bar.spec().get_int_attribute(p + "width"));
-            spec.attribute(p + "height", bar.spec().get_int_attribute(p + "height"));
-        }
-    } else if (opt.colorBar) {
-        spec.attribute("mcstat:colorbar:x", barX);
-        spec.attribute("mcstat:colorbar:y", barY);
-        spec.attribute("mcstat:colorbar:width", barW);
-        spec.attribute("mcstat:colorbar:height", barH);
-    }
-    dst = std::move(out);
+    tagHeatmap(layout.out.specmod(), src, ch, cs, opt, layout, mapW, mapH, barW);
+    dst = std::move(layout.out);
     return true;
 }
 

@@ -1,9 +1,9 @@
-// Noise-aware comparison of two renders from their sub-buffers (include/mcstat/analysis/compare.h,
+// Noise-aware comparison of two renders from their sub-buffers (include/mcstat/compare/compare.h,
 // docs/compare.md). Both sides are read by the same blocks of rows, aligned to the tiles, so a
 // tile is always whole inside one block; a block's tiles are the parallel tasks, each testing its
 // pixels and then itself. The multiple-testing threshold needs every p-value, so they are kept (4
 // bytes per hypothesis) with the maps; the sub-buffers are not.
-#include "mcstat/analysis/compare.h"
+#include "mcstat/compare/compare.h"
 
 #include <OpenImageIO/strutil.h>
 #include <fmt/format.h>
@@ -205,6 +205,19 @@ class Comparison {
         return welchTest(sa, sb, margin(sa.estimate, sb.estimate), opt_.test);
     }
     void finish();
+    /// The rejection thresholds of the pixels and the tiles, and the count of hypotheses, by the
+    /// verdict's rule.
+    void setThresholds();
+    /// The strongest finding among the pixels and among the tiles; counts the pixels and tiles
+    /// rejected in any quantity.
+    void findStrongest(size_t& pixRejected, size_t& tileRejected);
+    /// Equivalence: the pixels and tiles not shown equivalent in some quantity tested.
+    void countNotEquivalent(size_t& pixNot, size_t& tileNot) const;
+    /// Whether p-value `p` with z-score `z` is a stronger finding than `f` at threshold `thr`.
+    bool strongerFinding(float p, float z, const CompareFinding& f, double thr) const;
+    /// Sets `f` to the hypothesis of quantity `qi` at pixel or tile `index`.
+    void fillFinding(CompareFinding& f, bool tile, size_t index, size_t qi, float p, float z,
+                     float d, float a) const;
     void finishMitsuba();
     void buildMaps();
     void buildMeans();
@@ -510,17 +523,10 @@ void Comparison::buildMeans() {
     }
 }
 
-void Comparison::finish() {
-    out_.pixels = P_;
-    out_.tiles = T_;
-    out_.pixelsTested = tally_.pixelsTested;
-    out_.tilesTested = tally_.tilesTested;
-    out_.nonFiniteOneSide = tally_.nonFiniteOneSide;
-    out_.nonFiniteBoth = tally_.nonFiniteBoth;
-    out_.constantEqual = tally_.constantEqual;
-    out_.fewBuffers = tally_.fewBuffers;
-    out_.identical = tally_.allZero && tally_.pixelsTested > 0 && tally_.nonFiniteOneSide == 0;
+/// Whether p-value `p` is rejected at threshold `thr` (a NaN never is).
+bool rejectedAt(float p, double thr) { return !std::isnan(p) && double(p) <= thr; }
 
+void Comparison::setThresholds() {
     const bool equivalence = opt_.test == TwoSampleTest::Equivalence;
     size_t mp = 0, mt = 0;
     if (opt_.rule == CompareOptions::Rule::Mitsuba) {
@@ -546,93 +552,116 @@ void Comparison::finish() {
             T_ > 0 ? rejectionThreshold(tileP_, opt_.level, Multiplicity::None, &mt) : -1.0;
         out_.hypotheses = T_ > 0 ? mt : mp;
     }
-    auto rejectedAt = [](float p, double thr) { return !std::isnan(p) && double(p) <= thr; };
-    auto rejected = [&](float p) { return rejectedAt(p, out_.threshold); };
-    auto tileRejected_ = [&](float p) { return rejectedAt(p, out_.tileThreshold); };
+}
 
-    // Per pixel and tile: rejected in any quantity. The strongest finding: the rejected hypothesis
-    // of largest |z| (difference; none rejected: the largest |z| tested), the tested one of
-    // largest p (equivalence).
+// The strongest finding: the rejected hypothesis of largest |z| (difference; none rejected: the
+// largest |z| tested), the tested one of largest p (equivalence).
+bool Comparison::strongerFinding(float p, float z, const CompareFinding& f, double thr) const {
+    if (!f.valid) return true;
+    if (opt_.test == TwoSampleTest::Equivalence) return double(p) > f.result.p;
+    const bool rp = rejectedAt(p, thr), rf = rejectedAt(float(f.result.p), thr);
+    if (rp != rf) return rp;
+    return std::fabs(double(z)) > std::fabs(f.result.z);
+}
+
+void Comparison::fillFinding(CompareFinding& f, bool tile, size_t index, size_t qi, float p,
+                             float z, float d, float a) const {
+    f.valid = true;
+    f.tile = tile;
+    const size_t W = tile ? size_t(tilesX_) : size_t(out_.width);
+    const int scale = tile ? out_.tile : 1;
+    f.x = out_.originX + int(index % W) * scale;
+    f.y = out_.originY + int(index / W) * scale;
+    f.quantity = q_[qi].name;
+    f.a = a;
+    f.b = double(a) + double(d);
+    f.result.p = p;
+    f.result.z = z;
+    f.result.difference = d;
+    f.result.se = std::isfinite(z) && z != 0.f ? double(d) / double(z) : 0.0;
+    f.result.margin = margin(f.a, f.b);
+}
+
+void Comparison::findStrongest(size_t& pixRejected, size_t& tileRejected) {
+    // Per pixel and tile: rejected in any quantity.
     const size_t Q = q_.size();
-    auto better = [&](float p, float z, const CompareFinding& f, double thr) {
-        if (!f.valid) return true;
-        if (equivalence) return double(p) > f.result.p;
-        const bool rp = rejectedAt(p, thr), rf = rejectedAt(float(f.result.p), thr);
-        if (rp != rf) return rp;
-        return std::fabs(double(z)) > std::fabs(f.result.z);
-    };
-    auto fill = [&](CompareFinding& f, bool tile, size_t index, size_t qi, float p, float z,
-                    float d, float a) {
-        f.valid = true;
-        f.tile = tile;
-        const size_t W = tile ? size_t(tilesX_) : size_t(out_.width);
-        const int scale = tile ? out_.tile : 1;
-        f.x = out_.originX + int(index % W) * scale;
-        f.y = out_.originY + int(index / W) * scale;
-        f.quantity = q_[qi].name;
-        f.a = a;
-        f.b = double(a) + double(d);
-        f.result.p = p;
-        f.result.z = z;
-        f.result.difference = d;
-        f.result.se = std::isfinite(z) && z != 0.f ? double(d) / double(z) : 0.0;
-        f.result.margin = margin(f.a, f.b);
-    };
-    size_t pixRejected = 0;
+    pixRejected = 0;
     for (size_t p = 0; p < P_; ++p) {
         bool any = false;
         for (size_t qi = 0; qi < Q; ++qi) {
             const size_t h = qi * P_ + p;
             const float pv = p_[h];
             if (std::isnan(pv)) continue;
-            if (rejected(pv)) {
+            if (rejectedAt(pv, out_.threshold)) {
                 any = true;
                 if (std::isfinite(z_[h])) {
                     ++out_.rejectedNoisy;
                     if (z_[h] < 0.f) ++out_.rejectedDarker;
                 }
             }
-            if (pixelNonFinite_[p] == 0 && better(pv, z_[h], out_.strongest, out_.threshold))
-                fill(out_.strongest, false, p, qi, pv, z_[h], effect_[h], aEst_[h]);
+            if (pixelNonFinite_[p] == 0 &&
+                strongerFinding(pv, z_[h], out_.strongest, out_.threshold))
+                fillFinding(out_.strongest, false, p, qi, pv, z_[h], effect_[h], aEst_[h]);
         }
         if (any) ++pixRejected;
     }
-    size_t tileRejected = 0;
+    tileRejected = 0;
     for (size_t t = 0; t < T_; ++t) {
         bool any = false;
         for (size_t qi = 0; qi < Q; ++qi) {
             const size_t h = qi * T_ + t;
             if (std::isnan(tileP_[h])) continue;
-            if (tileRejected_(tileP_[h])) any = true;
-            if (better(tileP_[h], tileZ_[h], out_.strongestTile, out_.tileThreshold))
-                fill(out_.strongestTile, true, t, qi, tileP_[h], tileZ_[h], tileEffect_[h],
-                     tileA_[h]);
+            if (rejectedAt(tileP_[h], out_.tileThreshold)) any = true;
+            if (strongerFinding(tileP_[h], tileZ_[h], out_.strongestTile, out_.tileThreshold))
+                fillFinding(out_.strongestTile, true, t, qi, tileP_[h], tileZ_[h], tileEffect_[h],
+                            tileA_[h]);
         }
         if (any) ++tileRejected;
     }
-    if (!equivalence) {
+}
+
+/// Of `n` pixels or tiles (quantity qi's p-value of place i at p[qi * n + i], Q quantities), how
+/// many have a tested quantity not rejected at `thr`.
+size_t countNotRejected(const std::vector<float>& p, size_t n, size_t Q, double thr) {
+    size_t count = 0;
+    for (size_t i = 0; i < n; ++i)
+        for (size_t qi = 0; qi < Q; ++qi) {
+            const float pv = p[qi * n + i];
+            if (!std::isnan(pv) && !rejectedAt(pv, thr)) {
+                ++count;
+                break;
+            }
+        }
+    return count;
+}
+
+void Comparison::countNotEquivalent(size_t& pixNot, size_t& tileNot) const {
+    // Rejected means "shown equivalent": what counts is what was not.
+    pixNot = countNotRejected(p_, P_, q_.size(), out_.threshold);
+    tileNot = countNotRejected(tileP_, T_, q_.size(), out_.tileThreshold);
+}
+
+void Comparison::finish() {
+    out_.pixels = P_;
+    out_.tiles = T_;
+    out_.pixelsTested = tally_.pixelsTested;
+    out_.tilesTested = tally_.tilesTested;
+    out_.nonFiniteOneSide = tally_.nonFiniteOneSide;
+    out_.nonFiniteBoth = tally_.nonFiniteBoth;
+    out_.constantEqual = tally_.constantEqual;
+    out_.fewBuffers = tally_.fewBuffers;
+    out_.identical = tally_.allZero && tally_.pixelsTested > 0 && tally_.nonFiniteOneSide == 0;
+
+    setThresholds();
+    size_t pixRejected = 0, tileRejected = 0;
+    findStrongest(pixRejected, tileRejected);
+    if (opt_.test != TwoSampleTest::Equivalence) {
         out_.pixelsRejected = pixRejected;
         out_.tilesRejected = tileRejected;
         out_.fail = pixRejected + tileRejected > 0;
     } else {
-        // Rejected means "shown equivalent": what counts is what was not.
         size_t pixNot = 0, tileNot = 0;
-        for (size_t p = 0; p < P_; ++p)
-            for (size_t qi = 0; qi < Q; ++qi) {
-                const float pv = p_[qi * P_ + p];
-                if (!std::isnan(pv) && !rejected(pv)) {
-                    ++pixNot;
-                    break;
-                }
-            }
-        for (size_t t = 0; t < T_; ++t)
-            for (size_t qi = 0; qi < Q; ++qi) {
-                const float pv = tileP_[qi * T_ + t];
-                if (!std::isnan(pv) && !tileRejected_(pv)) {
-                    ++tileNot;
-                    break;
-                }
-            }
+        countNotEquivalent(pixNot, tileNot);
         out_.pixelsRejected = pixNot;
         out_.tilesRejected = tileNot;
         out_.fail =
