@@ -87,11 +87,13 @@ done < <(grep -rHn --include='*.h' --include='*.cpp' '^#include "' core color ex
 
 # Operation state parts are generic (issue 35): the format and the tools know state parts by their
 # owner, so Pajot is named only by its own files (named after the method, density-based sample
-# delaying), its registry line and the renderer's flag (render-fixture/src/main.cpp).
+# delaying), its registry line and the renderer's flag (render-fixture/src/main.cpp); of the
+# scripts, those that run the method by its flags and label its rows (its own benchmark, the trade
+# of every method).
 while IFS= read -r file; do
   case $file in
     filters/samples/sample_delaying* | include/mcstat/filters/samples/sample_delaying* | \
-      scripts/bench_sample_delaying.sh | filters/registry.cpp | render-fixture/src/main.cpp) ;;
+      scripts/bench_sample_delaying.sh | scripts/trade.sh | filters/registry.cpp | render-fixture/src/main.cpp) ;;
     *)
       echo "$file: names Pajot; only its own files (sample_delaying*), filters/registry.cpp and render-fixture/src/main.cpp may"
       bad=1
