@@ -11,7 +11,8 @@
 # Methods: the mean; the renderer's clamp (mcstat-render --clamp C, Cycles' rule) and oiiotool's
 # (--clamp:max=C/3 on the mean, per channel); oiiotool's 3x3 median of the mean; MoN, G-MoN,
 # G-MoN_b; Jung's TMPE, myriad, meridian, MPE+MIF, TMPE+WMIF, 3DMF, 3DWMF, 3DWTMF; Pajot's
-# ADR/ROT/hybrid run online by the renderer; the reweighting (Zirr et al.) run online; RPF from
+# ADR/ROT/hybrid run online by the renderer; the reweighting (Zirr et al.) run online, as the paper
+# gives it and as the energy-keeping variant (kappa=1:spread=8, docs/reweighting.md); RPF from
 # --keep-samples; G-MoN of a compact file. Time of a method = the wall time of the render it
 # needs (process start to exit) + the time mcstat -v reports for reading the file and running
 # the method's commands (for oiiotool, the whole oiiotool process, after the mean's time). The
@@ -24,7 +25,9 @@
 #   SEEDS      independent seeds per spp (default 5)
 #   RES        image size (default "64 48")
 #   BUFFERS    sub-buffers M of the statistics files (default 9)
-#   REF_SPP    samples of each of the two references per scene (default 4096)
+#   REF_SPP    samples of each of the two references per scene (default 8192), but for the scenes
+#              REF_SPP_SCENES names as SCENE=SPP (default "default=32768 caustic=65536": their
+#              references are the noisiest, and their noise floors every method's relMSE)
 #   RPF_SPPS   spp at which RPF runs (default 16: RPF, single-threaded, takes 4 s at 16 spp here)
 #   MEAN_SPPS  extra spp of the mean alone (default 1024)
 #   CLAMPS     clamp limits C, as |R|+|G|+|B| (default "3 30")
@@ -39,7 +42,8 @@ SPPS=${SPPS:-16 64 256}
 SEEDS=${SEEDS:-5}
 RES=${RES:-64 48}
 BUFFERS=${BUFFERS:-9}
-REF_SPP=${REF_SPP:-4096}
+REF_SPP=${REF_SPP:-8192}
+REF_SPP_SCENES=${REF_SPP_SCENES-default=32768 caustic=65536}
 RPF_SPPS=${RPF_SPPS:-16}
 MEAN_SPPS=${MEAN_SPPS:-1024}
 CLAMPS=${CLAMPS:-3 30}
@@ -122,12 +126,14 @@ for scene in $SCENES; do
   ref=$dir/ref.exr
   # Two references with seeds no method uses: the second measures the first's own noise
   # (E relMSE(ref2 vs ref) = 2 x the reference's share of any method's relMSE).
+  ref_spp=$REF_SPP
+  for s in $REF_SPP_SCENES; do [ "${s%%=*}" = "$scene" ] && ref_spp=${s#*=}; done
   progress "$scene: references"
-  run "$render" --scene "$scene" --res $RES --spp "$REF_SPP" --seed 1000001 --reference --quiet -o "$ref"
-  run "$render" --scene "$scene" --res $RES --spp "$REF_SPP" --seed 1000002 --reference --quiet -o "$dir/ref2.exr"
+  run "$render" --scene "$scene" --res $RES --spp "$ref_spp" --seed 1000001 --reference --quiet -o "$ref"
+  run "$render" --scene "$scene" --res $RES --spp "$ref_spp" --seed 1000002 --reference --quiet -o "$dir/ref2.exr"
   run "$mcstat" "$dir/ref2.exr" --diff "$ref"
   IFS=, read -r rel rest < <(metrics <"$log.out")
-  row "$scene" reference "$REF_SPP" 0 0 0 "$(awk -v r="$rel" 'BEGIN { printf "%.6g", r / 2 }'),$rest"
+  row "$scene" reference "$ref_spp" 0 0 0 "$(awk -v r="$rel" 'BEGIN { printf "%.6g", r / 2 }'),$rest"
 
   for seed in $(seq "$SEEDS"); do
     for spp in $SPPS; do
@@ -191,9 +197,17 @@ for scene in $SCENES; do
         "Pajot hybrid|--pajot hybrid|--pajot" "reweight|--reweight|--reweight"; do
         IFS='|' read -r name flags cmd <<<"$online"
         timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M 1 --seed "$seed" $flags --quiet -o "$f-online.mcstat"
-        run "$mcstat" -v "$f-online.mcstat" --dup $cmd --diff "$ref" --pop
-        read -r t met < <(segments)
+        # The reweighting's cascades also give the energy-keeping variant (docs/reweighting.md).
+        variant=()
+        [ "$cmd" = --reweight ] && variant=(--dup --reweight:kappa=1:spread=8 --diff "$ref" --pop)
+        run "$mcstat" -v "$f-online.mcstat" --dup $cmd --diff "$ref" --pop ${variant[@]+"${variant[@]}"}
+        mapfile -t seg < <(segments)
+        read -r t met <<<"${seg[0]}"
         row "$scene" "$name" "$spp" "$seed" "$(add "$t_r" "$t")" "$(bytes_pp "$f-online.mcstat")" "$met"
+        if [ ${#variant[@]} -gt 0 ]; then
+          read -r t met <<<"${seg[1]}"
+          row "$scene" "reweight kappa=1 spread=8" "$spp" "$seed" "$(add "$t_r" "$t")" "$(bytes_pp "$f-online.mcstat")" "$met"
+        fi
       done
 
       # RPF from the per-sample records.
@@ -220,9 +234,12 @@ done
 [ -t 2 ] && echo >&2
 echo "trade: $(($(wc -l <"$table") - 1)) rows in $table, measured in $((SECONDS - start)) s"
 
-# The pictures: relMSE against time and against bytes per pixel, per scene.
+# The pictures: relMSE against time and against bytes per pixel, per scene, for a method of each
+# family (every method is in the tables; PLOT_METHODS, PLOT_METHODS_BYTES choose others).
+PLOT_METHODS=${PLOT_METHODS:-mean,clamp 3 (renderer),clamp 3 (oiiotool),median 3x3 (oiiotool),MoN,G-MoN,TMPE+WMIF,3DWTMF,Pajot ROT,reweight,reweight kappa=1 spread=8,RPF}
+PLOT_METHODS_BYTES=${PLOT_METHODS_BYTES:-mean,clamp 3 (renderer),G-MoN,G-MoN (compact),Pajot ROT,reweight,RPF}
 for scene in $SCENES; do
-  "$mcstat" --tradeplot:scene="$scene":x=seconds "$table" -o "$OUT/trade-$scene-time.png"
-  "$mcstat" --tradeplot:scene="$scene":x=bytes "$table" -o "$OUT/trade-$scene-bytes.png"
+  "$mcstat" "--tradeplot:scene=$scene:x=seconds:methods=$PLOT_METHODS" "$table" -o "$OUT/trade-$scene-time.png"
+  "$mcstat" "--tradeplot:scene=$scene:x=bytes:methods=$PLOT_METHODS_BYTES" "$table" -o "$OUT/trade-$scene-bytes.png"
 done
 PYTHONPATH= /usr/bin/python3 scripts/trade_tables.py "$table"
