@@ -15,7 +15,7 @@
 # gives it and as the energy-keeping variant (kappa=1:spread=8, docs/reweighting.md); RPF from
 # --keep-samples; G-MoN of a compact file. Time of a method = the wall time of the render it
 # needs (process start to exit) + the time mcstat -v reports for reading the file and running
-# the method's commands (for oiiotool, the whole oiiotool process, after the mean's time). The
+# the method's commands (for oiiotool, the total time --runstats reports, after the mean's). The
 # mean is a plain render (M = 1, what a renderer writes) and also runs at MEAN_SPPS: the curve
 # for equal-time comparisons.
 #
@@ -77,6 +77,14 @@ timed() {
   local t0=$EPOCHREALTIME
   run "$@"
   _seconds=$(awk -v a="$t0" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.4f", b - a }')
+}
+# oiio_timed VAR ARGS...: runs oiiotool --runstats ARGS, and VAR = the time it reports (reading,
+# the command, writing; not the process start, as mcstat -v's times are not).
+oiio_timed() {
+  local -n _oiio_seconds=$1
+  shift
+  run oiiotool --runstats "$@"
+  _oiio_seconds=$(awk '/Total time:/ { sub("s", "", $3); print $3 }' "$log.out")
 }
 bytes_pp() { awk -v b="$(stat -c %s "$1")" -v p="$pixels" 'BEGIN { printf "%.1f", b / p }'; }
 add() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.4f", a + b }'; }
@@ -163,11 +171,11 @@ for scene in $SCENES; do
       names=()
       for c in $CLAMPS; do
         v=$(awk -v c="$c" 'BEGIN { printf "%.6g", c / 3 }')
-        timed t "oiiotool" "$f-mean.exr" --clamp:max="$v" -o "$f-oclamp$c.exr"
+        oiio_timed t "$f-mean.exr" --clamp:max="$v" -o "$f-oclamp$c.exr"
         names+=("clamp $c (oiiotool)|$(add "$t_mean" "$t")")
         diffs+=("$f-oclamp$c.exr" --diff "$ref")
       done
-      timed t "oiiotool" "$f-mean.exr" --median 3x3 -o "$f-omedian.exr"
+      oiio_timed t "$f-mean.exr" --median 3x3 -o "$f-omedian.exr"
       names+=("median 3x3 (oiiotool)|$(add "$t_mean" "$t")")
       diffs+=("$f-omedian.exr" --diff "$ref")
       run "$mcstat" "${diffs[@]}"
