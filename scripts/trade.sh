@@ -121,6 +121,19 @@ metrics() {
 row() { echo "$1,$2,$3,$4,$5,$6,$7" >>"$table"; }
 progress() { [ -t 2 ] && printf '\rtrade: %-60s %4d s' "$1" "$((SECONDS - start))" >&2 || true; }
 
+# plain_mean: the plain render of $scene at $spp, $seed (M = 1, as a renderer writes its beauty)
+# and its mean, $f-mean.exr: the baseline's row; sets t_mean and mean_bytes.
+plain_mean() {
+  local t_r t met
+  timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M 1 --seed "$seed" --quiet -o "$f-plain.mcstat"
+  run "$mcstat" -v "$f-plain.mcstat" --dup --mean -o "$f-mean.exr" --diff "$ref" --pop
+  read -r t met < <(segments)
+  t_mean=$(add "$t_r" "$t")
+  mean_bytes=$(bytes_pp "$f-mean.exr")
+  row "$scene" mean "$spp" "$seed" "$t_mean" "$mean_bytes" "$met"
+  rm -f "$f-plain.mcstat"
+}
+
 # The statistics-file methods, "NAME|COMMANDS", each run as --dup COMMANDS --diff REF --pop.
 stat_methods=(
   "MoN|--mon" "G-MoN|--gmon" "G-MoN_b|--gmonb" "TMPE|--tmpe" "myriad|--myriad"
@@ -147,13 +160,7 @@ for scene in $SCENES; do
     for spp in $SPPS; do
       progress "$scene seed $seed spp $spp"
       f=$dir/s$seed-$spp
-      # The plain render (M = 1, as a renderer writes its beauty) and its mean: the baseline.
-      timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M 1 --seed "$seed" --quiet -o "$f-plain.mcstat"
-      run "$mcstat" -v "$f-plain.mcstat" --dup --mean -o "$f-mean.exr" --diff "$ref" --pop
-      read -r t met < <(segments)
-      t_mean=$(add "$t_r" "$t")
-      mean_bytes=$(bytes_pp "$f-mean.exr")
-      row "$scene" mean "$spp" "$seed" "$t_mean" "$mean_bytes" "$met"
+      plain_mean
       # The statistics file (M sub-buffers) and every method over it, in one mcstat -v run.
       timed t_render "$render" --scene "$scene" --res $RES --spp "$spp" --M "$BUFFERS" --seed "$seed" --quiet -o "$f.mcstat"
       stats_bytes=$(bytes_pp "$f.mcstat")
@@ -226,16 +233,13 @@ for scene in $SCENES; do
         row "$scene" RPF "$spp" "$seed" "$(add "$t_r" "$t")" "$(bytes_pp "$f-samples.mcstat")" "$met"
         rm -f "$f-samples.mcstat"
       fi
-      rm -f "$f-plain.mcstat" "$f-online.mcstat" "$f-rclamp.mcstat" "$f-rclamp.exr" "$f"-oclamp*.exr "$f-omedian.exr"
+      rm -f "$f-online.mcstat" "$f-rclamp.mcstat" "$f-rclamp.exr" "$f"-oclamp*.exr "$f-omedian.exr"
     done
     # The mean alone at more samples: the curve every method's time is weighed against.
     for spp in $MEAN_SPPS; do
       progress "$scene seed $seed mean at spp $spp"
       f=$dir/s$seed-$spp
-      timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M 1 --seed "$seed" --quiet -o "$f.mcstat"
-      run "$mcstat" -v "$f.mcstat" --dup --mean -o "$f-mean.exr" --diff "$ref" --pop
-      read -r t met < <(segments)
-      row "$scene" mean "$spp" "$seed" "$(add "$t_r" "$t")" "$(bytes_pp "$f-mean.exr")" "$met"
+      plain_mean
     done
   done
 done
