@@ -1,6 +1,8 @@
 // Plots drawn by gnuplot (docs/review.md, "How the plot is made"): a script and its data files go
 // into a fresh temporary directory, gnuplot runs there as a child process (posix_spawnp: no shell,
 // so no user text is ever parsed as a command line), and the PNG it writes is read back.
+#include "plot.h"
+
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/strutil.h>
@@ -17,8 +19,6 @@
 #include <string>
 #include <utility>
 #include <vector>
-
-#include "plot.h"
 
 extern char** environ;
 

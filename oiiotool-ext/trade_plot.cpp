@@ -39,8 +39,9 @@ const std::vector<ParamSpec>& tradePlotModifiers() {
         enumParam("y", {"relMSE", "SSIM"}, "relMSE", "the y axis: column relMSE or SSIM"),
         textParam("scene", "",
                   "the rows whose column scene is this; needed when the table holds several"),
-        textParam("methods", "", "the curves, comma-separated, in this order (default: every method, "
-                                 "in the table's order)"),
+        textParam("methods", "",
+                  "the curves, comma-separated, in this order (default: every method, "
+                  "in the table's order)"),
         textParam("title", "", "the plot's title (default: the scene and the axes)"),
         textParam("csv", "",
                   "FILE: the points drawn, method,spp,seeds,x,y,yMin,yMax (y the mean over the "
@@ -200,7 +201,11 @@ std::vector<TradePoint> tradePoints(const std::vector<Measurement>& ms,
         for (const Measurement& m : ms)
             if (m.method == method) bySpp[m.spp].push_back(&m);
         for (const auto& [spp, group] : bySpp) {
-            TradePoint p{method, spp, group.size(), 0.0, 0.0,
+            TradePoint p{method,
+                         spp,
+                         group.size(),
+                         0.0,
+                         0.0,
                          std::numeric_limits<double>::infinity(),
                          -std::numeric_limits<double>::infinity()};
             double sx = 0.0, sy = 0.0;  // in double, in the table's order
@@ -218,8 +223,8 @@ std::vector<TradePoint> tradePoints(const std::vector<Measurement>& ms,
     return out;
 }
 
-std::string tradeScript(const TradeRequest& q, const std::vector<std::string>& methods,
-                        bool logY, double floor) {
+std::string tradeScript(const TradeRequest& q, const std::vector<std::string>& methods, bool logY,
+                        double floor) {
     const bool seconds = q.xColumn == "seconds";
     std::string title = q.title;
     if (title.empty())
@@ -240,14 +245,16 @@ std::string tradeScript(const TradeRequest& q, const std::vector<std::string>& m
         "plot";
     for (size_t i = 0; i < methods.size(); ++i) {
         const bool mean = methods[i] == "mean";  // what every other method is weighed against
-        s += format("{} 'data.txt' index {} using 1:2:3:4 with yerrorlines lw {} lc {} pt {} "
-                    "title '{}'",
-                    i ? "," : "", i, mean ? 4 : 2, i % 8 + 1, i % 13 + 1, plotSafe(methods[i]));
+        s += format(
+            "{} 'data.txt' index {} using 1:2:3:4 with yerrorlines lw {} lc {} pt {} "
+            "title '{}'",
+            i ? "," : "", i, mean ? 4 : 2, i % 8 + 1, i % 13 + 1, plotSafe(methods[i]));
     }
     if (std::isfinite(floor))
-        s += format(", {:.17g} with lines dt 2 lw 2 lc rgb '#555555' title 'the reference''s own "
-                    "noise'",
-                    floor);
+        s += format(
+            ", {:.17g} with lines dt 2 lw 2 lc rgb '#555555' title 'the reference''s own "
+            "noise'",
+            floor);
     return s + "\n";
 }
 
@@ -262,7 +269,8 @@ bool cmdTradePlot(State& st, const std::string& cmd, const std::vector<std::stri
     q.scene = modifierValue(specs, mods, "scene").text;
     q.title = modifierValue(specs, mods, "title").text;
     q.csvPath = modifierValue(specs, mods, "csv").text;
-    for (const std::string& m : OIIO::Strutil::splits(modifierValue(specs, mods, "methods").text, ","))
+    for (const std::string& m :
+         OIIO::Strutil::splits(modifierValue(specs, mods, "methods").text, ","))
         if (!OIIO::Strutil::strip(m).empty()) q.methods.emplace_back(OIIO::Strutil::strip(m));
     if (!haveGnuplot(err)) {
         err = format("{}: {}", cmd, err);
@@ -272,7 +280,8 @@ bool cmdTradePlot(State& st, const std::string& cmd, const std::vector<std::stri
     std::vector<Measurement> ms;
     if (!readTable(q.path, cmd, t, err) || !measurements(t, q, ms, err)) return false;
     for (const std::string& m : q.methods)
-        if (std::none_of(ms.begin(), ms.end(), [&](const Measurement& x) { return x.method == m; })) {
+        if (std::none_of(ms.begin(), ms.end(),
+                         [&](const Measurement& x) { return x.method == m; })) {
             std::vector<std::string> known;
             for (const Measurement& x : ms)
                 if (std::find(known.begin(), known.end(), x.method) == known.end())

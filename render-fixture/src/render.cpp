@@ -21,8 +21,8 @@
 #include "film.h"
 #include "integrator.h"
 #include "lights.h"
-#include "mcstat/core/params.h"
 #include "mcstat/core/parallel.h"
+#include "mcstat/core/params.h"
 #include "mcstat/core/progress.h"
 #include "rng.h"
 
@@ -51,7 +51,8 @@ struct RenderContext {
     /// The camera sample `index` of pixel (x, y): box filter, jittered uniformly in the pixel;
     /// then, only with a lens, the lens point; then, only with motion, the time (Camera::sample).
     PathSample samplePixel(uint64_t seed, int x, int y, int64_t index) const {
-        PathSample s = mcstat::render::samplePixel(camera, integrator, scene.width, seed, x, y, index);
+        PathSample s =
+            mcstat::render::samplePixel(camera, integrator, scene.width, seed, x, y, index);
         clampSample(s, clamp);
         return s;
     }

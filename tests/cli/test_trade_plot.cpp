@@ -53,8 +53,9 @@ TEST_F(TradePlotCli, SeedsAreAveragedPerMethodAndSppWithTheirRange) {
 
 TEST_F(TradePlotCli, BytesAndSsimAxesAndTheChosenMethodsInTheirOrder) {
     write("t.csv", kTable);
-    const Result r = mcstat("--tradeplot:scene=a:x=bytes:y=SSIM:methods=gmon,mean:csv=" +
-                            path("p.csv") + " " + path("t.csv") + " -o " + path("p.png"));
+    const Result r =
+        mcstat("--tradeplot:scene=a:x=bytes:y=SSIM:methods=gmon,mean:csv=" + path("p.csv") + " " +
+               path("t.csv") + " -o " + path("p.png"));
     ASSERT_EQ(r.code, 0) << r.err;
     EXPECT_EQ(mcstat::testing::slurp(path("p.csv")),
               "method,spp,seeds,x,y,yMin,yMax\n"
@@ -82,7 +83,8 @@ TEST_F(TradePlotCli, RefusalsAreOneLineNamingTheTable) {
     refused("method,spp,seconds,relMSE\nmean,16,1,x\n", "",
             "line 2: column relMSE: 'x' is not a finite number");
     refused("method,spp,seconds,relMSE\nmean,16,1,nan\n", "", "'nan' is not a finite number");
-    refused("method,spp,seconds,relMSE\nmean,16,0,0.1\n", "", "line 2: column seconds must be positive");
+    refused("method,spp,seconds,relMSE\nmean,16,0,0.1\n", "",
+            "line 2: column seconds must be positive");
     refused("method,spp,seconds,relMSE\nmean,16,1\n", "", "line 2 has 3 fields, the header 4");
     refused("method,spp,seconds,relMSE\n\"mean\",16,1,0.1\n", "", "line 2: quoted fields");
     refused("method,spp,seconds,relMSE\n", "", "no rows");

@@ -32,7 +32,8 @@ TEST_F(RenderClampTool, EveryKeptSampleIsWithinTheLimitAndItsAovsStillSumToIt) {
     ASSERT_TRUE(rec.read(0, img.header.height, block, err)) << err;
     const size_t A = img.header.aovs.size();
     std::vector<int> at(A);
-    for (size_t a = 0; a < A; ++a) at[a] = block.channel(kRecordAovPrefix + img.header.aovs[a].name);
+    for (size_t a = 0; a < A; ++a)
+        at[a] = block.channel(kRecordAovPrefix + img.header.aovs[a].name);
     size_t clamped = 0;
     for (size_t i = 0; i < block.samples.size() / block.stride(); ++i) {
         const float* s = &block.samples[i * block.stride()];
