@@ -104,22 +104,6 @@ std::string isoTime() {
     return buf;
 }
 
-/// Writes `text` to `path` through a temporary file renamed onto it.
-bool writeText(const std::string& path, const std::string& text, std::string& err) {
-    if (!checkOutputTarget(path, err)) return false;
-    TemporaryFile tmp(path);
-    {
-        std::ofstream f(tmp.path(), std::ios::binary);
-        f << text;
-        f.flush();
-        if (!f) {
-            err = fmt::format("{}: cannot write ({})", oneLine(path), std::strerror(errno));
-            return false;
-        }
-    }
-    return tmp.commit(err);
-}
-
 /// A picture for the page: a linear image through the sRGB curve, clamped to [0, 1], as 8-bit PNG.
 bool writeDisplayPng(const OIIO::ImageBuf& img, const std::string& path, std::string& err,
                      bool linear) {
@@ -401,15 +385,17 @@ bool writeHtmlReport(const CompareResult& r, const CompareOptions& opt,
     return writeDisplayPng(r.meanA, (dir / "a.png").string(), err, true) &&
            writeDisplayPng(r.meanB, (dir / "b.png").string(), err, true) &&
            writeDisplayPng(heat, (dir / "heatmap.png").string(), err, false) &&
-           writeText((dir / "index.html").string(), compareHtml(r, opt, req), err);
+           writeTextAtomically((dir / "index.html").string(), compareHtml(r, opt, req), err);
 }
 
 }  // namespace
 
 bool writeCompareReports(const CompareResult& r, const CompareOptions& opt,
                          const CompareReportRequest& req, std::string& err, int nthreads) {
-    if (!req.json.empty() && !writeText(req.json, compareJson(r, opt, req), err)) return false;
-    if (!req.junit.empty() && !writeText(req.junit, compareJUnit(r, opt, req), err)) return false;
+    if (!req.json.empty() && !writeTextAtomically(req.json, compareJson(r, opt, req), err))
+        return false;
+    if (!req.junit.empty() && !writeTextAtomically(req.junit, compareJUnit(r, opt, req), err))
+        return false;
     if (!req.html.empty() && !writeHtmlReport(r, opt, req, err, nthreads)) return false;
     return true;
 }

@@ -13,7 +13,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <utility>
 
 #include "cli.h"
@@ -23,6 +22,7 @@
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/review/review_pictures.h"
+#include "mcstat/temp_file.h"
 #include "plot.h"
 
 namespace mcstat::cli {
@@ -778,14 +778,9 @@ bool writeQualityCsv(const QualityPlot& q, std::string& err) {
     for (const QualityRow& r : q.rows)
         csv += format("{:.17g},{},{},{:.17g},{:.17g},{:.17g},{},{:.6g}\n", r.spp, r.buffers,
                       r.est->name, r.m.relMSE, r.m.ssim, r.m.psnr, r.m.fireflies, r.bytes);
-    std::ofstream f(q.csvPath, std::ios::binary);
-    f << csv;
-    f.close();
-    if (!f) {
-        err = format("{}: cannot write {}", q.cmd, q.csvPath);
-        return false;
-    }
-    return true;
+    if (writeTextAtomically(q.csvPath, csv, err)) return true;
+    err = format("{}: {}", q.cmd, err);
+    return false;
 }
 
 /// gnuplot's data: one block per estimator; `logRelMSE` says whether a log axis can show relMSE.

@@ -18,6 +18,7 @@
 #include "cli.h"
 #include "mcstat/core/params.h"
 #include "mcstat/core/untrusted_text.h"
+#include "mcstat/temp_file.h"
 #include "plot.h"
 
 namespace mcstat::cli {
@@ -47,6 +48,11 @@ const std::vector<ParamSpec>& tradePlotModifiers() {
                   "FILE: the points drawn, method,spp,seeds,x,y,yMin,yMax (y the mean over the "
                   "seeds)")};
     return specs;
+}
+
+/// Appends `value` to `list` unless it is there: the distinct values in order of appearance.
+void addOnce(std::vector<std::string>& list, const std::string& value) {
+    if (std::find(list.begin(), list.end(), value) == list.end()) list.push_back(value);
 }
 
 /// The table as read: its header's column names and its rows of text fields.
@@ -146,9 +152,7 @@ bool measurements(const Table& t, TradeRequest& q, std::vector<Measurement>& out
         }
     std::vector<std::string> scenes;
     if (scene >= 0)
-        for (const auto& row : t.rows)
-            if (std::find(scenes.begin(), scenes.end(), row[size_t(scene)]) == scenes.end())
-                scenes.push_back(row[size_t(scene)]);
+        for (const auto& row : t.rows) addOnce(scenes, row[size_t(scene)]);
     if (q.scene.empty() && scenes.size() > 1) {
         err = format("{}: {} holds {} scenes ({}): choose one with :scene=NAME", q.cmd, shown,
                      scenes.size(), printableList(scenes));
@@ -192,9 +196,7 @@ std::vector<TradePoint> tradePoints(const std::vector<Measurement>& ms,
                                     std::vector<std::string>& methods) {
     if (methods.empty())
         for (const Measurement& m : ms)
-            if (m.method != kReferenceMethod &&
-                std::find(methods.begin(), methods.end(), m.method) == methods.end())
-                methods.push_back(m.method);
+            if (m.method != kReferenceMethod) addOnce(methods, m.method);
     std::vector<TradePoint> out;
     for (const std::string& method : methods) {
         std::map<double, std::vector<const Measurement*>> bySpp;
@@ -283,9 +285,7 @@ bool cmdTradePlot(State& st, const std::string& cmd, const std::vector<std::stri
         if (std::none_of(ms.begin(), ms.end(),
                          [&](const Measurement& x) { return x.method == m; })) {
             std::vector<std::string> known;
-            for (const Measurement& x : ms)
-                if (std::find(known.begin(), known.end(), x.method) == known.end())
-                    known.push_back(x.method);
+            for (const Measurement& x : ms) addOnce(known, x.method);
             err = format("{}: {} has no rows of method '{}' (methods: {})", cmd, printable(q.path),
                          printable(m), printableList(known, 64));
             return false;
@@ -316,14 +316,9 @@ bool cmdTradePlot(State& st, const std::string& cmd, const std::vector<std::stri
         }
         data += "\n\n";
     }
-    if (!q.csvPath.empty()) {
-        std::ofstream f(q.csvPath, std::ios::binary);
-        f << csv;
-        f.close();
-        if (!f) {
-            err = format("{}: cannot write {}", cmd, printable(q.csvPath));
-            return false;
-        }
+    if (!q.csvPath.empty() && !writeTextAtomically(q.csvPath, csv, err)) {
+        err = format("{}: {}", cmd, err);
+        return false;
     }
     auto plot = std::make_shared<OIIO::ImageBuf>();
     if (!runGnuplot(tradeScript(q, methods, logY, floor), {{"data.txt", data}}, "plot.png", *plot,

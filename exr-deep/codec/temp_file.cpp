@@ -12,7 +12,10 @@
 #include <csignal>
 #include <cstring>
 #include <ctime>
+#include <fstream>
 #include <random>
+
+#include "mcstat/core/untrusted_text.h"
 
 namespace mcstat {
 
@@ -241,6 +244,21 @@ bool TemporaryFile::commit(std::string& err) {
     slot_ = -1;
     done_ = true;
     return true;
+}
+
+bool writeTextAtomically(const std::string& target, const std::string& text, std::string& err) {
+    if (!checkOutputTarget(target, err)) return false;
+    TemporaryFile tmp(target);
+    {
+        std::ofstream f(tmp.path(), std::ios::binary);
+        f << text;
+        f.flush();
+        if (!f) {
+            err = fmt::format("{}: cannot write ({})", oneLine(target), std::strerror(errno));
+            return false;
+        }
+    }
+    return tmp.commit(err);
 }
 
 void removeTemporariesOnSignals() {

@@ -37,6 +37,10 @@ class TemporaryFile {
     bool done_ = false;
 };
 
+/// Writes `text` to `target` through a TemporaryFile renamed onto it (checkOutputTarget first), so
+/// a table or report is never left half-written. False with a one-line `err` naming the target.
+bool writeTextAtomically(const std::string& target, const std::string& text, std::string& err);
+
 /// Whether a write may replace `target` by a rename: the name is not empty, its directory exists,
 /// and `target` is absent or a regular file with a write permission bit. Anything else is refused
 /// with a one-line `err` naming it: a directory; a device, FIFO or socket such as /dev/null or
