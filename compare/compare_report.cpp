@@ -15,6 +15,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "mcstat/compare/report_folder.h"
 #include "mcstat/core/untrusted_text.h"
 #include "mcstat/review/review_pictures.h"
 #include "mcstat/temp_file.h"
@@ -353,19 +354,16 @@ std::string compareHtml(const CompareResult& r, const CompareOptions& opt,
 namespace {
 
 /// The page's folder: its pictures first, the page last (a page never points at missing ones).
+/// The folder may hold other files; a file of the page's names is replaced only when this
+/// folder's manifest says mcstat wrote it (report_folder.h): a user's file is never overwritten.
 bool writeHtmlReport(const CompareResult& r, const CompareOptions& opt,
                      const CompareReportRequest& req, std::string& err, int nthreads) {
-    std::error_code ec;
-    std::filesystem::create_directories(req.html, ec);
-    if (ec || !std::filesystem::is_directory(req.html)) {
-        err = fmt::format("{}: cannot create the report's folder ({})", oneLine(req.html),
-                          ec ? ec.message() : "not a folder");
-        return false;
-    }
     if (r.meanA.roi().width() <= 0 || r.meanB.roi().width() <= 0) {
         err = fmt::format("{}: the comparison kept no means to show", oneLine(req.html));
         return false;
     }
+    const std::vector<std::string> files = {"a.png", "b.png", "heatmap.png", "index.html"};
+    if (!claimReportFiles(req.html, files, testName(req), err)) return false;
     const std::filesystem::path dir(req.html);
     HeatmapOptions hopt;
     hopt.map = "cool-warm";
@@ -385,7 +383,8 @@ bool writeHtmlReport(const CompareResult& r, const CompareOptions& opt,
     return writeDisplayPng(r.meanA, (dir / "a.png").string(), err, true) &&
            writeDisplayPng(r.meanB, (dir / "b.png").string(), err, true) &&
            writeDisplayPng(heat, (dir / "heatmap.png").string(), err, false) &&
-           writeTextAtomically((dir / "index.html").string(), compareHtml(r, opt, req), err);
+           writeTextAtomically((dir / "index.html").string(), compareHtml(r, opt, req), err) &&
+           sealReportFiles(req.html, files, testName(req), err);
 }
 
 }  // namespace

@@ -30,8 +30,15 @@ while [[ $# -gt 0 ]]; do
     *) usage >&2; die "unknown argument: $1" ;;
   esac
 done
+# DIR is the demo's own: it replaces DIR/shot and DIR/single on each run, so a folder holding
+# anything else is refused (never a user's files deleted); the marker file says a folder is one.
+marker=.mcstat-farm-demo
+if [[ -d $out && ! -e $out/$marker && -n $(ls -A "$out") ]]; then
+  die "$out holds files and is not a farm demo's folder: give --out a new or empty folder"
+fi
 mkdir -p "$out"
 out=$(cd "$out" && pwd)
+echo "the mcstat farm demo's folder: farm/demo.sh replaces shot/ and single/ here" >"$out/$marker"
 
 if [[ -n ${MCSTAT_BIN_DIR:-} ]]; then
   mcstat=$MCSTAT_BIN_DIR/mcstat

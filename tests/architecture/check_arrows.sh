@@ -70,8 +70,11 @@ rule ingest "$format|image/(image_spec|render_layout)\.h|color\.h|ingest\.h|chan
 onimage="$format|filters/(operation|estimate|registry)\.h|image/[a-z_]+\.h|analysis/(metrics|planner|two_sample)\.h"
 rule review "$onimage|review/review_pictures\.h" review include/mcstat/review
 rule compare "$onimage|compare/compare\.h" compare/compare.cpp include/mcstat/compare/compare.h
-rule compare-report "$onimage|compare/(compare|compare_report)\.h|review/review_pictures\.h" \
+rule compare-report "$onimage|compare/(compare|compare_report|report_folder)\.h|review/review_pictures\.h" \
   compare/compare_report.cpp include/mcstat/compare/compare_report.h
+# A report folder (never a user's file lost) stands on the format layer's atomic writes alone.
+rule report-folder "$format|compare/report_folder\.h" compare/report_folder.cpp \
+  include/mcstat/compare/report_folder.h
 
 # Private headers: a quoted include that is not mcstat/... is a header of the includer's folder.
 while IFS=: read -r file line text; do

@@ -4,11 +4,13 @@ Jenkins and GitLab read, its JSON parsed back, its report page opened in a real 
 (Debian's chromium), Mitsuba 3's reference rule from the command line, and
 mcstat.testing.assert_same_render passing one scene's seeds and failing the light 2 % brighter."""
 
+import hashlib
 import json
 import os
 import re
 import shutil
 import subprocess
+import sys
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -17,7 +19,7 @@ import pytest
 from junitparser import Failure, JUnitXml
 
 import mcstat
-from mcstat.testing import assert_same_render, report_dir_for
+from mcstat.testing import assert_same_render, report_dir_for, report_name
 from conftest import CLI, RENDER, SOURCE, read_exr, run
 
 RES = (32, 24)  # the render-test scenes' size
@@ -89,7 +91,8 @@ def test_cli_reports_of_a_difference(pair, tmp):
     suite = check_junit(d / "junit.xml", 1, verdict)
     props = {pr.name: pr.value for pr in suite.properties()}
     assert props["pixels.differing"] == str(report["pixels"]["differing"])
-    assert sorted(os.listdir(d / "page")) == ["a.png", "b.png", "heatmap.png", "index.html"]
+    assert sorted(os.listdir(d / "page")) == [".mcstat-report", "a.png", "b.png", "heatmap.png",
+                                              "index.html"]
     assert not [f for f in os.listdir(d) if ".tmp-" in f]  # written by rename
 
 
@@ -104,6 +107,34 @@ def test_cli_reports_of_the_same_scene_and_a_bad_input(pair, tmp):
     # A report into a folder that is a file: one line naming it, exit 1.
     p = run(CLI, a, b, "--compare:json={}/report.json/x".format(d), check=False)
     assert p.returncode == 1 and "report.json/x" in p.stderr, p.stderr
+
+
+def test_cli_page_never_overwrites_a_users_file(pair, tmp):
+    """--compare:html=DIR writes into a folder holding other files and leaves them; it replaces
+    its own earlier page; it refuses, in one line, a folder where a file of the page's names is
+    not one it wrote (or was edited since), and then writes nothing there."""
+    a, _, light = pair
+    page = tmp / "cli-users" / "page"
+    page.mkdir(parents=True)
+    (page / "notes.txt").write_text("mine")
+    for _ in range(2):  # the second run replaces the first one's page
+        p = run(CLI, a, light, "--compare:html={}".format(page), check=False)
+        assert p.returncode == 2, p.stderr
+        assert (page / "notes.txt").read_text() == "mine"
+    assert sorted(os.listdir(page)) == [".mcstat-report", "a.png", "b.png", "heatmap.png",
+                                        "index.html", "notes.txt"]
+    manifest = json.loads((page / ".mcstat-report").read_text())
+    assert manifest["files"]["b.png"] == hashlib.sha1((page / "b.png").read_bytes()).hexdigest()
+    (page / "a.png").write_bytes(b"the user's own picture now")
+    for folder, planted in ((page, "a.png"), (tmp / "cli-users" / "other", "index.html")):
+        folder.mkdir(exist_ok=True)
+        (folder / planted).write_bytes(b"the user's own picture now")
+        before = snapshot(folder)
+        p = run(CLI, a, light, "--compare:html={}".format(folder), check=False)
+        assert p.returncode == 1, p.stderr
+        line = "mcstat: --compare: {}: holds {}, which mcstat did not write".format(folder, planted)
+        assert p.stderr.startswith(line) and p.stderr.count("\n") == 1, p.stderr
+        assert snapshot(folder) == before
 
 
 def chromium_dom(page):
@@ -175,21 +206,151 @@ def test_assert_same_render_passes_one_scene(pair, tmp, monkeypatch):
 
 def test_assert_same_render_fails_the_brighter_light(pair, tmp):
     a, _, light = pair
-    target = tmp / "reports-fail"
+    root = tmp / "reports-fail"
     with pytest.raises(AssertionError) as e:
-        assert_same_render(a, light, report_dir=target, level=0.01)
+        assert_same_render(a, light, report_dir=root, level=0.01)
     message = str(e.value)
     verdict = mcstat.compare(a, light).verdict
+    # The report's own sub-folder: module, test, parameters.
+    target = root / "test_render_tests.test_assert_same_render_fails_the_brighter_light"
     assert message == "{} (report: {})".format(verdict, target / "index.html")
     assert "\n" not in message
-    assert sorted(os.listdir(target)) == ["a.png", "b.png", "heatmap.png", "index.html",
-                                          "junit.xml", "maps.exr", "report.json"]
+    assert os.listdir(root) == [target.name]
+    files = ["a.png", "b.png", "heatmap.png", "index.html", "junit.xml", "maps.exr", "report.json"]
+    assert sorted(os.listdir(target)) == [".mcstat-report"] + files
+    manifest = json.loads((target / ".mcstat-report").read_text())
+    assert manifest["name"] == "test_render_tests.py::test_assert_same_render_fails_the_brighter_light"
+    assert sorted(manifest["files"]) == files
+    assert manifest["files"]["maps.exr"] == hashlib.sha1((target / "maps.exr").read_bytes()).hexdigest()
     maps = read_exr(target / "maps.exr")
     assert {"p", "z", "effect", "differs", "tile.z"} <= set(maps)
     assert np.nansum(maps["differs"]) + np.nansum(maps["tile.differs"]) > 0
     report = json.loads((target / "report.json").read_text())
-    assert report["name"] == "test_assert_same_render_fails_the_brighter_light"
+    assert report["name"] == manifest["name"]
     check_junit(target / "junit.xml", 1, verdict)
+
+
+def user_files(folder):
+    """A user's folder: a file, a sub-folder with a file; returns {relative path: bytes}."""
+    (folder / "src").mkdir(parents=True)
+    (folder / "notes.txt").write_text("my notes")
+    (folder / "src" / "main.py").write_text("print('mine')")
+    return snapshot(folder)
+
+
+def snapshot(folder):
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file()}
+
+
+def test_a_report_never_deletes_a_users_files(pair, tmp):
+    """Issue 47: report_dir= named a folder holding a user's project; a failing assert emptied it."""
+    a, _, light = pair
+    project = tmp / "project"
+    mine = user_files(project)
+    with pytest.raises(AssertionError) as e:
+        assert_same_render(a, light, report_dir=project)
+    after = snapshot(project)
+    assert {k: after[k] for k in mine} == mine  # every file of the user, unchanged
+    added = sorted(set(after) - set(mine))
+    folder = "test_render_tests.test_a_report_never_deletes_a_users_files"
+    assert added and all(k.startswith(folder + "/") for k in added), added
+    assert str(project / folder / "index.html") in str(e.value)
+
+
+def test_report_dir_tmp_path_keeps_the_tests_own_files(pair, tmp_path):
+    """The natural call, report_dir=tmp_path, where the test's own renders live."""
+    a, _, light = pair
+    shutil.copy(a, tmp_path / "a.mcstat")
+    shutil.copy(light, tmp_path / "light.mcstat")
+    (tmp_path / "index.html").write_text("the test's own page")
+    mine = snapshot(tmp_path)
+    with pytest.raises(AssertionError):
+        assert_same_render(tmp_path / "a.mcstat", tmp_path / "light.mcstat", report_dir=tmp_path)
+    with pytest.raises(AssertionError):  # a rerun replaces its own report, nothing else
+        assert_same_render(tmp_path / "a.mcstat", tmp_path / "light.mcstat", report_dir=tmp_path)
+    after = snapshot(tmp_path)
+    assert {k: after[k] for k in mine} == mine
+    reports = sorted({k.split("/")[0] for k in set(after) - set(mine)})
+    assert reports == ["test_render_tests.test_report_dir_tmp_path_keeps_the_tests_own_files"]
+
+
+def test_a_folder_of_the_reports_name_holding_a_users_file_is_left_alone(pair, tmp):
+    a, _, light = pair
+    root = tmp / "taken"
+    name = "test_render_tests.test_a_folder_of_the_reports_name_holding_a_users_file_is_left_alone"
+    (root / name).mkdir(parents=True)
+    (root / name / "index.html").write_text("not mcstat's")
+    with pytest.raises(AssertionError) as e:
+        assert_same_render(a, light, report_dir=root)
+    assert (root / name / "index.html").read_text() == "not mcstat's"
+    assert os.listdir(root / name) == ["index.html"]
+    assert str(root / (name + "-2") / "index.html") in str(e.value)
+    assert (root / (name + "-2") / "report.json").is_file()
+
+
+def test_a_passing_rerun_leaves_no_stale_report(pair, tmp):
+    """Fail, then pass under the same test name: the DIFFERENT report is gone; a file the user
+    put into the report's folder stays, and so does one of the report's files the user edited."""
+    a, b, light = pair
+    root = tmp / "rerun"
+    with pytest.raises(AssertionError):
+        assert_same_render(a, light, report_dir=root, name="scene")
+    assert json.loads((root / "scene" / "report.json").read_text())["verdict"] == "DIFFERENT"
+    assert_same_render(a, b, report_dir=root, name="scene")
+    assert not (root / "scene").exists()
+    # Again, with the user's note in the report's folder and the page edited by the user.
+    with pytest.raises(AssertionError):
+        assert_same_render(a, light, report_dir=root, name="scene")
+    (root / "scene" / "note.txt").write_text("looked at it")
+    (root / "scene" / "index.html").write_text("edited")
+    assert_same_render(a, b, report_dir=root, name="scene")
+    assert sorted(os.listdir(root / "scene")) == ["index.html", "note.txt"]
+    assert not (root / "scene" / "report.json").exists()
+
+
+MODULE = """
+import os
+import pytest
+from mcstat.testing import assert_same_render
+
+@pytest.mark.parametrize("kind", ["light"])
+def test_scene(kind):
+    assert_same_render(os.environ["A"], os.environ["LIGHT"])
+"""
+
+
+def test_two_tests_of_one_name_in_two_modules_keep_two_reports(pair, tmp):
+    """test_cornell.py::test_scene[light] and glass/test_glass.py::test_scene[light] under one
+    $MCSTAT_REPORT_DIR: two sub-folders, two reports (pytest run as a user's suite runs)."""
+    a, _, light = pair
+    suite = tmp / "suite"
+    (suite / "glass").mkdir(parents=True)
+    (suite / "test_cornell.py").write_text(MODULE)
+    (suite / "glass" / "test_glass.py").write_text(MODULE)
+    reports = tmp / "suite-reports"
+    env = dict(os.environ, A=str(a), LIGHT=str(light), MCSTAT_REPORT_DIR=str(reports))
+    p = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                        "--rootdir", str(suite), "--basetemp", str(tmp / "suite-tmp"), str(suite)],
+                       cwd=str(suite), env=env, capture_output=True, text=True, timeout=240)
+    assert p.returncode == 1 and "2 failed" in p.stdout, p.stdout + p.stderr
+    assert sorted(os.listdir(reports)) == ["glass.test_glass.test_scene[light]",
+                                           "test_cornell.test_scene[light]"]
+    for d in os.listdir(reports):
+        report = json.loads((reports / d / "report.json").read_text())
+        assert report["verdict"] == "DIFFERENT" and report["name"].endswith("::test_scene[light]")
+
+
+def test_report_names():
+    assert report_name("tests/test_glass.py::TestA::test_scene[light]") == \
+        "tests.test_glass.TestA.test_scene[light]"
+    assert report_name("test_x.py::test_y") == "test_x.test_y"
+    # Characters a folder name should not hold become "_", and a hash keeps two ids apart.
+    one, two = report_name("t.py::test[a b]"), report_name("t.py::test[a/b]")
+    assert one.startswith("t.test[a_b]-") and two.startswith("t.test[a_b]-") and one != two
+    assert report_name("../../t.py::test").startswith("t.test_-")
+    assert not report_name("t.py::" + "x" * 500).startswith(".") and len(report_name(
+        "t.py::" + "x" * 500)) <= 130
 
 
 def test_default_report_folder():

@@ -2,6 +2,7 @@
 // the rule, both strategies (pilot, and growing during the render), sigma_image, determinism for
 // any thread count, the assignment rules, and fireflies getting more buffers than smooth pixels.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -133,9 +134,8 @@ TEST(AdaptiveRender, DeterministicForAnyThreadCountAndByteIdenticalFiles) {
     const Scene s = mustLoad("tiny");
     const StatsImage one = mustRender(s, adaptive(20, 12, 1));
     ASSERT_TRUE(one.header.adaptiveM);
-    const fs::path dir = fs::temp_directory_path() /
-                         ("mcstat_adaptive_test_" +
-                          std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
+    const fs::path dir =
+        fs::temp_directory_path() / ("mcstat_adaptive_test_" + std::to_string(::getpid()));
     fs::create_directories(dir);
     std::vector<std::string> bytes;
     std::string err;
@@ -395,8 +395,7 @@ TEST(GrowRender, DeterministicForAnyThreadCountAndByteIdenticalFiles) {
     ASSERT_TRUE(one.header.adaptiveM);
     EXPECT_EQ(one.header.assignment, "leastcount");
     const fs::path dir =
-        fs::temp_directory_path() /
-        ("mcstat_grow_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
+        fs::temp_directory_path() / ("mcstat_grow_test_" + std::to_string(::getpid()));
     fs::create_directories(dir);
     std::vector<std::string> bytes;
     for (int threads : {1, 2, 3}) {

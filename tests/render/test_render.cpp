@@ -2,6 +2,7 @@
 // emitters), determinism across thread counts, the accumulation invariants of the statistics
 // (round-robin buffers, Welford moments, features), fireflies in the default scene, scene errors.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -178,8 +179,7 @@ TEST(RenderDeterminism, SeedsSelectTheImage) {
 TEST(RenderDeterminism, WrittenFilesAreByteIdentical) {
     namespace fs = std::filesystem;
     const fs::path dir =
-        fs::temp_directory_path() /
-        ("mcstat_render_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
+        fs::temp_directory_path() / ("mcstat_render_test_" + std::to_string(::getpid()));
     fs::create_directories(dir);
     const Scene s = mustLoad("tiny");
     std::string err;
@@ -201,7 +201,8 @@ TEST(RenderDeterminism, RenderPassesValidationAndRoundTrips) {
     const StatsImage img = mustRender(mustLoad("tiny"), options(7, 3, 9));
     std::string err;
     EXPECT_TRUE(mcstat::validateStats(img, "tiny", err)) << err;
-    const fs::path path = fs::temp_directory_path() / "mcstat_render_roundtrip.mcstat";
+    const fs::path path = fs::temp_directory_path() /
+                          ("mcstat_render_roundtrip_" + std::to_string(::getpid()) + ".mcstat");
     ASSERT_TRUE(mcstat::writeStatsFile(path.string(), img, err)) << err;
     StatsImage back;
     ASSERT_TRUE(mcstat::readStatsFile(path.string(), back, err)) << err;
@@ -480,7 +481,8 @@ TEST(RenderScene, UnknownKeysAndWrongTypesAreNamed) {
 
 TEST(RenderScene, FileErrorsNameTheFile) {
     namespace fs = std::filesystem;
-    const fs::path path = fs::temp_directory_path() / "mcstat_render_bad_scene.json";
+    const fs::path path = fs::temp_directory_path() /
+                          ("mcstat_render_bad_scene_" + std::to_string(::getpid()) + ".json");
     {
         std::ofstream out(path);
         out << "{ \"image\": [1, 2 }\n";

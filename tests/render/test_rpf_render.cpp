@@ -3,6 +3,7 @@
 // built-in scenes, and the per-sample random parameters and second-hit features of PathSample.
 // Every expected value is derived by hand or analytically in the comment above its check.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -630,8 +631,7 @@ TEST(RpfFeatures, FieldsAreInRangeAndTheSecondHitIsInsideTheBox) {
 TEST(RpfScenes, NewScenesAreByteIdenticalForOneAndTwoThreads) {
     namespace fs = std::filesystem;
     const fs::path dir =
-        fs::temp_directory_path() /
-        ("mcstat_rpf_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
+        fs::temp_directory_path() / ("mcstat_rpf_test_" + std::to_string(::getpid()));
     fs::create_directories(dir);
     for (const char* name : {"arealight", "dof", "motion", "texture"}) {
         SCOPED_TRACE(name);
