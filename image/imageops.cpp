@@ -13,6 +13,7 @@
 #include "mcstat/color.h"
 #include "mcstat/core/colour_space.h"
 #include "mcstat/filters/aov_weights.h"
+#include "mcstat/image/keep_light_image.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/sample_records.h"
 
@@ -438,8 +439,8 @@ bool plainMean(ImageBuf& dst, Source& src, const std::array<double, 3>& luma, RO
 /// applyOperation over an image in memory or a streamed source: the same calls, each with its
 /// own overloads of estimate() and windowFilter().
 template <class Source>
-bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const ParamValues& values,
-                      const std::array<double, 3>& luma, bool diagnostics, ROI roi, int nthreads) {
+bool runOperationOn(ImageBuf& dst, Source& src, const Operation& op, const ParamValues& values,
+                    const std::array<double, 3>& luma, bool diagnostics, ROI roi, int nthreads) {
     switch (op.input) {
         case InputKind::BufferMeans: {
             PixelKernel kernel = op.bindPixel(values, luma);
@@ -476,6 +477,32 @@ bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const Par
     }
     dst.errorfmt("{}: the registry entry names no input it can run on", op.name);
     return false;
+}
+
+/// The operation, then with keeplight=1 (keep_light_image.h) the light it removed given back.
+template <class Source>
+bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const ParamValues& values,
+                      const std::array<double, 3>& luma, bool diagnostics, ROI roi, int nthreads) {
+    const bool keep = keepLightAsked(values);
+    if (keep && (takesImage(op) || readsSamples(op))) {
+        dst.errorfmt("{}: keeplight is for estimators and 3D filters over a statistics file",
+                     op.name);
+        return false;
+    }
+    if (keep && values.count("ci")) {
+        dst.errorfmt(
+            "{}: keeplight and ci: the interval is the robust estimate's, not the image's "
+            "with the light given back; ask for one of them",
+            op.name);
+        return false;
+    }
+    if (keep && roi.defined() && roi != dataWindowROI(headerOf(src))) {
+        dst.errorfmt("{}: keeplight needs the whole data window (light moves between pixels)",
+                     op.name);
+        return false;
+    }
+    if (!runOperationOn(dst, src, op, values, luma, diagnostics, roi, nthreads)) return false;
+    return !keep || keepLight(dst, src, luma, keepLightParams(values), nthreads);
 }
 
 }  // namespace
@@ -588,6 +615,7 @@ std::vector<ParamSpec> operationModifiers(const Operation& op) {
                              "with removed=1: radius of the window of removed.zlocal"));
         m.push_back(realParam("removedz", 0.0, 1e6, true, "3",
                               "with removed=1: removed.significant where removed.zlocal > this"));
+        for (const ParamSpec& p : keepLightModifiers()) m.push_back(p);
     }
     return m;
 }

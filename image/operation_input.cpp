@@ -2,6 +2,8 @@
 // what it holds, this takes what the operation needs.
 #include "mcstat/image/operation_input.h"
 
+#include "mcstat/image/keep_light_image.h"
+
 namespace mcstat {
 
 using OIIO::ImageBuf;
@@ -11,6 +13,11 @@ bool applyOperation(ImageBuf& dst, const OperationInput& in, const Operation& op
                     const ParamValues& values, const std::array<double, 3>& luma, bool diagnostics,
                     ROI roi, int nthreads) {
     const bool statistics = in.stats != nullptr || bool(in.stream) || in.header != nullptr;
+    if (keepLightAsked(values) && (readsSamples(op) || takesImage(op) || in.image != nullptr)) {
+        dst.errorfmt("{}: keeplight is for estimators and 3D filters over a statistics file",
+                     op.name);
+        return false;
+    }
     if (readsSamples(op)) {
         // Per-sample operations read the file's records or stored state from disk themselves.
         if (in.path.empty() || in.header == nullptr) {

@@ -50,7 +50,7 @@ bool appendTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
     }
     const ROI roi = robust.roi();
     ImageBuf spread;
-    if (!estimate(spread, src, *findOperation("mean"), spreadKernel(luma), false, roi, nthreads)) {
+    if (!lumaSpreadImage(spread, src, luma, roi, nthreads)) {
         robust.errorfmt("removed light: {}", spread.geterror());
         return false;
     }
@@ -112,6 +112,16 @@ bool appendTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
 }
 
 }  // namespace
+
+bool lumaSpreadImage(ImageBuf& dst, const StatsImage& src, const std::array<double, 3>& luma,
+                     ROI roi, int nthreads) {
+    return estimate(dst, src, *findOperation("mean"), spreadKernel(luma), false, roi, nthreads);
+}
+
+bool lumaSpreadImage(ImageBuf& dst, StatsBlockSource& src, const std::array<double, 3>& luma,
+                     ROI roi, int nthreads) {
+    return estimate(dst, src, *findOperation("mean"), spreadKernel(luma), false, roi, nthreads);
+}
 
 bool appendRemovedLight(ImageBuf& robust, const StatsImage& src, const std::array<double, 3>& luma,
                         const RemovedLightOptions& opt, int nthreads) {

@@ -41,6 +41,7 @@
 #include "mcstat/core/untrusted_text.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
+#include "mcstat/image/keep_light_image.h"
 #include "mcstat/image/operation_input.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/stats_file.h"
@@ -423,11 +424,19 @@ bool McstatInput::readParameters(const std::string& name, const ImageSpec& confi
         return false;
     }
     std::string err;
+    // keeplight (keeplightgamma, keeplightradius): the removed light given back, as
+    // --OP:keeplight=1.
+    mcstat::ParamValues keep;
+    if (!mcstat::takeKeepLightModifiers("estimator '" + est->name + "'", kv, keep, err)) {
+        errorfmt("{}: {}", path, err);
+        return false;
+    }
     if (!mcstat::parseOperationParams(*est, kv, m_values, err, "estimator '" + est->name + "'")) {
         errorfmt("{}: {}; the plugin also takes 'estimator' (one of: {})", path, err,
                  acceptedEstimators());
         return false;
     }
+    m_values.insert(keep.begin(), keep.end());
     m_op = est;
     m_path = path;
     return true;
@@ -633,8 +642,8 @@ bool McstatInput::computeEstimate(Source s, Computed& out, std::string& err) {
         return &reader;
     };
     OIIO::ImageBuf img;
-    const bool ok = mcstat::applyOperation(img, in, *m_op, m_values, m_luma, s == kEstimateDiag, {},
-                                           threads());
+    const bool ok =
+        mcstat::applyOperation(img, in, *m_op, m_values, m_luma, s == kEstimateDiag, {}, threads());
     if (!ok) {
         // Messages from the file's reader already start with its path.
         err = img.geterror();

@@ -18,6 +18,7 @@
 #include "mcstat/core/progress.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
+#include "mcstat/image/keep_light_image.h"
 #include "mcstat/image/operation_input.h"
 #include "mcstat/image/removed_light_layers.h"
 #include "mcstat/image/render_layout.h"
@@ -259,9 +260,12 @@ bool cmdOperation(State& st, const std::string& cmd, const std::vector<std::stri
         opMods.erase(k);
     ParamValues ci;  // ci, ciaovs: the interval layers (docs/confidence.md)
     if (!takeConfidenceModifiers(cmd, opMods, ci, err)) return false;
+    ParamValues keep;  // keeplight: the removed light given back (docs/keep-light.md)
+    if (!takeKeepLightModifiers(cmd, opMods, keep, err)) return false;
     ParamValues values;
     if (!parseOperationParams(op, opMods, values, err, cmd)) return false;
     values.insert(ci.begin(), ci.end());
+    values.insert(keep.begin(), keep.end());
     auto img = std::make_shared<OIIO::ImageBuf>();
     if (!applyToTop(st, cmd, op, values, diag, *img, err)) return false;
     if (removed && !appendTopRemovedLight(st, cmd, removedOpt, *img, err)) return false;
@@ -299,8 +303,7 @@ bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& 
     OIIO::ImageBuf ref, img;
     std::string refSpace;
     if (!readRGB(args[0], layer == mods.end() ? std::string() : layer->second, ref, err) ||
-        !selectRGB(*top.image, "", top.name, img, err) ||
-        !itemSpace(top, opt.space, err) ||
+        !selectRGB(*top.image, "", top.name, img, err) || !itemSpace(top, opt.space, err) ||
         !imageSpace(ref.spec(), args[0], refSpace, err)) {
         err = format("{}: {}", cmd, err);
         return false;
@@ -877,7 +880,7 @@ ParamValue modifierValue(const std::vector<ParamSpec>& specs, const Modifiers& m
     ParamValue v;
     const auto it = mods.find(name);
     if (it == mods.end()) return v;  // no default, not given: unset
-    std::string ignored;  // checkModifiers has parsed the same text with the same spec
+    std::string ignored;             // checkModifiers has parsed the same text with the same spec
     for (const ParamSpec& p : specs)
         if (p.name == name) parseParamValue("modifier", p, it->second, v, ignored);
     return v;

@@ -6,6 +6,7 @@
 #include "mcstat/core/untrusted_text.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
+#include "mcstat/image/keep_light_image.h"
 #include "mcstat/image/removed_light_layers.h"
 #include "mcstat/temp_file.h"
 
@@ -113,9 +114,12 @@ py::tuple estimate(const py::object& src, const std::string& name,
         mods.erase(k);
     ParamValues ci;  // ci, ciaovs: the interval layers (docs/confidence.md)
     if (!takeConfidenceModifiers(cmd, mods, ci, err)) throw Error(err);
+    ParamValues keep;  // keeplight: the removed light given back (docs/keep-light.md)
+    if (!takeKeepLightModifiers(cmd, mods, keep, err)) throw Error(err);
     ParamValues values;
     if (!parseOperationParams(op, mods, values, err, cmd)) throw Error(err);
     values.insert(ci.begin(), ci.end());
+    values.insert(keep.begin(), keep.end());
     const std::array<double, 3> luma = lumaOf(in.header.colorSpace, in.name);
     OIIO::ImageBuf img;
     // A file is streamed once more for the removed light and once more for the residual.

@@ -20,6 +20,14 @@ struct RemovedLightOptions {
 /// Prefix of the channels appendRemovedLight adds.
 inline constexpr const char* kRemovedPrefix = "removed.";
 
+/// The luminance of each pixel's valid buffers over `roi` of `src`, in one float image whose R, G,
+/// B are their count-weighted mean, its standard error and their number (lumaSpread), read by
+/// blocks and in parallel through estimate(). Errors on dst.
+bool lumaSpreadImage(OIIO::ImageBuf& dst, const StatsImage& src, const std::array<double, 3>& luma,
+                     OIIO::ROI roi, int nthreads = 0);
+bool lumaSpreadImage(OIIO::ImageBuf& dst, StatsBlockSource& src, const std::array<double, 3>& luma,
+                     OIIO::ROI roi, int nthreads = 0);
+
 /// Appends to `robust`, an operation's result over `src` (R, G, B first; same data window), five
 /// channels in luminance (the luma weights of the file's working space):
 ///   removed.Y           d = Y(plain mean) - Y(result): the energy removed (negative: added)

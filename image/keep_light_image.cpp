@@ -1,0 +1,189 @@
+// The removed light given back over a statistics file (include/mcstat/image/keep_light_image.h):
+// the plain mean and the buffers' luminance spread through estimate() (in memory or streamed by
+// blocks of rows, in parallel), then filters/keep_light.h's choice of scale and return.
+#include "mcstat/image/keep_light_image.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "mcstat/filters/registry.h"
+#include "mcstat/image/imageops.h"
+#include "mcstat/image/removed_light_layers.h"
+
+namespace mcstat {
+
+using OIIO::ImageBuf;
+using OIIO::ROI;
+
+namespace {
+
+/// Differences up to this many float ulps of the larger value are rounding, not light.
+constexpr double kRoundingUlps = 4.0;
+
+const StatsHeader& headerOf(const StatsImage& s) { return s.header; }
+const StatsHeader& headerOf(const StatsBlockSource& s) { return s.header(); }
+
+/// The channels that get their light back, as appendResidual picks them: R, G, B and every AOV
+/// of the file but the labels (a label's "residual" is no light), found in the plain mean too.
+std::vector<int> returnedChannels(const ImageBuf& robust, const ImageBuf& mean,
+                                  const StatsHeader& h, std::vector<int>& meanIndex) {
+    std::vector<int> from;
+    const OIIO::ImageSpec& rs = robust.spec();
+    for (int c = 0; c < rs.nchannels; ++c) {
+        const std::string& n = rs.channelnames[size_t(c)];
+        const int a = h.aovIndex(n);
+        if (c >= 3 && (a < 0 || h.aovs[size_t(a)].cls == AovClass::Id)) continue;
+        const int m = mean.spec().channelindex(n);
+        if (m < 0) continue;
+        from.push_back(c);
+        meanIndex.push_back(m);
+    }
+    return from;
+}
+
+template <class Source>
+bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
+                 const KeepLightParams& params, int nthreads) {
+    if (!(params.gamma > 0.0) || !std::isfinite(params.gamma) || params.maxRadius < 0 ||
+        params.maxRadius > 1024) {
+        robust.errorfmt("keeplight: gamma {} and radius {}: need gamma > 0, radius in [0, 1024]",
+                        params.gamma, params.maxRadius);
+        return false;
+    }
+    const OIIO::ImageSpec& rs = robust.spec();
+    if (rs.nchannels < 3 || rs.format != OIIO::TypeDesc::FLOAT || !robust.localpixels()) {
+        robust.errorfmt("keeplight: the result is not a float image with R, G, B first");
+        return false;
+    }
+    const ROI roi = robust.roi();
+    const Operation& meanOp = *findOperation("mean");
+    ImageBuf mean, spread;
+    if (!estimate(mean, src, meanOp, meanOp.bindPixel(ParamValues(), luma), false, roi, nthreads) ||
+        !lumaSpreadImage(spread, src, luma, roi, nthreads)) {
+        robust.errorfmt("keeplight: {}", mean.has_error() ? mean.geterror() : spread.geterror());
+        return false;
+    }
+    std::vector<int> meanIndex;
+    const std::vector<int> from = returnedChannels(robust, mean, headerOf(src), meanIndex);
+    const int width = roi.width(), height = roi.height();
+    // The spread's R, G, B: the buffers' luminance mean, its standard error, their number; the
+    // AOV channels estimate() appends after them are not used.
+    const size_t n = roi.npixels(), nc = from.size(), nin = size_t(rs.nchannels),
+                 nm = size_t(mean.nchannels()), ns = size_t(spread.nchannels());
+    float* rp = static_cast<float*>(robust.localpixels());
+    const float* mp = static_cast<const float*>(mean.localpixels());
+    const float* sp = static_cast<const float*>(spread.localpixels());
+    std::vector<float> values(n * nc), d(n), se(n);
+    std::vector<double> residual(n * nc);
+    std::vector<uint8_t> active(n, 0), scale(n);
+    double meanY = 0.0;
+    for (size_t p = 0; p < n; ++p) {
+        double dy = 0.0;
+        for (size_t i = 0; i < nc; ++i) {
+            const float r = rp[p * nin + size_t(from[i])];
+            const float m = mp[p * nm + size_t(meanIndex[i])];
+            double v = double(m) - double(r);
+            // A difference within float rounding of the two values is no light: the mean and an
+            // estimator that trims nothing may sum the same buffers in other orders.
+            if (std::fabs(v) <=
+                kRoundingUlps *
+                    std::ldexp(std::max(std::fabs(double(m)), std::fabs(double(r))), -23))
+                v = 0.0;
+            values[p * nc + i] = r;
+            residual[p * nc + i] = v;
+            if (v != 0.0 && std::isfinite(v)) active[p] = 1;
+            if (from[i] < 3 && std::isfinite(v)) dy += luma[size_t(from[i])] * v;
+        }
+        // The luminance residual and its scale, the plain mean's standard error from the
+        // buffers. A pixel that lost nothing counts as an exact 0 (se 0): the estimator kept its
+        // mean, and a compact file, which keeps no buffers there, gives the same choice.
+        d[p] = float(dy);
+        se[p] = active[p] ? sp[ns * p + 1] : 0.f;
+        if (std::isfinite(sp[ns * p])) meanY += double(sp[ns * p]);
+    }
+    keepLightScales(d.data(), se.data(), active.data(), width, height, params, scale.data(),
+                    nthreads);
+    const std::vector<int> radii = keepLightRadii(params.maxRadius);
+    std::vector<float> out(n * nc);
+    returnResidual(values.data(), residual.data(), scale.data(), radii, width, height, int(nc),
+                   out.data(), nthreads);
+    double returnedY = 0.0;
+    for (size_t p = 0; p < n; ++p) {
+        double y = 0.0;
+        for (size_t i = 0; i < nc; ++i) {
+            if (from[i] < 3) {
+                const double v = residual[p * nc + i];
+                if (std::isfinite(v)) y += luma[size_t(from[i])] * v;
+            }
+            rp[p * nin + size_t(from[i])] = out[p * nc + i];
+        }
+        returnedY += y;
+    }
+    robust.specmod().attribute("mcstat:keeplight:returned",
+                               float(meanY != 0.0 ? returnedY / meanY : 0.0));
+    robust.specmod().attribute("mcstat:keeplight:gamma", float(params.gamma));
+    robust.specmod().attribute("mcstat:keeplight:maxRadius", params.maxRadius);
+    return true;
+}
+
+}  // namespace
+
+std::vector<ParamSpec> keepLightModifiers() {
+    return {flagParam("keeplight", "0",
+                      "1 gives the removed light back, all of it, where the evidence puts it: "
+                      "each pixel's residual spread by a window the data choose "
+                      "(docs/keep-light.md)"),
+            realParam("keeplightgamma", 0.0, 100.0, true, "",
+                      "with keeplight=1: the scale choice's threshold in standard errors "
+                      "(default 3; larger spreads wider)"),
+            intParam("keeplightradius", 0, 1024, "",
+                     "with keeplight=1: the largest window radius in pixels (default 32)")};
+}
+
+bool takeKeepLightModifiers(const std::string& context, std::map<std::string, std::string>& mods,
+                            ParamValues& out, std::string& err) {
+    ParamValues given;
+    for (const ParamSpec& spec : keepLightModifiers()) {
+        const auto it = mods.find(spec.name);
+        if (it == mods.end()) continue;
+        if (!it->second.empty() &&
+            !parseParamValue(context, spec, it->second, given[spec.name], err))
+            return false;
+        mods.erase(it);
+    }
+    const bool on = given.count("keeplight") && given.at("keeplight").integer != 0;
+    for (const char* k : {"keeplightgamma", "keeplightradius"})
+        if (given.count(k) && !on) {
+            err = context + ": " + k + " needs keeplight=1";
+            return false;
+        }
+    if (on)
+        for (const auto& [k, v] : given) out[k] = v;
+    return true;
+}
+
+bool keepLightAsked(const ParamValues& values) {
+    const auto it = values.find("keeplight");
+    return it != values.end() && it->second.integer != 0;
+}
+
+KeepLightParams keepLightParams(const ParamValues& values) {
+    KeepLightParams p;
+    if (const auto it = values.find("keeplightgamma"); it != values.end())
+        p.gamma = it->second.real;
+    if (const auto it = values.find("keeplightradius"); it != values.end())
+        p.maxRadius = int(it->second.integer);
+    return p;
+}
+
+bool keepLight(ImageBuf& robust, const StatsImage& src, const std::array<double, 3>& luma,
+               const KeepLightParams& params, int nthreads) {
+    return keepLightTo(robust, src, luma, params, nthreads);
+}
+
+bool keepLight(ImageBuf& robust, StatsBlockSource& src, const std::array<double, 3>& luma,
+               const KeepLightParams& params, int nthreads) {
+    return keepLightTo(robust, src, luma, params, nthreads);
+}
+
+}  // namespace mcstat

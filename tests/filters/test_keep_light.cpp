@@ -1,0 +1,259 @@
+// The removed light given back (filters/keep_light.h): energy conserved to float summation, a zero
+// residual gives the robust image bit for bit, a lone firefly spread wide, a supported caustic
+// kept close, AOVs by the beauty's kernels, the same bits at any thread count, the extremes.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "mcstat/filters/keep_light.h"
+
+namespace mcstat {
+namespace {
+
+struct Field {
+    int w, h;
+    std::vector<float> robust, d, se;
+    std::vector<double> residual;
+    std::vector<uint8_t> active;
+    Field(int w_, int h_, int nch = 3)
+        : w(w_),
+          h(h_),
+          robust(size_t(w_ * h_ * nch), 0.f),
+          d(size_t(w_ * h_), 0.f),
+          se(size_t(w_ * h_), 0.f),
+          residual(size_t(w_ * h_ * nch), 0.0),
+          active(size_t(w_ * h_), 0) {}
+    size_t at(int x, int y) const { return size_t(y) * size_t(w) + size_t(x); }
+};
+
+/// Scales then return, as keep_light_image does: the output per channel.
+std::vector<float> giveBack(const Field& f, int nch, const KeepLightParams& p, int nthreads,
+                            std::vector<uint8_t>* scaleOut = nullptr) {
+    std::vector<uint8_t> scale(f.d.size());
+    keepLightScales(f.d.data(), f.se.data(), f.active.data(), f.w, f.h, p, scale.data(), nthreads);
+    std::vector<float> out(f.robust.size());
+    returnResidual(f.robust.data(), f.residual.data(), scale.data(), keepLightRadii(p.maxRadius),
+                   f.w, f.h, nch, out.data(), nthreads);
+    if (scaleOut) *scaleOut = scale;
+    return out;
+}
+
+/// A random image: robust values in [0, 1), residuals mostly 0, some small of both signs, a few
+/// fireflies up to 1e4; d their average, se their size.
+Field randomField(int w, int h, unsigned seed) {
+    Field f(w, h);
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const size_t p = f.at(x, y);
+            for (int c = 0; c < 3; ++c) f.robust[p * 3 + size_t(c)] = float(u(rng));
+            const double kind = u(rng);
+            const double size = kind < 0.6 ? 0.0 : kind < 0.95 ? u(rng) - 0.3 : 1e4 * u(rng);
+            if (size == 0.0) continue;
+            for (int c = 0; c < 3; ++c) f.residual[p * 3 + size_t(c)] = size * (0.5 + u(rng));
+            f.d[p] = float(size);
+            f.se[p] = float(std::fabs(size));
+            f.active[p] = 1;
+        }
+    return f;
+}
+
+TEST(KeepLight, RadiiDoubleUpToTheLargest) {
+    EXPECT_EQ(keepLightRadii(32), (std::vector<int>{0, 1, 2, 4, 8, 16, 32}));
+    EXPECT_EQ(keepLightRadii(20), (std::vector<int>{0, 1, 2, 4, 8, 16, 20}));
+    EXPECT_EQ(keepLightRadii(1), (std::vector<int>{0, 1}));
+    EXPECT_EQ(keepLightRadii(0), (std::vector<int>{0}));
+}
+
+// Every channel's sum over the image is the robust sum plus every residual, to float summation:
+// the kernels sum to 1 inside the image, at its edges too.
+TEST(KeepLight, EnergyConservedToFloatSummationOnRandomImages) {
+    for (unsigned seed : {1u, 2u, 3u}) {
+        for (auto [w, h] : {std::pair{97, 61}, std::pair{5, 3}, std::pair{1, 40}}) {
+            const Field f = randomField(w, h, seed);
+            const std::vector<float> out = giveBack(f, 3, {}, 2);
+            for (int c = 0; c < 3; ++c) {
+                double before = 0.0, after = 0.0, res = 0.0, scale = 0.0;
+                for (size_t p = 0; p < f.d.size(); ++p) {
+                    before += f.robust[p * 3 + size_t(c)];
+                    after += out[p * 3 + size_t(c)];
+                    res += f.residual[p * 3 + size_t(c)];
+                    scale += std::fabs(out[p * 3 + size_t(c)]);
+                }
+                // Each output is one float rounding of its exact value: at most 2^-24 of it.
+                EXPECT_NEAR(after, before + res, 1e-6 * scale + 1e-12)
+                    << "seed " << seed << " " << w << "x" << h << " channel " << c;
+            }
+        }
+    }
+}
+
+TEST(KeepLight, ZeroResidualGivesTheRobustImageBitForBit) {
+    Field f = randomField(40, 30, 7);
+    std::fill(f.residual.begin(), f.residual.end(), 0.0);
+    f.robust[0] = -0.f;
+    f.robust[1] = std::numeric_limits<float>::quiet_NaN();
+    f.robust[2] = std::numeric_limits<float>::denorm_min();
+    const std::vector<float> out = giveBack(f, 3, {}, 2);
+    EXPECT_EQ(std::memcmp(out.data(), f.robust.data(), out.size() * sizeof(float)), 0);
+}
+
+// Pixels no residual reaches keep their robust value bit for bit, even next to a firefly of 1e38.
+TEST(KeepLight, PixelsBeyondEveryWindowAreUntouched) {
+    Field f(200, 3, 1);
+    for (size_t i = 0; i < f.robust.size(); ++i) f.robust[i] = 0.1f * float(i % 7);
+    const size_t p = f.at(5, 1);
+    f.residual[p] = 1e38;
+    f.d[p] = f.se[p] = 1e38f;
+    f.active[p] = 1;
+    std::vector<uint8_t> scale;
+    const std::vector<float> out = giveBack(f, 1, {}, 1, &scale);
+    EXPECT_EQ(keepLightRadii(32)[scale[p]], 32);  // a lone firefly: the widest window
+    for (int y = 0; y < 3; ++y)
+        for (int x = 0; x < 200; ++x) {
+            const size_t q = f.at(x, y);
+            if (x <= 5 + 32) {
+                EXPECT_GT(out[q], f.robust[q]) << x << "," << y;
+                EXPECT_TRUE(std::isfinite(out[q]));
+            } else {
+                EXPECT_EQ(out[q], f.robust[q]) << x << "," << y;  // exactly
+            }
+        }
+}
+
+// A firefly alone (d = se, its neighbours exact zeros): its window grows to the largest, and its
+// light is spread thin: no pixel gets more than a hundredth of it.
+TEST(KeepLight, ALoneFireflyIsSpreadWide) {
+    Field f(96, 96, 1);
+    const size_t p = f.at(50, 40);
+    f.residual[p] = 900.0;
+    f.d[p] = f.se[p] = 900.f;
+    f.active[p] = 1;
+    std::vector<uint8_t> scale;
+    const std::vector<float> out = giveBack(f, 1, {}, 2, &scale);
+    EXPECT_EQ(keepLightRadii(32)[scale[p]], 32);
+    double total = 0.0, peak = 0.0;
+    for (float v : out) {
+        total += v;
+        peak = std::max(peak, double(v));
+    }
+    EXPECT_NEAR(total, 900.0, 1e-6);
+    EXPECT_LT(peak, 9.0);
+    EXPECT_NEAR(peak, 900.0 / (33.0 * 33.0), 1e-3);  // the tent's centre: (r + 1)^2 of (r + 1)^4
+    EXPECT_GT(out[f.at(50 + 20, 40 - 20)], 0.f);
+}
+
+// A caustic: a 9 x 9 region whose every pixel lost light its buffers support (d = 10, se = 3:
+// z = 3.3 each), in an image that lost nothing: its windows stop at the region's size, and
+// nearly all its light stays within it and a few pixels of its edge.
+TEST(KeepLight, ASupportedCausticIsKeptClose) {
+    Field f(96, 96, 1);
+    for (int y = 40; y < 49; ++y)
+        for (int x = 40; x < 49; ++x) {
+            const size_t p = f.at(x, y);
+            f.residual[p] = 10.0;
+            f.d[p] = 10.f;
+            f.se[p] = 3.f;
+            f.active[p] = 1;
+        }
+    std::vector<uint8_t> scale;
+    const std::vector<float> out = giveBack(f, 1, {}, 2, &scale);
+    const std::vector<int> radii = keepLightRadii(32);
+    double inside = 0.0, total = 0.0;
+    for (int y = 0; y < 96; ++y)
+        for (int x = 0; x < 96; ++x) {
+            const size_t q = f.at(x, y);
+            total += out[q];
+            if (x >= 36 && x < 53 && y >= 36 && y < 53) inside += out[q];
+            // Its pixels stop at its size: the centre's at 4, a corner's (whose own small
+            // windows are mostly dark) at 8.
+            if (f.active[q]) {
+                EXPECT_LE(radii[scale[q]], x > 41 && x < 47 && y > 41 && y < 47 ? 4 : 8)
+                    << x << "," << y;
+            }
+        }
+    EXPECT_NEAR(total, 810.0, 1e-9 * 810.0 + 1e-6);
+    EXPECT_GT(inside, 0.9 * total);
+    // The same region, but each pixel's light a lone firefly's (se = d): spread far wider.
+    for (size_t p = 0; p < f.se.size(); ++p)
+        if (f.active[p]) f.se[p] = 1000.f;
+    const std::vector<float> wide = giveBack(f, 1, {}, 2, &scale);
+    double wideInside = 0.0;
+    for (int y = 36; y < 53; ++y)
+        for (int x = 36; x < 53; ++x) wideInside += wide[f.at(x, y)];
+    EXPECT_LT(wideInside, 0.5 * total);
+}
+
+// AOVs go back by the beauty's kernels: where two light groups summed to the beauty's residual,
+// the returned groups sum to the returned beauty (to float rounding).
+TEST(KeepLight, AovsThatSummedToTheBeautyStillSum) {
+    Field f = randomField(64, 48, 11);
+    const size_t n = f.d.size();
+    // Channels: beauty R, G, B, group a R, G, B, group b R, G, B (b = beauty - a).
+    std::vector<float> robust(n * 9);
+    std::vector<double> residual(n * 9);
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    for (size_t p = 0; p < n; ++p)
+        for (int c = 0; c < 3; ++c) {
+            const double share = u(rng);
+            const float beauty = f.robust[p * 3 + size_t(c)];
+            robust[p * 9 + size_t(c)] = beauty;
+            robust[p * 9 + 3 + size_t(c)] = float(share * beauty);
+            robust[p * 9 + 6 + size_t(c)] = beauty - float(share * beauty);
+            const double r = f.residual[p * 3 + size_t(c)];
+            residual[p * 9 + size_t(c)] = r;
+            residual[p * 9 + 3 + size_t(c)] = share * r;
+            residual[p * 9 + 6 + size_t(c)] = r - share * r;
+        }
+    std::vector<uint8_t> scale(n);
+    const KeepLightParams params;
+    keepLightScales(f.d.data(), f.se.data(), f.active.data(), f.w, f.h, params, scale.data(), 2);
+    std::vector<float> out(n * 9);
+    returnResidual(robust.data(), residual.data(), scale.data(), keepLightRadii(32), f.w, f.h, 9,
+                   out.data(), 2);
+    for (size_t p = 0; p < n; ++p)
+        for (int c = 0; c < 3; ++c) {
+            const double beauty = out[p * 9 + size_t(c)];
+            const double sum = double(out[p * 9 + 3 + size_t(c)]) + out[p * 9 + 6 + size_t(c)];
+            EXPECT_NEAR(sum, beauty, 4e-7 * (std::fabs(beauty) + 1.0)) << p << " " << c;
+        }
+}
+
+TEST(KeepLight, SameBitsForAnyThreadCount) {
+    const Field f = randomField(131, 77, 3);
+    const std::vector<float> one = giveBack(f, 3, {}, 1);
+    for (int t : {2, 3, 8}) {
+        const std::vector<float> many = giveBack(f, 3, {}, t);
+        EXPECT_EQ(std::memcmp(one.data(), many.data(), one.size() * sizeof(float)), 0) << t;
+    }
+}
+
+// NaN and Inf residuals are not returned (the pixel keeps its robust value there); NaN or Inf d
+// and se count as 0 in the scale choice.
+TEST(KeepLight, NonFiniteResidualsStayOut) {
+    Field f(20, 20, 1);
+    const size_t a = f.at(3, 3), b = f.at(10, 10), c = f.at(15, 4);
+    f.residual[a] = std::numeric_limits<double>::quiet_NaN();
+    f.residual[b] = std::numeric_limits<double>::infinity();
+    f.residual[c] = 4.0;
+    f.d[a] = std::numeric_limits<float>::quiet_NaN();
+    f.se[b] = std::numeric_limits<float>::infinity();
+    f.d[c] = f.se[c] = 4.f;
+    f.active[a] = f.active[b] = f.active[c] = 1;
+    const std::vector<float> out = giveBack(f, 1, {}, 2);
+    double total = 0.0;
+    for (float v : out) {
+        EXPECT_TRUE(std::isfinite(v));
+        total += v;
+    }
+    EXPECT_NEAR(total, 4.0, 1e-6);  // float outputs
+}
+
+}  // namespace
+}  // namespace mcstat
