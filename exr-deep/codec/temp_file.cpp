@@ -133,6 +133,21 @@ Stale classify(const std::string& entry, const std::string& name) {
 
 }  // namespace
 
+namespace {
+
+/// The temporary file goes into the target's folder: a folder this user cannot write is refused
+/// here, naming the target, whatever the format (OIIO's writers and ours said it differently,
+/// some naming the hidden temporary file). Root passes, as the kernel lets it write.
+bool writableFolder(const std::string& target, const std::string& dirPath, std::string& err) {
+    if (::access(dirPath.c_str(), W_OK | X_OK) != 0) {
+        err = fmt::format("{}: cannot write into {} ({})", target, dirPath, std::strerror(errno));
+        return false;
+    }
+    return true;
+}
+
+}  // namespace
+
 bool checkOutputTarget(const std::string& target, std::string& err) {
     if (target.empty()) {
         err = "output: an empty file name";
@@ -152,14 +167,9 @@ bool checkOutputTarget(const std::string& target, std::string& err) {
                           std::strerror(found ? ENOTDIR : errno));
         return false;
     }
-    // The temporary file goes into the same folder: a folder this user cannot write is refused
-    // here, naming the target, whatever the format (OIIO's writers and ours said it differently,
-    // some naming the hidden temporary file). Root passes, as the kernel lets it write.
-    if (::access(dirPath.c_str(), W_OK | X_OK) != 0) {
-        err = fmt::format("{}: cannot write into {} ({})", target, dirPath, std::strerror(errno));
-        return false;
-    }
-    if (::stat(target.c_str(), &st) != 0) return true;  // a new file
+    // What the target is comes first, so that the reason is the same for every user (/dev/null
+    // is a device to root and to anyone else; only root may write into /dev/).
+    if (::stat(target.c_str(), &st) != 0) return writableFolder(target, dirPath, err);
     if (S_ISDIR(st.st_mode)) {
         err = target + ": is a directory";
         return false;
@@ -182,7 +192,7 @@ bool checkOutputTarget(const std::string& target, std::string& err) {
               "writable, e.g. chmod u+w, to allow)";
         return false;
     }
-    return true;
+    return writableFolder(target, dirPath, err);
 }
 
 int removeStaleTemporaries(const std::string& target) {

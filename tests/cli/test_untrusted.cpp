@@ -86,6 +86,32 @@ TEST_F(Untrusted, OutputTargetsThatCannotBeWrittenAreOneLineReasons) {
     EXPECT_TRUE(S_ISCHR(st.st_mode));
     for (const auto& e : std::filesystem::directory_iterator(dir))
         EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
+    // The same reason for a user who may not write into /dev/ (issue 48: a plain user was told
+    // "cannot write into /dev/"). As root, the tool runs as nobody, from copies of it and of the
+    // file in a folder of its own that nobody can reach wherever the build lives (the tool links
+    // mcstat's libraries statically).
+    std::string prefix, exe = MCSTAT_EXE, input = f;
+    char scratch[] = "/tmp/mcstat-untrusted-XXXXXX";
+    const bool asNobody = ::geteuid() == 0;
+    if (asNobody) {
+        if (std::system("command -v setpriv >/dev/null") != 0) return;
+        ASSERT_NE(::mkdtemp(scratch), nullptr);
+        ASSERT_EQ(::chmod(scratch, 0755), 0);
+        exe = std::string(scratch) + "/mcstat";
+        input = std::string(scratch) + "/f.mcstat";
+        std::filesystem::copy_file(MCSTAT_EXE, exe);
+        std::filesystem::copy_file(f, input);
+        ASSERT_EQ(::chmod(input.c_str(), 0644), 0);
+        prefix = "setpriv --reuid=65534 --regid=65534 --clear-groups ";
+    }
+    for (const char* device : {"/dev/null", "/dev/full"}) {
+        const std::string e = path("dev.stderr");
+        std::system((prefix + exe + " " + input + " --mean -o " + device + " 2>" + e).c_str());
+        EXPECT_EQ(slurp(e).rfind("mcstat: " + std::string(device) + ": is a character device", 0),
+                  0u)
+            << slurp(e);
+    }
+    if (asNobody) std::filesystem::remove_all(scratch);
 }
 
 // Policy: a read-only target is refused and kept (oiiotool 2.4 replaces it: docs/untrusted.md).
