@@ -20,6 +20,7 @@
 #include "mcstat/compare/compare.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
+#include "mcstat/image/keep_light_image.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/review/review_pictures.h"
 #include "mcstat/temp_file.h"
@@ -46,11 +47,19 @@ ParamSpec layerModifier() { return diffModifiers(false).back(); }
 
 const std::vector<ParamSpec>& contactSheetModifiers() {
     static const std::vector<ParamSpec> specs = {
-        textParam("estimators", "gmon", "registry names, comma-separated"), scaleModifier(),
+        textParam("estimators", "gmon", "registry names, comma-separated"),
+        scaleModifier(),
         layerModifier(),
         textParam("compare", "",
                   "FILE.mcstat: a last tile, --compare of FILE against the top file (z-scores, "
                   "verdict)"),
+        [] {  // the estimators' own :keeplight modifier (keep_light_image.h)
+            ParamSpec keep = keepLightModifiers().front();
+            keep.help =
+                "1: every listed estimator and 3D filter gives the light it removed back "
+                "(docs/keep-light.md); the mean's tile is the mean";
+            return keep;
+        }(),
         [] {  // the estimators' own :ci modifier (one declaration of the level, imageops.h)
             ParamSpec ci = confidenceModifiers().front();
             ci.help =
@@ -153,11 +162,13 @@ bool referenceInSpace(const std::string& cmd, const std::string& what, const std
     return sameSpace(cmd, what, space, refName, refSpace, err);
 }
 
-/// Runs `est` with its default parameters (luma from the OCIO config) on `stats`.
-bool runEstimator(const StatsImage& stats, const Operation& est, int nthreads,
-                  OIIO::ImageBuf& out, const std::string& cmd, std::string& err) {
+/// Runs `est` with its default parameters (luma from the OCIO config) on `stats`, and `extra`
+/// (keeplight) beside them.
+bool runEstimator(const StatsImage& stats, const Operation& est, int nthreads, OIIO::ImageBuf& out,
+                  const std::string& cmd, std::string& err, const ParamValues& extra = {}) {
     ParamValues defaults;
     if (!parseOperationParams(est, {}, defaults, err, cmd)) return false;
+    defaults.insert(extra.begin(), extra.end());
     std::array<double, 3> luma{};
     if (!spaceLuma(stats.header.colorSpace, cmd, luma, err)) return false;
     if (!applyOperation(out, stats, est, defaults, luma, false, {}, nthreads)) {
@@ -202,7 +213,7 @@ bool topImage(State& st, const std::string& cmd, std::string& err) {
 /// One --contactsheet run: what it was asked, and the tiles made so far.
 struct ContactSheet {
     std::string cmd;
-    std::string refName;                       ///< the reference as given (the argument)
+    std::string refName;                   ///< the reference as given (the argument)
     std::vector<const Operation*> listed;  ///< modifier estimators, in order
     std::vector<const Operation*> shown;   ///< the mean, then the listed ones
     OIIO::ImageBuf ref;
@@ -213,6 +224,7 @@ struct ContactSheet {
     std::vector<std::string> names;    ///< per estimator's tile: "estimator(file)"
     OIIO::ImageBuf last;               ///< the last listed estimator's image, for the difference
     std::string lastName;
+    bool keepLight = false;  ///< :keeplight=1: the estimators give their removed light back
 };
 
 /// Checks --contactsheet's modifiers into `q`, loads the statistics file on top of the stack and
@@ -224,6 +236,7 @@ bool parseContactSheet(State& st, const Modifiers& mods, ContactSheet& q, std::s
     const std::vector<ParamSpec>& specs = contactSheetModifiers();
     if (!estimatorList(modifierValue(specs, mods, "estimators").text, cmd, q.listed, err))
         return false;
+    q.keepLight = modifierValue(specs, mods, "keeplight").integer != 0;
     q.layout.scale = int(mods.count("scale") ? modifierValue(specs, mods, "scale").integer
                                              : defaultReviewScale(top.header.width));
     if (!loadStats(st, top, err)) return false;
@@ -248,20 +261,28 @@ bool parseContactSheet(State& st, const Modifiers& mods, ContactSheet& q, std::s
 bool estimatorTile(State& st, const Operation& e, ContactSheet& q, std::string& err) {
     const Item& top = st.stack.back();
     OIIO::ImageBuf img;
-    if (!runEstimator(*top.stats, e, st.nthreads, img, q.cmd, err)) return false;
+    // keeplight where the operation takes it (not the mean, which keeps all its light, nor an
+    // image filter); its tile says so.
+    ParamValues extra;
+    const bool keep = q.keepLight && e.name != "mean" && !takesImage(e) && !readsSamples(e);
+    if (keep) {
+        std::map<std::string, std::string> kv = {{"keeplight", "1"}};
+        if (!takeKeepLightModifiers(q.cmd, kv, extra, err)) return false;
+    }
+    if (!runEstimator(*top.stats, e, st.nthreads, img, q.cmd, err, extra)) return false;
     DiffMetrics m;
     if (!diffImages(img, q.ref, q.opt, m, err)) {
         err = format("{}: {}({}) vs {}: {}", q.cmd, e.name, top.name, q.refName, err);
         return false;
     }
-    const std::string name = format("{}({})", e.name, top.name);
+    const std::string name = format("{}{}({})", e.name, keep ? ":keeplight=1" : "", top.name);
     printDiffLine(name, m);
     SheetTile t;
     if (!displayTransform(t.image, img, {}, st.nthreads)) {
         err = format("{}: {}", q.cmd, t.image.geterror());
         return false;
     }
-    t.title = e.title;
+    t.title = keep ? e.title + " + light kept" : e.title;
     t.lines = {format("relMSE {:.4g}", m.relMSE), format("SSIM {:.4f}", m.ssim),
                format("fireflies {}", m.fireflies)};
     q.tiles.push_back(std::move(t));

@@ -58,7 +58,7 @@ rule measures "$core|analysis/(metrics|planner|two_sample)\.h" analysis include/
 # operation through its kernel and names no family; no tool, no ingest, no review.
 rule imagespec "$format|image/(image_spec|render_layout)\.h" image/image_spec.cpp \
   image/render_layout.cpp include/mcstat/image/image_spec.h include/mcstat/image/render_layout.h
-rule image "$format|filters/(operation|estimate|registry|aov_weights|removed_light)\.h|image/[a-z_]+\.h|color\.h|analysis/metrics\.h" \
+rule image "$format|filters/(operation|estimate|registry|aov_weights|removed_light|keep_light)\.h|image/[a-z_]+\.h|color\.h|analysis/metrics\.h" \
   image include/mcstat/image
 # Layer 4: ingest reads renderers' EXRs through the codec, never the format's private headers,
 # and sets up images through the spec library, not the operations.

@@ -127,6 +127,26 @@ TEST_F(KeepLightCli, The3dFiltersKeepTheLightToo) {
     }
 }
 
+// --contactsheet:keeplight=1: every listed estimator's tile with its light back, its --diff line
+// the command's.
+TEST_F(KeepLightCli, TheContactSheetShowsTheLightKept) {
+    render("--scene caustic --spp 64 --seed 6", "f.mcstat");
+    render("--scene caustic --spp 1024 --seed 99 --reference", "ref.exr");
+    const mcstat::testing::Result one =
+        mcstat(path("f.mcstat") + " --gmon:keeplight=1 --diff " + path("ref.exr"));
+    ASSERT_EQ(one.code, 0) << one.err;
+    const mcstat::testing::Result sheet =
+        mcstat(path("f.mcstat") + " --contactsheet:estimators=gmon,tmpe:keeplight=1 " +
+               path("ref.exr") + " -o " + path("sheet.png"));
+    ASSERT_EQ(sheet.code, 0) << sheet.err;
+    const std::string line = one.out.substr(one.out.find(" relMSE"));
+    EXPECT_NE(sheet.out.find("gmon:keeplight=1(" + path("f.mcstat") + ")" + line),
+              std::string::npos)
+        << sheet.out << " vs " << one.out;
+    EXPECT_NE(sheet.out.find("tmpe:keeplight=1("), std::string::npos) << sheet.out;
+    EXPECT_NE(sheet.out.find("mean(" + path("f.mcstat") + ")"), std::string::npos) << sheet.out;
+}
+
 TEST_F(KeepLightCli, RefusalsAreOneLine) {
     render("--scene tiny --spp 16 --seed 1", "f.mcstat");
     const std::string f = path("f.mcstat");

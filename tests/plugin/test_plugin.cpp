@@ -325,6 +325,19 @@ TEST_F(Plugin, EstimatorAndParametersThroughTheFileName) {
     EXPECT_TRUE(samePixels(readExr(path("t3.exr")), readExr(path("t1.exr"))));
 }
 
+// keeplight through the file name (stock oiiotool): the command's pixels; its refusal named.
+TEST_F(Plugin, KeepLightThroughTheFileName) {
+    ASSERT_EQ(mcstat(quote(stats) + " --gmon:keeplight=1 -o " + quote(path("k1.exr"))).code, 0);
+    Result r = run("oiiotool " + quote(stats + "?estimator=gmon&keeplight=1") + " -o " +
+                   quote(path("k2.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(samePixels(readExr(path("k2.exr")), readExr(path("k1.exr"))));
+    EXPECT_GT(countDifferent(readExr(path("k2.exr")), library("gmon")), 0u);
+    r = run("iinfo " + quote(stats + "?estimator=gmon&keeplightgamma=2"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_TRUE(contains(r.err, "keeplightgamma needs keeplight=1")) << r.err;
+}
+
 TEST_F(Plugin, UnknownParameterOrEstimatorIsNamed) {
     Result r = run("oiiotool --iconfig mcstat:m 3 " + quote(stats) + " -o " + quote(path("x.exr")));
     EXPECT_NE(r.code, 0);

@@ -71,6 +71,15 @@ def test_parameters_diagnostics_and_residual(files, tmp):
     both = mcstat.estimate(s, "gmon", removed=True, residual=True)
     y = sum(w * both.residual[c] for w, c in zip((0.2126, 0.7152, 0.0722), "RGB"))
     np.testing.assert_allclose(both.removed["Y"], y, rtol=1e-4, atol=1e-4)  # float residual
+    # keeplight: in memory and streamed, the command's pixels bit for bit; the mean's light
+    r = mcstat.estimate(s, "gmon", keeplight=True)
+    assert_same_channels(r, cli_result(tmp, src, "gmon", ":keeplight=1"))
+    np.testing.assert_array_equal(r.all_channels,
+                                  mcstat.estimate(src, "gmon", keeplight=True).all_channels)
+    mean = mcstat.estimate(s, "mean")
+    np.testing.assert_allclose(r.sum(axis=(0, 1)), mean.sum(axis=(0, 1)), rtol=1e-5)
+    with pytest.raises(mcstat.Error, match="keeplightgamma needs keeplight=1"):
+        mcstat.estimate(s, "gmon", keeplightgamma=2)
     r = mcstat.estimate(src, "3dwtmf", size=(5, 5))
     assert_same_channels(r, cli_result(tmp, src, "3dwtmf", ":size=5x5"))
     r = mcstat.estimate(mcstat.read(render(tmp / "plain.mcstat")), "gmon", mode="channel")
