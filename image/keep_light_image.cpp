@@ -41,6 +41,44 @@ std::vector<int> returnedChannels(const ImageBuf& robust, const ImageBuf& mean,
     return from;
 }
 
+/// The guide of the return (keep_light.h): the first hit's albedo as luminance, >= 0, so that
+/// irradiance goes back and the surface's texture multiplies it, and nothing goes where no surface
+/// was hit (albedo 0). Empty when the file keeps no albedo (renders ingested without one): the
+/// tent alone then.
+bool albedoGuide(const StatsImage& s, const std::array<double, 3>& luma, std::vector<float>& g,
+                 std::string&) {
+    g.clear();
+    if (!(s.header.features & kFeatureAlbedo) || s.albedo.size() != 3 * s.pixelCount()) return true;
+    g.resize(s.pixelCount());
+    for (size_t p = 0; p < g.size(); ++p) {
+        const double y = luma[0] * double(s.albedo[3 * p]) + luma[1] * double(s.albedo[3 * p + 1]) +
+                         luma[2] * double(s.albedo[3 * p + 2]);
+        g[p] = std::isfinite(y) && y > 0.0 ? float(y) : 0.f;
+    }
+    return true;
+}
+
+bool albedoGuide(StatsBlockSource& src, const std::array<double, 3>& luma, std::vector<float>& g,
+                 std::string& err) {
+    g.clear();
+    const StatsHeader& h = src.header();
+    if (!(h.features & kFeatureAlbedo)) return true;
+    const int rows = src.blockRows(kStatsPartFeatures);
+    StatsImage block;
+    std::vector<float> part;
+    for (int y = 0; y < h.height; y += rows) {
+        const int n = std::min(rows, h.height - y);
+        if (!src.read(y, n, kStatsPartFeatures, block, err)) return false;
+        if (!albedoGuide(block, luma, part, err)) return false;
+        if (part.empty()) {  // this block kept no albedo: no guide at all
+            g.clear();
+            return true;
+        }
+        g.insert(g.end(), part.begin(), part.end());
+    }
+    return true;
+}
+
 template <class Source>
 bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
                  const KeepLightParams& params, int nthreads) {
@@ -104,9 +142,15 @@ bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& lum
     keepLightScales(d.data(), se.data(), active.data(), width, height, params, scale.data(),
                     nthreads);
     const std::vector<int> radii = keepLightRadii(params.maxRadius);
-    std::vector<float> out(n * nc);
+    std::vector<float> guide, out(n * nc);
+    std::string err;
+    if (!albedoGuide(src, luma, guide, err)) {
+        robust.errorfmt("keeplight: {}", err);
+        return false;
+    }
+    if (guide.size() != n) guide.clear();
     returnResidual(values.data(), residual.data(), scale.data(), radii, width, height, int(nc),
-                   out.data(), nthreads);
+                   out.data(), nthreads, guide.empty() ? nullptr : guide.data());
     double returnedY = 0.0;
     for (size_t p = 0; p < n; ++p) {
         double y = 0.0;

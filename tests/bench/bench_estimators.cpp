@@ -16,6 +16,7 @@
 #include "mcstat/color.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
+#include "mcstat/image/keep_light_image.h"
 #include "mcstat/image/removed_light_layers.h"
 
 using namespace mcstat;
@@ -88,7 +89,8 @@ void BM_EstimatorThreads(benchmark::State& state, const Operation* est) {
 /// What the layers of issue 37 cost on top of an estimate (docs/confidence.md,
 /// docs/removed-light.md): a 1920x1080 image, M = 21, luminance mode, all cores, real time. `what`:
 /// "" the estimate alone, "ci" with its 0.95 confidence interval layers, "removed" with the
-/// removed-light layers (appendRemovedLight, radius 2). Names: layers/NAME[+ci|+removed]/1080p.
+/// removed-light layers (appendRemovedLight, radius 2), "keeplight" with the removed light given
+/// back (keepLight, docs/keep-light.md). Names: layers/NAME[+ci|+removed|+keeplight]/1080p.
 void BM_Layers(benchmark::State& state, const Operation* est, const std::string& what) {
     constexpr int W = 1920, H = 1080;
     const StatsImage& img = syntheticImage(21, W, H);
@@ -105,6 +107,8 @@ void BM_Layers(benchmark::State& state, const Operation* est, const std::string&
     for (auto _ : state) {
         estimate(out, img, *est, kernel, false, {}, 0);
         if (what == "removed" && !appendRemovedLight(out, img, lumaCoefficients()))
+            throw std::runtime_error(out.geterror());
+        if (what == "keeplight" && !keepLight(out, img, lumaCoefficients()))
             throw std::runtime_error(out.geterror());
         benchmark::DoNotOptimize(out.localpixels());
     }
@@ -164,8 +168,9 @@ const bool registered = [] {
             ->UseRealTime()
             ->Unit(benchmark::kMillisecond);
     for (const char* name : {"mean", "gmon", "tmpe"})
-        for (const char* what : {"", "ci", "removed"}) {
-            if (std::string(name) == "mean" && std::string(what) == "removed") continue;  // none
+        for (const char* what : {"", "ci", "removed", "keeplight"}) {
+            if (std::string(name) == "mean" && std::string(what) != "" && std::string(what) != "ci")
+                continue;  // the mean removes nothing
             const std::string label = std::string("layers/") + name +
                                       (*what ? std::string("+") + what : std::string()) + "/1080p";
             benchmark::RegisterBenchmark(label.c_str(), BM_Layers, findEstimator(name),

@@ -189,6 +189,35 @@ TEST(KeepLight, ASupportedCausticIsKeptClose) {
     EXPECT_LT(wideInside, 0.5 * total);
 }
 
+// A caustic of six pixels, each of which alone looks like a firefly (z = d / se = 1.1), the
+// buffers of its 3 x 3 neighbourhoods significant together (2.2 to 2.7 >= supportZ): kept within
+// a pixel, where ICI alone (supportZ out of reach) spreads each to the largest window.
+TEST(KeepLight, ASmallCausticOfFireflyLikePixelsIsKeptClose) {
+    Field f(64, 64, 1);
+    for (int y = 30; y < 32; ++y)
+        for (int x = 30; x < 33; ++x) {
+            const size_t p = f.at(x, y);
+            f.residual[p] = 5.0;
+            f.d[p] = 5.f;
+            f.se[p] = 4.5f;
+            f.active[p] = 1;
+        }
+    const std::vector<int> radii = keepLightRadii(32);
+    std::vector<uint8_t> scale;
+    giveBack(f, 1, {}, 1, &scale);
+    for (size_t p = 0; p < scale.size(); ++p)
+        if (f.active[p]) {
+            EXPECT_LE(radii[scale[p]], 1) << p;
+        }
+    KeepLightParams iciAlone;
+    iciAlone.supportZ = 1e9;
+    giveBack(f, 1, iciAlone, 1, &scale);
+    for (size_t p = 0; p < scale.size(); ++p)
+        if (f.active[p]) {
+            EXPECT_EQ(radii[scale[p]], 32) << p;
+        }
+}
+
 // AOVs go back by the beauty's kernels: where two light groups summed to the beauty's residual,
 // the returned groups sum to the returned beauty (to float rounding).
 TEST(KeepLight, AovsThatSummedToTheBeautyStillSum) {

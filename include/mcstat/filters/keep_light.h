@@ -25,9 +25,12 @@
 // whose subtractions would leave a firefly's rounding in the dark beyond it): identical for any
 // thread count. A pixel that no nonzero residual reaches is the robust estimate bit for bit.
 //
-// Tuned on the fixture's caustic and default scenes (96 x 72, 256 spp, M = 9, G-MoN; docs/
-// keep-light.md): gamma 3 and radius 32 keep the energy of the plain mean at 0.96x and 1.00x
-// G-MoN's relMSE; gamma 2 spreads too little (1.03x, 1.48x), gamma 4 too much on the caustic.
+// ICI alone cannot keep a small caustic close: with n pixels of removed light d each with se = d
+// (z = 1, the light in one or two of M = 9 buffers), every window's mean is n d / area with
+// standard error sqrt(n) d / area, so all intervals hold 0 while sqrt(n) < gamma and the light
+// spreads to the largest radius. The pooled 3 x 3 test (KeepLightParams::supportZ) catches such a
+// cluster. Gamma, the radius and supportZ were tuned on the fixture's caustic and default scenes
+// (docs/keep-light.md).
 #pragma once
 
 #include <cstdint>
@@ -39,6 +42,11 @@ namespace mcstat {
 struct KeepLightParams {
     double gamma = 3.0;  ///< ICI threshold: the intervals' half width in standard errors
     int maxRadius = 32;  ///< the largest window radius (the radii are 0, 1, 2, 4, ... up to it)
+    /// A pixel whose 3 x 3 neighbourhood's removed light is significant together, sum d /
+    /// sqrt(sum se^2) >= supportZ (removed_light.h's pooled test), keeps at most radius 1: a
+    /// caustic of a few pixels, each of which alone looks like a firefly (z about 1: with M = 9
+    /// its light is in one or two buffers), whose intervals ICI cannot tell from fireflies'.
+    double supportZ = 2.0;
 };
 
 /// The window radii the choice considers: 0, 1, 2, 4, ..., each doubling, the last maxRadius.
@@ -58,8 +66,14 @@ void keepLightScales(const float* d, const float* se, const uint8_t* active, int
 /// channel of a pixel that no nonzero residual reaches is robust[q][c] bit for bit. `out` may be
 /// `robust`. Returns the sum of the residuals returned (over pixels and channels, in double).
 /// Deterministic, any thread count.
+///
+/// With `guide` (one value >= 0 per pixel, e.g. the albedo's luminance: irradiance goes back, the
+/// surface's texture multiplies it), p's light goes to q in proportion to t(q - p) guide[q], the
+/// weights divided by their sum over p's window: light stays off what has no surface (guide 0:
+/// the background, black surfaces) and each window still returns all of its pixel's light. A
+/// window whose guide is 0 everywhere takes the tent alone.
 double returnResidual(const float* robust, const double* residual, const uint8_t* scale,
                       const std::vector<int>& radii, int width, int height, int nch, float* out,
-                      int nthreads = 0);
+                      int nthreads = 0, const float* guide = nullptr);
 
 }  // namespace mcstat

@@ -1,0 +1,61 @@
+#!/usr/bin/env bash
+# scripts/keep_light_table.sh [OUT_DIR]: the measurements of docs/keep-light.md. Renders the
+# fixture's firefly scenes (default, caustic, tiny, arealight) and smooth scenes (dof, furnace,
+# motion, texture) at 96 x 72, M = 9, 64 and 256 spp, seeds 1-5, and an 8,192-spp reference of
+# each (seed 99); runs the mean, G-MoN and G-MoN with :keeplight=1 on each render and writes one
+# row per scene, spp, seed and method: relMSE, SSIM, fireflies (mcstat --diff) and the energy
+# error against the reference (sum of luminance). Then prints the table of means over the seeds.
+# Never part of the tests; about 10 minutes on 2 cores.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out=${1:-build/keep-light}
+mkdir -p "$out/bin"
+# A copy of the tools, so that a rebuild while this runs changes nothing of one table.
+cp build/render-fixture/mcstat-render build/oiiotool-ext/mcstat "$out/bin/"
+R=$out/bin/mcstat-render
+M=$out/bin/mcstat
+SCENES=${SCENES:-"default caustic tiny arealight dof furnace motion texture"}
+SPPS=${SPPS:-"64 256"}
+SEEDS=${SEEDS:-"1 2 3 4 5"}
+METHODS=("mean" "gmon" "gmon:keeplight=1")
+table=$out/keep-light.csv
+echo "scene,spp,seed,method,relMSE,SSIM,fireflies,energy" >"$table"
+for scene in $SCENES; do
+  [ -f "$out/$scene-ref.exr" ] || $R --scene "$scene" --res 96 72 --spp 8192 --reference --seed 99 \
+    --quiet -o "$out/$scene-ref.exr"
+  for spp in $SPPS; do
+    for seed in $SEEDS; do
+      f=$out/$scene-$spp-$seed
+      [ -f "$f.mcstat" ] || $R --scene "$scene" --res 96 72 --spp "$spp" --M 9 --seed "$seed" \
+        --quiet -o "$f.mcstat"
+      for method in "${METHODS[@]}"; do
+        img=$f-${method//[:=]/_}.exr
+        line=$($M "$f.mcstat" "--$method" -o "$img" --diff "$out/$scene-ref.exr" | tail -1)
+        read -r rel ssim ff <<<"$(sed -E 's/.*relMSE ([^ ]+) +SSIM ([^ ]+).*fireflies ([0-9]+).*/\1 \2 \3/' <<<"$line")"
+        energy=$(PYTHONPATH= /usr/bin/python3 - "$img" "$out/$scene-ref.exr" <<'PY'
+import sys, numpy as np, OpenImageIO as oiio
+L = np.array([0.2126, 0.7152, 0.0722])
+y = [(oiio.ImageBuf(p).get_pixels(oiio.FLOAT)[..., :3].astype(np.float64) * L).sum() for p in sys.argv[1:]]
+print("%.6f" % (y[0] / y[1] - 1))
+PY
+)
+        echo "$scene,$spp,$seed,$method,$rel,$ssim,$ff,$energy" >>"$table"
+      done
+    done
+  done
+done
+PYTHONPATH= /usr/bin/python3 - "$table" <<'PY'
+import csv, sys, collections
+rows = list(csv.DictReader(open(sys.argv[1])))
+g = collections.defaultdict(list)
+for r in rows:
+    g[(r["scene"], int(r["spp"]), r["method"])].append(r)
+mean = lambda rs, k: sum(float(r[k]) for r in rs) / len(rs)
+print("| scene | spp | method | relMSE | vs G-MoN | vs mean | energy (mean of seeds) | fireflies | SSIM |")
+print("|---|---|---|---|---|---|---|---|---|")
+for (scene, spp, method), rs in sorted(g.items(), key=lambda kv: (kv[0][0], kv[0][1], kv[0][2])):
+    gm = mean(g[(scene, spp, "gmon")], "relMSE"); mm = mean(g[(scene, spp, "mean")], "relMSE")
+    rel = mean(rs, "relMSE")
+    print("| %s | %d | %s | %.4g | %.2fx | %.2fx | %+.2f %% | %.1f | %.4f |" % (
+        scene, spp, method, rel, rel / gm, rel / mm, 100 * mean(rs, "energy"), mean(rs, "fireflies"), mean(rs, "SSIM")))
+PY
