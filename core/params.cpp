@@ -304,6 +304,17 @@ std::string realText(double v) {
     return std::string(buf, r.ptr);
 }
 
+bool takeModifiers(const std::string& command, const std::vector<ParamSpec>& specs,
+                   std::map<std::string, std::string>& mods, ParamValues& out, std::string& err) {
+    for (const ParamSpec& spec : specs) {
+        const auto it = mods.find(spec.name);
+        if (it == mods.end()) continue;
+        if (!parseParamValue(command, spec, it->second, out[spec.name], err)) return false;
+        mods.erase(it);
+    }
+    return true;
+}
+
 bool checkModifiers(const std::string& command, const std::vector<ParamSpec>& specs,
                     std::map<std::string, std::string>& mods, std::string& err) {
     for (const auto& [key, text] : mods) {

@@ -641,12 +641,7 @@ std::vector<ParamSpec> confidenceModifiers() {
 bool takeConfidenceModifiers(const std::string& context, std::map<std::string, std::string>& mods,
                              ParamValues& out, std::string& err) {
     ParamValues given;
-    for (const ParamSpec& spec : confidenceModifiers()) {
-        const auto it = mods.find(spec.name);
-        if (it == mods.end()) continue;
-        if (!parseParamValue(context, spec, it->second, given[spec.name], err)) return false;
-        mods.erase(it);
-    }
+    if (!takeModifiers(context, confidenceModifiers(), mods, given, err)) return false;
     // Only what asks for layers goes on: a result without them keeps the parameters it had.
     const bool aovs = given.count("ciaovs") && given.at("ciaovs").integer != 0;
     if (!given.count("ci")) {

@@ -187,14 +187,7 @@ std::vector<ParamSpec> keepLightModifiers() {
 bool takeKeepLightModifiers(const std::string& context, std::map<std::string, std::string>& mods,
                             ParamValues& out, std::string& err) {
     ParamValues given;
-    for (const ParamSpec& spec : keepLightModifiers()) {
-        const auto it = mods.find(spec.name);
-        if (it == mods.end()) continue;
-        if (!it->second.empty() &&
-            !parseParamValue(context, spec, it->second, given[spec.name], err))
-            return false;
-        mods.erase(it);
-    }
+    if (!takeModifiers(context, keepLightModifiers(), mods, given, err)) return false;
     const bool on = given.count("keeplight") && given.at("keeplight").integer != 0;
     for (const char* k : {"keeplightgamma", "keeplightradius"})
         if (given.count(k) && !on) {

@@ -205,6 +205,8 @@ def estimate(s, name="gmon", *, diag=False, residual=False, **params):
     diagnostics (diag=True), the residual (residual=True), the removed-light layers (removed=True,
     with removedradius and removedz: Y, se, z, zlocal, significant; docs/removed-light.md) and the
     confidence interval (ci=0.95, ciaovs=True for the AOVs' too: ci_low, ci_high) as attributes.
+    keeplight=True (keeplightgamma, keeplightradius) gives the removed light back, all of it, where
+    the evidence puts it (docs/keep-light.md).
     Equal to `mcstat FILE --NAME -o out.exr` bit for bit."""
     src = _source(s)
     header = s.header if isinstance(s, Stats) else read_header(src)

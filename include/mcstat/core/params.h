@@ -80,6 +80,13 @@ std::string nearestName(const std::string& name, const std::vector<std::string>&
 bool checkModifiers(const std::string& command, const std::vector<ParamSpec>& specs,
                     std::map<std::string, std::string>& mods, std::string& err);
 
+/// Moves the modifiers of `specs` out of `mods` into `out`, each parsed (parseParamValue, context
+/// `command`; an empty text is an error there, as any text its type refuses). The modifiers of a
+/// layer (ci, keeplight) are taken so, and the rest are the operation's own parameters. False with
+/// parseParamValue's line.
+bool takeModifiers(const std::string& command, const std::vector<ParamSpec>& specs,
+                   std::map<std::string, std::string>& mods, ParamValues& out, std::string& err);
+
 /// The one grammar of parameter text: "key=value:key=value", as a command's modifiers are written
 /// (`--gmon:mode=channel:diag=1`) and as an operation's parameters are stored in a statistics file
 /// (FORMAT.md "State parts with an owner"). As in oiiotool, a value may hold ':' where what follows
