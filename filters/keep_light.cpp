@@ -196,16 +196,15 @@ std::vector<double> guideSums(const float* guide, const std::vector<uint8_t>& ne
 
 }  // namespace
 
-double returnResidual(const float* robust, const double* residual, const uint8_t* scale,
-                      const std::vector<int>& radii, int width, int height, int nch, float* out,
-                      int nthreads, const float* guide) {
+void returnResidual(const float* robust, const double* residual, const uint8_t* scale,
+                    const std::vector<int>& radii, int width, int height, int nch, float* out,
+                    int nthreads, const float* guide) {
     const size_t w = size_t(width), n = w * size_t(height), nc = size_t(nch);
     // What each pixel receives, per channel: `plain` by the tent alone, `guided` to be multiplied
     // by the pixel's guide value.
     std::vector<double> plain(n * nc, 0.0), guided(guide ? n * nc : 0, 0.0);
     std::vector<double> source(n), rows(n);
     std::vector<uint8_t> rowUsed(static_cast<size_t>(height)), need(n);
-    double returned = 0.0;
     for (size_t k = 0; k < radii.size(); ++k) {
         const int r = radii[k];
         bool anyAtK = false;
@@ -237,7 +236,6 @@ double returnResidual(const float* robust, const double* residual, const uint8_t
                         const bool mine = guide && norm[p] > 0.0;
                         if (need[p] && v != 0.0 && std::isfinite(v) && mine == byGuide) {
                             s = v / (byGuide ? norm[p] : tentSum(x, r, width) * wy);
-                            returned += v;
                             any = true;
                         }
                         source[p] = s;
@@ -256,7 +254,6 @@ double returnResidual(const float* robust, const double* residual, const uint8_t
                 out[i] = add != 0.0 ? float(double(robust[i]) + add) : robust[i];
             }
     });
-    return returned;
 }
 
 }  // namespace mcstat

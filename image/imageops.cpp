@@ -427,11 +427,9 @@ namespace {
 const StatsHeader& headerOf(const StatsImage& s) { return s.header; }
 const StatsHeader& headerOf(const StatsBlockSource& s) { return s.header(); }
 
-/// The plain mean of the sub-buffers (the registry's "mean"): what MIF filters when given a
-/// statistics file, and the reference of the residuals.
 template <class Source>
-bool plainMean(ImageBuf& dst, Source& src, const std::array<double, 3>& luma, ROI roi,
-               int nthreads) {
+bool plainMeanOf(ImageBuf& dst, Source& src, const std::array<double, 3>& luma, ROI roi,
+                 int nthreads) {
     const Operation& mean = *findOperation("mean");
     return estimate(dst, src, mean, mean.bindPixel(ParamValues(), luma), false, roi, nthreads);
 }
@@ -484,16 +482,8 @@ template <class Source>
 bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const ParamValues& values,
                       const std::array<double, 3>& luma, bool diagnostics, ROI roi, int nthreads) {
     const bool keep = keepLightAsked(values);
-    if (keep && (takesImage(op) || readsSamples(op))) {
-        dst.errorfmt("{}: keeplight is for estimators and 3D filters over a statistics file",
-                     op.name);
-        return false;
-    }
-    if (keep && values.count("ci")) {
-        dst.errorfmt(
-            "{}: keeplight and ci: the interval is the robust estimate's, not the image's "
-            "with the light given back; ask for one of them",
-            op.name);
+    if (const std::string why = keepLightRefusal(op, values); !why.empty()) {
+        dst.errorfmt("{}", why);
         return false;
     }
     if (keep && roi.defined() && roi != dataWindowROI(headerOf(src))) {
@@ -519,18 +509,11 @@ bool appendResidualTo(ImageBuf& robust, Source& src, const std::array<double, 3>
         robust.errorfmt("residual: {}", mean.geterror());
         return false;
     }
-    // Which channels: the beauty's and every AOV's but the labels (a label has no residual).
-    std::vector<int> from;
-    std::vector<std::string> names;
     const ImageSpec& rs = robust.spec();
-    for (int c = 0; c < rs.nchannels; ++c) {
-        const std::string& n = rs.channelnames[size_t(c)];
-        const int a = h.aovIndex(n);
-        if (c >= 3 && (a < 0 || h.aovs[size_t(a)].cls == AovClass::Id)) continue;
-        if (mean.spec().channelindex(n) < 0) continue;
-        from.push_back(c);
-        names.push_back(kResidualPrefix + n);
-    }
+    std::vector<int> meanIndex;
+    const std::vector<int> from = residualChannels(rs, mean.spec(), h, meanIndex);
+    std::vector<std::string> names;
+    for (int c : from) names.push_back(kResidualPrefix + rs.channelnames[size_t(c)]);
     ImageSpec spec = rs;
     spec.nchannels = rs.nchannels + int(from.size());
     spec.channelnames.insert(spec.channelnames.end(), names.begin(), names.end());
@@ -542,8 +525,6 @@ bool appendResidualTo(ImageBuf& robust, Source& src, const std::array<double, 3>
     const float* rp = static_cast<const float*>(robust.localpixels());
     const float* mp = static_cast<const float*>(mean.localpixels());
     float* op = static_cast<float*>(out.localpixels());
-    std::vector<int> meanIndex;
-    for (int c : from) meanIndex.push_back(mean.spec().channelindex(rs.channelnames[size_t(c)]));
     for (size_t q = 0; q < roi.npixels(); ++q) {
         std::copy(rp + q * nin, rp + (q + 1) * nin, op + q * nout);
         for (size_t i = 0; i < from.size(); ++i)
@@ -555,6 +536,31 @@ bool appendResidualTo(ImageBuf& robust, Source& src, const std::array<double, 3>
 }
 
 }  // namespace
+
+bool plainMean(ImageBuf& dst, const StatsImage& src, const std::array<double, 3>& luma, ROI roi,
+               int nthreads) {
+    return plainMeanOf(dst, src, luma, roi, nthreads);
+}
+
+bool plainMean(ImageBuf& dst, StatsBlockSource& src, const std::array<double, 3>& luma, ROI roi,
+               int nthreads) {
+    return plainMeanOf(dst, src, luma, roi, nthreads);
+}
+
+std::vector<int> residualChannels(const ImageSpec& robust, const ImageSpec& mean,
+                                  const StatsHeader& h, std::vector<int>& meanIndex) {
+    std::vector<int> from;
+    for (int c = 0; c < robust.nchannels; ++c) {
+        const std::string& n = robust.channelnames[size_t(c)];
+        const int a = h.aovIndex(n);
+        if (c >= 3 && (a < 0 || h.aovs[size_t(a)].cls == AovClass::Id)) continue;
+        const int m = mean.channelindex(n);
+        if (m < 0) continue;
+        from.push_back(c);
+        meanIndex.push_back(m);
+    }
+    return from;
+}
 
 bool appendResidual(ImageBuf& robust, const StatsImage& src, const std::array<double, 3>& luma,
                     int nthreads) {

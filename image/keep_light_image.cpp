@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/removed_light_layers.h"
 
@@ -22,24 +21,6 @@ constexpr double kRoundingUlps = 4.0;
 
 const StatsHeader& headerOf(const StatsImage& s) { return s.header; }
 const StatsHeader& headerOf(const StatsBlockSource& s) { return s.header(); }
-
-/// The channels that get their light back, as appendResidual picks them: R, G, B and every AOV
-/// of the file but the labels (a label's "residual" is no light), found in the plain mean too.
-std::vector<int> returnedChannels(const ImageBuf& robust, const ImageBuf& mean,
-                                  const StatsHeader& h, std::vector<int>& meanIndex) {
-    std::vector<int> from;
-    const OIIO::ImageSpec& rs = robust.spec();
-    for (int c = 0; c < rs.nchannels; ++c) {
-        const std::string& n = rs.channelnames[size_t(c)];
-        const int a = h.aovIndex(n);
-        if (c >= 3 && (a < 0 || h.aovs[size_t(a)].cls == AovClass::Id)) continue;
-        const int m = mean.spec().channelindex(n);
-        if (m < 0) continue;
-        from.push_back(c);
-        meanIndex.push_back(m);
-    }
-    return from;
-}
 
 /// The guide of the return (keep_light.h): the first hit's albedo as luminance, >= 0, so that
 /// irradiance goes back and the surface's texture multiplies it, and nothing goes where no surface
@@ -94,15 +75,15 @@ bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& lum
         return false;
     }
     const ROI roi = robust.roi();
-    const Operation& meanOp = *findOperation("mean");
     ImageBuf mean, spread;
-    if (!estimate(mean, src, meanOp, meanOp.bindPixel(ParamValues(), luma), false, roi, nthreads) ||
+    if (!plainMean(mean, src, luma, roi, nthreads) ||
         !lumaSpreadImage(spread, src, luma, roi, nthreads)) {
         robust.errorfmt("keeplight: {}", mean.has_error() ? mean.geterror() : spread.geterror());
         return false;
     }
     std::vector<int> meanIndex;
-    const std::vector<int> from = returnedChannels(robust, mean, headerOf(src), meanIndex);
+    // The beauty and every AOV but the labels, as appendResidual picks them.
+    const std::vector<int> from = residualChannels(rs, mean.spec(), headerOf(src), meanIndex);
     const int width = roi.width(), height = roi.height();
     // The spread's R, G, B: the buffers' luminance mean, its standard error, their number; the
     // AOV channels estimate() appends after them are not used.
@@ -197,6 +178,17 @@ bool takeKeepLightModifiers(const std::string& context, std::map<std::string, st
     if (on)
         for (const auto& [k, v] : given) out[k] = v;
     return true;
+}
+
+std::string keepLightRefusal(const Operation& op, const ParamValues& values) {
+    if (!keepLightAsked(values)) return {};
+    if (takesImage(op) || readsSamples(op))
+        return op.name + ": keeplight is for estimators and 3D filters over a statistics file";
+    if (values.count("ci"))
+        return op.name +
+               ": keeplight and ci: the interval is the robust estimate's, not the image's with "
+               "the light given back; ask for one of them";
+    return {};
 }
 
 bool keepLightAsked(const ParamValues& values) {

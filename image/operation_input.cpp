@@ -13,9 +13,9 @@ bool applyOperation(ImageBuf& dst, const OperationInput& in, const Operation& op
                     const ParamValues& values, const std::array<double, 3>& luma, bool diagnostics,
                     ROI roi, int nthreads) {
     const bool statistics = in.stats != nullptr || bool(in.stream) || in.header != nullptr;
-    if (keepLightAsked(values) && (readsSamples(op) || takesImage(op) || in.image != nullptr)) {
-        dst.errorfmt("{}: keeplight is for estimators and 3D filters over a statistics file",
-                     op.name);
+    // The per-sample and image paths below never reach applyOperation's own check.
+    if (const std::string why = keepLightRefusal(op, values); !why.empty()) {
+        dst.errorfmt("{}", why);
         return false;
     }
     if (readsSamples(op)) {

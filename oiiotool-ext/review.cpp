@@ -264,11 +264,12 @@ bool estimatorTile(State& st, const Operation& e, ContactSheet& q, std::string& 
     // keeplight where the operation takes it (not the mean, which keeps all its light, nor an
     // image filter); its tile says so.
     ParamValues extra;
-    const bool keep = q.keepLight && e.name != "mean" && !takesImage(e) && !readsSamples(e);
-    if (keep) {
+    if (q.keepLight && e.name != "mean") {
         std::map<std::string, std::string> kv = {{"keeplight", "1"}};
         if (!takeKeepLightModifiers(q.cmd, kv, extra, err)) return false;
+        if (!keepLightRefusal(e, extra).empty()) extra.clear();
     }
+    const bool keep = keepLightAsked(extra);
     if (!runEstimator(*top.stats, e, st.nthreads, img, q.cmd, err, extra)) return false;
     DiffMetrics m;
     if (!diffImages(img, q.ref, q.opt, m, err)) {

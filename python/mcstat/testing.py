@@ -21,6 +21,7 @@ goes to the next free name (NAME-2, NAME-3, ...).
 """
 
 import hashlib
+import inspect
 import json
 import os
 import re
@@ -94,7 +95,6 @@ def report_dir_for(name=None, caller_file=None):
 
 
 def _caller_file():
-    import inspect
     for frame in inspect.stack()[2:]:
         if Path(frame.filename).resolve() != Path(__file__).resolve():
             return frame.filename

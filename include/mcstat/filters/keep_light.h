@@ -64,16 +64,15 @@ void keepLightScales(const float* d, const float* se, const uint8_t* active, int
 /// residual[p][c] t(q - p) / (sum of t over p's window inside the image), t the tent's weight.
 /// Residuals that are not finite are not returned (the pixel keeps the robust value there). A
 /// channel of a pixel that no nonzero residual reaches is robust[q][c] bit for bit. `out` may be
-/// `robust`. Returns the sum of the residuals returned (over pixels and channels, in double).
-/// Deterministic, any thread count.
+/// `robust`. Deterministic, any thread count.
 ///
 /// With `guide` (one value >= 0 per pixel, e.g. the albedo's luminance: irradiance goes back, the
 /// surface's texture multiplies it), p's light goes to q in proportion to t(q - p) guide[q], the
 /// weights divided by their sum over p's window: light stays off what has no surface (guide 0:
 /// the background, black surfaces) and each window still returns all of its pixel's light. A
 /// window whose guide is 0 everywhere takes the tent alone.
-double returnResidual(const float* robust, const double* residual, const uint8_t* scale,
-                      const std::vector<int>& radii, int width, int height, int nch, float* out,
-                      int nthreads = 0, const float* guide = nullptr);
+void returnResidual(const float* robust, const double* residual, const uint8_t* scale,
+                    const std::vector<int>& radii, int width, int height, int nch, float* out,
+                    int nthreads = 0, const float* guide = nullptr);
 
 }  // namespace mcstat

@@ -174,6 +174,21 @@ bool appendResidual(OIIO::ImageBuf& robust, const StatsImage& src,
 bool appendResidual(OIIO::ImageBuf& robust, StatsBlockSource& src,
                     const std::array<double, 3>& luma, int nthreads = 0);
 
+/// The plain mean of the sub-buffers over `roi` (the registry's "mean" with its defaults; R, G, B,
+/// then the AOVs): what MIF filters when given a statistics file, and the reference of the
+/// residuals (appendResidual, keepLight). Errors on dst.
+bool plainMean(OIIO::ImageBuf& dst, const StatsImage& src, const std::array<double, 3>& luma,
+               OIIO::ROI roi = {}, int nthreads = 0);
+bool plainMean(OIIO::ImageBuf& dst, StatsBlockSource& src, const std::array<double, 3>& luma,
+               OIIO::ROI roi = {}, int nthreads = 0);
+
+/// The channels of `robust` (an operation's result over a file with header `h`) that hold light
+/// of their own, with a residual against the plain mean `mean`: R, G, B and every AOV of the file
+/// but the labels (class id: a label's "residual" is no light), found in `mean` by name. Their
+/// indices in `robust`; `meanIndex` gets each one's index in `mean`.
+std::vector<int> residualChannels(const OIIO::ImageSpec& robust, const OIIO::ImageSpec& mean,
+                                  const StatsHeader& h, std::vector<int>& meanIndex);
+
 /// Runs a Samples operation on the statistics file `path` (op.samples streams it) and turns its
 /// OperationImage into an ImageBuf with the data window of `header` (the file's). False with the
 /// message on dst. `progress` (0..1), when set, hears from long operations.

@@ -15,6 +15,7 @@
 
 #include "mcstat/core/params.h"
 #include "mcstat/filters/keep_light.h"
+#include "mcstat/filters/registry.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat {
@@ -29,6 +30,10 @@ bool takeKeepLightModifiers(const std::string& context, std::map<std::string, st
                             ParamValues& out, std::string& err);
 /// Whether `values` (takeKeepLightModifiers merged in) asks for the light back, and with what.
 bool keepLightAsked(const ParamValues& values);
+/// Why `op` with `values` cannot give its light back (an image filter or a per-sample operation;
+/// keeplight with ci, whose interval is the robust estimate's), as one line; empty when it can or
+/// keeplight is not asked. The one check of every caller (the seam, applyOperation, the sheet).
+std::string keepLightRefusal(const Operation& op, const ParamValues& values);
 KeepLightParams keepLightParams(const ParamValues& values);
 
 /// Gives `robust` (an operation's float result over `src`: R, G, B first, then any channels, the
