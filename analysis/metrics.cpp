@@ -76,6 +76,32 @@ double ssimChannel(const float* a, const float* b, size_t stride, int width, int
     return count ? sum / double(count) : 1.0;
 }
 
+void detailSums(const float* a, const float* b, size_t stride, int width, int height,
+                const bool* mask, double& cross, double& refPower) {
+    auto ok = [&](size_t p) { return mask == nullptr || mask[p]; };
+    auto val = [&](const float* img, size_t p) { return clamp01(double(img[p * stride])); };
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            const size_t p = size_t(y) * width + x;
+            if (!ok(p)) continue;
+            double sa = 0.0, sb = 0.0;
+            int n = 0;
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) {
+                    const int xx = x + dx, yy = y + dy;
+                    if (xx < 0 || yy < 0 || xx >= width || yy >= height) continue;
+                    const size_t q = size_t(yy) * width + xx;
+                    if (!ok(q)) continue;
+                    sa += val(a, q);
+                    sb += val(b, q);
+                    ++n;
+                }
+            const double ha = val(a, p) - sa / n, hb = val(b, p) - sb / n;
+            cross += ha * hb;
+            refPower += hb * hb;
+        }
+}
+
 PixelError pixelError(const float* x, const float* r, const DiffOptions& opt) {
     PixelError e;
     for (int c = 0; c < 3; ++c)
@@ -139,6 +165,7 @@ DiffMetrics compareImages(const float* lin, const float* ref, const float* disp,
         m.ssim = std::numeric_limits<double>::quiet_NaN();
         m.normBias = std::numeric_limits<double>::quiet_NaN();
         m.normNoise = std::numeric_limits<double>::quiet_NaN();
+        m.detail = std::numeric_limits<double>::quiet_NaN();
         return m;
     }
     m.relMSE = rel / double(3 * m.pixels);
@@ -156,6 +183,11 @@ DiffMetrics compareImages(const float* lin, const float* ref, const float* disp,
     for (int c = 0; c < 3; ++c)
         s += ssimChannel(disp + c, refDisp + c, 3, width, height, mask.get());
     m.ssim = s / 3.0;
+    double cross = 0.0, refPower = 0.0;
+    for (int c = 0; c < 3; ++c)
+        detailSums(disp + c, refDisp + c, 3, width, height, mask.get(), cross, refPower);
+    // A reference without any detail (flat, or clamped flat) leaves the slope undefined.
+    m.detail = refPower > 0.0 ? cross / refPower : std::numeric_limits<double>::quiet_NaN();
     return m;
 }
 

@@ -69,6 +69,8 @@ void printDiffLine(const std::string& name, const DiffMetrics& m) {
                 m.relMSE, m.ssim, m.psnr, m.fireflies, m.pixels);
     // Jung's normalised error (eq. 5.25-5.27), on luminance
     std::printf("  nbias %.5g  nnoise %.5g", m.normBias, m.normNoise);
+    // Pixel-scale detail kept (a blur lowers it; noise does not), docs/metrics.md
+    std::printf("  detail %.4f", m.detail);
     if (m.nonFinite) std::printf("  non-finite %ld", m.nonFinite);
     std::printf("\n");
     std::fflush(stdout);

@@ -3,14 +3,15 @@
 # fixture scene at several spp with independent seeds, runs every method on the same renders, and
 # writes one row per scene, method, spp and seed to $OUT/trade.csv: wall seconds (render +
 # estimate, this machine), bytes per pixel of what the method needs on disk, and the --diff
-# metrics against a high-spp reference (relMSE, SSIM, PSNR, fireflies, nbias, nnoise). Then prints
+# metrics against a high-spp reference (relMSE, SSIM, PSNR, fireflies, nbias, nnoise, detail). Then prints
 # the tables of docs/trade.md (scripts/trade_tables.py) and draws relMSE against time and against
 # bytes per pixel for every scene with `mcstat --tradeplot`. Not part of the tests; part of
 # scripts/bench.sh (section trade). About 25 minutes on 2 cores with the defaults.
 #
 # Methods: the mean; the renderer's clamp (mcstat-render --clamp C, Cycles' rule) and oiiotool's
 # (--clamp:max=C/3 on the mean, per channel); oiiotool's 3x3 median of the mean; MoN, G-MoN,
-# G-MoN_b; Jung's TMPE, myriad, meridian, MPE+MIF, TMPE+WMIF, 3DMF, 3DWMF, 3DWTMF; Pajot's
+# G-MoN_b, G-MoN keeping its light (:keeplight=1, docs/keep-light.md); Jung's TMPE, myriad,
+# meridian, MPE+MIF, TMPE+WMIF, 3DMF, 3DWMF, 3DWTMF; Pajot's
 # ADR/ROT/hybrid run online by the renderer; the reweighting (Zirr et al.) run online, as the paper
 # gives it and as the energy-keeping variant (kappa=1:spread=8, docs/reweighting.md); RPF from
 # --keep-samples; G-MoN of a compact file. Time of a method = the wall time of the render it
@@ -20,7 +21,8 @@
 # for equal-time comparisons.
 #
 # Environment:
-#   SCENES     fixture scenes (default: all eight)
+#   SCENES     fixture scenes (default: all eight, and detail, the fireflies over pixel-scale
+#              detail, which needs RES 256 192 or more to show it)
 #   SPPS       samples per pixel of every method (default "16 64 256")
 #   SEEDS      independent seeds per spp (default 5)
 #   RES        image size (default "64 48")
@@ -31,13 +33,16 @@
 #   RPF_SPPS   spp at which RPF runs (default 16: RPF, single-threaded, takes 4 s at 16 spp here)
 #   MEAN_SPPS  extra spp of the mean alone (default 1024)
 #   CLAMPS     clamp limits C, as |R|+|G|+|B| (default "3 30")
+#   ONLY       comma-separated method names to run (default: every method; the mean always
+#              runs, every other method's time is weighed against it), e.g. for large images
+#              ONLY="G-MoN,G-MoN keeplight,median 3x3 (oiiotool),clamp 30 (renderer)"
 #   BUILD      build folder (default build); SKIP_BUILD=1 uses it as it is
 #   OUT        output folder (default out/trade); rows are appended only for a fresh table
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD=${BUILD:-build}
 OUT=${OUT:-out/trade}
-SCENES=${SCENES:-default caustic dof furnace motion texture arealight tiny}
+SCENES=${SCENES:-default caustic dof furnace motion texture arealight tiny detail}
 SPPS=${SPPS:-16 64 256}
 SEEDS=${SEEDS:-5}
 RES=${RES:-64 48}
@@ -47,6 +52,7 @@ REF_SPP_SCENES=${REF_SPP_SCENES-default=32768 caustic=65536}
 RPF_SPPS=${RPF_SPPS:-16}
 MEAN_SPPS=${MEAN_SPPS:-1024}
 CLAMPS=${CLAMPS:-3 30}
+ONLY=${ONLY:-}
 if [ "${SKIP_BUILD:-0}" != 1 ]; then
   scripts/install-deps.sh
   scripts/build.sh "$BUILD" >/dev/null
@@ -58,68 +64,13 @@ mkdir -p "$OUT"
 table=$OUT/trade.csv
 read -r W H <<<"$RES"
 pixels=$((W * H))
-echo "scene,method,spp,seed,seconds,bytesPerPixel,relMSE,SSIM,PSNR,fireflies,pixels,nbias,nnoise" >"$table"
+echo "scene,method,spp,seed,seconds,bytesPerPixel,relMSE,SSIM,PSNR,fireflies,pixels,nbias,nnoise,detail" >"$table"
 log=$OUT/last
 start=$SECONDS
 
-# run CMD...: runs CMD with its output in $log.out / $log.err; stops the script if it fails.
-run() {
-  if ! "$@" >"$log.out" 2>"$log.err"; then
-    echo "trade: failed: $*" >&2
-    tail -5 "$log.err" >&2
-    exit 1
-  fi
-}
-# timed VAR CMD...: run, and VAR = its wall seconds.
-timed() {
-  local -n _seconds=$1
-  shift
-  local t0=$EPOCHREALTIME
-  run "$@"
-  _seconds=$(awk -v a="$t0" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.4f", b - a }')
-}
-# oiio_timed VAR ARGS...: runs oiiotool --runstats ARGS, and VAR = the time it reports (reading,
-# the command, writing; not the process start, as mcstat -v's times are not).
-oiio_timed() {
-  local -n _oiio_seconds=$1
-  shift
-  run oiiotool --runstats "$@"
-  _oiio_seconds=$(awk '/Total time:/ { sub("s", "", $3); print $3 }' "$log.out")
-}
-bytes_pp() { awk -v b="$(stat -c %s "$1")" -v p="$pixels" 'BEGIN { printf "%.1f", b / p }'; }
-add() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.4f", a + b }'; }
-
-# segments: from mcstat -v's stderr ($log.err) and stdout ($log.out) of a run made of
-# "--dup CMDS... --diff REF --pop" segments, one line per segment: "SECONDS METRICS", SECONDS the
-# file's read time plus the segment's commands (all but --dup, --diff, --pop; -o too when
-# $with_output is 1), METRICS the --diff line's numbers as CSV.
-segments() {
-  local with_output=${1:-0}
-  awk -v out="$with_output" 'BEGIN { n = 0 }
-    / read .* in [0-9.]+ s$/ { read += $(NF - 1) }
-    /^mcstat: [^ ]+ done in / {
-      c = $2
-      if (c == "--pop") { n++; next }
-      if (c == "--dup" || c == "--diff" || (c == "-o" && !out)) next
-      t[n] += $(NF - 1)
-    }
-    END { for (i = 0; i <= n; i++) printf "%.4f\n", read + t[i] }' "$log.err" >"$log.times"
-  metrics <"$log.out" >"$log.metrics"
-  paste -d' ' "$log.times" <(cat "$log.metrics")
-}
-# metrics: every --diff line on stdin as relMSE,SSIM,PSNR,fireflies,pixels,nbias,nnoise.
-metrics() {
-  awk '/ relMSE / {
-    for (i = 1; i <= NF; i++) {
-      if ($i == "relMSE") r = $(i + 1); if ($i == "SSIM") s = $(i + 1); if ($i == "PSNR") p = $(i + 1)
-      if ($i == "fireflies") { f = $(i + 1); px = $(i + 3) }
-      if ($i == "nbias") b = $(i + 1); if ($i == "nnoise") z = $(i + 1)
-    }
-    printf "%s,%s,%s,%s,%s,%s,%s\n", r, s, p, f, px, b, z }'
-}
-# row SCENE METHOD SPP SEED SECONDS BYTES METRICS
-row() { echo "$1,$2,$3,$4,$5,$6,$7" >>"$table"; }
-progress() { [ -t 2 ] && printf '\rtrade: %-60s %4d s' "$1" "$((SECONDS - start))" >&2 || true; }
+# The helpers: run, timed, oiio_timed, bytes_pp, add, segments, metrics, row, wanted, keep_ran,
+# progress.
+source scripts/trade_lib.sh
 
 # plain_mean: the plain render of $scene at $spp, $seed (M = 1, as a renderer writes its beauty)
 # and its mean, $f-mean.exr: the baseline's row; sets t_mean and mean_bytes.
@@ -136,10 +87,14 @@ plain_mean() {
 
 # The statistics-file methods, "NAME|COMMANDS", each run as --dup COMMANDS --diff REF --pop.
 stat_methods=(
-  "MoN|--mon" "G-MoN|--gmon" "G-MoN_b|--gmonb" "TMPE|--tmpe" "myriad|--myriad"
+  "MoN|--mon" "G-MoN|--gmon" "G-MoN_b|--gmonb" "G-MoN keeplight|--gmon:keeplight=1"
+  "TMPE|--tmpe" "myriad|--myriad"
   "meridian|--meridian" "MPE+MIF|--median --mif" "TMPE+WMIF|--tmpe --wmif" "3DMF|--3dmf"
   "3DWMF|--3dwmf" "3DWTMF|--3dwtmf"
 )
+all_stat_methods=("${stat_methods[@]}")
+stat_methods=()
+for m in "${all_stat_methods[@]}"; do wanted "${m%%|*}" && stat_methods+=("$m"); done
 
 for scene in $SCENES; do
   dir=$OUT/$scene
@@ -164,43 +119,53 @@ for scene in $SCENES; do
       # The statistics file (M sub-buffers) and every method over it, in one mcstat -v run.
       timed t_render "$render" --scene "$scene" --res $RES --spp "$spp" --M "$BUFFERS" --seed "$seed" --quiet -o "$f.mcstat"
       stats_bytes=$(bytes_pp "$f.mcstat")
-      args=(-v "$f.mcstat")
-      for m in "${stat_methods[@]}"; do args+=(--dup ${m#*|} --diff "$ref" --pop); done
-      run "$mcstat" "${args[@]}"
-      mapfile -t seg < <(segments)
-      for i in "${!stat_methods[@]}"; do
-        read -r t met <<<"${seg[$i]}"
-        row "$scene" "${stat_methods[$i]%%|*}" "$spp" "$seed" "$(add "$t_render" "$t")" "$stats_bytes" "$met"
-      done
+      if [ ${#stat_methods[@]} -gt 0 ]; then
+        args=(-v "$f.mcstat")
+        for m in "${stat_methods[@]}"; do args+=(--dup ${m#*|} --diff "$ref" --pop); done
+        run "$mcstat" "${args[@]}"
+        mapfile -t seg < <(segments)
+        for i in "${!stat_methods[@]}"; do
+          read -r t met <<<"${seg[$i]}"
+          row "$scene" "${stat_methods[$i]%%|*}" "$spp" "$seed" "$(add "$t_render" "$t")" "$stats_bytes" "$met"
+        done
+      fi
 
       # oiiotool on the mean image: clamp per channel, 3x3 median.
       diffs=()
       names=()
       for c in $CLAMPS; do
+        wanted "clamp $c (oiiotool)" || continue
         v=$(awk -v c="$c" 'BEGIN { printf "%.6g", c / 3 }')
         oiio_timed t "$f-mean.exr" --clamp:max="$v" -o "$f-oclamp$c.exr"
         names+=("clamp $c (oiiotool)|$(add "$t_mean" "$t")")
         diffs+=("$f-oclamp$c.exr" --diff "$ref")
       done
-      oiio_timed t "$f-mean.exr" --median 3x3 -o "$f-omedian.exr"
-      names+=("median 3x3 (oiiotool)|$(add "$t_mean" "$t")")
-      diffs+=("$f-omedian.exr" --diff "$ref")
-      run "$mcstat" "${diffs[@]}"
-      mapfile -t met < <(metrics <"$log.out")
-      for i in "${!names[@]}"; do
-        row "$scene" "${names[$i]%%|*}" "$spp" "$seed" "${names[$i]#*|}" "$mean_bytes" "${met[$i]}"
-      done
+      if wanted "median 3x3 (oiiotool)"; then
+        oiio_timed t "$f-mean.exr" --median 3x3 -o "$f-omedian.exr"
+        names+=("median 3x3 (oiiotool)|$(add "$t_mean" "$t")")
+        diffs+=("$f-omedian.exr" --diff "$ref")
+      fi
+      if [ ${#names[@]} -gt 0 ]; then
+        run "$mcstat" "${diffs[@]}"
+        mapfile -t met < <(metrics <"$log.out")
+        for i in "${!names[@]}"; do
+          row "$scene" "${names[$i]%%|*}" "$spp" "$seed" "${names[$i]#*|}" "$mean_bytes" "${met[$i]}"
+        done
+      fi
 
       # G-MoN of the compact file (the compaction runs when -o writes it).
-      run "$mcstat" -v "$f.mcstat" --dup --compact -o "$f-compact.mcstat" --pop
-      t_compact=$(segments 1 | head -1 | cut -d' ' -f1)
-      run "$mcstat" -v "$f-compact.mcstat" --dup --gmon --diff "$ref" --pop
-      read -r t met < <(segments)
-      row "$scene" "G-MoN (compact)" "$spp" "$seed" "$(add "$(add "$t_render" "$t_compact")" "$t")" \
-        "$(bytes_pp "$f-compact.mcstat")" "$met"
+      if wanted "G-MoN (compact)"; then
+        run "$mcstat" -v "$f.mcstat" --dup --compact -o "$f-compact.mcstat" --pop
+        t_compact=$(segments 1 | head -1 | cut -d' ' -f1)
+        run "$mcstat" -v "$f-compact.mcstat" --dup --gmon --diff "$ref" --pop
+        read -r t met < <(segments)
+        row "$scene" "G-MoN (compact)" "$spp" "$seed" "$(add "$(add "$t_render" "$t_compact")" "$t")" \
+          "$(bytes_pp "$f-compact.mcstat")" "$met"
+      fi
 
       # The renderer's clamp: another render, its mean.
       for c in $CLAMPS; do
+        wanted "clamp $c (renderer)" || continue
         timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M 1 --seed "$seed" --clamp "$c" --quiet -o "$f-rclamp.mcstat"
         run "$mcstat" -v "$f-rclamp.mcstat" --dup --mean -o "$f-rclamp.exr" --diff "$ref" --pop
         read -r t met < <(segments)
@@ -211,6 +176,7 @@ for scene in $SCENES; do
       for online in "Pajot ADR|--pajot adr|--pajot" "Pajot ROT|--pajot rot|--pajot" \
         "Pajot hybrid|--pajot hybrid|--pajot" "reweight|--reweight|--reweight"; do
         IFS='|' read -r name flags cmd <<<"$online"
+        wanted "$name" || { [ "$cmd" = --reweight ] && wanted "reweight kappa=1 spread=8"; } || continue
         timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M 1 --seed "$seed" $flags --quiet -o "$f-online.mcstat"
         # The reweighting's cascades also give the energy-keeping variant (docs/reweighting.md).
         variant=()
@@ -226,7 +192,7 @@ for scene in $SCENES; do
       done
 
       # RPF from the per-sample records.
-      if [[ " $RPF_SPPS " == *" $spp "* ]]; then
+      if [[ " $RPF_SPPS " == *" $spp "* ]] && wanted RPF; then
         timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M 1 --seed "$seed" --keep-samples --quiet -o "$f-samples.mcstat"
         run "$mcstat" -v "$f-samples.mcstat" --dup --rpf --diff "$ref" --pop
         read -r t met < <(segments)
@@ -250,6 +216,8 @@ echo "trade: $(($(wc -l <"$table") - 1)) rows in $table, measured in $((SECONDS 
 # family (every method is in the tables; PLOT_METHODS, PLOT_METHODS_BYTES choose others).
 PLOT_METHODS=${PLOT_METHODS:-mean,clamp 3 (renderer),clamp 3 (oiiotool),median 3x3 (oiiotool),MoN,G-MoN,TMPE+WMIF,3DWTMF,Pajot ROT,reweight,reweight kappa=1 spread=8,RPF}
 PLOT_METHODS_BYTES=${PLOT_METHODS_BYTES:-mean,clamp 3 (renderer),G-MoN,G-MoN (compact),Pajot ROT,reweight,RPF}
+PLOT_METHODS=$(keep_ran "$PLOT_METHODS")
+PLOT_METHODS_BYTES=$(keep_ran "$PLOT_METHODS_BYTES")
 for scene in $SCENES; do
   "$mcstat" "--tradeplot:scene=$scene:x=seconds:methods=$PLOT_METHODS" "$table" -o "$OUT/trade-$scene-time.png"
   "$mcstat" "--tradeplot:scene=$scene:x=bytes:methods=$PLOT_METHODS_BYTES" "$table" -o "$OUT/trade-$scene-bytes.png"

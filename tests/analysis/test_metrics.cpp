@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -109,4 +110,74 @@ TEST(Metrics, NormalisedErrorUsesLuminanceAndSkipsNonFinite) {
     EXPECT_NEAR(m.normBias, 0.5, 1e-6);
     EXPECT_NEAR(m.normNoise, 0.25, 1e-6);
     EXPECT_EQ(m.normFloored, 0);
+}
+
+TEST(Metrics, DetailHandComputed) {
+    // 3 x 1 grey images, ref 0, 0.6, 0 (one bright line of pixel width), image 0, 0.3, 0.
+    // 3x3 neighbourhoods cut at the borders: pixel 0 sees {0, 1}, pixel 1 all three, pixel 2 {1, 2}.
+    // ref high pass: 0 - 0.3 = -0.3, 0.6 - 0.2 = 0.4, -0.3; the image's is half of it:
+    // detail = sum h(x) h(r) / sum h(r)^2 = 0.5.
+    const std::vector<float> ref = {0, 0, 0, 0.6f, 0.6f, 0.6f, 0, 0, 0},
+                             img = {0, 0, 0, 0.3f, 0.3f, 0.3f, 0, 0, 0};
+    DiffMetrics m = compareImages(img.data(), ref.data(), img.data(), ref.data(), 3, 1, options());
+    EXPECT_NEAR(m.detail, 0.5, 1e-7);
+    // identical: 1; an image shifted by a constant keeps every bit of the detail
+    std::vector<float> up = ref;
+    for (float& v : up) v += 0.2f;
+    EXPECT_NEAR(compareImages(ref.data(), ref.data(), ref.data(), ref.data(), 3, 1, options()).detail,
+                1.0, 1e-12);
+    EXPECT_NEAR(compareImages(up.data(), ref.data(), up.data(), ref.data(), 3, 1, options()).detail,
+                1.0, 1e-6);
+    // a flat reference has no detail to keep: undefined, not 1
+    const std::vector<float> flat(9, 0.5f);
+    EXPECT_TRUE(std::isnan(
+        compareImages(img.data(), flat.data(), img.data(), flat.data(), 3, 1, options()).detail));
+}
+
+TEST(Metrics, DetailFallsWithBlurNotWithNoise) {
+    // A one-pixel checker (the finest detail an image holds) at 0.2 / 0.8.
+    const int w = 32, h = 32;
+    std::vector<float> ref(w * h * 3), blur(w * h * 3), noisy(w * h * 3);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            for (int c = 0; c < 3; ++c) ref[(y * w + x) * 3 + c] = ((x + y) % 2) ? 0.8f : 0.2f;
+    // 3x3 box blur (cut at borders): the checker's contrast drops to a ninth inside
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            for (int c = 0; c < 3; ++c) {
+                double s = 0;
+                int n = 0;
+                for (int dy = -1; dy <= 1; ++dy)
+                    for (int dx = -1; dx <= 1; ++dx)
+                        if (x + dx >= 0 && x + dx < w && y + dy >= 0 && y + dy < h) {
+                            s += ref[((y + dy) * w + x + dx) * 3 + c];
+                            ++n;
+                        }
+                blur[(y * w + x) * 3 + c] = float(s / n);
+            }
+    const DiffMetrics b = compareImages(blur.data(), ref.data(), blur.data(), ref.data(), w, h, options());
+    EXPECT_LT(b.detail, 0.2);
+    EXPECT_GT(b.detail, -0.2);
+    // Independent noise of standard deviation 0.1 on every value: its expectation stays 1
+    // (the spread of the slope over 3,072 values is about 0.1 / 0.3 / sqrt(3072 * 8 / 9) = 0.006).
+    uint32_t state = 12345;
+    auto uniform = [&] {
+        state = state * 1664525u + 1013904223u;
+        return (state >> 8) * (1.0 / 16777216.0);
+    };
+    for (size_t i = 0; i < ref.size(); ++i)
+        noisy[i] = ref[i] + float(0.1 * std::sqrt(12.0) * (uniform() - 0.5));
+    const DiffMetrics n = compareImages(noisy.data(), ref.data(), noisy.data(), ref.data(), w, h, options());
+    EXPECT_NEAR(n.detail, 1.0, 0.03);
+    EXPECT_GT(n.detail - b.detail, 0.8);
+}
+
+TEST(Metrics, DetailLeavesOutNonFinitePixels) {
+    // A NaN pixel is neither a centre nor a neighbour: the rest is compared as if it were absent.
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const std::vector<float> ref = {0, 0, 0, 0.6f, 0.6f, 0.6f, 0, 0, 0, 0.9f, 0.9f, 0.9f},
+                             img = {0, 0, 0, 0.3f, 0.3f, 0.3f, 0, 0, 0, nan, 0, 0};
+    DiffMetrics m = compareImages(img.data(), ref.data(), img.data(), ref.data(), 4, 1, options());
+    EXPECT_EQ(m.pixels, 3);
+    EXPECT_NEAR(m.detail, 0.5, 1e-7);
 }

@@ -10,7 +10,13 @@ Film is transparent. Every light-path pass, Denoising Data, Z/Normal/Position/UV
 material index and a Cryptomatte object pass are written into one multilayer EXR (float32, ZIP).
 
   blender -b --factory-startup -noaudio --python-exit-code 1 --python cycles_caustic.py -- \
-      --out seed_1.exr --seed 1 --spp 64 --res 128 96 [--key-scale 1] [--ior 1.5] [--threads 2]
+      --out seed_1.exr --seed 1 --spp 64 --res 128 96 [--key-scale 1] [--ior 1.5] [--threads 2] \
+      [--checker-scale 8] [--clamp-indirect 0] [--clamp-direct 0]
+
+--checker-scale sets the floor checker's Scale (8: cells 0.5 wide; 160: cells 0.025 wide, about 1.5
+pixels across at 256 x 192, the pixel-scale detail of the trade's detail renders). --clamp-indirect
+and --clamp-direct are Cycles' own firefly clamps (Light Paths > Clamping, 0 = off), the renderer
+clamp users already have.
 """
 
 import argparse
@@ -31,9 +37,15 @@ def parse_args():
     p.add_argument("--key-scale", type=float, default=1.0, help="multiplies the key light's power")
     p.add_argument("--ior", type=float, default=1.5, help="index of refraction of the glass sphere")
     p.add_argument("--threads", type=int, default=0, help="render threads (0: all cores)")
+    p.add_argument("--checker-scale", type=float, default=8.0, help="the floor checker's Scale")
+    p.add_argument("--clamp-indirect", type=float, default=0.0,
+                   help="Cycles' sample_clamp_indirect (0: off)")
+    p.add_argument("--clamp-direct", type=float, default=0.0, help="Cycles' sample_clamp_direct (0: off)")
     a = p.parse_args(argv)
     if a.spp < 1 or a.res[0] < 1 or a.res[1] < 1 or a.threads < 0 or a.key_scale < 0 or a.ior <= 0:
         p.error("spp, res must be >= 1; threads, key-scale >= 0; ior > 0")
+    if a.checker_scale <= 0 or a.clamp_indirect < 0 or a.clamp_direct < 0:
+        p.error("checker-scale must be > 0; clamp-indirect, clamp-direct >= 0")
     return a
 
 
@@ -56,10 +68,10 @@ def material(name, pass_index):
     return m, nt, out
 
 
-def floor_material():
+def floor_material(checker_scale):
     m, nt, out = material("Floor", 1)
     tex = nt.nodes.new("ShaderNodeTexChecker")
-    tex.inputs["Scale"].default_value = 8.0
+    tex.inputs["Scale"].default_value = checker_scale
     tex.inputs["Color1"].default_value = (0.8, 0.8, 0.8, 1.0)
     tex.inputs["Color2"].default_value = (0.25, 0.3, 0.45, 1.0)
     bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
@@ -116,7 +128,7 @@ def build(a):
     scene = bpy.context.scene
     clear_scene()
 
-    floor = add_object(bpy.ops.mesh.primitive_plane_add, "Floor", 1, floor_material(),
+    floor = add_object(bpy.ops.mesh.primitive_plane_add, "Floor", 1, floor_material(a.checker_scale),
                        size=8.0, location=(0.0, 0.0, 0.0))
     sphere = add_object(bpy.ops.mesh.primitive_uv_sphere_add, "GlassSphere", 2, glass_material(a.ior),
                         segments=64, ring_count=32, radius=0.6, location=(0.0, 0.0, 0.6))
@@ -189,8 +201,8 @@ def build(a):
     c.use_denoising = False
     c.seed = a.seed
     c.use_animated_seed = False
-    c.sample_clamp_direct = 0.0     # no clamping: keep the fireflies
-    c.sample_clamp_indirect = 0.0
+    c.sample_clamp_direct = a.clamp_direct      # 0 (the default): no clamping, keep the fireflies
+    c.sample_clamp_indirect = a.clamp_indirect
     c.caustics_reflective = True
     c.caustics_refractive = True
     c.blur_glossy = 0.0             # "Filter Glossy" off
@@ -247,8 +259,9 @@ def main():
     bpy.ops.render.render(write_still=True)
     if not os.path.isfile(os.path.abspath(a.out)):
         raise RuntimeError("Cycles did not write " + a.out)
-    print("cycles_caustic: wrote %s (seed %d, %d spp, %dx%d, key x%g, ior %g)"
-          % (a.out, a.seed, a.spp, a.res[0], a.res[1], a.key_scale, a.ior))
+    print("cycles_caustic: wrote %s (seed %d, %d spp, %dx%d, key x%g, ior %g, checker %g, clamp %g/%g)"
+          % (a.out, a.seed, a.spp, a.res[0], a.res[1], a.key_scale, a.ior, a.checker_scale,
+             a.clamp_direct, a.clamp_indirect))
 
 
 main()

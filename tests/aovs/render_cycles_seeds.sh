@@ -4,16 +4,18 @@
 #
 #   tests/aovs/render_cycles_seeds.sh [-n N] [-o OUTDIR] [--first S] [--spp N] [--res W H]
 #                                     [--key-scale F] [--ior F] [--threads N] [--blender PATH]
-# Defaults: 21 seeds from 1, 64 spp, 128x96, key x1, IOR 1.5, all cores, into ./cycles_seeds.
+#                                     [--checker-scale F] [--clamp-indirect C]
+# Defaults: 21 seeds from 1, 64 spp, 128x96, key x1, IOR 1.5, all cores, into ./cycles_seeds,
+# checker scale 8, no clamp (cycles_caustic.py says what the two last ones do).
 # Needs Blender 3.2 or newer (light groups); on Debian 12: apt-get install -y blender (3.4).
 set -euo pipefail
 
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 scene_py="$here/cycles_caustic.py"
-n=21 first=1 spp=64 w=128 h=96 key=1 ior=1.5 threads=0 out=cycles_seeds
+n=21 first=1 spp=64 w=128 h=96 key=1 ior=1.5 threads=0 out=cycles_seeds checker=8 clamp=0
 blender=${BLENDER:-blender}
 
-usage() { sed -n '2,8p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//'; }
 die() { echo "render_cycles_seeds.sh: $*" >&2; exit 2; }
 need() { [[ $# -ge 2 && -n $2 ]] || die "option $1 needs a value"; }
 
@@ -27,6 +29,8 @@ while [[ $# -gt 0 ]]; do
     --key-scale) need "$@"; key=$2; shift 2 ;;
     --ior) need "$@"; ior=$2; shift 2 ;;
     --threads) need "$@"; threads=$2; shift 2 ;;
+    --checker-scale) need "$@"; checker=$2; shift 2 ;;
+    --clamp-indirect) need "$@"; clamp=$2; shift 2 ;;
     --blender) need "$@"; blender=$2; shift 2 ;;
     -h|--help) usage; exit 0 ;;
     *) usage >&2; die "unknown argument: $1" ;;
@@ -51,14 +55,14 @@ fi
 mkdir -p "$out"
 log="$out/render.log"
 : >"$log"
-echo "rendering $n seeds ($first..$((first + n - 1))), ${spp} spp, ${w}x${h}, key x$key, IOR $ior -> $out/"
+echo "rendering $n seeds ($first..$((first + n - 1))), ${spp} spp, ${w}x${h}, key x$key, IOR $ior, checker $checker, clamp $clamp -> $out/"
 t0=$(date +%s.%N)
 for ((s = first; s < first + n; s++)); do
   f="$out/seed_$s.exr"
   ts=$(date +%s.%N)
   if ! "$blender" -b --factory-startup -noaudio --python-exit-code 1 --python "$scene_py" -- \
       --out "$f" --seed "$s" --spp "$spp" --res "$w" "$h" --key-scale "$key" --ior "$ior" \
-      --threads "$threads" >>"$log" 2>&1; then
+      --threads "$threads" --checker-scale "$checker" --clamp-indirect "$clamp" >>"$log" 2>&1; then
     echo "render_cycles_seeds.sh: Blender failed on seed $s; last lines of $log:" >&2
     tail -n 20 "$log" >&2
     exit 1

@@ -10,6 +10,11 @@
 // - normalised bias and noise (Jung 2016 thesis, eq. 5.25-5.27) on luminance: per pixel
 //   E'_i = (Y_i - Yref_i) / max(|Yref_i|, eps) (eps = 0.01 for black reference pixels), bias
 //   B = mean of E'_i, noise = mean of (E'_i - B)^2 (the variance of E' over the pixels, 1/N).
+// - detail: how much of the reference's pixel-scale detail the image holds, on display-encoded
+//   values clamped to [0, 1]: with h(v) = v minus the mean of its 3x3 neighbourhood (a high
+//   pass), detail = sum h(x) h(r) / sum h(r)^2 over pixels and channels, the least-squares slope
+//   of the image's high pass on the reference's. 1: all of it; a blur lowers it toward 0; noise,
+//   uncorrelated with the reference, leaves its expectation at 1 (it spreads it, not shifts it).
 // Pixels where either image is not finite are left out of every metric and counted.
 #pragma once
 
@@ -39,6 +44,7 @@ struct DiffMetrics {
     long fireflies = 0;
     double normBias = 0.0;   ///< Jung eq. 5.26: mean normalised error (signed)
     double normNoise = 0.0;  ///< Jung eq. 5.27: variance of the normalised error over pixels
+    double detail = 1.0;     ///< slope of the image's 3x3 high pass on the reference's (NaN: flat ref)
     long normFloored = 0;    ///< pixels whose |Yref| < normEpsilon (denominator floored)
     long nonFinite = 0;      ///< pixels left out because a value was NaN or Inf
     long pixels = 0;         ///< pixels compared
@@ -72,5 +78,12 @@ DiffMetrics compareImages(const float* lin, const float* ref, const float* disp,
 /// mask is false are left out of the average (mask may be null).
 double ssimChannel(const float* a, const float* b, size_t stride, int width, int height,
                    const bool* mask);
+
+/// The detail metric of one channel (see the top of this file): sum h(a) h(b) and sum h(b)^2,
+/// h(v) = v minus the mean of its 3x3 neighbourhood among the pixels where mask is true (cut at
+/// the borders), values clamped to [0, 1], added to `cross` and `refPower`. Pixels where mask is
+/// false count neither as a centre nor as a neighbour (mask may be null).
+void detailSums(const float* a, const float* b, size_t stride, int width, int height,
+                const bool* mask, double& cross, double& refPower);
 
 }  // namespace mcstat
