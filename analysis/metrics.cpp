@@ -132,7 +132,7 @@ DiffMetrics compareImages(const float* lin, const float* ref, const float* disp,
     DiffMetrics m;
     const size_t n = size_t(width) * size_t(height);
     std::unique_ptr<bool[]> mask(new bool[n]);
-    double rel = 0.0, se = 0.0;
+    double rel = 0.0, se = 0.0, sumY = 0.0, sumYRef = 0.0;
     // Jung eq. 5.25 per pixel on luminance, kept for the two passes of eq. 5.26-5.27.
     std::vector<double> normErr;
     normErr.reserve(n);
@@ -155,6 +155,8 @@ DiffMetrics compareImages(const float* lin, const float* ref, const float* disp,
             se += d * d;
         }
         const double y = e.y, yr = e.yRef;
+        sumY += y;
+        sumYRef += yr;
         if (e.firefly) ++m.fireflies;
         if (std::abs(yr) < opt.normEpsilon) ++m.normFloored;
         normErr.push_back((y - yr) / std::max(std::abs(yr), opt.normEpsilon));  // eq. 5.25
@@ -166,9 +168,11 @@ DiffMetrics compareImages(const float* lin, const float* ref, const float* disp,
         m.normBias = std::numeric_limits<double>::quiet_NaN();
         m.normNoise = std::numeric_limits<double>::quiet_NaN();
         m.detail = std::numeric_limits<double>::quiet_NaN();
+        m.energy = std::numeric_limits<double>::quiet_NaN();
         return m;
     }
     m.relMSE = rel / double(3 * m.pixels);
+    m.energy = sumYRef > 0.0 ? sumY / sumYRef - 1.0 : std::numeric_limits<double>::quiet_NaN();
     // Eq. 5.26 (bias: mean of E') and eq. 5.27 (noise: mean squared deviation of E' from the bias,
     // 1/N), two passes so the variance has no cancellation.
     double sumE = 0.0;

@@ -71,6 +71,8 @@ void printDiffLine(const std::string& name, const DiffMetrics& m) {
     std::printf("  nbias %.5g  nnoise %.5g", m.normBias, m.normNoise);
     // Pixel-scale detail kept (a blur lowers it; noise does not), docs/metrics.md
     std::printf("  detail %.4f", m.detail);
+    // The light it holds against the reference's (sum of luminance), docs/metrics.md
+    std::printf("  energy %+.4f", m.energy);
     if (m.nonFinite) std::printf("  non-finite %ld", m.nonFinite);
     std::printf("\n");
     std::fflush(stdout);

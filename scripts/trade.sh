@@ -3,7 +3,8 @@
 # fixture scene at several spp with independent seeds, runs every method on the same renders, and
 # writes one row per scene, method, spp and seed to $OUT/trade.csv: wall seconds (render +
 # estimate, this machine), bytes per pixel of what the method needs on disk, and the --diff
-# metrics against a high-spp reference (relMSE, SSIM, PSNR, fireflies, nbias, nnoise, detail). Then prints
+# metrics against a high-spp reference (relMSE, SSIM, PSNR, fireflies, nbias, nnoise, detail,
+# energy). Then prints
 # the tables of docs/trade.md (scripts/trade_tables.py) and draws relMSE against time and against
 # bytes per pixel for every scene with `mcstat --tradeplot`. Not part of the tests; part of
 # scripts/bench.sh (section trade). About 25 minutes on 2 cores with the defaults.
@@ -38,6 +39,8 @@
 #              ONLY="G-MoN,G-MoN keeplight,median 3x3 (oiiotool),clamp 30 (renderer)"
 #   BUILD      build folder (default build); SKIP_BUILD=1 uses it as it is
 #   OUT        output folder (default out/trade); rows are appended only for a fresh table
+#   REUSE_REFS 1: keep the references an earlier run left in OUT, when made at the same RES and
+#              spp (default 0: render them again)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD=${BUILD:-build}
@@ -64,7 +67,7 @@ mkdir -p "$OUT"
 table=$OUT/trade.csv
 read -r W H <<<"$RES"
 pixels=$((W * H))
-echo "scene,method,spp,seed,seconds,bytesPerPixel,relMSE,SSIM,PSNR,fireflies,pixels,nbias,nnoise,detail" >"$table"
+echo "scene,method,spp,seed,seconds,bytesPerPixel,relMSE,SSIM,PSNR,fireflies,pixels,nbias,nnoise,detail,energy" >"$table"
 log=$OUT/last
 start=$SECONDS
 
@@ -105,8 +108,15 @@ for scene in $SCENES; do
   ref_spp=$REF_SPP
   for s in $REF_SPP_SCENES; do [ "${s%%=*}" = "$scene" ] && ref_spp=${s#*=}; done
   progress "$scene: references"
-  run "$render" --scene "$scene" --res $RES --spp "$ref_spp" --seed 1000001 --reference --quiet -o "$ref"
-  run "$render" --scene "$scene" --res $RES --spp "$ref_spp" --seed 1000002 --reference --quiet -o "$dir/ref2.exr"
+  # REUSE_REFS=1 keeps the references of an earlier run into the same OUT with the same RES and
+  # REF_SPP (they take most of a large run's time); the sidecar says what they were made with.
+  refs_made="$scene $RES $ref_spp"
+  if [ "${REUSE_REFS:-0}" != 1 ] || [ "$(cat "$dir/refs.txt" 2>/dev/null)" != "$refs_made" ]; then
+    rm -f "$dir/refs.txt"
+    run "$render" --scene "$scene" --res $RES --spp "$ref_spp" --seed 1000001 --reference --quiet -o "$ref"
+    run "$render" --scene "$scene" --res $RES --spp "$ref_spp" --seed 1000002 --reference --quiet -o "$dir/ref2.exr"
+    echo "$refs_made" >"$dir/refs.txt"
+  fi
   run "$mcstat" "$dir/ref2.exr" --diff "$ref"
   IFS=, read -r rel rest < <(metrics <"$log.out")
   row "$scene" reference "$ref_spp" 0 0 0 "$(awk -v r="$rel" 'BEGIN { printf "%.6g", r / 2 }'),$rest"
@@ -214,7 +224,7 @@ echo "trade: $(($(wc -l <"$table") - 1)) rows in $table, measured in $((SECONDS 
 
 # The pictures: relMSE against time and against bytes per pixel, per scene, for a method of each
 # family (every method is in the tables; PLOT_METHODS, PLOT_METHODS_BYTES choose others).
-PLOT_METHODS=${PLOT_METHODS:-mean,clamp 3 (renderer),clamp 3 (oiiotool),median 3x3 (oiiotool),MoN,G-MoN,TMPE+WMIF,3DWTMF,Pajot ROT,reweight,reweight kappa=1 spread=8,RPF}
+PLOT_METHODS=${PLOT_METHODS:-mean,clamp 3 (renderer),clamp 3 (oiiotool),median 3x3 (oiiotool),MoN,G-MoN,G-MoN keeplight,TMPE+WMIF,3DWTMF,Pajot ROT,reweight,reweight kappa=1 spread=8,RPF}
 PLOT_METHODS_BYTES=${PLOT_METHODS_BYTES:-mean,clamp 3 (renderer),G-MoN,G-MoN (compact),Pajot ROT,reweight,RPF}
 PLOT_METHODS=$(keep_ran "$PLOT_METHODS")
 PLOT_METHODS_BYTES=$(keep_ran "$PLOT_METHODS_BYTES")

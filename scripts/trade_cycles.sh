@@ -52,7 +52,7 @@ table=$OUT/trade.csv
 read -r W H <<<"$RES"
 read -r REF_N REF_SPP <<<"$REF"
 pixels=$((W * H))
-echo "scene,method,spp,seed,seconds,bytesPerPixel,relMSE,SSIM,PSNR,fireflies,pixels,nbias,nnoise,detail" >"$table"
+echo "scene,method,spp,seed,seconds,bytesPerPixel,relMSE,SSIM,PSNR,fireflies,pixels,nbias,nnoise,detail,energy" >"$table"
 log=$OUT/last
 start=$SECONDS
 source scripts/trade_lib.sh
@@ -77,9 +77,12 @@ ingest() {
   t_ingest=$(awk '/done in [0-9.]+ s$/ { t += $(NF - 1) } END { printf "%.4f\n", t }' "$log.err")
 }
 
+# Every method of a statistics file (Pajot's, the reweighting and RPF need per-sample data a
+# renderer does not write).
 stat_methods=(
-  "mean|--mean" "MoN|--mon" "G-MoN|--gmon" "G-MoN keeplight|--gmon:keeplight=1"
-  "TMPE+WMIF|--tmpe --wmif" "3DWTMF|--3dwtmf"
+  "mean|--mean" "MoN|--mon" "G-MoN|--gmon" "G-MoN_b|--gmonb" "G-MoN keeplight|--gmon:keeplight=1"
+  "TMPE|--tmpe" "myriad|--myriad" "meridian|--meridian" "MPE+MIF|--median --mif"
+  "TMPE+WMIF|--tmpe --wmif" "3DMF|--3dmf" "3DWMF|--3dwmf" "3DWTMF|--3dwtmf"
 )
 
 for entry in $SCENES; do

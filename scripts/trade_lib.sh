@@ -49,16 +49,16 @@ segments() {
   metrics <"$log.out" >"$log.metrics"
   paste -d' ' "$log.times" <(cat "$log.metrics")
 }
-# metrics: every --diff line on stdin as relMSE,SSIM,PSNR,fireflies,pixels,nbias,nnoise,detail.
+# metrics: every --diff line on stdin as relMSE,SSIM,PSNR,fireflies,pixels,nbias,nnoise,detail,energy.
 metrics() {
   awk '/ relMSE / {
     for (i = 1; i <= NF; i++) {
       if ($i == "relMSE") r = $(i + 1); if ($i == "SSIM") s = $(i + 1); if ($i == "PSNR") p = $(i + 1)
       if ($i == "fireflies") { f = $(i + 1); px = $(i + 3) }
       if ($i == "nbias") b = $(i + 1); if ($i == "nnoise") z = $(i + 1)
-      if ($i == "detail") d = $(i + 1)
+      if ($i == "detail") d = $(i + 1); if ($i == "energy") e = $(i + 1)
     }
-    printf "%s,%s,%s,%s,%s,%s,%s,%s\n", r, s, p, f, px, b, z, d }'
+    printf "%s,%s,%s,%s,%s,%s,%s,%s,%s\n", r, s, p, f, px, b, z, d, e }'
 }
 # row SCENE METHOD SPP SEED SECONDS BYTES METRICS
 row() { echo "$1,$2,$3,$4,$5,$6,$7" >>"$table"; }

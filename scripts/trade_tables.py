@@ -30,6 +30,7 @@ def load(path):
             r[k] = float(r[k])
         # detail (docs/metrics.md) came later: older tables have no such column
         r["detail"] = float(r.get("detail") or "nan")
+        r["energy"] = float(r.get("energy") or "nan")
     return rows
 
 
@@ -49,7 +50,7 @@ def summarise(rows):
         out[key] = {"n": len(g), "seconds": mean("seconds"), "bytes": mean("bytesPerPixel"),
                     "relMSE": mean("relMSE"), "relMSE_sd": sd("relMSE"), "SSIM": mean("SSIM"),
                     "fireflies": mean("fireflies"), "nbias": mean("nbias"),
-                    "detail": mean("detail"),
+                    "detail": mean("detail"), "energy": mean("energy"),
                     "nbias_sd": sd("nbias"), "pixels": g[0]["pixels"]}
     return out
 
@@ -123,8 +124,8 @@ def main():
               "geometric mean over the scenes; nbias: mean ± standard deviation over scenes and "
               "seeds; fireflies: per image, mean over scenes and seeds.\n")
         print("| method | time × mean | bytes/px | relMSE | relMSE at equal time × mean | "
-              "efficiency × mean | SSIM | detail | fireflies | nbias |")
-        print("|---|---|---|---|---|---|---|---|---|---|")
+              "efficiency × mean | SSIM | detail | fireflies | energy | nbias |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|")
         for m in have:
             r = ratios(m, spp)
             vs = [summary[(s, m, spp)] for s in scenes if (s, m, spp) in summary]
@@ -137,6 +138,7 @@ def main():
                   f"{statistics.fmean(v['SSIM'] for v in vs):.3f} | "
                   f"{statistics.fmean(v['detail'] for v in vs):.3f} | "
                   f"{statistics.fmean(v['fireflies'] for v in vs):.1f} | "
+                  f"{100 * statistics.fmean(v['energy'] for v in vs):+.1f} % | "
                   f"{statistics.fmean(nb):+.3f} ± {statistics.stdev(nb) if len(nb) > 1 else 0:.3f} |")
         print()
 
@@ -171,6 +173,9 @@ def main():
               "in the reference lowers every method's alike.", lambda v: f"{v['detail']:.3f}")
     per_scene("Firefly pixels", "Per image, mean over the seeds.",
               lambda v: f"{v['fireflies']:.1f}")
+    per_scene("Energy", "The light the image holds against the reference's (sum of luminance, "
+              "mean over the seeds); nbias below weighs every pixel alike, dark ones too.",
+              lambda v: f"{100 * v['energy']:+.1f} %")
 
     print(f"### nbias (energy) per scene, {spp_shown:g} spp: mean ± standard deviation over the seeds\n")
     print("| method | " + " | ".join(scenes) + " |")

@@ -181,3 +181,19 @@ TEST(Metrics, DetailLeavesOutNonFinitePixels) {
     EXPECT_EQ(m.pixels, 3);
     EXPECT_NEAR(m.detail, 0.5, 1e-7);
 }
+
+TEST(Metrics, EnergyHandComputed) {
+    // Grey pixels (Y = the value; luma sums to 1): ref 1, 2, 0, 1 (sum 4), image 1, 1, 0.5, 0.5
+    // (sum 3): a quarter of the light gone. A NaN pixel counts in neither sum.
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const std::vector<float> ref = {1, 1, 1, 2, 2, 2, 0, 0, 0, 1, 1, 1, 7, 7, 7},
+                             img = {1, 1, 1, 1, 1, 1, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, nan, 0, 0};
+    DiffMetrics m = compareImages(img.data(), ref.data(), img.data(), ref.data(), 5, 1, options());
+    EXPECT_EQ(m.pixels, 4);
+    EXPECT_NEAR(m.energy, -0.25, 1e-6);
+    // the same image is 0; a black reference has no light to compare with
+    EXPECT_EQ(compareImages(ref.data(), ref.data(), ref.data(), ref.data(), 4, 1, options()).energy, 0.0);
+    const std::vector<float> black(12, 0.f);
+    EXPECT_TRUE(std::isnan(
+        compareImages(img.data(), black.data(), img.data(), black.data(), 4, 1, options()).energy));
+}

@@ -41,20 +41,21 @@ def test_equal_time_ratio_and_detail_hand_computed(tmp_path):
     # seeds' detail 0.9 and 0.7 -> 0.800. Efficiency against the mean at 16 spp:
     # (0.4 x 1) / (0.1 x 2) = 2.00.
     t = tmp_path / "trade.csv"
-    t.write_text(HEADER + ",detail\n"
-                 "s,reference,4096,0,0,0,0.001,0.99,40,0,100,0,0,0.98\n"
-                 "s,mean,16,1,1,4,0.4,0.5,20,3,100,0.1,1,1.0\n"
-                 "s,mean,16,2,1,4,0.4,0.5,20,3,100,0.1,1,1.0\n"
-                 "s,mean,64,1,4,4,0.1,0.7,25,1,100,0.0,0.5,1.0\n"
-                 "s,mean,64,2,4,4,0.1,0.7,25,1,100,0.0,0.5,1.0\n"
-                 "s,G-MoN,16,1,2,40,0.1,0.8,30,0,100,-0.2,0.1,0.9\n"
-                 "s,G-MoN,16,2,2,40,0.1,0.8,30,0,100,-0.2,0.1,0.7\n")
+    t.write_text(HEADER + ",detail,energy\n"
+                 "s,reference,4096,0,0,0,0.001,0.99,40,0,100,0,0,0.98,0.001\n"
+                 "s,mean,16,1,1,4,0.4,0.5,20,3,100,0.1,1,1.0,0.02\n"
+                 "s,mean,16,2,1,4,0.4,0.5,20,3,100,0.1,1,1.0,0.0\n"
+                 "s,mean,64,1,4,4,0.1,0.7,25,1,100,0.0,0.5,1.0,0.0\n"
+                 "s,mean,64,2,4,4,0.1,0.7,25,1,100,0.0,0.5,1.0,0.0\n"
+                 "s,G-MoN,16,1,2,40,0.1,0.8,30,0,100,-0.2,0.1,0.9,-0.3\n"
+                 "s,G-MoN,16,2,2,40,0.1,0.8,30,0,100,-0.2,0.1,0.7,-0.2\n")
     out = tables(t, 16)
     assert section(out, "relMSE at equal time × mean, per scene, 16 spp")["G-MoN"] == ["0.50"]
     pooled = section(out, "Every scene pooled, 16 spp")["G-MoN"]
-    # time × mean, bytes/px, relMSE, equal time, efficiency, SSIM, detail, fireflies, nbias
+    # time × mean, bytes/px, relMSE, equal time, efficiency, SSIM, detail, fireflies, energy, nbias
     assert pooled[0] == "2.00" and pooled[3] == "0.50" and pooled[4] == "2.00"
-    assert pooled[6] == "0.800"
+    assert pooled[6] == "0.800" and pooled[8] == "-25.0 %"
+    assert section(out, "Energy per scene, 16 spp")["G-MoN"] == ["-25.0 %"]
     assert section(out, "detail per scene, 16 spp")["G-MoN"] == ["0.800"]
     assert section(out, "relMSE per scene, 16 spp")["G-MoN"] == ["0.1"]
 
@@ -87,9 +88,9 @@ def test_trade_script_runs_only_the_methods_asked(tmp_path):
     for r in rows:
         assert r["pixels"] == "768"
         # every --diff metric made it into its column, detail included
-        for k in ("relMSE", "SSIM", "nbias", "detail"):
+        for k in ("relMSE", "SSIM", "nbias", "detail", "energy"):
             float(r[k])
-        assert r["detail"] != ""
+        assert r["detail"] != "" and r["energy"] != ""
     # the tables and the plots came too
     assert "### detail per scene" in p.stdout
     assert (out / "trade-detail-time.png").stat().st_size > 0

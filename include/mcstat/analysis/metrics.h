@@ -10,6 +10,8 @@
 // - normalised bias and noise (Jung 2016 thesis, eq. 5.25-5.27) on luminance: per pixel
 //   E'_i = (Y_i - Yref_i) / max(|Yref_i|, eps) (eps = 0.01 for black reference pixels), bias
 //   B = mean of E'_i, noise = mean of (E'_i - B)^2 (the variance of E' over the pixels, 1/N).
+// - energy: sum of Y over sum of Y_ref, minus 1, Y the scene-linear luminance: the light an image
+//   took (negative) or added, what a robust image must say (docs/keep-light.md).
 // - detail: how much of the reference's pixel-scale detail the image holds, on display-encoded
 //   values clamped to [0, 1]: with h(v) = v minus the mean of its 3x3 neighbourhood (a high
 //   pass), detail = sum h(x) h(r) / sum h(r)^2 over pixels and channels, the least-squares slope
@@ -45,6 +47,10 @@ struct DiffMetrics {
     double normBias = 0.0;   ///< Jung eq. 5.26: mean normalised error (signed)
     double normNoise = 0.0;  ///< Jung eq. 5.27: variance of the normalised error over pixels
     double detail = 1.0;     ///< slope of the image's 3x3 high pass on the reference's (NaN: flat ref)
+    /// The light the image holds against the reference's: sum of Y / sum of Y_ref - 1 over the
+    /// compared pixels (scene-linear luminance; -0.25: a quarter of the light is gone). NaN when
+    /// the reference's sum is not positive.
+    double energy = 0.0;
     long normFloored = 0;    ///< pixels whose |Yref| < normEpsilon (denominator floored)
     long nonFinite = 0;      ///< pixels left out because a value was NaN or Inf
     long pixels = 0;         ///< pixels compared
