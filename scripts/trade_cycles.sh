@@ -77,7 +77,8 @@ ingest() {
   t_ingest=$(awk '/done in [0-9.]+ s$/ { t += $(NF - 1) } END { printf "%.4f\n", t }' "$log.err")
 }
 
-# Every method of a statistics file (Pajot's, the reweighting and RPF need per-sample data a
+# Every method of a statistics file (the per-sample methods, sample delaying, the reweighting and
+# RPF, need per-sample records a
 # renderer does not write).
 stat_methods=(
   "mean|--mean" "MoN|--mon" "G-MoN|--gmon" "G-MoN_b|--gmonb" "G-MoN keeplight|--gmon:keeplight=1"

@@ -114,9 +114,9 @@ TEST(Metrics, NormalisedErrorUsesLuminanceAndSkipsNonFinite) {
 
 TEST(Metrics, DetailHandComputed) {
     // 3 x 1 grey images, ref 0, 0.6, 0 (one bright line of pixel width), image 0, 0.3, 0.
-    // 3x3 neighbourhoods cut at the borders: pixel 0 sees {0, 1}, pixel 1 all three, pixel 2 {1, 2}.
-    // ref high pass: 0 - 0.3 = -0.3, 0.6 - 0.2 = 0.4, -0.3; the image's is half of it:
-    // detail = sum h(x) h(r) / sum h(r)^2 = 0.5.
+    // 3x3 neighbourhoods cut at the borders: pixel 0 sees {0, 1}, pixel 1 all three, pixel 2 {1,
+    // 2}. ref high pass: 0 - 0.3 = -0.3, 0.6 - 0.2 = 0.4, -0.3; the image's is half of it: detail =
+    // sum h(x) h(r) / sum h(r)^2 = 0.5.
     const std::vector<float> ref = {0, 0, 0, 0.6f, 0.6f, 0.6f, 0, 0, 0},
                              img = {0, 0, 0, 0.3f, 0.3f, 0.3f, 0, 0, 0};
     DiffMetrics m = compareImages(img.data(), ref.data(), img.data(), ref.data(), 3, 1, options());
@@ -124,8 +124,9 @@ TEST(Metrics, DetailHandComputed) {
     // identical: 1; an image shifted by a constant keeps every bit of the detail
     std::vector<float> up = ref;
     for (float& v : up) v += 0.2f;
-    EXPECT_NEAR(compareImages(ref.data(), ref.data(), ref.data(), ref.data(), 3, 1, options()).detail,
-                1.0, 1e-12);
+    EXPECT_NEAR(
+        compareImages(ref.data(), ref.data(), ref.data(), ref.data(), 3, 1, options()).detail, 1.0,
+        1e-12);
     EXPECT_NEAR(compareImages(up.data(), ref.data(), up.data(), ref.data(), 3, 1, options()).detail,
                 1.0, 1e-6);
     // a flat reference has no detail to keep: undefined, not 1
@@ -155,7 +156,8 @@ TEST(Metrics, DetailFallsWithBlurNotWithNoise) {
                         }
                 blur[(y * w + x) * 3 + c] = float(s / n);
             }
-    const DiffMetrics b = compareImages(blur.data(), ref.data(), blur.data(), ref.data(), w, h, options());
+    const DiffMetrics b =
+        compareImages(blur.data(), ref.data(), blur.data(), ref.data(), w, h, options());
     EXPECT_LT(b.detail, 0.2);
     EXPECT_GT(b.detail, -0.2);
     // Independent noise of standard deviation 0.1 on every value: its expectation stays 1
@@ -167,7 +169,8 @@ TEST(Metrics, DetailFallsWithBlurNotWithNoise) {
     };
     for (size_t i = 0; i < ref.size(); ++i)
         noisy[i] = ref[i] + float(0.1 * std::sqrt(12.0) * (uniform() - 0.5));
-    const DiffMetrics n = compareImages(noisy.data(), ref.data(), noisy.data(), ref.data(), w, h, options());
+    const DiffMetrics n =
+        compareImages(noisy.data(), ref.data(), noisy.data(), ref.data(), w, h, options());
     EXPECT_NEAR(n.detail, 1.0, 0.03);
     EXPECT_GT(n.detail - b.detail, 0.8);
 }
@@ -187,12 +190,14 @@ TEST(Metrics, EnergyHandComputed) {
     // (sum 3): a quarter of the light gone. A NaN pixel counts in neither sum.
     const float nan = std::numeric_limits<float>::quiet_NaN();
     const std::vector<float> ref = {1, 1, 1, 2, 2, 2, 0, 0, 0, 1, 1, 1, 7, 7, 7},
-                             img = {1, 1, 1, 1, 1, 1, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, nan, 0, 0};
+                             img = {1,    1,    1,    1,    1,   1, 0.5f, 0.5f,
+                                    0.5f, 0.5f, 0.5f, 0.5f, nan, 0, 0};
     DiffMetrics m = compareImages(img.data(), ref.data(), img.data(), ref.data(), 5, 1, options());
     EXPECT_EQ(m.pixels, 4);
     EXPECT_NEAR(m.energy, -0.25, 1e-6);
     // the same image is 0; a black reference has no light to compare with
-    EXPECT_EQ(compareImages(ref.data(), ref.data(), ref.data(), ref.data(), 4, 1, options()).energy, 0.0);
+    EXPECT_EQ(compareImages(ref.data(), ref.data(), ref.data(), ref.data(), 4, 1, options()).energy,
+              0.0);
     const std::vector<float> black(12, 0.f);
     EXPECT_TRUE(std::isnan(
         compareImages(img.data(), black.data(), img.data(), black.data(), 4, 1, options()).energy));

@@ -21,8 +21,8 @@
 #pragma once
 
 #include <array>
-#include <string>
 #include <cstddef>
+#include <string>
 
 namespace mcstat {
 
@@ -46,14 +46,14 @@ struct DiffMetrics {
     long fireflies = 0;
     double normBias = 0.0;   ///< Jung eq. 5.26: mean normalised error (signed)
     double normNoise = 0.0;  ///< Jung eq. 5.27: variance of the normalised error over pixels
-    double detail = 1.0;     ///< slope of the image's 3x3 high pass on the reference's (NaN: flat ref)
+    double detail = 1.0;  ///< slope of the image's 3x3 high pass on the reference's (NaN: flat ref)
     /// The light the image holds against the reference's: sum of Y / sum of Y_ref - 1 over the
     /// compared pixels (scene-linear luminance; -0.25: a quarter of the light is gone). NaN when
     /// the reference's sum is not positive.
     double energy = 0.0;
-    long normFloored = 0;    ///< pixels whose |Yref| < normEpsilon (denominator floored)
-    long nonFinite = 0;      ///< pixels left out because a value was NaN or Inf
-    long pixels = 0;         ///< pixels compared
+    long normFloored = 0;  ///< pixels whose |Yref| < normEpsilon (denominator floored)
+    long nonFinite = 0;    ///< pixels left out because a value was NaN or Inf
+    long pixels = 0;       ///< pixels compared
 };
 
 /// The per-pixel terms the metrics above are built from, for one pixel of scene-linear RGB `x`
