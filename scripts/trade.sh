@@ -38,7 +38,8 @@
 #              runs, every other method's time is weighed against it), e.g. for large images
 #              ONLY="G-MoN,G-MoN keeplight,median 3x3 (oiiotool),clamp 30 (renderer)"
 #   BUILD      build folder (default build); SKIP_BUILD=1 uses it as it is
-#   OUT        output folder (default out/trade); rows are appended only for a fresh table
+#   OUT        output folder (default out/trade), the trade's own: a new or empty folder, or one an
+#              earlier run marked (.mcstat-trade); the table is written afresh
 #   REUSE_REFS 1: keep the references an earlier run left in OUT, when made at the same RES and
 #              spp (default 0: render them again)
 set -euo pipefail
@@ -56,29 +57,20 @@ RPF_SPPS=${RPF_SPPS:-16}
 MEAN_SPPS=${MEAN_SPPS:-1024}
 CLAMPS=${CLAMPS:-3 30}
 ONLY=${ONLY:-}
-if [ "${SKIP_BUILD:-0}" != 1 ]; then
-  scripts/install-deps.sh
-  scripts/build.sh "$BUILD" >/dev/null
-fi
+# The helpers: trade_begin, run, timed, oiio_timed, bytes_pp, add, segments, done_seconds,
+# oiiotool_rows, metrics, row, wanted, keep_ran, progress.
+source scripts/trade_lib.sh
+trade_begin trade
 mcstat=$BUILD/oiiotool-ext/mcstat
 render=$BUILD/render-fixture/mcstat-render
 command -v oiiotool >/dev/null || { echo "trade: oiiotool is missing (scripts/install-deps.sh)" >&2; exit 1; }
-mkdir -p "$OUT"
-table=$OUT/trade.csv
 read -r W H <<<"$RES"
 pixels=$((W * H))
-echo "scene,method,spp,seed,seconds,bytesPerPixel,relMSE,SSIM,PSNR,fireflies,pixels,nbias,nnoise,detail,energy" >"$table"
-log=$OUT/last
-start=$SECONDS
-
-# The helpers: run, timed, oiio_timed, bytes_pp, add, segments, metrics, row, wanted, keep_ran,
-# progress.
-source scripts/trade_lib.sh
 
 # plain_mean: the plain render of $scene at $spp, $seed (M = 1, as a renderer writes its beauty)
-# and its mean, $f-mean.exr: the baseline's row; sets t_mean and mean_bytes.
+# and its mean, $f-mean.exr: the baseline's row; sets t_mean.
 plain_mean() {
-  local t_r t met
+  local t_r t met mean_bytes
   timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M 1 --seed "$seed" --quiet -o "$f-plain.mcstat"
   run "$mcstat" -v "$f-plain.mcstat" --dup --mean -o "$f-mean.exr" --diff "$ref" --pop
   read -r t met < <(segments)
@@ -141,27 +133,7 @@ for scene in $SCENES; do
       fi
 
       # oiiotool on the mean image: clamp per channel, 3x3 median.
-      diffs=()
-      names=()
-      for c in $CLAMPS; do
-        wanted "clamp $c (oiiotool)" || continue
-        v=$(awk -v c="$c" 'BEGIN { printf "%.6g", c / 3 }')
-        oiio_timed t "$f-mean.exr" --clamp:max="$v" -o "$f-oclamp$c.exr"
-        names+=("clamp $c (oiiotool)|$(add "$t_mean" "$t")")
-        diffs+=("$f-oclamp$c.exr" --diff "$ref")
-      done
-      if wanted "median 3x3 (oiiotool)"; then
-        oiio_timed t "$f-mean.exr" --median 3x3 -o "$f-omedian.exr"
-        names+=("median 3x3 (oiiotool)|$(add "$t_mean" "$t")")
-        diffs+=("$f-omedian.exr" --diff "$ref")
-      fi
-      if [ ${#names[@]} -gt 0 ]; then
-        run "$mcstat" "${diffs[@]}"
-        mapfile -t met < <(metrics <"$log.out")
-        for i in "${!names[@]}"; do
-          row "$scene" "${names[$i]%%|*}" "$spp" "$seed" "${names[$i]#*|}" "$mean_bytes" "${met[$i]}"
-        done
-      fi
+      oiiotool_rows "$f-mean.exr" "$t_mean" "$spp" "$seed" $CLAMPS
 
       # G-MoN of the compact file (the compaction runs when -o writes it).
       if wanted "G-MoN (compact)"; then
@@ -209,7 +181,7 @@ for scene in $SCENES; do
         row "$scene" RPF "$spp" "$seed" "$(add "$t_r" "$t")" "$(bytes_pp "$f-samples.mcstat")" "$met"
         rm -f "$f-samples.mcstat"
       fi
-      rm -f "$f-online.mcstat" "$f-rclamp.mcstat" "$f-rclamp.exr" "$f"-oclamp*.exr "$f-omedian.exr"
+      rm -f "$f-online.mcstat" "$f-rclamp.mcstat" "$f-rclamp.exr" "$f"-mean-oclamp*.exr "$f-mean-omedian.exr"
     done
     # The mean alone at more samples: the curve every method's time is weighed against.
     for spp in $MEAN_SPPS; do

@@ -26,7 +26,8 @@
 #   MEAN_FACTORS the mean in one render of F x SEEDS x SPP samples (default 4)
 #   ONLY         comma-separated method names to run (default: all); the mean always runs
 #   BUILD        build folder (default build); SKIP_BUILD=1 uses it as it is
-#   OUT          output folder (default out/trade-cycles); renders are reused when present
+#   OUT          output folder (default out/trade-cycles), the trade's own: a new or empty folder,
+#                or one an earlier run marked (.mcstat-trade); its renders are reused
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD=${BUILD:-build}
@@ -40,22 +41,14 @@ CLAMP=${CLAMP:-10}
 REF=${REF:-8 2048}
 MEAN_FACTORS=${MEAN_FACTORS:-4}
 ONLY=${ONLY:-}
-if [ "${SKIP_BUILD:-0}" != 1 ]; then
-  scripts/install-deps.sh
-  scripts/build.sh "$BUILD" >/dev/null
-fi
+source scripts/trade_lib.sh
+trade_begin trade_cycles
 mcstat=$BUILD/oiiotool-ext/mcstat
 command -v blender >/dev/null || { echo "trade_cycles: blender is missing (scripts/install-deps.sh)" >&2; exit 1; }
 command -v oiiotool >/dev/null || { echo "trade_cycles: oiiotool is missing (scripts/install-deps.sh)" >&2; exit 1; }
-mkdir -p "$OUT"
-table=$OUT/trade.csv
 read -r W H <<<"$RES"
 read -r REF_N REF_SPP <<<"$REF"
 pixels=$((W * H))
-echo "scene,method,spp,seed,seconds,bytesPerPixel,relMSE,SSIM,PSNR,fireflies,pixels,nbias,nnoise,detail,energy" >"$table"
-log=$OUT/last
-start=$SECONDS
-source scripts/trade_lib.sh
 
 # render DIR FIRST N SPP [CLAMP]: N Cycles renders DIR/seed_FIRST.exr ... (kept when present);
 # sets t_cycles = the sum of Cycles' render times, start-up left out.
@@ -74,7 +67,7 @@ render() {
 # ingest DIR NAME: the statistics file NAME.mcstat of DIR's seeds; sets t_ingest.
 ingest() {
   run "$mcstat" -v --ingest "$1/seed_*.exr" -o "$2.mcstat"
-  t_ingest=$(awk '/done in [0-9.]+ s$/ { t += $(NF - 1) } END { printf "%.4f\n", t }' "$log.err")
+  t_ingest=$(done_seconds)
 }
 
 # Every method of a statistics file (the per-sample methods, sample delaying, the reweighting and
@@ -142,32 +135,14 @@ for entry in $SCENES; do
     done
 
     # oiiotool on the mean image: a clamp per channel at 30 / 3, a 3x3 median.
-    diffs=()
-    onames=()
-    if wanted "clamp 30 (oiiotool)"; then
-      oiio_timed t "$f-mean.exr" --clamp:max=10 -o "$f-oclamp.exr"
-      onames+=("clamp 30 (oiiotool)|$(add "$t_mean" "$t")")
-      diffs+=("$f-oclamp.exr" --diff "$ref")
-    fi
-    if wanted "median 3x3 (oiiotool)"; then
-      oiio_timed t "$f-mean.exr" --median 3x3 -o "$f-omedian.exr"
-      onames+=("median 3x3 (oiiotool)|$(add "$t_mean" "$t")")
-      diffs+=("$f-omedian.exr" --diff "$ref")
-    fi
-    if [ ${#onames[@]} -gt 0 ]; then
-      run "$mcstat" "${diffs[@]}"
-      mapfile -t met < <(metrics <"$log.out")
-      for i in "${!onames[@]}"; do
-        row "$scene" "${onames[$i]%%|*}" "$total" "$set" "${onames[$i]#*|}" "$(bytes_pp "$f-mean.exr")" "${met[$i]}"
-      done
-    fi
+    oiiotool_rows "$f-mean.exr" "$t_mean" "$total" "$set" 30
 
     # Cycles' own clamp: the same seeds rendered clamped, their mean.
     if wanted "clamp $CLAMP (Cycles)"; then
       progress "$scene set $set: $SEEDS clamped seeds"
       render "$f-clamped" "$first" "$SEEDS" "$SPP" "$CLAMP"
       run "$mcstat" -v --ingest "$f-clamped/seed_*.exr" --mean -o "$f-clamped.exr" --diff "$ref"
-      t=$(awk '/done in [0-9.]+ s$/ && !/--diff/ { t += $(NF - 1) } END { printf "%.4f\n", t }' "$log.err")
+      t=$(done_seconds)
       row "$scene" "clamp $CLAMP (Cycles)" "$total" "$set" "$(add "$t_cycles" "$t")" \
         "$(bytes_pp "$f-clamped.exr")" "$(metrics <"$log.out")"
     fi
@@ -177,7 +152,7 @@ for entry in $SCENES; do
       progress "$scene set $set: mean at $k x"
       render "$f-mean$k" "$first" 1 "$((k * total))"
       run "$mcstat" -v --ingest "$f-mean$k/seed_*.exr" --mean --diff "$ref"
-      t=$(awk '/done in [0-9.]+ s$/ && !/--diff/ { t += $(NF - 1) } END { printf "%.4f\n", t }' "$log.err")
+      t=$(done_seconds)
       row "$scene" mean "$((k * total))" "$set" "$(add "$t_cycles" "$t")" \
         "$(bytes_pp "$f-mean.exr")" "$(metrics <"$log.out")"
     done

@@ -4,6 +4,28 @@
 # $table (the CSV), $pixels (per image), $ONLY (methods to run, comma-separated; empty: all) and
 # $start (for the progress line).
 
+# trade_begin WHO: what both scripts do before their first render: install and build unless
+# SKIP_BUILD=1 ($BUILD), claim $OUT, write the table's header. Sets table, log and start.
+# $OUT is the trade's own folder: it overwrites trade.csv, its renders and pictures there by name,
+# so a folder holding files without the marker $OUT/.mcstat-trade is refused (docs/compare.md,
+# "Report folders"); an earlier run's folder is taken back.
+trade_begin() {
+  if [ -d "$OUT" ] && [ ! -e "$OUT/.mcstat-trade" ] && [ -n "$(ls -A "$OUT")" ]; then
+    echo "$1: $OUT holds files and is not a trade's folder (no .mcstat-trade): give OUT a new or empty folder" >&2
+    exit 1
+  fi
+  if [ "${SKIP_BUILD:-0}" != 1 ]; then
+    scripts/install-deps.sh
+    scripts/build.sh "$BUILD" >/dev/null
+  fi
+  mkdir -p "$OUT"
+  : >"$OUT/.mcstat-trade"
+  table=$OUT/trade.csv
+  echo "scene,method,spp,seed,seconds,bytesPerPixel,relMSE,SSIM,PSNR,fireflies,pixels,nbias,nnoise,detail,energy" >"$table"
+  log=$OUT/last
+  start=$SECONDS
+}
+
 # run CMD...: runs CMD with its output in $log.out / $log.err; stops the script if it fails.
 run() {
   if ! "$@" >"$log.out" 2>"$log.err"; then
@@ -48,6 +70,38 @@ segments() {
     END { for (i = 0; i <= n; i++) printf "%.4f\n", read + t[i] }' "$log.err" >"$log.times"
   metrics <"$log.out" >"$log.metrics"
   paste -d' ' "$log.times" <(cat "$log.metrics")
+}
+# done_seconds: the sum of the times mcstat -v reports in $log.err for its commands ("--CMD done
+# in S s"), --diff's left out.
+done_seconds() {
+  awk '/done in [0-9.]+ s$/ && !/--diff/ { t += $(NF - 1) } END { printf "%.4f\n", t }' "$log.err"
+}
+# oiiotool_rows MEAN_EXR T_MEAN SPP SEED CLAMPS...: stock oiiotool on the plain mean's image, as a
+# compositor would use it: a clamp per channel at C / 3 for each C (as |R| + |G| + |B|) and a 3x3
+# median, each timed (--runstats) on top of T_MEAN and diffed against $ref; one row each, scene
+# $scene, files ${MEAN_EXR%.exr}-oclampC.exr and -omedian.exr.
+oiiotool_rows() {
+  local mean=$1 t_mean=$2 spp=$3 seed=$4 c v t i
+  shift 4
+  local base=${mean%.exr} diffs=() names=() met=()
+  for c in "$@"; do
+    wanted "clamp $c (oiiotool)" || continue
+    v=$(awk -v c="$c" 'BEGIN { printf "%.6g", c / 3 }')
+    oiio_timed t "$mean" --clamp:max="$v" -o "$base-oclamp$c.exr"
+    names+=("clamp $c (oiiotool)|$(add "$t_mean" "$t")")
+    diffs+=("$base-oclamp$c.exr" --diff "$ref")
+  done
+  if wanted "median 3x3 (oiiotool)"; then
+    oiio_timed t "$mean" --median 3x3 -o "$base-omedian.exr"
+    names+=("median 3x3 (oiiotool)|$(add "$t_mean" "$t")")
+    diffs+=("$base-omedian.exr" --diff "$ref")
+  fi
+  [ ${#names[@]} -gt 0 ] || return 0
+  run "$mcstat" "${diffs[@]}"
+  mapfile -t met < <(metrics <"$log.out")
+  for i in "${!names[@]}"; do
+    row "$scene" "${names[$i]%%|*}" "$spp" "$seed" "${names[$i]#*|}" "$(bytes_pp "$mean")" "${met[$i]}"
+  done
 }
 # metrics: every --diff line on stdin as relMSE,SSIM,PSNR,fireflies,pixels,nbias,nnoise,detail,energy.
 metrics() {

@@ -119,3 +119,19 @@ def test_trade_on_cycles_renders_runs_every_method_and_the_clamp(tmp_path):
     # changes no random number), each indirect sample at most what it was: less light, surely.
     clamped = [r for r in rows if r["method"] == "clamp 0.5 (Cycles)"][0]
     assert float(clamped["nbias"]) < float(rows[1]["nbias"])
+
+
+@pytest.mark.parametrize("script", ["trade.sh", "trade_cycles.sh"])
+def test_trade_refuses_a_folder_it_did_not_make(tmp_path, script):
+    # OUT is the trade's own (it writes trade.csv, renders and pictures there by name): a user's
+    # folder holding files is refused before anything is written, and its files stay as they were.
+    out = tmp_path / "project"
+    out.mkdir()
+    (out / "trade.csv").write_text("mine\n")
+    env = dict(os.environ, SKIP_BUILD="1", BUILD=str(BUILD), OUT=str(out))
+    p = subprocess.run(["bash", str(SOURCE / "scripts" / script)], env=env, capture_output=True,
+                       text=True, timeout=60)
+    assert p.returncode == 1
+    assert "is not a trade's folder" in p.stderr and str(out) in p.stderr
+    assert (out / "trade.csv").read_text() == "mine\n"
+    assert sorted(x.name for x in out.iterdir()) == ["trade.csv"]
