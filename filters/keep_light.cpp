@@ -2,6 +2,7 @@
 #include "mcstat/filters/keep_light.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 
@@ -47,13 +48,6 @@ std::pair<int, int> clipped(int c, int r, int n) {
 
 /// The tent's weight at offset i of radius r: r + 1 - |i| (1 at radius 0).
 double tent(int i, int r) { return double(r + 1 - std::abs(i)); }
-
-/// The sum of the tent's weights of radius r around c that fall inside [0, n).
-double tentSum(int c, int r, int n) {
-    double s = 0.0;
-    for (int i = std::max(0, c - r); i < std::min(n, c + r + 1); ++i) s += tent(i - c, r);
-    return s;
-}
 
 }  // namespace
 
@@ -110,87 +104,189 @@ void keepLightScales(const float* d, const float* se, const uint8_t* active, int
 
 namespace {
 
-/// One gather of a radius and channel: into[q * nc + c] += sum over p within r of q of
-/// tent(q - p) source[p], by direct sums (rows, then columns). The sources are sparse: a sorted
-/// list and two pointers per row; no running sum, whose subtractions would leave a firefly's
-/// rounding behind in the dark beyond it.
-void gatherTent(const std::vector<double>& source, int width, int height, int r, size_t nc,
-                size_t c, std::vector<double>& rows, std::vector<uint8_t>& rowUsed,
-                std::vector<double>& into, int nthreads) {
-    const size_t w = size_t(width);
+/// The tent's weights summed over [0, n) around c, in closed form: (r + 1) for the centre and
+/// sum_{k=1..a} (r + 1 - k) for each side reaching a pixels into the image. Exact in double.
+double tentSumClosed(int c, int r, int n) {
+    const double a = double(std::min(r, c)), b = double(std::min(r, n - 1 - c)), r1 = double(r + 1);
+    return r1 + a * r1 - a * (a + 1.0) / 2.0 + b * r1 - b * (b + 1.0) / 2.0;
+}
+
+/// Forward box sums of B = r + 1 elements by van Herk's blocks: dst[j] = sum of src[j .. j + r]
+/// for j in [0, outLen), where element t of the source is src[(t - offset) * stride .. + L) for t
+/// - offset in [0, srcLen) and 0 elsewhere. Each sum is a suffix of one block plus a prefix of the
+/// next, both summed directly from elements inside the window: no subtraction, so a window of
+/// zeros sums to exactly 0 and a large value never leaves its rounding in a window that does not
+/// hold it (a running sum would). `pre` and `suf` are scratch.
+void boxForward(const double* src, size_t stride, int offset, int srcLen, int outLen, int r,
+                size_t L, double* dst, size_t dstStride, std::vector<double>& pre,
+                std::vector<double>& suf) {
+    const int B = r + 1;
+    const int blocks = (outLen + r + B - 1) / B + 1;
+    const size_t span = size_t(blocks) * size_t(B);
+    pre.assign(span * L, 0.0);
+    suf.assign(span * L, 0.0);
+    auto element = [&](int t) -> const double* {
+        const int i = t - offset;
+        return i >= 0 && i < srcLen ? src + size_t(i) * stride : nullptr;
+    };
+    for (int b0 = 0; b0 < int(span); b0 += B) {
+        // Prefix within the block, then suffix within the block.
+        for (int t = b0; t < b0 + B; ++t) {
+            double* p = pre.data() + size_t(t) * L;
+            const double* e = element(t);
+            if (t == b0) {
+                for (size_t l = 0; l < L; ++l) p[l] = e ? e[l] : 0.0;
+            } else {
+                const double* q = p - L;
+                for (size_t l = 0; l < L; ++l) p[l] = q[l] + (e ? e[l] : 0.0);
+            }
+        }
+        for (int t = b0 + B - 1; t >= b0; --t) {
+            double* s = suf.data() + size_t(t) * L;
+            const double* e = element(t);
+            if (t == b0 + B - 1) {
+                for (size_t l = 0; l < L; ++l) s[l] = e ? e[l] : 0.0;
+            } else {
+                const double* q = s + L;
+                for (size_t l = 0; l < L; ++l) s[l] = q[l] + (e ? e[l] : 0.0);
+            }
+        }
+    }
+    for (int j = 0; j < outLen; ++j) {
+        double* d = dst + size_t(j) * dstStride;
+        const double* s = suf.data() + size_t(j) * L;
+        if (j % B == 0) {
+            for (size_t l = 0; l < L; ++l) d[l] = s[l];
+        } else {
+            const double* p = pre.data() + size_t(j + r) * L;
+            for (size_t l = 0; l < L; ++l) d[l] = s[l] + p[l];
+        }
+    }
+}
+
+/// The tent of radius r along a line of n elements (L values each, `stride` apart):
+/// dst[x] = sum over i in [x - r, x + r] inside [0, n) of (r + 1 - |i - x|) src[i]. The tent is
+/// the convolution of two boxes of r + 1: a box back (the source padded by r zeros in front), then
+/// a box forward, each by boxForward. `mid` holds the first box's n + r sums.
+void tentLine(const double* src, size_t stride, int n, int r, size_t L, double* dst,
+              size_t dstStride, std::vector<double>& mid, std::vector<double>& pre,
+              std::vector<double>& suf) {
+    mid.resize(size_t(n + r) * L);
+    // mid[k] = sum of src[k - r .. k]; dst[x] = sum of mid[x .. x + r].
+    boxForward(src, stride, r, n, n + r, r, L, mid.data(), L, pre, suf);
+    boxForward(mid.data(), L, 0, n + r, n, r, L, dst, dstStride, pre, suf);
+}
+
+/// One gather of a radius over nc interleaved channels: into[q * nc + c] += sum over p within r
+/// of q (inside the image) of tent(q - p) source[p * nc + c], where only rows y with rowHas[y]
+/// hold sources (the others are not read). Rows first, then columns, each by
+/// tentLine, or along a row whose sources are few by direct sums over them. Every output sums only
+/// the sources inside its window: a pixel that none reaches gets exactly 0. Columns are split
+/// among threads, rows too; no result depends on the split.
+void gatherTent(const std::vector<double>& source, const std::vector<uint8_t>& rowHas, int width,
+                int height, int r, size_t nc, std::vector<double>& rows, std::vector<double>& into,
+                int nthreads) {
+    const size_t w = size_t(width), rowLen = w * nc;
+    std::vector<uint8_t> rowUsed(size_t(height), 0);
     parallelFor(0, height, 0, nthreads, [&](int64_t yb, int64_t ye) {
         std::vector<int> xs;
+        std::vector<double> mid, pre, suf;
         for (int y = int(yb); y < int(ye); ++y) {
-            const double* src = source.data() + size_t(y) * w;
-            double* dst = rows.data() + size_t(y) * w;
+            const double* src = source.data() + size_t(y) * rowLen;
+            double* dst = rows.data() + size_t(y) * rowLen;
             xs.clear();
-            for (int x = 0; x < width; ++x)
-                if (src[x] != 0.0) xs.push_back(x);
+            for (int x = 0; x < width && rowHas[size_t(y)]; ++x)
+                for (size_t c = 0; c < nc; ++c)
+                    if (src[size_t(x) * nc + c] != 0.0) {
+                        xs.push_back(x);
+                        break;
+                    }
             rowUsed[size_t(y)] = !xs.empty();
-            std::fill(dst, dst + w, 0.0);
-            size_t lo = 0, hi = 0;
-            for (int x = 0; x < width && !xs.empty(); ++x) {
-                while (hi < xs.size() && xs[hi] <= x + r) ++hi;
-                while (lo < hi && xs[lo] < x - r) ++lo;
-                double sum = 0.0;
-                for (size_t i = lo; i < hi; ++i) sum += tent(xs[i] - x, r) * src[xs[i]];
-                dst[x] = sum;
+            if (xs.empty()) continue;
+            // Direct sums cost the sources' window widths, the blocks about 8 values per pixel.
+            if (double(xs.size()) * double(2 * r + 1) < 8.0 * double(width)) {
+                std::fill(dst, dst + rowLen, 0.0);
+                size_t lo = 0, hi = 0;
+                for (int x = 0; x < width; ++x) {
+                    while (hi < xs.size() && xs[hi] <= x + r) ++hi;
+                    while (lo < hi && xs[lo] < x - r) ++lo;
+                    for (size_t c = 0; c < nc; ++c) {
+                        double sum = 0.0;
+                        for (size_t i = lo; i < hi; ++i)
+                            sum += tent(xs[i] - x, r) * src[size_t(xs[i]) * nc + c];
+                        dst[size_t(x) * nc + c] = sum;
+                    }
+                }
+            } else {
+                tentLine(src, nc, width, r, nc, dst, nc, mid, pre, suf);
             }
         }
     });
-    parallelFor(0, height, 0, nthreads, [&](int64_t yb, int64_t ye) {
-        for (int y = int(yb); y < int(ye); ++y) {
-            const auto [y0, y1] = clipped(y, r, height);
-            for (int j = y0; j < y1; ++j) {
-                if (!rowUsed[size_t(j)]) continue;
-                const double t = tent(j - y, r);
-                const double* src = rows.data() + size_t(j) * w;
-                double* dst = into.data() + size_t(y) * w * nc + c;
-                for (size_t x = 0; x < w; ++x) dst[x * nc] += t * src[x];
+    // Columns: the rows within r of a used row, in strips of columns.
+    int first = height, last = -1;
+    for (int y = 0; y < height; ++y)
+        if (rowUsed[size_t(y)]) {
+            first = std::min(first, y);
+            last = y;
+        }
+    if (last < 0) return;
+    const int y0 = std::max(0, first - r), y1 = std::min(height, last + r + 1);
+    // The rows outside [first, last] hold no source: their horizontal sums are 0.
+    for (int y = y0; y < y1; ++y)
+        if (!rowUsed[size_t(y)])
+            std::fill(rows.data() + size_t(y) * rowLen, rows.data() + size_t(y + 1) * rowLen, 0.0);
+    constexpr size_t kStrip = 64;
+    const int64_t strips = int64_t((rowLen + kStrip - 1) / kStrip);
+    parallelFor(0, strips, 0, nthreads, [&](int64_t sb, int64_t se) {
+        std::vector<double> mid, pre, suf, col;
+        std::vector<int> js;
+        for (int64_t s = sb; s < se; ++s) {
+            const size_t l0 = size_t(s) * kStrip, L = std::min(kStrip, rowLen - l0);
+            const int n = y1 - y0;
+            const double* base = rows.data() + size_t(y0) * rowLen + l0;
+            js.clear();
+            for (int j = 0; j < n; ++j) {
+                const double* row = base + size_t(j) * rowLen;
+                for (size_t l = 0; l < L; ++l)
+                    if (row[l] != 0.0) {
+                        js.push_back(j);
+                        break;
+                    }
+            }
+            if (js.empty()) continue;
+            col.assign(size_t(n) * L, 0.0);
+            if (double(js.size()) * double(2 * r + 1) < 8.0 * double(n)) {
+                // Few rows hold light in this strip: direct sums over them.
+                size_t lo = 0, hi = 0;
+                for (int y = 0; y < n; ++y) {
+                    while (hi < js.size() && js[hi] <= y + r) ++hi;
+                    while (lo < hi && js[lo] < y - r) ++lo;
+                    double* d = col.data() + size_t(y) * L;
+                    for (size_t i = lo; i < hi; ++i) {
+                        const double t = tent(js[i] - y, r);
+                        const double* row = base + size_t(js[i]) * rowLen;
+                        for (size_t l = 0; l < L; ++l) d[l] += t * row[l];
+                    }
+                }
+            } else {
+                tentLine(base, rowLen, n, r, L, col.data(), L, mid, pre, suf);
+            }
+            for (int y = y0; y < y1; ++y) {
+                double* d = into.data() + size_t(y) * rowLen + l0;
+                const double* c = col.data() + size_t(y - y0) * L;
+                for (size_t l = 0; l < L; ++l) d[l] += c[l];
             }
         }
     });
 }
 
-/// The guide's tent sums of radius r at the pixels `need` marks: sum over q within r of p, inside
-/// the image, of tent(q - p) guide[q] (direct sums: rows for every row near a marked pixel, then
-/// the column at each marked pixel). 0 elsewhere.
-std::vector<double> guideSums(const float* guide, const std::vector<uint8_t>& need, int width,
-                              int height, int r, int nthreads) {
+/// The guide's tent sums of radius r, sum over q within r of p, inside the image, of tent(q - p)
+/// guide[q], at every pixel (rows, then columns, by tentLine).
+std::vector<double> guideSums(const float* guide, int width, int height, int r, int nthreads) {
     const size_t w = size_t(width), n = w * size_t(height);
-    std::vector<uint8_t> rowNeeded(static_cast<size_t>(height), 0);
-    for (int y = 0; y < height; ++y)
-        for (int x = 0; x < width; ++x)
-            if (need[size_t(y) * w + size_t(x)]) {
-                const auto [y0, y1] = clipped(y, r, height);
-                for (int j = y0; j < y1; ++j) rowNeeded[size_t(j)] = 1;
-                break;
-            }
-    std::vector<double> rows(n, 0.0), sums(n, 0.0);
-    parallelFor(0, height, 0, nthreads, [&](int64_t yb, int64_t ye) {
-        for (int y = int(yb); y < int(ye); ++y) {
-            if (!rowNeeded[size_t(y)]) continue;
-            const float* g = guide + size_t(y) * w;
-            for (int x = 0; x < width; ++x) {
-                const auto [x0, x1] = clipped(x, r, width);
-                double sum = 0.0;
-                for (int i = x0; i < x1; ++i) sum += tent(i - x, r) * double(g[i]);
-                rows[size_t(y) * w + size_t(x)] = sum;
-            }
-        }
-    });
-    parallelFor(0, height, 0, nthreads, [&](int64_t yb, int64_t ye) {
-        for (int y = int(yb); y < int(ye); ++y) {
-            const auto [y0, y1] = clipped(y, r, height);
-            for (int x = 0; x < width; ++x) {
-                if (!need[size_t(y) * w + size_t(x)]) continue;
-                double sum = 0.0;
-                for (int j = y0; j < y1; ++j)
-                    sum += tent(j - y, r) * rows[size_t(j) * w + size_t(x)];
-                sums[size_t(y) * w + size_t(x)] = sum;
-            }
-        }
-    });
+    std::vector<double> g(guide, guide + n), rows(n, 0.0), sums(n, 0.0);
+    gatherTent(g, std::vector<uint8_t>(size_t(height), 1), width, height, r, 1, rows, sums,
+               nthreads);
     return sums;
 }
 
@@ -203,48 +299,76 @@ void returnResidual(const float* robust, const double* residual, const uint8_t* 
     // What each pixel receives, per channel: `plain` by the tent alone, `guided` to be multiplied
     // by the pixel's guide value.
     std::vector<double> plain(n * nc, 0.0), guided(guide ? n * nc : 0, 0.0);
-    std::vector<double> source(n), rows(n);
-    std::vector<uint8_t> rowUsed(static_cast<size_t>(height)), need(n);
+    std::vector<double> source, rows;
+    // need[p]: p sends light at the radius at hand; rowNeed: its row holds such a p; rowHas: the
+    // source's row holds a nonzero value (the others are 0).
+    std::vector<uint8_t> need(n), rowNeed(static_cast<size_t>(height)),
+        rowHas(static_cast<size_t>(height), 0);
+    auto sends = [&](size_t p) {
+        for (size_t c = 0; c < nc; ++c) {
+            const double v = residual[p * nc + c];
+            if (v != 0.0 && std::isfinite(v)) return true;
+        }
+        return false;
+    };
     for (size_t k = 0; k < radii.size(); ++k) {
         const int r = radii[k];
-        bool anyAtK = false;
-        for (size_t p = 0; p < n; ++p) {
-            need[p] = 0;
-            if (scale[p] != k) continue;
-            for (size_t c = 0; c < nc; ++c) {
-                const double v = residual[p * nc + c];
-                if (v != 0.0 && std::isfinite(v)) need[p] = 1;
+        parallelFor(0, height, 0, nthreads, [&](int64_t yb, int64_t ye) {
+            for (size_t y = size_t(yb); y < size_t(ye); ++y) {
+                bool any = false;
+                for (size_t p = y * w; p < (y + 1) * w; ++p) {
+                    need[p] = scale[p] == k && sends(p);
+                    any = any || need[p];
+                }
+                rowNeed[y] = any;
             }
-            anyAtK = anyAtK || need[p];
+        });
+        if (std::none_of(rowNeed.begin(), rowNeed.end(), [](uint8_t v) { return v != 0; }))
+            continue;
+        if (source.empty()) {
+            source.assign(n * nc, 0.0);
+            rows.assign(n * nc, 0.0);
         }
-        if (!anyAtK) continue;
         // With a guide, p's light goes to q in proportion to tent(q - p) guide[q]: its weights
         // over the window sum to 1 when divided by the guide's tent sum at p. A window whose guide
         // is 0 everywhere (no surface to put the light on) takes the tent alone.
         const std::vector<double> norm =
-            guide ? guideSums(guide, need, width, height, r, nthreads) : std::vector<double>();
-        for (size_t c = 0; c < nc; ++c)
-            for (const bool byGuide : {true, false}) {
-                if (byGuide && !guide) continue;
-                bool any = false;
-                for (int y = 0; y < height; ++y) {
-                    const double wy = tentSum(y, r, height);
+            guide ? guideSums(guide, width, height, r, nthreads) : std::vector<double>();
+        for (const bool byGuide : {true, false}) {
+            if (byGuide && !guide) continue;
+            parallelFor(0, height, 0, nthreads, [&](int64_t yb, int64_t ye) {
+                for (int y = int(yb); y < int(ye); ++y) {
+                    double* row = source.data() + size_t(y) * w * nc;
+                    if (!rowNeed[size_t(y)]) {
+                        if (rowHas[size_t(y)]) std::fill(row, row + w * nc, 0.0);
+                        rowHas[size_t(y)] = 0;
+                        continue;
+                    }
+                    const double wy = tentSumClosed(y, r, height);
+                    bool any = false;
                     for (int x = 0; x < width; ++x) {
                         const size_t p = size_t(y) * w + size_t(x);
-                        const double v = residual[p * nc + c];
-                        double s = 0.0;
                         const bool mine = guide && norm[p] > 0.0;
-                        if (need[p] && v != 0.0 && std::isfinite(v) && mine == byGuide) {
-                            s = v / (byGuide ? norm[p] : tentSum(x, r, width) * wy);
-                            any = true;
+                        const bool from = need[p] && mine == byGuide;
+                        const double share =
+                            from ? (byGuide ? norm[p] : tentSumClosed(x, r, width) * wy) : 1.0;
+                        for (size_t c = 0; c < nc; ++c) {
+                            const double v = residual[p * nc + c];
+                            double s = 0.0;
+                            if (from && v != 0.0 && std::isfinite(v)) {
+                                s = v / share;
+                                any = true;
+                            }
+                            row[size_t(x) * nc + c] = s;
                         }
-                        source[p] = s;
                     }
+                    rowHas[size_t(y)] = any;
                 }
-                if (any)
-                    gatherTent(source, width, height, r, nc, c, rows, rowUsed,
-                               byGuide ? guided : plain, nthreads);
-            }
+            });
+            if (std::any_of(rowHas.begin(), rowHas.end(), [](uint8_t v) { return v != 0; }))
+                gatherTent(source, rowHas, width, height, r, nc, rows, byGuide ? guided : plain,
+                           nthreads);
+        }
     }
     parallelFor(0, int64_t(n), 0, nthreads, [&](int64_t b, int64_t e) {
         for (size_t q = size_t(b); q < size_t(e); ++q)

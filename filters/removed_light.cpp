@@ -22,12 +22,30 @@ bool isValidBuffer(const PixelBuffers& px, int j) {
 
 LumaSpread lumaSpread(const PixelBuffers& px, const std::array<double, 3>& luma) {
     LumaSpread out;
+    // Each valid buffer's luminance once (on the stack up to 64 buffers); invalid ones marked by
+    // a count of 0.
+    constexpr int kStack = 64;
+    double yStack[kStack], nStack[kStack];
+    std::vector<double> yHeap, nHeap;
+    double* ys = yStack;
+    double* ns = nStack;
+    if (px.M > kStack) {
+        yHeap.resize(size_t(px.M));
+        nHeap.resize(size_t(px.M));
+        ys = yHeap.data();
+        ns = nHeap.data();
+    }
     double n = 0.0, sum = 0.0;
     for (int j = 0; j < px.M; ++j) {
-        if (!isValidBuffer(px, j)) continue;
+        const float* m = px.mean + 3 * j;
+        const bool valid =
+            px.count[j] > 0.f && std::isfinite(m[0]) && std::isfinite(m[1]) && std::isfinite(m[2]);
+        ns[j] = valid ? double(px.count[j]) : 0.0;
+        if (!valid) continue;
+        ys[j] = lumaOf(m, luma);
         ++out.valid;
-        n += double(px.count[j]);
-        sum += double(px.count[j]) * lumaOf(px.mean + 3 * j, luma);
+        n += ns[j];
+        sum += ns[j] * ys[j];
     }
     if (out.valid == 0) return out;
     out.mean = sum / n;
@@ -35,9 +53,9 @@ LumaSpread lumaSpread(const PixelBuffers& px, const std::array<double, 3>& luma)
     // Second pass over deviations: no cancellation of two large sums of squares.
     double ss = 0.0;
     for (int j = 0; j < px.M; ++j) {
-        if (!isValidBuffer(px, j)) continue;
-        const double dev = lumaOf(px.mean + 3 * j, luma) - out.mean;
-        ss += double(px.count[j]) * dev * dev;
+        if (ns[j] == 0.0) continue;
+        const double dev = ys[j] - out.mean;
+        ss += ns[j] * dev * dev;
     }
     out.se = std::sqrt(ss / double(out.valid - 1) / n);
     return out;

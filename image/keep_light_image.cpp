@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "mcstat/core/parallel.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/removed_light_layers.h"
 
@@ -95,31 +96,43 @@ bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& lum
     std::vector<float> values(n * nc), d(n), se(n);
     std::vector<double> residual(n * nc);
     std::vector<uint8_t> active(n, 0), scale(n);
-    double meanY = 0.0;
-    for (size_t p = 0; p < n; ++p) {
-        double dy = 0.0;
-        for (size_t i = 0; i < nc; ++i) {
-            const float r = rp[p * nin + size_t(from[i])];
-            const float m = mp[p * nm + size_t(meanIndex[i])];
-            double v = double(m) - double(r);
-            // A difference within float rounding of the two values is no light: the mean and an
-            // estimator that trims nothing may sum the same buffers in other orders.
-            if (std::fabs(v) <=
-                kRoundingUlps *
-                    std::ldexp(std::max(std::fabs(double(m)), std::fabs(double(r))), -23))
-                v = 0.0;
-            values[p * nc + i] = r;
-            residual[p * nc + i] = v;
-            if (v != 0.0 && std::isfinite(v)) active[p] = 1;
-            if (from[i] < 3 && std::isfinite(v)) dy += luma[size_t(from[i])] * v;
+    // Per pixel, in parallel; the luminance sum of the plain mean by rows, then summed in row
+    // order (the same bits at any thread count).
+    std::vector<double> rowMeanY(size_t(height), 0.0);
+    parallelFor(0, height, 0, nthreads, [&](int64_t yb, int64_t ye) {
+        for (size_t y = size_t(yb); y < size_t(ye); ++y) {
+            double rowY = 0.0;
+            for (size_t p = y * size_t(width); p < (y + 1) * size_t(width); ++p) {
+                double dy = 0.0;
+                for (size_t i = 0; i < nc; ++i) {
+                    const float r = rp[p * nin + size_t(from[i])];
+                    const float m = mp[p * nm + size_t(meanIndex[i])];
+                    double v = double(m) - double(r);
+                    // A difference within float rounding of the two values is no light: the mean
+                    // and an estimator that trims nothing may sum the same buffers in other
+                    // orders.
+                    if (std::fabs(v) <=
+                        kRoundingUlps *
+                            std::ldexp(std::max(std::fabs(double(m)), std::fabs(double(r))), -23))
+                        v = 0.0;
+                    values[p * nc + i] = r;
+                    residual[p * nc + i] = v;
+                    if (v != 0.0 && std::isfinite(v)) active[p] = 1;
+                    if (from[i] < 3 && std::isfinite(v)) dy += luma[size_t(from[i])] * v;
+                }
+                // The luminance residual and its scale, the plain mean's standard error from the
+                // buffers. A pixel that lost nothing counts as an exact 0 (se 0): the estimator
+                // kept its mean, and a compact file, which keeps no buffers there, gives the same
+                // choice.
+                d[p] = float(dy);
+                se[p] = active[p] ? sp[ns * p + 1] : 0.f;
+                if (std::isfinite(sp[ns * p])) rowY += double(sp[ns * p]);
+            }
+            rowMeanY[y] = rowY;
         }
-        // The luminance residual and its scale, the plain mean's standard error from the
-        // buffers. A pixel that lost nothing counts as an exact 0 (se 0): the estimator kept its
-        // mean, and a compact file, which keeps no buffers there, gives the same choice.
-        d[p] = float(dy);
-        se[p] = active[p] ? sp[ns * p + 1] : 0.f;
-        if (std::isfinite(sp[ns * p])) meanY += double(sp[ns * p]);
-    }
+    });
+    double meanY = 0.0;
+    for (double v : rowMeanY) meanY += v;
     keepLightScales(d.data(), se.data(), active.data(), width, height, params, scale.data(),
                     nthreads);
     const std::vector<int> radii = keepLightRadii(params.maxRadius);
@@ -129,7 +142,10 @@ bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& lum
         robust.errorfmt("keeplight: {}", err);
         return false;
     }
-    if (guide.size() != n) guide.clear();
+    // No guide where it holds no surface at all (albedo 0 everywhere): the tent alone then.
+    if (guide.size() != n ||
+        std::all_of(guide.begin(), guide.end(), [](float g) { return g == 0.f; }))
+        guide.clear();
     returnResidual(values.data(), residual.data(), scale.data(), radii, width, height, int(nc),
                    out.data(), nthreads, guide.empty() ? nullptr : guide.data());
     double returnedY = 0.0;

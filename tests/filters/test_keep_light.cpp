@@ -3,6 +3,7 @@
 // kept close, AOVs by the beauty's kernels, the same bits at any thread count, the extremes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -252,6 +253,73 @@ TEST(KeepLight, AovsThatSummedToTheBeautyStillSum) {
             const double sum = double(out[p * 9 + 3 + size_t(c)]) + out[p * 9 + 6 + size_t(c)];
             EXPECT_NEAR(sum, beauty, 4e-7 * (std::fabs(beauty) + 1.0)) << p << " " << c;
         }
+}
+
+/// The return written the plain way: every q sums, over every p, residual(p) times p's weight at
+/// q, t(q - p) g(q) / sum over q' inside the image of t(q' - p) g(q') (g = 1 without a guide, and
+/// where p's window has no guide).
+std::vector<double> directReturn(const Field& f, int nch, const std::vector<uint8_t>& scale,
+                                 const std::vector<int>& radii, const float* guide) {
+    std::vector<double> out(f.robust.begin(), f.robust.end());
+    for (int py = 0; py < f.h; ++py)
+        for (int px = 0; px < f.w; ++px) {
+            const size_t p = f.at(px, py);
+            const int r = radii[scale[p]];
+            auto g = [&](int x, int y) { return guide ? double(guide[f.at(x, y)]) : 1.0; };
+            auto t = [&](int x, int y) {
+                return double(r + 1 - std::abs(x - px)) * double(r + 1 - std::abs(y - py));
+            };
+            double norm = 0.0, plainNorm = 0.0;
+            for (int y = std::max(0, py - r); y <= std::min(f.h - 1, py + r); ++y)
+                for (int x = std::max(0, px - r); x <= std::min(f.w - 1, px + r); ++x) {
+                    norm += t(x, y) * g(x, y);
+                    plainNorm += t(x, y);
+                }
+            const bool byGuide = norm > 0.0;
+            for (int y = std::max(0, py - r); y <= std::min(f.h - 1, py + r); ++y)
+                for (int x = std::max(0, px - r); x <= std::min(f.w - 1, px + r); ++x)
+                    for (int c = 0; c < nch; ++c) {
+                        const double v = f.residual[p * size_t(nch) + size_t(c)];
+                        if (v == 0.0 || !std::isfinite(v)) continue;
+                        out[f.at(x, y) * size_t(nch) + size_t(c)] +=
+                            byGuide ? v * t(x, y) * g(x, y) / norm : v * t(x, y) / plainNorm;
+                    }
+        }
+    return out;
+}
+
+// The block sums (van Herk's, rows and columns) and the direct sums over sparse rows give the
+// plain sums' values: dense and sparse residuals, radii up to beyond the image, with a guide that
+// is 0 in places and without one.
+TEST(KeepLight, TheGatherEqualsThePlainSums) {
+    for (unsigned seed : {4u, 5u}) {
+        for (int r : {0, 1, 3, 8, 40}) {
+            Field f = randomField(53, 37, seed);
+            if (seed == 5u)  // sparse: every 50th pixel keeps its residual
+                for (size_t p = 0; p < f.d.size(); ++p)
+                    if (p % 50 != 7)
+                        for (int c = 0; c < 3; ++c) f.residual[p * 3 + size_t(c)] = 0.0;
+            std::mt19937 rng(seed);
+            std::uniform_real_distribution<float> u(0.f, 1.f);
+            std::vector<float> guide(f.d.size());
+            for (size_t p = 0; p < guide.size(); ++p)
+                guide[p] = (p / 53) % 9 == 0 ? 0.f : u(rng);  // black rows: no surface
+            std::vector<uint8_t> scale(f.d.size());
+            for (size_t p = 0; p < scale.size(); ++p) scale[p] = uint8_t(p % 3);
+            const std::vector<int> radii = {0, std::min(r, 2), r};
+            for (const float* g :
+                 {static_cast<const float*>(nullptr), static_cast<const float*>(guide.data())}) {
+                std::vector<float> out(f.robust.size());
+                returnResidual(f.robust.data(), f.residual.data(), scale.data(), radii, f.w, f.h, 3,
+                               out.data(), 2, g);
+                const std::vector<double> want = directReturn(f, 3, scale, radii, g);
+                for (size_t i = 0; i < out.size(); ++i)
+                    ASSERT_NEAR(out[i], want[i], 1e-6 * std::fabs(want[i]) + 1e-4)
+                        << "seed " << seed << " r " << r << " guide " << (g != nullptr) << " at "
+                        << i;
+            }
+        }
+    }
 }
 
 TEST(KeepLight, SameBitsForAnyThreadCount) {
