@@ -3,10 +3,12 @@
 #include "mcstat/analysis/two_sample.h"
 
 #include <algorithm>
+#include <boost/math/distributions/non_central_t.hpp>
 #include <boost/math/distributions/normal.hpp>
 #include <boost/math/distributions/students_t.hpp>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 #include "mcstat/core/location_stats.h"
 
@@ -26,6 +28,7 @@ using Policy = boost::math::policies::policy<
     boost::math::policies::domain_error<boost::math::policies::ignore_error>,
     boost::math::policies::overflow_error<boost::math::policies::ignore_error>,
     boost::math::policies::evaluation_error<boost::math::policies::ignore_error>,
+    boost::math::policies::rounding_error<boost::math::policies::ignore_error>,
     boost::math::policies::promote_double<false>>;
 
 }  // namespace
@@ -97,6 +100,47 @@ double studentTail(double t, double df) {
     }
     const boost::math::students_t_distribution<double, Policy> dist(df);
     return boost::math::cdf(boost::math::complement(dist, t));
+}
+
+double studentUpperQuantile(double tail, double df) {
+    if (!(tail > 0.0 && tail < 1.0) || std::isnan(df) || !(df > 0.0)) return kNaN;
+    if (!(df < 1e7)) {
+        const boost::math::normal_distribution<double, Policy> n;
+        return boost::math::quantile(boost::math::complement(n, tail));
+    }
+    const boost::math::students_t_distribution<double, Policy> dist(df);
+    return boost::math::quantile(boost::math::complement(dist, tail));
+}
+
+double detectableDifference(double se, double df, double margin, double alpha, double power) {
+    if (!(se > 0.0) || !std::isfinite(se) || !(power > 0.0 && power < 1.0)) return kNaN;
+    const double crit = studentUpperQuantile(alpha / 2.0, df);
+    if (!std::isfinite(crit)) return kNaN;
+    // The probability that |T| exceeds crit when the difference is ncp standard errors: T is
+    // non-central t (df, ncp); the normal shifted by ncp beyond 1e7 degrees of freedom.
+    auto found = [&](double ncp) {
+        if (!(df < 1e7)) {
+            const boost::math::normal_distribution<double, Policy> n(ncp);
+            return boost::math::cdf(boost::math::complement(n, crit)) + boost::math::cdf(n, -crit);
+        }
+        // Boost's non-central t truncates a series index to an int, ignoring the policy, and
+        // throws far out (ncp^2 / 2 beyond 2^31: a critical t of tens of thousands, df of 1 or
+        // 2): there the t shifted by ncp, which the non-central t approaches, is the answer.
+        try {
+            const boost::math::non_central_t_distribution<double, Policy> t(df, ncp);
+            return boost::math::cdf(boost::math::complement(t, crit)) + boost::math::cdf(t, -crit);
+        } catch (const std::exception&) {
+            return studentTail(crit - ncp, df) + studentTail(crit + ncp, df);
+        }
+    };
+    // Bisection on ncp in [0, hi]: the probability grows with ncp.
+    double lo = 0.0, hi = crit + studentUpperQuantile(1.0 - power, df) + 1.0;
+    for (int i = 0; i < 60 && !(found(hi) >= power); ++i) hi *= 2.0;
+    for (int i = 0; i < 60; ++i) {
+        const double mid = 0.5 * (lo + hi);
+        (found(mid) >= power ? hi : lo) = mid;
+    }
+    return margin + hi * se;
 }
 
 TwoSampleResult mitsubaZTest(double mean, double samples, double ref, double refVariance,

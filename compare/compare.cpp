@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <mutex>
 #include <numeric>
 
@@ -26,6 +27,10 @@ namespace mcstat {
 namespace {
 
 constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
+/// Differences within this many float ulps of the larger estimate are rounding: every buffer value
+/// was a float, and sums in other orders (a re-encoded file, another thread count) move the last
+/// bits.
+constexpr double kRoundingUlps = 4.0;
 
 /// What is tested per pixel: the luminance, a colour channel or an AOV channel.
 struct Quantity {
@@ -219,6 +224,21 @@ class Comparison {
     void fillFinding(CompareFinding& f, bool tile, size_t index, size_t qi, float p, float z,
                      float d, float a) const;
     void finishMitsuba();
+    /// CompareResult::power, from the thresholds' families.
+    void computePower();
+    /// A difference within float resolution of the two estimates is rounding, not evidence: the
+    /// test is made again with b's estimate set to a's. `r` as testPixel or welchTest gave it.
+    TwoSampleResult withoutRounding(const SideSummary& sa, SideSummary sb,
+                                    const TwoSampleResult& r) const {
+        if (opt_.rule == CompareOptions::Rule::Mitsuba || r.difference == 0.0 ||
+            !std::isfinite(r.difference) ||
+            std::fabs(r.difference) >
+                kRoundingUlps *
+                    std::ldexp(std::max(std::fabs(sa.estimate), std::fabs(sb.estimate)), -23))
+            return r;
+        sb.estimate = sa.estimate;
+        return welchTest(sa, sb, margin(sa.estimate, sb.estimate), opt_.test);
+    }
     void buildMaps();
     void buildMeans();
 
@@ -231,6 +251,8 @@ class Comparison {
     size_t P_ = 0, T_ = 0;
     // Per quantity q: pixel arrays [q * P + p], tile arrays [q * T + t].
     std::vector<float> p_, z_, effect_, aEst_, tileP_, tileZ_, tileEffect_, tileA_;
+    // Per hypothesis: the difference's standard error and degrees of freedom (for the power).
+    std::vector<float> se_, df_, tileSe_, tileDf_;
     std::vector<uint8_t> pixelNonFinite_;  ///< 1 one side, 2 both
     std::vector<float> meanA_, meanB_;     ///< R, G, B per pixel (CompareOptions::keepMeans)
     Tally tally_;
@@ -357,13 +379,16 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
                     if (one) tally.allZero = false;
                     continue;
                 }
-                const TwoSampleResult r = testPixel(sa, sb, q, x, y, nb);
+                const TwoSampleResult raw = testPixel(sa, sb, q, x, y, nb);
+                const TwoSampleResult r = withoutRounding(sa, sb, raw);
                 p_[h] = float(r.p);
                 z_[h] = float(r.z);
                 effect_[h] = float(r.difference);
+                se_[h] = float(raw.se);
+                df_[h] = float(raw.df);
                 if (std::isnan(r.p)) continue;
                 tested = true;
-                if (r.difference != 0.0) tally.allZero = false;
+                if (raw.difference != 0.0) tally.allZero = false;
                 if (r.se == 0.0 && r.difference == 0.0) ++tally.constantEqual;
             }
             if (nonFinite == 1) ++tally.nonFiniteOneSide;
@@ -411,7 +436,10 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
             ca.assign(cntA.begin() + long(qi * Ma), cntA.begin() + long((qi + 1) * Ma));
             sa = summarize(va, ca);
         }
-        const TwoSampleResult r = welchTest(sa, sb, margin(sa.estimate, sb.estimate), opt_.test);
+        const TwoSampleResult raw = welchTest(sa, sb, margin(sa.estimate, sb.estimate), opt_.test);
+        const TwoSampleResult r = withoutRounding(sa, sb, raw);
+        tileSe_[h] = float(raw.se);
+        tileDf_[h] = float(raw.df);
         tileP_[h] = float(r.p);
         tileZ_[h] = float(r.z);
         tileEffect_[h] = float(r.difference);
@@ -472,6 +500,10 @@ bool Comparison::run(std::string& err) {
     tileZ_.assign(Q * T_, kNaNf);
     tileEffect_.assign(Q * T_, kNaNf);
     tileA_.assign(Q * T_, kNaNf);
+    se_.assign(Q * P_, kNaNf);
+    df_.assign(Q * P_, kNaNf);
+    tileSe_.assign(Q * T_, kNaNf);
+    tileDf_.assign(Q * T_, kNaNf);
     if (opt_.keepMeans) {
         meanA_.assign(3 * P_, kNaNf);
         meanB_.assign(3 * P_, kNaNf);
@@ -668,7 +700,68 @@ void Comparison::finish() {
             (T_ > 0 ? tileNot : pixNot) > 0 || out_.hypotheses == 0 || out_.nonFiniteOneSide > 0;
     }
     if (opt_.rule == CompareOptions::Rule::Mitsuba) finishMitsuba();
-    if (out_.identical) out_.fail = false;
+    computePower();
+    if (!out_.fail && !out_.identical && opt_.minPower > 0.0 &&
+        opt_.rule == CompareOptions::Rule::Mcstat && opt_.test == TwoSampleTest::Difference) {
+        const double seen = std::isfinite(out_.power.tileRelative) ? out_.power.tileRelative
+                                                                   : out_.power.pixelRelative;
+        out_.underpowered = !(seen <= opt_.minPower);
+        out_.fail = out_.underpowered;
+    }
+    if (out_.identical) out_.fail = opt_.identicalFails;
+}
+
+namespace {
+
+/// The median of `v` (reordered); NaN when empty.
+double medianOf(std::vector<double>& v) {
+    if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+    const auto mid = v.begin() + long(v.size() / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    if (v.size() % 2) return *mid;
+    return 0.5 * (*mid + *std::max_element(v.begin(), mid));
+}
+
+}  // namespace
+
+void Comparison::computePower() {
+    if (opt_.rule != CompareOptions::Rule::Mcstat || opt_.test != TwoSampleTest::Difference) return;
+    // The families' levels as setThresholds() splits them.
+    const double q = T_ > 0 ? opt_.level / 2.0 : opt_.level;
+    auto family = [&](const std::vector<float>& p, const std::vector<float>& se,
+                      const std::vector<float>& df, const std::vector<float>& a, double& relative,
+                      double& absolute) {
+        const size_t m =
+            size_t(std::count_if(p.begin(), p.end(), [](float v) { return !std::isnan(v); }));
+        if (m == 0) return;
+        const double alpha = opt_.control == Multiplicity::None ? q : q / double(m);
+        // The quantiles by whole degrees of freedom, rounded down (a larger detectable change:
+        // the statement stays true), up to 10^6; beyond, and for exact sides, the normal's.
+        std::map<long, double> factor;
+        std::vector<double> rel, abs;
+        for (size_t h = 0; h < p.size(); ++h) {
+            if (std::isnan(p[h]) || !(se[h] > 0.f) || !std::isfinite(se[h])) continue;
+            const long d = std::isfinite(df[h]) && df[h] < 1e6f
+                               ? std::max(1L, long(std::floor(double(df[h]))))
+                               : 0L;
+            auto it = factor.find(d);
+            if (it == factor.end())
+                it = factor
+                         .emplace(d, detectableDifference(1.0, d > 0 ? double(d) : HUGE_VAL, 0.0,
+                                                          alpha, kComparePower))
+                         .first;
+            const double av = double(a[h]);
+            const double delta = margin(av, av) + it->second * double(se[h]);
+            if (!std::isfinite(delta)) continue;
+            abs.push_back(delta);
+            if (av != 0.0 && std::isfinite(av)) rel.push_back(delta / std::fabs(av));
+        }
+        relative = medianOf(rel);
+        absolute = medianOf(abs);
+    };
+    family(p_, se_, df_, aEst_, out_.power.pixelRelative, out_.power.pixelAbsolute);
+    if (T_ > 0)
+        family(tileP_, tileSe_, tileDf_, tileA_, out_.power.tileRelative, out_.power.tileAbsolute);
 }
 
 void Comparison::buildMaps() {
@@ -1007,14 +1100,40 @@ std::string mitsubaVerdict(const CompareResult& r, const CompareOptions& opt) {
         r.pixelsRejected, r.pixels, quantitiesText(r), failed, r.channelTests, how);
 }
 
+namespace {
+
+/// A relative change as a percentage with 2 significant digits (3.1 %, 42 %, 0.051 %).
+std::string changeText(double v) { return fmt::format("{:.2g} %", v * 100.0); }
+
+/// What a difference test could have seen, in words (CompareResult::power).
+std::string powerText(const CompareResult& r) {
+    const ComparePower& w = r.power;
+    std::vector<std::string> parts;
+    if (std::isfinite(w.tileRelative))
+        parts.push_back(fmt::format("{} in one tile", changeText(w.tileRelative)));
+    if (std::isfinite(w.pixelRelative))
+        parts.push_back(fmt::format("{} in one pixel", changeText(w.pixelRelative)));
+    if (parts.empty()) return "its power is unknown: no hypothesis it tested has noise and a value";
+    return fmt::format("it finds a change of {} with probability {:g} (medians)",
+                       fmt::join(parts, " or "), kComparePower);
+}
+
+}  // namespace
+
 std::string compareVerdict(const CompareResult& r, const CompareOptions& opt) {
     if (opt.rule == CompareOptions::Rule::Mitsuba) return mitsubaVerdict(r, opt);
     const std::string how = fmt::format("{}, {}", testText(r, opt), controlText(opt));
     if (r.identical)
         return fmt::format(
             "IDENTICAL: every pixel's {} is the same on both sides (two copies of "
-            "one render test nothing; {})",
-            quantitiesText(r), how);
+            "one render test nothing{}; {})",
+            quantitiesText(r),
+            opt.identicalFails ? ", and identical=fail makes that a failure" : "", how);
+    if (r.underpowered)
+        return fmt::format(
+            "UNDERPOWERED: no pixel{} differs in {} beyond the noise, but {}, above "
+            "minpower={:g} ({})",
+            r.tile > 0 ? " or tile" : "", quantitiesText(r), powerText(r), opt.minPower, how);
     const std::string tiles =
         r.tile > 0 ? fmt::format(" and {} of {} tiles", r.tilesRejected, r.tilesTested) : "";
     if (opt.test == TwoSampleTest::Equivalence) {
@@ -1034,10 +1153,10 @@ std::string compareVerdict(const CompareResult& r, const CompareOptions& opt) {
                                : std::string(),
                            quantitiesText(r), how);
     return fmt::format(
-        "SAME: no pixel{} differs{} in {} beyond the noise ({})", r.tile > 0 ? " or tile" : "",
+        "SAME: no pixel{} differs{} in {} beyond the noise; {} ({})", r.tile > 0 ? " or tile" : "",
         opt.tol > 0 || opt.reltol > 0 ? " by more than" + toleranceText(opt).substr(7)
                                       : std::string(),
-        quantitiesText(r), how);
+        quantitiesText(r), powerText(r), how);
 }
 
 std::vector<std::string> compareEvidence(const CompareResult& r, const CompareOptions& opt) {
@@ -1061,6 +1180,31 @@ std::vector<std::string> compareEvidence(const CompareResult& r, const CompareOp
         lines.push_back(fmt::format(
             "tested: {} hypotheses; largest p-value rejected: pixels {}{}", r.hypotheses,
             thr(r.threshold), r.tile > 0 ? ", tiles " + thr(r.tileThreshold) : std::string()));
+    if (opt.rule == CompareOptions::Rule::Mcstat && !equivalence) {
+        const ComparePower& w = r.power;
+        auto one = [](double rel, double abs, const char* what) {
+            return std::isfinite(abs)
+                       ? fmt::format("{} ({:.4g} in the image's units) in one {}",
+                                     std::isfinite(rel) ? changeText(rel) : std::string("?"), abs,
+                                     what)
+                       : std::string();
+        };
+        std::vector<std::string> parts;
+        for (const std::string& t : {one(w.tileRelative, w.tileAbsolute, "tile"),
+                                     one(w.pixelRelative, w.pixelAbsolute, "pixel")})
+            if (!t.empty()) parts.push_back(t);
+        lines.push_back(
+            parts.empty()
+                ? std::string("power: unknown (no tested hypothesis has noise)")
+                : fmt::format("power: a change of {} is found with probability {:g} at this "
+                              "level (medians over the tested hypotheses with noise){}",
+                              fmt::join(parts, ", "), kComparePower,
+                              opt.minPower > 0.0
+                                  ? fmt::format("; minpower={:g} asks for {} per {}", opt.minPower,
+                                                changeText(opt.minPower),
+                                                std::isfinite(w.tileRelative) ? "tile" : "pixel")
+                                  : std::string()));
+    }
     const char* label = equivalence ? "least equivalent" : (r.fail ? "strongest" : "largest |z|");
     if (r.strongest.valid)
         lines.push_back(fmt::format("{}: {}", label, findingText(r.strongest, r, opt)));
@@ -1143,6 +1287,13 @@ const std::vector<ParamSpec>& compareParams() {
                       "rule=mitsuba: floor of the reference's variance"),
             realParam("passfraction", 0.0, 1.0, false, "0.9975",
                       "rule=mitsuba: fraction of channel tests that must pass"),
+            realParam("minpower", 0.0, HUGE_VAL, false, "0",
+                      "fail (UNDERPOWERED) unless a change of this fraction in one tile (one "
+                      "pixel without tiles) would have been found with probability 0.8; 0: "
+                      "no limit"),
+            enumParam("identical", {"pass", "fail"}, "pass",
+                      "fail: two copies of one render (IDENTICAL, which tests nothing) fail, "
+                      "for CI"),
             textParam("junit", "", "write the verdict as JUnit XML to this file"),
             textParam("json", "", "write the verdict and its numbers as JSON to this file"),
             textParam("html", "", "write a report page (A, B, heatmap, numbers) into this folder"),
@@ -1180,6 +1331,15 @@ bool parseCompareOptions(const std::map<std::string, std::string>& kv, CompareOp
                                               : CompareOptions::Rule::Mcstat;
     opt.varianceFloor = v.at("varfloor").real;
     opt.passFraction = v.at("passfraction").real;
+    opt.minPower = v.at("minpower").real;
+    opt.identicalFails = v.at("identical").text == "fail";
+    if (opt.minPower > 0.0 &&
+        (opt.test != TwoSampleTest::Difference || opt.rule != CompareOptions::Rule::Mcstat)) {
+        err = context +
+              ": minpower is for the difference test of mcstat's rule (not with "
+              "equivalence=1 or rule=mitsuba, whose verdicts state their own terms)";
+        return false;
+    }
     return true;
 }
 

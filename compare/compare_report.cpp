@@ -183,6 +183,14 @@ std::string compareJson(const CompareResult& r, const CompareOptions& opt,
                               {"passed", r.channelTestsPassed},
                               {"pass_fraction", opt.passFraction},
                               {"variance_floor", opt.varianceFloor}};
+    j["power"] = {{"probability", kComparePower},
+                  {"tile_relative", number(r.power.tileRelative)},
+                  {"tile_absolute", number(r.power.tileAbsolute)},
+                  {"pixel_relative", number(r.power.pixelRelative)},
+                  {"pixel_absolute", number(r.power.pixelAbsolute)},
+                  {"minpower", opt.minPower},
+                  {"underpowered", r.underpowered}};
+    j["identical"] = r.identical;
     j["strongest_pixel"] = findingJson(r.strongest, r);
     j["strongest_tile"] = findingJson(r.strongestTile, r);
     j["inputs"] = {{"a", sideJson(req.a)}, {"b", sideJson(req.b)}};
@@ -221,6 +229,11 @@ std::string compareJUnit(const CompareResult& r, const CompareOptions& opt,
     prop("pixels.differing", std::to_string(r.pixelsRejected));
     prop("tiles.tested", std::to_string(r.tilesTested));
     prop("tiles.differing", std::to_string(r.tilesRejected));
+    auto num = [](double v) { return std::isfinite(v) ? fmt::format("{:.6g}", v) : std::string(); };
+    prop("power.probability", fmt::format("{:g}", kComparePower));
+    prop("power.tile_relative", num(r.power.tileRelative));
+    prop("power.pixel_relative", num(r.power.pixelRelative));
+    prop("power.minpower", fmt::format("{:g}", opt.minPower));
     prop("a", oneLine(req.a.name));
     prop("b", oneLine(req.b.name));
     s += "    </properties>\n";

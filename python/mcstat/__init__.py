@@ -217,7 +217,10 @@ def estimate(s, name="gmon", *, diag=False, residual=False, **params):
 class CompareResult:
     """What `mcstat A B --compare` found: verdict (its line), fail, exit_code (0 same, 2
     different, as the command's), evidence (its lines), the counts (pixels, pixels_tested,
-    pixels_differing, tiles, tiles_tested, tiles_differing, ...), strongest and strongest_tile
+    pixels_differing, tiles, tiles_tested, tiles_differing, ...), identical, power (a dict: the
+    smallest change of one tile and of one pixel, relative and absolute, found with probability
+    0.8: tile_relative, tile_absolute, pixel_relative, pixel_absolute, probability; None where
+    unknown), underpowered (minpower was not met), strongest and strongest_tile
     (dicts: x, y, quantity, a, b, p, z, difference, se) and maps (name -> (H, W): p, z, effect,
     differs, tile.p, tile.z, tile.differs, per quantity)."""
 
@@ -237,7 +240,8 @@ class CompareResult:
 def compare(a, b, maps=None, **params):
     """Are the renders `a` and `b` (Stats or paths) the same image up to their noise? `mcstat A B
     --compare:key=value`: test ("welch", "yuen"), level, control, channels, aovs, tile, tol,
-    reltol, equivalence, trim; the reports junit=FILE, json=FILE, html=DIR and their name
+    reltol, equivalence, trim, minpower (fail unless a change of that fraction per tile would have
+    been found), identical ("fail": two copies of one render fail); the reports junit=FILE, json=FILE, html=DIR and their name
     (docs/compare.md). maps=PATH writes the maps as an EXR (`-o maps.exr`). Returns a
     CompareResult."""
     return CompareResult(_mcstat._compare(_source(a), _source(b), _params(params),

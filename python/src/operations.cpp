@@ -217,6 +217,17 @@ py::dict compare(const py::object& a, const py::object& b,
     d["evidence"] = py::cast(compareEvidence(r, opt));
     d["fail"] = r.fail;
     d["identical"] = r.identical;
+    d["underpowered"] = r.underpowered;
+    py::dict power;
+    auto num = [](double v) -> py::object {
+        return std::isfinite(v) ? py::object(py::float_(v)) : py::object(py::none());
+    };
+    power["probability"] = kComparePower;
+    power["tile_relative"] = num(r.power.tileRelative);
+    power["tile_absolute"] = num(r.power.tileAbsolute);
+    power["pixel_relative"] = num(r.power.pixelRelative);
+    power["pixel_absolute"] = num(r.power.pixelAbsolute);
+    d["power"] = power;
     d["quantities"] = py::cast(r.quantities);
     d["Ma"] = r.Ma;
     d["Mb"] = r.Mb;

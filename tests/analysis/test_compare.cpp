@@ -231,6 +231,129 @@ TEST(Compare, PixelsWithOneNonEmptyBufferAreLeftUntestedAndCounted) {
     }));
 }
 
+// A SAME verdict states what it could have seen: the smallest change of one tile (one pixel) found
+// with probability 0.8. Checked by hand on a flat image (16 x 16 tiles: a tile's buffer value has
+// deviation 0.1 / 16, M = 8 a side: se = 0.1 / 16 * sqrt(2 / 8) = 0.003125, df about 14; 6 tiles at
+// level 0.01 / 2: the critical t is scipy.stats.t.isf(0.005 / 6 / 2, 14) = 4.234, and
+// scipy.stats.nct.sf(4.234, 14, 5.231) = 0.8, so 5.231 * 0.003125 = 0.01635 of a value of 1),
+// then by trying it: a tile brighter by that much is found in most of 20 seed pairs, by a third
+// of it in few.
+TEST(Compare, SameStatesItsPowerAndAChangeOfThatSizeIsFound) {
+    auto flat = [](int, int) { return 1.0; };
+    CompareResult r;
+    std::string err;
+    ASSERT_TRUE(compare(makeImage(48, 32, 8, 1, 0.1, flat), makeImage(48, 32, 8, 2, 0.1, flat),
+                        options(), r, err))
+        << err;
+    ASSERT_FALSE(r.fail);
+    EXPECT_NEAR(r.power.tileAbsolute, 0.01635, 0.01635 * 0.3);  // sample spreads of 6 tiles
+    EXPECT_NEAR(r.power.tileRelative, r.power.tileAbsolute, 1e-3);
+    // A pixel: se = 0.05, 1536 pixels: non-centrality 8.72 at df 14 (t.isf(0.005 / 1536 / 2, 14) =
+    // 7.42), 9.55 at df 12 (Welch's df of a pair of 8 buffers scatters below 14 and is rounded
+    // down): 0.436 to 0.478.
+    EXPECT_NEAR(r.power.pixelAbsolute, 0.455, 0.455 * 0.15);
+    const std::string verdict = compareVerdict(r, options());
+    EXPECT_EQ(verdict.rfind("SAME", 0), 0u) << verdict;
+    EXPECT_NE(verdict.find("with probability 0.8"), std::string::npos) << verdict;
+    EXPECT_NE(verdict.find("in one tile"), std::string::npos) << verdict;
+    const double delta = 0.01635;  // the hand value: the claim is about the true noise
+    int found = 0, foundThird = 0;
+    for (uint64_t seed = 10; seed < 30; ++seed) {
+        for (const double shift : {delta, delta / 3.0}) {
+            auto tile = [shift](int x, int y) { return x < 16 && y < 16 ? 1.0 + shift : 1.0; };
+            ASSERT_TRUE(compare(makeImage(48, 32, 8, seed, 0.1, flat),
+                                makeImage(48, 32, 8, seed + 100, 0.1, tile), options(), r, err))
+                << err;
+            const bool hit =
+                r.tilesRejected > 0 && r.strongestTile.x == 0 && r.strongestTile.y == 0;
+            (shift == delta ? found : foundThird) += hit ? 1 : 0;
+        }
+    }
+    EXPECT_GE(found, 12);  // 16 of 20 expected; 12 or fewer has a chance of 3 %
+    EXPECT_LE(foundThird, 4);
+}
+
+// Two renders of two seeds each (the case) cannot see a 5 % change: with minpower=0.05 the
+// verdict fails as UNDERPOWERED; 64 seeds a side can, and pass.
+TEST(Compare, MinPowerFailsAVerdictThatCouldNotHaveSeenTheChange) {
+    auto flat = [](int, int) { return 1.0; };
+    CompareOptions opt = options();
+    opt.minPower = 0.05;
+    CompareResult r;
+    std::string err;
+    ASSERT_TRUE(compare(makeImage(32, 32, 2, 1, 0.5, flat), makeImage(32, 32, 2, 2, 0.5, flat), opt,
+                        r, err))
+        << err;
+    EXPECT_TRUE(r.underpowered);
+    EXPECT_TRUE(r.fail);
+    EXPECT_GT(r.power.tileRelative, 0.05);
+    std::string verdict = compareVerdict(r, opt);
+    EXPECT_EQ(verdict.rfind("UNDERPOWERED", 0), 0u) << verdict;
+    EXPECT_NE(verdict.find("minpower=0.05"), std::string::npos) << verdict;
+    ASSERT_TRUE(compare(makeImage(32, 32, 64, 1, 0.5, flat), makeImage(32, 32, 64, 2, 0.5, flat),
+                        opt, r, err))
+        << err;
+    EXPECT_FALSE(r.underpowered);
+    EXPECT_FALSE(r.fail) << compareVerdict(r, opt);
+    EXPECT_LT(r.power.tileRelative, 0.05);
+    // Without a limit the weak test passes, and says what it could not see.
+    ASSERT_TRUE(compare(makeImage(32, 32, 2, 1, 0.5, flat), makeImage(32, 32, 2, 2, 0.5, flat),
+                        options(), r, err))
+        << err;
+    EXPECT_FALSE(r.fail);
+    const std::vector<std::string> lines = compareEvidence(r, options());
+    EXPECT_TRUE(std::any_of(lines.begin(), lines.end(), [](const std::string& l) {
+        return l.rfind("power: a change of", 0) == 0;
+    }));
+    // The options' parser: minpower only for the difference test of mcstat's rule.
+    CompareOptions parsed;
+    EXPECT_TRUE(parseCompareOptions({{"minpower", "0.02"}, {"identical", "fail"}}, parsed, err))
+        << err;
+    EXPECT_EQ(parsed.minPower, 0.02);
+    EXPECT_TRUE(parsed.identicalFails);
+    EXPECT_FALSE(parseCompareOptions({{"minpower", "0.02"}, {"equivalence", "1"}}, parsed, err));
+    EXPECT_NE(err.find("minpower"), std::string::npos) << err;
+    EXPECT_FALSE(parseCompareOptions({{"identical", "maybe"}}, parsed, err));
+}
+
+// Two copies of one render test nothing: identical=fail makes that a failure, for CI.
+TEST(Compare, IdenticalFailsWhenAsked) {
+    auto a = makeImage(16, 16, 4, 3, 0.1, [](int, int) { return 0.5; });
+    CompareOptions opt = options();
+    opt.identicalFails = true;
+    CompareResult r;
+    std::string err;
+    ASSERT_TRUE(compare(a, a, opt, r, err)) << err;
+    EXPECT_TRUE(r.identical);
+    EXPECT_TRUE(r.fail);
+    const std::string verdict = compareVerdict(r, opt);
+    EXPECT_EQ(verdict.rfind("IDENTICAL", 0), 0u) << verdict;
+    EXPECT_NE(verdict.find("identical=fail"), std::string::npos) << verdict;
+}
+
+// A difference within float resolution is never evidence: two noiseless renders one float ulp
+// apart are the same; 100 ulps apart (still noiseless) they differ.
+TEST(Compare, DifferencesWithinFloatResolutionAreNoEvidence) {
+    const float v = 0.2f;
+    const float ulp1 = std::nextafter(v, 1.f);
+    float ulp100 = v;
+    for (int i = 0; i < 100; ++i) ulp100 = std::nextafter(ulp100, 1.f);
+    auto a = makeImage(16, 16, 4, 3, 0.0, [&](int, int) { return double(v); });
+    auto b1 = makeImage(16, 16, 4, 4, 0.0, [&](int x, int) { return x < 8 ? double(ulp1) : v; });
+    auto b100 =
+        makeImage(16, 16, 4, 5, 0.0, [&](int x, int) { return x < 8 ? double(ulp100) : v; });
+    CompareResult r;
+    std::string err;
+    ASSERT_TRUE(compare(a, b1, options(), r, err)) << err;
+    EXPECT_FALSE(r.fail) << compareVerdict(r, options());
+    EXPECT_FALSE(r.identical);  // the bits differ; the values do not, beyond rounding
+    EXPECT_EQ(r.pixelsRejected, 0u);
+    EXPECT_EQ(mapValue(r, "differs", 2, 2), 0.f);
+    ASSERT_TRUE(compare(a, b100, options(), r, err)) << err;
+    EXPECT_TRUE(r.fail);
+    EXPECT_EQ(r.pixelsRejected, 8u * 16u);
+}
+
 TEST(Compare, IdenticalBlackAndExtremeInputs) {
     auto a = makeImage(16, 8, 4, 13, 0.1, [](int, int) { return 1e30; });
     CompareResult r;

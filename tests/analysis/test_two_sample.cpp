@@ -33,6 +33,25 @@ TEST(StudentTail, ClosedFormsForOneAndTwoDegreesOfFreedomAndTheNormal) {
     EXPECT_TRUE(std::isnan(studentTail(1.0, 0.0)));
 }
 
+// The smallest difference found with probability 0.8, against scipy's root of
+// nct.sf(t, df, ncp) + nct.cdf(-t, df, ncp) = 0.8 (norm for df = Inf): 2.8016 standard errors at
+// level 0.05 for the normal (1.96 + 0.8416, less a hair for the far tail), 4.2559 at df 3, 5.2306
+// at df 14 and level 0.005 / 6 (compare's tile family, test_compare.cpp).
+TEST(DetectableDifference, NonCentralTAgainstScipyAndTheExtremes) {
+    EXPECT_NEAR(detectableDifference(1.0, HUGE_VAL, 0.0, 0.05, 0.8), 2.80158, 1e-4);
+    EXPECT_NEAR(detectableDifference(2.0, HUGE_VAL, 0.5, 0.05, 0.8), 0.5 + 2.0 * 2.80158, 2e-4);
+    EXPECT_NEAR(detectableDifference(1.0, 3.0, 0.0, 0.05, 0.8), 4.25590, 1e-3);
+    EXPECT_NEAR(detectableDifference(0.1, 14.0, 0.0, 0.005 / 6.0, 0.8), 0.52306, 1e-4);
+    // One degree of freedom at a tiny level: huge, finite, no exception.
+    const double far = detectableDifference(1.0, 1.0, 0.0, 1e-9, 0.8);
+    EXPECT_TRUE(std::isfinite(far));
+    EXPECT_GT(far, 1e8);
+    EXPECT_TRUE(std::isnan(detectableDifference(0.0, 14.0, 0.0, 0.05, 0.8)));
+    EXPECT_TRUE(std::isnan(detectableDifference(1.0, 0.0, 0.0, 0.05, 0.8)));
+    EXPECT_TRUE(std::isnan(detectableDifference(HUGE_VAL, 14.0, 0.0, 0.05, 0.8)));
+    EXPECT_TRUE(std::isnan(detectableDifference(1.0, 14.0, 0.0, 0.05, 1.0)));
+}
+
 TEST(MeanSummary, EqualCountsIsTheTextbookStandardErrorOfTheBufferMeans) {
     const double y[] = {1, 2, 3, 6};
     const double n[] = {2, 2, 2, 2};

@@ -79,6 +79,17 @@ TEST_F(CompareCli, SameSceneOtherSeedsPassesAndChangesAUserMustNotMissFail) {
     Result r = compare("a.mcstat", "same.mcstat", " -o " + path("same.exr"));
     EXPECT_EQ(r.code, 0) << r.out << r.err;
     EXPECT_NE(firstLine(r.out).find("SAME"), std::string::npos) << r.out;
+    // The verdict says what it could have seen; minpower holds it to a size: a 20 % change per
+    // tile is well within these renders' reach (64 spp, M = 8), a 0.1 % change is not.
+    EXPECT_NE(firstLine(r.out).find("in one tile"), std::string::npos) << r.out;
+    r = compare("a.mcstat", "same.mcstat", ":minpower=0.2:json=" + path("power.json"));
+    EXPECT_EQ(r.code, 0) << r.out << r.err;
+    const std::string json = mcstat::testing::slurp(path("power.json"));
+    EXPECT_NE(json.find("\"tile_relative\""), std::string::npos) << json;
+    EXPECT_NE(json.find("\"underpowered\": false"), std::string::npos) << json;
+    r = compare("a.mcstat", "same.mcstat", ":minpower=0.001");
+    EXPECT_EQ(r.code, 2) << r.out << r.err;
+    EXPECT_NE(firstLine(r.out).find(": UNDERPOWERED: "), std::string::npos) << r.out;
     r = compare("ca.mcstat", "ca_same.mcstat");
     EXPECT_EQ(r.code, 0) << r.out << r.err;
     for (const char* changed : {"light.mcstat", "albedo.mcstat", "bounce.mcstat"}) {
@@ -136,6 +147,11 @@ TEST_F(CompareCli, IdenticalFilesReferenceImagesAndRefusals) {
     Result r = compare("a.mcstat", "a.mcstat");
     EXPECT_EQ(r.code, 0) << r.err;
     EXPECT_NE(firstLine(r.out).find("IDENTICAL"), std::string::npos) << r.out;
+    // For CI, where comparing a file with itself must not pass.
+    r = compare("a.mcstat", "a.mcstat", ":identical=fail:junit=" + path("identical.xml"));
+    EXPECT_EQ(r.code, 2) << r.out << r.err;
+    EXPECT_NE(firstLine(r.out).find("IDENTICAL"), std::string::npos) << r.out;
+    EXPECT_NE(mcstat::testing::slurp(path("identical.xml")).find("<failure"), std::string::npos);
 
     // A high-spp reference image (no sub-buffers): a one-sample test, in either stack order. A
     // render that has not yet seen a pixel's rare paths has a lower mean and a smaller spread

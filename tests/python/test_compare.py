@@ -58,3 +58,23 @@ def test_brighter_light_differs(pair, tmp):
     assert r.strongest["quantity"] == "luminance" and r.strongest["z"] > 0  # brighter
     for name, m in r.maps.items():
         np.testing.assert_array_equal(m, maps[name], err_msg=name)
+
+
+def test_power_minpower_and_identical(pair):
+    """A SAME verdict states the change it would have found; minpower holds it to a size;
+    identical="fail" makes a file compared with itself fail (for CI)."""
+    a, b, _ = pair
+    r = mcstat.compare(a, b)
+    assert r.verdict.startswith("SAME") and "with probability 0.8" in r.verdict
+    assert r.power["probability"] == 0.8
+    assert 0 < r.power["tile_relative"] < r.power["pixel_relative"]
+    assert r.power["tile_absolute"] > 0 and not r.underpowered
+    weak = mcstat.compare(a, b, minpower=r.power["tile_relative"] / 2)
+    assert weak.fail and weak.underpowered and weak.exit_code == 2
+    assert weak.verdict.startswith("UNDERPOWERED")
+    strong = mcstat.compare(a, b, minpower=r.power["tile_relative"] * 2)
+    assert not strong.fail and strong.exit_code == 0
+    assert mcstat.compare(a, a).exit_code == 0
+    same = mcstat.compare(a, a, identical="fail")
+    assert same.identical and same.fail and same.exit_code == 2
+    assert same.verdict.startswith("IDENTICAL")

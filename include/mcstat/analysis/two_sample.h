@@ -102,6 +102,18 @@ TwoSampleResult mitsubaZTest(double mean, double samples, double ref, double ref
 /// its far tail (no cancellation): Boost.Math's complement of the cdf.
 double studentTail(double t, double df);
 
+/// The t exceeded with probability `tail` in (0, 1): studentTail(t, df) = tail (df = Inf or above
+/// 1e7: the standard normal's). NaN for a tail outside (0, 1) or df <= 0.
+double studentUpperQuantile(double tail, double df);
+
+/// The smallest difference |b - a| that a two-sided test of per-hypothesis level `alpha` finds with
+/// probability `power`: margin + ncp se, ncp the non-centrality at which Student's non-central t
+/// of `df` degrees of freedom exceeds the critical t_{alpha/2} in absolute value with that
+/// probability (the t test's exact power for a known noise ratio; Cohen 1988, ch. 2), the normal's
+/// beyond 1e7 degrees of freedom. NaN when se is not finite and > 0, df <= 0 or power not in (0,
+/// 1).
+double detectableDifference(double se, double df, double margin, double alpha, double power);
+
 /// Multiple-testing control over a family of p-values (NaN entries are untested and not counted
 /// in m).
 enum class Multiplicity {

@@ -16,6 +16,7 @@
 
 #include <array>
 #include <functional>
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
@@ -55,6 +56,14 @@ struct CompareOptions {
     enum class Rule { Mcstat, Mitsuba } rule = Rule::Mcstat;
     double varianceFloor = 1e-4;   ///< Mitsuba: the floor of the reference's variance
     double passFraction = 0.9975;  ///< Mitsuba: the fraction of channel tests that must pass
+    /// A difference test (mcstat's rule) that finds nothing fails unless it could have found a
+    /// relative change of minPower in one tile (one pixel without tiles) with probability
+    /// kComparePower: its median detectable change (CompareResult::power) must be at most this.
+    /// 0: any power passes.
+    double minPower = 0.0;
+    /// IDENTICAL (two copies of one render, which test nothing) fails: for CI, where a test that
+    /// compares a file with itself must not pass.
+    bool identicalFails = false;
     /// Keep both sides' RGB means (CompareResult::meanA, meanB) for a report's pictures.
     bool keepMeans = false;
     int nthreads = 0;
@@ -83,6 +92,24 @@ struct CompareFinding {
     TwoSampleResult result;   ///< p, z, difference, se and margin (df is not kept per pixel)
 };
 
+/// The probability with which CompareResult::power's changes are found.
+constexpr double kComparePower = 0.8;
+
+/// What a difference test could have seen: the smallest change that one tile, or one pixel, alone
+/// would have been found with probability kComparePower at the verdict's level and multiple-testing
+/// control (the first rejection of Benjamini-Hochberg's and Holm's steps needs p <= q / m, q the
+/// family's level, m its tested hypotheses; control=none: p <= q), each hypothesis's from its own
+/// standard error and degrees of freedom (two_sample.h: detectableDifference). Medians over the
+/// tested hypotheses with noise: relative to side A's value (where it is not 0) and in the image's
+/// units. NaN where none was computed: no tile tests, no tested hypothesis with noise, the
+/// equivalence test, Mitsuba's rule.
+struct ComparePower {
+    double tileRelative = std::numeric_limits<double>::quiet_NaN();
+    double tileAbsolute = std::numeric_limits<double>::quiet_NaN();
+    double pixelRelative = std::numeric_limits<double>::quiet_NaN();
+    double pixelAbsolute = std::numeric_limits<double>::quiet_NaN();
+};
+
 struct CompareResult {
     /// Difference test: some hypothesis was rejected (they differ). Equivalence test: not every
     /// hypothesis was rejected (equivalence not shown).
@@ -90,6 +117,10 @@ struct CompareResult {
     /// Every difference tested was exactly zero with zero variance on both sides: two copies of
     /// one render.
     bool identical = false;
+    /// What the test could have seen (difference tests, mcstat's rule).
+    ComparePower power;
+    /// Nothing differs, but the test could not have found CompareOptions::minPower: it fails.
+    bool underpowered = false;
     std::vector<std::string> quantities;  ///< what was tested per pixel, e.g. {"luminance"}
     int width = 0, height = 0, originX = 0, originY = 0;
     int Ma = 0, Mb = 0;  ///< buffers per pixel of each side (Mb only for a reference image: 0)
