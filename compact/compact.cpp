@@ -23,8 +23,9 @@
 namespace mcstat {
 
 std::string compactRuleText(const CompactRule& rule) {
-    return fmt::format("gmon luma={:.17g},{:.17g},{:.17g} margin={:g} z={:g}", rule.luma[0],
-                       rule.luma[1], rule.luma[2], rule.margin, rule.z);
+    // {} is the shortest text that reads back as the same double (0.2126, not 0.21260000000000001).
+    return fmt::format("gmon luma={},{},{} margin={:g} z={:g}", rule.luma[0], rule.luma[1],
+                       rule.luma[2], rule.margin, rule.z);
 }
 
 bool checkCompactRule(const CompactRule& rule, std::string& err) {

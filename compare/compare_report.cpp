@@ -402,11 +402,31 @@ bool writeHtmlReport(const CompareResult& r, const CompareOptions& opt,
 
 }  // namespace
 
+namespace {
+
+/// A report file's folders, created as html=DIR's are (a CI job names out/reports/x.json before
+/// anything made out/reports).
+bool makeParentFolders(const std::string& file, std::string& err) {
+    const std::filesystem::path parent = std::filesystem::path(file).parent_path();
+    if (parent.empty()) return true;
+    std::error_code ec;
+    std::filesystem::create_directories(parent, ec);
+    if (ec) {
+        err = fmt::format("{}: cannot create its folder ({})", oneLine(file), ec.message());
+        return false;
+    }
+    return true;
+}
+
+}  // namespace
+
 bool writeCompareReports(const CompareResult& r, const CompareOptions& opt,
                          const CompareReportRequest& req, std::string& err, int nthreads) {
-    if (!req.json.empty() && !writeTextAtomically(req.json, compareJson(r, opt, req), err))
+    if (!req.json.empty() && (!makeParentFolders(req.json, err) ||
+                              !writeTextAtomically(req.json, compareJson(r, opt, req), err)))
         return false;
-    if (!req.junit.empty() && !writeTextAtomically(req.junit, compareJUnit(r, opt, req), err))
+    if (!req.junit.empty() && (!makeParentFolders(req.junit, err) ||
+                               !writeTextAtomically(req.junit, compareJUnit(r, opt, req), err)))
         return false;
     if (!req.html.empty() && !writeHtmlReport(r, opt, req, err, nthreads)) return false;
     return true;

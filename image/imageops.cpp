@@ -626,6 +626,14 @@ std::vector<ParamSpec> operationModifiers(const Operation& op) {
     return m;
 }
 
+std::string removedModifiersRefusal(const std::string& context, bool removed,
+                                    const std::map<std::string, std::string>& mods) {
+    if (removed) return {};
+    for (const char* k : {"removedradius", "removedz"})
+        if (mods.count(k)) return context + ": " + k + " needs removed=1";
+    return {};
+}
+
 bool hasIntervals(const Operation& op) {
     if (op.input != InputKind::BufferMeans) return false;
     ParamValues defaults;

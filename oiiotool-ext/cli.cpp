@@ -1040,7 +1040,14 @@ int runOnce(const std::vector<std::string>& argv, const std::string& context) {
             if (!cmd)
                 return fail(format("unknown command '{}'{} (see mcstat --help)", name,
                                    didYouMean(name, commandNames())));
+            const Modifiers given = mods;  // before the defaults are filled in
             if (!checkModifiers(*cmd, mods, err)) return fail(err);
+            // removedradius and removedz only mean something with removed=1.
+            if (mods.count("removed")) {
+                const bool removed = modifierValue(cmd->modifiers, mods, "removed").integer != 0;
+                if (std::string why = removedModifiersRefusal(name, removed, given); !why.empty())
+                    return fail(why);
+            }
             if (i + cmd->nargs > argc - 1)
                 return fail(format("{} needs {} argument{} ({})", name, cmd->nargs,
                                    cmd->nargs > 1 ? "s" : "", cmd->argHelp));

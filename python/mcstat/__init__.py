@@ -13,6 +13,7 @@ object is handed out, so the module mixes with OIIO's own bindings (pybind11 in 
 from 3.2) and with OpenEXR's.
 """
 
+import os
 import numpy as np
 
 from . import _mcstat
@@ -71,8 +72,9 @@ class Stats:
     header   dict                M, spp, seeds, colour_space, width, height, data_window, ...
 
     For a fixed-M file the arrays are views of the image mcstat holds (no copy): writing into
-    them changes what write() writes and what estimate() sees. Adaptive layouts' buffers, counts
-    and AOVs are padded copies.
+    them changes what write() writes and what estimate() sees. Adaptive layouts' (and compact
+    files') buffers, counts and AOVs are padded copies, read-only: an edit raises ValueError
+    instead of being dropped by write().
     """
 
     def __init__(self, native, first_row=0):
@@ -88,10 +90,17 @@ class Stats:
         self.count = a["count"]
         self.variance = a["variance"]
         self.spread = a["spread"]
-        held = set(filter(None, self.header["features"].split(",")))
+        held = set(self.header["features"])
         self.features = {k: v for k, v in a["features"].items() if k in held and v is not None}
         self.aov_channels = [c["name"] for c in self.header["aovs"]]
         self.aov = a["aov"]
+        if self.buffers_per_pixel is not None:
+            # Adaptive and compact layouts: buffers, counts and AOVs are padded copies, which
+            # write() and estimate() never see: read-only, so that an edit fails where it is made
+            # instead of vanishing silently (issue 50).
+            for arr in (self.buffers, self.counts, self.aov):
+                if arr is not None:
+                    arr.flags.writeable = False
         self.aovs = _aov_dict(self.aov_channels, self.aov)
 
     @property
@@ -117,12 +126,15 @@ class Image(np.ndarray):
     residual     name -> (H, W): mean - robust of R, G, B and the AOVs (residual=True), else {}
     ci_low, ci_high  name -> (H, W): the confidence interval's bounds of R, G, B (and of the AOVs
                  with ciaovs=True) when ci=LEVEL was given (docs/confidence.md), else {}
+    removed      name -> (H, W): the removed-light layers Y, se, z, zlocal, significant
+                 (removed=True, docs/removed-light.md), else {}
+    A slice or a copy of the image keeps every one of these as it is: the whole image's layers.
     """
 
     def __array_finalize__(self, obj):
         for name, default in (("channels", None), ("all_channels", None), ("diagnostics", None),
-                              ("aovs", None), ("residual", None), ("ci_low", None),
-                              ("ci_high", None)):
+                              ("aovs", None), ("residual", None), ("removed", None),
+                              ("ci_low", None), ("ci_high", None)):
             setattr(self, name, getattr(obj, name, default))
 
 
@@ -150,10 +162,16 @@ def _image(channels, pixels, aov_names):
 
 
 def _source(s):
-    """A Stats' image, or a path (str or os.PathLike) to a statistics file."""
+    """A Stats' image, or a path (str, bytes or os.PathLike) to a statistics file. Anything else
+    (an array, None, a number) is a TypeError naming its type, never a file name."""
     if isinstance(s, Stats):
         return s._native
-    return str(s.__fspath__() if hasattr(s, "__fspath__") else s)
+    if isinstance(s, (str, bytes)) or hasattr(s, "__fspath__"):
+        path = os.fsdecode(os.fspath(s))
+        return path
+    raise TypeError("mcstat: expected a statistics file's path or a Stats, got {} (an image's "
+                    "array is not a statistics file: mcstat.read(path) gives a Stats)".format(
+                        type(s).__name__))
 
 
 def read(path):

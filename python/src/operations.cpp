@@ -96,6 +96,7 @@ py::tuple estimate(const py::object& src, const std::string& name,
     if (residual) mods["residual"] = "1";
     std::string err;
     const std::vector<ParamSpec> specs = operationModifiers(op);
+    const std::map<std::string, std::string> given = mods;  // before the defaults are filled in
     if (!checkModifiers(cmd, specs, mods, err)) throw Error(err);
     // removed=True (removedradius, removedz): the removed-light layers, as the command's.
     const auto value = [&](const char* key) {
@@ -105,6 +106,8 @@ py::tuple estimate(const py::object& src, const std::string& name,
         return v;
     };
     const bool removed = mods.count("removed") && value("removed").integer != 0;
+    if (std::string why = removedModifiersRefusal(cmd, removed, given); !why.empty())
+        throw Error(why);
     RemovedLightOptions removedOpt;
     if (removed) {
         removedOpt.radius = int(value("removedradius").integer);

@@ -144,6 +144,23 @@ class BlockReader {
 
 }  // namespace
 
+namespace {
+
+/// A comma-joined header list (seeds, features, sources) as a tuple of str, as beauty_channels
+/// is: one type for every list in the header (an empty list: ()).
+py::tuple listTuple(const std::string& text) {
+    py::list items;
+    size_t begin = 0;
+    while (begin <= text.size()) {
+        const size_t end = std::min(text.find(',', begin), text.size());
+        if (end > begin) items.append(text.substr(begin, end - begin));
+        begin = end + 1;
+    }
+    return py::tuple(items);
+}
+
+}  // namespace
+
 py::dict headerDict(const StatsHeader& h) {
     py::dict d;
     d["format_version"] = h.formatVersion;
@@ -162,11 +179,11 @@ py::dict headerDict(const StatsHeader& h) {
     d["assignment"] = h.assignment;
     d["renderer"] = h.renderer;
     d["colour_space"] = h.colorSpace;
-    d["seeds"] = h.seeds;
+    d["seeds"] = listTuple(h.seeds);
     d["scene"] = h.scene;
     d["variance"] = h.variance;
-    d["features"] = featureListText(h.features);
-    d["sources"] = h.sources;
+    d["features"] = listTuple(featureListText(h.features));
+    d["sources"] = listTuple(h.sources);
     d["state_owner"] = h.state.operation;  // the operation owning state parts, "" for none
     d["has_records"] = h.hasRecords;
     py::list aovs;

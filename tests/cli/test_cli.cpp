@@ -193,6 +193,12 @@ TEST_F(Cli, RemovedLightLayersSayTheFireflyIsNoise) {
     r = mcstat(path("f.mcstat") + " --median:removed=1:removedradius=17 -o " + path("z.exr"));
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.err.find("removedradius"), std::string::npos) << r.err;
+    // Without removed=1 they would be ignored: refused in one line, as ciaovs without ci is.
+    for (const char* k : {"removedradius=3", "removedz=2", "removed=0:removedradius=3"}) {
+        r = mcstat(path("f.mcstat") + " --median:" + k + " -o " + path("z.exr"));
+        EXPECT_EQ(r.code, 1) << k;
+        EXPECT_NE(r.err.find("needs removed=1"), std::string::npos) << r.err;
+    }
     EXPECT_FALSE(OIIO::Filesystem::exists(path("z.exr")));
 }
 

@@ -159,7 +159,7 @@ TEST(CompactFile, AnImageThatBreaksTheLayoutIsNotWritten) {
 
 TEST(CompactFile, TheRuleIsInTheHeaderAndInfo) {
     const StatsImage small = compacted(sample(3, 3, 5));
-    EXPECT_TRUE(test::contains(small.header.compactRule, "gmon luma=0.2126"))
+    EXPECT_TRUE(test::contains(small.header.compactRule, "gmon luma=0.2126,0.7152,0.0722 "))
         << small.header.compactRule;
     bool said = false;
     for (const std::string& line : describeStatsHeader(small.header))

@@ -72,3 +72,32 @@ def test_bad_parameter_value(scene, tmp):
 def test_per_sample_operation_needs_the_file(scene):
     with pytest.raises(mcstat.Error, match="per-sample records"):
         mcstat.estimate(mcstat.read(scene), "pajot")
+
+
+def test_not_a_path_is_a_type_error(scene):
+    """An array or None where a file is expected: TypeError naming the type, never the array
+    printed as a file name (issue 50)."""
+    img = mcstat.estimate(scene, "mean")
+    for bad in (img, None, 3.5):
+        with pytest.raises(TypeError) as e:
+            mcstat.estimate(bad, "gmon")
+        assert type(bad).__name__ in str(e.value) and "\n" not in str(e.value)
+        assert len(str(e.value)) < 200
+    with pytest.raises(TypeError):
+        mcstat.compare(None, scene)
+
+
+def test_a_slice_keeps_the_removed_light_layers(scene):
+    img = mcstat.estimate(scene, "gmon", removed=True)
+    assert sorted(img.removed) == ["Y", "se", "significant", "z", "zlocal"]
+    part = img[2:5, 1:4]
+    assert part.removed is img.removed and part.shape == (3, 3, 3)
+    assert img.copy().removed is img.removed
+
+
+def test_removed_light_settings_need_removed(scene):
+    """removedradius without removed=True was ignored silently; now refused as on the command
+    line, as ciaovs without ci is."""
+    with pytest.raises(mcstat.Error, match="removedradius needs removed=1"):
+        mcstat.estimate(scene, "gmon", removedradius=3)
+    assert sorted(mcstat.estimate(scene, "gmon", removed=True, removedradius=3).removed)

@@ -16,7 +16,10 @@ def test_read_arrays_match_the_file(scene):
     s = mcstat.read(scene)
     h = s.header
     assert (h["width"], h["height"], h["M"], h["spp"]) == (40, 30, 8, 64)
-    assert h["seeds"] == "1" and h["colour_space"] == "lin_rec709" and not h["adaptive"]
+    assert h["seeds"] == ("1",) and h["colour_space"] == "lin_rec709" and not h["adaptive"]
+    # Every list in the header is a tuple of str (issue 50), as beauty_channels is.
+    assert h["beauty_channels"] == ("R", "G", "B") and h["sources"] == ()
+    assert isinstance(h["features"], tuple) and "Albedo" in h["features"]
     assert s.mean.shape == (30, 40, 3) and s.mean.dtype == np.float32
     assert s.buffers.shape == (30, 40, 8, 3) and s.counts.shape == (30, 40, 8)
     # round robin: 64 samples in 8 buffers, 8 each; the counts sum to the pixel's count
@@ -115,3 +118,23 @@ def test_version_is_the_projects_one():
     assert run(RENDER, "--version").stdout.split() == ["mcstat-render", mcstat.__version__]
     major, minor, patch = (int(p) for p in mcstat.__version__.split("."))
     assert (major, minor, patch) >= (0, 1, 0)
+
+
+def test_a_compact_files_buffers_refuse_edits(tmp):
+    """A compact file's buffers are a padded copy that write() never sees: editing them raises
+    instead of vanishing from the written file (issue 50); a fixed-M file's are views and keep
+    the edit."""
+    full = tmp / "edit-full.mcstat"
+    run(RENDER, "--scene", "default", "--res", "16", "12", "--spp", "16", "--M", "4", "--quiet",
+        "-o", full)
+    run(CLI, full, "--compact", "-o", tmp / "edit-compact.mcstat")
+    c = mcstat.read(tmp / "edit-compact.mcstat")
+    assert c.buffers_per_pixel is not None
+    with pytest.raises(ValueError):
+        c.buffers[0, 0, 0, 0] = 5.0
+    with pytest.raises(ValueError):
+        c.counts[0, 0, 0] = 1.0
+    s = mcstat.read(full)
+    s.buffers[0, 0, 0, 0] = 5.0
+    mcstat.write(s, tmp / "edited.mcstat")
+    assert mcstat.read(tmp / "edited.mcstat").buffers[0, 0, 0, 0] == 5.0

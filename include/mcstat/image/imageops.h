@@ -7,6 +7,9 @@
 
 #include <OpenImageIO/imagebuf.h>
 
+#include <map>
+#include <string>
+
 #include "mcstat/analysis/metrics.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/image_spec.h"
@@ -95,6 +98,11 @@ bool hasDiagnostics(const Operation& op);
 ///   settable parameters, then `diag` when hasDiagnostics, `residual` unless it takes an image or
 ///   reads samples (checkModifiers in core/params.h checks them);
 std::vector<ParamSpec> operationModifiers(const Operation& op);
+/// The one-line refusal of removedradius or removedz given without removed=1 (they would be
+/// ignored), as ciaovs without ci is refused; empty when the modifiers agree. `removed`: whether
+/// removed=1 was given.
+std::string removedModifiersRefusal(const std::string& context, bool removed,
+                                    const std::map<std::string, std::string>& mods);
 /// - hasIntervals: it is a per-pixel estimator with a confidence interval (PixelKernel::interval,
 ///   filters/pixel/confidence.h), so operationModifiers lists `ci` and `ciaovs`;
 bool hasIntervals(const Operation& op);
