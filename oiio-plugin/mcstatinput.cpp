@@ -284,6 +284,7 @@ class McstatInput final : public ImageInput {
     std::string m_identity;
     const mcstat::Operation* m_op = nullptr;
     mcstat::ParamValues m_values;
+    size_t m_nIntervals = 0;  ///< the confidence interval's channels (ci=LEVEL), 0 without
     std::array<double, 3> m_luma{0.0, 0.0, 0.0};
     mcstat::StatsHeader m_header;
 
@@ -385,6 +386,12 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     if (!estimateChannels(estChannels)) return false;
     // With AOVs (format version 5) they follow the diagnostics (imageops.h).
     const size_t nAovs = !mcstat::readsSamples(*m_op) ? m_header.aovs.size() : 0;
+    // With ci=LEVEL the interval's channels follow R, G, B (and the diagnostics), before the
+    // AOVs, as in `mcstat f --OP:ci=LEVEL -o x.exr`.
+    m_nIntervals = 0;
+    if (!mcstat::readsSamples(*m_op))
+        m_nIntervals =
+            mcstat::operationChannels(*m_op, m_values, false, &m_header).size() - 3 - nAovs;
     makeRobustSub(kv, nAovs);
     makeDiagnosticsSub(estChannels, nAovs, kv);
     makeMeanSub();
@@ -424,6 +431,12 @@ bool McstatInput::readParameters(const std::string& name, const ImageSpec& confi
         return false;
     }
     std::string err;
+    // ci, ciaovs: the confidence interval's layers, as --OP:ci=0.95 (docs/confidence.md).
+    mcstat::ParamValues ci;
+    if (!mcstat::takeConfidenceModifiers("estimator '" + est->name + "'", kv, ci, err)) {
+        errorfmt("{}: {}", path, err);
+        return false;
+    }
     // keeplight (keeplightgamma, keeplightradius): the removed light given back, as
     // --OP:keeplight=1.
     mcstat::ParamValues keep;
@@ -436,7 +449,12 @@ bool McstatInput::readParameters(const std::string& name, const ImageSpec& confi
                  acceptedEstimators());
         return false;
     }
+    m_values.insert(ci.begin(), ci.end());
     m_values.insert(keep.begin(), keep.end());
+    if (const std::string why = mcstat::keepLightRefusal(*est, m_values); !why.empty()) {
+        errorfmt("{}: {}", path, why);
+        return false;
+    }
     m_op = est;
     m_path = path;
     return true;
@@ -525,10 +543,14 @@ void McstatInput::makeRobustSub(const std::map<std::string, std::string>& kv, si
     // `oiiotool f.mcstat --subimage 0 -o x.exr` writes a drop-in for one input render.
     Sub& r = m_subs[kRobust];
     std::vector<std::string> robustNames(h.beautyNames.begin(), h.beautyNames.end());
+    const std::vector<std::string> est0 = m_nIntervals
+                                              ? mcstat::operationChannels(*est, m_values, false, &h)
+                                              : std::vector<std::string>();
+    for (size_t i = 0; i < m_nIntervals; ++i) robustNames.push_back(est0[3 + i]);
     for (size_t a = 0; a < nAovs; ++a) robustNames.push_back(h.aovs[a].name);
     r.spec = makeSpec(robustNames, est->name.c_str());
-    r.spec.alpha_channel = mcstat::aovAlphaChannel(h, 3);
-    r.spec.z_channel = mcstat::aovDepthChannel(h, 3);
+    r.spec.alpha_channel = mcstat::aovAlphaChannel(h, 3 + m_nIntervals);
+    r.spec.z_channel = mcstat::aovDepthChannel(h, 3 + m_nIntervals);
     if (nAovs == 0) r.spec.alpha_channel = r.spec.z_channel = -1;
     r.spec.attribute("oiio:ColorSpace", h.colorSpace);
     describeEstimator(r.spec, kv);
@@ -543,8 +565,8 @@ void McstatInput::makeRobustSub(const std::map<std::string, std::string>& kv, si
                                     est->name, h.M, minM));
     }
     r.from = {{kEstimate, 0}, {kEstimate, 1}, {kEstimate, 2}};
-    // kEstimate (no diagnostics) holds R, G, B and then the AOVs.
-    for (size_t a = 0; a < nAovs; ++a) r.from.push_back({kEstimate, 3 + a});
+    // kEstimate (no diagnostics) holds R, G, B, the interval's channels, then the AOVs.
+    for (size_t i = 0; i < m_nIntervals + nAovs; ++i) r.from.push_back({kEstimate, 3 + i});
 }
 
 void McstatInput::makeDiagnosticsSub(const std::vector<std::string>& estChannels, size_t nAovs,
@@ -553,10 +575,11 @@ void McstatInput::makeDiagnosticsSub(const std::vector<std::string>& estChannels
     // 2: diagnostics: the estimator's gini/kept/excluded channels plus the sample count, and with
     // adaptive M the map of buffer counts m_p ("M").
     Sub& d = m_subs[kDiagnostics];
+    // The diagnostics only: the interval's channels and the AOVs after them are subimage 0's.
+    const size_t end = estChannels.size() - nAovs - m_nIntervals;
     std::vector<std::string> diagNames(estChannels.begin() + 3,
-                                       estChannels.end() - std::ptrdiff_t(nAovs));
-    for (size_t i = 3; i < estChannels.size() - nAovs; ++i)
-        d.from.push_back({samples ? kEstimate : kEstimateDiag, i});
+                                       estChannels.begin() + std::ptrdiff_t(end));
+    for (size_t i = 3; i < end; ++i) d.from.push_back({samples ? kEstimate : kEstimateDiag, i});
     diagNames.push_back("count");
     d.from.push_back({kCounts, 0});
     if (m_header.adaptiveM) {

@@ -152,6 +152,12 @@ TEST_F(CompareCli, IdenticalFilesReferenceImagesAndRefusals) {
     EXPECT_EQ(r.code, 2) << r.out << r.err;
     EXPECT_NE(firstLine(r.out).find("IDENTICAL"), std::string::npos) << r.out;
     EXPECT_NE(mcstat::testing::slurp(path("identical.xml")).find("<failure"), std::string::npos);
+    // json= and junit= create their folders, as html= does.
+    r = compare("a.mcstat", "a.mcstat",
+                ":json=" + path("new/json/r.json") + ":junit=" + path("new/junit/r.xml"));
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(OIIO::Filesystem::exists(path("new/json/r.json")));
+    EXPECT_TRUE(OIIO::Filesystem::exists(path("new/junit/r.xml")));
 
     // A high-spp reference image (no sub-buffers): a one-sample test, in either stack order. A
     // render that has not yet seen a pixel's rare paths has a lower mean and a smaller spread

@@ -338,6 +338,28 @@ TEST_F(Plugin, KeepLightThroughTheFileName) {
     EXPECT_TRUE(contains(r.err, "keeplightgamma needs keeplight=1")) << r.err;
 }
 
+// ci through the file name (it surfaced as "File does not exist"): subimage 0 holds the command's
+// channels, R, G, B and the interval's bounds, with its pixels; the diagnostics keep theirs; ci
+// with keeplight is refused by name.
+TEST_F(Plugin, ConfidenceIntervalThroughTheFileName) {
+    ASSERT_EQ(mcstat(quote(stats) + " --gmon:ci=0.95 -o " + quote(path("c1.exr"))).code, 0);
+    Result r = run("oiiotool " + quote(stats + "?estimator=gmon&ci=0.95") + " -o " +
+                   quote(path("c2.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    const Pixels c2 = readExr(path("c2.exr"));
+    EXPECT_EQ(c2.channels.size(), 9u);
+    EXPECT_NE(std::find(c2.channels.begin(), c2.channels.end(), "ci_low.G"), c2.channels.end());
+    EXPECT_TRUE(samePixels(c2, readExr(path("c1.exr"))));
+    r = run("oiiotool " + quote(stats + "?estimator=gmon&ci=0.95") + " --subimage 2 -o " +
+            quote(path("c3.exr")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    const Pixels c3 = readExr(path("c3.exr"));
+    EXPECT_EQ(std::find(c3.channels.begin(), c3.channels.end(), "ci_low.R"), c3.channels.end());
+    r = run("iinfo " + quote(stats + "?estimator=gmon&ci=0.95&keeplight=1"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_TRUE(contains(r.err, "keeplight and ci")) << r.err;
+}
+
 TEST_F(Plugin, UnknownParameterOrEstimatorIsNamed) {
     Result r = run("oiiotool --iconfig mcstat:m 3 " + quote(stats) + " -o " + quote(path("x.exr")));
     EXPECT_NE(r.code, 0);
@@ -542,12 +564,11 @@ TEST_F(Plugin, IngestedFileShowsItsProvenanceAndNoFeaturesItDoesNotHave) {
     // A rendered file has no source files: no empty mcstat:sources (issue 34, item 8). With AOVs
     // it is format 5, which carries the provenance attributes.
     const std::string rendered = path("rendered.mcstat");
-    ASSERT_EQ(
-        run(std::string(MCSTAT_RENDER_EXE) + " --scene tiny --spp 8 --aovs --quiet -o " +
-                quote(rendered),
-            false)
-            .code,
-        0);
+    ASSERT_EQ(run(std::string(MCSTAT_RENDER_EXE) + " --scene tiny --spp 8 --aovs --quiet -o " +
+                      quote(rendered),
+                  false)
+                  .code,
+              0);
     r = run("oiiotool --info -v " + quote(rendered));
     ASSERT_EQ(r.code, 0) << r.err;
     EXPECT_TRUE(contains(r.out, "mcstat:formatVersion: 5")) << r.out;
