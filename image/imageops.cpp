@@ -169,7 +169,12 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
     spec.z_channel = aovDepthChannel(h, firstAov);
     setAovAttributes(spec, h, firstAov);
     spec.attribute("mcstat:estimator", est.name);
-    if (ci) spec.attribute("mcstat:ciLevel", float(kernel.ciLevel));
+    if (ci) {
+        spec.attribute("mcstat:ciLevel", float(kernel.ciLevel));
+        // What it covers: a compositor reads a bare level as "the true value is in here", which
+        // only the mean's interval claims (docs/confidence.md).
+        spec.attribute("mcstat:ciTarget", kernel.intervalTarget);
+    }
     dst.reset(spec, OIIO::InitializePixels::No);
 
     // Written straight into the local float buffer: ImageBuf::setpixel converts per call.
@@ -646,7 +651,10 @@ std::vector<ParamSpec> confidenceModifiers() {
     // The one declaration of the level: open at both ends (0 and 1 are no intervals).
     ParamSpec level = realParam("ci", 0.0, 1.0, true, "",
                                 "LEVEL in (0, 1): append layers ci_low, ci_high (R, G, B), a "
-                                "confidence interval per pixel from its sub-buffers "
+                                "confidence interval per pixel from its sub-buffers, of the "
+                                "estimator's target (the file's mcstat:ciTarget): the mean's "
+                                "covers the expected value, MoN's, G-MoN's and G-MoN_b's the "
+                                "median of the buffer means, TMPE's the trimmed mean "
                                 "(docs/confidence.md)");
     level.maxOpen = true;
     return {level, flagParam("ciaovs", "", "1 (with ci): intervals for every AOV too")};

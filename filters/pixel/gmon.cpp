@@ -39,6 +39,9 @@ PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     PixelKernel k = pixelKernel(p, &estimateGMoN, /*smallestRobustM=*/4);
     // The median of means' order-statistic interval (confidence.h: G-MoN estimates a location
     // between the median of means and the mean; the median's interval is exact whatever the tails).
+    k.intervalTarget =
+        "the population median of the buffer means (not the expected value: in a firefly pixel the "
+        "mean lies above it)";
     k.interval = [](double* v, const double*, int m, double level) {
         return medianInterval(v, m, level);
     };

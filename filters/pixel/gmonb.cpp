@@ -19,6 +19,9 @@ PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     p.gini = giniInput(values);
     PixelKernel k = pixelKernel(p, &estimateGMoNb, /*smallestRobustM=*/3);
     // The median of means' order-statistic interval, as for G-MoN (confidence.h).
+    k.intervalTarget =
+        "the population median of the buffer means (not the expected value: in a firefly pixel the "
+        "mean lies above it)";
     k.interval = [](double* v, const double*, int m, double level) {
         return medianInterval(v, m, level);
     };

@@ -17,6 +17,8 @@ PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     const PixelParams p = pixelParams(values, luma);
     PixelKernel k = pixelKernel(p, &estimateMean, /*smallestRobustM=*/1);
     // Student's t interval with the batch-means standard error (confidence.h).
+    k.intervalTarget =
+        "the expected value of the pixel (its true value), by Student t over the buffer means";
     k.interval = [](double* v, const double* n, int m, double level) {
         return meanInterval(v, n, m, level);
     };

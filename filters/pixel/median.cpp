@@ -17,6 +17,9 @@ PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     const PixelParams p = pixelParams(values, luma);
     PixelKernel k = pixelKernel(p, &estimateMoN, /*smallestRobustM=*/3);
     // The exact order-statistic interval for the median of the buffer means (confidence.h).
+    k.intervalTarget =
+        "the population median of the buffer means (not the expected value: in a firefly pixel the "
+        "mean lies above it)";
     k.interval = [](double* v, const double*, int m, double level) {
         return medianInterval(v, m, level);
     };

@@ -31,6 +31,7 @@ PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     p.alpha = values.at("alpha").real;
     PixelKernel k = pixelKernel(p, &estimateTMPE, firstTrimmingM(p.alpha));
     // Yuen's interval with TMPE's own trim per side (confidence.h).
+    k.intervalTarget = "the trimmed mean of the buffer means (Yuen), not the expected value";
     k.interval = [alpha = p.alpha](double* v, const double*, int m, double level) {
         return yuenInterval(v, m, tmpeTrim(alpha, m), level);
     };

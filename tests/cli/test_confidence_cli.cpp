@@ -10,6 +10,8 @@
 #include <vector>
 
 #include "cli_support.h"
+#include "mcstat/filters/registry.h"
+#include "mcstat/image/imageops.h"
 #include "mcstat/stats_file.h"
 
 using namespace mcstat;
@@ -139,6 +141,22 @@ TEST_F(ConfidenceCli, WithDiagnosticsResidualAndStreamed) {
     ASSERT_TRUE(g.read());
     EXPECT_EQ(g.nchannels(), 3 + 3 + 6 + 3);  // R G B, gini kept excluded, ci x 6, residual x 3
     EXPECT_EQ(g.spec().get_float_attribute("mcstat:ciLevel"), 0.9f);
+    // What it covers, in the file (issue 50): G-MoN's the median of the buffer means, the mean's
+    // the pixel's expected value.
+    EXPECT_NE(g.spec().get_string_attribute("mcstat:ciTarget").find("median of the buffer means"),
+              std::string::npos);
+    ASSERT_EQ(mcstat(path("f.mcstat") + " --mean:ci=0.9 -o " + path("m.exr")).code, 0);
+    OIIO::ImageBuf m(path("m.exr"));
+    ASSERT_TRUE(m.read());
+    EXPECT_NE(m.spec().get_string_attribute("mcstat:ciTarget").find("expected value"),
+              std::string::npos);
+    // Every estimator with an interval names its target.
+    for (const Operation& op : operationRegistry())
+        if (hasIntervals(op)) {
+            ParamValues v;
+            ASSERT_TRUE(parseOperationParams(op, {}, v, err)) << err;
+            EXPECT_FALSE(op.bindPixel(v, {0.3, 0.6, 0.1}).intervalTarget.empty()) << op.name;
+        }
 }
 
 TEST_F(ConfidenceCli, BadLevelIsOneLine) {

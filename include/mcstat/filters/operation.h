@@ -64,6 +64,9 @@ struct PixelKernel {
     /// buffers' sample counts) at `level` in (0, 1); null: the estimator has none.
     std::function<ValueInterval(double* values, const double* counts, int m, double level)>
         interval;
+    /// What the interval covers, in words (the file's mcstat:ciTarget): the expected value for
+    /// the mean's, the median of the buffer means for MoN's, ... (docs/confidence.md).
+    std::string intervalTarget;
     /// Set by the caller (the image layer, from the modifiers ci and ciaovs): the level of the
     /// interval layers ci_low / ci_high to add (0: none), and whether the AOVs get them too.
     double ciLevel = 0.0;
