@@ -17,6 +17,7 @@
 #include <numeric>
 
 #include "mcstat/core/colour_space.h"
+#include "mcstat/core/float_rounding.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/untrusted_text.h"
 #include "mcstat/filters/registry.h"
@@ -27,10 +28,6 @@ namespace mcstat {
 namespace {
 
 constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
-/// Differences within this many float ulps of the larger estimate are rounding: every buffer value
-/// was a float, and sums in other orders (a re-encoded file, another thread count) move the last
-/// bits.
-constexpr double kRoundingUlps = 4.0;
 
 /// What is tested per pixel: the luminance, a colour channel or an AOV channel.
 struct Quantity {
@@ -231,10 +228,7 @@ class Comparison {
     TwoSampleResult withoutRounding(const SideSummary& sa, SideSummary sb,
                                     const TwoSampleResult& r) const {
         if (opt_.rule == CompareOptions::Rule::Mitsuba || r.difference == 0.0 ||
-            !std::isfinite(r.difference) ||
-            std::fabs(r.difference) >
-                kRoundingUlps *
-                    std::ldexp(std::max(std::fabs(sa.estimate), std::fabs(sb.estimate)), -23))
+            !std::isfinite(r.difference) || !withinFloatRounding(sa.estimate, sb.estimate))
             return r;
         sb.estimate = sa.estimate;
         return welchTest(sa, sb, margin(sa.estimate, sb.estimate), opt_.test);

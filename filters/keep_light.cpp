@@ -177,10 +177,48 @@ void tentLine(const double* src, size_t stride, int n, int r, size_t L, double* 
     boxForward(mid.data(), L, 0, n + r, n, r, L, dst, dstStride, pre, suf);
 }
 
+/// The indices of the elements of a line (n elements of L values, `stride` apart) that hold a
+/// nonzero value, in order.
+void nonzeroElements(const double* src, size_t stride, int n, size_t L, std::vector<int>& out) {
+    out.clear();
+    for (int i = 0; i < n; ++i) {
+        const double* e = src + size_t(i) * stride;
+        for (size_t l = 0; l < L; ++l)
+            if (e[l] != 0.0) {
+                out.push_back(i);
+                break;
+            }
+    }
+}
+
+/// tentLine over a line whose nonzero elements are `nz` (sorted): direct sums over them when they
+/// are few (their windows' widths cost less than the blocks' about 8 values per element), else the
+/// blocks. Every dst element is written.
+void tentSparseLine(const double* src, size_t stride, int n, int r, size_t L,
+                    const std::vector<int>& nz, double* dst, size_t dstStride,
+                    std::vector<double>& mid, std::vector<double>& pre, std::vector<double>& suf) {
+    if (!(double(nz.size()) * double(2 * r + 1) < 8.0 * double(n))) {
+        tentLine(src, stride, n, r, L, dst, dstStride, mid, pre, suf);
+        return;
+    }
+    size_t lo = 0, hi = 0;
+    for (int x = 0; x < n; ++x) {
+        while (hi < nz.size() && nz[hi] <= x + r) ++hi;
+        while (lo < hi && nz[lo] < x - r) ++lo;
+        double* d = dst + size_t(x) * dstStride;
+        std::fill(d, d + L, 0.0);
+        for (size_t i = lo; i < hi; ++i) {
+            const double t = tent(nz[i] - x, r);
+            const double* e = src + size_t(nz[i]) * stride;
+            for (size_t l = 0; l < L; ++l) d[l] += t * e[l];
+        }
+    }
+}
+
 /// One gather of a radius over nc interleaved channels: into[q * nc + c] += sum over p within r
 /// of q (inside the image) of tent(q - p) source[p * nc + c], where only rows y with rowHas[y]
-/// hold sources (the others are not read). Rows first, then columns, each by
-/// tentLine, or along a row whose sources are few by direct sums over them. Every output sums only
+/// hold sources (the others are not read). Rows first, then columns, each by tentSparseLine. Every
+/// output sums only
 /// the sources inside its window: a pixel that none reaches gets exactly 0. Columns are split
 /// among threads, rows too; no result depends on the split.
 void gatherTent(const std::vector<double>& source, const std::vector<uint8_t>& rowHas, int width,
@@ -195,31 +233,9 @@ void gatherTent(const std::vector<double>& source, const std::vector<uint8_t>& r
             const double* src = source.data() + size_t(y) * rowLen;
             double* dst = rows.data() + size_t(y) * rowLen;
             xs.clear();
-            for (int x = 0; x < width && rowHas[size_t(y)]; ++x)
-                for (size_t c = 0; c < nc; ++c)
-                    if (src[size_t(x) * nc + c] != 0.0) {
-                        xs.push_back(x);
-                        break;
-                    }
+            if (rowHas[size_t(y)]) nonzeroElements(src, nc, width, nc, xs);
             rowUsed[size_t(y)] = !xs.empty();
-            if (xs.empty()) continue;
-            // Direct sums cost the sources' window widths, the blocks about 8 values per pixel.
-            if (double(xs.size()) * double(2 * r + 1) < 8.0 * double(width)) {
-                std::fill(dst, dst + rowLen, 0.0);
-                size_t lo = 0, hi = 0;
-                for (int x = 0; x < width; ++x) {
-                    while (hi < xs.size() && xs[hi] <= x + r) ++hi;
-                    while (lo < hi && xs[lo] < x - r) ++lo;
-                    for (size_t c = 0; c < nc; ++c) {
-                        double sum = 0.0;
-                        for (size_t i = lo; i < hi; ++i)
-                            sum += tent(xs[i] - x, r) * src[size_t(xs[i]) * nc + c];
-                        dst[size_t(x) * nc + c] = sum;
-                    }
-                }
-            } else {
-                tentLine(src, nc, width, r, nc, dst, nc, mid, pre, suf);
-            }
+            if (!xs.empty()) tentSparseLine(src, nc, width, r, nc, xs, dst, nc, mid, pre, suf);
         }
     });
     // Columns: the rows within r of a used row, in strips of columns.
@@ -244,33 +260,10 @@ void gatherTent(const std::vector<double>& source, const std::vector<uint8_t>& r
             const size_t l0 = size_t(s) * kStrip, L = std::min(kStrip, rowLen - l0);
             const int n = y1 - y0;
             const double* base = rows.data() + size_t(y0) * rowLen + l0;
-            js.clear();
-            for (int j = 0; j < n; ++j) {
-                const double* row = base + size_t(j) * rowLen;
-                for (size_t l = 0; l < L; ++l)
-                    if (row[l] != 0.0) {
-                        js.push_back(j);
-                        break;
-                    }
-            }
+            nonzeroElements(base, rowLen, n, L, js);
             if (js.empty()) continue;
-            col.assign(size_t(n) * L, 0.0);
-            if (double(js.size()) * double(2 * r + 1) < 8.0 * double(n)) {
-                // Few rows hold light in this strip: direct sums over them.
-                size_t lo = 0, hi = 0;
-                for (int y = 0; y < n; ++y) {
-                    while (hi < js.size() && js[hi] <= y + r) ++hi;
-                    while (lo < hi && js[lo] < y - r) ++lo;
-                    double* d = col.data() + size_t(y) * L;
-                    for (size_t i = lo; i < hi; ++i) {
-                        const double t = tent(js[i] - y, r);
-                        const double* row = base + size_t(js[i]) * rowLen;
-                        for (size_t l = 0; l < L; ++l) d[l] += t * row[l];
-                    }
-                }
-            } else {
-                tentLine(base, rowLen, n, r, L, col.data(), L, mid, pre, suf);
-            }
+            col.resize(size_t(n) * L);
+            tentSparseLine(base, rowLen, n, r, L, js, col.data(), L, mid, pre, suf);
             for (int y = y0; y < y1; ++y) {
                 double* d = into.data() + size_t(y) * rowLen + l0;
                 const double* c = col.data() + size_t(y - y0) * L;

@@ -37,12 +37,10 @@ LumaSpread lumaSpread(const PixelBuffers& px, const std::array<double, 3>& luma)
     }
     double n = 0.0, sum = 0.0;
     for (int j = 0; j < px.M; ++j) {
-        const float* m = px.mean + 3 * j;
-        const bool valid =
-            px.count[j] > 0.f && std::isfinite(m[0]) && std::isfinite(m[1]) && std::isfinite(m[2]);
+        const bool valid = isValidBuffer(px, j);
         ns[j] = valid ? double(px.count[j]) : 0.0;
         if (!valid) continue;
-        ys[j] = lumaOf(m, luma);
+        ys[j] = lumaOf(px.mean + 3 * j, luma);
         ++out.valid;
         n += ns[j];
         sum += ns[j] * ys[j];

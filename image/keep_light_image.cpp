@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "mcstat/core/float_rounding.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/removed_light_layers.h"
@@ -16,9 +17,6 @@ using OIIO::ImageBuf;
 using OIIO::ROI;
 
 namespace {
-
-/// Differences up to this many float ulps of the larger value are rounding, not light.
-constexpr double kRoundingUlps = 4.0;
 
 const StatsHeader& headerOf(const StatsImage& s) { return s.header; }
 const StatsHeader& headerOf(const StatsBlockSource& s) { return s.header(); }
@@ -107,14 +105,10 @@ bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& lum
                 for (size_t i = 0; i < nc; ++i) {
                     const float r = rp[p * nin + size_t(from[i])];
                     const float m = mp[p * nm + size_t(meanIndex[i])];
-                    double v = double(m) - double(r);
                     // A difference within float rounding of the two values is no light: the mean
                     // and an estimator that trims nothing may sum the same buffers in other
                     // orders.
-                    if (std::fabs(v) <=
-                        kRoundingUlps *
-                            std::ldexp(std::max(std::fabs(double(m)), std::fabs(double(r))), -23))
-                        v = 0.0;
+                    const double v = withinFloatRounding(m, r) ? 0.0 : double(m) - double(r);
                     values[p * nc + i] = r;
                     residual[p * nc + i] = v;
                     if (v != 0.0 && std::isfinite(v)) active[p] = 1;

@@ -284,7 +284,8 @@ class McstatInput final : public ImageInput {
     std::string m_identity;
     const mcstat::Operation* m_op = nullptr;
     mcstat::ParamValues m_values;
-    size_t m_nIntervals = 0;  ///< the confidence interval's channels (ci=LEVEL), 0 without
+    /// The confidence interval's channels (ci=LEVEL) in subimage 0; empty without.
+    std::vector<std::string> m_intervalChannels;
     std::array<double, 3> m_luma{0.0, 0.0, 0.0};
     mcstat::StatsHeader m_header;
 
@@ -388,10 +389,12 @@ bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const Im
     const size_t nAovs = !mcstat::readsSamples(*m_op) ? m_header.aovs.size() : 0;
     // With ci=LEVEL the interval's channels follow R, G, B (and the diagnostics), before the
     // AOVs, as in `mcstat f --OP:ci=LEVEL -o x.exr`.
-    m_nIntervals = 0;
-    if (!mcstat::readsSamples(*m_op))
-        m_nIntervals =
-            mcstat::operationChannels(*m_op, m_values, false, &m_header).size() - 3 - nAovs;
+    m_intervalChannels.clear();
+    if (!mcstat::readsSamples(*m_op)) {
+        const std::vector<std::string> est =
+            mcstat::operationChannels(*m_op, m_values, false, &m_header);
+        m_intervalChannels.assign(est.begin() + 3, est.end() - std::ptrdiff_t(nAovs));
+    }
     makeRobustSub(kv, nAovs);
     makeDiagnosticsSub(estChannels, nAovs, kv);
     makeMeanSub();
@@ -543,14 +546,11 @@ void McstatInput::makeRobustSub(const std::map<std::string, std::string>& kv, si
     // `oiiotool f.mcstat --subimage 0 -o x.exr` writes a drop-in for one input render.
     Sub& r = m_subs[kRobust];
     std::vector<std::string> robustNames(h.beautyNames.begin(), h.beautyNames.end());
-    const std::vector<std::string> est0 = m_nIntervals
-                                              ? mcstat::operationChannels(*est, m_values, false, &h)
-                                              : std::vector<std::string>();
-    for (size_t i = 0; i < m_nIntervals; ++i) robustNames.push_back(est0[3 + i]);
+    robustNames.insert(robustNames.end(), m_intervalChannels.begin(), m_intervalChannels.end());
     for (size_t a = 0; a < nAovs; ++a) robustNames.push_back(h.aovs[a].name);
     r.spec = makeSpec(robustNames, est->name.c_str());
-    r.spec.alpha_channel = mcstat::aovAlphaChannel(h, 3 + m_nIntervals);
-    r.spec.z_channel = mcstat::aovDepthChannel(h, 3 + m_nIntervals);
+    r.spec.alpha_channel = mcstat::aovAlphaChannel(h, 3 + m_intervalChannels.size());
+    r.spec.z_channel = mcstat::aovDepthChannel(h, 3 + m_intervalChannels.size());
     if (nAovs == 0) r.spec.alpha_channel = r.spec.z_channel = -1;
     r.spec.attribute("oiio:ColorSpace", h.colorSpace);
     describeEstimator(r.spec, kv);
@@ -566,7 +566,8 @@ void McstatInput::makeRobustSub(const std::map<std::string, std::string>& kv, si
     }
     r.from = {{kEstimate, 0}, {kEstimate, 1}, {kEstimate, 2}};
     // kEstimate (no diagnostics) holds R, G, B, the interval's channels, then the AOVs.
-    for (size_t i = 0; i < m_nIntervals + nAovs; ++i) r.from.push_back({kEstimate, 3 + i});
+    for (size_t i = 0; i < m_intervalChannels.size() + nAovs; ++i)
+        r.from.push_back({kEstimate, 3 + i});
 }
 
 void McstatInput::makeDiagnosticsSub(const std::vector<std::string>& estChannels, size_t nAovs,
@@ -576,7 +577,7 @@ void McstatInput::makeDiagnosticsSub(const std::vector<std::string>& estChannels
     // adaptive M the map of buffer counts m_p ("M").
     Sub& d = m_subs[kDiagnostics];
     // The diagnostics only: the interval's channels and the AOVs after them are subimage 0's.
-    const size_t end = estChannels.size() - nAovs - m_nIntervals;
+    const size_t end = estChannels.size() - nAovs - m_intervalChannels.size();
     std::vector<std::string> diagNames(estChannels.begin() + 3,
                                        estChannels.begin() + std::ptrdiff_t(end));
     for (size_t i = 3; i < end; ++i) d.from.push_back({samples ? kEstimate : kEstimateDiag, i});

@@ -167,8 +167,7 @@ def _source(s):
     if isinstance(s, Stats):
         return s._native
     if isinstance(s, (str, bytes)) or hasattr(s, "__fspath__"):
-        path = os.fsdecode(os.fspath(s))
-        return path
+        return os.fsdecode(os.fspath(s))
     raise TypeError("mcstat: expected a statistics file's path or a Stats, got {} (an image's "
                     "array is not a statistics file: mcstat.read(path) gives a Stats)".format(
                         type(s).__name__))
