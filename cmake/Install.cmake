@@ -3,7 +3,8 @@
 # an exported CMake package (find_package(mcstat CONFIG) giving mcstat::core, mcstat::filters,
 # mcstat::exrcodec, mcstat::exrdeep, mcstat::color, mcstat::imagespec, mcstat::imageops,
 # mcstat::ingest, mcstat::compare, mcstat::compare_report, mcstat_EXECUTABLE and
-# mcstat_add_render_test) and mcstat.pc.
+# mcstat_add_render_test), mcstat.pc, the Python module (component python) and the built-in OCIO
+# config as a file (component bin: share/mcstat/config.ocio, for oiiotool --colorconfig and $OCIO).
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
@@ -12,6 +13,8 @@ set(MCSTAT_INSTALL_CMAKEDIR "${CMAKE_INSTALL_LIBDIR}/cmake/mcstat"
 set(MCSTAT_INSTALL_PLUGINDIR "${CMAKE_INSTALL_LIBDIR}/OpenImageIO-plugins"
     CACHE STRING "Where mcstat.imageio.so goes; point OIIO_LIBRARY_PATH at it")
 
+set(MCSTAT_INSTALL_DATADIR "${CMAKE_INSTALL_DATADIR}/mcstat"
+    CACHE STRING "Where config.ocio (the built-in OCIO config) goes")
 set(_mcstat_libs mcstat_core mcstat_filters mcstat_compact mcstat_exrcodec mcstat_exrdeep mcstat_color mcstat_analysis mcstat_imagespec mcstat_imageops
                  mcstat_review mcstat_compare mcstat_compare_report mcstat_ingest)
 foreach(_lib IN LISTS _mcstat_libs)
@@ -31,6 +34,16 @@ install(DIRECTORY "${PROJECT_SOURCE_DIR}/include/mcstat"
   DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}" COMPONENT dev
   FILES_MATCHING PATTERN "*.h")
 install(TARGETS mcstat mcstat-render RUNTIME DESTINATION "${CMAKE_INSTALL_BINDIR}" COMPONENT bin)
+install(FILES "${PROJECT_SOURCE_DIR}/color/config.ocio"
+  DESTINATION "${MCSTAT_INSTALL_DATADIR}" COMPONENT bin)
+# The Python module's own rules are in python/CMakeLists.txt (MCSTAT_INSTALL_PYTHONDIR).
+if(TARGET mcstat_python)
+  set(MCSTAT_CONFIG_PYTHONPATH "${MCSTAT_INSTALL_PYTHONDIR}")
+  set(MCSTAT_CONFIG_PYTHON_EXECUTABLE "${MCSTAT_PYTHON_EXECUTABLE}")
+else()
+  set(MCSTAT_CONFIG_PYTHONPATH "")
+  set(MCSTAT_CONFIG_PYTHON_EXECUTABLE "")
+endif()
 if(TARGET mcstat_oiio_plugin)
   install(TARGETS mcstat_oiio_plugin
     LIBRARY DESTINATION "${MCSTAT_INSTALL_PLUGINDIR}" COMPONENT plugin)
@@ -41,10 +54,11 @@ install(EXPORT mcstatTargets
   FILE mcstatTargets.cmake
   DESTINATION "${MCSTAT_INSTALL_CMAKEDIR}" COMPONENT dev)
 set(MCSTAT_INSTALL_EXECUTABLE "${CMAKE_INSTALL_BINDIR}/mcstat")
+set(MCSTAT_INSTALL_OCIO_CONFIG "${MCSTAT_INSTALL_DATADIR}/config.ocio")
 configure_package_config_file("${CMAKE_CURRENT_LIST_DIR}/mcstatConfig.cmake.in"
   "${PROJECT_BINARY_DIR}/mcstatConfig.cmake"
   INSTALL_DESTINATION "${MCSTAT_INSTALL_CMAKEDIR}"
-  PATH_VARS MCSTAT_INSTALL_PLUGINDIR MCSTAT_INSTALL_EXECUTABLE)
+  PATH_VARS MCSTAT_INSTALL_PLUGINDIR MCSTAT_INSTALL_EXECUTABLE MCSTAT_INSTALL_OCIO_CONFIG)
 write_basic_package_version_file("${PROJECT_BINARY_DIR}/mcstatConfigVersion.cmake"
   VERSION "${PROJECT_VERSION}"
   COMPATIBILITY SameMinorVersion)

@@ -3,7 +3,9 @@
 # seeds (the same scene twice with other seeds, and with its light 2 % brighter), configures the
 # downstream project (downstream/CMakeLists.txt: find_package(mcstat) and mcstat_add_render_test)
 # against the installed package and runs its CTest suite: same_scene must pass, brighter_light
-# must fail, each leaving its JUnit, JSON and report page. Exits 1 with a message otherwise.
+# must fail, each leaving its JUnit, JSON and report page. The project enables no language (a
+# render-test-only project needs no compiler) and checks the installed Python module and OCIO
+# config too. Exits 1 with a message otherwise.
 set -euo pipefail
 src=$1 build=$2 work=$3
 rm -rf "$work"
@@ -13,6 +15,7 @@ fail() { echo "test_downstream: $*" >&2; exit 1; }
 cmake --install "$build" --prefix "$work/prefix" --component dev >/dev/null
 cmake --install "$build" --prefix "$work/prefix" --component bin >/dev/null
 cmake --install "$build" --prefix "$work/prefix" --component plugin >/dev/null  # mcstat_PLUGIN_DIR
+cmake --install "$build" --prefix "$work/prefix" --component python >/dev/null  # mcstat_PYTHONPATH
 
 render="$build/render-fixture/mcstat-render"
 scene="$src/tests/render-test/scenes/box.json"  # 32 x 24, its light seen directly
@@ -39,6 +42,11 @@ set -e
 cat "$work/ctest.log"
 [ $status -ne 0 ] || fail "the downstream suite passed, but brighter_light must fail"
 grep -Eq 'same_scene \.+ +Passed' "$work/ctest.log" || fail "same_scene did not pass"
+grep -Eq 'python_same_scene \.+ +Passed' "$work/ctest.log" || fail "the installed Python module's check did not pass"
+grep -Eq 'ocio_config \.+ +Passed' "$work/ctest.log" || fail "oiiotool did not take the installed OCIO config"
+ctest --test-dir "$work/downstream" -R python_same_scene -V >"$work/python.log" 2>&1 || true
+grep -q "$work/prefix/.*mcstat/__init__.py SAME" "$work/python.log" ||
+  { cat "$work/python.log" >&2; fail "Python did not import the installed module"; }
 grep -Eq 'brighter_light \.+\*+Failed' "$work/ctest.log" || fail "brighter_light did not fail"
 grep -q 'DIFFERENT' "$work/ctest.log" || fail "brighter_light's verdict is not in its output"
 reports="$work/downstream/mcstat-reports"
@@ -48,4 +56,12 @@ for f in same_scene.xml same_scene.json same_scene/index.html brighter_light.xml
 done
 grep -q '<failure' "$reports/brighter_light.xml" || fail "brighter_light.xml has no <failure>"
 if grep -q '<failure' "$reports/same_scene.xml"; then fail "same_scene.xml has a <failure>"; fi
+# The libraries need a compiler: asked for in a project without CXX, find_package says so.
+mkdir -p "$work/nocxx"
+printf 'cmake_minimum_required(VERSION 3.20)\nproject(x NONE)\nfind_package(mcstat CONFIG REQUIRED COMPONENTS libraries)\n' \
+  >"$work/nocxx/CMakeLists.txt"
+if cmake -S "$work/nocxx" -B "$work/nocxx/build" -DCMAKE_PREFIX_PATH="$work/prefix" >"$work/nocxx.log" 2>&1; then
+  fail "find_package(mcstat COMPONENTS libraries) succeeded in a project without CXX"
+fi
+grep -q "enable the CXX language" "$work/nocxx.log" || { cat "$work/nocxx.log" >&2; fail "no reason given for the missing libraries"; }
 echo "test_downstream: same_scene passed, brighter_light failed, reports written"
