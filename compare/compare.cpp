@@ -149,6 +149,40 @@ void rgbMean(const Side& s, size_t local, int x, int y, float* out) {
     for (int k = 0; k < 3; ++k) out[k] = n > 0.0 ? float(sum[k] / n) : kNaNf;
 }
 
+/// A tile of a side whose buffer indices differ from pixel to pixel (adaptive M, compact files:
+/// a buffer-free pixel keeps only its spread), summed from its pixels' summaries: the tile's value
+/// is the mean of its n pixels' estimates and, the pixels' noise being independent (each pixel's
+/// samples are its own), its variance is sum v_p / n^2, with the Welch-Satterthwaite degrees of
+/// freedom (sum v_p)^2 / sum (v_p^2 / df_p) (Satterthwaite, Biometrics Bulletin 2(6), 1946). A
+/// pixel without a variance (one buffer) leaves the tile untested (df 0).
+struct PixelSums {
+    double estimate = 0.0, variance = 0.0, dfDenominator = 0.0, samples = 0.0;
+    double minDf = std::numeric_limits<double>::infinity();
+    bool missing = false;  ///< a pixel had no variance estimate
+
+    void add(const SideSummary& s, double pixelSamples) {
+        estimate += s.estimate;
+        variance += s.variance;
+        samples += pixelSamples;
+        if (!(s.df > 0.0)) {
+            missing = true;
+            return;
+        }
+        minDf = std::min(minDf, s.df);
+        dfDenominator += s.variance * s.variance / s.df;
+    }
+    SideSummary tile(double n) const {
+        SideSummary t;
+        t.estimate = estimate / n;
+        t.variance = variance / (n * n);
+        t.buffers = 0;
+        if (missing || !std::isfinite(minDf)) return t;  // df 0: untested
+        // All variances zero (a constant tile): the smallest df, as the pixels' tests use.
+        t.df = dfDenominator > 0.0 ? variance * variance / dfDenominator : minDf;
+        return t;
+    }
+};
+
 /// Counts and findings of the tasks, merged under a mutex.
 struct Tally {
     size_t pixelsTested = 0, nonFiniteOneSide = 0, nonFiniteBoth = 0, constantEqual = 0;
@@ -176,6 +210,14 @@ class Comparison {
         SideSummary out;
         if (compactSummary(s, q, local, opt_.luma, out)) return out;
         return summarize(v, c);
+    }
+    /// The count-weighted mean's summary of pixel `local` of side `s` (Welch's, whatever the
+    /// test), from its buffers' values `v`, `c` as sideSummary left them, or its stored spread.
+    SideSummary pixelMean(const Side& s, const Quantity& q, size_t local,
+                          const std::vector<double>& v, const std::vector<double>& c) const {
+        SideSummary out;
+        if (compactSummary(s, q, local, opt_.luma, out)) return out;
+        return meanSummary(v.data(), c.data(), int(v.size()));
     }
     SideSummary summarize(const std::vector<double>& v, const std::vector<double>& c) const {
         return opt_.trimmed ? trimmedSummary(v.data(), c.data(), int(v.size()), opt_.trim)
@@ -324,6 +366,13 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
     std::vector<double> sumA(Q * Ma, 0.0), cntA(Q * Ma, 0.0), sumB(Q * Mb, 0.0), cntB(Q * Mb, 0.0),
         refSum(Q, 0.0), refVarSum(Q, 0.0);
     std::vector<uint8_t> tileBad(Q, 0);
+    // When a side's buffer indices do not line up across pixels (adaptive M, compact files), the
+    // tile is summed from its pixels' means and their variances instead (PixelSums), on both
+    // sides alike: the two tiles must estimate one quantity (a full side's trimmed tile against a
+    // compact side's mean of per-pixel values would differ by the trimming's bias, which a tile's
+    // small noise turns into false alarms).
+    const bool pixB = out_.adaptive, pixA = pixB && !a_.ref;
+    std::vector<PixelSums> sumsA(pixA ? Q : 0), sumsB(pixB ? Q : 0);
     for (int y = y0; y < y1; ++y) {
         for (int x = x0; x < x1; ++x) {
             const size_t local = size_t(y - row0) * size_t(W) + size_t(x);
@@ -352,11 +401,15 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
                 }
                 if (tiles) {
                     if (!sa.finite || !sb.finite) tileBad[qi] = 1;
-                    for (size_t j = 0; j < Ma; ++j) {
+                    if (pixA)
+                        sumsA[qi].add(opt_.trimmed ? pixelMean(a_, q, local, va, ca) : sa, 0.0);
+                    if (pixB)
+                        sumsB[qi].add(opt_.trimmed ? pixelMean(b_, q, local, vb, cb) : sb, nb);
+                    for (size_t j = 0; j < Ma && !pixA; ++j) {
                         sumA[qi * Ma + j] += va[j];
                         cntA[qi * Ma + j] += ca[j];
                     }
-                    for (size_t j = 0; j < Mb; ++j) {
+                    for (size_t j = 0; j < Mb && !pixB; ++j) {
                         sumB[qi * Mb + j] += vb[j];
                         cntB[qi * Mb + j] += cb[j];
                     }
@@ -412,7 +465,8 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
         }
         vb.assign(sumB.begin() + long(qi * Mb), sumB.begin() + long((qi + 1) * Mb));
         cb.assign(cntB.begin() + long(qi * Mb), cntB.begin() + long((qi + 1) * Mb));
-        SideSummary sb = summarize(vb, cb), sa;
+        SideSummary sb = pixB ? sumsB[qi].tile(n) : summarize(vb, cb), sa;
+        if (pixB && sb.df <= 0.0) continue;  // a pixel without a variance: the tile untested
         if (a_.ref) {
             sa = exactSummary(refSum[qi] / n);
             if (!a_.refVar.empty()) {
@@ -423,8 +477,11 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
             } else {
                 double nb = 0.0;
                 for (double c : cb) nb += c > 0.0 ? c : 0.0;
-                referenceNoise(sb, nb);
+                referenceNoise(sb, pixB ? sumsB[qi].samples / n : nb);
             }
+        } else if (pixA) {
+            sa = sumsA[qi].tile(n);
+            if (sa.df <= 0.0) continue;
         } else {
             va.assign(sumA.begin() + long(qi * Ma), sumA.begin() + long((qi + 1) * Ma));
             ca.assign(cntA.begin() + long(qi * Ma), cntA.begin() + long((qi + 1) * Ma));
@@ -871,16 +928,16 @@ bool checkReferenceVariance(const OIIO::ImageBuf* var, const OIIO::ImageBuf& ref
     return true;
 }
 
-/// The result's data window (the statistics file's) and whether tiles are tested: a tile averages
-/// a buffer index over its pixels, and with adaptive M (compact files too) the indices do not
-/// line up.
+/// The result's data window (the statistics file's) and its tile side. A tile averages a buffer
+/// index over its pixels; with adaptive M (compact files too) the indices do not line up, and the
+/// tile is summed from its pixels' estimates and variances instead (PixelSums).
 void setWindow(CompareResult& out, const StatsHeader& h, bool adaptive, const CompareOptions& opt) {
     out.width = h.width;
     out.height = h.height;
     out.originX = h.originX;
     out.originY = h.originY;
     out.adaptive = adaptive;
-    out.tile = adaptive ? 0 : opt.tile;
+    out.tile = opt.tile;
 }
 
 /// The M a side's buffers give, or an error when they give no variance.
@@ -1240,10 +1297,12 @@ std::vector<std::string> compareEvidence(const CompareResult& r, const CompareOp
                         r.fewBuffers,
                         r.adaptive ? "adaptive M gives smooth pixels one buffer"
                                    : "fewer samples than buffers"));
-    if (r.tile == 0 && opt.tile > 0 && opt.rule != CompareOptions::Rule::Mitsuba)
-        lines.push_back(
-            "no tile tests: adaptive M or a compact file (buffer indices differ from pixel to "
-            "pixel)");
+    if (r.tile > 0 && r.adaptive)
+        lines.push_back(fmt::format(
+            "tiles tested from their pixels' means and variances, pixels' noise taken as "
+            "independent{} (a side has adaptive M or is a compact file: buffer indices differ "
+            "from pixel to pixel)",
+            opt.trimmed ? ", with Welch's t on both sides" : ""));
     return lines;
 }
 

@@ -6,8 +6,14 @@
 #include <OpenImageIO/imagebuf.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
+#include <tuple>
+#include <vector>
 
 #include "cli_support.h"
 #include "mcstat/stats_file.h"
@@ -113,6 +119,77 @@ TEST_F(CompactCli, InfoCheckAndCompare) {
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.err.find("compact file"), std::string::npos) << r.err;
     EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << "one line: " << r.err;
+}
+
+/// The tile z-scores of a comparison's maps (`-o maps.exr`): one value per 16 x 16 tile.
+std::vector<double> tileZ(const std::string& maps) {
+    OIIO::ImageBuf b(maps);
+    std::vector<double> z;
+    if (!b.read(0, 0, true, OIIO::TypeFloat)) return z;
+    int c = -1;
+    for (int i = 0; i < b.nchannels(); ++i)
+        if (b.spec().channelnames[size_t(i)].rfind("tile.z", 0) == 0) c = i;
+    if (c < 0) return z;
+    for (int y = 0; y < b.spec().height; y += 16)
+        for (int x = 0; x < b.spec().width; x += 16) z.push_back(b.getchannel(x, y, 0, c));
+    return z;
+}
+
+TEST_F(CompactCli, CompareTestsTheTilesOfCompactFilesFromTheirPixelsSpreads) {
+    // A tile of a compact file is tested from its pixels' estimates and variances (the stored
+    // spread where the buffers were dropped), taken as independent: the detector that catches a
+    // light 2 % brighter beyond its emitter pixels (docs/compare.md). Before: no tile tests.
+    const std::string light = path("light.json");
+    {
+        std::ifstream in(std::string(MCSTAT_SOURCE_DIR) + "/render-fixture/scenes/arealight.json");
+        std::stringstream text;
+        text << in.rdbuf();
+        nlohmann::json j = nlohmann::json::parse(text.str(), nullptr, true, true);
+        j["shapes"].back()["emission"] = {10.71, 10.71, 10.71};  // the area light, 2 % brighter
+        std::ofstream(light) << j.dump(1);
+    }
+    for (const auto& [scene, name, seed] :
+         {std::tuple{std::string("arealight"), "a", 1},
+          std::tuple{std::string("arealight"), "s", 2}, std::tuple{light, "l", 2}}) {
+        const std::string cmd = std::string(MCSTAT_RENDER_EXE) + " --quiet --scene " + scene +
+                                " --res 96 72 --spp 128 --M 16 --seed " + std::to_string(seed) +
+                                " -o " + path(std::string(name) + ".mcstat");
+        ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+        ASSERT_EQ(mcstat(path(std::string(name) + ".mcstat") + " --compact -o " +
+                         path(std::string(name) + "-c.mcstat"))
+                      .code,
+                  0);
+    }
+    auto r = mcstat(path("a-c.mcstat") + " " + path("l-c.mcstat") + " --compare");
+    EXPECT_EQ(r.code, 2) << r.out << r.err;
+    EXPECT_NE(r.out.find("tiles 16x16: 30 tested of 30"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("tiles 16x16: 30 tested of 30, 0 differ"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("tested from their pixels' means and variances"), std::string::npos)
+        << r.out;
+    // Same scene, other seeds: no tile differs, and the tile z-scores are the full files' up to
+    // the noise of the variance estimates (same renders, two ways of estimating a tile's variance).
+    r = mcstat(path("a.mcstat") + " " + path("s.mcstat") + " --compare -o " + path("full.exr"));
+    EXPECT_EQ(r.code, 0) << r.out << r.err;
+    r = mcstat(path("a-c.mcstat") + " " + path("s-c.mcstat") + " --compare -o " + path("c.exr"));
+    EXPECT_EQ(r.code, 0) << r.out << r.err;
+    EXPECT_NE(r.out.find("tiles 16x16: 30 tested of 30, 0 differ"), std::string::npos) << r.out;
+    const std::vector<double> zf = tileZ(path("full.exr")), zc = tileZ(path("c.exr"));
+    ASSERT_EQ(zf.size(), 30u);
+    ASSERT_EQ(zc.size(), 30u);
+    double mf = 0, mc = 0;
+    for (size_t i = 0; i < 30; ++i) {
+        mf += zf[i] / 30;
+        mc += zc[i] / 30;
+    }
+    double sff = 0, scc = 0, sfc = 0;
+    for (size_t i = 0; i < 30; ++i) {
+        sff += (zf[i] - mf) * (zf[i] - mf);
+        scc += (zc[i] - mc) * (zc[i] - mc);
+        sfc += (zf[i] - mf) * (zc[i] - mc);
+    }
+    EXPECT_GT(sfc / std::sqrt(sff * scc), 0.9) << "tile z of compact against full files";
+    EXPECT_GT(std::sqrt(scc / sff), 0.75);
+    EXPECT_LT(std::sqrt(scc / sff), 1.33);
 }
 
 TEST_F(CompactCli, MergeAndRecompactAreRefusedWithOneLine) {
