@@ -13,6 +13,7 @@
 #include "mcstat/color.h"
 #include "mcstat/core/colour_space.h"
 #include "mcstat/filters/aov_weights.h"
+#include "mcstat/filters/pixel/confidence.h"
 #include "mcstat/image/keep_light_image.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/sample_records.h"
@@ -122,6 +123,24 @@ std::vector<std::string> estimatorChannels(EstimatorMode mode, bool diagnostics)
     return names;
 }
 
+namespace {
+
+/// What a compact file's intervals cover beside the estimator's target (mcstat:ciTarget).
+constexpr const char* kCompactIntervalTarget =
+    "; on a compact file's pixels that kept only their mean (no heavy tail: every estimator gives "
+    "the mean there), the expected value, by Student's t from the stored spread";
+
+/// Pixel p's stored spread when it is a compact file's pixel that kept only its mean (one buffer
+/// where the file has M > 1, and the file's spread read), else null.
+const float* compactSpread(const StatsImage& src, size_t p) {
+    if (!src.header.compact || src.header.M < 2 || src.buffersOf(p) != 1 ||
+        src.spread.size() != src.pixelCount() * size_t(kSpreadFloats))
+        return nullptr;
+    return src.spread.data() + p * size_t(kSpreadFloats);
+}
+
+}  // namespace
+
 bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const PixelKernel& kernel,
               bool diagnostics, ROI roi, int nthreads) {
     const StatsHeader& h = src.header;
@@ -173,7 +192,8 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
         spec.attribute("mcstat:ciLevel", float(kernel.ciLevel));
         // What it covers: a compositor reads a bare level as "the true value is in here", which
         // only the mean's interval claims (docs/confidence.md).
-        spec.attribute("mcstat:ciTarget", kernel.intervalTarget);
+        spec.attribute("mcstat:ciTarget", h.compact ? kernel.intervalTarget + kCompactIntervalTarget
+                                                    : kernel.intervalTarget);
     }
     dst.reset(spec, OIIO::InitializePixels::No);
 
@@ -217,11 +237,16 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
                     for (int i = 0; i < m; ++i) counts[size_t(i)] = pb.count[valid[size_t(i)]];
                     float* lo = px + firstCi;
                     float* hi = lo + 3;
+                    // A compact file's pixel that kept only its mean (G-MoN trimmed nothing: the
+                    // estimators give the mean there) has the mean's t interval from its spread.
+                    const float* sp = compactSpread(src, p);
                     for (int c = 0; c < 3; ++c) {
                         for (int i = 0; i < m; ++i)
                             values[size_t(i)] = pb.mean[3 * valid[size_t(i)] + c];
                         const ValueInterval iv =
-                            kernel.interval(values.data(), counts.data(), m, kernel.ciLevel);
+                            sp ? spreadInterval(pb.mean[c], sp[spreadIndex(c, c)], pb.count[0],
+                                                int(sp[0]), kernel.ciLevel)
+                               : kernel.interval(values.data(), counts.data(), m, kernel.ciLevel);
                         lo[c] = float(iv.low);
                         hi[c] = float(iv.high);
                     }

@@ -122,8 +122,10 @@ bool estimate(ImageBuf& dst, StatsBlockSource& src, const Operation& est, const 
     }
     // Per pixel: only the sub-buffers are decoded (the moments' count check needs part moments,
     // which `mcstat --check` reads; every count read here is still checked on its own).
-    // With AOVs their part too: the estimator's weights apply to them pixel by pixel.
-    const unsigned parts = kStatsPartBuffers | (src.header().aovs.empty() ? 0u : kStatsPartAovs);
+    // With AOVs their part too: the estimator's weights apply to them pixel by pixel. A compact
+    // file's intervals need part moments: the spread of its pixels that kept only their mean.
+    const unsigned parts = kStatsPartBuffers | (src.header().aovs.empty() ? 0u : kStatsPartAovs) |
+                           (kernel.ciLevel > 0.0 && src.header().compact ? kStatsPartMoments : 0u);
     return forEachBlock(dst, src, roi, 0, parts, kStreamBlockBytes, est.name.c_str(),
                         [&](ImageBuf& out, const StatsImage& block, ROI rows) {
                             return estimate(out, block, est, kernel, diagnostics, rows, nthreads);

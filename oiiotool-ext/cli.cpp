@@ -927,13 +927,17 @@ void describeOperationResult(const Item& top, const Operation& op, const ParamVa
                        op.name, h.M, minM, minM));
     }
     // Confidence intervals over too few buffers for their level are the buffers' range.
-    if (const int ciM = smallestIntervalM(op, values); ciM > 0 && (h.adaptiveM || h.M < ciM))
-        warning(format(
-            "--{}:ci={}{}: the interval reaches its level only from {} valid "
-            "sub-buffers; below that it is their full range ([-inf, inf] for one), of "
-            "lower coverage (docs/confidence.md)",
-            op.name, values.at("ci").text,
-            h.adaptiveM ? " with adaptive M" : format(" over M = {} sub-buffers", h.M), ciM));
+    // A compact file's pixels have all M buffers or their spread (the mean's t interval there).
+    if (const int ciM = smallestIntervalM(op, values);
+        ciM > 0 && ((h.adaptiveM && !h.compact) || h.M < ciM))
+        warning(
+            format("--{}:ci={}{}: the interval reaches its level only from {} valid "
+                   "sub-buffers; below that it is their full range ([-inf, inf] for one), of "
+                   "lower coverage (docs/confidence.md)",
+                   op.name, values.at("ci").text,
+                   h.adaptiveM && !h.compact ? " with adaptive M"
+                                             : format(" over M = {} sub-buffers", h.M),
+                   ciM));
     // Operations that do not carry AOVs yet say so rather than drop them silently.
     const int carried = img.nchannels();
     size_t missing = 0;

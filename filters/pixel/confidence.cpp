@@ -65,6 +65,19 @@ ValueInterval meanInterval(const double* values, const double* counts, int m, do
     return tInterval(weightedMeanSummary(values, counts, m), level);
 }
 
+ValueInterval spreadInterval(double mean, double perSampleVariance, double samples, int buffers,
+                             double level) {
+    if (!std::isfinite(mean)) return {kNaN, kNaN, true};
+    if (buffers < 2 || !(samples > 0.0) || !(perSampleVariance >= 0.0) ||
+        !std::isfinite(perSampleVariance))
+        return {-kInf, kInf, true};
+    LocationSummary s;
+    s.estimate = mean;
+    s.variance = perSampleVariance / samples;
+    s.df = double(buffers - 1);
+    return tInterval(s, level);
+}
+
 ValueInterval medianInterval(double* values, int m, double level) {
     ValueInterval out;
     if (degenerate(m, out)) return out;

@@ -159,6 +159,50 @@ TEST_F(ConfidenceCli, WithDiagnosticsResidualAndStreamed) {
         }
 }
 
+TEST_F(ConfidenceCli, CompactFilesKeepTheirIntervals) {
+    // A compact file's pixels that kept only their mean get the mean's t interval from the stored
+    // spread (the full file's --mean:ci there, up to float rounding of the spread); the others
+    // the full file's G-MoN interval bit for bit. Before: [-inf, inf] in those pixels.
+    const std::string render = std::string(MCSTAT_RENDER_EXE) +
+                               " --quiet --scene default --res 40 30 --spp 180 --M 9 --seed 5 -o " +
+                               path("full.mcstat");
+    ASSERT_EQ(std::system(render.c_str()), 0) << render;
+    ASSERT_EQ(mcstat(path("full.mcstat") + " --compact -o " + path("small.mcstat")).code, 0);
+    auto r = mcstat(path("small.mcstat") + " --gmon:ci=0.95 -o " + path("c.exr"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(r.err.find("adaptive M"), std::string::npos) << r.err;
+    ASSERT_EQ(mcstat(path("full.mcstat") + " --gmon:ci=0.95 -o " + path("g.exr")).code, 0);
+    ASSERT_EQ(mcstat(path("full.mcstat") + " --mean:ci=0.95 -o " + path("m.exr")).code, 0);
+    OIIO::ImageBuf c(path("c.exr")), g(path("g.exr")), m(path("m.exr"));
+    ASSERT_TRUE(c.read(0, 0, true, OIIO::TypeFloat) && g.read(0, 0, true, OIIO::TypeFloat) &&
+                m.read(0, 0, true, OIIO::TypeFloat));
+    EXPECT_NE(c.spec().get_string_attribute("mcstat:ciTarget").find("compact file"),
+              std::string::npos);
+    StatsImage small;
+    std::string err;
+    ASSERT_TRUE(readStatsFile(path("small.mcstat"), small, err)) << err;
+    int dropped = 0, kept = 0;
+    for (int y = 0; y < 30; ++y)
+        for (int x = 0; x < 40; ++x) {
+            const bool one = small.buffersOf(size_t(y) * 40 + size_t(x)) == 1;
+            (one ? dropped : kept) += 1;
+            for (const char* ch : {"ci_low.R", "ci_high.G", "ci_low.B"}) {
+                const float v = c.getchannel(x, y, 0, c.spec().channelindex(ch));
+                ASSERT_TRUE(std::isfinite(v)) << ch << " at " << x << ", " << y;
+                if (one) {
+                    const float want = m.getchannel(x, y, 0, m.spec().channelindex(ch));
+                    EXPECT_NEAR(v, want, 1e-5f * std::max(1.f, std::fabs(want)))
+                        << ch << " at " << x << ", " << y;
+                } else {
+                    EXPECT_EQ(v, g.getchannel(x, y, 0, g.spec().channelindex(ch)))
+                        << ch << " at " << x << ", " << y;
+                }
+            }
+        }
+    EXPECT_GT(dropped, 100);
+    EXPECT_GT(kept, 10);
+}
+
 TEST_F(ConfidenceCli, BadLevelIsOneLine) {
     std::string err;
     ASSERT_TRUE(writeStatsFile(path("f.mcstat"), makeStats(), err)) << err;

@@ -84,6 +84,40 @@ TEST(Confidence, StudentMeanOfNineByHand) {
     EXPECT_NEAR(w.high, 1.5 + 11.003896, 1e-5);
 }
 
+TEST(Confidence, FromAStoredSpreadByHand) {
+    // A compact file's buffer-free pixel: mean 2, per-sample s^2 = 4 over 5 buffers of N = 16
+    // samples in all: 2 +- t_{0.975, 4} sqrt(4 / 16), t_{0.975, 4} = 2.7764451 (tables).
+    ValueInterval iv = spreadInterval(2.0, 4.0, 16.0, 5, 0.95);
+    EXPECT_NEAR(iv.low, 2.0 - 2.7764451 * 0.5, 1e-6);
+    EXPECT_NEAR(iv.high, 2.0 + 2.7764451 * 0.5, 1e-6);
+    EXPECT_FALSE(iv.full);
+    // The same as meanInterval over buffers with that spread: 5 buffers of 16/5 samples.
+    const double v[5] = {0.0, 1.0, 2.0, 3.0, 4.0};  // mean 2, sum (v - 2)^2 = 10
+    const double n[5] = {3.2, 3.2, 3.2, 3.2, 3.2};  // s^2 = 3.2 * 10 / 4 = 8
+    const ValueInterval fromBuffers = meanInterval(v, n, 5, 0.95);
+    iv = spreadInterval(2.0, 8.0, 16.0, 5, 0.95);
+    EXPECT_NEAR(iv.low, fromBuffers.low, 1e-12);
+    EXPECT_NEAR(iv.high, fromBuffers.high, 1e-12);
+    // Zero spread: zero width. One buffer, a NaN or negative spread, no samples: unbounded.
+    iv = spreadInterval(3.0, 0.0, 16.0, 5, 0.95);
+    EXPECT_EQ(iv.low, 3.0);
+    EXPECT_EQ(iv.high, 3.0);
+    const double inf = std::numeric_limits<double>::infinity();
+    for (const ValueInterval& u :
+         {spreadInterval(3.0, 1.0, 16.0, 1, 0.95), spreadInterval(3.0, std::nan(""), 16.0, 5, 0.95),
+          spreadInterval(3.0, -1.0, 16.0, 5, 0.95), spreadInterval(3.0, 1.0, 0.0, 5, 0.95),
+          spreadInterval(3.0, inf, 16.0, 5, 0.95)}) {
+        EXPECT_EQ(u.low, -inf);
+        EXPECT_EQ(u.high, inf);
+        EXPECT_TRUE(u.full);
+    }
+    iv = spreadInterval(std::nan(""), 1.0, 16.0, 5, 0.95);
+    EXPECT_TRUE(std::isnan(iv.low) && std::isnan(iv.high));
+    // 1e38 means with a 1e76 spread: finite in double.
+    iv = spreadInterval(1e38, 1e76, 16.0, 5, 0.95);
+    EXPECT_TRUE(std::isfinite(iv.low) && std::isfinite(iv.high));
+}
+
 TEST(Confidence, YuenForTmpeByHand) {
     // TMPE alpha = 0.25, M = 9: g = floor(2.25) = 2 cut per side, h = 5: 2 3 4 5 5, mean 3.8.
     // Winsorised: 2 2 2 3 4 5 5 5 5, mean 33/9; sum of squared deviations 16; variance
