@@ -126,7 +126,8 @@ bool estimate(ImageBuf& dst, StatsBlockSource& src, const Operation& est, const 
     // file's intervals need part moments: the spread of its pixels that kept only their mean.
     const unsigned parts = kStatsPartBuffers | (src.header().aovs.empty() ? 0u : kStatsPartAovs) |
                            (kernel.ciLevel > 0.0 && src.header().compact ? kStatsPartMoments : 0u);
-    return forEachBlock(dst, src, roi, 0, parts, kStreamBlockBytes, est.name.c_str(),
+    const int halo = kernel.ciLevel > 0.0 && kernel.ciExpected ? kernel.ciPool : 0;
+    return forEachBlock(dst, src, roi, halo, parts, kStreamBlockBytes, est.name.c_str(),
                         [&](ImageBuf& out, const StatsImage& block, ROI rows) {
                             return estimate(out, block, est, kernel, diagnostics, rows, nthreads);
                         });

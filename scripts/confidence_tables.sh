@@ -6,7 +6,9 @@
 #   2. the fixture renderer's scenes at 64x48: per scene, M and estimator, the fraction of pixel
 #      channels whose :ci=0.95 interval holds the high-spp reference (the mean the renderer
 #      converges to), over 4 seeds, with the median relative width and the estimator's energy bias
-#      against the reference shown separately.
+#      against the reference shown separately;
+#   3. the expected value's interval (citarget=expected) at cipool 0, 4, 6 on the same scenes at
+#      256 spp, M = 16 (4 seeds): coverage of the reference and median relative width.
 set -euo pipefail
 build=${1:-build}
 work=${2:-$(mktemp -d)}
@@ -72,4 +74,40 @@ for scene in ["default", "caustic"]:
             w = np.median(np.concatenate(widths))
             print(f"| {scene} | {M} | {spp} | {est} | {n} | {cov / n:.4f} | {w:.3f} | "
                   f"{np.mean(bias):+.4f} ± {np.std(bias):.4f} |")
+PY
+
+echo
+echo "## The expected value's interval (citarget=expected), 64x48, 256 spp, M = 16, 4 seeds"
+echo
+for scene in default caustic; do
+  for seed in 1 2 3 4; do
+    f="$work/$scene-M16-s256-$seed.mcstat"
+    [ -f "$f" ] || "$render" --scene "$scene" --res 64 48 --spp 256 --M 16 --seed "$seed" --quiet -o "$f"
+    for pool in 0 4 6; do
+      "$cli" "$f" --gmon:ci=0.95:citarget=expected:cipool=$pool -o "$work/$scene-e$pool-$seed.exr" 2>/dev/null
+    done
+  done
+done
+PYTHONPATH= /usr/bin/python3 - "$work" <<'PY'
+import sys, numpy as np, OpenImageIO as oiio
+work = sys.argv[1]
+def read(p):
+    b = oiio.ImageBuf(p)
+    px = b.get_pixels(oiio.FLOAT).astype(np.float64)
+    return {n: px[..., i] for i, n in enumerate(b.spec().channelnames)}
+print("| scene | cipool | covers the reference | median relative width |")
+print("|---|---|---|---|")
+for scene in ["default", "caustic"]:
+    ref = read(f"{work}/{scene}-ref.exr")
+    for pool in [0, 4, 6]:
+        cov, width = [], []
+        for seed in [1, 2, 3, 4]:
+            img = read(f"{work}/{scene}-e{pool}-{seed}.exr")
+            for c in "RGB":
+                lo, hi, r = img["ci_low." + c], img["ci_high." + c], ref[c]
+                live = hi > lo
+                cov.append(((lo <= r) & (r <= hi))[live].mean())
+                mid = (lo + hi) / 2
+                width.append(np.median(((hi - lo) / np.maximum(np.abs(mid), 1e-12))[live]))
+        print(f"| {scene} | {pool} | {np.mean(cov):.3f} | {np.mean(width):.2f} |")
 PY

@@ -78,6 +78,14 @@ ValueInterval spreadInterval(double mean, double perSampleVariance, double sampl
     return tInterval(s, level);
 }
 
+ValueInterval expectedInterval(double mean, double s2, double pooledS2, double samples, int buffers,
+                               double level) {
+    const double own = std::isfinite(s2) && s2 >= 0.0 ? s2 : kNaN;
+    const double pooled = std::isfinite(pooledS2) && pooledS2 >= 0.0 ? pooledS2 : kNaN;
+    const double v = std::isnan(own) ? pooled : std::isnan(pooled) ? own : std::max(own, pooled);
+    return spreadInterval(mean, v, samples, buffers, level);
+}
+
 ValueInterval medianInterval(double* values, int m, double level) {
     ValueInterval out;
     if (degenerate(m, out)) return out;

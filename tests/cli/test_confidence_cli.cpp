@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "cli_support.h"
+#include "mcstat/core/location_stats.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/stats_file.h"
@@ -201,6 +202,82 @@ TEST_F(ConfidenceCli, CompactFilesKeepTheirIntervals) {
         }
     EXPECT_GT(dropped, 100);
     EXPECT_GT(kept, 10);
+}
+
+TEST_F(ConfidenceCli, ExpectedValueIntervalPoolsTheNeighboursVarianceByHand) {
+    // citarget=expected: mean +- t_{m-1} sqrt(max(s2, pooled s2) / N), s2 the pixel's per-sample
+    // variance, pooled the mean of the finite s2 in the 3 x 3 window (cipool=1) clipped to the
+    // image; computed here from the buffers directly.
+    const StatsImage s = makeStats();
+    std::string err;
+    ASSERT_TRUE(writeStatsFile(path("f.mcstat"), s, err)) << err;
+    auto r =
+        mcstat(path("f.mcstat") + " --gmon:ci=0.95:citarget=expected:cipool=1 -o " + path("e.exr"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    OIIO::ImageBuf e(path("e.exr"));
+    ASSERT_TRUE(e.read(0, 0, true, OIIO::TypeFloat));
+    EXPECT_NE(e.spec().get_string_attribute("mcstat:ciTarget").find("expected value"),
+              std::string::npos);
+    const int W = 8, H = 6;
+    std::vector<double> mean(W * H * 3), s2(W * H * 3), N(W * H);
+    std::vector<int> m(W * H);
+    for (int p = 0; p < W * H; ++p)
+        for (int c = 0; c < 3; ++c) {
+            double sum = 0, n = 0, ss = 0;
+            int k = 0;
+            for (int j = 0; j < kM; ++j) {
+                const double v = s.bufferMean[(size_t(p) * kM + size_t(j)) * 3 + size_t(c)];
+                const double w = s.bufferCount[size_t(p) * kM + size_t(j)];
+                if (!(w > 0) || !std::isfinite(v)) continue;
+                sum += w * v, n += w, ++k;
+            }
+            const double mu = sum / n;
+            for (int j = 0; j < kM; ++j) {
+                const double v = s.bufferMean[(size_t(p) * kM + size_t(j)) * 3 + size_t(c)];
+                const double w = s.bufferCount[size_t(p) * kM + size_t(j)];
+                if (!(w > 0) || !std::isfinite(v)) continue;
+                ss += w * (v - mu) * (v - mu);
+            }
+            mean[size_t(p) * 3 + size_t(c)] = mu;
+            s2[size_t(p) * 3 + size_t(c)] = k >= 2 ? ss / (k - 1) : NAN;
+            N[size_t(p)] = n;
+            m[size_t(p)] = k;
+        }
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            const int p = y * W + x;
+            for (int c = 0; c < 3; ++c) {
+                double pooled = 0;
+                int count = 0;
+                for (int v = std::max(0, y - 1); v <= std::min(H - 1, y + 1); ++v)
+                    for (int u = std::max(0, x - 1); u <= std::min(W - 1, x + 1); ++u)
+                        if (std::isfinite(s2[size_t(v * W + u) * 3 + size_t(c)])) {
+                            pooled += s2[size_t(v * W + u) * 3 + size_t(c)];
+                            ++count;
+                        }
+                pooled /= count;
+                const char* ch = c == 0 ? "R" : c == 1 ? "G" : "B";
+                const float lo = at(e, std::string("ci_low.") + ch, x, y);
+                const float hi = at(e, std::string("ci_high.") + ch, x, y);
+                if (m[size_t(p)] < 2) {  // pixel 2: one valid buffer, no degrees of freedom
+                    EXPECT_TRUE(std::isinf(lo) && std::isinf(hi)) << p;
+                    continue;
+                }
+                const double own = s2[size_t(p) * 3 + size_t(c)];
+                const double half = studentQuantile(0.975, m[size_t(p)] - 1) *
+                                    std::sqrt(std::max(own, pooled) / N[size_t(p)]);
+                const double mu = mean[size_t(p) * 3 + size_t(c)];
+                EXPECT_NEAR(lo, mu - half, 1e-5 * std::max(1.0, std::fabs(mu))) << p << ch;
+                EXPECT_NEAR(hi, mu + half, 1e-5 * std::max(1.0, std::fabs(mu))) << p << ch;
+            }
+        }
+    // Refused: its modifiers without what they need, and the AOVs' expected intervals.
+    for (const char* bad : {":cipool=2", ":ci=0.9:cipool=2", ":citarget=expected",
+                            ":ci=0.9:citarget=expected:ciaovs=1", ":ci=0.9:citarget=mean"}) {
+        r = mcstat(path("f.mcstat") + " --gmon" + bad + " -o " + path("x.exr"));
+        EXPECT_EQ(r.code, 1) << bad;
+        EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << bad << ": " << r.err;
+    }
 }
 
 TEST_F(ConfidenceCli, BadLevelIsOneLine) {

@@ -232,6 +232,24 @@ TEST_F(Stream, StreamedOperationsEqualTheInMemoryOnesBitForBit) {
                             << op.name;
                     }
             }
+            // The expected value's interval pools over cipool rows above and below: a block
+            // carries them (its halo), so a region's pixels see the whole image's windows.
+            if (!hasIntervals(op)) continue;
+            std::map<std::string, std::string> kv = {
+                {"ci", "0.9"}, {"citarget", "expected"}, {"cipool", "3"}};
+            ParamValues ci, values;
+            ASSERT_TRUE(takeConfidenceModifiers(op.name, kv, ci, err)) << err;
+            ASSERT_TRUE(parseOperationParams(op, kv, values, err)) << err;
+            values.insert(ci.begin(), ci.end());
+            for (const OIIO::ROI& roi : regions) {
+                StatsFileReader reader;
+                ASSERT_TRUE(reader.open(path, err, ReadLimits(), 2)) << err;
+                OIIO::ImageBuf mem, streamed;
+                ASSERT_TRUE(applyOperation(mem, whole, op, values, kLuma, false, roi, 2));
+                ASSERT_TRUE(applyOperation(streamed, reader, op, values, kLuma, false, roi, 1));
+                expectSameImage(mem, streamed,
+                                op.name + " citarget=expected roi " + std::to_string(roi.ybegin));
+            }
         }
     }
 }

@@ -71,6 +71,11 @@ struct PixelKernel {
     /// interval layers ci_low / ci_high to add (0: none), and whether the AOVs get them too.
     double ciLevel = 0.0;
     bool ciAovs = false;
+    /// citarget=expected: the interval is the expected value's (the pixel's true value), with the
+    /// per-sample variance pooled over a (2 ciPool + 1)^2 window (image/expected_interval.h)
+    /// instead of `interval`'s.
+    bool ciExpected = false;
+    int ciPool = 0;
 };
 /// Binds parsed values (every parameter of the operation, defaults applied) and the luminance
 /// weights (from the colour config) to the operation's own parameter struct and kernel.

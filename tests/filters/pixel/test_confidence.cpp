@@ -118,6 +118,26 @@ TEST(Confidence, FromAStoredSpreadByHand) {
     EXPECT_TRUE(std::isfinite(iv.low) && std::isfinite(iv.high));
 }
 
+TEST(Confidence, ExpectedValueIntervalByHand) {
+    // The larger of the pixel's per-sample variance (4) and its neighbourhood's (9): 2 +- t_{0.975,
+    // 4} sqrt(9 / 16); the pixel's when larger; either alone when the other is unknown (NaN).
+    const double t4 = 2.7764451;
+    ValueInterval iv = expectedInterval(2.0, 4.0, 9.0, 16.0, 5, 0.95);
+    EXPECT_NEAR(iv.low, 2.0 - t4 * 0.75, 1e-6);
+    EXPECT_NEAR(iv.high, 2.0 + t4 * 0.75, 1e-6);
+    iv = expectedInterval(2.0, 9.0, 4.0, 16.0, 5, 0.95);
+    EXPECT_NEAR(iv.high, 2.0 + t4 * 0.75, 1e-6);
+    iv = expectedInterval(2.0, std::nan(""), 4.0, 16.0, 5, 0.95);
+    EXPECT_NEAR(iv.high, 2.0 + t4 * 0.5, 1e-6);
+    iv = expectedInterval(2.0, 4.0, std::nan(""), 16.0, 5, 0.95);
+    EXPECT_NEAR(iv.high, 2.0 + t4 * 0.5, 1e-6);
+    iv = expectedInterval(2.0, std::nan(""), std::nan(""), 16.0, 5, 0.95);
+    EXPECT_TRUE(iv.full);
+    EXPECT_TRUE(std::isinf(iv.low) && std::isinf(iv.high));
+    iv = expectedInterval(2.0, 4.0, 9.0, 16.0, 1, 0.95);  // one buffer: no degrees of freedom
+    EXPECT_TRUE(iv.full);
+}
+
 TEST(Confidence, YuenForTmpeByHand) {
     // TMPE alpha = 0.25, M = 9: g = floor(2.25) = 2 cut per side, h = 5: 2 3 4 5 5, mean 3.8.
     // Winsorised: 2 2 2 3 4 5 5 5 5, mean 33/9; sum of squared deviations 16; variance
