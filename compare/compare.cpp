@@ -1171,6 +1171,13 @@ std::string powerText(const CompareResult& r) {
 
 }  // namespace
 
+std::string comparePowerText(const CompareResult& r, const CompareOptions& opt) {
+    if (opt.rule == CompareOptions::Rule::Mitsuba || opt.test == TwoSampleTest::Equivalence ||
+        r.identical)
+        return "";
+    return powerText(r);
+}
+
 std::string compareVerdict(const CompareResult& r, const CompareOptions& opt) {
     if (opt.rule == CompareOptions::Rule::Mitsuba) return mitsubaVerdict(r, opt);
     const std::string how = fmt::format("{}, {}", testText(r, opt), controlText(opt));

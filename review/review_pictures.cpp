@@ -212,6 +212,7 @@ int defaultReviewScale(int width, int minWidth) {
 }
 
 double colorScalePosition(const ColorScale& s, double v) {
+    if (s.infiniteAtEnds && std::isinf(v)) return v > 0.0 ? 1.0 : 0.0;
     if (!std::isfinite(v)) return std::numeric_limits<double>::quiet_NaN();
     double t;
     if (s.log)
@@ -251,6 +252,7 @@ bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& chan
     const std::string name = spec.channel_name(channel);
     ColorScale s;
     s.map = opt.map;
+    s.infiniteAtEnds = opt.infiniteAtEnds;
     // Errors span decades: a linear relerr map would show one firefly and black elsewhere.
     s.log = opt.log < 0 ? OIIO::Strutil::starts_with(name, "relerr") : opt.log != 0;
     roi = prepareRoi(roi, src.roi());
@@ -265,7 +267,7 @@ bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& chan
     bool zeroOne = true;  // every finite value 0 or 1: a mask
     for (float x : v) {
         if (!std::isfinite(x)) {
-            ++s.nonFinite;
+            ++(s.infiniteAtEnds && std::isinf(x) ? s.infinite : s.nonFinite);
             continue;
         }
         zeroOne = zeroOne && (x == 0.f || x == 1.f);
@@ -282,7 +284,7 @@ bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& chan
     // linear scale, shown with a two-swatch legend, unless a log scale or another range is asked.
     const std::array<std::string, 2> names = binaryNames(name);
     const bool named = names[1] != "1";
-    const bool anyFinite = s.nonFinite < long(v.size());
+    const bool anyFinite = s.nonFinite + s.infinite < long(v.size());
     if ((anyFinite ? zeroOne : named) && opt.log != 1 && (!userMin || opt.min == 0.0) &&
         (!userMax || opt.max == 1.0)) {
         s.binary = true;
@@ -322,6 +324,7 @@ bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& chan
     s.lo = lo;
     s.hi = hi;
     s.label = s.log ? printable(name) + " (log scale)" : printable(name);
+    if (s.infinite > 0) s.label += format(" ({} px exact, no noise: at the ends)", s.infinite);
     scale = s;
     return true;
 }
@@ -340,8 +343,9 @@ bool drawScaleLabel(ImageBuf& out, int width, int top, const ColorScale& scale,
         if (x + sw < width) {
             const int y = top + ascent(st) - sw;
             IBA::fill(out, kNonFiniteColor, ROI(x, x + sw, y, y + sw));
-            const std::string what = fitText(format("NaN/Inf: {} px", scale.nonFinite),
-                                             width - (x + sw + 4), st.fontSize);
+            const std::string what = fitText(
+                format("{}: {} px", scale.infiniteAtEnds ? "NaN" : "NaN/Inf", scale.nonFinite),
+                width - (x + sw + 4), st.fontSize);
             if (!drawText(out, x + sw + 4, top, what, st)) return false;
         }
     }
@@ -573,6 +577,8 @@ void tagHeatmap(ImageSpec& spec, const ImageBuf& src, int ch, const ColorScale& 
         spec.attribute("mcstat:heatmap:caption",
                        OIIO::Strutil::replace(opt.caption, "\n", " ", true));
     spec.attribute("mcstat:heatmap:nonFinite", int(std::min<long>(cs.nonFinite, 0x7fffffff)));
+    if (cs.infiniteAtEnds)
+        spec.attribute("mcstat:heatmap:infinite", int(std::min<long>(cs.infinite, 0x7fffffff)));
     spec.attribute("mcstat:heatmap:scale", opt.scale);
     spec.attribute("mcstat:heatmap:x", L.mapX);
     spec.attribute("mcstat:heatmap:y", L.mapY);

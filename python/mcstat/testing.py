@@ -9,7 +9,7 @@
 assert_same_render compares as `mcstat A B --compare` does and, when the renders differ, keeps
 the evidence for the reviewer in a new sub-folder of the report folder, named after the test
 (module, class, function and parameters): the maps (maps.exr), the report page (index.html with
-a.png, b.png and heatmap.png), report.json and junit.xml. Then it raises AssertionError with the
+its pictures: docs/compare.md, "Reports for CI"), report.json and junit.xml. Then it raises AssertionError with the
 one-line verdict.
 
 It never deletes or overwrites a file it did not write (docs/compare.md, "Report folders"): the

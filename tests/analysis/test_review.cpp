@@ -253,6 +253,43 @@ TEST(ReviewOps, HeatmapNonFiniteIsMagentaAndRangeIsClamped) {
     EXPECT_NEAR(nearestBarColumn(hm, bar, pixel(hm, map.x + 4, map.y)), 2.0 / 3.0 * bar.w, 2.0);
 }
 
+TEST(ReviewOps, InfiniteAtEndsPaintsExactDifferencesAsTheStrongestOfTheirSign) {
+    // z of a comparison: -2, 0, 3, +Inf and -Inf (exact differences, no noise), NaN (untested).
+    const OIIO::ImageBuf src = channelImage("z", 6, 1, {-2.f, 0.f, 3.f, kInf, -kInf, kNaN});
+    HeatmapOptions opt;
+    opt.map = "cool-warm";
+    opt.symmetric = true;
+    opt.infiniteAtEnds = true;
+    int ch = -1;
+    ColorScale cs;
+    std::string err;
+    ASSERT_TRUE(resolveColorScale(src, opt, ch, cs, err)) << err;
+    EXPECT_EQ(cs.lo, -3.0);  // the finite values' range, symmetric
+    EXPECT_EQ(cs.hi, 3.0);
+    EXPECT_EQ(cs.infinite, 2);
+    EXPECT_EQ(cs.nonFinite, 1);  // NaN only
+    EXPECT_NE(cs.label.find("2 px exact"), std::string::npos) << cs.label;
+    EXPECT_EQ(colorScalePosition(cs, INFINITY), 1.0);
+    EXPECT_EQ(colorScalePosition(cs, -INFINITY), 0.0);
+    const OIIO::ImageBuf hm = heatmap(src, opt);
+    ASSERT_FALSE(hm.has_error()) << hm.geterror();
+    EXPECT_EQ(hm.spec().get_int_attribute("mcstat:heatmap:infinite"), 2);
+    EXPECT_EQ(hm.spec().get_int_attribute("mcstat:heatmap:nonFinite"), 1);
+    const Rect map = rect(hm, "heatmap");
+    const std::array<float, 3> magenta{1.f, 0.f, 1.f};
+    EXPECT_EQ(distance(pixel(hm, map.x + 3, map.y), pixel(hm, map.x + 2, map.y)), 0.0);  // +Inf: 3
+    EXPECT_GT(distance(pixel(hm, map.x + 4, map.y), magenta), 0.2);
+    EXPECT_EQ(distance(pixel(hm, map.x + 5, map.y), magenta), 0.0);  // NaN stays magenta
+    // -Inf at the cool end: the colour of -3, which no pixel has; the bar's first column.
+    const Rect bar = rect(hm, "colorbar");
+    EXPECT_LE(nearestBarColumn(hm, bar, pixel(hm, map.x + 4, map.y)), 1);
+    // Without the option both are magenta, as --heatmap draws them.
+    opt.infiniteAtEnds = false;
+    const OIIO::ImageBuf plain = heatmap(src, opt);
+    EXPECT_EQ(plain.spec().get_int_attribute("mcstat:heatmap:nonFinite"), 3);
+    for (int x : {3, 4}) EXPECT_EQ(distance(pixel(plain, map.x + x, map.y), magenta), 0.0);
+}
+
 TEST(ReviewOps, HeatmapDefaultsAndErrors) {
     // The data range of the finite values; a channel chosen by name; linear for non-relerr.
     OIIO::ImageSpec spec(4, 1, 2, OIIO::TypeDesc::FLOAT);

@@ -8,7 +8,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -122,6 +125,122 @@ TEST_F(CompareCli, SameSceneOtherSeedsPassesAndChangesAUserMustNotMissFail) {
     EXPECT_EQ(maps.spec().get_int_attribute("mcstat.compare.fail"), 1);
     EXPECT_NE(maps.spec().get_string_attribute("mcstat.compare.verdict").find("DIFFERENT"),
               std::string::npos);
+}
+
+/// A picture of the page read back as 8-bit values (the PNG's own), R, G, B of pixel (x, y).
+std::array<int, 3> pngPixel(const OIIO::ImageBuf& img, int x, int y) {
+    float v[3] = {0.f, 0.f, 0.f};
+    img.getpixel(x, y, v, 3);
+    return {int(std::lround(v[0] * 255.f)), int(std::lround(v[1] * 255.f)),
+            int(std::lround(v[2] * 255.f))};
+}
+
+bool near(const std::array<int, 3>& a, const std::array<int, 3>& b, int tol) {
+    for (int c = 0; c < 3; ++c)
+        if (std::abs(a[size_t(c)] - b[size_t(c)]) > tol) return false;
+    return true;
+}
+
+TEST_F(CompareCli, ReportPageMapsOutlinesTheDifferingTilesAndPaintsExactChanges) {
+    // The light 2 % brighter: its pixels differ exactly (no noise on either side), and some
+    // tiles of the lit box differ beyond their noise.
+    render("arealight", "a.mcstat", 1);
+    render(sceneVariant("arealight", "light",
+                        [](nlohmann::json& j) {
+                            j["shapes"].back()["emission"] = {10.71, 10.71, 10.71};
+                        }),
+           "light.mcstat", 2);
+    Result r =
+        compare("a.mcstat", "light.mcstat", ":html=" + path("page") + " -o " + path("maps.exr"));
+    ASSERT_EQ(r.code, 2) << r.out << r.err;
+    OIIO::ImageBuf maps(path("maps.exr"));
+    ASSERT_TRUE(maps.read()) << maps.geterror();
+    const int differs = maps.spec().channelindex("tile.differs");
+    ASSERT_GE(differs, 0);
+    // Every picture of the whole image at one scale: 64 x 48 shown 8 times as large.
+    const int s = 8, T = 16 * s;
+    std::map<std::string, OIIO::ImageBuf> png;
+    for (const char* f : {"a.png", "b.png", "heatmap.png", "outlines.png"}) {
+        png[f] = OIIO::ImageBuf(path(std::string("page/") + f));
+        ASSERT_TRUE(png[f].read()) << f << png[f].geterror();
+        EXPECT_EQ(png[f].spec().width, 64 * s) << f;
+        EXPECT_EQ(png[f].spec().height, 48 * s) << f;
+    }
+    // The outlines frame exactly the tiles the test rejected: a pixel just inside a tile's left
+    // edge is the outline's yellow on a differing tile and A's own elsewhere; inside, A's own.
+    const std::array<int, 3> yellow{255, 217, 0};
+    int outlined = 0, rejected = 0;
+    for (int ty = 0; ty < 3; ++ty)
+        for (int tx = 0; tx < 4; ++tx) {
+            const bool differ = maps.getchannel(tx * 16, ty * 16, 0, differs) == 1.f;
+            if (differ) ++rejected;
+            const int x = tx * T, y = ty * T + T / 2;
+            const std::array<int, 3> edge = pngPixel(png["outlines.png"], x + 1, y);
+            const std::array<int, 3> mid = pngPixel(png["outlines.png"], x + T / 2, y);
+            if (near(edge, yellow, 1)) ++outlined;
+            EXPECT_EQ(near(edge, yellow, 1), differ) << "tile " << tx << ", " << ty;
+            if (!differ) {
+                EXPECT_EQ(edge, pngPixel(png["a.png"], x + 1, y)) << tx << ", " << ty;
+            }
+            EXPECT_EQ(mid, pngPixel(png["a.png"], x + T / 2, y)) << tx << ", " << ty;
+        }
+    EXPECT_GT(rejected, 0) << r.out;
+    EXPECT_LT(rejected, 12) << r.out;
+    EXPECT_EQ(outlined, rejected);
+    // The page: the verdict with its power in one line, the tile map first, every picture named.
+    const std::string html = mcstat::testing::slurp(path("page/index.html"));
+    const size_t verdict = html.find("<p id=\"verdict\"");
+    ASSERT_NE(verdict, std::string::npos);
+    const std::string line = html.substr(verdict, html.find("</p>", verdict) - verdict);
+    EXPECT_NE(line.find("DIFFERENT"), std::string::npos) << line;
+    EXPECT_NE(line.find("in one tile"), std::string::npos) << line;
+    EXPECT_NE(line.find("in one pixel with probability 0.8"), std::string::npos) << line;
+    EXPECT_EQ(line.find('\n'), std::string::npos) << line;
+    EXPECT_EQ(html.find("<img"), html.find("<img id=\"map\"")) << html;
+    EXPECT_NE(html.find("tile.z"), std::string::npos);
+    for (const char* f : {"colorbar.png", "crop-a.png", "crop-b.png"})
+        EXPECT_TRUE(OIIO::Filesystem::exists(path(std::string("page/") + f))) << f;
+
+    // Without tiles, the pixels' map: the light's exact differences (z = +Inf) in the colour of
+    // the scale's warm end, not the magenta of NaN, and no NaN/Inf count.
+    r = compare("a.mcstat", "light.mcstat",
+                ":tile=0:html=" + path("pixels") + " -o " + path("pixels.exr"));
+    ASSERT_EQ(r.code, 2) << r.out << r.err;
+    OIIO::ImageBuf z(path("pixels.exr")), heat(path("pixels/heatmap.png")),
+        bar(path("pixels/colorbar.png"));
+    ASSERT_TRUE(z.read() && heat.read() && bar.read())
+        << z.geterror() << heat.geterror() << bar.geterror();
+    const int zc = z.spec().channelindex("z");
+    ASSERT_GE(zc, 0);
+    // Where on the colour bar's gradient (row 4, column i at t = (i + 0.5) / width) a colour is.
+    const int barW = bar.spec().width;
+    auto onBar = [&](const std::array<int, 3>& c) {
+        int best = 0, bestD = 1 << 30;
+        for (int i = 0; i < barW; ++i) {
+            const std::array<int, 3> g = pngPixel(bar, i, 4);
+            int d = 0;
+            for (int k = 0; k < 3; ++k)
+                d += (g[size_t(k)] - c[size_t(k)]) * (g[size_t(k)] - c[size_t(k)]);
+            if (d < bestD) {
+                bestD = d;
+                best = i;
+            }
+        }
+        return best;
+    };
+    int exact = 0;
+    for (int y = 0; y < 48; ++y)
+        for (int x = 0; x < 64; ++x)
+            if (std::isinf(z.getchannel(x, y, 0, zc))) {
+                ++exact;
+                EXPECT_GT(z.getchannel(x, y, 0, zc), 0.f);
+                const std::array<int, 3> c = pngPixel(heat, x * s + s / 2, y * s + s / 2);
+                EXPECT_NE(c, (std::array<int, 3>{255, 0, 255})) << x << ", " << y;
+                EXPECT_GE(onBar(c), barW - 3)
+                    << x << ", " << y << ": " << c[0] << " " << c[1] << " " << c[2];
+            }
+    EXPECT_GT(exact, 0);
+    EXPECT_EQ(mcstat::testing::slurp(path("pixels/index.html")).find("NaN/Inf"), std::string::npos);
 }
 
 TEST_F(CompareCli, FalseAlarmsOverSeedPairsStayNearTheLevel) {

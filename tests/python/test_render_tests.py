@@ -26,6 +26,10 @@ RES = (32, 24)  # the render-test scenes' size
 SCENES = SOURCE / "tests/render-test/scenes"
 
 
+PAGE = [".mcstat-report", "a.png", "b.png", "colorbar.png", "crop-a.png", "crop-b.png",
+        "heatmap.png", "index.html", "outlines.png"]  # --compare:html=DIR's files
+
+
 @pytest.fixture(scope="module")
 def pair(tmp):
     """One scene with two seeds, and its light 2 % brighter (seen directly: an exact change)."""
@@ -91,8 +95,7 @@ def test_cli_reports_of_a_difference(pair, tmp):
     suite = check_junit(d / "junit.xml", 1, verdict)
     props = {pr.name: pr.value for pr in suite.properties()}
     assert props["pixels.differing"] == str(report["pixels"]["differing"])
-    assert sorted(os.listdir(d / "page")) == [".mcstat-report", "a.png", "b.png", "heatmap.png",
-                                              "index.html"]
+    assert sorted(os.listdir(d / "page")) == PAGE
     assert not [f for f in os.listdir(d) if ".tmp-" in f]  # written by rename
 
 
@@ -121,8 +124,7 @@ def test_cli_page_never_overwrites_a_users_file(pair, tmp):
         p = run(CLI, a, light, "--compare:html={}".format(page), check=False)
         assert p.returncode == 2, p.stderr
         assert (page / "notes.txt").read_text() == "mine"
-    assert sorted(os.listdir(page)) == [".mcstat-report", "a.png", "b.png", "heatmap.png",
-                                        "index.html", "notes.txt"]
+    assert sorted(os.listdir(page)) == sorted(PAGE + ["notes.txt"])
     manifest = json.loads((page / ".mcstat-report").read_text())
     assert manifest["files"]["b.png"] == hashlib.sha1((page / "b.png").read_bytes()).hexdigest()
     (page / "a.png").write_bytes(b"the user's own picture now")
@@ -146,24 +148,114 @@ def chromium_dom(page):
     return p.stdout
 
 
-def test_report_page_in_a_real_browser(pair, tmp):
-    a, _, light = pair
-    _, d = cli_reports(tmp, a, light, "browser")
+@pytest.fixture(scope="module")
+def pair160(tmp):
+    """The render-test scene and its light 2 % brighter at 160 x 120: some 16 x 16 tiles differ
+    (at 32 x 24 only the light's own pixels do)."""
+    jobs = [(tmp / "a160.mcstat", SCENES / "box.json", 11),
+            (tmp / "light160.mcstat", SCENES / "box-light-1.02.json", 12)]
+    procs = [subprocess.Popen([str(RENDER), "--scene", str(scene), "--res", "160", "120", "--spp",
+                               "64", "--M", "8", "--seed", str(seed), "--quiet", "-o", str(path)])
+             for path, scene, seed in jobs]
+    assert all(p.wait() == 0 for p in procs)
+    return tuple(path for path, _, _ in jobs)
+
+
+def page_sizes(dom):
+    """body's data-sizes: {id: ((shown width, height), (own width, height))}."""
+    sizes = re.search(r'data-sizes="([^"]*)"', dom).group(1)
+    out = {}
+    for item in sizes.split():
+        m = re.fullmatch(r"([\w-]*)=(\d+)x(\d+)/(\d+)x(\d+)", item)
+        out[m.group(1)] = ((int(m.group(2)), int(m.group(3))), (int(m.group(4)), int(m.group(5))))
+    return out
+
+
+def test_report_page_in_a_real_browser(pair160, tmp):
+    """The reviewer's page (docs/compare.md, "Reports for CI"): the verdict with its power in one
+    line, the tile map first, A with the differing tiles outlined, one A/B flip with an exposure
+    control, the strongest tile enlarged; every picture of the whole image shown at one scale and
+    at its own size; every picture loads, no script error."""
+    a, light = pair160
+    p, d = cli_reports(tmp, a, light, "browser")
+    assert p.returncode == 2, p.stderr
+    report = json.loads((d / "report.json").read_text())
+    assert report["tiles"]["differing"] > 0
     page = d / "page" / "index.html"
     dom = chromium_dom(page)
     assert 'data-ready="1"' in dom, dom[:2000]
-    assert 'data-images="4 of 4 loaded"' in dom
+    assert 'data-images="6 of 6 loaded"' in dom
     assert "data-errors" not in dom
-    assert "DIFFERENT" in dom and 'id="flip"' in dom
+    verdict = re.search(r'<p id="verdict"[^>]*>([^<]*)</p>', dom).group(1)
+    assert verdict.startswith(report["verdict_line"]) and "\n" not in verdict
+    power = "{:.2g} % in one tile".format(report["power"]["tile_relative"] * 100)
+    assert power in verdict and "in one pixel with probability 0.8" in verdict, verdict
+    # The tile map is the first picture; the map, the outlines and the flip are shown at one scale
+    # (160 x 120 three times), each picture at its own size (no browser resampling).
+    assert re.search(r"<img [^>]*>", dom).group(0).startswith('<img id="map"')
+    sizes = page_sizes(dom)
+    assert list(sizes) == ["map", "colorbar", "outlines", "flip", "crop-a", "crop-b"]
+    for name in ("map", "outlines", "flip"):
+        assert sizes[name] == ((480, 360), (480, 360)), (name, sizes)
+    assert sizes["crop-a"] == sizes["crop-b"] == ((256, 256), (256, 256))  # a tile at 16x
+    assert "tile.z" in dom and "shown at 3x" in dom and "shown at 16x" in dom
+    # The exposure control: two stops brighten the pictures of A and B, and nothing else.
+    exposed = d / "exposed"
+    shutil.copytree(d / "page", exposed)
+    html = (exposed / "index.html").read_text()
+    (exposed / "index.html").write_text(html.replace("</body>", EXPOSE + "</body>"))
+    dom = chromium_dom(exposed / "index.html")
+    assert "data-errors" not in dom
+    filters = re.search(r'data-filters="([^"]*)"', dom).group(1)
+    assert filters == "map:none colorbar:none outlines:{0} flip:{0} crop-a:{0} crop-b:{0}".format(
+        "brightness(1.8779)"), filters  # 2^(2 / 2.2)
+    assert "+2 stops" in dom
     # The check can fail: a missing picture and a script error show.
     broken = d / "broken"
     shutil.copytree(d / "page", broken)
-    (broken / "a.png").unlink()
+    (broken / "outlines.png").unlink()
     html = (broken / "index.html").read_text()
     (broken / "index.html").write_text(html.replace("</body>", "<script>noSuchFunction();</script></body>"))
     dom = chromium_dom(broken / "index.html")
-    assert 'data-images="3 of 4 loaded"' in dom  # the flip shows B; A's own picture is gone
+    assert 'data-images="5 of 6 loaded"' in dom
     assert 'data-errors="Uncaught ReferenceError: noSuchFunction' in dom
+
+
+EXPOSE = """<script>
+const e = document.getElementById("exposure");
+e.value = "2";
+e.dispatchEvent(new Event("input"));
+document.body.dataset.filters = Array.from(document.images).map(function (i) {
+  return i.id + ":" + (getComputedStyle(i).filter || "none"); }).join(" ");
+</script>"""
+
+
+def test_report_page_paints_exact_changes_at_the_ends(pair, tmp):
+    """At 32 x 24 no tile differs, only the light's own pixels, exactly (no noise on either side):
+    the page shows the pixels' map, those pixels in the colour of the scale's warm end, never the
+    magenta of NaN, and says no NaN/Inf; the outlines frame the differing pixels."""
+    a, _, light = pair
+    p, d = cli_reports(tmp, a, light, "exact")
+    assert p.returncode == 2, p.stderr
+    report = json.loads((d / "report.json").read_text())
+    assert report["tiles"]["differing"] == 0 and report["strongest_pixel"]["exact"]
+    run(CLI, a, light, "--compare", "-o", d / "maps.exr", check=False)
+    z = read_exr(d / "maps.exr")["z"]
+    heat = oiio.ImageBuf(str(d / "page" / "heatmap.png")).get_pixels(oiio.UINT8)
+    bar = oiio.ImageBuf(str(d / "page" / "colorbar.png")).get_pixels(oiio.UINT8)
+    s = heat.shape[1] // RES[0]
+    assert heat.shape[:2] == (RES[1] * s, RES[0] * s) and s == 15
+    exact = np.argwhere(np.isinf(z))
+    assert len(exact) == report["pixels"]["differing"] and (z[np.isinf(z)] > 0).all()
+    gradient = bar[4, :, :3].astype(int)  # column i: t = (i + 0.5) / width
+    for y, x in exact:
+        c = heat[y * s + s // 2, x * s + s // 2, :3].astype(int)
+        at = int(np.argmin(((gradient - c) ** 2).sum(axis=1)))  # where on the scale it is
+        assert at >= len(gradient) - 3 and list(c) != [255, 0, 255], (x, y, c, at)
+    html = (d / "page" / "index.html").read_text()
+    assert "NaN/Inf" not in html and 'id="map"' in html and "outlined: 16 of 768 pixels differ" in html
+    dom = chromium_dom(d / "page" / "index.html")
+    assert 'data-images="6 of 6 loaded"' in dom and "data-errors" not in dom
 
 
 def test_mitsuba_reference_from_the_command_line(pair, tmp):
@@ -216,7 +308,8 @@ def test_assert_same_render_fails_the_brighter_light(pair, tmp):
     assert message == "{} (report: {})".format(verdict, target / "index.html")
     assert "\n" not in message
     assert os.listdir(root) == [target.name]
-    files = ["a.png", "b.png", "heatmap.png", "index.html", "junit.xml", "maps.exr", "report.json"]
+    files = sorted([f for f in PAGE if f != ".mcstat-report"] + ["junit.xml", "maps.exr",
+                                                                 "report.json"])
     assert sorted(os.listdir(target)) == [".mcstat-report"] + files
     manifest = json.loads((target / ".mcstat-report").read_text())
     assert manifest["name"] == "test_render_tests.py::test_assert_same_render_fails_the_brighter_light"

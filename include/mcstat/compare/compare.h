@@ -184,6 +184,10 @@ bool compareStatsToImage(const OIIO::ImageBuf& ref, const std::string& refName, 
 /// The verdict in one line, e.g. "DIFFERENT: 9576 of 16384 pixels and 61 of 64 tiles differ in
 /// luminance (Welch's t on M = 21 + 21 sub-buffers, false discovery rate 1%)".
 std::string compareVerdict(const CompareResult& r, const CompareOptions& opt);
+/// What a difference test of mcstat's rule could have seen, in the words SAME and UNDERPOWERED
+/// verdicts state it ("it finds a change of 3.9 % in one tile or 41 % in one pixel with
+/// probability 0.8 (medians)"); empty for Mitsuba's rule, the equivalence test and IDENTICAL.
+std::string comparePowerText(const CompareResult& r, const CompareOptions& opt);
 /// The evidence, one line per item (counts, the strongest finding with its place and size, the
 /// untested pixels).
 std::vector<std::string> compareEvidence(const CompareResult& r, const CompareOptions& opt);

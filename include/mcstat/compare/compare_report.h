@@ -1,7 +1,8 @@
 // Reports of a noise-aware comparison (`mcstat --compare:junit=FILE:json=FILE:html=DIR`,
 // docs/compare.md "Reports for CI"): the verdict and its numbers for CI servers (JUnit XML, as
-// Jenkins and GitLab read it), for scripts (JSON) and for a reviewer (a page with A, B, the
-// heatmap of z and an A/B flip on hover). Every file is written to a temporary name and renamed
+// Jenkins and GitLab read it), for scripts (JSON) and for a reviewer (a page with the map of
+// the tiles' z, the differing tiles outlined on A, an A/B flip and the strongest region
+// enlarged). Every file is written to a temporary name and renamed
 // (temp_file.h): a report is whole or absent.
 #pragma once
 
@@ -48,13 +49,18 @@ std::string compareJson(const CompareResult& r, const CompareOptions& opt,
 /// <failure> when the renders differ, the numbers as <properties>, the evidence in <system-out>.
 std::string compareJUnit(const CompareResult& r, const CompareOptions& opt,
                          const CompareReportRequest& req);
-/// The page's HTML (pictures a.png, b.png and heatmap.png beside it).
+/// The page's HTML (docs/compare.md, "Reports for CI"): the verdict with its power in one line,
+/// the map (heatmap.png, colorbar.png), A with the differing tiles outlined (outlines.png), the A/B
+/// flip (a.png, b.png) with an exposure control and the strongest region enlarged (crop-a.png,
+/// crop-b.png), every picture of the whole image at one scale; then the numbers, the evidence and
+/// the inputs.
 std::string compareHtml(const CompareResult& r, const CompareOptions& opt,
                         const CompareReportRequest& req);
 
 /// Writes every report asked for. The page's folder is created when absent; its pictures are
-/// A's and B's means (sRGB curve, clamped) and the heatmap of z. False with a one-line `err`
-/// naming the file.
+/// A's and B's means (sRGB curve, clamped), the map of tile.z (or z), its colour scale, A with the
+/// differing tiles outlined and the strongest region of A and B enlarged. False with a one-line
+/// `err` naming the file.
 bool writeCompareReports(const CompareResult& r, const CompareOptions& opt,
                          const CompareReportRequest& req, std::string& err, int nthreads = 0);
 

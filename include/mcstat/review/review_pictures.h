@@ -41,6 +41,10 @@ struct ColorScale {
     bool log = false;             ///< t linear in log10(v) instead of v
     std::string label;            ///< what the colour bar says under its numbers
     long nonFinite = 0;           ///< NaN / Inf pixels in the mapped data (shown in the legend)
+    /// +Inf at t = 1 and -Inf at t = 0, as the strongest values of their sign (a comparison's
+    /// exact differences: z of a change without noise); `infinite` counts them, nonFinite the rest.
+    bool infiniteAtEnds = false;
+    long infinite = 0;
     /// A 0/1 mask (every finite value 0 or 1, range [0, 1], linear): the legend is two swatches,
     /// the colours of 0 and 1 named by binaryNames, instead of a gradient with numbers.
     bool binary = false;
@@ -48,7 +52,7 @@ struct ColorScale {
 };
 
 /// Position of `v` on the scale, clamped to [0, 1] (a log scale sends v <= 0 to 0); NaN when v is
-/// NaN or Inf.
+/// NaN or Inf (with scale.infiniteAtEnds, +Inf is 1 and -Inf 0).
 double colorScalePosition(const ColorScale& scale, double v);
 
 /// What a heatmap shows and how.
@@ -63,6 +67,9 @@ struct HeatmapOptions {
     /// A default range (min and max unset) symmetric about 0, [-m, m] with m the largest finite
     /// |value|: signed data (effects, z-scores) with a diverging map keep 0 in the middle.
     bool symmetric = false;
+    /// ColorScale::infiniteAtEnds: +Inf and -Inf drawn in the colours of the scale's ends (the
+    /// strongest of their sign), not as non-finite; the legend says so.
+    bool infiniteAtEnds = false;
     int scale = 1;         ///< integer upscaling of the map (nearest pixel), 1..64
     bool colorBar = true;  ///< false: only the mapped pixels (a contact-sheet tile)
     /// Text drawn above the map (e.g. a comparison's verdict, or provenanceCaption), wrapped to the
@@ -105,9 +112,10 @@ OIIO::ImageBuf colorBar(int width, const ColorScale& scale, const ReviewStyle& s
 /// with a colour bar (a binary channel: its two-swatch legend) under it unless opt.colorBar is
 /// false and opt.caption above it. Spec attributes:
 /// mcstat:heatmap:channel, map, min, max, log, binary, nonFinite, scale, caption (when there is
-/// one, newlines as spaces); mcstat:heatmap:x, y, width, height (the map's rectangle) and
-/// mcstat:colorbar:x, y, width, height (the gradient's) or mcstat:legend:swatch0/1:x, y, width,
-/// height (a binary channel's swatches), in dst's pixel coordinates.
+/// one, newlines as spaces), infinite (with opt.infiniteAtEnds: the ±Inf pixels at the ends);
+/// mcstat:heatmap:x, y, width, height (the map's rectangle) and mcstat:colorbar:x, y, width, height
+/// (the gradient's) or mcstat:legend:swatch0/1:x, y, width, height (a binary channel's swatches),
+/// in dst's pixel coordinates.
 bool heatmap(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, const HeatmapOptions& opt,
              OIIO::ROI roi = {}, int nthreads = 0);
 OIIO::ImageBuf heatmap(const OIIO::ImageBuf& src, const HeatmapOptions& opt, OIIO::ROI roi = {},
