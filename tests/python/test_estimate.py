@@ -107,6 +107,17 @@ def test_confidence_interval_layers(files, tmp):
         assert np.all(a.ci_low[c] <= v + tol) and np.all(v <= a.ci_high[c] + tol)
     with pytest.raises(mcstat.Error, match="ci must be a number in \\(0, 1\\)"):
         mcstat.estimate(s, "gmon", ci=1)
+    # citarget="expected": the command's layers, wider than the pixel's own t interval (the
+    # neighbours' variance where larger), about the mean; cipool alone is refused.
+    e = mcstat.estimate(s, "gmon", ci=0.95, citarget="expected", cipool=2)
+    assert_same_channels(e, cli_result(tmp, src, "gmon", ":ci=0.95:citarget=expected:cipool=2"))
+    own = mcstat.estimate(s, "mean", ci=0.95)
+    for c in "RGB":
+        tol = 1e-5 * (1 + np.abs(own.ci_high[c]))
+        assert np.all(e.ci_high[c] - e.ci_low[c] >= own.ci_high[c] - own.ci_low[c] - tol)
+    assert np.any(e.ci_high["R"] - e.ci_low["R"] > own.ci_high["R"] - own.ci_low["R"] + 1e-6)
+    with pytest.raises(mcstat.Error, match="cipool=2 needs citarget=expected"):
+        mcstat.estimate(s, "gmon", ci=0.95, cipool=2)
 
 
 def test_readme_line(files):
