@@ -1,5 +1,6 @@
-# `cmake --install`: the mcstat and mcstat-render executables, the OpenImageIO plugin, the
-# libraries (static, or shared with -DBUILD_SHARED_LIBS=ON) with their public headers and LICENSE,
+# `cmake --install`: the mcstat and mcstat-render executables, mcstat-blender (a Python script) with
+# its Cycles template, the OpenImageIO plugin, the libraries (static, or shared with
+# -DBUILD_SHARED_LIBS=ON) with their public headers and LICENSE,
 # an exported CMake package (find_package(mcstat CONFIG) giving mcstat::core, mcstat::filters,
 # mcstat::exrcodec, mcstat::exrdeep, mcstat::color, mcstat::imagespec, mcstat::imageops,
 # mcstat::ingest, mcstat::compare, mcstat::compare_report, mcstat_EXECUTABLE and
@@ -44,6 +45,25 @@ else()
   set(MCSTAT_CONFIG_PYTHONPATH "")
   set(MCSTAT_CONFIG_PYTHON_EXECUTABLE "")
 endif()
+
+# mcstat-blender (farm/mcstat-blender, docs/ingest.md "Seeds"): renders a Blender scene once per
+# seed through the farm's Cycles template, which goes with it with the caustic scene it renders
+# when no .blend is given. The installed copy knows where they are relative to itself. Component
+# `blender`: tests/aovs installs it alone.
+set(MCSTAT_INSTALL_BLENDERDIR "${CMAKE_INSTALL_DATADIR}/mcstat/blender"
+    CACHE STRING "Where mcstat-blender's Cycles template goes (relative to the prefix)")
+file(RELATIVE_PATH _mcstat_blender_rel "/${CMAKE_INSTALL_BINDIR}" "/${MCSTAT_INSTALL_BLENDERDIR}")
+file(READ "${PROJECT_SOURCE_DIR}/farm/mcstat-blender" _mcstat_blender)
+string(REPLACE "\nINSTALLED_TEMPLATES = None\n" "\nINSTALLED_TEMPLATES = \"${_mcstat_blender_rel}\"\n"
+       _mcstat_blender "${_mcstat_blender}")
+file(WRITE "${PROJECT_BINARY_DIR}/install/mcstat-blender" "${_mcstat_blender}")
+set_property(DIRECTORY "${PROJECT_SOURCE_DIR}" APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS
+             "${PROJECT_SOURCE_DIR}/farm/mcstat-blender")
+install(PROGRAMS "${PROJECT_BINARY_DIR}/install/mcstat-blender"
+  DESTINATION "${CMAKE_INSTALL_BINDIR}" COMPONENT blender)
+install(FILES "${PROJECT_SOURCE_DIR}/farm/templates/cycles_seed.py"
+              "${PROJECT_SOURCE_DIR}/tests/aovs/cycles_caustic.py"
+  DESTINATION "${MCSTAT_INSTALL_BLENDERDIR}" COMPONENT blender)
 if(TARGET mcstat_oiio_plugin)
   install(TARGETS mcstat_oiio_plugin
     LIBRARY DESTINATION "${MCSTAT_INSTALL_PLUGINDIR}" COMPONENT plugin)

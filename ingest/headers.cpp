@@ -10,7 +10,9 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <memory>
 #include <set>
@@ -105,8 +107,85 @@ bool chromaticitiesOf(const ImageSpec& spec, Chromaticities& xy) {
 
 }  // namespace
 
+std::string shellWord(const std::string& text) {
+    if (!text.empty() &&
+        text.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789"
+                               "_-+.,/:=@%") == std::string::npos)
+        return text;
+    std::string out = "'";
+    for (const char c : text) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return out + "'";
+}
+
+std::string linearizeCommand(const std::string& path, const std::string& from) {
+    // Stock oiiotool without $OCIO uses OIIO's own config, which knows "linear", "sRGB" and
+    // "Rec709" (and not lin_rec709): "linear" is scene-linear with Rec.709 primaries. With $OCIO
+    // set, oiiotool and mcstat read the same config: its scene-linear space by its name there.
+    const char* env = std::getenv("OCIO");
+    const std::string to = env == nullptr || *env == '\0' ? "linear" : sceneLinearName();
+    std::string in = "IN", out = "OUT.exr";
+    if (!path.empty()) {
+        in = shellWord(path);
+        const std::string ext = OIIO::Filesystem::extension(path);
+        out = shellWord(path.substr(0, path.size() - ext.size()) + "_linear.exr");
+    }
+    return fmt::format("oiiotool {} --colorconvert {} {} -o {}", in, shellWord(from), shellWord(to),
+                       out);
+}
+
+std::string convertSpaceCommand(const std::string& path, const std::string& from,
+                                const std::string& to) {
+    const WorkingSpace* a = findWorkingSpace(from);
+    const WorkingSpace* b = findWorkingSpace(to);
+    std::array<std::array<double, 3>, 3> m{};
+    if (!a || !b || !rgbToRgb(a->xy, b->xy, m)) return {};
+    // oiiotool's --ccmatrix multiplies a row vector (out = in * M): transpose=1 takes our matrix,
+    // which multiplies a column vector, row by row. The README's ACEScg recipe is the same.
+    std::vector<std::string> values;
+    for (const auto& row : m)
+        for (const double v : row) values.push_back(fmt::format("{:.10g}", v));
+    std::string in = "IN", out = fmt::format("OUT_{}.exr", b->name);
+    if (!path.empty()) {
+        in = shellWord(path);
+        const std::string ext = OIIO::Filesystem::extension(path);
+        out = shellWord(path.substr(0, path.size() - ext.size()) + "_" + b->name + ".exr");
+    }
+    return fmt::format(
+        "oiiotool {} --ccmatrix:transpose=1 {} --eraseattrib chromaticities --attrib "
+        "colorInteropID {} -o {}",
+        in, fmt::join(values, ","), b->interopID, out);
+}
+
+namespace {
+
+/// OIIO's names for linear data that say nothing of the primaries: "Linear" (its OpenEXR reader's
+/// label of every float file, and its PNG reader's of gamma 1), "scene_linear" (a role).
+bool saysOnlyLinear(const std::string& cs) {
+    return OIIO::Strutil::iequals(cs, "Linear") || OIIO::Strutil::iequals(cs, "scene_linear");
+}
+
+/// A space read from `tag` ("colorInteropID 'lin_rec709_scene' says") against the file's
+/// oiio:ColorSpace when it has one that says more than "linear": they must name the same space.
+/// A converted copy shows why: `oiiotool seed.exr --colorconvert linear sRGB -d uint8 -o
+/// seed.png` keeps the EXR's colorInteropID beside the PNG's oiio:ColorSpace sRGB.
+bool agreesWithOiioColorSpace(const ImageSpec& spec, const WorkingSpace& ws, const std::string& tag,
+                              std::string& problem) {
+    const std::string cs = spec.get_string_attribute("oiio:ColorSpace");
+    if (cs.empty() || saysOnlyLinear(cs)) return true;
+    const WorkingSpace* other = findWorkingSpace(cs);
+    if (other == &ws) return true;
+    problem = fmt::format(
+        "{} {} but oiio:ColorSpace says '{}': the file contradicts itself, and which is "
+        "right cannot be told from it (a copy converted by oiiotool --colorconvert keeps its "
+        "source's tags); fix its metadata, or use the file it was made from",
+        tag, ws.name, printable(cs));
+    return false;
+}
+
+}  // namespace
+
 bool colourSpaceOf(const ImageSpec& spec, std::string& space, std::string& source,
-                   std::string& problem) {
+                   std::string& problem, const std::string& path) {
     space.clear();
     source.clear();
     // 1. colorInteropID (OpenEXR 3.4; OIIO passes an EXR's unknown attributes by name).
@@ -130,6 +209,9 @@ bool colourSpaceOf(const ImageSpec& spec, std::string& space, std::string& sourc
                 return false;
             }
         }
+        if (!agreesWithOiioColorSpace(spec, *ws, "colorInteropID '" + printable(id) + "' says",
+                                      problem))
+            return false;
         space = ws->name;
         source = "colorInteropID " + printable(id);
         return true;
@@ -144,6 +226,7 @@ bool colourSpaceOf(const ImageSpec& spec, std::string& space, std::string& sourc
                 chromaticitiesText(xy), knownWorkingSpaceNames());
             return false;
         }
+        if (!agreesWithOiioColorSpace(spec, *ws, "the chromaticities say", problem)) return false;
         space = ws->name;
         source = "chromaticities";
         return true;
@@ -159,8 +242,8 @@ bool colourSpaceOf(const ImageSpec& spec, std::string& space, std::string& sourc
     problem = fmt::format(
         "oiio:ColorSpace '{}' is not scene-linear (a display encoding such as an sRGB PNG or "
         "JPEG, or a space mcstat does not know): ingest takes scene-linear renders; convert "
-        "them first (e.g. oiiotool IN --colorconvert {} lin_rec709 -o OUT.exr)",
-        printable(cs), printable(cs));
+        "them first, e.g. {}",
+        printable(cs), linearizeCommand(path, printable(cs)));
     return false;
 }
 
@@ -369,6 +452,26 @@ bool checkRequest(const std::vector<std::string>& paths, const IngestOptions& op
     return true;
 }
 
+/// Refuses a beauty of integer pixels (an 8-bit PNG or JPEG, a 16-bit TIFF, an EXR's uint): a
+/// renderer's output is float (half or float), and integer data read as light is quantised and
+/// clipped at 1 (a converted PNG's maximum 1.0 against its EXR's 240.6). Other channels may be
+/// integers (IDs). `f` is open.
+bool checkFloatBeauty(const InputFile& f, std::string& err) {
+    for (const int i : f.beauty.index) {
+        const auto [sub, chan] = f.where[size_t(i)];
+        const ImageSpec spec = sub == 0 ? f.spec : f.in->spec(sub, 0);
+        const TypeDesc t = spec.channelformat(chan);
+        if (t.is_floating_point()) continue;
+        err = fmt::format(
+            "{}: its beauty holds {}-bit integer pixels ({}), not a render's float (half or "
+            "float) output: as light they are quantised and clipped at 1; ingest the renderer's "
+            "own float files (EXR)",
+            f.path, t.size() * 8, t.c_str());
+        return false;
+    }
+    return true;
+}
+
 /// Opens file j and reads its header: its layout against the first file's, its beauty and
 /// feature channels, its samples per pixel.
 bool readHeader(Ingest& s, size_t j, const std::string& path, std::string& err) {
@@ -392,7 +495,9 @@ bool readHeader(Ingest& s, size_t j, const std::string& path, std::string& err) 
         err = f.path + ": " + problem;
         return false;
     }
+    if (!checkFloatBeauty(f, err)) return false;
     f.features = findFeatures(f.names, f.beauty);
+    if (!seedOf(f, s.opt, err)) return false;
     f.spp = s.opt.spp > 0 ? s.opt.spp : sppFromMetadata(f.spec, f.beauty, f.sppKey);
     if (f.spp <= 0) {
         err = fmt::format(
@@ -407,7 +512,7 @@ bool readHeader(Ingest& s, size_t j, const std::string& path, std::string& err) 
         return false;
     }
     std::string problem2;
-    if (!colourSpaceOf(f.spec, f.space, f.spaceSource, problem2)) {
+    if (!colourSpaceOf(f.spec, f.space, f.spaceSource, problem2, f.path)) {
         err = f.path + ": " + problem2;
         return false;
     }
@@ -509,19 +614,22 @@ bool readHeaders(const std::vector<std::string>& paths, Ingest& s, std::string& 
         if (!readHeader(s, j, paths[j], err)) return false;
     s.report.beauty = s.first().beauty;
     s.report.features = s.first().features;
-    return checkOneFrame(s, err) && checkImageSize(s, err) && chooseAovs(s, err) &&
-           checkTotals(s, err);
+    return checkOneFrame(s, err) && checkSeeds(s, err) && checkImageSize(s, err) &&
+           chooseAovs(s, err) && checkTotals(s, err);
 }
 
-/// mcstat:seeds of renders known by the hashes of their RGB: "h" and 16 hex digits per file. Until
-/// a pass has read every row (`hashes` null), a placeholder of the same length: a statistics file
-/// written while its rows are read gets the hashes in place when it is complete
-/// (StatsFileWriter::commit).
-std::string seedsText(const std::vector<uint64_t>* hashes, size_t files) {
+/// mcstat:seeds: per file its seed in decimal when the file says one (its Note, or its name through
+/// --ingest:seed=), else the hash of its RGB, "h" and 16 hex digits. Until a pass has read every
+/// row (`hashes` null), each hash is a placeholder of the same length: a statistics file written
+/// while its rows are read gets the hashes in place when it is complete (StatsFileWriter::commit).
+std::string seedsText(const std::vector<uint64_t>* hashes, const std::vector<InputFile>& files) {
     std::string s;
-    for (size_t j = 0; j < files; ++j) {
+    for (size_t j = 0; j < files.size(); ++j) {
         if (j) s += ',';
-        s += hashes ? fmt::format("h{:016x}", (*hashes)[j]) : "h" + std::string(16, '-');
+        if (!files[j].seed.empty())
+            s += files[j].seed;
+        else
+            s += hashes ? fmt::format("h{:016x}", (*hashes)[j]) : "h" + std::string(16, '-');
     }
     return s;
 }
@@ -561,7 +669,7 @@ void fillHeader(Ingest& s) {
     }
     h.sourceMetadata = sourceMetadataJson(fsp);
     h.formatVersion = std::max(kStatsFormatVersionProvenance, requiredFormatVersion(h));
-    h.seeds = seedsText(nullptr, files.size());
+    h.seeds = seedsText(nullptr, files);
 }
 
 }  // namespace ingest_detail

@@ -1,5 +1,5 @@
 // Ingest of renderer output (include/mcstat/ingest.h, docs/ingest.md): many renders of one image,
-// one per seed, become one statistics file with one sub-buffer per file. The work is in three
+// one per seed, become one statistics file with one sub-buffer per file. The work is in four
 // rooms (ingest_plan.h); this file holds the whole-image call and the parameters.
 #include "mcstat/ingest.h"
 
@@ -50,6 +50,11 @@ const std::vector<ParamSpec>& ingestParams() {
                       "the working space of untagged renders (no colorInteropID, chromaticities or "
                       "oiio:ColorSpace): lin_rec709 (default), ACEScg, ACES2065-1, lin_p3d65, "
                       "lin_rec2020 or their colorInteropID (docs/colour.md)"),
+            textParam("seed", "",
+                      "PATTERN: each file's seed from its name, {seed} standing for the seed's "
+                      "digits (e.g. seed_{seed}.exr; * and ? as in a glob); files also give it in "
+                      "a Note stamp 'seed=N' (Blender, mcstat-blender); two files of one seed are "
+                      "refused (docs/ingest.md, \"Seeds\")"),
             flagParam("aovs", "1",
                       "1 keeps alpha, light groups, passes, data and ID mattes per sub-buffer "
                       "(docs/aovs.md); 0 leaves out every channel but the beauty's R,G,B"),
@@ -76,6 +81,13 @@ bool parseIngestOptions(const std::map<std::string, std::string>& kv, IngestOpti
             opt.layer = v;
         } else if (k == "spp") {
             opt.spp = v.empty() ? 0 : value.integer;
+        } else if (k == "seed") {
+            std::string problem;
+            if (!v.empty() && !checkSeedPattern(v, problem)) {
+                err = context + ": " + problem;
+                return false;
+            }
+            opt.seedPattern = v;
         } else if (k == "aovs") {
             opt.aovs = value.integer != 0;
         } else if (k == "colorspace" && !v.empty()) {

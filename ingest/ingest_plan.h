@@ -1,7 +1,8 @@
-// What the files of an ingest (ingest.h) settle before any pixel is read, shared by its three
-// rooms: inputs.cpp (the names given: globs, lists, frames), headers.cpp (each file's header:
-// layout, channels, samples, colour space, metadata; the result's header) and pixel_source.cpp
-// (the pixels, by blocks of rows). Private to ingest/.
+// What the files of an ingest (ingest.h) settle before any pixel is read, shared by its rooms:
+// inputs.cpp (the names given: globs, lists, frames), headers.cpp (each file's header: layout,
+// channels, samples, colour space, metadata; the result's header), seeds.cpp (each file's seed,
+// from its Note stamp or its name) and pixel_source.cpp (the pixels, by blocks of rows). Private
+// to ingest/.
 #pragma once
 
 #include <OpenImageIO/imageio.h>
@@ -38,6 +39,8 @@ struct InputFile {
     std::string sppKey;
     std::string space;        ///< its working space (colourSpaceOf, or the assumed one)
     std::string spaceSource;  ///< what said so: "colorInteropID lin_ap1_scene", "untagged: ..."
+    std::string seed;         ///< its seed in decimal (seeds.cpp), "" when nothing says it
+    std::string seedSource;   ///< what said so: "Note stamp" or "name"
 };
 
 /// What every source over the same renders shares: the files and what their headers settled
@@ -86,11 +89,21 @@ bool checkRequest(const std::vector<std::string>& paths, const IngestOptions& op
 bool openInput(const std::string& path, int64_t maxPixels, InputFile& f, std::string& err);
 /// Every header first: layouts, channels, spp; nothing is allocated before they agree.
 bool readHeaders(const std::vector<std::string>& paths, Ingest& s, std::string& err);
-/// mcstat:seeds of renders known by the hashes of their RGB (`hashes` null: a placeholder of the
-/// same length).
-std::string seedsText(const std::vector<uint64_t>* hashes, size_t files);
+/// mcstat:seeds: per file its seed when it says one (seeds.cpp), else the hash of its RGB
+/// (`hashes` null: a placeholder of the same length).
+std::string seedsText(const std::vector<uint64_t>* hashes, const std::vector<InputFile>& files);
 /// The result's header: its size and buffers, where its samples came from and what the render
 /// looked like.
 void fillHeader(Ingest& s);
+
+// ---- seeds.cpp
+
+/// The seed `f` says it was rendered with (docs/ingest.md, "Seeds"): a `seed=N` token of its
+/// `Note` (Blender's metadata stamp) and, with --ingest:seed=PATTERN, its name; the two must
+/// agree. Sets f.seed ("" when neither says one) and f.seedSource. False with `err` naming the
+/// file.
+bool seedOf(InputFile& f, const IngestOptions& opt, std::string& err);
+/// Two inputs of one seed are refused: their samples are the same, not independent.
+bool checkSeeds(const Ingest& s, std::string& err);
 
 }  // namespace mcstat::ingest_detail

@@ -519,7 +519,7 @@ bool IngestSource::Impl::finishPass(std::string& err) {
         }
     }
     s.hashes = std::move(hashes);
-    s.header.seeds = seedsText(&s.hashes, M);
+    s.header.seeds = seedsText(&s.hashes, s.files);
     s.hashed = true;
     for (const std::string& w : warnings) s.warnOfPixels(w);
     return true;

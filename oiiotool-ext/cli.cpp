@@ -2,6 +2,7 @@
 // operations). Reading, writing and --info live in io.cpp.
 #include "cli.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
 #include <OpenImageIO/timer.h>
@@ -313,7 +314,8 @@ bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& 
         return false;
     }
     // One luminance and one display for both sides: the same working space (docs/colour.md).
-    if (!sameSpace(cmd, top.name, opt.space, args[0], refSpace, err)) return false;
+    if (!sameSpace(cmd, top.name, opt.space, args[0], refSpace, err, isImageFile(top), true))
+        return false;
     DiffMetrics m;
     if (!diffImages(img, ref, opt, m, err)) {
         err = format("{}: {} vs {}: {}", cmd, top.name, args[0], err);
@@ -965,12 +967,16 @@ void warning(const std::string& text) {
 bool imageSpace(const OIIO::ImageSpec& spec, const std::string& what, std::string& space,
                 std::string& err) {
     std::string source, problem;
-    if (!colourSpaceOf(spec, space, source, problem)) {
+    if (!colourSpaceOf(spec, space, source, problem, what)) {
         err = what + ": " + problem;
         return false;
     }
     if (space.empty()) space = kSceneLinear;
     return true;
+}
+
+bool isImageFile(const Item& item) {
+    return !item.isStats() && OIIO::Filesystem::is_regular(item.name);
 }
 
 bool itemSpace(const Item& item, std::string& space, std::string& err) {
@@ -982,13 +988,28 @@ bool itemSpace(const Item& item, std::string& space, std::string& err) {
 }
 
 bool sameSpace(const std::string& cmd, const std::string& a, const std::string& spaceA,
-               const std::string& b, const std::string& spaceB, std::string& err) {
+               const std::string& b, const std::string& spaceB, std::string& err, bool aFile,
+               bool bFile) {
     if (spaceA == spaceB) return true;
-    err = format(
-        "{}: {} is in {} but {} is in {}: convert one to the other's space first (an image: "
-        "oiiotool IN --colorconvert {} {} -o OUT.exr with a config that has both; renders: "
-        "re-ingest them converted, docs/colour.md)",
-        cmd, a, printable(spaceA), b, printable(spaceB), printable(spaceB), printable(spaceA));
+    // The conversion as stock oiiotool runs it without an OCIO config (whose built-in one knows
+    // neither space): the matrix between the two, the image's tags set to its new space.
+    const bool toA = bFile || !aFile;
+    const std::string command = convertSpaceCommand(bFile   ? b
+                                                    : aFile ? a
+                                                            : std::string(),
+                                                    toA ? spaceB : spaceA, toA ? spaceA : spaceB);
+    std::string what;
+    if (command.empty())
+        what = "convert one to the other's space first (docs/colour.md)";
+    else if (bFile || aFile)
+        what = format("convert {} to {} first: {}", bFile ? b : a, toA ? spaceA : spaceB, command);
+    else
+        what = format(
+            "re-ingest one side's renders converted to the other's space, each with {} "
+            "(docs/colour.md)",
+            command);
+    err = format("{}: {} is in {} but {} is in {}: {}", cmd, a, printable(spaceA), b,
+                 printable(spaceB), what);
     return false;
 }
 

@@ -126,9 +126,16 @@ bool itemSpace(const Item& item, std::string& space, std::string& err);
 /// The same for an image's spec; `what` names it in errors.
 bool imageSpace(const OIIO::ImageSpec& spec, const std::string& what, std::string& space,
                 std::string& err);
-/// Refuses two working spaces that differ, with what to do: "CMD: A is in X but B is in Y: ...".
+/// Whether `item` is an image read from the file its name names (not a statistics file, not a
+/// computed image): one that a printed oiiotool command can convert.
+bool isImageFile(const Item& item);
+/// Refuses two working spaces that differ, with what to do: "CMD: A is in X but B is in Y: ...",
+/// with the stock oiiotool command (no OCIO config needed) that converts B into A's space when
+/// `bFile` (B is an image file), else A into B's when `aFile`, else the command for each render
+/// of a re-ingest.
 bool sameSpace(const std::string& cmd, const std::string& a, const std::string& spaceA,
-               const std::string& b, const std::string& spaceB, std::string& err);
+               const std::string& b, const std::string& spaceB, std::string& err,
+               bool aFile = false, bool bFile = false);
 /// Prints once per process the note displayNote gives for pixels of working space `space`
 /// (shown through a matrix because the config lacks the space), unless quiet().
 void noteDisplayRoute(const std::string& space);

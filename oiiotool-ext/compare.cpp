@@ -72,7 +72,8 @@ bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string
         err = format("{}: {}", cmd, err);
         return false;
     }
-    if (!sameSpace(cmd, a.name, spaceA, b.name, spaceB, err)) return false;
+    if (!sameSpace(cmd, a.name, spaceA, b.name, spaceB, err, isImageFile(a), isImageFile(b)))
+        return false;
     CompareOptions opt;
     if (!itemLuma(a, opt.luma, err)) {
         err = format("{}: {}", cmd, err);

@@ -342,7 +342,8 @@ int runFrames(const std::vector<std::string>& all) {
         std::fprintf(stderr, "mcstat: %s\n", oneLine(err).c_str());
         return 1;
     }
-    // The first argument with a frame pattern that is not an output names the frames on disk.
+    // The first argument with a frame pattern that is neither an output nor a command (whose
+    // modifiers may hold one: --ingest:seed=shot_s{seed}.#.exr) names the frames on disk.
     std::string input;
     bool anyPattern = false;
     for (size_t i = 0; i < run.args.size(); ++i) {
@@ -350,7 +351,8 @@ int runFrames(const std::vector<std::string>& all) {
         anyPattern = true;
         const bool output = i > 0 && OIIO::Strutil::starts_with(run.args[i - 1], "-o") &&
                             (run.args[i - 1].size() == 2 || run.args[i - 1][2] == ':');
-        if (!output && input.empty()) input = run.args[i];
+        const bool command = run.args[i][0] == '-';
+        if (!output && !command && input.empty()) input = run.args[i];
     }
     if (!anyPattern) {
         std::fprintf(stderr,

@@ -115,7 +115,7 @@ bool makeSceneLinear(const std::string& path, OIIO::ImageBuf& rgb, std::string& 
     // Its working space as ingest reads an input's; the pixels are labelled with it, so that
     // the comparison can refuse a reference in another space.
     std::string known, source, problem;
-    const bool placed = colourSpaceOf(spec, known, source, problem);
+    const bool placed = colourSpaceOf(spec, known, source, problem, path);
     const bool tagged = spec.find_attribute("chromaticities") ||
                         !spec.get_string_attribute("colorInteropID").empty() ||
                         !spec.get_string_attribute("openexr:colorInteropID").empty();
@@ -154,14 +154,13 @@ bool makeSceneLinear(const std::string& path, OIIO::ImageBuf& rgb, std::string& 
     const WorkingSpace* ws = findWorkingSpace(linear);
     rgb.specmod().attribute("oiio:ColorSpace", ws ? std::string(ws->name) : linear);
     if (converted)
-        noteOnce(
-            format("{} is display-encoded ({}{}); converted to scene-linear {} through OCIO "
-                   "before comparing{}",
-                   path, space, assumed ? ", assumed: integer pixels naming no colour space" : "",
-                   linear,
-                   integer ? " (its integer pixels are quantised and clipped at 1: a float "
-                             "EXR reference is better)"
-                           : ""));
+        noteOnce(format(
+            "{} is display-encoded ({}{}); converted to scene-linear {} through OCIO "
+            "before comparing{}",
+            path, space, assumed ? ", assumed: integer pixels naming no colour space" : "", linear,
+            integer ? " (its integer pixels are quantised and clipped at 1: a float "
+                      "EXR reference is better)"
+                    : ""));
     else if (integer)  // declared linear under a name the config has: right, but lossy
         noteOnce(
             format("{} holds {} integer pixels ({}): values are quantised and clipped at 1; "

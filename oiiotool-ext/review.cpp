@@ -159,7 +159,7 @@ bool referenceInSpace(const std::string& cmd, const std::string& what, const std
         err = format("{}: {}", cmd, err);
         return false;
     }
-    return sameSpace(cmd, what, space, refName, refSpace, err);
+    return sameSpace(cmd, what, space, refName, refSpace, err, false, true);
 }
 
 /// Runs `est` with its default parameters (luma from the OCIO config) on `stats`, and `extra`

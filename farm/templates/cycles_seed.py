@@ -10,20 +10,27 @@ pass, light groups, Cryptomatte; static, so frames differ by seed only).
 
 The Cycles seed is F * K + S (K = --seed-stride, default 1000): every (frame, seed) of the shot
 gets its own, and the seeds of one frame keep their order. Animated seed is off, adaptive sampling
-and denoising are off, nothing is clamped (the statistics need the raw samples). The output is one
-multilayer EXR, float32, ZIP, with Cycles' samples count in its metadata, which `mcstat --ingest`
-reads (one sub-buffer per file).
+and denoising are off, nothing is clamped, no stamp is burnt into the pixels (the statistics need
+the raw samples). The output is one multilayer EXR, float32, ZIP, with Cycles' samples count in its
+metadata and the stamp note "seed=S frame=F cycles_seed=C" (Blender writes it as the EXR attribute
+`Note`; a note the .blend already has is kept before it), both of which `mcstat --ingest` reads: one
+sub-buffer per file, recorded under seed S, and two files of one seed refused (docs/ingest.md).
+farm/mcstat-blender runs this once per seed.
 """
 
 import argparse
 import os
+import re
 import runpy
 import sys
 
 import bpy
 
 HERE = os.path.dirname(os.path.realpath(__file__))
-CAUSTIC = os.path.join(HERE, "..", "..", "tests", "aovs", "cycles_caustic.py")
+# Installed (cmake --install): beside this file; in the source tree: the test suite's.
+CAUSTIC = next((p for p in (os.path.join(HERE, "cycles_caustic.py"),
+                            os.path.join(HERE, "..", "..", "tests", "aovs", "cycles_caustic.py"))
+                if os.path.isfile(p)), os.path.join(HERE, "cycles_caustic.py"))
 
 
 def parse_args():
@@ -45,6 +52,15 @@ def parse_args():
     return a
 
 
+def seed_note(old, a, cycles_seed):
+    """The stamp note: the .blend's own note without seed=, frame= or cycles_seed= tokens, then
+    ours (mcstat --ingest refuses a note naming two seeds)."""
+    kept = re.sub(r"(^|[\s,;])(seed|frame|cycles_seed)=\d+(?=$|[\s,;])", r"\1", old or "")
+    kept = " ".join(kept.split())
+    ours = "seed=%d frame=%d cycles_seed=%d" % (a.seed, a.frame, cycles_seed)
+    return (kept + " " + ours) if kept else ours
+
+
 def main():
     a = parse_args()
     cycles_seed = a.frame * a.seed_stride + a.seed
@@ -54,7 +70,8 @@ def main():
         # No .blend given: the caustic scene, built and rendered by the test suite's script.
         res = a.res or (128, 96)
         sys.argv = [sys.argv[0], "--", "--out", out, "--seed", str(cycles_seed), "--spp", str(a.spp),
-                    "--res", str(res[0]), str(res[1]), "--threads", str(a.threads)]
+                    "--res", str(res[0]), str(res[1]), "--threads", str(a.threads),
+                    "--note", seed_note("", a, cycles_seed)]
         runpy.run_path(CAUSTIC, run_name="__main__")
     else:
         scene = bpy.context.scene
@@ -75,6 +92,10 @@ def main():
         c.use_denoising = False
         c.sample_clamp_direct = 0.0
         c.sample_clamp_indirect = 0.0
+        # The seed in the metadata (the EXR's `Note`), never burnt into the pixels.
+        r.use_stamp = False
+        r.stamp_note_text = seed_note(r.stamp_note_text if r.use_stamp_note else "", a, cycles_seed)
+        r.use_stamp_note = True
         im = r.image_settings
         im.file_format = "OPEN_EXR_MULTILAYER"
         im.color_depth = "32"

@@ -31,9 +31,28 @@ bool expandInputs(const std::string& pattern, std::vector<std::string>& paths, s
 /// `oiio:ColorSpace` (OIIO's "Linear" of any float EXR says nothing). `space` is the working
 /// space's name (findWorkingSpace), empty when the file is untagged; `source` says which
 /// attribute decided ("colorInteropID lin_ap1_scene"). False with `problem` when the tag names
-/// no space mcstat knows, or a display encoding (sRGB PNG/JPEG), which is not scene-linear.
+/// no space mcstat knows, or a display encoding (sRGB PNG/JPEG), which is not scene-linear (with
+/// linearizeCommand's conversion of `path`, "IN" when empty), or when the tags contradict each
+/// other: colorInteropID against the chromaticities, or either against an oiio:ColorSpace that
+/// names another space (a copy converted by `oiiotool --colorconvert linear sRGB` keeps its
+/// source's colorInteropID beside its own oiio:ColorSpace sRGB).
 bool colourSpaceOf(const OIIO::ImageSpec& spec, std::string& space, std::string& source,
-                   std::string& problem);
+                   std::string& problem, const std::string& path = {});
+
+/// `text` as one word of a POSIX shell: as it is when it holds only characters no shell treats
+/// specially (letters, digits, `_-+.,/:=@%`), else in single quotes.
+std::string shellWord(const std::string& text);
+/// A stock oiiotool command making display-encoded image `path` ("IN" when empty) scene-linear,
+/// written beside it as STEM_linear.exr: `--colorconvert FROM linear` when $OCIO is unset (OIIO's
+/// own config knows linear, sRGB and Rec709, not lin_rec709), else to the $OCIO config's
+/// scene-linear space (sceneLinearName, color.h). Runs as printed.
+std::string linearizeCommand(const std::string& path, const std::string& from);
+/// A stock oiiotool command converting the scene-linear image `path` ("IN" when empty) from
+/// working space `from` to `to` (colour_space.h names) that needs no OCIO config: the matrix
+/// rgbToRgb gives (--ccmatrix), the chromaticities erased and colorInteropID set to `to`'s, into
+/// STEM_<to>.exr. "" when either space is unknown.
+std::string convertSpaceCommand(const std::string& path, const std::string& from,
+                                const std::string& to);
 
 struct IngestOptions {
     /// The working space of untagged inputs (`--ingest:colorspace=`), a name findWorkingSpace
@@ -59,11 +78,26 @@ struct IngestOptions {
     /// Keep every channel that is not the beauty's R, G, B as an AOV (docs/aovs.md). false drops
     /// them, on request only (`--ingest:aovs=0`), and the report says so.
     bool aovs = true;
+    /// --ingest:seed=PATTERN: each file's seed read from its name, where `{seed}` stands for the
+    /// seed's digits and `*`, `?`, `[...]` match as in a glob (checkSeedPattern); matched against
+    /// the path's last components (one per '/' in the pattern, plus one). Empty: the names say
+    /// nothing; seeds then come from the files' Note stamps only (docs/ingest.md, "Seeds").
+    std::string seedPattern;
     /// Class overrides, applied in order, the last match winning: a glob (fnmatch) matched
     /// against a channel's full name and against its layer (e.g. "*.IndexOB" or "mask_*"), and
     /// the class it gets instead of classifyAov's.
     std::vector<std::pair<std::string, AovClass>> classOverrides;
 };
+
+/// Whether `pattern` can be a seed pattern (IngestOptions::seedPattern): `{seed}` exactly once, no
+/// leading '/'. False with a one-line `problem`.
+bool checkSeedPattern(const std::string& pattern, std::string& problem);
+/// The seed the name of `path` gives through `pattern` (checked by checkSeedPattern), in decimal
+/// without leading zeros: `{seed}` matches a whole run of digits, the rest of the pattern (a
+/// glob) the text around it. False with `problem` when the name does not match, matches with two
+/// different seeds, or its seed does not fit 64 bits.
+bool seedFromName(const std::string& path, const std::string& pattern, std::string& seed,
+                  std::string& problem);
 
 /// `mcstat --ingest`'s modifiers (and Python's mcstat.ingest keyword arguments): layer, spp,
 /// colorspace, aovs, and the class overrides alpha, light, data, id (GLOB,...).
@@ -97,8 +131,10 @@ struct IngestReport {
 /// count-weighted means over the files, the others absent (NaN, not in mcstat:features); coverage
 /// is always absent. Every file must have the same data and display windows and channel names.
 /// NaN/Inf RGB values are kept (estimators leave such buffers out; the plain mean is non-finite
-/// there) and counted. Two files with identical RGB are refused (the same render twice). The
-/// whole image in memory: IngestSource streams the same rows.
+/// there) and counted. Two files with identical RGB are refused (the same render twice), and so
+/// are two files of one seed (their Note stamps or names, IngestOptions::seedPattern), and a
+/// beauty of integer pixels (8-bit PNGs: a renderer's output is float). The whole image in
+/// memory: IngestSource streams the same rows.
 bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& opt, StatsImage& out,
                    IngestReport& report, std::string& err);
 
@@ -110,11 +146,13 @@ bool ingestRenders(const std::vector<std::string>& paths, const IngestOptions& o
 /// are kept open up to 64 of them, else opened per block), and computes the block's moments. The
 /// RGB is read whatever the parts asked; features and AOVs only when asked.
 ///
-/// Provenance: each file's RGB hash (mcstat:seeds "h<16 hex digits>", the same render twice is
-/// refused) is known only once a pass has read every row, in order from row 0 (a window
-/// filter's overlapping blocks count). Until then header().seeds holds a placeholder of the
-/// final length; the block that completes the pass carries the final seeds, which the
-/// statistics file writer puts in place at commit. A later pass must find the same hashes.
+/// Provenance: mcstat:seeds holds each file's seed in decimal when the file says it (its Note
+/// stamp, or its name through IngestOptions::seedPattern: known from the headers), else its RGB
+/// hash ("h<16 hex digits>"; the same render twice is refused), known only once a pass has read
+/// every row, in order from row 0 (a window filter's overlapping blocks count). Until then
+/// header().seeds holds a placeholder of the final length for each hash; the block that completes
+/// the pass carries the final seeds, which the statistics file writer puts in place at commit. A
+/// later pass must find the same hashes.
 class IngestSource final : public StatsBlockSource {
   public:
     IngestSource();

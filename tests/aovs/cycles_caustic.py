@@ -11,12 +11,13 @@ material index and a Cryptomatte object pass are written into one multilayer EXR
 
   blender -b --factory-startup -noaudio --python-exit-code 1 --python cycles_caustic.py -- \
       --out seed_1.exr --seed 1 --spp 64 --res 128 96 [--key-scale 1] [--ior 1.5] [--threads 2] \
-      [--checker-scale 8] [--clamp-indirect 0] [--clamp-direct 0]
+      [--checker-scale 8] [--clamp-indirect 0] [--clamp-direct 0] [--note TEXT]
 
 --checker-scale sets the floor checker's Scale (8: cells 0.5 wide; 160: cells 0.025 wide, about 1.5
 pixels across at 256 x 192, the pixel-scale detail of the trade's detail renders). --clamp-indirect
 and --clamp-direct are Cycles' own firefly clamps (Light Paths > Clamping, 0 = off), the renderer
-clamp users already have.
+clamp users already have. --note writes TEXT as the metadata stamp note (the EXR attribute `Note`;
+farm/templates/cycles_seed.py gives "seed=S ...", which mcstat --ingest reads as the file's seed).
 """
 
 import argparse
@@ -41,6 +42,7 @@ def parse_args():
     p.add_argument("--clamp-indirect", type=float, default=0.0,
                    help="Cycles' sample_clamp_indirect (0: off)")
     p.add_argument("--clamp-direct", type=float, default=0.0, help="Cycles' sample_clamp_direct (0: off)")
+    p.add_argument("--note", default="", help="the metadata stamp note (EXR attribute Note); none if empty")
     a = p.parse_args(argv)
     if a.spp < 1 or a.res[0] < 1 or a.res[1] < 1 or a.threads < 0 or a.key_scale < 0 or a.ior <= 0:
         p.error("spp, res must be >= 1; threads, key-scale >= 0; ior > 0")
@@ -248,6 +250,8 @@ def build(a):
     r.use_file_extension = False
     r.use_overwrite = True
     r.use_stamp = False             # no burnt-in stamp; metadata only
+    r.use_stamp_note = bool(a.note)
+    r.stamp_note_text = a.note
     r.filepath = os.path.abspath(a.out)
     scene.frame_current = 1
 

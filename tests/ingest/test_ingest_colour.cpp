@@ -5,6 +5,7 @@
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imageio.h>
+#include <sys/wait.h>
 
 #include <algorithm>
 #include <cmath>
@@ -14,6 +15,7 @@
 #include "../cli/cli_support.h"
 #include "mcstat/color.h"
 #include "mcstat/core/colour_space.h"
+#include "mcstat/ingest.h"
 
 namespace mcstat::testing {
 namespace {
@@ -252,7 +254,7 @@ TEST_F(IngestColour, CompareAndMergeRefuseDifferentSpaces) {
     EXPECT_NE(cmp.code, 0);
     EXPECT_EQ(std::count(cmp.err.begin(), cmp.err.end(), '\n'), 1) << cmp.err;
     EXPECT_NE(cmp.err.find("is in lin_rec709 but"), std::string::npos) << cmp.err;
-    EXPECT_NE(cmp.err.find("convert one"), std::string::npos) << cmp.err;
+    EXPECT_NE(cmp.err.find("re-ingest one side's renders converted"), std::string::npos) << cmp.err;
     const Result merge =
         mcstat(path("a.mcstat") + " " + path("b.mcstat") + " --merge -o " + path("c.mcstat"));
     EXPECT_NE(merge.code, 0);
@@ -260,21 +262,200 @@ TEST_F(IngestColour, CompareAndMergeRefuseDifferentSpaces) {
         << merge.err;
 }
 
-TEST_F(IngestColour, DisplayEncodedRendersAreRefusedInOneLine) {
-    // An sRGB PNG holds display-encoded values, not scene-linear light: taken as linear, a value
-    // of about 0.5 would become 0.735. Refused, with the conversion to do.
-    std::vector<unsigned char> px(size_t(kW) * kH * 3, 188);
-    OIIO::ImageSpec spec(kW, kH, 3, OIIO::TypeDesc::UINT8);
-    auto out = OIIO::ImageOutput::create(path("s1.png"));
-    ASSERT_TRUE(out && out->open(path("s1.png"), spec));
-    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, px.data()));
-    out->close();
-    const Result r = mcstat("--ingest:spp=8 '" + path("s1.png") + "' -o " + path("p.mcstat"));
+/// $OCIO unset while it lives, as on a stock machine; restored afterwards.
+class WithoutOcio {
+  public:
+    WithoutOcio() {
+        const char* v = std::getenv("OCIO");
+        had_ = v != nullptr;
+        if (had_) saved_ = v;
+        ::unsetenv("OCIO");
+    }
+    ~WithoutOcio() {
+        if (had_) ::setenv("OCIO", saved_.c_str(), 1);
+    }
+    WithoutOcio(const WithoutOcio&) = delete;
+    WithoutOcio& operator=(const WithoutOcio&) = delete;
+
+  private:
+    bool had_ = false;
+    std::string saved_;
+};
+
+/// The command a one-line message prints after `marker`, to the end of the line.
+std::string printedCommand(const std::string& err, const std::string& marker) {
+    const size_t at = err.find(marker);
+    if (at == std::string::npos) return {};
+    const size_t end = err.find('\n', at);
+    return err.substr(at + marker.size(),
+                      end == std::string::npos ? end : end - at - marker.size());
+}
+
+/// Runs a shell command line as a user would paste it; its exit status.
+int runShell(const std::string& cmd) {
+    const int status = std::system((cmd + " >/dev/null 2>&1").c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+/// Largest |a - b| / max(|b|, 1e-3) over two images' RGB.
+double worstRelative(const std::vector<float>& a, const std::vector<float>& b) {
+    double worst = a.size() == b.size() ? 0.0 : HUGE_VAL;
+    for (size_t i = 0; i < std::min(a.size(), b.size()); ++i)
+        worst = std::max(worst, std::fabs(double(a[i]) - double(b[i])) /
+                                    std::max(std::fabs(double(b[i])), 1e-3));
+    return worst;
+}
+
+TEST_F(IngestColour, DisplayEncodedRendersAreRefusedWithAConversionThatRunsAsPrinted) {
+    // A float render converted to the sRGB display encoding with stock oiiotool: the TIFF keeps
+    // float pixels and says oiio:ColorSpace sRGB (taken as linear, 0.5 would be 0.735). Refused in
+    // one line with the conversion to run, which must run as printed on a machine without $OCIO:
+    // OIIO's own config knows "linear" and "sRGB", not lin_rec709 (which the message printed).
+    WithoutOcio stock;
+    const std::string exr = path("render.exr"), tif = path("s 1.tif");
+    ASSERT_EQ(std::system((std::string(MCSTAT_RENDER_EXE) +
+                           " --scene default --res 32 24 --spp 8 "
+                           "--seed 5 --reference --quiet -o " +
+                           exr)
+                              .c_str()),
+              0);
+    ASSERT_EQ(runShell("oiiotool " + exr + " --colorconvert linear sRGB -d float -o '" + tif + "'"),
+              0);
+    Result r = mcstat("--ingest:spp=8 '" + tif + "' -o " + path("p.mcstat"));
     EXPECT_NE(r.code, 0);
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-    EXPECT_NE(r.err.find("s1.png: oiio:ColorSpace 'sRGB' is not scene-linear"), std::string::npos)
+    EXPECT_NE(r.err.find("s 1.tif: oiio:ColorSpace 'sRGB' is not scene-linear"), std::string::npos)
         << r.err;
-    EXPECT_NE(r.err.find("--colorconvert sRGB lin_rec709"), std::string::npos) << r.err;
+    // The file's own name in the command, quoted for the shell (it has a space).
+    std::string cmd = printedCommand(r.err, "e.g. ");
+    EXPECT_EQ(cmd, "oiiotool '" + tif + "' --colorconvert sRGB linear -o '" +
+                       path("s 1_linear.exr") + "'")
+        << r.err;
+    ASSERT_EQ(runShell("env -u OCIO " + cmd), 0) << cmd;
+    // What it wrote is the render again (float: the round trip loses nothing visible) and goes in.
+    OIIO::ImageSpec spec;
+    EXPECT_LT(worstRelative(readRGB(path("s 1_linear.exr"), spec), readRGB(exr, spec)), 1e-4);
+    r = mcstat("--ingest:spp=8 '" + path("s 1_linear.exr") + "' -o " + path("p.mcstat"));
+    EXPECT_EQ(r.code, 0) << r.err;
+
+    // With $OCIO set, oiiotool reads that config: the command names its scene-linear space.
+    {
+        std::FILE* f = std::fopen(path("own.ocio").c_str(), "w");
+        ASSERT_NE(f, nullptr);
+        std::fputs(builtinOcioConfig(), f);
+        std::fclose(f);
+    }
+    ::setenv("OCIO", path("own.ocio").c_str(), 1);
+    r = mcstat("--ingest:spp=8 '" + tif + "' -o " + path("p2.mcstat"));
+    cmd = printedCommand(r.err, "e.g. ");
+    EXPECT_NE(cmd.find("--colorconvert sRGB lin_rec709 -o"), std::string::npos) << r.err;
+    EXPECT_EQ(runShell(cmd), 0) << cmd;
+    ::unsetenv("OCIO");
+}
+
+TEST_F(IngestColour, ConvertedPngsAreRefusedAsIntegerDataAndTheirTagsAsContradictory) {
+    // The report: `oiiotool seed.exr --colorconvert linear sRGB -d uint8 -o seed.png` keeps the
+    // EXR's colorInteropID lin_rec709_scene beside the PNG's oiio:ColorSpace sRGB, and --ingest of
+    // such PNGs took them as linear light clipped at 1 (max 1.0 against the EXRs' 240.6), exit 0.
+    WithoutOcio stock;
+    for (int s = 1; s <= 2; ++s) {
+        const std::string exr = path(OIIO::Strutil::fmt::format("seed_{}.exr", s));
+        ASSERT_EQ(std::system((std::string(MCSTAT_RENDER_EXE) +
+                               OIIO::Strutil::fmt::format(" --scene default --res 32 24 --spp 8 "
+                                                          "--seed {} --reference --quiet -o ",
+                                                          s) +
+                               exr)
+                                  .c_str()),
+                  0);
+        ASSERT_EQ(runShell("oiiotool " + exr + " --colorconvert linear sRGB -d uint8 -o " +
+                           path(OIIO::Strutil::fmt::format("seed_{}.png", s))),
+                  0);
+    }
+    ASSERT_EQ(runShell("oiiotool " + path("seed_1.exr") +
+                       " --colorconvert linear sRGB -d uint16 -o " + path("wide_1.png")),
+              0);
+    // How OIIO shows such a PNG: 8-bit integer pixels and both tags.
+    OIIO::ImageSpec png;
+    {
+        auto in = OIIO::ImageInput::open(path("seed_1.png"));
+        ASSERT_TRUE(in);
+        png = in->spec();
+    }
+    EXPECT_EQ(png.format, OIIO::TypeDesc::UINT8);
+    EXPECT_EQ(png.get_string_attribute("colorInteropID"), "lin_rec709_scene");
+    EXPECT_EQ(png.get_string_attribute("oiio:ColorSpace"), "sRGB");
+
+    // The EXRs go in; the PNGs do not, in one line naming the file and what is wrong.
+    EXPECT_EQ(mcstat("--ingest '" + path("seed_*.exr") + "' -o " + path("a.mcstat")).code, 0);
+    Result r = mcstat("--ingest '" + path("seed_*.png") + "' -o " + path("b.mcstat"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_EQ(r.err, "mcstat: --ingest: " + path("seed_1.png") +
+                         ": its beauty holds 8-bit integer pixels (uint8), not a render's float "
+                         "(half or float) output: as light they are quantised and clipped at 1; "
+                         "ingest the renderer's own float files (EXR)\n");
+    EXPECT_FALSE(OIIO::Filesystem::exists(path("b.mcstat")));
+    r = mcstat("--ingest '" + path("wide_1.png") + "' -o " + path("b.mcstat"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find("wide_1.png: its beauty holds 16-bit integer pixels (uint16)"),
+              std::string::npos)
+        << r.err;
+
+    // The tags contradict each other, which colourSpaceOf refuses whatever the pixels: a
+    // reference image of --diff (which takes 8-bit pictures) is refused for it alone.
+    std::string space, source, problem;
+    EXPECT_FALSE(colourSpaceOf(png, space, source, problem));
+    EXPECT_EQ(problem,
+              "colorInteropID 'lin_rec709_scene' says lin_rec709 but oiio:ColorSpace says 'sRGB': "
+              "the file contradicts itself, and which is right cannot be told from it (a copy "
+              "converted by oiiotool --colorconvert keeps its source's tags); fix its metadata, "
+              "or use the file it was made from");
+    r = mcstat(path("seed_2.exr") + " --diff " + path("seed_1.png"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find(path("seed_1.png") + ": colorInteropID 'lin_rec709_scene' says"),
+              std::string::npos)
+        << r.err;
+}
+
+TEST_F(IngestColour, TagsThatNameTwoSpacesAreRefusedAndTagsThatAgreeAreNot) {
+    const WorkingSpace* ap1 = findWorkingSpace("ACEScg");
+    const Chromaticities& c = ap1->xy;
+    const float xy[8] = {float(c.rx), float(c.ry), float(c.gx), float(c.gy),
+                         float(c.bx), float(c.by), float(c.wx), float(c.wy)};
+    struct Case {
+        const char* id;          // colorInteropID, or none
+        bool chromaticities;     // AP1's
+        const char* colorSpace;  // oiio:ColorSpace, or none
+        const char* space;       // what is read; null: refused
+    } cases[] = {
+        {"lin_ap1_scene", false, "lin_rec709", nullptr},  // two primaries
+        {"lin_ap1_scene", false, "sRGB", nullptr},        // linear and display-encoded
+        {nullptr, true, "sRGB", nullptr},                 // the chromaticities, the same
+        {nullptr, true, "lin_srgb", nullptr},
+        {"lin_ap1_scene", true, "ACEScg", "ACEScg"},   // all three agree
+        {"lin_ap1_scene", false, "Linear", "ACEScg"},  // OIIO's label of any float EXR
+        {nullptr, true, "scene_linear", "ACEScg"},     // a role: no primaries
+        {"lin_rec709_scene", false, "lin_srgb", "lin_rec709"},
+    };
+    for (const Case& k : cases) {
+        OIIO::ImageSpec spec(4, 4, 3, OIIO::TypeDesc::FLOAT);
+        if (k.id) spec.attribute("colorInteropID", k.id);
+        if (k.chromaticities)
+            spec.attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8), xy);
+        if (k.colorSpace) spec.attribute("oiio:ColorSpace", k.colorSpace);
+        std::string space, source, problem;
+        const std::string what = std::string(k.id ? k.id : "-") + " / " + k.colorSpace;
+        EXPECT_EQ(colourSpaceOf(spec, space, source, problem), k.space != nullptr) << what;
+        if (k.space) {
+            EXPECT_EQ(space, k.space) << what;
+        } else {
+            EXPECT_NE(problem.find("but oiio:ColorSpace says '" + std::string(k.colorSpace) +
+                                   "': the file contradicts itself"),
+                      std::string::npos)
+                << what << ": " << problem;
+        }
+    }
 }
 
 TEST_F(IngestColour, ColorConfigTakesAFileAndRefusesUnsupportedUrisInOneLine) {
@@ -297,8 +478,8 @@ TEST_F(IngestColour, ColorConfigTakesAFileAndRefusesUnsupportedUrisInOneLine) {
     EXPECT_EQ(file.code, 0) << file.err;
 }
 
-/// Small synthetic renders, no renderer: `n` files `stem`N.exr (N from 1) of a 16 x 12 gradient with
-/// a firefly in seed 3, converted to AP1 when `ap1`, tagged with their space when `tag`.
+/// Small synthetic renders, no renderer: `n` files `stem`N.exr (N from 1) of a 16 x 12 gradient
+/// with a firefly in seed 3, converted to AP1 when `ap1`, tagged with their space when `tag`.
 void writeSynthetic(const std::string& stem, int n, bool ap1, bool tag) {
     const int w = 16, h = 12;
     for (int s = 1; s <= n; ++s) {
@@ -328,18 +509,21 @@ std::string configWithFileRules(const std::string& path) {
     const std::string defaultRule = "  - !<Rule> {name: Default, colorspace: default}";
     const size_t at = text.find(defaultRule);
     EXPECT_NE(at, std::string::npos);
-    text.insert(at,
-                "  - !<Rule> {name: ap1, colorspace: ACEScg, pattern: \"*ap1*\", extension: exr}\n"
-                "  - !<Rule> {name: disp, colorspace: sRGB, pattern: \"*disp*\", extension: exr}\n");
+    text.insert(
+        at,
+        "  - !<Rule> {name: ap1, colorspace: ACEScg, pattern: \"*ap1*\", extension: exr}\n"
+        "  - !<Rule> {name: disp, colorspace: sRGB, pattern: \"*disp*\", extension: exr}\n");
     std::string m = "[";
     for (int r = 0; r < 4; ++r)
         for (int c = 0; c < 4; ++c)
-            m += (r == 3 && c == 3 ? std::string("1") : r == 3 || c == 3 ? std::string("0")
-                                                                          : std::to_string(kToAp1[r][c])) +
+            m += (r == 3 && c == 3   ? std::string("1")
+                  : r == 3 || c == 3 ? std::string("0")
+                                     : std::to_string(kToAp1[r][c])) +
                  (r == 3 && c == 3 ? "]" : ", ");
-    text += "\n  - !<ColorSpace>\n    name: ACEScg\n    family: Linear\n    isdata: false\n"
-            "    encoding: scene-linear\n    from_scene_reference: !<MatrixTransform> {matrix: " +
-            m + "}\n";
+    text +=
+        "\n  - !<ColorSpace>\n    name: ACEScg\n    family: Linear\n    isdata: false\n"
+        "    encoding: scene-linear\n    from_scene_reference: !<MatrixTransform> {matrix: " +
+        m + "}\n";
     std::FILE* f = std::fopen(path.c_str(), "w");
     EXPECT_NE(f, nullptr);
     std::fputs(text.c_str(), f);
@@ -432,16 +616,40 @@ TEST_F(IngestColour, DiffAndErrorMapRefuseAReferenceInAnotherSpaceAndDisplayThei
     EXPECT_EQ(png709.err.find("through a matrix"), std::string::npos) << png709.err;
     // A reference in another space is refused by --diff and --errormap, in one line.
     for (const char* cmd : {"--diff", "--errormap"}) {
-        const Result r =
-            mcstat(path("ap1.mcstat") + " --gmon " + cmd + " " + path("a709_ref.exr") + " -o " +
-                   path("e.exr"));
+        const Result r = mcstat(path("ap1.mcstat") + " --gmon " + cmd + " " + path("a709_ref.exr") +
+                                " -o " + path("e.exr"));
         EXPECT_NE(r.code, 0) << cmd;
         EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-        EXPECT_NE(r.err.find(std::string(cmd) + ": gmon(") , std::string::npos) << r.err;
+        EXPECT_NE(r.err.find(std::string(cmd) + ": gmon("), std::string::npos) << r.err;
         EXPECT_NE(r.err.find("is in ACEScg but " + path("a709_ref.exr") + " is in lin_rec709"),
                   std::string::npos)
             << r.err;
     }
+}
+
+TEST_F(IngestColour, SpaceConversionsPrintedByARefusalRunAsPrintedWithoutAConfig) {
+    // Statistics in lin_rec709 against a reference in ACEScg: the refusal prints the conversion,
+    // which needs no OCIO config (stock oiiotool's own knows neither space): a matrix and tags.
+    WithoutOcio stock;
+    writeSynthetic(path("r"), 3, false, true);
+    writeSynthetic(path("ap"), 1, true, true);
+    ASSERT_EQ(mcstat("--ingest '" + path("r*.exr") + "' -o " + path("a.mcstat")).code, 0);
+    Result r = mcstat(path("a.mcstat") + " --mean --diff " + path("ap1.exr"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    const std::string cmd =
+        printedCommand(r.err, "convert " + path("ap1.exr") + " to lin_rec709 first: ");
+    EXPECT_EQ(cmd.rfind("oiiotool " + path("ap1.exr") + " --ccmatrix:transpose=1 ", 0), 0u)
+        << r.err;
+    ASSERT_EQ(runShell("env -u OCIO " + cmd), 0) << cmd;
+    // Converted and labelled: the same comparison runs, and the pixels are r1.exr's again.
+    r = mcstat(path("a.mcstat") + " --mean --diff " + path("ap1_lin_rec709.exr"));
+    EXPECT_EQ(r.code, 0) << r.err;
+    OIIO::ImageSpec converted, original;
+    const std::vector<float> back = readRGB(path("ap1_lin_rec709.exr"), converted);
+    EXPECT_LT(worstRelative(back, readRGB(path("r1.exr"), original)), 1e-5);
+    EXPECT_EQ(converted.get_string_attribute("colorInteropID"), "lin_rec709_scene");
+    EXPECT_EQ(converted.find_attribute("chromaticities"), nullptr);
 }
 
 }  // namespace

@@ -2,7 +2,7 @@
 # Runs every shell block of README.md verbatim, in order, in one shell (as a user pasting them into
 # a terminal), except the block holding the two set-up commands (scripts/demo.sh, scripts/test.sh),
 # which is what this build already did. The scratch folder stands in for the repository's root:
-# build/ is this build tree, render-fixture/, python/ and docs/ the source's (example scenes, scripts, measured tables), out/demo/ holds the demo's
+# build/ is this build tree, render-fixture/, python/, docs/ and farm/ the source's (example scenes, scripts, measured tables, mcstat-blender), out/demo/ holds the demo's
 # reference and seed renders (rendered here with fewer samples: the commands need renders of the
 # same scene and size, not converged ones).
 # Usage: run_readme.sh SOURCE_DIR BUILD_DIR WORK_DIR
@@ -14,6 +14,7 @@ ln -s "$build" "$work/build"
 ln -s "$src/render-fixture" "$work/render-fixture"  # example scenes the README renders
 ln -s "$src/python" "$work/python"                  # the Python module's example scripts
 ln -s "$src/docs" "$work/docs"                      # the measured tables the README plots
+ln -s "$src/farm" "$work/farm"                      # mcstat-blender (with Blender's caustic scene)
 cd "$work"
 build/render-fixture/mcstat-render --scene default --spp 256 --seed 4242 --reference --quiet \
   -o out/demo/reference-65536spp.exr
