@@ -1,5 +1,5 @@
 // The expected value's interval: each pixel's spread and its neighbourhood's pooled variance
-// (expected_interval.h); the interval itself is filters/pixel/confidence.h's expectedInterval.
+// (expected_interval.h); the interval itself is filters/interval.h's expectedInterval.
 #include "mcstat/image/expected_interval.h"
 
 #include <algorithm>

@@ -13,7 +13,7 @@
 #include "mcstat/color.h"
 #include "mcstat/core/colour_space.h"
 #include "mcstat/filters/aov_weights.h"
-#include "mcstat/filters/pixel/confidence.h"
+#include "mcstat/filters/interval.h"
 #include "mcstat/image/expected_interval.h"
 #include "mcstat/image/keep_light_image.h"
 #include "mcstat/image/render_layout.h"

@@ -45,7 +45,8 @@ rule exr-deep "$format" exr-deep include/mcstat/stats_file.h include/mcstat/samp
 # Layer 2: what an operation is names no family; each family reaches only the interface.
 rule operation "$core|$kernel" include/mcstat/filters/operation.h include/mcstat/filters/estimate.h
 rule registry "$core|$kernel" include/mcstat/filters/registry.h
-rule pixel "$core|$kernel|filters/pixel/[a-z_0-9]+\.h" filters/pixel include/mcstat/filters/pixel
+# The per-pixel intervals implement filters/interval.h (the intervals from a stored spread).
+rule pixel "$core|$kernel|filters/interval\.h|filters/pixel/[a-z_0-9]+\.h" filters/pixel include/mcstat/filters/pixel
 rule window "$core|$kernel|filters/window/[a-z_0-9]+\.h|stats_file\.h" filters/window \
   include/mcstat/filters/window
 rule samples "$format|$kernel|filters/aov_weights\.h|filters/samples/[a-z_0-9]+\.h" filters/samples \
@@ -58,7 +59,7 @@ rule measures "$core|analysis/(metrics|planner|two_sample)\.h" analysis include/
 # operation through its kernel and names no family; no tool, no ingest, no review.
 rule imagespec "$format|image/(image_spec|render_layout)\.h" image/image_spec.cpp \
   image/render_layout.cpp include/mcstat/image/image_spec.h include/mcstat/image/render_layout.h
-rule image "$format|filters/(operation|estimate|registry|aov_weights|removed_light|keep_light)\.h|image/[a-z_]+\.h|color\.h|analysis/metrics\.h" \
+rule image "$format|filters/(operation|estimate|registry|aov_weights|removed_light|keep_light|interval)\.h|image/[a-z_]+\.h|color\.h|analysis/metrics\.h" \
   image include/mcstat/image
 # Layer 4: ingest reads renderers' EXRs through the codec, never the format's private headers,
 # and sets up images through the spec library, not the operations.
