@@ -9,6 +9,16 @@ endfunction()
 if(MCSTAT_SANITIZE)
   add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
   add_link_options(-fsanitize=address,undefined)
+  # clang links its sanitizer runtime statically by default, gcc its shared libasan: with clang,
+  # every program takes the shared runtime (found through an rpath), so that the OIIO plugin and
+  # the stock tools the tests preload it into share one runtime with mcstat's own programs. The
+  # libFuzzer targets keep the static one (tests/fuzz: libFuzzer needs the runtime first).
+  if(CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
+    execute_process(COMMAND ${CMAKE_CXX_COMPILER} -print-file-name=libclang_rt.asan-x86_64.so
+                    OUTPUT_VARIABLE _mcstat_asan_rt OUTPUT_STRIP_TRAILING_WHITESPACE)
+    get_filename_component(_mcstat_asan_dir "${_mcstat_asan_rt}" DIRECTORY)
+    add_link_options(-shared-libsan "LINKER:-rpath,${_mcstat_asan_dir}")
+  endif()
 endif()
 
 # Fuzzing (tests/fuzz, scripts/fuzz.sh): every library is compiled with libFuzzer's coverage

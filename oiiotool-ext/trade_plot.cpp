@@ -170,7 +170,7 @@ bool measurements(const Table& t, TradeRequest& q, std::vector<Measurement>& out
         Measurement m;
         m.method = row[size_t(method)];
         for (const auto& [column, at, value] :
-             {std::tuple<const std::string&, int, double*>{"spp", spp, &m.spp},
+             {std::tuple<std::string, int, double*>{"spp", spp, &m.spp},
               {q.xColumn, x, &m.x},
               {q.yColumn, y, &m.y}}) {
             if (!parseRealText(row[size_t(at)], *value)) {
