@@ -84,12 +84,9 @@ void gatherBuffers(const Side& s, const Quantity& q, bool sideB, size_t p,
 /// trimmed mean of such a pixel is its mean (G-MoN trimmed nothing), tested as Welch's.
 bool compactSummary(const Side& s, const Quantity& q, size_t p, const std::array<double, 3>& luma,
                     SideSummary& out) {
-    const StatsImage& b = s.block;
-    if (!b.header.compact || b.header.M < 2 || b.buffersOf(p) != 1 ||
-        b.spread.size() != b.pixelCount() * size_t(kSpreadFloats))
-        return false;
-    const PixelBuffers pb = b.pixelBuffers(p);
-    const float* sp = b.spread.data() + p * size_t(kSpreadFloats);
+    const float* sp = s.block.meanOnlySpread(p);
+    if (!sp) return false;
+    const PixelBuffers pb = s.block.pixelBuffers(p);
     std::array<double, 3> w{0.0, 0.0, 0.0};
     if (q.kind == Quantity::Channel)
         w[size_t(q.channel)] = 1.0;
@@ -360,18 +357,19 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
     const int y0 = ty * taskSide_, y1 = std::min(out_.height, y0 + taskSide_);
     const bool tiles = out_.tile > 0;
     std::vector<double> va, ca, vb, cb;
-    // Tile sums per quantity and buffer: mean values and counts over the tile's pixels.
-    const size_t Ma = size_t(a_.ref ? 0 : out_.Ma), Mb = size_t(out_.Mb);
-    const size_t Q = q_.size();
-    std::vector<double> sumA(Q * Ma, 0.0), cntA(Q * Ma, 0.0), sumB(Q * Mb, 0.0), cntB(Q * Mb, 0.0),
-        refSum(Q, 0.0), refVarSum(Q, 0.0);
-    std::vector<uint8_t> tileBad(Q, 0);
     // When a side's buffer indices do not line up across pixels (adaptive M, compact files), the
     // tile is summed from its pixels' means and their variances instead (PixelSums), on both
     // sides alike: the two tiles must estimate one quantity (a full side's trimmed tile against a
     // compact side's mean of per-pixel values would differ by the trimming's bias, which a tile's
     // small noise turns into false alarms).
     const bool pixB = out_.adaptive, pixA = pixB && !a_.ref;
+    // Otherwise tile sums per quantity and buffer: mean values and counts over the tile's pixels
+    // (none for a reference side or a side summed per pixel).
+    const size_t Ma = size_t(a_.ref || pixA ? 0 : out_.Ma), Mb = size_t(pixB ? 0 : out_.Mb);
+    const size_t Q = q_.size();
+    std::vector<double> sumA(Q * Ma, 0.0), cntA(Q * Ma, 0.0), sumB(Q * Mb, 0.0), cntB(Q * Mb, 0.0),
+        refSum(Q, 0.0), refVarSum(Q, 0.0);
+    std::vector<uint8_t> tileBad(Q, 0);
     std::vector<PixelSums> sumsA(pixA ? Q : 0), sumsB(pixB ? Q : 0);
     for (int y = y0; y < y1; ++y) {
         for (int x = x0; x < x1; ++x) {
@@ -405,11 +403,11 @@ void Comparison::testTile(int tx, int ty, int row0, Tally& tally) {
                         sumsA[qi].add(opt_.trimmed ? pixelMean(a_, q, local, va, ca) : sa, 0.0);
                     if (pixB)
                         sumsB[qi].add(opt_.trimmed ? pixelMean(b_, q, local, vb, cb) : sb, nb);
-                    for (size_t j = 0; j < Ma && !pixA; ++j) {
+                    for (size_t j = 0; j < Ma; ++j) {
                         sumA[qi * Ma + j] += va[j];
                         cntA[qi * Ma + j] += ca[j];
                     }
-                    for (size_t j = 0; j < Mb && !pixB; ++j) {
+                    for (size_t j = 0; j < Mb; ++j) {
                         sumB[qi * Mb + j] += vb[j];
                         cntB[qi * Mb + j] += cb[j];
                     }

@@ -16,13 +16,6 @@ namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 }  // namespace
 
-const float* compactPixelSpread(const StatsImage& src, size_t p) {
-    if (!src.header.compact || src.header.M < 2 || src.buffersOf(p) != 1 ||
-        src.spread.size() != src.pixelCount() * size_t(kSpreadFloats))
-        return nullptr;
-    return src.spread.data() + p * size_t(kSpreadFloats);
-}
-
 std::vector<PixelSpread> pixelSpreads(const StatsImage& src, int nthreads) {
     const size_t n = src.pixelCount();
     std::vector<PixelSpread> out(n);
@@ -33,7 +26,7 @@ std::vector<PixelSpread> pixelSpreads(const StatsImage& src, int nthreads) {
             const size_t p = size_t(i);
             PixelSpread& s = out[p];
             const PixelBuffers pb = src.pixelBuffers(p);
-            if (const float* sp = compactPixelSpread(src, p)) {
+            if (const float* sp = src.meanOnlySpread(p)) {
                 s.buffers = int(sp[0]);
                 s.samples = double(pb.count[0]);
                 for (int c = 0; c < 3; ++c) {

@@ -244,10 +244,8 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
                     float* hi = lo + 3;
                     // A compact file's pixel that kept only its mean (G-MoN trimmed nothing: the
                     // estimators give the mean there) has the mean's t interval from its spread.
-                    const float* sp = compactPixelSpread(src, p);
+                    const float* sp = src.meanOnlySpread(p);
                     for (int c = 0; c < 3; ++c) {
-                        for (int i = 0; i < m; ++i)
-                            values[size_t(i)] = pb.mean[3 * valid[size_t(i)] + c];
                         ValueInterval iv;
                         if (kernel.ciExpected) {
                             const PixelSpread& s = spreads[p];
@@ -257,6 +255,8 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
                             iv = spreadInterval(pb.mean[c], sp[spreadIndex(c, c)], pb.count[0],
                                                 int(sp[0]), kernel.ciLevel);
                         } else {
+                            for (int i = 0; i < m; ++i)
+                                values[size_t(i)] = pb.mean[3 * valid[size_t(i)] + c];
                             iv = kernel.interval(values.data(), counts.data(), m, kernel.ciLevel);
                         }
                         lo[c] = float(iv.low);

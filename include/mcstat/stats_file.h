@@ -249,6 +249,14 @@ struct StatsImage {
     int buffersOf(size_t p) const {
         return header.adaptiveM ? int(bufferOffset[p + 1] - bufferOffset[p]) : header.M;
     }
+    /// Pixel p's kSpreadFloats values of `spread` when it is a compact file's pixel that kept only
+    /// its mean (one buffer where the file has M > 1) and the spread was read, else null.
+    const float* meanOnlySpread(size_t p) const {
+        if (!header.compact || header.M < 2 || buffersOf(p) != 1 ||
+            spread.size() != pixelCount() * size_t(kSpreadFloats))
+            return nullptr;
+        return spread.data() + p * size_t(kSpreadFloats);
+    }
     /// Pixel p's buffers as the estimators take them, for fixed and adaptive M alike. The image
     /// must be valid (validateStats); p < pixelCount().
     PixelBuffers pixelBuffers(size_t p) const {

@@ -28,10 +28,6 @@ struct PixelSpread {
     int buffers = 0;
 };
 
-/// Pixel p's stored spread when it is a compact file's pixel that kept only its mean (one buffer
-/// where the file has M > 1, and the file's spread read: part moments), else null.
-const float* compactPixelSpread(const StatsImage& src, size_t p);
-
 /// Every pixel's PixelSpread, in the image's pixel order.
 std::vector<PixelSpread> pixelSpreads(const StatsImage& src, int nthreads);
 
