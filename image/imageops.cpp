@@ -217,7 +217,17 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
             for (int x = r.xbegin; x < r.xend; ++x) {
                 const size_t p = size_t(y - h.originY) * size_t(h.width) + size_t(x - h.originX);
                 const PixelBuffers pb = src.pixelBuffers(p);
-                kernel.estimate(pb, e, scratch);
+                // A compact file's pixel that kept only its mean (G-MoN trimmed nothing: the
+                // estimators give the mean there) has the mean's t interval from its spread.
+                const float* sp = ci ? src.meanOnlySpread(p) : nullptr;
+                ValueInterval iv[3];
+                // The estimate and its interval from one pass over the buffers (the mean's).
+                const bool shared =
+                    ci && A == 0 && !kernel.ciExpected && !sp && kernel.estimateWithInterval;
+                if (shared)
+                    kernel.estimateWithInterval(pb, kernel.ciLevel, e, scratch, iv);
+                else
+                    kernel.estimate(pb, e, scratch);
                 float* px =
                     base +
                     (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
@@ -235,36 +245,44 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
                 px[1] = e.rgb[1];
                 px[2] = e.rgb[2];
                 if (ci) {
-                    int excluded = 0;
-                    const int m = collectValidBuffers(pb, valid, excluded);
-                    values.resize(size_t(m));
-                    counts.resize(size_t(m));
-                    for (int i = 0; i < m; ++i) counts[size_t(i)] = pb.count[valid[size_t(i)]];
+                    int m = 0, excluded = 0;
+                    if (!shared) m = collectValidBuffers(pb, valid, excluded);
+                    if (!shared && !kernel.ciExpected && !sp && kernel.pixelInterval) {
+                        kernel.pixelInterval(pb, valid.data(), m, kernel.ciLevel, iv);
+                    } else if (!shared) {
+                        values.resize(size_t(m));
+                        counts.resize(size_t(m));
+                        for (int i = 0; i < m; ++i) counts[size_t(i)] = pb.count[valid[size_t(i)]];
+                        for (int c = 0; c < 3; ++c) {
+                            if (kernel.ciExpected) {
+                                const PixelSpread& s = spreads[p];
+                                iv[c] =
+                                    expectedInterval(s.mean[c], s.s2[c], pooled[p * 3 + size_t(c)],
+                                                     s.samples, s.buffers, kernel.ciLevel);
+                            } else if (sp) {
+                                iv[c] = spreadInterval(pb.mean[c], sp[spreadIndex(c, c)],
+                                                       pb.count[0], int(sp[0]), kernel.ciLevel);
+                            } else {
+                                for (int i = 0; i < m; ++i)
+                                    values[size_t(i)] = pb.mean[3 * valid[size_t(i)] + c];
+                                iv[c] = kernel.interval(values.data(), counts.data(), m,
+                                                        kernel.ciLevel);
+                            }
+                        }
+                    }
                     float* lo = px + firstCi;
                     float* hi = lo + 3;
-                    // A compact file's pixel that kept only its mean (G-MoN trimmed nothing: the
-                    // estimators give the mean there) has the mean's t interval from its spread.
-                    const float* sp = src.meanOnlySpread(p);
                     for (int c = 0; c < 3; ++c) {
-                        ValueInterval iv;
-                        if (kernel.ciExpected) {
-                            const PixelSpread& s = spreads[p];
-                            iv = expectedInterval(s.mean[c], s.s2[c], pooled[p * 3 + size_t(c)],
-                                                  s.samples, s.buffers, kernel.ciLevel);
-                        } else if (sp) {
-                            iv = spreadInterval(pb.mean[c], sp[spreadIndex(c, c)], pb.count[0],
-                                                int(sp[0]), kernel.ciLevel);
-                        } else {
-                            for (int i = 0; i < m; ++i)
-                                values[size_t(i)] = pb.mean[3 * valid[size_t(i)] + c];
-                            iv = kernel.interval(values.data(), counts.data(), m, kernel.ciLevel);
-                        }
-                        lo[c] = float(iv.low);
-                        hi[c] = float(iv.high);
+                        lo[c] = float(iv[c].low);
+                        hi[c] = float(iv[c].high);
                     }
                     // An AOV's interval: the same rule over its values in the beauty's valid
                     // buffers (non-finite AOV values left out).
                     const float* aov = A > 0 ? src.aov.data() + src.bufferBegin(p) * A : nullptr;
+                    if (!ciAov.empty()) {
+                        values.resize(valid.size());
+                        counts.resize(valid.size());
+                    }
                     for (size_t i = 0; i < ciAov.size(); ++i) {
                         int k = 0;
                         for (int b : valid) {
@@ -274,10 +292,10 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
                             counts[size_t(k)] = pb.count[b];
                             ++k;
                         }
-                        const ValueInterval iv =
+                        const ValueInterval aiv =
                             kernel.interval(values.data(), counts.data(), k, kernel.ciLevel);
-                        lo[6 + 2 * i] = float(iv.low);
-                        lo[7 + 2 * i] = float(iv.high);
+                        lo[6 + 2 * i] = float(aiv.low);
+                        lo[7 + 2 * i] = float(aiv.high);
                     }
                 }
                 if (diagnostics) {

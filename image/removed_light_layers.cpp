@@ -6,6 +6,7 @@
 #include <cmath>
 #include <vector>
 
+#include "mcstat/core/parallel.h"
 #include "mcstat/filters/operation.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/filters/removed_light.h"
@@ -61,22 +62,33 @@ bool appendTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
     spread.get_pixels(ROI(roi.xbegin, roi.xend, roi.ybegin, roi.yend, 0, 1, 0, 3),
                       OIIO::TypeDesc::FLOAT, sp.data());
     std::vector<float> d(n), se(n), z(n), zlocal(n);
+    // Per pixel in parallel (each pixel its own); the image's sums below in pixel order, so that
+    // they do not depend on the thread count.
+    parallelFor(0, int64_t(n), 0, nthreads, [&](int64_t b, int64_t e) {
+        for (size_t p = size_t(b); p < size_t(e); ++p) {
+            const float* rgb = in.data() + p * size_t(nin);
+            const double y =
+                luma[0] * double(rgb[0]) + luma[1] * double(rgb[1]) + luma[2] * double(rgb[2]);
+            const double dp = double(sp[3 * p]) - y;
+            d[p] = std::isfinite(dp) ? float(dp) : 0.f;
+            se[p] = sp[3 * p + 1];
+            z[p] = float(removedZ(d[p], se[p]));
+        }
+    });
     double removed = 0.0, total = 0.0, variance = 0.0;
     for (size_t p = 0; p < n; ++p) {
         const float* rgb = in.data() + p * size_t(nin);
         const double y =
             luma[0] * double(rgb[0]) + luma[1] * double(rgb[1]) + luma[2] * double(rgb[2]);
         const double dp = double(sp[3 * p]) - y;
-        d[p] = std::isfinite(dp) ? float(dp) : 0.f;
-        se[p] = sp[3 * p + 1];
-        z[p] = float(removedZ(d[p], se[p]));
         if (std::isfinite(dp) && std::isfinite(se[p])) {
             removed += dp;
             variance += double(se[p]) * double(se[p]);
         }
         if (std::isfinite(sp[3 * p])) total += double(sp[3 * p]);
     }
-    localRemovedZ(d.data(), se.data(), roi.width(), roi.height(), opt.radius, zlocal.data());
+    localRemovedZ(d.data(), se.data(), roi.width(), roi.height(), opt.radius, zlocal.data(),
+                  nthreads);
     double significant = 0.0;
     for (size_t p = 0; p < n; ++p)
         if (zlocal[p] > opt.zLimit) significant += double(d[p]);
@@ -95,18 +107,20 @@ bool appendTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
     spec.attribute("mcstat:removed:zImage", float(removedZ(removed, std::sqrt(variance))));
     spec.attribute("mcstat:removed:radius", opt.radius);
     spec.attribute("mcstat:removed:zLimit", float(opt.zLimit));
-    ImageBuf out(spec);
+    ImageBuf out(spec, OIIO::InitializePixels::No);
     float* o = static_cast<float*>(out.localpixels());
     const size_t nout = size_t(spec.nchannels);
-    for (size_t p = 0; p < n; ++p) {
-        float* px = o + p * nout;
-        std::copy(in.data() + p * size_t(nin), in.data() + (p + 1) * size_t(nin), px);
-        px[nin] = d[p];
-        px[nin + 1] = se[p];
-        px[nin + 2] = z[p];
-        px[nin + 3] = zlocal[p];
-        px[nin + 4] = zlocal[p] > opt.zLimit ? 1.f : 0.f;
-    }
+    parallelFor(0, int64_t(n), 0, nthreads, [&](int64_t b, int64_t e) {
+        for (size_t p = size_t(b); p < size_t(e); ++p) {
+            float* px = o + p * nout;
+            std::copy(in.data() + p * size_t(nin), in.data() + (p + 1) * size_t(nin), px);
+            px[nin] = d[p];
+            px[nin + 1] = se[p];
+            px[nin + 2] = z[p];
+            px[nin + 3] = zlocal[p];
+            px[nin + 4] = zlocal[p] > opt.zLimit ? 1.f : 0.f;
+        }
+    });
     robust = std::move(out);
     return true;
 }

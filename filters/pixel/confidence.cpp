@@ -2,9 +2,16 @@
 // (core/location_stats.h), shared with --compare's tests (analysis/two_sample.cpp).
 #include "mcstat/filters/pixel/confidence.h"
 
+#include <emmintrin.h>
+
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
+#include <utility>
+#include <vector>
 
 #include "mcstat/core/location_stats.h"
 
@@ -49,12 +56,17 @@ double twoSidedQuantile(double level, double df) {
     return remembered(level, df, [&] { return studentQuantile(0.5 + 0.5 * level, df); });
 }
 
-/// estimate +- t_{1 - (1 - level) / 2, df} sqrt(variance).
-ValueInterval tInterval(const LocationSummary& s, double level) {
-    const double half = twoSidedQuantile(level, s.df) * std::sqrt(s.variance);
+/// estimate +- q sqrt(variance), q = twoSidedQuantile(level, df).
+ValueInterval tIntervalWith(const LocationSummary& s, double q) {
+    const double half = q * std::sqrt(s.variance);
     // variance 0 (all equal): zero width, not 0 * quantile's rounding.
     if (s.variance == 0.0) return {s.estimate, s.estimate, false};
     return {s.estimate - half, s.estimate + half, false};
+}
+
+/// estimate +- t_{1 - (1 - level) / 2, df} sqrt(variance).
+ValueInterval tInterval(const LocationSummary& s, double level) {
+    return tIntervalWith(s, twoSidedQuantile(level, s.df));
 }
 
 }  // namespace
@@ -104,6 +116,253 @@ ValueInterval yuenInterval(double* values, int m, int g, double level) {
     const LocationSummary s = yuenSummary(values, m, g);
     if (s.df < 1.0) return medianInterval(values, m, level);
     return tInterval(s, level);
+}
+
+// ---- R, G and B of one pixel at once ------------------------------------------------------------
+
+namespace {
+
+/// Largest m the sorting network takes (its lanes live on the stack); above it, the per-channel
+/// functions.
+constexpr int kNetworkMax = 64;
+
+/// Batcher's odd-even merge sort for the power of two N >= n, keeping the comparators whose two
+/// ends are below n, in order; `emit(i, j)` gets each comparator (i < j). Why pruning is exact:
+/// pad the n values with +inf at positions n..N-1; a comparator (i, j) with j >= n leaves a
+/// finite v_i where it is (min(v_i, +inf) = v_i) and one between two paddings swaps equal values,
+/// so the padding never moves and those comparators are no-ops.
+template <class Emit>
+constexpr void batcherNetwork(int n, Emit&& emit) {
+    int N = 1;
+    while (N < n) N <<= 1;
+    for (int p = 1; p < N; p <<= 1)
+        for (int k = p; k >= 1; k >>= 1)
+            for (int j = k % p; j + k < N; j += 2 * k)
+                for (int i = 0; i < std::min(k, N - j - k); ++i)
+                    if ((i + j) / (2 * p) == (i + j + k) / (2 * p) && i + j + k < n)
+                        emit(i + j, i + j + k);
+}
+
+/// The comparators of batcherNetwork(m), as byte offsets of four-float lanes, built once per m.
+const std::vector<std::pair<uint16_t, uint16_t>>& sortingNetwork(int m) {
+    static const std::array<std::vector<std::pair<uint16_t, uint16_t>>, kNetworkMax + 1> nets = [] {
+        std::array<std::vector<std::pair<uint16_t, uint16_t>>, kNetworkMax + 1> all;
+        for (int n = 2; n <= kNetworkMax; ++n)
+            batcherNetwork(n, [&](int i, int j) {
+                all[size_t(n)].emplace_back(uint16_t(16 * i), uint16_t(16 * j));
+            });
+        return all;
+    }();
+    return nets[size_t(m)];
+}
+
+/// Buffer j's R, G, B as lanes 0-2. Lane 3 is the next buffer's R (sorted along, never read),
+/// except for the pixel's last buffer, whose 16 bytes could end past the data: 8 + 4 bytes there.
+inline __m128 loadLane(const PixelBuffers& px, int j) {
+    const float* p = px.mean + 3 * size_t(j);
+    if (j + 1 < px.M) return _mm_loadu_ps(p);
+    return _mm_movelh_ps(_mm_castpd_ps(_mm_load_sd(reinterpret_cast<const double*>(p))),
+                         _mm_load_ss(p + 2));
+}
+
+/// Up to this m the network is unrolled at compile time: the lanes stay in registers (a loop over
+/// the comparator list loads and stores both lanes of every comparator, three times the work).
+constexpr int kUnrolledMax = 32;
+
+template <int M>
+struct UnrolledNetwork {
+    static constexpr int size() {
+        int c = 0;
+        batcherNetwork(M, [&](int, int) { ++c; });
+        return c;
+    }
+    static constexpr std::array<std::array<uint8_t, 2>, size_t(size())> pairs() {
+        std::array<std::array<uint8_t, 2>, size_t(size())> out{};
+        int c = 0;
+        batcherNetwork(M, [&](int i, int j) {
+            out[size_t(c)][0] = uint8_t(i);
+            out[size_t(c)][1] = uint8_t(j);
+            ++c;
+        });
+        return out;
+    }
+    static constexpr auto kPairs = pairs();
+    template <size_t... I>
+    static void run(__m128* v, std::index_sequence<I...>) {
+        (compareExchange(v[kPairs[I][0]], v[kPairs[I][1]]), ...);
+    }
+    static void compareExchange(__m128& a, __m128& b) {
+        const __m128 lo = _mm_min_ps(a, b);
+        b = _mm_max_ps(a, b);
+        a = lo;
+    }
+    static void sort(const PixelBuffers& px, const int* valid, float (*lanes)[4]) {
+        __m128 v[M];
+        for (int i = 0; i < M; ++i) v[i] = loadLane(px, valid[i]);
+        run(v, std::make_index_sequence<size_t(size())>{});
+        for (int i = 0; i < M; ++i) _mm_store_ps(lanes[i], v[i]);
+    }
+};
+
+template <int... M>
+void sortUnrolled(int m, const PixelBuffers& px, const int* valid, float (*lanes)[4],
+                  std::integer_sequence<int, M...>) {
+    using Fn = void (*)(const PixelBuffers&, const int*, float(*)[4]);
+    static constexpr Fn fns[] = {&UnrolledNetwork<M + 2>::sort...};
+    fns[m - 2](px, valid, lanes);
+}
+
+/// The valid buffers' R, G, B (and a zero) as four-float lanes, sorted lane by lane: lane c of
+/// v[r] is the r-th smallest of channel c. Values are the buffers' floats (the per-channel path
+/// sorts the same values widened to double, which orders them the same way).
+struct SortedLanes {
+    alignas(16) float v[kNetworkMax][4];
+    void load(const PixelBuffers& px, const int* valid, int m) {
+        if (m >= 2 && m <= kUnrolledMax)
+            return sortUnrolled(m, px, valid, v,
+                                std::make_integer_sequence<int, kUnrolledMax - 1>{});
+        for (int i = 0; i < m; ++i) _mm_store_ps(v[i], loadLane(px, valid[i]));
+        char* base = reinterpret_cast<char*>(v);
+        for (const auto& [a, b] : sortingNetwork(m)) {
+            float* pa = reinterpret_cast<float*>(base + a);
+            float* pb = reinterpret_cast<float*>(base + b);
+            const __m128 x = _mm_load_ps(pa), y = _mm_load_ps(pb);
+            _mm_store_ps(pa, _mm_min_ps(x, y));
+            _mm_store_ps(pb, _mm_max_ps(x, y));
+        }
+    }
+    double at(int rank, int c) const { return double(v[rank][c]); }
+};
+
+/// One channel's values of the valid buffers, widened to double (the per-channel path's input).
+void gatherChannel(const PixelBuffers& px, const int* valid, int m, int c, double* out) {
+    for (int i = 0; i < m; ++i) out[i] = double(px.mean[3 * size_t(valid[i]) + size_t(c)]);
+}
+
+}  // namespace
+
+void meanIntervals(const PixelBuffers& px, const int* valid, int m, double level,
+                   ValueInterval out[3]) {
+    ValueInterval d;
+    if (degenerate(m, d)) {
+        out[0] = out[1] = out[2] = d;
+        return;
+    }
+    // weightedMeanSummary's two passes, the three channels side by side: for each channel the
+    // same additions in the same order.
+    double n = 0.0, sum[3] = {0.0, 0.0, 0.0};
+    for (int j = 0; j < m; ++j) {
+        const double w = px.count[valid[j]];
+        const float* v = px.mean + 3 * size_t(valid[j]);
+        n += w;
+        for (int c = 0; c < 3; ++c) sum[c] += w * double(v[c]);
+    }
+    meanIntervalsFromSums(px, valid, m, n, sum, level, out);
+}
+
+void meanIntervalsFromSums(const PixelBuffers& px, const int* valid, int m, double n,
+                           const double sum[3], double level, ValueInterval out[3]) {
+    ValueInterval d;
+    if (degenerate(m, d)) {
+        out[0] = out[1] = out[2] = d;
+        return;
+    }
+    double est[3], ss[3] = {0.0, 0.0, 0.0};
+    for (int c = 0; c < 3; ++c) est[c] = sum[c] / n;
+    for (int j = 0; j < m; ++j) {
+        const double w = px.count[valid[j]];
+        const float* v = px.mean + 3 * size_t(valid[j]);
+        for (int c = 0; c < 3; ++c) {
+            const double dv = double(v[c]) - est[c];
+            ss[c] += w * dv * dv;
+        }
+    }
+    const double q = twoSidedQuantile(level, double(m - 1));
+    for (int c = 0; c < 3; ++c) {
+        LocationSummary s;
+        s.estimate = est[c];
+        s.df = m - 1;
+        s.variance = ss[c] / s.df / n;
+        out[c] = tIntervalWith(s, q);
+    }
+}
+
+void medianIntervals(const PixelBuffers& px, const int* valid, int m, double level,
+                     ValueInterval out[3]) {
+    ValueInterval d;
+    if (degenerate(m, d)) {
+        out[0] = out[1] = out[2] = d;
+        return;
+    }
+    if (m > kNetworkMax) {
+        std::vector<double> values(static_cast<size_t>(m));
+        for (int c = 0; c < 3; ++c) {
+            gatherChannel(px, valid, m, c, values.data());
+            out[c] = medianInterval(values.data(), m, level);
+        }
+        return;
+    }
+    const int k =
+        int(remembered(level, -double(m), [&] { return double(medianIntervalRank(m, level)); }));
+    SortedLanes s;
+    s.load(px, valid, m);
+    for (int c = 0; c < 3; ++c)
+        out[c] = k == 0 ? ValueInterval{s.at(0, c), s.at(m - 1, c), true}
+                        : ValueInterval{s.at(k - 1, c), s.at(m - k, c), false};
+}
+
+void yuenIntervals(const PixelBuffers& px, const int* valid, int m, int g, double level,
+                   ValueInterval out[3]) {
+    ValueInterval d;
+    if (degenerate(m, d)) {
+        out[0] = out[1] = out[2] = d;
+        return;
+    }
+    g = std::clamp(g, 0, (m - 1) / 2);
+    const int h = m - 2 * g;
+    if (m > kNetworkMax || h < 2) {  // h < 2: the median's interval (yuenInterval)
+        std::vector<double> values(static_cast<size_t>(m));
+        for (int c = 0; c < 3; ++c) {
+            gatherChannel(px, valid, m, c, values.data());
+            out[c] = yuenInterval(values.data(), m, g, level);
+        }
+        return;
+    }
+    SortedLanes s;
+    s.load(px, valid, m);
+    // yuenSummary's sums, the three channels side by side (for each channel the same additions
+    // in the same order): the winsorised values once, as doubles; the trimmed sum and the
+    // winsorised sum are independent chains, so they share a loop.
+    double w[3][kNetworkMax];
+    for (int j = 0; j < m; ++j) {
+        const int r = std::clamp(j, g, m - g - 1);
+        for (int c = 0; c < 3; ++c) w[c][j] = s.at(r, c);
+    }
+    double sum[3] = {0.0, 0.0, 0.0}, wsum[3] = {0.0, 0.0, 0.0};
+    for (int j = 0; j < g; ++j)
+        for (int c = 0; c < 3; ++c) wsum[c] += w[c][j];
+    for (int j = g; j < m - g; ++j)
+        for (int c = 0; c < 3; ++c) {
+            sum[c] += w[c][j];  // inside the trim the winsorised value is the value
+            wsum[c] += w[c][j];
+        }
+    for (int j = m - g; j < m; ++j)
+        for (int c = 0; c < 3; ++c) wsum[c] += w[c][j];
+    double wmean[3], ss[3] = {0.0, 0.0, 0.0};
+    for (int c = 0; c < 3; ++c) wmean[c] = wsum[c] / m;
+    for (int j = 0; j < m; ++j)
+        for (int c = 0; c < 3; ++c) {
+            const double dv = w[c][j] - wmean[c];
+            ss[c] += dv * dv;
+        }
+    const double q = twoSidedQuantile(level, double(h - 1));
+    for (int c = 0; c < 3; ++c) {
+        LocationSummary ls;
+        ls.estimate = sum[c] / h;
+        ls.variance = ss[c] / (double(h) * (h - 1));
+        ls.df = h - 1;
+        out[c] = tIntervalWith(ls, q);
+    }
 }
 
 }  // namespace mcstat

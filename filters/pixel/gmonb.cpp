@@ -25,6 +25,8 @@ PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     k.interval = [](double* v, const double*, int m, double level) {
         return medianInterval(v, m, level);
     };
+    k.pixelInterval = [](const PixelBuffers& px, const int* valid, int m, double level,
+                         ValueInterval out[3]) { medianIntervals(px, valid, m, level, out); };
     return k;
 }
 

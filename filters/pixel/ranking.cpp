@@ -588,8 +588,10 @@ bool reduceSmall(const PixelBuffers& px, const PixelParams& p, PixelEstimate& ou
 
 /// The plain mean in one pass for any M: the valid buffers in index order, summed as they are
 /// found (collectValidBuffers + weightedAverage over ranks [0, M_v) in index order: the same sums
-/// in the same order), no keys, no arrays.
-void meanOnePass(const PixelBuffers& px, PixelEstimate& out) {
+/// in the same order), no keys, no arrays. With `valid` non-null it also records the valid
+/// buffers' indices (room for px.M) and the sums (plainMeanPass).
+template <bool kRecord>
+int meanPass(const PixelBuffers& px, PixelEstimate& out, int* valid, double* sums) {
     int excluded = 0, Mv = 0;
     double s0 = 0.0, s1 = 0.0, s2 = 0.0, w = 0.0;
     for (int j = 0; j < px.M; ++j) {
@@ -606,13 +608,25 @@ void meanOnePass(const PixelBuffers& px, PixelEstimate& out) {
         s0 += n * double(m[0]);
         s1 += n * double(m[1]);
         s2 += n * double(m[2]);
+        if constexpr (kRecord) valid[Mv] = j;
         ++Mv;
+    }
+    if constexpr (kRecord) {
+        sums[0] = w;
+        sums[1] = s0;
+        sums[2] = s1;
+        sums[3] = s2;
     }
     out = PixelEstimate{};
     out.excluded = excluded;
-    if (Mv == 0) return;
+    if (Mv == 0) return 0;
     out.rgb = {float(s0 / w), float(s1 / w), float(s2 / w)};
     out.kept = {Mv, Mv, Mv};
+    return Mv;
+}
+
+void meanOnePass(const PixelBuffers& px, PixelEstimate& out) {
+    meanPass<false>(px, out, nullptr, nullptr);
 }
 
 void reduce(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out, EstimatorScratch& s,
@@ -645,6 +659,19 @@ void reduce(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out, Es
 }
 
 }  // namespace
+
+int plainMeanPass(const PixelBuffers& px, PixelEstimate& out, std::vector<int>& valid, double& n,
+                  double sum[3]) {
+    valid.resize(size_t(px.M));
+    double sums[4];
+    const int m = meanPass<true>(px, out, valid.data(), sums);
+    valid.resize(size_t(m));
+    n = sums[0];
+    sum[0] = sums[1];
+    sum[1] = sums[2];
+    sum[2] = sums[3];
+    return m;
+}
 
 namespace detail {
 void rankKeys(double* key, int n, int* order) {

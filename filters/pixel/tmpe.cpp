@@ -35,6 +35,10 @@ PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     k.interval = [alpha = p.alpha](double* v, const double*, int m, double level) {
         return yuenInterval(v, m, tmpeTrim(alpha, m), level);
     };
+    k.pixelInterval = [alpha = p.alpha](const PixelBuffers& px, const int* valid, int m,
+                                        double level, ValueInterval out[3]) {
+        yuenIntervals(px, valid, m, tmpeTrim(alpha, m), level, out);
+    };
     return k;
 }
 

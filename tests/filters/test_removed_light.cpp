@@ -2,7 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <limits>
+#include <random>
 #include <vector>
 
 #include "filters/pixel/pixel_support.h"
@@ -133,6 +135,61 @@ TEST(LocalRemovedZ, LoneFireflyStaysAtOneAndARegionGrowsWithItsArea) {
     d[size_t(6 * W + 6)] = kNaN;
     localRemovedZ(d.data(), se.data(), W, W, 2, z.data());
     EXPECT_FLOAT_EQ(z[size_t(6 * W + 6)], float(72.0 / std::sqrt(24 * 2.25)));
+}
+
+// Every buffer valid takes lumaSpread's shortcut (no per-buffer tests): the same sums in the same
+// order as the general rule, checked here against that rule written out (one buffer made invalid
+// sends the same pixel through the general path, whose valid buffers then give the reference).
+TEST(LumaSpread, TheAllValidShortcutGivesTheGeneralSums) {
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    const std::array<double, 3> luma = mcstat::testing::kLuma;
+    for (int M : {1, 2, 5, 21, 64, 70}) {
+        std::vector<float> mean(static_cast<size_t>(M) * 3), count(static_cast<size_t>(M));
+        for (size_t i = 0; i < mean.size(); ++i)
+            mean[i] = (u(rng) - 0.2f) * (u(rng) < 0.05f ? 3e4f : 1.f);
+        for (int j = 0; j < M; ++j) count[size_t(j)] = float(1 + int(u(rng) * 50.f));
+        const LumaSpread fast = lumaSpread(PixelBuffers{mean.data(), count.data(), M}, luma);
+        double n = 0.0, sum = 0.0;
+        std::vector<double> y(static_cast<size_t>(M));
+        for (int j = 0; j < M; ++j) {
+            const float* m = mean.data() + 3 * j;
+            y[size_t(j)] = luma[0] * double(m[0]) + luma[1] * double(m[1]) + luma[2] * double(m[2]);
+            n += double(count[size_t(j)]);
+            sum += double(count[size_t(j)]) * y[size_t(j)];
+        }
+        const double expMean = sum / n;
+        double ss = 0.0;
+        for (int j = 0; j < M; ++j) {
+            const double dev = y[size_t(j)] - expMean;
+            ss += double(count[size_t(j)]) * dev * dev;
+        }
+        EXPECT_EQ(fast.valid, M);
+        EXPECT_EQ(fast.mean, expMean) << M;
+        EXPECT_EQ(fast.se, M < 2 ? 0.0 : std::sqrt(ss / double(M - 1) / n)) << M;
+        // The general path on the same buffers plus an invalid one gives the same bits.
+        mean.insert(mean.end(), {kNaN, 0.f, 0.f});
+        count.push_back(4.f);
+        const LumaSpread general = lumaSpread(PixelBuffers{mean.data(), count.data(), M + 1}, luma);
+        EXPECT_EQ(general.valid, M);
+        EXPECT_EQ(general.mean, fast.mean);
+        EXPECT_EQ(general.se, fast.se);
+    }
+}
+
+// Rows on any number of threads: the same bits.
+TEST(LocalRemovedZ, SameOnAnyThreadCount) {
+    const int W = 67, H = 41;
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    std::vector<float> d(size_t(W * H)), se(d.size()), one(d.size()), four(d.size());
+    for (size_t i = 0; i < d.size(); ++i) {
+        d[i] = u(rng) < 0.1f ? 50.f * u(rng) : 0.f;
+        se[i] = u(rng);
+    }
+    localRemovedZ(d.data(), se.data(), W, H, 3, one.data(), 1);
+    localRemovedZ(d.data(), se.data(), W, H, 3, four.data(), 4);
+    EXPECT_EQ(std::memcmp(one.data(), four.data(), one.size() * sizeof(float)), 0);
 }
 
 }  // namespace

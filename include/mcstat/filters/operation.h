@@ -64,6 +64,18 @@ struct PixelKernel {
     /// buffers' sample counts) at `level` in (0, 1); null: the estimator has none.
     std::function<ValueInterval(double* values, const double* counts, int m, double level)>
         interval;
+    /// `interval` for R, G and B of one pixel at once, over its m valid buffers `valid`
+    /// (collectValidBuffers' indices): the same values (confidence.h), with one sort or one pass
+    /// for the three channels. Null: `interval` is called per channel.
+    std::function<void(const PixelBuffers& px, const int* valid, int m, double level,
+                       ValueInterval rgb[3])>
+        pixelInterval;
+    /// `estimate` (without weights) and `pixelInterval` from one pass over the buffers, with the
+    /// same results as the two calls (the mean: its sums are its interval's first pass). Null:
+    /// the two calls.
+    std::function<void(const PixelBuffers& px, double level, PixelEstimate& e, EstimatorScratch& s,
+                       ValueInterval rgb[3])>
+        estimateWithInterval;
     /// What the interval covers, in words (the file's mcstat:ciTarget): the expected value for
     /// the mean's, the median of the buffer means for MoN's, ... (docs/confidence.md).
     std::string intervalTarget;

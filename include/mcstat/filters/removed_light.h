@@ -50,7 +50,9 @@ double removedZ(double d, double se);
 
 /// The neighbourhood significance: out[p] = sum d / sqrt(sum se^2) over the (2 radius + 1)^2
 /// window around p, clipped to the width x height image (row-major, one value per pixel).
-/// Non-finite d or se count as 0 (left out). 0 where the window's sum of se^2 is 0.
-void localRemovedZ(const float* d, const float* se, int width, int height, int radius, float* out);
+/// Non-finite d or se count as 0 (left out). 0 where the window's sum of se^2 is 0. Rows run on
+/// nthreads threads (0: all), each output its own sums: the same values on any thread count.
+void localRemovedZ(const float* d, const float* se, int width, int height, int radius, float* out,
+                   int nthreads = 1);
 
 }  // namespace mcstat

@@ -3,7 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <limits>
+#include <map>
+#include <random>
 #include <vector>
 
 #include "mcstat/core/location_stats.h"
@@ -188,4 +191,95 @@ TEST(Confidence, StudentQuantile) {
     EXPECT_NEAR(studentQuantile(0.975, 1e9), 1.9599640, 1e-6);  // the normal
     EXPECT_TRUE(std::isnan(studentQuantile(1.0, 5)));
     EXPECT_TRUE(std::isnan(studentQuantile(0.9, 0)));
+}
+
+namespace {
+
+/// Equal as the image writes them: the same float, or two zeros (a sort may trade -0 and +0).
+bool sameBound(double a, double b) {
+    const float fa = float(a), fb = float(b);
+    if (fa == 0.f && fb == 0.f) return true;
+    if (std::isnan(fa) || std::isnan(fb)) return std::isnan(fa) && std::isnan(fb);
+    return std::memcmp(&fa, &fb, sizeof fa) == 0 && a == b;
+}
+
+}  // namespace
+
+// PixelKernel::pixelInterval (three channels at once: one sorting network, sums side by side)
+// gives per channel what PixelKernel::interval gives on that channel's values, bit for bit, for
+// every m from 0 to 70 (the network's largest m is 64; above it the per-channel path), with ties,
+// negatives, zeros of both signs, denormals, float's largest values, unequal counts and
+// invalid buffers. A network missing one comparator leaves some m unsorted and fails here. The
+// mean's estimateWithInterval (one pass for both) gives the estimate's bits and these intervals.
+TEST(Confidence, PixelIntervalsEqualThePerChannelOnes) {
+    std::mt19937 rng(2026);
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    const float kinds[] = {0.f, -0.f, 1e-40f, -1e-40f, 3e38f, -3e38f, 0.5f, 0.5f, 2.f};
+    for (const char* name : {"mean", "mon", "gmon", "gmonb", "tmpe"})
+        for (const char* alpha : {"0.1", "0.25", "0.5"}) {
+            if (std::string(name) != "tmpe" && std::string(alpha) != "0.1") continue;
+            std::map<std::string, std::string> kv;
+            if (std::string(name) == "tmpe") kv["alpha"] = alpha;
+            const PixelKernel k = kernelOf(name, EstimatorMode::Luminance, kv);
+            ASSERT_TRUE(bool(k.pixelInterval)) << name;
+            for (int M = 0; M <= 70; ++M)
+                for (int trial = 0; trial < 12; ++trial) {
+                    std::vector<float> mean(static_cast<size_t>(M) * 3),
+                        count(static_cast<size_t>(M));
+                    for (int j = 0; j < M; ++j) {
+                        for (int c = 0; c < 3; ++c) {
+                            const float r = u(rng);
+                            float v = trial % 3 == 0   ? kinds[size_t(r * 9.f) % 9]
+                                      : trial % 3 == 1 ? float(int(r * 4.f))  // many ties
+                                                       : (r - 0.3f) * 100.f;
+                            if (u(rng) < 0.03f) v = std::numeric_limits<float>::infinity();
+                            mean[size_t(j) * 3 + size_t(c)] = v;
+                        }
+                        count[size_t(j)] = trial % 2 ? 16.f : float(1 + int(u(rng) * 40.f));
+                        if (u(rng) < 0.05f) count[size_t(j)] = 0.f;
+                    }
+                    const PixelBuffers px{mean.data(), count.data(), M};
+                    std::vector<int> valid;
+                    int excluded = 0;
+                    const int m = collectValidBuffers(px, valid, excluded);
+                    for (double level : {0.9, 0.95}) {
+                        ValueInterval fast[3];
+                        k.pixelInterval(px, valid.data(), m, level, fast);
+                        if (k.estimateWithInterval) {  // the mean: estimate and interval in one
+                            PixelEstimate alone, shared;
+                            EstimatorScratch s1, s2;
+                            k.estimate(px, alone, s1);
+                            ValueInterval both[3];
+                            k.estimateWithInterval(px, level, shared, s2, both);
+                            for (int c = 0; c < 3; ++c) {
+                                EXPECT_EQ(std::memcmp(&alone.rgb[size_t(c)], &shared.rgb[size_t(c)],
+                                                      sizeof(float)),
+                                          0)
+                                    << name << " M " << M << " trial " << trial;
+                                EXPECT_TRUE(std::memcmp(&both[c], &fast[c], sizeof(double) * 2) ==
+                                                0 ||
+                                            (std::isnan(both[c].low) && std::isnan(fast[c].low)))
+                                    << name << " M " << M << " trial " << trial;
+                            }
+                            EXPECT_EQ(alone.kept, shared.kept);
+                            EXPECT_EQ(alone.excluded, shared.excluded);
+                        }
+                        for (int c = 0; c < 3; ++c) {
+                            std::vector<double> v(static_cast<size_t>(m)),
+                                n(static_cast<size_t>(m));
+                            for (int i = 0; i < m; ++i) {
+                                v[size_t(i)] = mean[size_t(valid[size_t(i)]) * 3 + size_t(c)];
+                                n[size_t(i)] = count[size_t(valid[size_t(i)])];
+                            }
+                            const ValueInterval slow = k.interval(v.data(), n.data(), m, level);
+                            EXPECT_TRUE(sameBound(fast[c].low, slow.low) &&
+                                        sameBound(fast[c].high, slow.high) &&
+                                        fast[c].full == slow.full)
+                                << name << " alpha " << alpha << " M " << M << " trial " << trial
+                                << " c " << c << ": [" << fast[c].low << ", " << fast[c].high
+                                << "] against [" << slow.low << ", " << slow.high << "]";
+                        }
+                    }
+                }
+        }
 }

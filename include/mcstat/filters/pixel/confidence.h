@@ -30,6 +30,7 @@
 // at 0.95 with M < 6): the range [x_(1), x_(M)], full.
 #pragma once
 
+#include "mcstat/core/pixel_buffers.h"
 #include "mcstat/filters/estimate.h"
 #include "mcstat/filters/interval.h"
 
@@ -42,5 +43,25 @@ ValueInterval medianInterval(double* values, int m, double level);
 /// Yuen's interval for the mean of the values left after cutting `g` from each end of `m` values
 /// (sorted in place); fewer than two left: medianInterval.
 ValueInterval yuenInterval(double* values, int m, int g, double level);
+
+// The same intervals for R, G and B of one pixel at once (PixelKernel::pixelInterval), over its
+// m valid buffers `valid` (indices into px, as collectValidBuffers gives them): per channel the
+// value that the function above gives on that channel's values, bit for bit (equal values may
+// trade places in a sort, so a bound that is a zero may differ in its sign). Why they are faster,
+// not different: the three channels' sums run side by side in one loop (three independent chains
+// of the same additions in the same order), the quantile is looked up once per pixel, and the
+// three channels are sorted together by one sorting network on four-float lanes (Batcher's odd-
+// even merge sort, pruned to m), where the per-channel path ran three comparison sorts.
+void meanIntervals(const PixelBuffers& px, const int* valid, int m, double level,
+                   ValueInterval out[3]);
+/// meanIntervals after its first pass: `n` the sum of the m valid buffers' counts and `sum` their
+/// count-weighted sums of R, G, B, added in index order (ranking.h, plainMeanPass, gives both
+/// while it estimates the mean: the estimate and the interval share that pass).
+void meanIntervalsFromSums(const PixelBuffers& px, const int* valid, int m, double n,
+                           const double sum[3], double level, ValueInterval out[3]);
+void medianIntervals(const PixelBuffers& px, const int* valid, int m, double level,
+                     ValueInterval out[3]);
+void yuenIntervals(const PixelBuffers& px, const int* valid, int m, int g, double level,
+                   ValueInterval out[3]);
 
 }  // namespace mcstat

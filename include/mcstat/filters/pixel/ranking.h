@@ -37,7 +37,7 @@ struct TrimRule {
         Fraction,       ///< tmpeTrim(value, M_v) (Jung eq. 5.1)
     };
     Kind kind = None;
-    double value = 0.0;  ///< GiniThreshold: the threshold; Fraction: alpha
+    double value = 0.0;                      ///< GiniThreshold: the threshold; Fraction: alpha
     GiniInput gini = GiniInput::Magnitudes;  ///< Gini, GiniThreshold: what G is computed on
 };
 
@@ -45,6 +45,14 @@ struct TrimRule {
 /// and excluded buffers and, with s.wantWeights, the buffer weights (pixel_estimate.h).
 void rankedTrimmedMean(const PixelBuffers& px, const PixelParams& p, TrimRule rule,
                        PixelEstimate& out, EstimatorScratch& s);
+
+/// The plain mean's pass (rankedTrimmedMean with TrimRule::None, without weights: the same
+/// bits) that also leaves what it found for the mean's interval (confidence.h,
+/// meanIntervalsFromSums): the valid buffers' indices in index order in `valid`, the sum of their
+/// counts in `n` and the count-weighted sums of R, G, B in `sum`. Returns the number of valid
+/// buffers.
+int plainMeanPass(const PixelBuffers& px, PixelEstimate& out, std::vector<int>& valid, double& n,
+                  double sum[3]);
 
 /// Gini coefficient of `values` already sorted ascending (Buisine et al. eq. 4), computed in
 /// double, with the negative-value and zero-sum rules of pixel_estimate.h. n == 0 or 1 gives 0.
