@@ -14,8 +14,10 @@
 #include "mcstat/core/colour_space.h"
 #include "mcstat/filters/aov_weights.h"
 #include "mcstat/filters/interval.h"
+#include "mcstat/filters/removed_light.h"
 #include "mcstat/image/expected_interval.h"
 #include "mcstat/image/keep_light_image.h"
+#include "mcstat/image/removed_light_pass.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/sample_records.h"
 
@@ -178,6 +180,11 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
             if (h.aovs[a].cls != AovClass::Id) ciAov.push_back(a);
     const size_t firstAov = names.size();
     for (const std::string& n : aovOutputChannels(h)) names.push_back(n);
+    // The removed-light layers' first step (removed_light_pass.h), last, as appendRemovedLight
+    // adds them.
+    const size_t firstRemoved = names.size();
+    if (kernel.removedLight)
+        for (const std::string& n : removedLightChannels()) names.push_back(n);
     const std::vector<AovClass> classes = aovClasses(h.aovs);
     ImageSpec spec = floatSpec(roi, names, h);
     spec.alpha_channel = aovAlphaChannel(h, firstAov);
@@ -297,6 +304,11 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
                         lo[6 + 2 * i] = float(aiv.low);
                         lo[7 + 2 * i] = float(aiv.high);
                     }
+                }
+                if (kernel.removedLight) {
+                    const LumaSpread ls = lumaSpread(pb, kernel.removedLuma);
+                    removedLightPixel(px, float(ls.mean), float(ls.se), kernel.removedLuma,
+                                      px + firstRemoved);
                 }
                 if (diagnostics) {
                     if (kernel.mode == EstimatorMode::Luminance) {
@@ -503,7 +515,13 @@ bool runOperationOn(ImageBuf& dst, Source& src, const Operation& op, const Param
         case InputKind::BufferMeans: {
             PixelKernel kernel = op.bindPixel(values, luma);
             bindConfidence(kernel, values);
-            return estimate(dst, src, op, kernel, diagnostics, roi, nthreads);
+            // The removed-light layers in this pass (removedLightInPass): no second read.
+            RemovedLightOptions removed;
+            kernel.removedLight = removedLightValues(values, removed);
+            kernel.removedLuma = luma;
+            if (!estimate(dst, src, op, kernel, diagnostics, roi, nthreads)) return false;
+            return !kernel.removedLight ||
+                   finishRemovedLight(dst, dst.nchannels() - 5, luma, removed, nthreads);
         }
         case InputKind::Neighbourhood: {
             const WindowKernel kernel = op.bindWindow(values, luma);
@@ -549,6 +567,13 @@ bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const Par
     if (keep && roi.defined() && roi != dataWindowROI(headerOf(src))) {
         dst.errorfmt("{}: keeplight needs the whole data window (light moves between pixels)",
                      op.name);
+        return false;
+    }
+    if (RemovedLightOptions r; removedLightValues(values, r) && !removedLightInPass(op, keep)) {
+        dst.errorfmt(
+            "{}: removed=1 is computed in the operation's pass only for a per-pixel estimator "
+            "without keeplight; append the layers afterwards (appendRemovedLight)",
+            op.name);
         return false;
     }
     if (!runOperationOn(dst, src, op, values, luma, diagnostics, roi, nthreads)) return false;

@@ -61,66 +61,26 @@ bool appendTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
     robust.get_pixels(roi, OIIO::TypeDesc::FLOAT, in.data());
     spread.get_pixels(ROI(roi.xbegin, roi.xend, roi.ybegin, roi.yend, 0, 1, 0, 3),
                       OIIO::TypeDesc::FLOAT, sp.data());
-    std::vector<float> d(n), se(n), z(n), zlocal(n);
-    // Per pixel in parallel (each pixel its own); the image's sums below in pixel order, so that
-    // they do not depend on the thread count.
-    parallelFor(0, int64_t(n), 0, nthreads, [&](int64_t b, int64_t e) {
-        for (size_t p = size_t(b); p < size_t(e); ++p) {
-            const float* rgb = in.data() + p * size_t(nin);
-            const double y =
-                luma[0] * double(rgb[0]) + luma[1] * double(rgb[1]) + luma[2] * double(rgb[2]);
-            const double dp = double(sp[3 * p]) - y;
-            d[p] = std::isfinite(dp) ? float(dp) : 0.f;
-            se[p] = sp[3 * p + 1];
-            z[p] = float(removedZ(d[p], se[p]));
-        }
-    });
-    double removed = 0.0, total = 0.0, variance = 0.0;
-    for (size_t p = 0; p < n; ++p) {
-        const float* rgb = in.data() + p * size_t(nin);
-        const double y =
-            luma[0] * double(rgb[0]) + luma[1] * double(rgb[1]) + luma[2] * double(rgb[2]);
-        const double dp = double(sp[3 * p]) - y;
-        if (std::isfinite(dp) && std::isfinite(se[p])) {
-            removed += dp;
-            variance += double(se[p]) * double(se[p]);
-        }
-        if (std::isfinite(sp[3 * p])) total += double(sp[3 * p]);
-    }
-    localRemovedZ(d.data(), se.data(), roi.width(), roi.height(), opt.radius, zlocal.data(),
-                  nthreads);
-    double significant = 0.0;
-    for (size_t p = 0; p < n; ++p)
-        if (zlocal[p] > opt.zLimit) significant += double(d[p]);
-
-    const std::vector<std::string> names = {"Y", "se", "z", "zlocal", "significant"};
     ImageSpec spec = robust.spec();
-    for (const std::string& c : names) spec.channelnames.push_back(kRemovedPrefix + c);
-    spec.nchannels = nin + int(names.size());
+    for (const std::string& c : removedLightChannels()) spec.channelnames.push_back(c);
+    spec.nchannels = nin + 5;
     spec.channelformats.clear();
     spec.format = OIIO::TypeDesc::FLOAT;
-    spec.attribute("mcstat:removed:energyFraction", float(total != 0.0 ? removed / total : 0.0));
-    spec.attribute("mcstat:removed:significantFraction",
-                   float(removed != 0.0 ? significant / removed : 0.0));
-    // The whole image as one window: light spread thin over many pixels (fireflies everywhere)
-    // is no region's, yet real in sum.
-    spec.attribute("mcstat:removed:zImage", float(removedZ(removed, std::sqrt(variance))));
-    spec.attribute("mcstat:removed:radius", opt.radius);
-    spec.attribute("mcstat:removed:zLimit", float(opt.zLimit));
     ImageBuf out(spec, OIIO::InitializePixels::No);
     float* o = static_cast<float*>(out.localpixels());
     const size_t nout = size_t(spec.nchannels);
+    // The same first step as the estimate's pass (removedLightPixel), in parallel per pixel.
     parallelFor(0, int64_t(n), 0, nthreads, [&](int64_t b, int64_t e) {
         for (size_t p = size_t(b); p < size_t(e); ++p) {
             float* px = o + p * nout;
             std::copy(in.data() + p * size_t(nin), in.data() + (p + 1) * size_t(nin), px);
-            px[nin] = d[p];
-            px[nin + 1] = se[p];
-            px[nin + 2] = z[p];
-            px[nin + 3] = zlocal[p];
-            px[nin + 4] = zlocal[p] > opt.zLimit ? 1.f : 0.f;
+            removedLightPixel(px, sp[3 * p], sp[3 * p + 1], luma, px + nin);
         }
     });
+    if (!finishRemovedLight(out, nin, luma, opt, nthreads)) {
+        robust.errorfmt("{}", out.geterror());
+        return false;
+    }
     robust = std::move(out);
     return true;
 }

@@ -272,8 +272,14 @@ bool cmdOperation(State& st, const std::string& cmd, const std::vector<std::stri
     values.insert(ci.begin(), ci.end());
     values.insert(keep.begin(), keep.end());
     auto img = std::make_shared<OIIO::ImageBuf>();
-    if (!applyToTop(st, cmd, op, values, diag, *img, err)) return false;
-    if (removed && !appendTopRemovedLight(st, cmd, removedOpt, *img, err)) return false;
+    // A per-pixel estimator computes the removed-light layers in its own pass over the buffers;
+    // the others' layers are appended from a second read (removed_light_pass.h).
+    const bool removedInPass = removed && removedLightInPass(op, keepLightAsked(values));
+    ParamValues runValues = values;
+    if (removedInPass) setRemovedLightValues(runValues, removedOpt);
+    if (!applyToTop(st, cmd, op, runValues, diag, *img, err)) return false;
+    if (removed && !removedInPass && !appendTopRemovedLight(st, cmd, removedOpt, *img, err))
+        return false;
     if (residual && !appendTopResidual(st, cmd, *img, err)) return false;
     // The operation and every parameter (given, default or fixed) as the result's metadata.
     img->specmod().attribute("mcstat:estimator", op.name);

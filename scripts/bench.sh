@@ -9,8 +9,8 @@
 #   SECTIONS="file height" scripts/bench.sh
 #
 # Environment:
-#   SECTIONS  any of: estimators threads file height compare compact goals ingest aovs render trade
-#             (default: all)
+#   SECTIONS  any of: estimators threads registry file height compare compact goals ingest aovs
+#             render trade (default: all)
 #   REPS      runs per command, alternated, medians reported (default 4)
 #   BASELINE  a folder holding an older build's mcstat and mcstat.imageio.so: the file table then
 #             shows its figures beside today's, measured in the same run (docs/benchmarks.md)
@@ -25,7 +25,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 REPS=${REPS:-4}
-SECTIONS=${SECTIONS:-estimators threads file height compare compact goals ingest aovs render trade}
+SECTIONS=${SECTIONS:-estimators threads registry file height compare compact goals ingest aovs render trade}
 BUILD=${BUILD:-build}
 BASELINE=${BASELINE:-}
 if [ "${SKIP_BUILD:-0}" != 1 ]; then
@@ -90,6 +90,68 @@ if want threads; then
     END { for (e in n) if ((e "@1") in t && (e "@2") in t)
             printf "%-12s %14.1f %14.1f %9.2fx\n", e, t[e "@1"], t[e "@2"], t[e "@1"] / t[e "@2"] }' \
     "$out/threads.csv" | sort
+  echo
+fi
+
+if want registry; then
+  # Every operation of the registry (issue 52): in process over a synthetic 1920x1080, M = 21
+  # image (bench_estimators registry/*, each row in its own process for its peak memory, the
+  # synthetic input's own peak taken off), then as a user runs it, `mcstat F --OP -o o.exr` on the
+  # file section's render, on all cores and with --threads 1, against stock oiiotool reading the
+  # same file's sub-buffer part. The per-sample operations read records: a 480x270 render with
+  # --keep-samples, against stock oiiotool reading its records part.
+  bench=$BUILD/tests/bench/bench_estimators
+  ops=$("$bench" --benchmark_list_tests | sed -n 's|^registry/\([^/]*\)/1080p/1/.*|\1|p')
+  /usr/bin/time -f "%M" -o "$out/time.txt" "$bench" --benchmark_filter='^registry/input/' >/dev/null 2>&1
+  base_kib=$(cat "$out/time.txt")
+  echo "== Every operation in process: 1920x1080 synthetic, M = 21, lum, registry defaults; medians of 3 =="
+  printf "%-10s | %10s %10s %8s | %16s\n" "operation" "1 core ms" "2 cores ms" "speed-up" "peak MiB (+input)"
+  for op in $ops; do
+    /usr/bin/time -f "%M" -o "$out/time.txt" "$bench" --benchmark_filter="^registry/$op/1080p/" \
+      --benchmark_format=csv --benchmark_report_aggregates_only=true 2>/dev/null >"$out/reg.csv"
+    awk -F, -v op="$op" -v peak="$(cat "$out/time.txt")" -v base="$base_kib" '
+      /_median"/ { gsub(/"/, "", $1); split($1, a, "/"); t[a[4]] = $3 }
+      END { printf "%-10s | %10.0f %10.0f %7.2fx | %16.0f\n", op, t[1], t[2], t[1] / t[2], (peak - base) / 1024 }' \
+      "$out/reg.csv"
+  done
+  echo
+  zip=$out/bench-1920x1080-M21.mcstat
+  stats_file "$zip" 1920 1080 64
+  cmd_ref=(oiiotool "$zip" --subimage 1 --stats)
+  names=(ref)
+  for op in $ops; do
+    eval "cmd_a_$op=(\"\$mcstat\" \"\$zip\" --$op -o \"\$out/o.exr\")"
+    eval "cmd_1_$op=(\"\$mcstat\" --threads 1 \"\$zip\" --$op -o \"\$out/o.exr\")"
+    names+=("a_$op" "1_$op")
+  done
+  REPS=${REGISTRY_REPS:-1} run_alternating "${names[@]}"
+  echo "== Every operation on $zip ($(du -h "$zip" | cut -f1)), as a user runs it; medians of ${REGISTRY_REPS:-1} =="
+  printf "%-28s | %8s %8s | %10s %8s | %9s\n" "command" "wall s" "/ ref" "1 core s" "/ ref" "peak MiB"
+  printf "%-28s | %8.2f %7.2fx | %10s %8s | %9s\n" "oiiotool F --subimage 1 --stats" "$med_ref" 1 "" "" "$rss_ref"
+  for op in $ops; do
+    a=med_a_$op; o=med_1_$op; r=rss_a_$op
+    printf "%-28s | %8.2f %7.2fx | %10.2f %7.2fx | %9s\n" "mcstat F --$op" "${!a}" \
+      "$(echo "${!a} / $med_ref" | bc -l)" "${!o}" "$(echo "${!o} / $med_ref" | bc -l)" "${!r}"
+  done
+  rec=$out/bench-480x270-records.mcstat
+  if [ ! -f "$rec" ] || [ "${REFRESH:-0}" = 1 ]; then
+    "$render" --scene default --res 480 270 --spp 16 --M 21 --seed 3 --keep-samples --quiet -o "$rec"
+  fi
+  cmd_ref=(oiiotool "$rec" --subimage 4 --stats)
+  names=(ref)
+  for op in pajot rpf reweight; do
+    eval "cmd_a_$op=(\"\$mcstat\" \"\$rec\" --$op -o \"\$out/o.exr\")"
+    eval "cmd_1_$op=(\"\$mcstat\" --threads 1 \"\$rec\" --$op -o \"\$out/o.exr\")"
+    names+=("a_$op" "1_$op")
+  done
+  REPS=${REGISTRY_REPS:-1} run_alternating "${names[@]}"
+  printf "%-28s | %8.2f %7.2fx | %10s %8s | %9s\n" "oiiotool R --subimage 4 --stats" "$med_ref" 1 "" "" "$rss_ref"
+  for op in pajot rpf reweight; do
+    a=med_a_$op; o=med_1_$op; r=rss_a_$op
+    printf "%-28s | %8.2f %7.2fx | %10.2f %7.2fx | %9s\n" "mcstat R --$op" "${!a}" \
+      "$(echo "${!a} / $med_ref" | bc -l)" "${!o}" "$(echo "${!o} / $med_ref" | bc -l)" "${!r}"
+  done
+  echo "(R: $rec, $(du -h "$rec" | cut -f1), 16 spp with every sample's record)"
   echo
 fi
 

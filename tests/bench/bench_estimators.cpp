@@ -140,6 +140,49 @@ void BM_Neighbourhood(benchmark::State& state, const Operation* op, EstimatorMod
     state.SetItemsProcessed(int64_t(state.iterations()) * kWidth * kHeight);
 }
 
+/// Every registry operation that runs over sub-buffers or an image, at 1920x1080, M = 21,
+/// luminance mode where it has one, registry defaults, on state.range(0) threads, real time (so
+/// that 2 threads show as a speed-up). Over an image (MIF, WMIF) the plain mean is part of the
+/// timing, as in `mcstat F --mif`. scripts/bench.sh (SECTIONS=registry) runs each row in its own
+/// process for its peak memory. Names: registry/NAME/1080p/THREADS.
+void BM_Registry(benchmark::State& state, const Operation* op) {
+    constexpr int W = 1920, H = 1080;
+    const StatsImage& img = syntheticImage(21, W, H);
+    const int threads = int(state.range(0));
+    OIIO::ImageBuf out;
+    if (op->input == InputKind::BufferMeans) {
+        const PixelKernel kernel =
+            op->bindPixel(defaults(*op, EstimatorMode::Luminance), lumaCoefficients());
+        for (auto _ : state) {
+            estimate(out, img, *op, kernel, false, {}, threads);
+            benchmark::DoNotOptimize(out.localpixels());
+        }
+    } else {
+        const WindowKernel window =
+            op->bindWindow(defaults(*op, EstimatorMode::Luminance), lumaCoefficients());
+        const Operation& mean = *findOperation("mean");
+        const PixelKernel meanKernel =
+            mean.bindPixel(defaults(mean, EstimatorMode::Luminance), lumaCoefficients());
+        OIIO::ImageBuf plain;
+        for (auto _ : state) {
+            if (window.over == Neighbourhood::SubBuffers) {
+                windowFilter(out, img, window, {}, threads);
+            } else {
+                estimate(plain, img, mean, meanKernel, false, {}, threads);
+                windowFilter(out, plain, window, {}, threads);
+            }
+            benchmark::DoNotOptimize(out.localpixels());
+        }
+    }
+    state.SetItemsProcessed(int64_t(state.iterations()) * W * H);
+}
+
+/// The synthetic 1080p image alone: the baseline of the registry rows' peak memory.
+void BM_RegistryInput(benchmark::State& state) {
+    const StatsImage& img = syntheticImage(21, 1920, 1080);
+    for (auto _ : state) benchmark::DoNotOptimize(img.bufferMean.data());
+}
+
 const bool registered = [] {
     auto reg = [](const std::string& name, auto fn, auto... args) {
         benchmark::RegisterBenchmark(name.c_str(), fn, args...)
@@ -160,6 +203,19 @@ const bool registered = [] {
                     true);
         }
     }
+    for (const Operation& op : operationRegistry()) {
+        if (op.input == InputKind::Samples) continue;  // per-sample records: a file (bench.sh)
+        benchmark::RegisterBenchmark(("registry/" + op.name + "/1080p").c_str(), BM_Registry, &op)
+            ->Arg(1)
+            ->Arg(2)
+            ->Iterations(1)
+            ->Repetitions(3)
+            ->UseRealTime()
+            ->Unit(benchmark::kMillisecond);
+    }
+    benchmark::RegisterBenchmark("registry/input/1080p", BM_RegistryInput)
+        ->Iterations(1)
+        ->Unit(benchmark::kMillisecond);
     for (const char* name : {"mean", "gmon", "mon"})
         benchmark::RegisterBenchmark((std::string("threads/") + name + "/1080p").c_str(),
                                      BM_EstimatorThreads, findEstimator(name))

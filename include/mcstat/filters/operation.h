@@ -88,6 +88,11 @@ struct PixelKernel {
     /// instead of `interval`'s.
     bool ciExpected = false;
     int ciPool = 0;
+    /// Set by the caller (the image layer, from the modifier removed): the removed-light layers'
+    /// per-pixel step in the estimate's pass, while each pixel's buffers are at hand
+    /// (image/removed_light_pass.h), with the working space's luminance weights.
+    bool removedLight = false;
+    std::array<double, 3> removedLuma{};
 };
 /// Binds parsed values (every parameter of the operation, defaults applied) and the luminance
 /// weights (from the colour config) to the operation's own parameter struct and kernel.

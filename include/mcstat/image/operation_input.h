@@ -17,7 +17,7 @@ namespace mcstat {
 
 /// What an operation may run on. Fill in what you hold; applyOperation takes what it needs.
 struct OperationInput {
-    std::string name;                      ///< what the input is, for messages ("scene.mcstat")
+    std::string name;                       ///< what the input is, for messages ("scene.mcstat")
     const OIIO::ImageBuf* image = nullptr;  ///< an image (MIF/WMIF filter R, G, B and its AOVs)
     const StatsImage* stats = nullptr;      ///< a statistics file in memory
     /// A statistics source by blocks of rows (a file, a merge, a compact or ingest source), opened

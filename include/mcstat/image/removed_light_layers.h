@@ -7,18 +7,10 @@
 
 #include <array>
 
+#include "mcstat/image/removed_light_pass.h"
 #include "mcstat/stats_file.h"
 
 namespace mcstat {
-
-/// The window and threshold of the neighbourhood test.
-struct RemovedLightOptions {
-    int radius = 2;       ///< window (2 radius + 1)^2 of the pooled test
-    double zLimit = 3.0;  ///< removed.significant is 1 where removed.zlocal > zLimit
-};
-
-/// Prefix of the channels appendRemovedLight adds.
-inline constexpr const char* kRemovedPrefix = "removed.";
 
 /// The luminance of each pixel's valid buffers over `roi` of `src`, in one float image whose R, G,
 /// B are their count-weighted mean, its standard error and their number (lumaSpread), read by
