@@ -392,12 +392,14 @@ bool adrGeometricMeanBounds(const std::vector<PajotMode>& modes, int64_t total, 
         // inside [lo, hi] (a, b >= 1; no other mode reaches such a point).
         double gridLo = 0, gridHi = 0, innerLo = 0, innerHi = 0;
         if (own.invR != 0.0) {
-            gridLo = 4.0 / 3.0 * own.invR - r * (1.0 / 3.0) - 0.04 * r * r;
             gridHi = 4.0 / 3.0 * own.invR + r * (1.0 / 6.0) + 0.04 * r * r;
-            innerLo = std::max(gridLo, q == m.n ? 1.0 : r < 2.0 ? 1.0 - 0.25 * r * r : 0.0);
-            innerHi = std::min(gridHi, double(m.n));
-            innerLo = std::max(0.0, innerLo * (1.0 - 1e-9) - absSlack);
-            innerHi = innerHi * (1.0 + 1e-9) + absSlack;
+            if (!coarse) {  // the coarse pair reads only gridHi
+                gridLo = 4.0 / 3.0 * own.invR - r * (1.0 / 3.0) - 0.04 * r * r;
+                innerLo = std::max(gridLo, q == m.n ? 1.0 : r < 2.0 ? 1.0 - 0.25 * r * r : 0.0);
+                innerHi = std::min(gridHi, double(m.n));
+                innerLo = std::max(0.0, innerLo * (1.0 - 1e-9) - absSlack);
+                innerHi = innerHi * (1.0 + 1e-9) + absSlack;
+            }
         }
         // The modes with values within nn of [lo, hi].
         size_t below = j, above = j + 1;
@@ -701,11 +703,14 @@ void adrUpdate(std::vector<PajotMode>& modes, float l, AdrUpdateTrace* trace) {
     // bandwidths and their sum, comes out so at G: its h sum is nn sqrt(G) (p(x)^(-1/2) +
     // p(l)^(-1/2)), increasing in G. Only when one sits between them is the exact G computed. The
     // trace wants the exact values, and records what the bounds decided beside them.
-    auto verdict = [nn](double a, double b, double pa, double pb, double gLo, double gHi) {
+    // `ia`, `ib` are p(a)^(-1/2), p(b)^(-1/2) and `hLo`, `hHi` nn sqrt(gLo), nn sqrt(gHi), each
+    // computed once per update (per pair of bounds) instead of in every comparison: the same
+    // doubles from the same expressions, so the same decisions.
+    auto verdict = [](double a, double b, double ia, double ib, double hLo, double hHi) {
         if (a == b) return 1;  // overlaps() without bandwidths
-        const double d = b - a, inv = 1.0 / std::sqrt(pa) + 1.0 / std::sqrt(pb);
-        if (d < nn * std::sqrt(gLo) * inv * (1.0 - 1e-9)) return 1;
-        if (d >= nn * std::sqrt(gHi) * inv * (1.0 + 1e-9)) return 0;
+        const double d = b - a, inv = ia + ib;
+        if (d < hLo * inv * (1.0 - 1e-9)) return 1;
+        if (d >= hHi * inv * (1.0 + 1e-9)) return 0;
         return -1;
     };
     int certBelow = -1, certAbove = -1;  // -1: not settled by the bounds
@@ -723,10 +728,14 @@ void adrUpdate(std::vector<PajotMode>& modes, float l, AdrUpdateTrace* trace) {
             if (k + 1 < modes.size()) pa = density.at(modes[k + 1].lo);
             auto usable = [](double p) { return p > 0.0 && p < HUGE_VAL; };
             if (usable(pl) && (k == 0 || usable(pb)) && (k + 1 == modes.size() || usable(pa))) {
+                const double il = 1.0 / std::sqrt(pl);
+                const double ib = k > 0 ? 1.0 / std::sqrt(pb) : 0.0;
+                const double ia = k + 1 < modes.size() ? 1.0 / std::sqrt(pa) : 0.0;
                 auto decide = [&] {
-                    certBelow = k > 0 ? verdict(modes[k - 1].hi, l, pb, pl, gLo, gHi) : 0;
+                    const double hLo = nn * std::sqrt(gLo), hHi = nn * std::sqrt(gHi);
+                    certBelow = k > 0 ? verdict(modes[k - 1].hi, l, ib, il, hLo, hHi) : 0;
                     certAbove =
-                        k + 1 < modes.size() ? verdict(l, modes[k + 1].lo, pl, pa, gLo, gHi) : 0;
+                        k + 1 < modes.size() ? verdict(l, modes[k + 1].lo, il, ia, hLo, hHi) : 0;
                     return certBelow >= 0 && certAbove >= 0;
                 };
                 if (!decide() && adrGeometricMeanBounds(modes, total, nn, spans, false, gLo, gHi))
