@@ -102,6 +102,7 @@ if want registry; then
   # --keep-samples, against stock oiiotool reading its records part.
   bench=$BUILD/tests/bench/bench_estimators
   ops=$("$bench" --benchmark_list_tests | sed -n 's|^registry/\([^/]*\)/1080p/1/.*|\1|p')
+  sample_ops=$("$bench" --benchmark_list_tests | sed -n 's|^registry-samples/\([^/]*\)/.*|\1|p')
   /usr/bin/time -f "%M" -o "$out/time.txt" "$bench" --benchmark_filter='^registry/input/' >/dev/null 2>&1
   base_kib=$(cat "$out/time.txt")
   echo "== Every operation in process: 1920x1080 synthetic, M = 21, lum, registry defaults; medians of 3 =="
@@ -139,14 +140,14 @@ if want registry; then
   fi
   cmd_ref=(oiiotool "$rec" --subimage 4 --stats)
   names=(ref)
-  for op in pajot rpf reweight; do
+  for op in $sample_ops; do
     eval "cmd_a_$op=(\"\$mcstat\" \"\$rec\" --$op -o \"\$out/o.exr\")"
     eval "cmd_1_$op=(\"\$mcstat\" --threads 1 \"\$rec\" --$op -o \"\$out/o.exr\")"
     names+=("a_$op" "1_$op")
   done
   REPS=${REGISTRY_REPS:-1} run_alternating "${names[@]}"
   printf "%-28s | %8.2f %7.2fx | %10s %8s | %9s\n" "oiiotool R --subimage 4 --stats" "$med_ref" 1 "" "" "$rss_ref"
-  for op in pajot rpf reweight; do
+  for op in $sample_ops; do
     a=med_a_$op; o=med_1_$op; r=rss_a_$op
     printf "%-28s | %8.2f %7.2fx | %10.2f %7.2fx | %9s\n" "mcstat R --$op" "${!a}" \
       "$(echo "${!a} / $med_ref" | bc -l)" "${!o}" "$(echo "${!o} / $med_ref" | bc -l)" "${!r}"
