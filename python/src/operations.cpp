@@ -125,10 +125,15 @@ py::tuple estimate(const py::object& src, const std::string& name,
     values.insert(keep.begin(), keep.end());
     const std::array<double, 3> luma = lumaOf(in.header.colorSpace, in.name);
     OIIO::ImageBuf img;
-    // A file is streamed once more for the removed light and once more for the residual.
+    // A per-pixel estimator computes the removed light in its own pass (removed_light_pass.h),
+    // as the CLI does; otherwise a file is streamed once more for it, and once more for the
+    // residual.
+    const bool removedInPass = removed && removedLightInPass(op, keepLightAsked(values));
+    ParamValues runValues = values;
+    if (removedInPass) setRemovedLightValues(runValues, removedOpt);
     std::unique_ptr<Source> again, againRemoved;
     if (residual && !in.native) again = std::make_unique<Source>(src);
-    if (removed && !in.native) againRemoved = std::make_unique<Source>(src);
+    if (removed && !removedInPass && !in.native) againRemoved = std::make_unique<Source>(src);
     {
         py::gil_scoped_release release;
         bool ok = false;
@@ -139,12 +144,12 @@ py::tuple estimate(const py::object& src, const std::string& name,
                             " was computed (write it with mcstat.write and pass the path)");
             ok = runSamplesOperation(img, in.path, in.header, op, values, luma);
         } else if (in.native) {
-            ok = applyOperation(img, *in.native->img, op, values, luma, diag);
+            ok = applyOperation(img, *in.native->img, op, runValues, luma, diag);
         } else {
-            ok = applyOperation(img, in.blocks(), op, values, luma, diag);
+            ok = applyOperation(img, in.blocks(), op, runValues, luma, diag);
         }
         if (!ok) throw Error(cmd + ": " + img.geterror());
-        if (removed) {
+        if (removed && !removedInPass) {
             ok = in.native ? appendRemovedLight(img, *in.native->img, luma, removedOpt)
                            : appendRemovedLight(img, againRemoved->blocks(), luma, removedOpt);
             if (!ok) throw Error(cmd + ": " + img.geterror());
