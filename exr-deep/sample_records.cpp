@@ -15,6 +15,7 @@
 #include <OpenEXR/ImfMultiPartInputFile.h>
 #include <OpenEXR/ImfOutputPart.h>
 #include <OpenEXR/ImfStringAttribute.h>
+#include <OpenEXR/ImfThreading.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <fmt/format.h>
@@ -295,8 +296,8 @@ const StatsHeader& SampleRecordsReader::header() const { return impl_->header; }
 const std::vector<std::string>& SampleRecordsReader::available() const { return impl_->available; }
 const std::vector<std::string>& SampleRecordsReader::fields() const { return impl_->fields; }
 
-bool SampleRecordsReader::open(const std::string& path, std::string& err,
-                               const ReadLimits& limits) {
+bool SampleRecordsReader::open(const std::string& path, std::string& err, const ReadLimits& limits,
+                               int nthreads) {
     impl_->path = path;
     impl_->limits = limits;
     if (!readStatsHeader(path, impl_->header, err, limits)) return false;
@@ -307,7 +308,11 @@ bool SampleRecordsReader::open(const std::string& path, std::string& err,
         return false;
     }
     try {
-        impl_->file.reset(new Imf::MultiPartInputFile(path.c_str()));
+        // OpenEXR decodes the line buffers of a read on its global pool (codecThreads sizes it
+        // when nothing did); 0 threads: one line buffer at a time, on the caller.
+        const int threads =
+            nthreads < 0 ? Imf::globalThreadCount() : detail::codecThreads(nthreads);
+        impl_->file.reset(new Imf::MultiPartInputFile(path.c_str(), threads > 1 ? threads : 0));
         for (int i = 0; i < impl_->file->parts(); ++i)
             if (impl_->file->header(i).name() == layout::kPartRecords) impl_->part = i;
         if (impl_->part < 0) throw std::runtime_error("part 'records' vanished");
@@ -664,11 +669,11 @@ namespace {
 
 class FileSampleSource : public SampleSource {
   public:
-    FileSampleSource(std::string path, const ReadLimits& limits)
-        : path_(std::move(path)), limits_(limits) {}
+    FileSampleSource(std::string path, const ReadLimits& limits, int nthreads)
+        : path_(std::move(path)), limits_(limits), nthreads_(nthreads) {}
     bool open(std::string& err) {
         if (!readStatsHeader(path_, header_, err, limits_)) return false;
-        if (header_.hasRecords && !records_.open(path_, err, limits_)) return false;
+        if (header_.hasRecords && !records_.open(path_, err, limits_, nthreads_)) return false;
         return true;
     }
     const StatsHeader& header() const override { return header_; }
@@ -696,6 +701,7 @@ class FileSampleSource : public SampleSource {
   private:
     std::string path_;
     ReadLimits limits_;
+    int nthreads_;
     StatsHeader header_;
     SampleRecordsReader records_;
     SampleBlock scratch_;
@@ -704,8 +710,8 @@ class FileSampleSource : public SampleSource {
 }  // namespace
 
 std::unique_ptr<SampleSource> openSampleSource(const std::string& path, std::string& err,
-                                               const ReadLimits& limits) {
-    auto src = std::make_unique<FileSampleSource>(path, limits);
+                                               const ReadLimits& limits, int nthreads) {
+    auto src = std::make_unique<FileSampleSource>(path, limits, nthreads);
     if (!src->open(err)) return nullptr;
     return src;
 }

@@ -889,7 +889,8 @@ bool runSamplesOperation(ImageBuf& dst, const std::string& path, const StatsHead
         return false;
     }
     std::string openErr;
-    const std::unique_ptr<SampleSource> source = openSampleSource(path, openErr);
+    const std::unique_ptr<SampleSource> source =
+        openSampleSource(path, openErr, ReadLimits(), nthreads);
     if (!source) {
         dst.errorfmt("{}", openErr);
         return false;

@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "mcstat/core/parallel.h"
+
 namespace mcstat {
 
 namespace {
@@ -93,20 +95,33 @@ void splatSample(CascadePixel& px, const float rgb[3], const ReweightParams& p) 
 }
 
 void scatterRemoved(int width, int height, int radius, size_t nch,
-                    const std::vector<double>& removed, std::vector<double>& add) {
+                    const std::vector<double>& removed, std::vector<double>& add, int nthreads) {
     add.assign(size_t(width) * size_t(height) * nch, 0.0);
+    if (width <= 0 || height <= 0) return;
+    // The windows' sides per column and row: pixel (x, y) shares its removed part among
+    // span[x] * spanY[y] pixels, as 1 / that product.
+    std::vector<int> spanX(static_cast<size_t>(width)), spanY(static_cast<size_t>(height));
+    for (int x = 0; x < width; ++x)
+        spanX[size_t(x)] = std::min(width - 1, x + radius) - std::max(0, x - radius) + 1;
     for (int y = 0; y < height; ++y)
-        for (int x = 0; x < width; ++x) {
-            const size_t pix = size_t(y) * size_t(width) + size_t(x);
-            const int x0 = std::max(0, x - radius), x1 = std::min(width - 1, x + radius);
-            const int y0 = std::max(0, y - radius), y1 = std::min(height - 1, y + radius);
-            const double share = 1.0 / double((x1 - x0 + 1) * (y1 - y0 + 1));
-            for (int qy = y0; qy <= y1; ++qy)
-                for (int qx = x0; qx <= x1; ++qx)
-                    for (size_t k = 0; k < nch; ++k)
-                        add[(size_t(qy) * size_t(width) + size_t(qx)) * nch + k] +=
-                            share * removed[pix * nch + k];
-        }
+        spanY[size_t(y)] = std::min(height - 1, y + radius) - std::max(0, y - radius) + 1;
+    // Gathered, not scattered: pixel q sums the shares of the pixels whose windows hold it (those
+    // within `radius` of it) in scanline order, the order in which a scatter over the pixels in
+    // scanline order adds them, so every sum is the same bit for bit for any thread count.
+    parallelFor(0, height, 1, nthreads, [&](int64_t yb, int64_t ye) {
+        for (int qy = int(yb); qy < int(ye); ++qy)
+            for (int qx = 0; qx < width; ++qx) {
+                double* a = add.data() + (size_t(qy) * size_t(width) + size_t(qx)) * nch;
+                const int y0 = std::max(0, qy - radius), y1 = std::min(height - 1, qy + radius);
+                const int x0 = std::max(0, qx - radius), x1 = std::min(width - 1, qx + radius);
+                for (int y = y0; y <= y1; ++y)
+                    for (int x = x0; x <= x1; ++x) {
+                        const size_t pix = size_t(y) * size_t(width) + size_t(x);
+                        const double share = 1.0 / double(spanX[size_t(x)] * spanY[size_t(y)]);
+                        for (size_t k = 0; k < nch; ++k) a[k] += share * removed[pix * nch + k];
+                    }
+            }
+    });
 }
 
 void sampleShares(double y, const ReweightParams& p, const double* w, double& kept, double& taken) {
@@ -116,7 +131,7 @@ void sampleShares(double y, const ReweightParams& p, const double* w, double& ke
 }
 
 void reweightImage(const CascadeImage& img, const ReweightParams& p, std::vector<float>& rgb,
-                   std::vector<double>* weights) {
+                   std::vector<double>* weights, int nthreads) {
     const int W = img.width, H = img.height, C = img.count;
     const size_t pixels = size_t(W) * size_t(H);
     std::vector<double> est(pixels * 3, 0.0);
@@ -136,44 +151,47 @@ void reweightImage(const CascadeImage& img, const ReweightParams& p, std::vector
         return lum(p.luma, v);
     };
     std::vector<double> removed(p.spread > 0 ? pixels * 3 : 0, 0.0);
-    for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x) {
-            const size_t pix = size_t(y) * size_t(W) + size_t(x);
-            const uint64_t n = img.n[pix];
-            if (n == 0) continue;  // no samples: 0
-            const double N = double(n);
-            const double* s = img.sum.data() + pix * size_t(C) * 3;
-            double* e = est.data() + pix * 3;
-            for (int i = 0; i < C; ++i) {
-                double block = 0.0;
-                for (int dy = -1; dy <= 1; ++dy)
-                    for (int dx = -1; dx <= 1; ++dx) {
-                        const int qx = std::clamp(x + dx, 0, W - 1);
-                        const int qy = std::clamp(y + dy, 0, H - 1);
-                        block += counts(size_t(qy) * size_t(W) + size_t(qx), i);
-                    }
-                const double global = block / 9.0 * oneOverK;
-                const double local = counts(pix, i) * oneOverK;
-                double r = global - oneOverK;
-                if (r >= 0.0) r = local - oneOverK;
-                const double currScale = N * oneOverK / scale[size_t(i)];
-                double colour = std::max(lum(p.luma, e), 0.05) * currScale;
-                colour *= colourFactor;
-                double w = std::clamp((r + colour) * 0.5, 0.0, 1.0);
-                if (!(oneOverK < 1e6)) w = 1.0;  // the reference's switch: kappa <= 1e-6 is off
-                for (int k = 0; k < 3; ++k) e[k] += w * s[size_t(i) * 3 + size_t(k)] / N;
-                if (weights) (*weights)[pix * size_t(C) + size_t(i)] = w;
-            }
-            if (p.spread > 0)
-                for (int k = 0; k < 3; ++k) {
-                    double all = 0.0;
-                    for (int i = 0; i < C; ++i) all += s[size_t(i) * 3 + size_t(k)] / N;
-                    removed[pix * 3 + size_t(k)] = all - e[k];
+    // Every pixel from the cascades alone: rows in any order, on any thread.
+    parallelFor(0, H, 1, nthreads, [&](int64_t yb, int64_t ye) {
+        for (int y = int(yb); y < int(ye); ++y)
+            for (int x = 0; x < W; ++x) {
+                const size_t pix = size_t(y) * size_t(W) + size_t(x);
+                const uint64_t n = img.n[pix];
+                if (n == 0) continue;  // no samples: 0
+                const double N = double(n);
+                const double* s = img.sum.data() + pix * size_t(C) * 3;
+                double* e = est.data() + pix * 3;
+                for (int i = 0; i < C; ++i) {
+                    double block = 0.0;
+                    for (int dy = -1; dy <= 1; ++dy)
+                        for (int dx = -1; dx <= 1; ++dx) {
+                            const int qx = std::clamp(x + dx, 0, W - 1);
+                            const int qy = std::clamp(y + dy, 0, H - 1);
+                            block += counts(size_t(qy) * size_t(W) + size_t(qx), i);
+                        }
+                    const double global = block / 9.0 * oneOverK;
+                    const double local = counts(pix, i) * oneOverK;
+                    double r = global - oneOverK;
+                    if (r >= 0.0) r = local - oneOverK;
+                    const double currScale = N * oneOverK / scale[size_t(i)];
+                    double colour = std::max(lum(p.luma, e), 0.05) * currScale;
+                    colour *= colourFactor;
+                    double w = std::clamp((r + colour) * 0.5, 0.0, 1.0);
+                    if (!(oneOverK < 1e6)) w = 1.0;  // the reference's switch: kappa <= 1e-6 is off
+                    for (int k = 0; k < 3; ++k) e[k] += w * s[size_t(i) * 3 + size_t(k)] / N;
+                    if (weights) (*weights)[pix * size_t(C) + size_t(i)] = w;
                 }
-        }
+                if (p.spread > 0)
+                    for (int k = 0; k < 3; ++k) {
+                        double all = 0.0;
+                        for (int i = 0; i < C; ++i) all += s[size_t(i) * 3 + size_t(k)] / N;
+                        removed[pix * 3 + size_t(k)] = all - e[k];
+                    }
+            }
+    });
     if (p.spread > 0) {
         std::vector<double> add;
-        scatterRemoved(W, H, p.spread, 3, removed, add);
+        scatterRemoved(W, H, p.spread, 3, removed, add, nthreads);
         for (size_t q = 0; q < pixels; ++q)
             if (img.n[q] > 0)  // no samples: stays 0
                 for (size_t k = 0; k < 3; ++k) est[q * 3 + k] += add[q * 3 + k];

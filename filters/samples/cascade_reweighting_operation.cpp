@@ -85,7 +85,9 @@ bool cascadesFromRecords(SampleSource& src, const ReweightParams& p, int nthread
                 img.n[pix] = one.n;
             }
         };
-        parallelFor(0, int64_t(block.counts.size()), 0, std::min(threadCount(nthreads), n), work);
+        // Pixels in chunks handed out as threads free up (a pixel's sums depend on its samples
+        // alone, in the order taken).
+        parallelFor(0, int64_t(block.counts.size()), 64, nthreads, work);
     }
     return true;
 }
@@ -96,7 +98,7 @@ bool cascadesFromRecords(SampleSource& src, const ReweightParams& p, int nthread
 /// those weights; id mattes the label of the sample of largest weight. With spread, the light
 /// AOVs' removed part is scattered as the beauty's is. Adds the channels to `out`.
 bool recordAovs(SampleSource& src, const ReweightParams& p, const std::vector<double>& weights,
-                const CascadeImage& img, OperationImage& out, std::string& err) {
+                const CascadeImage& img, int nthreads, OperationImage& out, std::string& err) {
     const StatsHeader& h = src.header();
     const std::vector<std::string> available = src.recordChannels();
     std::vector<std::string> channels, names;
@@ -122,52 +124,56 @@ bool recordAovs(SampleSource& src, const ReweightParams& p, const std::vector<do
         const int at[3] = {block.channel("R"), block.channel("G"), block.channel("B")};
         std::vector<size_t> aovAt;
         for (const std::string& c : channels) aovAt.push_back(size_t(block.channel(c)));
-        std::vector<double> u, t;
-        std::vector<float> x;
-        AovScratch scratch;
-        size_t first = 0;
-        for (size_t i = 0; i < block.counts.size(); ++i) {
-            const size_t pix = size_t(y0) * size_t(h.width) + i, n = block.counts[i];
-            const float* smp = block.samples.data() + first * stride;
-            first += n;
-            if (img.n[pix] == 0) continue;
-            const double N = double(img.n[pix]);
-            u.assign(n, 0.0);
-            t.assign(n, 0.0);
-            x.resize(n * A);
-            for (size_t k = 0; k < n; ++k) {
-                const float* c = smp + k * stride;
-                for (size_t a = 0; a < A; ++a) x[k * A + a] = c[aovAt[a]];
-                const float rgb[3] = {c[at[0]], c[at[1]], c[at[2]]};
-                if (!std::isfinite(rgb[0]) || !std::isfinite(rgb[1]) || !std::isfinite(rgb[2]))
-                    continue;
-                const double Y =
-                    p.luma[0] * rgb[0] + p.luma[1] * double(rgb[1]) + p.luma[2] * double(rgb[2]);
-                if (!std::isfinite(Y)) continue;
-                double kept = 0.0, taken = 0.0;
-                sampleShares(Y, p, weights.data() + pix * C, kept, taken);
-                u[k] = kept / N;
-                t[k] = taken / N;
-            }
-            applyAovWeights(u.data(), n, x.data(), A, classes.data(), convex.data() + pix * A,
-                            scratch);
-            for (size_t a = 0; a < A; ++a) {
-                if (classes[a] != AovClass::Light) continue;
-                double e = 0.0, all = 0.0;
+        std::vector<size_t> offset(block.counts.size() + 1, 0);
+        for (size_t i = 0; i < block.counts.size(); ++i)
+            offset[i + 1] = offset[i] + block.counts[i];
+        // Every pixel from its own samples and weights: chunks of pixels on any thread.
+        parallelFor(0, int64_t(block.counts.size()), 64, nthreads, [&](int64_t pb, int64_t pe) {
+            std::vector<double> u, t;
+            std::vector<float> x;
+            AovScratch scratch;
+            for (size_t i = size_t(pb); i < size_t(pe); ++i) {
+                const size_t pix = size_t(y0) * size_t(h.width) + i, n = block.counts[i];
+                const float* smp = block.samples.data() + offset[i] * stride;
+                if (img.n[pix] == 0) continue;
+                const double N = double(img.n[pix]);
+                u.assign(n, 0.0);
+                t.assign(n, 0.0);
+                x.resize(n * A);
                 for (size_t k = 0; k < n; ++k) {
-                    const double v = x[k * A + a];
-                    if (!std::isfinite(v)) continue;
-                    e += u[k] * v;
-                    all += t[k] * v;
+                    const float* c = smp + k * stride;
+                    for (size_t a = 0; a < A; ++a) x[k * A + a] = c[aovAt[a]];
+                    const float rgb[3] = {c[at[0]], c[at[1]], c[at[2]]};
+                    if (!std::isfinite(rgb[0]) || !std::isfinite(rgb[1]) || !std::isfinite(rgb[2]))
+                        continue;
+                    const double Y = p.luma[0] * rgb[0] + p.luma[1] * double(rgb[1]) +
+                                     p.luma[2] * double(rgb[2]);
+                    if (!std::isfinite(Y)) continue;
+                    double kept = 0.0, taken = 0.0;
+                    sampleShares(Y, p, weights.data() + pix * C, kept, taken);
+                    u[k] = kept / N;
+                    t[k] = taken / N;
                 }
-                light[pix * A + a] = e;
-                if (p.spread > 0) removed[pix * A + a] = all - e;
+                applyAovWeights(u.data(), n, x.data(), A, classes.data(), convex.data() + pix * A,
+                                scratch);
+                for (size_t a = 0; a < A; ++a) {
+                    if (classes[a] != AovClass::Light) continue;
+                    double e = 0.0, all = 0.0;
+                    for (size_t k = 0; k < n; ++k) {
+                        const double v = x[k * A + a];
+                        if (!std::isfinite(v)) continue;
+                        e += u[k] * v;
+                        all += t[k] * v;
+                    }
+                    light[pix * A + a] = e;
+                    if (p.spread > 0) removed[pix * A + a] = all - e;
+                }
             }
-        }
+        });
     }
     if (p.spread > 0) {
         std::vector<double> add;
-        scatterRemoved(h.width, h.height, p.spread, A, removed, add);
+        scatterRemoved(h.width, h.height, p.spread, A, removed, add, nthreads);
         for (size_t q = 0; q < pixels; ++q)
             if (img.n[q] > 0)
                 for (size_t a = 0; a < A; ++a) light[q * A + a] += add[q * A + a];
@@ -485,9 +491,10 @@ bool reweightSamples(const SamplesRequest& req, OperationImage& out, std::string
     out.height = h.height;
     out.channels = {"R", "G", "B"};
     std::vector<double> weights;
-    reweightImage(img, p, out.pixels, &weights);
+    reweightImage(img, p, out.pixels, &weights, req.nthreads);
     // The AOVs follow from the records (the stored cascades hold none).
-    if (h.hasRecords && !h.aovs.empty()) return recordAovs(*src, p, weights, img, out, err);
+    if (h.hasRecords && !h.aovs.empty())
+        return recordAovs(*src, p, weights, img, req.nthreads, out, err);
     return true;
 }
 

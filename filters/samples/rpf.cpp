@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "mcstat/core/parallel.h"
 #include "mcstat/filters/samples/rpf_filter.h"
 #include "mcstat/sample_records.h"
 
@@ -70,39 +71,53 @@ bool planChannels(const std::string& path, const std::vector<std::string>& avail
 
 /// Packs a block of records into the window's sample vectors (RpfLayout order). Samples with a
 /// non-finite value in any field used are left out (docs/rpf.md, "Extremes"); `dropped` counts
-/// them.
+/// them. Two passes over the pixels, each on any thread: the samples each keeps, then (their
+/// places known) the copies.
 void pack(const SampleBlock& block, const std::vector<std::string>& channels,
-          const std::vector<std::string>& aovChannels, int height, RpfWindow& w, int64_t& dropped) {
-    const size_t dims = channels.size(), stride = block.stride();
+          const std::vector<std::string>& aovChannels, int height, int nthreads, RpfWindow& w,
+          int64_t& dropped) {
+    const size_t dims = channels.size(), stride = block.stride(), pixels = block.counts.size();
     std::vector<int> from(dims);
     for (size_t d = 0; d < dims; ++d) from[d] = block.channel(channels[d]);
     std::vector<int> aovFrom;
     for (const std::string& c : aovChannels) aovFrom.push_back(block.channel(c));
-    w.aov.clear();
+    const size_t A = aovFrom.size();
     w.width = block.width;
     w.height = height;
     w.y0 = block.y0;
     w.rows = block.rows;
-    w.offset.assign(block.counts.size() + 1, 0);
-    w.x.clear();
-    w.x.reserve(block.samples.size() / std::max<size_t>(stride, 1) * dims);
-    size_t k = 0;
-    for (size_t p = 0; p < block.counts.size(); ++p) {
-        uint64_t kept = 0;
-        for (uint32_t i = 0; i < block.counts[p]; ++i, ++k) {
-            const float* s = block.samples.data() + k * stride;
-            bool finite = true;
-            for (size_t d = 0; d < dims; ++d) finite = finite && std::isfinite(s[from[d]]);
-            if (!finite) {
-                ++dropped;
-                continue;
-            }
-            for (size_t d = 0; d < dims; ++d) w.x.push_back(s[from[d]]);
-            for (int a : aovFrom) w.aov.push_back(s[a]);  // non-finite ones: left out later
-            ++kept;
+    std::vector<size_t> first(pixels + 1, 0);  // each pixel's first record in the block
+    for (size_t p = 0; p < pixels; ++p) first[p + 1] = first[p] + block.counts[p];
+    auto finite = [&](size_t k) {
+        const float* s = block.samples.data() + k * stride;
+        bool ok = true;
+        for (size_t d = 0; d < dims; ++d) ok = ok && std::isfinite(s[from[d]]);
+        return ok;
+    };
+    w.offset.assign(pixels + 1, 0);
+    parallelFor(0, int64_t(pixels), 256, nthreads, [&](int64_t b, int64_t e) {
+        for (size_t p = size_t(b); p < size_t(e); ++p) {
+            uint64_t kept = 0;
+            for (size_t k = first[p]; k < first[p + 1]; ++k) kept += finite(k) ? 1 : 0;
+            w.offset[p + 1] = kept;
         }
-        w.offset[p + 1] = w.offset[p] + kept;
-    }
+    });
+    for (size_t p = 0; p < pixels; ++p) w.offset[p + 1] += w.offset[p];
+    dropped += int64_t(first[pixels] - w.offset[pixels]);
+    w.x.resize(size_t(w.offset[pixels]) * dims);
+    w.aov.resize(size_t(w.offset[pixels]) * A);  // non-finite AOVs: left out later
+    parallelFor(0, int64_t(pixels), 256, nthreads, [&](int64_t b, int64_t e) {
+        for (size_t p = size_t(b); p < size_t(e); ++p) {
+            size_t to = size_t(w.offset[p]);
+            for (size_t k = first[p]; k < first[p + 1]; ++k) {
+                if (!finite(k)) continue;
+                const float* s = block.samples.data() + k * stride;
+                for (size_t d = 0; d < dims; ++d) w.x[to * dims + d] = s[from[d]];
+                for (size_t a = 0; a < A; ++a) w.aov[to * A + a] = s[aovFrom[a]];
+                ++to;
+            }
+        }
+    });
 }
 
 }  // namespace
@@ -272,7 +287,7 @@ bool filterBlock(SampleSource& src, const RpfPlan& plan, int y0, int y1, int thr
     const int halo = rpfHalo(plan.params);
     const int a = std::max(0, y0 - halo), e = std::min(h.height, y1 + halo);
     if (!src.readRecords(a, e - a, buf.records, err)) return false;
-    pack(buf.records, plan.channels, plan.aovChannels, h.height, w, dropped);
+    pack(buf.records, plan.channels, plan.aovChannels, h.height, threads, w, dropped);
     buf.records.samples = std::vector<float>();  // the window holds the samples now
     rpfFilterRows(w, plan.params, y0, y1, buf.rgb, threads, rowDone,
                   plan.maps ? &buf.report : nullptr, w.aovs ? &buf.aovs : nullptr);

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <mutex>
 
 #include "mcstat/core/parallel.h"
@@ -235,6 +236,28 @@ struct Scratch {
     std::vector<double> scale;                // per coordinate of eq. 18: its factor
     std::vector<int> source;                  // per coordinate of eq. 18: where it is read
     std::vector<double> aovMean;              // per AOV: its mean over the pixel (section 6.1)
+};
+
+/// The scratches of a pass's chunks: one per chunk running, kept from chunk to chunk so that a
+/// thread does not grow a new one every few pixels. A scratch holds no result (a pixel's values do
+/// not depend on which scratch served it, as with one thread serving every pixel).
+class ScratchPool {
+  public:
+    std::unique_ptr<Scratch> take() {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (free_.empty()) return std::make_unique<Scratch>();
+        std::unique_ptr<Scratch> s = std::move(free_.back());
+        free_.pop_back();
+        return s;
+    }
+    void give(std::unique_ptr<Scratch> s) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        free_.push_back(std::move(s));
+    }
+
+  private:
+    std::mutex mutex_;
+    std::vector<std::unique_ptr<Scratch>> free_;
 };
 
 /// The law, per axis, of a neighbour's pixel offset: round(N(0, sigma_p^2)) with sigma_p = b/4
@@ -789,24 +812,30 @@ void rpfPass(const RpfWindow& w, const RpfParams& params, int pass, const std::v
              const std::vector<float>* aIn, std::vector<float>* aOut) {
     rowBegin = std::max(rowBegin, w.y0);
     rowEnd = std::min(rowEnd, w.y0 + w.rows);
-    if (rowEnd <= rowBegin) return;
+    if (rowEnd <= rowBegin || w.width <= 0) return;
     if (report) report->assign(size_t(rowEnd - rowBegin) * size_t(w.width), RpfPixelReport());
     const OffsetLaw law(params.boxes[size_t(pass)]);
+    const int64_t width = w.width, pixels = int64_t(rowEnd - rowBegin) * width;
+    // Chunks of pixels, at most a row each and about 64 per thread: a small image has few rows
+    // (48 at 64 x 48: 24 per thread on 2 cores, 3 on 16), and a pass lasts as long as its last
+    // chunk. Every pixel depends on the input alone, so any cut gives the same bits.
+    const int64_t chunk =
+        std::clamp<int64_t>(pixels / (int64_t(threadCount(nthreads)) * 64), 1, width);
+    ScratchPool scratches;
     std::mutex progressLock;
-    // Rows one at a time, each with a scratch of its own (every pixel depends on the input alone).
-    parallelFor(rowBegin, rowEnd, 1, nthreads, [&](int64_t y0, int64_t y1) {
-        Scratch sc;
-        for (int y = int(y0); y < int(y1); ++y) {
-            for (int x = 0; x < w.width; ++x)
-                filterPixel(w, params, pass, law, x, y, cIn, cOut, sc,
-                            report ? &(*report)[size_t(y - rowBegin) * size_t(w.width) + size_t(x)]
-                                   : nullptr,
-                            aIn && aOut ? aIn->data() : nullptr,
-                            aIn && aOut ? aOut->data() : nullptr);
-            if (rowDone) {
-                std::lock_guard<std::mutex> lock(progressLock);
-                rowDone(y);
-            }
+    std::vector<int64_t> left(rowDone ? size_t(rowEnd - rowBegin) : 0, width);  // per row
+    parallelFor(0, pixels, chunk, nthreads, [&](int64_t b, int64_t e) {
+        std::unique_ptr<Scratch> sc = scratches.take();
+        for (int64_t i = b; i < e; ++i)
+            filterPixel(w, params, pass, law, int(i % width), rowBegin + int(i / width), cIn, cOut,
+                        *sc, report ? &(*report)[size_t(i)] : nullptr,
+                        aIn && aOut ? aIn->data() : nullptr, aIn && aOut ? aOut->data() : nullptr);
+        scratches.give(std::move(sc));
+        if (!rowDone) return;
+        std::lock_guard<std::mutex> lock(progressLock);  // a row is done when its last chunk is
+        for (int64_t r = b / width; r <= (e - 1) / width; ++r) {
+            left[size_t(r)] -= std::min(e, (r + 1) * width) - std::max(b, r * width);
+            if (left[size_t(r)] == 0) rowDone(rowBegin + int(r));
         }
     });
 }
@@ -847,44 +876,50 @@ void rpfFilterRows(const RpfWindow& w, const RpfParams& params, int outBegin, in
         }
         cur.swap(nxt);
     }
-    // Algorithm 1 line 19: box filter of each pixel's filtered samples.
+    // Algorithm 1 line 19: box filter of each pixel's filtered samples (its own sums: rows on any
+    // thread).
     rgb.assign(size_t(std::max(0, outEnd - outBegin)) * size_t(w.width) * 3, 0.f);
-    for (int y = outBegin; y < outEnd; ++y)
-        for (int x = 0; x < w.width; ++x) {
-            const size_t p = size_t(y - w.y0) * size_t(w.width) + size_t(x);
-            const size_t a = size_t(w.offset[p]), e = size_t(w.offset[p + 1]);
-            if (e == a) continue;
-            double s[3] = {0, 0, 0};
-            for (size_t i = a; i < e; ++i)
-                for (int c = 0; c < 3; ++c) s[c] += double(cur[i * 3 + size_t(c)]);
-            float* o = rgb.data() + (size_t(y - outBegin) * size_t(w.width) + size_t(x)) * 3;
-            for (int c = 0; c < 3; ++c) o[c] = float(s[c] / double(e - a));
-        }
+    parallelFor(outBegin, outEnd, 1, nthreads, [&](int64_t yb, int64_t ye) {
+        for (int y = int(yb); y < int(ye); ++y)
+            for (int x = 0; x < w.width; ++x) {
+                const size_t p = size_t(y - w.y0) * size_t(w.width) + size_t(x);
+                const size_t a = size_t(w.offset[p]), e = size_t(w.offset[p + 1]);
+                if (e == a) continue;
+                double s[3] = {0, 0, 0};
+                for (size_t i = a; i < e; ++i)
+                    for (int c = 0; c < 3; ++c) s[c] += double(cur[i * 3 + size_t(c)]);
+                float* o = rgb.data() + (size_t(y - outBegin) * size_t(w.width) + size_t(x)) * 3;
+                for (int c = 0; c < 3; ++c) o[c] = float(s[c] / double(e - a));
+            }
+    });
     if (A == 0) return;
     // The AOVs' box filter: the mean of the pixel's filtered samples (finite values), a label the
     // first sample's.
     aovOut->assign(size_t(std::max(0, outEnd - outBegin)) * size_t(w.width) * A, 0.f);
-    for (int y = outBegin; y < outEnd; ++y)
-        for (int x = 0; x < w.width; ++x) {
-            const size_t p = size_t(y - w.y0) * size_t(w.width) + size_t(x);
-            const size_t a0 = size_t(w.offset[p]), e = size_t(w.offset[p + 1]);
-            if (e == a0) continue;
-            float* o = aovOut->data() + (size_t(y - outBegin) * size_t(w.width) + size_t(x)) * A;
-            for (size_t k = 0; k < A; ++k) {
-                if (w.aovFixed[k]) {
-                    o[k] = aCur[a0 * A + k];
-                    continue;
-                }
-                double sum = 0;
-                size_t n = 0;
-                for (size_t i = a0; i < e; ++i)
-                    if (std::isfinite(aCur[i * A + k])) {
-                        sum += double(aCur[i * A + k]);
-                        ++n;
+    parallelFor(outBegin, outEnd, 1, nthreads, [&](int64_t yb, int64_t ye) {
+        for (int y = int(yb); y < int(ye); ++y)
+            for (int x = 0; x < w.width; ++x) {
+                const size_t p = size_t(y - w.y0) * size_t(w.width) + size_t(x);
+                const size_t a0 = size_t(w.offset[p]), e = size_t(w.offset[p + 1]);
+                if (e == a0) continue;
+                float* o =
+                    aovOut->data() + (size_t(y - outBegin) * size_t(w.width) + size_t(x)) * A;
+                for (size_t k = 0; k < A; ++k) {
+                    if (w.aovFixed[k]) {
+                        o[k] = aCur[a0 * A + k];
+                        continue;
                     }
-                o[k] = n ? float(sum / double(n)) : 0.f;
+                    double sum = 0;
+                    size_t n = 0;
+                    for (size_t i = a0; i < e; ++i)
+                        if (std::isfinite(aCur[i * A + k])) {
+                            sum += double(aCur[i * A + k]);
+                            ++n;
+                        }
+                    o[k] = n ? float(sum / double(n)) : 0.f;
+                }
             }
-        }
+    });
 }
 
 }  // namespace mcstat

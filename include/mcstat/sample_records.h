@@ -120,7 +120,10 @@ class SampleRecordsReader {
     SampleRecordsReader();
     ~SampleRecordsReader();
     /// Opens `path` and checks its headers (readStatsHeader) and that it has a records part.
-    bool open(const std::string& path, std::string& err, const ReadLimits& limits = ReadLimits());
+    /// `nthreads`: threads decoding the records (detail::codecThreads: 0 all cores, 1 the caller
+    /// alone); -1 leaves it to OpenEXR (its global thread count). The records read are the same.
+    bool open(const std::string& path, std::string& err, const ReadLimits& limits = ReadLimits(),
+              int nthreads = -1);
     const StatsHeader& header() const;
     /// The FLOAT channels of the part (A excepted): R, G, B, Z, then the others in file order.
     const std::vector<std::string>& available() const;
@@ -198,9 +201,11 @@ class SampleSource {
     /// The file name, for messages.
     virtual const std::string& path() const = 0;
 };
-/// A SampleSource over statistics file `path` (its headers checked); nullptr with `err`.
+/// A SampleSource over statistics file `path` (its headers checked); nullptr with `err`. Its
+/// records are decoded on `nthreads` threads (SampleRecordsReader::open).
 std::unique_ptr<SampleSource> openSampleSource(const std::string& path, std::string& err,
-                                               const ReadLimits& limits = ReadLimits());
+                                               const ReadLimits& limits = ReadLimits(),
+                                               int nthreads = -1);
 
 /// Reads the state parts of a statistics file (the whole state: small next to records), their
 /// sizes checked against the limits before anything is allocated. An error names the file; a file

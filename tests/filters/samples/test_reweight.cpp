@@ -4,8 +4,11 @@
 // the mean as the counts grow.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -220,6 +223,80 @@ TEST(Reweight, NoSamplesIsZeroAndOneSampleRestsOnTheColourTerm) {
     reweightImage(imageOf(2, 2, p, s), p, out);
     EXPECT_EQ(out[0], 0.f);
     for (size_t q = 1; q < 4; ++q) EXPECT_FLOAT_EQ(out[q * 3], 3.f) << q;
+}
+
+/// A 37 x 23 image of noisy samples with fireflies (luminances over five orders of magnitude):
+/// cascade sums that are not exact, so any change in the order of a sum shows in the bits.
+CascadeImage fireflyImage(const ReweightParams& p) {
+    std::mt19937 gen(52);
+    std::uniform_real_distribution<float> u(0, 1);
+    std::vector<std::vector<float>> s(37 * 23);
+    for (size_t q = 0; q < s.size(); ++q) {
+        const int n = q % 29 == 3 ? 0 : 3 + int(q % 6);  // some pixels without samples
+        for (int i = 0; i < n; ++i)
+            s[q].push_back(u(gen) < 0.08f ? 10.f + 3000.f * u(gen) : 0.05f + 1.7f * u(gen));
+    }
+    return imageOf(37, 23, p, s);
+}
+
+TEST(Reweight, OneThreadAndFourGiveTheSameBytes) {
+    // The image-wide steps run on threads (rows of pixels handed out as threads free up); the
+    // estimate and the weights must be the bytes of one thread, with and without the spread.
+    for (int spread : {0, 3}) {
+        ReweightParams p = grey(6, 4.0);
+        p.spread = spread;
+        const CascadeImage img = fireflyImage(p);
+        std::vector<float> rgb1;
+        std::vector<double> w1;
+        reweightImage(img, p, rgb1, &w1, 1);
+        for (int threads : {3, 4}) {
+            std::vector<float> rgb;
+            std::vector<double> w;
+            reweightImage(img, p, rgb, &w, threads);
+            ASSERT_EQ(rgb.size(), rgb1.size());
+            EXPECT_EQ(std::memcmp(rgb.data(), rgb1.data(), rgb.size() * sizeof(float)), 0)
+                << spread << " " << threads;
+            ASSERT_EQ(w.size(), w1.size());
+            EXPECT_EQ(std::memcmp(w.data(), w1.data(), w.size() * sizeof(double)), 0)
+                << spread << " " << threads;
+        }
+    }
+}
+
+TEST(Reweight, TheSpreadGathersInTheScatterOrder) {
+    // scatterRemoved gathers each pixel's shares (so threads never add into one pixel); the sums
+    // must equal, bit for bit, the scatter over the pixels in scanline order (written out here),
+    // on 1, 3 and 4 threads. And the order matters on these values: the same scatter over the
+    // pixels backwards gives other bits, so a sum whose order followed the threads would fail.
+    const int W = 37, H = 23, r = 3;
+    const size_t nch = 2;
+    std::mt19937 gen(7);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::vector<double> removed(size_t(W * H) * nch);
+    for (double& v : removed) v = u(gen) < 0.1 ? 500 * u(gen) : u(gen) - 0.3;
+    auto scatter = [&](bool backwards) {
+        std::vector<double> add(removed.size(), 0.0);
+        for (int k = 0; k < W * H; ++k) {
+            const int pix = backwards ? W * H - 1 - k : k, x = pix % W, y = pix / W;
+            const int x0 = std::max(0, x - r), x1 = std::min(W - 1, x + r);
+            const int y0 = std::max(0, y - r), y1 = std::min(H - 1, y + r);
+            const double share = 1.0 / double((x1 - x0 + 1) * (y1 - y0 + 1));
+            for (int qy = y0; qy <= y1; ++qy)
+                for (int qx = x0; qx <= x1; ++qx)
+                    for (size_t c = 0; c < nch; ++c)
+                        add[size_t(qy * W + qx) * nch + c] +=
+                            share * removed[size_t(pix) * nch + c];
+        }
+        return add;
+    };
+    const std::vector<double> want = scatter(false), other = scatter(true);
+    for (int threads : {1, 3, 4}) {
+        std::vector<double> add;
+        scatterRemoved(W, H, r, nch, removed, add, threads);
+        ASSERT_EQ(add.size(), want.size());
+        EXPECT_EQ(std::memcmp(add.data(), want.data(), add.size() * sizeof(double)), 0) << threads;
+    }
+    EXPECT_NE(std::memcmp(other.data(), want.data(), want.size() * sizeof(double)), 0);
 }
 
 TEST(ReweightParamsCheck, BadParametersAreOneLineNamingThem) {

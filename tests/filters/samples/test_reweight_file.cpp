@@ -70,6 +70,27 @@ TEST_F(ReweightFile, OnlineCascadesAndOfflineRecordsGiveTheSameImageBitForBit) {
     }
 }
 
+TEST_F(ReweightFile, OfflineGivesTheSameBytesOnOneThreadAndFour) {
+    // From the records: the cascades (pixels in chunks), the reweighting, the AOVs' weights and
+    // the spread (gathered) on threads; the records decoded on threads too. Every channel (the
+    // beauty and the AOVs) must be the bytes of one thread.
+    const std::string f = path("aovs.mcstat");
+    ASSERT_EQ(render("--res 32 24 --spp 16 --M 1 --aovs --keep-samples -o " + f).code, 0);
+    for (const std::string& mods : {std::string(""), std::string(":kappa=4:spread=2")}) {
+        const std::string a = path("t1.exr"), b = path("t4.exr");
+        ToolRun r = mcstat(f + " --threads 1 --reweight" + mods + " -o " + a);
+        ASSERT_EQ(r.code, 0) << r.err;
+        r = mcstat(f + " --threads 4 --reweight" + mods + " -o " + b);
+        ASSERT_EQ(r.code, 0) << r.err;
+        int na = 0, nb = 0;
+        const std::vector<float> pa = pixelsOf(a, na), pb = pixelsOf(b, nb);
+        EXPECT_GT(na, 3) << "the AOVs";
+        ASSERT_EQ(na, nb);
+        ASSERT_EQ(pa.size(), pb.size());
+        EXPECT_EQ(std::memcmp(pa.data(), pb.data(), pa.size() * sizeof(float)), 0) << mods;
+    }
+}
+
 TEST_F(ReweightFile, InfoAndCheckDescribeTheParts) {
     const std::string s = path("s.mcstat");
     ASSERT_EQ(

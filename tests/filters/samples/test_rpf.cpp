@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <random>
 #include <vector>
@@ -301,6 +302,65 @@ TEST(RpfFilter, BlocksOfRowsAndThreadsGiveTheSameBits) {
             outVar += (whole1[px * 3] - 2) * (whole1[px * 3] - 2);
         }
     EXPECT_LT(outVar, 0.25 * inVar);
+}
+
+TEST(RpfFilter, OneThreadAndFourGiveTheSameBytesOnASmallImage) {
+    // A 32 x 24 image, 4 spp: noise driven by the random parameter on the left, a two-surface
+    // texture on the right, a few bright samples, two AOVs (one following R's spikes, one label).
+    // Every pass cuts the pixels into chunks of a few pixels on 3 and 4 threads (rpfPass: about 64
+    // per thread) handed out as threads free up; the colours, the AOVs and pass 0's report must
+    // be the bytes of one thread, with and without section 6.1's spikes. Pass 0's dependencies
+    // (eq. 9-16, doubles from sums of c log c over the joint histograms) are compared too: those
+    // sums are not exact, so one whose order followed the threads changes them (summing the cells
+    // backwards on the worker threads alone fails this test). The colours are floats, which hide
+    // a last-bit change of most double sums.
+    const int W = 32, H = 24;
+    RpfWindow w = makeWindow(W, H, 4, 52, [](int x, int y, int i, float* s) {
+        const float v = x < 16 ? 3 * s[5] * s[5] : (s[3] + s[4] > 27 ? 0.8f : 0.15f);
+        s[0] = (x * 7 + y * 3 + i) % 41 == 0 ? 40.f * v + 5.f : v;  // a few fireflies
+        s[1] = 0.5f * v + 0.01f * float(i);
+        s[2] = 0.3f * s[7];
+        s[6] = x < 16 ? 0.f : (s[3] + s[4] > 27 ? 1.f : 0.5f);
+    });
+    w.aovs = 2;
+    w.aovFollows = {0, -1};
+    w.aovFixed = {false, true};
+    for (size_t i = 0; i < w.samples(); ++i) {
+        w.aov.push_back(0.7f * w.sample(i)[0]);
+        w.aov.push_back(float(i % 3));
+    }
+    RpfParams p;
+    p.boxes = {15, 9, 5, 3};
+    for (bool spikes : {false, true}) {
+        p.spikes = spikes;
+        std::vector<float> rgb1, aov1;
+        std::vector<RpfPixelReport> rep1;
+        rpfFilterRows(w, p, 0, H, rgb1, 1, {}, &rep1, &aov1);
+        ASSERT_EQ(rgb1.size(), size_t(W * H * 3));
+        ASSERT_EQ(aov1.size(), size_t(W * H * 2));
+        for (int threads : {3, 4}) {
+            std::vector<float> rgb, aov;
+            std::vector<RpfPixelReport> rep;
+            int rows = 0;
+            rpfFilterRows(
+                w, p, 0, H, rgb, threads, [&](int) { ++rows; }, &rep, &aov);
+            ASSERT_EQ(rgb.size(), rgb1.size());
+            EXPECT_EQ(std::memcmp(rgb.data(), rgb1.data(), rgb.size() * sizeof(float)), 0)
+                << threads << " threads, spikes " << spikes;
+            ASSERT_EQ(aov.size(), aov1.size());
+            EXPECT_EQ(std::memcmp(aov.data(), aov1.data(), aov.size() * sizeof(float)), 0)
+                << threads << " threads, spikes " << spikes;
+            ASSERT_EQ(rep.size(), rep1.size());
+            for (size_t q = 0; q < rep.size(); ++q) {
+                ASSERT_EQ(rep[q].neighbours, rep1[q].neighbours) << q;
+                ASSERT_EQ(rep[q].alpha, rep1[q].alpha) << q;
+                ASSERT_EQ(rep[q].beta, rep1[q].beta) << q;
+                ASSERT_EQ(rep[q].colourOnRandom, rep1[q].colourOnRandom) << q;
+                ASSERT_EQ(rep[q].featureOnRandom, rep1[q].featureOnRandom) << q;
+            }
+            EXPECT_EQ(rows, 4 * H);  // every row of every pass reported once (all passes: H rows)
+        }
+    }
 }
 
 TEST(RpfFilter, ExtremesStayFinite) {

@@ -92,6 +92,9 @@ TEST_F(RpfFile, SameResultForAnyBlockHeightAndThreadCount) {
     ASSERT_EQ(w, 20);
     ASSERT_EQ(h, 40);
     EXPECT_EQ(a, b);
+    // Four threads share out chunks of a few pixels (the records decoded on threads too).
+    ASSERT_EQ(mcstat(f + " --threads 4 --rpf -o " + path("d.exr")).code, 0);
+    EXPECT_EQ(a, rgbOf(path("d.exr"), w, h));
     // A different seed draws other neighbourhoods: a different image.
     ASSERT_EQ(mcstat(f + " --rpf:seed=5 -o " + path("c.exr")).code, 0);
     EXPECT_NE(a, rgbOf(path("c.exr"), w, h));

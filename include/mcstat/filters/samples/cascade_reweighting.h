@@ -10,10 +10,12 @@
 // (github.com/tszirr/ic.js, rw/split.cpp and rw/reweight.fs); docs/reweighting.md is the long
 // form and says which detail comes from where.
 //
-// Pure and deterministic: no I/O, no OIIO types, no threads. The renderer (online), `mcstat
-// --reweight` (offline, from the per-sample records) and the tests share these functions, so
-// online and offline cascades are equal bit for bit when they see the same float32 samples in
-// the same order.
+// Pure and deterministic: no I/O, no OIIO types. The renderer (online), `mcstat --reweight`
+// (offline, from the per-sample records) and the tests share these functions, so online and
+// offline cascades are equal bit for bit when they see the same float32 samples in the same
+// order. The image-wide steps (reweightImage, scatterRemoved) run on `nthreads` threads
+// (core/parallel.h) and give the same bits for any thread count: every pixel's sums run in one
+// fixed order, whichever thread computes it.
 //
 // Conventions:
 // - Luminance Y = luma . rgb in double. Y <= start (zero, negative, dark) goes to cascade 0
@@ -89,9 +91,10 @@ struct CascadeImage {
 ///   1/kappa)) w_i      = clamp((r + colour) / 2, 0, 1),   E_i = E_(i-1) + w_i S_i(p) / N
 /// (E_(-1) = 0; the missing neighbours of cascades 0 and count-1 are left out). Optionally each
 /// pixel's weights into `weights` ([p * count + i]). With p.spread > 0 the removed energy is then
-/// scattered (ReweightParams::spread). Deterministic.
+/// scattered (ReweightParams::spread). Deterministic, the same for any `nthreads` (0: all
+/// cores).
 void reweightImage(const CascadeImage& img, const ReweightParams& p, std::vector<float>& rgb,
-                   std::vector<double>* weights = nullptr);
+                   std::vector<double>* weights = nullptr, int nthreads = 1);
 
 /// What the estimate keeps of one sample of luminance `y` given its pixel's cascade weights `w`
 /// (reweightImage's): `kept` = w_j wLower + w_(j+1) wUpper and `taken` = wLower + wUpper (1 but
@@ -100,7 +103,9 @@ void reweightImage(const CascadeImage& img, const ReweightParams& p, std::vector
 void sampleShares(double y, const ReweightParams& p, const double* w, double& kept, double& taken);
 /// The spread variant's step: each pixel's `removed` (nch values) added evenly to the image
 /// pixels of its (2 radius + 1)^2 window, clipped to the image; `add` gets the sums.
+/// Pixel q's sum adds the shares of the pixels whose windows hold it in scanline order (as a
+/// scatter in scanline order would), so it is the same for any `nthreads` (0: all cores).
 void scatterRemoved(int width, int height, int radius, size_t nch,
-                    const std::vector<double>& removed, std::vector<double>& add);
+                    const std::vector<double>& removed, std::vector<double>& add, int nthreads = 1);
 
 }  // namespace mcstat
