@@ -98,7 +98,7 @@ if want registry; then
   # image (bench_estimators registry/*, each row in its own process for its peak memory, the
   # synthetic input's own peak taken off), then as a user runs it, `mcstat F --OP -o o.exr` on the
   # file section's render, on all cores and with --threads 1, against stock oiiotool reading the
-  # same file's sub-buffer part. The per-sample operations read records: a 480x270 render with
+  # same file's sub-buffer part. The per-sample operations read records: a 160x90 render with
   # --keep-samples, against stock oiiotool reading its records part.
   bench=$BUILD/tests/bench/bench_estimators
   ops=$("$bench" --benchmark_list_tests | sed -n 's|^registry/\([^/]*\)/1080p/1/.*|\1|p')
@@ -134,9 +134,9 @@ if want registry; then
     printf "%-28s | %8.2f %7.2fx | %10.2f %7.2fx | %9s\n" "mcstat F --$op" "${!a}" \
       "$(echo "${!a} / $med_ref" | bc -l)" "${!o}" "$(echo "${!o} / $med_ref" | bc -l)" "${!r}"
   done
-  rec=$out/bench-480x270-records.mcstat
+  rec=$out/bench-160x90-records.mcstat
   if [ ! -f "$rec" ] || [ "${REFRESH:-0}" = 1 ]; then
-    "$render" --scene default --res 480 270 --spp 16 --M 21 --seed 3 --keep-samples --quiet -o "$rec"
+    "$render" --scene default --res 160 90 --spp 16 --M 21 --seed 3 --keep-samples --quiet -o "$rec"
   fi
   cmd_ref=(oiiotool "$rec" --subimage 4 --stats)
   names=(ref)

@@ -89,8 +89,9 @@ void BM_EstimatorThreads(benchmark::State& state, const Operation* est) {
 /// What the layers of issue 37 cost on top of an estimate (docs/confidence.md,
 /// docs/removed-light.md): a 1920x1080 image, M = 21, luminance mode, all cores, real time. `what`:
 /// "" the estimate alone, "ci" with its 0.95 confidence interval layers, "removed" with the
-/// removed-light layers (appendRemovedLight, radius 2), "keeplight" with the removed light given
-/// back (keepLight, docs/keep-light.md). Names: layers/NAME[+ci|+removed|+keeplight]/1080p.
+/// removed-light layers (radius 2, in the estimate's pass as applyOperation runs them), "keeplight"
+/// with the removed light given back (keepLight, docs/keep-light.md). Names:
+/// layers/NAME[+ci|+removed|+keeplight]/1080p.
 void BM_Layers(benchmark::State& state, const Operation* est, const std::string& what) {
     constexpr int W = 1920, H = 1080;
     const StatsImage& img = syntheticImage(21, W, H);
@@ -103,10 +104,14 @@ void BM_Layers(benchmark::State& state, const Operation* est, const std::string&
     }
     PixelKernel kernel = est->bindPixel(values, lumaCoefficients());
     bindConfidence(kernel, values);
+    // The removed light as applyOperation computes it for a per-pixel estimator: in its pass.
+    kernel.removedLight = what == "removed";
+    kernel.removedLuma = lumaCoefficients();
     OIIO::ImageBuf out;
     for (auto _ : state) {
         estimate(out, img, *est, kernel, false, {}, 0);
-        if (what == "removed" && !appendRemovedLight(out, img, lumaCoefficients()))
+        if (what == "removed" &&
+            !finishRemovedLight(out, out.nchannels() - 5, lumaCoefficients(), {}, 0))
             throw std::runtime_error(out.geterror());
         if (what == "keeplight" && !keepLight(out, img, lumaCoefficients()))
             throw std::runtime_error(out.geterror());
