@@ -31,7 +31,7 @@
 #   REF_SPP    samples of each of the two references per scene (default 8192), but for the scenes
 #              REF_SPP_SCENES names as SCENE=SPP (default "default=32768 caustic=65536": their
 #              references are the noisiest, and their noise floors every method's relMSE)
-#   RPF_SPPS   spp at which RPF runs (default 16: RPF, single-threaded, takes 4 s at 16 spp here)
+#   RPF_SPPS   spp at which RPF runs (default 16: RPF takes 4 s at 16 spp here, on both cores)
 #   MEAN_SPPS  extra spp of the mean alone (default 1024)
 #   CLAMPS     clamp limits C, as |R|+|G|+|B| (default "3 30")
 #   ONLY       comma-separated method names to run (default: every method; the mean always
