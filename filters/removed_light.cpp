@@ -39,7 +39,7 @@ LumaSpread lumaSpread(const PixelBuffers& px, const std::array<double, 3>& luma)
     }
     double n = 0.0, sum = 0.0;
     if (allBuffersValid(px)) {
-        // Every buffer valid (the common case): the same sums without the tests.
+        // Every buffer valid (the common case): the same sums without the per-buffer tests.
         for (int j = 0; j < px.M; ++j) {
             ns[j] = double(px.count[j]);
             ys[j] = lumaOf(px.mean + 3 * j, luma);
@@ -47,25 +47,16 @@ LumaSpread lumaSpread(const PixelBuffers& px, const std::array<double, 3>& luma)
             sum += ns[j] * ys[j];
         }
         out.valid = px.M;
-        if (out.valid == 0) return out;
-        out.mean = sum / n;
-        if (out.valid < 2) return out;
-        double ss = 0.0;
+    } else {
         for (int j = 0; j < px.M; ++j) {
-            const double dev = ys[j] - out.mean;
-            ss += ns[j] * dev * dev;
+            const bool valid = isValidBuffer(px, j);
+            ns[j] = valid ? double(px.count[j]) : 0.0;
+            if (!valid) continue;
+            ys[j] = lumaOf(px.mean + 3 * j, luma);
+            ++out.valid;
+            n += ns[j];
+            sum += ns[j] * ys[j];
         }
-        out.se = std::sqrt(ss / double(out.valid - 1) / n);
-        return out;
-    }
-    for (int j = 0; j < px.M; ++j) {
-        const bool valid = isValidBuffer(px, j);
-        ns[j] = valid ? double(px.count[j]) : 0.0;
-        if (!valid) continue;
-        ys[j] = lumaOf(px.mean + 3 * j, luma);
-        ++out.valid;
-        n += ns[j];
-        sum += ns[j] * ys[j];
     }
     if (out.valid == 0) return out;
     out.mean = sum / n;

@@ -35,6 +35,14 @@ bool degenerate(int m, ValueInterval& out) {
     return false;
 }
 
+/// degenerate() for R, G and B at once.
+bool degenerateAll(int m, ValueInterval out[3]) {
+    ValueInterval d;
+    if (!degenerate(m, d)) return false;
+    out[0] = out[1] = out[2] = d;
+    return true;
+}
+
 /// f(level, n) remembered: Boost's t inverse and the binomial sums take microseconds, and an image
 /// asks for the same few (level, n) pixel after pixel. A few entries per thread, replaced in turn.
 template <class F>
@@ -54,6 +62,12 @@ double remembered(double level, double n, F f) {
 /// t_{1 - (1 - level) / 2, df}.
 double twoSidedQuantile(double level, double df) {
     return remembered(level, df, [&] { return studentQuantile(0.5 + 0.5 * level, df); });
+}
+
+/// medianIntervalRank(m, level) remembered; as a double key, a negative n keeps its entries apart
+/// from the quantile's.
+int rememberedMedianRank(int m, double level) {
+    return int(remembered(level, -double(m), [&] { return double(medianIntervalRank(m, level)); }));
 }
 
 /// estimate +- q sqrt(variance), q = twoSidedQuantile(level, df).
@@ -102,9 +116,7 @@ ValueInterval medianInterval(double* values, int m, double level) {
     ValueInterval out;
     if (degenerate(m, out)) return out;
     std::sort(values, values + m);
-    // As a double key: a negative n keeps its entries apart from the quantile's.
-    const int k =
-        int(remembered(level, -double(m), [&] { return double(medianIntervalRank(m, level)); }));
+    const int k = rememberedMedianRank(m, level);
     if (k == 0) return {values[0], values[m - 1], true};  // the range: coverage 1 - 2^(1-m)
     return {values[k - 1], values[m - k], false};
 }
@@ -243,11 +255,6 @@ void gatherChannel(const PixelBuffers& px, const int* valid, int m, int c, doubl
 
 void meanIntervals(const PixelBuffers& px, const int* valid, int m, double level,
                    ValueInterval out[3]) {
-    ValueInterval d;
-    if (degenerate(m, d)) {
-        out[0] = out[1] = out[2] = d;
-        return;
-    }
     // weightedMeanSummary's two passes, the three channels side by side: for each channel the
     // same additions in the same order.
     double n = 0.0, sum[3] = {0.0, 0.0, 0.0};
@@ -262,11 +269,7 @@ void meanIntervals(const PixelBuffers& px, const int* valid, int m, double level
 
 void meanIntervalsFromSums(const PixelBuffers& px, const int* valid, int m, double n,
                            const double sum[3], double level, ValueInterval out[3]) {
-    ValueInterval d;
-    if (degenerate(m, d)) {
-        out[0] = out[1] = out[2] = d;
-        return;
-    }
+    if (degenerateAll(m, out)) return;
     double est[3], ss[3] = {0.0, 0.0, 0.0};
     for (int c = 0; c < 3; ++c) est[c] = sum[c] / n;
     for (int j = 0; j < m; ++j) {
@@ -289,11 +292,7 @@ void meanIntervalsFromSums(const PixelBuffers& px, const int* valid, int m, doub
 
 void medianIntervals(const PixelBuffers& px, const int* valid, int m, double level,
                      ValueInterval out[3]) {
-    ValueInterval d;
-    if (degenerate(m, d)) {
-        out[0] = out[1] = out[2] = d;
-        return;
-    }
+    if (degenerateAll(m, out)) return;
     if (m > kNetworkMax) {
         std::vector<double> values(static_cast<size_t>(m));
         for (int c = 0; c < 3; ++c) {
@@ -302,8 +301,7 @@ void medianIntervals(const PixelBuffers& px, const int* valid, int m, double lev
         }
         return;
     }
-    const int k =
-        int(remembered(level, -double(m), [&] { return double(medianIntervalRank(m, level)); }));
+    const int k = rememberedMedianRank(m, level);
     SortedLanes s;
     s.load(px, valid, m);
     for (int c = 0; c < 3; ++c)
@@ -313,11 +311,7 @@ void medianIntervals(const PixelBuffers& px, const int* valid, int m, double lev
 
 void yuenIntervals(const PixelBuffers& px, const int* valid, int m, int g, double level,
                    ValueInterval out[3]) {
-    ValueInterval d;
-    if (degenerate(m, d)) {
-        out[0] = out[1] = out[2] = d;
-        return;
-    }
+    if (degenerateAll(m, out)) return;
     g = std::clamp(g, 0, (m - 1) / 2);
     const int h = m - 2 * g;
     if (m > kNetworkMax || h < 2) {  // h < 2: the median's interval (yuenInterval)
