@@ -25,11 +25,10 @@ CC=clang CXX=clang++ scripts/build.sh build-sanitize -DMCSTAT_WERROR=ON -DMCSTAT
   -DMCSTAT_FUZZ=ON -DMCSTAT_BUILD_BENCHMARKS=OFF -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG"
 phase "sanitizer build"
-# Left out under the sanitizers: the `slow` label (Blender, Slurm and the README's commands: their
-# mcstat code runs in the suite's other tests), the `architecture` greps (no code of ours runs in
-# them) and the `packaging` tests (an install and a downstream project built against it).
+# Every test of the suite again, under the sanitizers (the README's commands, Blender, Slurm, the
+# Python module and the packaging tests included).
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-  ctest --test-dir build-sanitize --output-on-failure -j2 -LE 'slow|architecture|packaging'
+  ctest --test-dir build-sanitize --output-on-failure -j2
 phase "sanitizer tests"
 
 # Coverage-guided fuzzing, bounded: the six targets at once for 60 s of wall time (tests/fuzz/),
