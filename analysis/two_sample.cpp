@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "mcstat/core/location_stats.h"
+#include "mcstat/core/math_policy.h"
 
 namespace mcstat {
 
@@ -19,17 +20,8 @@ namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// Boost.Math's default policy throws on domain errors and overflow; every argument reaching it is
-// checked first (finite t, df > 0), and these policies make any that slips through a NaN or a
-// saturated value instead of an exception. By default Boost also computes a double in long double
-// (x87, 4.4x slower here: 3.1 us against 0.71 us per tail, the whole cost of --compare's tests);
-// double's own precision is what a p-value stored as float needs, and more.
-using Policy = boost::math::policies::policy<
-    boost::math::policies::domain_error<boost::math::policies::ignore_error>,
-    boost::math::policies::overflow_error<boost::math::policies::ignore_error>,
-    boost::math::policies::evaluation_error<boost::math::policies::ignore_error>,
-    boost::math::policies::rounding_error<boost::math::policies::ignore_error>,
-    boost::math::policies::promote_double<false>>;
+// No exceptions, double computed in double: the one policy (core/math_policy.h).
+using Policy = detail::MathPolicy;
 
 }  // namespace
 

@@ -7,19 +7,16 @@
 #include <cmath>
 #include <limits>
 
+#include "mcstat/core/math_policy.h"
+
 namespace mcstat {
 
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// As in analysis/two_sample.cpp: no exceptions (every argument is checked first), double
-// precision computed in double.
-using Policy = boost::math::policies::policy<
-    boost::math::policies::domain_error<boost::math::policies::ignore_error>,
-    boost::math::policies::overflow_error<boost::math::policies::ignore_error>,
-    boost::math::policies::evaluation_error<boost::math::policies::ignore_error>,
-    boost::math::policies::promote_double<false>>;
+// No exceptions, double computed in double: the one policy (core/math_policy.h).
+using Policy = detail::MathPolicy;
 
 }  // namespace
 

@@ -99,6 +99,22 @@ bool parseIntegerText(const std::string& text, int64_t& out) {
     return true;
 }
 
+bool parseInt(const std::string& text, const std::string& what, int64_t lo, int64_t hi,
+              int64_t& out, std::string& err) {
+    int64_t v = 0;
+    if (!parseIntegerText(text, v)) {
+        err = what + ": expected an integer, got '" + text + "'";
+        return false;
+    }
+    if (v < lo || v > hi) {
+        err = what + ": must be between " + std::to_string(lo) + " and " + std::to_string(hi) +
+              " (got " + std::to_string(v) + ")";
+        return false;
+    }
+    out = v;
+    return true;
+}
+
 bool parseUnsignedText(const std::string& text, uint64_t& out) {
     if (text.empty() || !std::isdigit(static_cast<unsigned char>(text[0]))) return false;
     char* end = nullptr;
@@ -292,6 +308,14 @@ bool parseParamText(const std::string& text, std::map<std::string, std::string>&
     return true;
 }
 
+bool parseNamedParams(const std::string& text, std::string& name,
+                      std::map<std::string, std::string>& kv, std::string& problem) {
+    const size_t colon = text.find(':');
+    name = text.substr(0, colon);
+    kv.clear();
+    return colon == std::string::npos || parseParamText(text.substr(colon + 1), kv, problem);
+}
+
 std::string paramText(const std::map<std::string, std::string>& kv) {
     std::string out;
     for (const auto& [key, value] : kv) out += (out.empty() ? "" : ":") + key + "=" + value;
@@ -302,6 +326,29 @@ std::string realText(double v) {
     char buf[64];
     const auto r = std::to_chars(buf, buf + sizeof buf, v);  // shortest round trip
     return std::string(buf, r.ptr);
+}
+
+ParamValue modifierValue(const std::vector<ParamSpec>& specs,
+                         const std::map<std::string, std::string>& mods, const std::string& name) {
+    ParamValue v;
+    const auto it = mods.find(name);
+    if (it == mods.end()) return v;  // no default, not given: unset
+    std::string ignored;             // checkModifiers has parsed the same text with the same spec
+    for (const ParamSpec& p : specs)
+        if (p.name == name) parseParamValue("modifier", p, it->second, v, ignored);
+    return v;
+}
+
+std::vector<ParamValue> modifierList(const std::vector<ParamSpec>& specs,
+                                     const std::map<std::string, std::string>& mods,
+                                     const std::string& name) {
+    std::vector<ParamValue> v;
+    const auto it = mods.find(name);
+    if (it == mods.end()) return v;
+    std::string ignored;  // as above: already checked
+    for (const ParamSpec& p : specs)
+        if (p.name == name) parseParamList("modifier", p, it->second, v, ignored);
+    return v;
 }
 
 bool takeModifiers(const std::string& command, const std::vector<ParamSpec>& specs,

@@ -1,5 +1,6 @@
-// Internal: the writer's pieces shared by stats_write.cpp (the four parts) and sample_records.cpp
-// (the optional parts of format version 4).
+// Internal: the optional parts of format version 4 as the writer of the four parts needs them:
+// implemented by sample_records.cpp, called by stats_write.cpp (the calls point one way; the part
+// header both start from is part_header.h's).
 #pragma once
 
 #include <OpenEXR/ImfHeader.h>
@@ -13,8 +14,6 @@
 
 namespace mcstat::detail {
 
-/// A part header with the attributes every part carries (FORMAT.md "Header attributes").
-Imf::Header commonHeader(const StatsHeader& h, const std::string& name, bool deep);
 /// Checks the extras against the image (sizes, version 4); `err` names `path`.
 bool checkExtras(const std::string& path, const StatsImage& img, const StatsExtras& extras,
                  std::string& err);

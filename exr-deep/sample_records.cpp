@@ -32,6 +32,7 @@
 #include "mcstat/core/params.h"
 #include "mcstat/exr-codec/fd_stream.h"
 #include "mcstat/temp_file.h"
+#include "part_header.h"
 #include "stats_layout.h"
 #include "window.h"
 

@@ -13,7 +13,8 @@
 // Parameters come from the open() configuration (oiiotool --iconfig mcstat:estimator mon,
 // --iconfig mcstat:mode channel) and from the file-name form
 // "file.mcstat?estimator=mon&mode=channel" (tools without --iconfig); the file name wins. No
-// exception leaves this file: every virtual catches and reports through errorfmt().
+// exception leaves this file: every entry point runs its work through guardEntry(), which records
+// what was thrown on the ImageInput (errorfmt) and returns the entry point's failure value.
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imageio.h>
@@ -57,6 +58,29 @@ using Strutil::fmt::format;
 constexpr const char* kDefaultEstimator = "gmon";
 /// Prefix of the configuration attributes the plugin reads.
 constexpr const char* kConfigPrefix = "mcstat:";
+/// The one guard of the plugin boundary: `body()`, or, when it throws, `fallback` after
+/// `onError(what was thrown)` (itself guarded). No exception leaves an entry point of this file.
+template <class T, class Body, class OnError>
+T guardEntry(T fallback, Body&& body, OnError&& onError) noexcept {
+    try {
+        return body();
+    } catch (const std::exception& e) {
+        try {
+            onError(e.what());
+        } catch (...) {
+        }
+    } catch (...) {
+        try {
+            onError("unknown error");
+        } catch (...) {
+        }
+    }
+    return fallback;
+}
+
+/// guardEntry()'s onError for entry points that report nothing (a probe, close, the factory).
+void ignoreError(const char*) {}
+
 /// Subimages, in order.
 enum Subimage { kRobust = 0, kMean = 1, kDiagnostics = 2, kFeatures = 3, kSubimageCount = 4 };
 
@@ -243,6 +267,12 @@ class McstatInput final : public ImageInput {
     void errorfmt(const char* pattern, const Args&... args) const {
         ImageInput::errorfmt("{}", mcstat::oneLine(OIIO::Strutil::fmt::format(pattern, args...)));
     }
+    /// guardEntry() for a virtual that reports failure as false: what was thrown is recorded as
+    /// "WHAT: message" (errorfmt).
+    template <class Body>
+    bool guarded(const std::string& what, Body&& body) const {
+        return guardEntry(false, body, [&](const char* why) { errorfmt("{}: {}", what, why); });
+    }
     bool valid_file(const std::string& filename) const override;
     bool open(const std::string& name, ImageSpec& newspec) override;
     bool open(const std::string& name, ImageSpec& newspec, const ImageSpec& config) override;
@@ -334,48 +364,37 @@ class McstatInput final : public ImageInput {
                   void* data);
 };
 
+/// valid_file's test: the name is FILE.mcstat[?...] and FILE starts with OpenEXR's magic number.
+bool isStatsFileName(const std::string& filename) {
+    std::string path;
+    std::map<std::string, std::string> kv;
+    if (!splitName(filename, path, kv)) return false;
+    if (Strutil::lower(Filesystem::extension(path, false)) != mcstat::kStatsExtension) return false;
+    FILE* f = Filesystem::fopen(path, "rb");
+    if (!f) return false;
+    unsigned char magic[4] = {0, 0, 0, 0};
+    const size_t n = std::fread(magic, 1, 4, f);
+    std::fclose(f);
+    // OpenEXR magic number 20000630 (little endian): the statistics file is an OpenEXR file.
+    return n == 4 && magic[0] == 0x76 && magic[1] == 0x2f && magic[2] == 0x31 && magic[3] == 0x01;
+}
+
 bool McstatInput::valid_file(const std::string& filename) const {
-    try {
-        std::string path;
-        std::map<std::string, std::string> kv;
-        if (!splitName(filename, path, kv)) return false;
-        if (Strutil::lower(Filesystem::extension(path, false)) != mcstat::kStatsExtension)
-            return false;
-        FILE* f = Filesystem::fopen(path, "rb");
-        if (!f) return false;
-        unsigned char magic[4] = {0, 0, 0, 0};
-        const size_t n = std::fread(magic, 1, 4, f);
-        std::fclose(f);
-        // OpenEXR magic number 20000630 (little endian): the statistics file is an OpenEXR file.
-        return n == 4 && magic[0] == 0x76 && magic[1] == 0x2f && magic[2] == 0x31 &&
-               magic[3] == 0x01;
-    } catch (...) {
-        return false;
-    }
+    return guardEntry(
+        false, [&] { return isStatsFileName(filename); }, ignoreError);
 }
 
 bool McstatInput::open(const std::string& name, ImageSpec& newspec) {
-    try {
-        return open(name, newspec, ImageSpec());
-    } catch (const std::exception& e) {
-        errorfmt("{}: {}", name, e.what());
-    } catch (...) {
-        errorfmt("{}: unknown error", name);
-    }
-    return false;
+    return guarded(name, [&] { return open(name, newspec, ImageSpec()); });
 }
 
 bool McstatInput::open(const std::string& name, ImageSpec& newspec, const ImageSpec& config) {
-    try {
-        lock_guard guard(*this);
-        if (openImpl(name, newspec, config)) return true;
-    } catch (const std::exception& e) {
-        errorfmt("{}: {}", name, e.what());
-    } catch (...) {
-        errorfmt("{}: unknown error", name);
-    }
-    reset();
-    return false;
+    const bool opened = guarded(name, [&] {
+        lock_guard lock(*this);
+        return openImpl(name, newspec, config);
+    });
+    if (!opened) reset();
+    return opened;
 }
 
 bool McstatInput::openImpl(const std::string& name, ImageSpec& newspec, const ImageSpec& config) {
@@ -743,29 +762,27 @@ bool McstatInput::computeSource(Source s, Computed& out, std::string& err) {
 }
 
 bool McstatInput::close() {
-    try {
-        lock_guard guard(*this);
-        reset();
-    } catch (...) {
-    }
+    guardEntry(
+        true,
+        [&] {
+            lock_guard lock(*this);
+            reset();
+            return true;
+        },
+        ignoreError);
     return true;
 }
 
 bool McstatInput::seek_subimage(int subimage, int miplevel) {
-    try {
-        lock_guard guard(*this);
+    return guarded(m_name, [&] {
+        lock_guard lock(*this);
         if (m_current < 0 || subimage < 0 || subimage >= m_nsubs || miplevel != 0) return false;
         if (subimage != m_current) {
             m_current = subimage;
             m_spec = m_subs[subimage].spec;
         }
         return true;
-    } catch (const std::exception& e) {
-        errorfmt("{}: {}", m_name, e.what());
-    } catch (...) {
-        errorfmt("{}: unknown error", m_name);
-    }
-    return false;
+    });
 }
 
 bool McstatInput::copyRows(int subimage, int miplevel, int ybegin, int yend, int chbegin, int chend,
@@ -809,38 +826,18 @@ bool McstatInput::copyRows(int subimage, int miplevel, int ybegin, int yend, int
 }
 
 bool McstatInput::read_native_scanline(int subimage, int miplevel, int y, int, void* data) {
-    try {
-        return copyRows(subimage, miplevel, y, y + 1, 0, -1, data);
-    } catch (const std::exception& e) {
-        errorfmt("{}: {}", m_name, e.what());
-    } catch (...) {
-        errorfmt("{}: unknown error", m_name);
-    }
-    return false;
+    return guarded(m_name, [&] { return copyRows(subimage, miplevel, y, y + 1, 0, -1, data); });
 }
 
 bool McstatInput::read_native_scanlines(int subimage, int miplevel, int ybegin, int yend, int,
                                         void* data) {
-    try {
-        return copyRows(subimage, miplevel, ybegin, yend, 0, -1, data);
-    } catch (const std::exception& e) {
-        errorfmt("{}: {}", m_name, e.what());
-    } catch (...) {
-        errorfmt("{}: unknown error", m_name);
-    }
-    return false;
+    return guarded(m_name, [&] { return copyRows(subimage, miplevel, ybegin, yend, 0, -1, data); });
 }
 
 bool McstatInput::read_native_scanlines(int subimage, int miplevel, int ybegin, int yend, int,
                                         int chbegin, int chend, void* data) {
-    try {
-        return copyRows(subimage, miplevel, ybegin, yend, chbegin, chend, data);
-    } catch (const std::exception& e) {
-        errorfmt("{}: {}", m_name, e.what());
-    } catch (...) {
-        errorfmt("{}: unknown error", m_name);
-    }
-    return false;
+    return guarded(
+        m_name, [&] { return copyRows(subimage, miplevel, ybegin, yend, chbegin, chend, data); });
 }
 
 }  // namespace
@@ -852,11 +849,8 @@ OIIO_EXPORT int mcstat_imageio_version = OIIO_PLUGIN_VERSION;
 OIIO_EXPORT const char* mcstat_imageio_library_version() { return "mcstat " MCSTAT_VERSION; }
 
 OIIO_EXPORT ImageInput* mcstat_input_imageio_create() {
-    try {
-        return new McstatInput;
-    } catch (...) {
-        return nullptr;
-    }
+    return guardEntry<ImageInput*>(
+        nullptr, [] { return new McstatInput; }, ignoreError);
 }
 
 /// Number of subimage computations this process ran (not an OIIO entry point: for tests and

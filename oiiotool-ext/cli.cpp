@@ -30,14 +30,6 @@ namespace mcstat::cli {
 
 using OIIO::Strutil::fmt::format;
 
-/// Strict parsing through the registry's number parser (declared in cli.h).
-bool parseInt(const std::string& s, long lo, long hi, long& out) {
-    int64_t v = 0;
-    if (!parseIntegerText(s, v) || v < lo || v > hi) return false;
-    out = long(v);
-    return true;
-}
-
 std::vector<ParamSpec> diffModifiers(bool neps) {
     std::vector<ParamSpec> m = {
         realParam("ratio", 0.0, HUGE_VAL, false, "2",
@@ -86,18 +78,6 @@ bool needStack(State& st, size_t n, const std::string& cmd, std::string& err) {
     err = format("{} needs {} image{} on the stack, there {} {}", cmd, n, n > 1 ? "s" : "",
                  st.stack.size() == 1 ? "is" : "are", st.stack.size());
     return false;
-}
-
-bool flagValue(const Modifiers& mods, const std::string& key, bool& out, std::string& err) {
-    auto it = mods.find(key);
-    if (it == mods.end()) return true;
-    ParamSpec spec;
-    spec.name = key;
-    spec.type = ParamType::Flag;
-    ParamValue v;
-    if (!parseParamValue("modifier", spec, it->second, v, err)) return false;
-    out = v.integer != 0;
-    return true;
 }
 
 // ---- operation commands, one per registry entry ------------------------------------------------
@@ -251,13 +231,12 @@ bool cmdOperation(State& st, const std::string& cmd, const std::vector<std::stri
     const Operation& op = *findOperation(cmd.substr(2));
     if (!checkOperationInput(st, cmd, op, err)) return false;
     Modifiers opMods = mods;
-    bool diag = false, residual = false, removed = false;
-    if (!flagValue(mods, "diag", diag, err) || !flagValue(mods, "residual", residual, err) ||
-        !flagValue(mods, "removed", removed, err))
-        return false;
+    // Checked against the same specs by the command table (checkModifiers), defaults filled in.
+    const std::vector<ParamSpec> specs = operationModifiers(op);
+    const auto flag = [&](const char* key) { return modifierValue(specs, mods, key).integer != 0; };
+    const bool diag = flag("diag"), residual = flag("residual"), removed = flag("removed");
     RemovedLightOptions removedOpt;
     if (removed) {
-        const std::vector<ParamSpec> specs = operationModifiers(op);
         removedOpt.radius = int(modifierValue(specs, mods, "removedradius").integer);
         removedOpt.zLimit = modifierValue(specs, mods, "removedz").real;
     }
@@ -308,12 +287,11 @@ bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& 
         return false;
     }
     readDiffOptions(mods, opt);
-    const auto layer = mods.find("layer");
     // R, G, B by name on both sides: a multilayer reference whose AO layer sorts before its
     // Combined pass must not be compared with AO.
     OIIO::ImageBuf ref, img;
     std::string refSpace;
-    if (!readRGB(args[0], layer == mods.end() ? std::string() : layer->second, ref, err) ||
+    if (!readRGB(args[0], modifierValue(diffModifiers(false), mods, "layer").text, ref, err) ||
         !selectRGB(*top.image, "", top.name, img, err) || !itemSpace(top, opt.space, err) ||
         !imageSpace(ref.spec(), args[0], refSpace, err)) {
         err = format("{}: {}", cmd, err);
@@ -519,8 +497,8 @@ bool cmdSwap(State& st, const std::string& cmd, const std::vector<std::string>&,
 
 bool cmdThreads(State& st, const std::string& cmd, const std::vector<std::string>& args,
                 const Modifiers&, std::string& err) {
-    long n = 0;
-    if (!parseInt(args[0], 0, 4096, n)) {
+    int64_t n = 0;
+    if (!parseInt(args[0], cmd, 0, 4096, n, err)) {
         err = format("{}: expected a thread count 0..4096 (0 = all cores), not '{}'", cmd, args[0]);
         return false;
     }
@@ -668,17 +646,11 @@ std::vector<Command> buildTable() {
          {},
          &cmdCheck,
          ""},
-        {"-o",
-         1,
-         "FILE",
+        {"-o", 1, "FILE",
          "Write the top image: EXR/TIFF as scene-linear float (or as -d says); PNG/JPEG through "
          "the OCIO display view; a statistics file as ." +
              std::string(kStatsExtension),
-         {enumParam("type", {"half", "float"}, "", "this output's data type (as -d)"),
-          textParam("compression", "",
-                    "this output's compression (as --compression, e.g. -o:compression=dwaa:45)")},
-         &cmdOutput,
-         ""},
+         outputModifiers(), &cmdOutput, ""},
         {"-d",
          1,
          "TYPE",
@@ -872,13 +844,11 @@ bool cmdHelp(State&, const std::string&, const std::vector<std::string>&, const 
 }
 
 /// Splits "--gmon:mode=channel:diag=1" into "--gmon" and {mode: channel, diag: 1}, the modifiers
-/// by the one grammar of parameter text (core/params.h parseParamText: "-o:compression=dwaa:45"
+/// by the one grammar of parameter text (core/params.h parseNamedParams: "-o:compression=dwaa:45"
 /// gives {compression: dwaa:45}; a modifier given twice is refused).
 bool splitModifiers(const std::string& arg, std::string& name, Modifiers& mods, std::string& err) {
-    const size_t colon = arg.find(':');
-    name = arg.substr(0, colon);
     std::string problem;
-    if (colon != std::string::npos && !parseParamText(arg.substr(colon + 1), mods, problem)) {
+    if (!parseNamedParams(arg, name, mods, problem)) {
         err = format("{}: modifier {}", name, problem);
         return false;
     }
@@ -886,28 +856,6 @@ bool splitModifiers(const std::string& arg, std::string& name, Modifiers& mods, 
 }
 
 }  // namespace
-
-ParamValue modifierValue(const std::vector<ParamSpec>& specs, const Modifiers& mods,
-                         const std::string& name) {
-    ParamValue v;
-    const auto it = mods.find(name);
-    if (it == mods.end()) return v;  // no default, not given: unset
-    std::string ignored;             // checkModifiers has parsed the same text with the same spec
-    for (const ParamSpec& p : specs)
-        if (p.name == name) parseParamValue("modifier", p, it->second, v, ignored);
-    return v;
-}
-
-std::vector<ParamValue> modifierList(const std::vector<ParamSpec>& specs, const Modifiers& mods,
-                                     const std::string& name) {
-    std::vector<ParamValue> v;
-    const auto it = mods.find(name);
-    if (it == mods.end()) return v;
-    std::string ignored;  // as above: already checked
-    for (const ParamSpec& p : specs)
-        if (p.name == name) parseParamList("modifier", p, it->second, v, ignored);
-    return v;
-}
 
 void replaceWithImage(Item& top, const std::string& op, std::shared_ptr<OIIO::ImageBuf> img,
                       bool keepLayout) {

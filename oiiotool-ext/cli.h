@@ -47,15 +47,8 @@ struct Item {
 
 using Modifiers = std::map<std::string, std::string>;
 
-/// The one way a command reads its modifiers: the typed value of modifier `name` of a command
-/// whose modifiers are `specs`, once the one check (checkModifiers) has accepted them and filled
-/// in their defaults. A modifier without a default that was not given is unset: ParamValue{}
-/// (empty text, numbers 0); `mods.count(name)` says whether it was given.
-ParamValue modifierValue(const std::vector<ParamSpec>& specs, const Modifiers& mods,
-                         const std::string& name);
-/// The elements of list modifier `name` (ParamSpec::list), typed; empty when unset.
-std::vector<ParamValue> modifierList(const std::vector<ParamSpec>& specs, const Modifiers& mods,
-                                     const std::string& name);
+// A command reads its modifiers back with core's modifierValue / modifierList (core/params.h),
+// through the specs of its Command::modifiers.
 
 struct State {
     std::vector<Item> stack;
@@ -83,17 +76,13 @@ struct Command {
     std::string operation;  ///< for commands generated from the operation registry
 };
 
-/// Modifier values of the commands outside the registry: the whole text must be an integer in
-/// [lo, hi] / a finite number. Both use the registry's one number parser (parseIntegerText,
-/// parseRealText in mcstat/filters/registry.h); registry operations and --plan parse with
-/// parseParamValue.
-bool parseInt(const std::string& s, long lo, long hi, long& out);
-
 /// The modifiers of the metrics (ratio, floor, eps and, with `neps`, neps) and REF's `layer`, as
 /// --diff and the review commands declare them.
 std::vector<ParamSpec> diffModifiers(bool neps);
 /// --ingest's modifiers (io.cpp).
 std::vector<ParamSpec> ingestModifiers();
+/// -o's modifiers, type and compression (io.cpp).
+std::vector<ParamSpec> outputModifiers();
 
 /// The metrics' modifiers of --diff and the review commands (ratio, floor, eps, neps; others are
 /// left alone; the command table has checked them) into `opt`, whose luma the caller sets.

@@ -36,20 +36,20 @@ CompareReportSide reportSide(const Item& item) {
 /// The reference's variance image (refvar=), read as its R, G, B; none when not asked for.
 bool readReferenceVariance(const Modifiers& mods, const std::string& cmd, OIIO::ImageBuf& var,
                            bool& given, std::string& err) {
-    const auto it = mods.find("refvar");
-    given = it != mods.end() && !it->second.empty();
+    const std::string path = modifierValue(compareModifiers(), mods, "refvar").text;
+    given = !path.empty();
     if (!given) return true;
-    if (!readRGB(it->second, "", var, err)) {
+    if (!readRGB(path, "", var, err)) {
         err = format("{}: refvar: {}", cmd, err);
         return false;
     }
     return true;
 }
 
-}  // namespace
-
-bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string>&,
-                const Modifiers& mods, std::string& err) {
+/// The two sides of `cmd` (the top two items) checked: at least one statistics file, the same
+/// working space (its name in `space`, its luminance in opt.luma).
+bool checkSides(const State& st, const std::string& cmd, std::string& space, CompareOptions& opt,
+                std::string& err) {
     if (st.stack.size() < 2) {
         err = format(
             "{} compares the top two items of the stack (statistics files, or one and a "
@@ -57,8 +57,8 @@ bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string
             cmd, st.stack.size() == 1 ? "is" : "are", st.stack.size());
         return false;
     }
-    Item& a = st.stack[st.stack.size() - 2];
-    Item& b = st.stack.back();
+    const Item& a = st.stack[st.stack.size() - 2];
+    const Item& b = st.stack.back();
     if (!a.isStats() && !b.isStats()) {
         err = format(
             "{}: {} and {} are images: a noise-aware comparison needs the sub-buffers of "
@@ -67,52 +67,39 @@ bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string
         return false;
     }
     // One luminance, one meaning of R, G, B: the two sides must be in the same working space.
-    std::string spaceA, spaceB;
-    if (!itemSpace(a, spaceA, err) || !itemSpace(b, spaceB, err)) {
+    std::string spaceB;
+    if (!itemSpace(a, space, err) || !itemSpace(b, spaceB, err)) {
         err = format("{}: {}", cmd, err);
         return false;
     }
-    if (!sameSpace(cmd, a.name, spaceA, b.name, spaceB, err, isImageFile(a), isImageFile(b)))
+    if (!sameSpace(cmd, a.name, space, b.name, spaceB, err, isImageFile(a), isImageFile(b)))
         return false;
-    CompareOptions opt;
     if (!itemLuma(a, opt.luma, err)) {
         err = format("{}: {}", cmd, err);
         return false;
     }
-    opt.nthreads = st.nthreads;
-    if (!parseCompareOptions(mods, opt, err, cmd)) return false;
-    CompareReportRequest report = compareReportRequest(mods);
-    report.a = reportSide(a);
-    report.b = reportSide(b);
-    opt.keepMeans = report.needsMeans();
-    const auto refspp = mods.find("refspp");
-    const auto refvar = mods.find("refvar");
-    if (a.isStats() && b.isStats() &&
-        ((refspp != mods.end() && refspp->second != "0") ||
-         (refvar != mods.end() && !refvar->second.empty()))) {
-        err = format("{}: {} is for an image reference; {} and {} are statistics files", cmd,
-                     refspp != mods.end() && refspp->second != "0" ? "refspp" : "refvar", a.name,
-                     b.name);
-        return false;
-    }
-    const auto start = std::chrono::steady_clock::now();
-    Progress progress("compare", 1000, showProgress());
-    opt.progress = progress.fractionCallback();
-    CompareResult r;
+    return true;
+}
+
+/// The comparison itself: two statistics files, or one and a reference image in either order
+/// (the image is the reference), `progress` finished once it ran. `what` names the pair for the
+/// verdict line.
+bool runComparison(State& st, const std::string& cmd, const Modifiers& mods,
+                   const CompareOptions& opt, Progress& progress, CompareResult& r,
+                   std::string& what, std::string& err) {
+    Item& a = st.stack[st.stack.size() - 2];
+    Item& b = st.stack.back();
     bool ok = false;
-    std::string what;
     if (a.isStats() && b.isStats()) {
         ItemSource sa, sb;
         if (!openSource(st, a, sa, err) || !openSource(st, b, sb, err)) return false;
         ok = compareStats(*sa.root, *sb.root, opt, r, err);
         what = format("{} vs {}", a.name, b.name);
     } else {
-        // One statistics file and a reference image, in either order: the image is the reference.
         Item& stats = a.isStats() ? a : b;
         Item& image = a.isStats() ? b : a;
         OIIO::ImageBuf rgb;
-        const auto layer = mods.find("layer");
-        if (!selectRGB(*image.image, layer == mods.end() ? std::string() : layer->second,
+        if (!selectRGB(*image.image, modifierValue(compareModifiers(), mods, "layer").text,
                        image.name, rgb, err)) {
             err = format("{}: {}", cmd, err);
             return false;
@@ -126,10 +113,63 @@ bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string
         what = format("{} vs reference {}", stats.name, image.name);
     }
     progress.finish();
-    if (!ok) {
-        err = format("{}: {}", cmd, err);
+    if (!ok) err = format("{}: {}", cmd, err);
+    return ok;
+}
+
+/// Replaces the two compared items by the maps, with the verdict, the pair, the working space
+/// and every modifier given as provenance.
+void replaceWithMaps(State& st, CompareResult& r, const std::string& verdict,
+                     const std::string& space, const Modifiers& mods) {
+    const Item& a = st.stack[st.stack.size() - 2];
+    const Item& b = st.stack.back();
+    auto maps = std::make_shared<OIIO::ImageBuf>(std::move(r.maps));
+    OIIO::ImageSpec& spec = maps->specmod();
+    spec.attribute(std::string(kProvenancePrefix) + "compare.verdict", verdict);
+    spec.attribute(std::string(kProvenancePrefix) + "compare.fail", r.fail ? 1 : 0);
+    spec.attribute(std::string(kProvenancePrefix) + "compare.a", a.name);
+    spec.attribute(std::string(kProvenancePrefix) + "compare.b", b.name);
+    // The working space whose luminance and R, G, B were tested (the maps are data, not colour:
+    // no chromaticities).
+    spec.attribute("mcstat:colorSpace", space);
+    for (const ParamSpec& p : compareModifiers())
+        if (mods.count(p.name))
+            spec.attribute(std::string(kProvenancePrefix) + "compare." + p.name, mods.at(p.name));
+    Item out;
+    out.name = format("compare({}, {})", a.name, b.name);
+    out.image = std::move(maps);
+    st.stack.pop_back();
+    st.stack.back() = std::move(out);
+}
+
+}  // namespace
+
+bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string>&,
+                const Modifiers& mods, std::string& err) {
+    CompareOptions opt;
+    std::string space;
+    if (!checkSides(st, cmd, space, opt, err)) return false;
+    const Item& a = st.stack[st.stack.size() - 2];
+    const Item& b = st.stack.back();
+    opt.nthreads = st.nthreads;
+    if (!parseCompareOptions(mods, opt, err, cmd)) return false;
+    CompareReportRequest report = compareReportRequest(mods);
+    report.a = reportSide(a);
+    report.b = reportSide(b);
+    opt.keepMeans = report.needsMeans();
+    const bool refspp = modifierValue(compareModifiers(), mods, "refspp").real != 0.0;
+    const bool refvar = !modifierValue(compareModifiers(), mods, "refvar").text.empty();
+    if (a.isStats() && b.isStats() && (refspp || refvar)) {
+        err = format("{}: {} is for an image reference; {} and {} are statistics files", cmd,
+                     refspp ? "refspp" : "refvar", a.name, b.name);
         return false;
     }
+    const auto start = std::chrono::steady_clock::now();
+    Progress progress("compare", 1000, showProgress());
+    opt.progress = progress.fractionCallback();
+    CompareResult r;
+    std::string what;
+    if (!runComparison(st, cmd, mods, opt, progress, r, what, err)) return false;
     const std::string verdict = compareVerdict(r, opt);
     // Each line stays one line whatever the inputs are named (core/untrusted_text.h).
     std::printf("%s: %s\n", oneLine(what).c_str(), oneLine(verdict).c_str());
@@ -143,24 +183,7 @@ bool cmdCompare(State& st, const std::string& cmd, const std::vector<std::string
         err = format("{}: {}", cmd, err);
         return false;
     }
-
-    auto maps = std::make_shared<OIIO::ImageBuf>(std::move(r.maps));
-    OIIO::ImageSpec& spec = maps->specmod();
-    spec.attribute(std::string(kProvenancePrefix) + "compare.verdict", verdict);
-    spec.attribute(std::string(kProvenancePrefix) + "compare.fail", r.fail ? 1 : 0);
-    spec.attribute(std::string(kProvenancePrefix) + "compare.a", a.name);
-    spec.attribute(std::string(kProvenancePrefix) + "compare.b", b.name);
-    // The working space whose luminance and R, G, B were tested (the maps are data, not colour:
-    // no chromaticities).
-    spec.attribute("mcstat:colorSpace", spaceA);
-    for (const ParamSpec& p : compareModifiers())
-        if (mods.count(p.name))
-            spec.attribute(std::string(kProvenancePrefix) + "compare." + p.name, mods.at(p.name));
-    Item out;
-    out.name = format("compare({}, {})", a.name, b.name);
-    out.image = std::move(maps);
-    st.stack.pop_back();
-    st.stack.back() = std::move(out);
+    replaceWithMaps(st, r, verdict, space, mods);
     return true;
 }
 

@@ -196,7 +196,7 @@ bool takeFrameOptions(const std::vector<std::string>& args, FrameRun& run, std::
             int64_t n = 0;
             if (a == "--frames") {
                 run.range = v;
-            } else if (!parseIntegerText(v, n) || n < 1 || n > 20) {
+            } else if (!parseInt(v, a, 1, 20, n, err)) {
                 err = format("--framepadding: expected 1..20 digits, not '{}'", v);
                 return false;
             } else {

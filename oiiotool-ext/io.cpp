@@ -367,6 +367,12 @@ bool selectRGB(const OIIO::ImageBuf& src, const std::string& layer, const std::s
 
 std::vector<ParamSpec> ingestModifiers() { return ingestParams(); }
 
+std::vector<ParamSpec> outputModifiers() {
+    return {enumParam("type", {"half", "float"}, "", "this output's data type (as -d)"),
+            textParam("compression", "",
+                      "this output's compression (as --compression, e.g. -o:compression=dwaa:45)")};
+}
+
 bool cmdIngest(State& st, const std::string& cmd, const std::vector<std::string>& args,
                const Modifiers& mods, std::string& err) {
     IngestOptions opt;
@@ -434,23 +440,21 @@ bool outputOptions(const State& st, const std::string& cmd, const std::string& p
                    const std::string& ext, const Item& top, const Modifiers& mods,
                    ImageWriteOptions& opt, std::string& err) {
     opt = st.write;
-    const auto type = mods.find("type");
-    const auto compression = mods.find("compression");
-    if (type != mods.end()) {
+    // Checked against outputModifiers() by the command table (checkModifiers): type is half or
+    // float; neither has a default, so each is in `mods` only when given.
+    const bool type = mods.count("type") != 0, compression = mods.count("compression") != 0;
+    if (type) {
         opt.channelTypes.clear();
-        if (!parseWriteType(type->second, opt.type)) {
-            err = format("{}:type= must be half or float, not '{}'", cmd, type->second);
-            return false;
-        }
+        parseWriteType(modifierValue(outputModifiers(), mods, "type").text, opt.type);
     }
-    if (compression != mods.end()) {
-        if (compression->second.empty()) {
+    if (compression) {
+        opt.compression = modifierValue(outputModifiers(), mods, "compression").text;
+        if (opt.compression.empty()) {
             err = format("{}:compression=: an empty compression name", cmd);
             return false;
         }
-        opt.compression = compression->second;
     }
-    if (top.isStats() && (type != mods.end() || compression != mods.end())) {
+    if (top.isStats() && (type || compression)) {
         err = format(
             "{} {}: a statistics file is written as its format says (float32, ZIP; "
             "exr-deep/FORMAT.md): -o:type= and :compression= apply to images",

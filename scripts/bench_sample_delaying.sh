@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Pajot et al. 2011 benchmark (docs/pajot.md; never part of the test suite). Prints three tables:
-#  1. Render-time overhead of --pajot adr|rot|hybrid against the plain render at equal spp, medians
+#  1. Render-time overhead of --online pajot:method=adr|rot|hybrid against the plain render at equal spp, medians
 #     of REPS alternated runs, and peak memory (the paper: 5-10 %; our goal <= 5 %).
 #  2. What the online state costs and does after 100 spp (paper Tables 1-4 in our terms): modes
 #     per pixel (single, extended), bytes per pixel and image buffers (12 bytes each), samples
@@ -47,7 +47,7 @@ for scene in default caustic; do
       bin=$R; [ "$b" = base ] && bin=$BASE_R
       for method in plain adr rot hybrid; do
         args=(--scene "$scene" --spp 100 --M 8 --quiet --timings -o "$out/$scene-$method-100.mcstat")
-        [ "$method" != plain ] && args+=(--pajot "$method")
+        [ "$method" != plain ] && args+=(--online "pajot:method=$method")
         /usr/bin/time -f "%e %M" -o "$out/time.txt" "$bin" "${args[@]}" 2>"$out/timings.txt"
         read -r t m <"$out/time.txt"
         read -r rw ww < <(awk '/timings:/ { print $5, $12 }' "$out/timings.txt")
@@ -107,7 +107,7 @@ for scene in caustic default; do
     for method in adr rot hybrid; do
       f=$out/$scene-q$spp-$method.mcstat
       if [ ! -f "$f" ] || [ "$R" -nt "$f" ]; then
-        "$R" --scene "$scene" "${res[@]}" --spp "$spp" --M 8 --pajot "$method" --quiet -o "$f"
+        "$R" --scene "$scene" "${res[@]}" --spp "$spp" --M 8 --online "pajot:method=$method" --quiet -o "$f"
       fi
     done
     for method in mean gmon adr rot hybrid; do
@@ -134,7 +134,7 @@ echo "== The caustic first delayed, then accepted: docs/images/pajot_caustic.png
 tiles=()
 for spp in 64 256 1024 4096; do
   f=$out/caustic-p$spp.mcstat
-  [ -f "$f" ] && [ "$f" -nt "$R" ] || "$R" --scene caustic --spp "$spp" --M 8 --pajot hybrid --quiet -o "$f"
+  [ -f "$f" ] && [ "$f" -nt "$R" ] || "$R" --scene caustic --spp "$spp" --M 8 --online pajot:method=hybrid --quiet -o "$f"
   "$M" "$f" --mean -o "$out/caustic-p$spp-mean.exr"
   "$M" "$f" --pajot -o "$out/caustic-p$spp-pajot.exr"
   oiiotool "$out/caustic-p$spp-pajot.exr" --ch delayed --chnames Y -o "$out/caustic-p$spp-delayed.exr"

@@ -155,8 +155,9 @@ for scene in $SCENES; do
       done
 
       # Online per-sample methods: Pajot's three, the reweighting.
-      for online in "Pajot ADR|--pajot adr|--pajot" "Pajot ROT|--pajot rot|--pajot" \
-        "Pajot hybrid|--pajot hybrid|--pajot" "reweight|--reweight|--reweight"; do
+      for online in "Pajot ADR|--online pajot:method=adr|--pajot" \
+        "Pajot ROT|--online pajot:method=rot|--pajot" \
+        "Pajot hybrid|--online pajot:method=hybrid|--pajot" "reweight|--online reweight|--reweight"; do
         IFS='|' read -r name flags cmd <<<"$online"
         wanted "$name" || { [ "$cmd" = --reweight ] && wanted "reweight kappa=1 spread=8"; } || continue
         timed t_r "$render" --scene "$scene" --res $RES --spp "$spp" --M 1 --seed "$seed" $flags --quiet -o "$f-online.mcstat"

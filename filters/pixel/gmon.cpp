@@ -1,14 +1,42 @@
 // G-MoN (gmon.h): the ranked trimmed mean with the Gini-driven trim.
 #include "mcstat/filters/pixel/gmon.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include "mcstat/filters/pixel/confidence.h"
 #include "mcstat/filters/pixel/ranking.h"
 
 namespace mcstat {
 
+int gmonTrim(double G, int M) {
+    if (M < 2) return 0;
+    // Section 4.3: c = floor(k - (1 - G) k), k = floor(M / 2).
+    const int k = M / 2;
+    int c = int(std::floor(double(k) - (1.0 - G) * double(k)));
+    // Keep at least the median mean (odd M) or the two middle means (even M): c = k with even M
+    // would leave M - 2c = 0 means in eq. 6.
+    return std::clamp(c, 0, (M - 1) / 2);
+}
+
+namespace {
+
+/// gmonTrim for G in [0, 1] (the Gini coefficient's range): there k - (1 - G) k >= 0 (1 - G <= 1
+/// and the product rounds monotonically), so the conversion to int truncates exactly as floor
+/// would, and the call to floor (not inlined without SSE4.1) is saved. Same value as gmonTrim.
+int gmonTrimUnit(const TrimRule&, double G, int M) {
+    if (M < 2) return 0;
+    const int k = M / 2;
+    const int c = int(double(k) - (1.0 - G) * double(k));
+    return std::clamp(c, 0, (M - 1) / 2);
+}
+
+}  // namespace
+
 void estimateGMoN(const PixelBuffers& px, const GmonParams& p, PixelEstimate& out,
                   EstimatorScratch& s) {
-    rankedTrimmedMean(px, p, {TrimRule::Gini, 0.0, p.gini}, out, s);
+    // Eq. 6: the trim from the Gini coefficient of the ranked means.
+    rankedTrimmedMean(px, p, TrimRule{&gmonTrimUnit, true, 0.0, p.gini}, out, s);
 }
 
 ParamSpec giniParam() {

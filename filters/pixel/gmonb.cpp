@@ -6,9 +6,18 @@
 
 namespace mcstat {
 
+namespace {
+
+/// Eq. 5: nothing when G <= the threshold (rule.value), else the median's floor((M_v - 1) / 2).
+int thresholdTrim(const TrimRule& rule, double G, int Mv) {
+    return G <= rule.value ? 0 : (Mv - 1) / 2;
+}
+
+}  // namespace
+
 void estimateGMoNb(const PixelBuffers& px, const GmonbParams& p, PixelEstimate& out,
                    EstimatorScratch& s) {
-    rankedTrimmedMean(px, p, {TrimRule::GiniThreshold, p.threshold, p.gini}, out, s);
+    rankedTrimmedMean(px, p, TrimRule{&thresholdTrim, true, p.threshold, p.gini}, out, s);
 }
 
 namespace {

@@ -8,7 +8,7 @@ namespace mcstat {
 
 void estimateMean(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out,
                   EstimatorScratch& s) {
-    rankedTrimmedMean(px, p, {TrimRule::None, 0.0}, out, s);
+    rankedTrimmedMean(px, p, TrimRule{}, out, s);  // no trim: the one-pass sum
 }
 
 namespace {

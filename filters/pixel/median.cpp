@@ -6,9 +6,16 @@
 
 namespace mcstat {
 
+namespace {
+
+/// Eq. 2: floor((M_v - 1) / 2) per side, the median (odd M_v) or the two middle means (even).
+int medianTrim(const TrimRule&, double, int Mv) { return (Mv - 1) / 2; }
+
+}  // namespace
+
 void estimateMoN(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out,
                  EstimatorScratch& s) {
-    rankedTrimmedMean(px, p, {TrimRule::Median, 0.0}, out, s);
+    rankedTrimmedMean(px, p, TrimRule{&medianTrim}, out, s);
 }
 
 namespace {

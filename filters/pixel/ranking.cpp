@@ -1,6 +1,6 @@
-// The ranked trimmed mean behind mean, MoN / MPE, G-MoN, G-MoN_b and TMPE (ranking.h): ranking,
-// Gini coefficient (Buisine et al. 2021 eq. 4) and trims (eq. 2, 5, 6; Jung 2016 eq. 5.1), the
-// general path and the fast path for M <= 64. The shared rules (valid buffers, weights, negatives,
+// The ranked trimmed mean behind the rank estimators (ranking.h): ranking, the Gini coefficient
+// (Buisine et al. 2021 eq. 4), the general path and the fast path for M <= 64, with the trim each
+// estimator's TrimRule supplies. The shared rules (valid buffers, weights, negatives,
 // empty pixels) are in include/mcstat/filters/pixel/pixel_estimate.h.
 #include "mcstat/filters/pixel/ranking.h"
 
@@ -60,25 +60,6 @@ double giniMagnitudes(const double* v, size_t n) {
     return std::clamp(G, 0.0, 1.0);
 }
 
-int gmonTrim(double G, int M) {
-    if (M < 2) return 0;
-    // Section 4.3: c = floor(k - (1 - G) k), k = floor(M / 2).
-    const int k = M / 2;
-    int c = int(std::floor(double(k) - (1.0 - G) * double(k)));
-    // Keep at least the median mean (odd M) or the two middle means (even M): c = k with even M
-    // would leave M - 2c = 0 means in eq. 6.
-    return std::clamp(c, 0, (M - 1) / 2);
-}
-
-int tmpeTrim(double alpha, int M) {
-    if (M < 2 || !(alpha > 0.0)) return 0;
-    // Jung eq. 5.1 sums ranks 1 + alpha*m .. m - alpha*m: alpha*m means are dropped per side. alpha
-    // is meant to be i/m; floor(alpha*M + 1e-9) maps any alpha to an integer count, and the 1e-9
-    // keeps alpha = i/M (rounded in binary) from becoming i - 1.
-    const double c = std::floor(std::min(alpha, 1.0) * double(M) + 1e-9);
-    return std::clamp(int(c), 0, (M - 1) / 2);
-}
-
 namespace {
 
 int collectValid(const PixelBuffers& px, EstimatorScratch& s, int& excluded) {
@@ -116,36 +97,12 @@ void rankWeights(const PixelBuffers& px, EstimatorScratch& s, int lo, int hi) {
         s.bufferWeight[size_t(s.order[r])] = double(px.count[s.order[r]]) / w;
 }
 
-/// gmonTrim for G in [0, 1] (giniSorted's range): there k - (1 - G) k >= 0 (1 - G <= 1 and the
-/// product rounds monotonically), so the conversion to int truncates exactly as floor would, and
-/// the call to floor (not inlined without SSE4.1) is saved. Same value as gmonTrim.
-int gmonTrimUnit(double G, int M) {
-    if (M < 2) return 0;
-    const int k = M / 2;
-    const int c = int(double(k) - (1.0 - G) * double(k));
-    return std::clamp(c, 0, (M - 1) / 2);
+/// The rule's c for M_v ranked means whose Gini coefficient is G (0 unless it uses G).
+inline int trimFor(const TrimRule& rule, double G, int Mv) {
+    return rule.trim != nullptr ? rule.trim(rule, G, Mv) : 0;
 }
 
-inline int trimFor(TrimRule rule, double G, int Mv) {
-    const int cMax = (Mv - 1) / 2;  // the median (odd) or the two middle means (even)
-    switch (rule.kind) {
-        case TrimRule::None:
-            return 0;
-        case TrimRule::Median:
-            return cMax;  // eq. 2
-        case TrimRule::Gini:
-            return gmonTrimUnit(G, Mv);  // eq. 6
-        case TrimRule::GiniThreshold:
-            return G <= rule.value ? 0 : cMax;  // eq. 5
-        case TrimRule::Fraction:
-            return tmpeTrim(rule.value, Mv);  // Jung eq. 5.1
-    }
-    return 0;
-}
-
-inline bool needsGini(TrimRule rule) {
-    return rule.kind == TrimRule::Gini || rule.kind == TrimRule::GiniThreshold;
-}
+inline bool needsGini(const TrimRule& rule) { return rule.usesGini; }
 
 /// G of the ranked keys under the rule's GiniInput.
 inline double giniOf(TrimRule rule, const double* sorted, size_t n) {
@@ -165,7 +122,7 @@ void reduceGeneral(const PixelBuffers& px, const PixelParams& p, PixelEstimate& 
     s.key.resize(size_t(px.M));
     s.sorted.resize(size_t(Mv));
 
-    if (policy.kind == TrimRule::None) {
+    if (policy.trim == nullptr) {
         weightedAverage(px, s, 0, Mv, 0, 3, out);
         out.kept = {Mv, Mv, Mv};
         return;
@@ -636,7 +593,7 @@ void reduce(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out, Es
         // the fast path's bits (tests/filters/pixel/test_bit_identity.cpp), so the beauty does not
         // change with AOVs present; the AOVs cost one weighted sum each, not a ranking.
         s.bufferWeight.clear();
-        if (policy.kind == TrimRule::None) {
+        if (policy.trim == nullptr) {
             meanOnePass(px, out);
             if (out.kept[0] == 0) {
                 s.bufferWeight.assign(size_t(px.M), 0.0);
@@ -653,7 +610,7 @@ void reduce(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out, Es
         if (p.mode != EstimatorMode::Luminance) s.bufferWeight.clear();
         return;
     }
-    if (policy.kind == TrimRule::None) return meanOnePass(px, out);
+    if (policy.trim == nullptr) return meanOnePass(px, out);
     if (px.M <= kSmallM && reduceSmall(px, p, out, policy)) return;
     reduceGeneral(px, p, out, s, policy);
 }

@@ -1,14 +1,33 @@
 // TMPE (tmpe.h): the ranked trimmed mean trimming a fraction alpha per side.
 #include "mcstat/filters/pixel/tmpe.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include "mcstat/filters/pixel/confidence.h"
 #include "mcstat/filters/pixel/ranking.h"
 
 namespace mcstat {
 
+int tmpeTrim(double alpha, int M) {
+    if (M < 2 || !(alpha > 0.0)) return 0;
+    // Jung eq. 5.1 sums ranks 1 + alpha*m .. m - alpha*m: alpha*m means are dropped per side. alpha
+    // is meant to be i/m; floor(alpha*M + 1e-9) maps any alpha to an integer count, and the 1e-9
+    // keeps alpha = i/M (rounded in binary) from becoming i - 1.
+    const double c = std::floor(std::min(alpha, 1.0) * double(M) + 1e-9);
+    return std::clamp(int(c), 0, (M - 1) / 2);
+}
+
+namespace {
+
+/// Eq. 5.1's trim with alpha = rule.value.
+int fractionTrim(const TrimRule& rule, double, int Mv) { return tmpeTrim(rule.value, Mv); }
+
+}  // namespace
+
 void estimateTMPE(const PixelBuffers& px, const TmpeParams& p, PixelEstimate& out,
                   EstimatorScratch& s) {
-    rankedTrimmedMean(px, p, {TrimRule::Fraction, p.alpha}, out, s);
+    rankedTrimmedMean(px, p, TrimRule{&fractionTrim, false, p.alpha}, out, s);
 }
 
 namespace {

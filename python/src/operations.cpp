@@ -7,6 +7,7 @@
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/keep_light_image.h"
+#include "mcstat/image/operation_input.h"
 #include "mcstat/image/removed_light_layers.h"
 #include "mcstat/temp_file.h"
 
@@ -85,12 +86,17 @@ struct Source {
     }
 };
 
-py::tuple estimate(const py::object& src, const std::string& name,
-                   const std::map<std::string, std::string>& params, bool diag, bool residual) {
-    const Operation& op = operationNamed(name);
-    const std::string cmd = "--" + op.name;
-    Source in(src);
-    // As `mcstat --OP:key=value` checks its modifiers (diag and residual among them): its errors.
+/// An operation's modifiers as `mcstat --OP:key=value` reads them (diag, residual and removed
+/// among them): checked, then split into the layers asked for and the operation's parameters.
+struct EstimateRequest {
+    bool diag = false, residual = false, removed = false;
+    RemovedLightOptions removedOpt;
+    ParamValues values;  ///< the operation's parameters with ci, ciaovs and keeplight
+};
+
+EstimateRequest estimateRequest(const Operation& op, const std::string& cmd,
+                                const std::map<std::string, std::string>& params, bool diag,
+                                bool residual) {
     std::map<std::string, std::string> mods = params;
     if (diag) mods["diag"] = "1";
     if (residual) mods["residual"] = "1";
@@ -98,20 +104,16 @@ py::tuple estimate(const py::object& src, const std::string& name,
     const std::vector<ParamSpec> specs = operationModifiers(op);
     const std::map<std::string, std::string> given = mods;  // before the defaults are filled in
     if (!checkModifiers(cmd, specs, mods, err)) throw Error(err);
+    EstimateRequest q;
+    q.diag = diag;
+    q.residual = residual;
     // removed=True (removedradius, removedz): the removed-light layers, as the command's.
-    const auto value = [&](const char* key) {
-        ParamValue v;
-        for (const ParamSpec& p : specs)
-            if (p.name == key && !parseParamValue(cmd, p, mods.at(key), v, err)) throw Error(err);
-        return v;
-    };
-    const bool removed = mods.count("removed") && value("removed").integer != 0;
-    if (std::string why = removedModifiersRefusal(cmd, removed, given); !why.empty())
+    q.removed = modifierValue(specs, mods, "removed").integer != 0;
+    if (std::string why = removedModifiersRefusal(cmd, q.removed, given); !why.empty())
         throw Error(why);
-    RemovedLightOptions removedOpt;
-    if (removed) {
-        removedOpt.radius = int(value("removedradius").integer);
-        removedOpt.zLimit = value("removedz").real;
+    if (q.removed) {
+        q.removedOpt.radius = int(modifierValue(specs, mods, "removedradius").integer);
+        q.removedOpt.zLimit = modifierValue(specs, mods, "removedz").real;
     }
     for (const char* k : {"diag", "residual", "removed", "removedradius", "removedz"})
         mods.erase(k);
@@ -119,42 +121,53 @@ py::tuple estimate(const py::object& src, const std::string& name,
     if (!takeConfidenceModifiers(cmd, mods, ci, err)) throw Error(err);
     ParamValues keep;  // keeplight: the removed light given back (docs/keep-light.md)
     if (!takeKeepLightModifiers(cmd, mods, keep, err)) throw Error(err);
-    ParamValues values;
-    if (!parseOperationParams(op, mods, values, err, cmd)) throw Error(err);
-    values.insert(ci.begin(), ci.end());
-    values.insert(keep.begin(), keep.end());
+    if (!parseOperationParams(op, mods, q.values, err, cmd)) throw Error(err);
+    q.values.insert(ci.begin(), ci.end());
+    q.values.insert(keep.begin(), keep.end());
+    return q;
+}
+
+py::tuple estimate(const py::object& src, const std::string& name,
+                   const std::map<std::string, std::string>& params, bool diag, bool residual) {
+    const Operation& op = operationNamed(name);
+    const std::string cmd = "--" + op.name;
+    Source in(src);
+    const EstimateRequest q = estimateRequest(op, cmd, params, diag, residual);
     const std::array<double, 3> luma = lumaOf(in.header.colorSpace, in.name);
-    OIIO::ImageBuf img;
+    // Python's own advice for a computed image (the seam's names the CLI's way).
+    if (readsSamples(op) && in.path.empty())
+        throw Error(cmd + " reads the per-sample records of a statistics file on disk; " + in.name +
+                    " was computed (write it with mcstat.write and pass the path)");
     // A per-pixel estimator computes the removed light in its own pass (removed_light_pass.h),
     // as the CLI does; otherwise a file is streamed once more for it, and once more for the
     // residual.
-    const bool removedInPass = removed && removedLightInPass(op, keepLightAsked(values));
-    ParamValues runValues = values;
-    if (removedInPass) setRemovedLightValues(runValues, removedOpt);
+    const bool removedInPass = q.removed && removedLightInPass(op, keepLightAsked(q.values));
+    ParamValues runValues = q.values;
+    if (removedInPass) setRemovedLightValues(runValues, q.removedOpt);
+    // What Python holds, described once (image/operation_input.h), as the CLI and the plugin do:
+    // the seam takes what the operation's kind needs.
+    OperationInput input;
+    input.name = in.name;
+    input.path = in.path;
+    input.header = &in.header;
+    if (in.native)
+        input.stats = in.native->img.get();
+    else
+        input.stream = [&in](std::string&) -> StatsBlockSource* { return &in.blocks(); };
     std::unique_ptr<Source> again, againRemoved;
-    if (residual && !in.native) again = std::make_unique<Source>(src);
-    if (removed && !removedInPass && !in.native) againRemoved = std::make_unique<Source>(src);
+    if (q.residual && !in.native) again = std::make_unique<Source>(src);
+    if (q.removed && !removedInPass && !in.native) againRemoved = std::make_unique<Source>(src);
+    OIIO::ImageBuf img;
     {
         py::gil_scoped_release release;
-        bool ok = false;
-        if (readsSamples(op)) {
-            if (in.path.empty())
-                throw Error(cmd + " reads the per-sample records of a statistics file on disk; " +
-                            in.name +
-                            " was computed (write it with mcstat.write and pass the path)");
-            ok = runSamplesOperation(img, in.path, in.header, op, values, luma);
-        } else if (in.native) {
-            ok = applyOperation(img, *in.native->img, op, runValues, luma, diag);
-        } else {
-            ok = applyOperation(img, in.blocks(), op, runValues, luma, diag);
-        }
+        bool ok = applyOperation(img, input, op, runValues, luma, q.diag);
         if (!ok) throw Error(cmd + ": " + img.geterror());
-        if (removed && !removedInPass) {
-            ok = in.native ? appendRemovedLight(img, *in.native->img, luma, removedOpt)
-                           : appendRemovedLight(img, againRemoved->blocks(), luma, removedOpt);
+        if (q.removed && !removedInPass) {
+            ok = in.native ? appendRemovedLight(img, *in.native->img, luma, q.removedOpt)
+                           : appendRemovedLight(img, againRemoved->blocks(), luma, q.removedOpt);
             if (!ok) throw Error(cmd + ": " + img.geterror());
         }
-        if (residual) {
+        if (q.residual) {
             ok = in.native ? appendResidual(img, *in.native->img, luma)
                            : appendResidual(img, again->blocks(), luma);
             if (!ok) throw Error(cmd + ": " + img.geterror());
@@ -195,8 +208,7 @@ py::dict compare(const py::object& a, const py::object& b,
     CompareOptions opt;
     std::string err;
     if (!parseCompareOptions(params, opt, err, "--compare")) throw Error(err);
-    const auto refspp = params.find("refspp");
-    if (refspp != params.end() && refspp->second != "0")
+    if (modifierValue(compareParams(), params, "refspp").real != 0.0)
         throw Error("--compare: refspp is for an image reference; " + sa.name + " and " + sb.name +
                     " are statistics files");
     if (sa.header.colorSpace != sb.header.colorSpace)

@@ -23,6 +23,25 @@ Vec3 texturePoint(const Shape& s, const Vec3& p, double time) {
     return q;
 }
 
+/// The features of the path's first two hits (`depth` 0 and 1), as PathSample keeps them for the
+/// feature parts and random parameter filtering; at the first, whether its lobe is specular (the
+/// light-path AOVs).
+void recordHit(PathSample& out, int depth, const Hit& hit, const Material* mat, const Bsdf& bsdf,
+               bool& specularLobe) {
+    if (depth == 0) {
+        out.hit = true;
+        out.normal = hit.n;
+        out.position = hit.p;
+        out.depth = hit.t;
+        out.albedo = mat ? featureAlbedo(bsdf) : Vec3();
+        specularLobe = mat && bsdf.type != MaterialType::Diffuse;
+    } else if (depth == 1) {
+        out.hit2 = true;
+        out.normal2 = hit.n;
+        out.position2 = hit.p;
+    }
+}
+
 }  // namespace
 
 const char* lightPathAovName(int aov) {
@@ -95,18 +114,7 @@ PathSample PathIntegrator::trace(const Ray& cameraRay, Pcg32& rng) const {
             shape.material >= 0 ? &scene_.materials[size_t(shape.material)] : nullptr;
         // The material here, its texture looked up at this point (at the path's time).
         const Bsdf bsdf = mat ? bsdfAt(*mat, texturePoint(shape, hit.p, ray.time)) : Bsdf{};
-        if (depth == 0) {
-            out.hit = true;
-            out.normal = hit.n;
-            out.position = hit.p;
-            out.depth = hit.t;
-            out.albedo = mat ? featureAlbedo(bsdf) : Vec3();
-            specularLobe = mat && bsdf.type != MaterialType::Diffuse;
-        } else if (depth == 1) {
-            out.hit2 = true;
-            out.normal2 = hit.n;
-            out.position2 = hit.p;
-        }
+        recordHit(out, depth, hit, mat, bsdf, specularLobe);
         const Vec3 wo = -ray.d;
 
         const Vec3 Le = lights_.emitted(hit.shape, hit.n, wo);

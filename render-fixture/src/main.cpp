@@ -18,6 +18,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 
@@ -40,28 +41,12 @@
 namespace {
 
 using namespace mcstat::render;
+using mcstat::parseInt;  // the one integer option parser (core/params.h)
 
 int fail(const std::string& msg) {
     // One line whatever a scene file or a path holds (core/untrusted_text.h).
     fmt::print(stderr, "mcstat-render: {}\n", mcstat::oneLine(msg));
     return 1;
-}
-
-/// Strict integer parsing (the one number syntax, core/params.h): the whole text must be a
-/// number in [lo, hi].
-bool parseInt(const std::string& text, const char* what, long long lo, long long hi, long long& out,
-              std::string& err) {
-    int64_t v = 0;
-    if (!mcstat::parseIntegerText(text, v)) {
-        err = fmt::format("{}: expected an integer, got '{}'", what, text);
-        return false;
-    }
-    if (v < lo || v > hi) {
-        err = fmt::format("{}: must be between {} and {} (got {})", what, lo, hi, v);
-        return false;
-    }
-    out = v;
-    return true;
 }
 
 bool parseSeed(const std::string& text, uint64_t& out, std::string& err,
@@ -129,12 +114,17 @@ struct CommandLine {
          timings = false;
     bool aovs = false;
     bool compact = false;  ///< --compact: write a compact file (FORMAT.md "Version 6")
-    std::string pajotText,
-        pajotNText = "50", pajotDelayedText = "64", pajotTText = "2", pajotDeltaText = "0",
-        maxSampleBytesText = std::to_string(mcstat::kDefaultMaxRecordBytes), resumePath;
-    std::string clampText;       ///< --clamp: the renderer's clamp (empty: off)
-    bool reweight = false;       ///< --reweight: the cascades of Zirr et al. 2018 online
-    std::string reweightParams;  ///< --reweight-params: the entry's key=value text
+    std::string maxSampleBytesText = std::to_string(mcstat::kDefaultMaxRecordBytes), resumePath;
+    std::string clampText;  ///< --clamp: the renderer's clamp (empty: off)
+    /// --online NAME[:key=value...], as given (once per time given).
+    std::vector<std::string> online;
+    /// The deprecated spellings of --online (mapped onto it by onlineRequests): --pajot METHOD
+    /// and its --pajot-n, --pajot-delayed, --pajot-t, --pajot-delta (unset: not given), and
+    /// --reweight with its --reweight-params TEXT.
+    std::string pajotText;
+    std::optional<std::string> pajotNText, pajotDelayedText, pajotTText, pajotDeltaText;
+    bool reweight = false;
+    std::optional<std::string> reweightParams;
     bool help = false;
 };
 
@@ -199,36 +189,35 @@ void addSamplingOptions(OIIO::ArgParse& ap, CommandLine& cl) {
 
 /// Declares the options of what the file keeps besides the buffers: Pajot, records, AOVs, resume.
 void addPerSampleOptions(OIIO::ArgParse& ap, CommandLine& cl) {
-    ap.arg("--pajot adr|rot|hybrid")
+    ap.arg("--online NAME")
         .help(
-            "Pajot et al. 2011 online: every sample updates its pixel's kernel-density modes of "
-            "log-luminance; samples above the last extended mode are delayed until it reaches them "
-            "(docs/pajot.md). Adds parts pajot and modes (format 4)")
+            "run operation NAME online, every sample in the order taken, and keep its per-pixel "
+            "state in the file (format 4): pajot (Pajot et al. 2011, parts pajot and modes; "
+            "docs/pajot.md), reweight (Zirr et al. 2018, parts cascades and cascades.deep; "
+            "docs/reweighting.md). Its parameters as mcstat's modifiers: checked against the "
+            "registry entry, e.g. --online pajot:method=hybrid:n=30, --online reweight:count=5")
+        .action([&](OIIO::cspan<const char*> a) { cl.online.emplace_back(a[1]); });
+    // The spellings before --online, kept working (a note on stderr says the new one).
+    ap.arg("--pajot adr|rot|hybrid")
+        .help("deprecated: --online pajot:method=METHOD")
         .action([&](OIIO::cspan<const char*> a) { cl.pajotText = a[1]; });
     ap.arg("--pajot-n N")
-        .help("with --pajot: samples of the learning phase (section 4.1), >= 1 (default 50)")
+        .help("deprecated: --online pajot:n=N (learning samples, default 50)")
         .action([&](OIIO::cspan<const char*> a) { cl.pajotNText = a[1]; });
     ap.arg("--pajot-delayed N")
-        .help(
-            "with --pajot: bound of each pixel's dubious list; when full, the brightest is "
-            "discarded for good (default 64)")
+        .help("deprecated: --online pajot:delayed=N (dubious list bound, default 64)")
         .action([&](OIIO::cspan<const char*> a) { cl.pajotDelayedText = a[1]; });
     ap.arg("--pajot-t T")
-        .help("with --pajot hybrid: successive close maxima before ROT alone (default 2)")
+        .help("deprecated: --online pajot:t=T (hybrid's close maxima, default 2)")
         .action([&](OIIO::cspan<const char*> a) { cl.pajotTText = a[1]; });
     ap.arg("--pajot-delta D")
-        .help("with --pajot hybrid: largest |m_rot - m_adr| / |m_adr| counted as close (default 0)")
+        .help("deprecated: --online pajot:delta=D (hybrid's closeness, default 0)")
         .action([&](OIIO::cspan<const char*> a) { cl.pajotDeltaText = a[1]; });
     ap.arg("--reweight")
-        .help(
-            "Zirr et al. 2018 online: every sample is split by its luminance between cascades of "
-            "geometric scales, which the file keeps (docs/reweighting.md; mcstat --reweight "
-            "reweights them). Adds parts cascades and cascades.deep (format 4)")
+        .help("deprecated: --online reweight")
         .action([&](OIIO::cspan<const char*>) { cl.reweight = true; });
     ap.arg("--reweight-params TEXT")
-        .help(
-            "with --reweight: the cascades' shape as key=value:key=value, keys count (6), base "
-            "(8), start (1), luma (default: the working space's)")
+        .help("deprecated: --online reweight:TEXT (keys count, base, start, luma)")
         .action([&](OIIO::cspan<const char*> a) { cl.reweightParams = a[1]; });
     ap.arg("--keep-samples")
         .help(
@@ -252,7 +241,7 @@ void addPerSampleOptions(OIIO::ArgParse& ap, CommandLine& cl) {
             "write a compact file (format 7, docs/compact.md): a pixel keeps its sub-buffers only "
             "where G-MoN would trim one, else their mean, decided once every sample is in; G-MoN "
             "of the file equals the full file's bit for bit. Fixed M, without --keep-samples, "
-            "--pajot or --resume")
+            "--online or --resume")
         .action([&](OIIO::cspan<const char*>) { cl.compact = true; });
     ap.arg("--max-sample-bytes N")
         .help(
@@ -346,16 +335,17 @@ bool parseCommandLine(int argc, const char** argv, CommandLine& cl, int& exitCod
         return false;
     }
     if (cl.compact) {
-        const char* clash = cl.reference  ? "--reference (a plain image)"
-                            : cl.adaptive ? "--adaptive-m (its buffers are chosen while rendering)"
-                            : cl.keepSamples ? "--keep-samples (a compact file keeps no samples)"
-                            : !cl.pajotText.empty()
-                                ? "--pajot (a compact file keeps no Pajot state)"
-                            : cl.reweight ? "--reweight (a compact file keeps no cascades)"
-                            : !cl.resumePath.empty()
-                                ? "--resume (resume the full file, then compact it with mcstat "
-                                  "--compact)"
-                                : nullptr;
+        const char* clash =
+            cl.reference            ? "--reference (a plain image)"
+            : cl.adaptive           ? "--adaptive-m (its buffers are chosen while rendering)"
+            : cl.keepSamples        ? "--keep-samples (a compact file keeps no samples)"
+            : !cl.pajotText.empty() ? "--pajot (a compact file keeps no Pajot state)"
+            : cl.reweight           ? "--reweight (a compact file keeps no cascades)"
+            : !cl.online.empty()    ? "--online (a compact file keeps no operation's state)"
+            : !cl.resumePath.empty()
+                ? "--resume (resume the full file, then compact it with mcstat "
+                  "--compact)"
+                : nullptr;
         if (clash != nullptr) {
             exitCode = fail(fmt::format("--compact cannot be combined with {}", clash));
             return false;
@@ -391,7 +381,7 @@ void setWriteThreads(int renderThreads) {
 
 /// Checks the sampling options into `opt` (and sizes the writer's thread pool).
 bool parseRenderOptions(const CommandLine& cl, RenderOptions& opt, std::string& err) {
-    long long v = 0;
+    int64_t v = 0;
     if (!parseInt(cl.sppText, "--spp", 1, (1LL << 40), v, err)) return false;
     opt.spp = v;
     if (!parseInt(cl.mText, "--M", 1, mcstat::kMaxBuffers, v, err)) return false;
@@ -436,7 +426,7 @@ bool parseRenderOptions(const CommandLine& cl, RenderOptions& opt, std::string& 
 bool loadSizedScene(const CommandLine& cl, Scene& scene, std::string& err) {
     if (!loadScene(cl.sceneName, scene, err)) return false;
     if (!cl.resW.empty()) {
-        long long w = 0, h = 0;
+        int64_t w = 0, h = 0;
         if (!parseInt(cl.resW, "--res width", 1, 16384, w, err) ||
             !parseInt(cl.resH, "--res height", 1, 16384, h, err))
             return false;
@@ -455,82 +445,158 @@ bool luma(std::array<double, 3>& l, std::string& err) {
     return true;
 }
 
-/// The operations the renderer runs online, each known by its flag: --pajot and --reweight.
-const char* const kOnlineOperation = "pajot";
-const char* const kReweightOperation = "reweight";
-
-/// --reweight-params as the reweighting entry's parameters, parsed and range-checked by the
-/// registry (parseOperationParams) as `mcstat --reweight:count=...` parses them.
-bool parseReweightOptions(const CommandLine& cl, mcstat::ParamValues& values, std::string& err) {
-    const mcstat::Operation* op = mcstat::findOperation(kReweightOperation);
-    if (op == nullptr || op->state.start == nullptr) {
-        err = "--reweight: this build has no online reweighting";
-        return false;
-    }
+/// An operation to run online as the command line asks for it: its registry name, its parameters
+/// as given, the option that asked (for messages: "--online pajot", or a deprecated "--pajot" /
+/// "--reweight") and what its parameter errors name.
+struct OnlineRequest {
+    std::string name;
     std::map<std::string, std::string> kv;
-    if (!mcstat::parseParamText(cl.reweightParams, kv, err)) {
-        err = "--reweight-params: " + err;
-        return false;
-    }
-    for (const char* later : {"kappa", "spread"})
-        if (kv.count(later) != 0) {
-            err = std::string("--reweight-params: ") + later +
-                  " is chosen when reweighting (mcstat --reweight:" + later + "=...)";
-            return false;
+    std::string flag, context;
+    bool deprecated = false;  ///< asked for by --pajot or --reweight
+    std::string problem;      ///< the parameter text's, reported when the parameters are parsed
+};
+
+/// The registry's operations that run online (OperationState::start), comma-separated.
+std::string onlineOperationNames(std::vector<std::string>* names = nullptr) {
+    std::string text;
+    for (const mcstat::Operation& op : mcstat::operationRegistry())
+        if (op.state.start != nullptr) {
+            text += (text.empty() ? "" : ", ") + op.name;
+            if (names != nullptr) names->push_back(op.name);
         }
-    return mcstat::parseOperationParams(*op, kv, values, err, "--reweight-params");
+    return text;
 }
 
-/// The --pajot options as the Pajot entry's parameters, parsed and range-checked by the registry
-/// (parseOperationParams) as `mcstat --pajot:method=...:n=...` parses them.
-bool parsePajotOptions(const CommandLine& cl, mcstat::ParamValues& values, std::string& err) {
-    const mcstat::Operation* op = mcstat::findOperation(kOnlineOperation);
-    if (op == nullptr || op->state.start == nullptr) {
-        err = "--pajot: this build has no online operation";
+/// The deprecated --pajot* and --reweight* options as the --online requests they mean, with the
+/// one-line note that says so.
+bool deprecatedOnlineRequests(const CommandLine& cl, std::vector<OnlineRequest>& out,
+                              std::string& err) {
+    std::vector<std::string> used;
+    std::vector<std::string> instead;
+    if (!cl.pajotText.empty()) {
+        OnlineRequest r{"pajot", {{"method", cl.pajotText}}, "--pajot", "--pajot", true, {}};
+        used.emplace_back("--pajot");
+        const std::pair<const char*, const std::optional<std::string>*> keys[] = {
+            {"n", &cl.pajotNText},
+            {"delayed", &cl.pajotDelayedText},
+            {"t", &cl.pajotTText},
+            {"delta", &cl.pajotDeltaText}};
+        for (const auto& [key, text] : keys)
+            if (*text) {
+                r.kv[key] = **text;
+                used.push_back(std::string("--pajot-") + key);
+            }
+        instead.push_back("--online pajot:" + mcstat::paramText(r.kv));
+        out.push_back(std::move(r));
+    }
+    if (cl.reweight) {
+        OnlineRequest r{"reweight", {}, "--reweight", "--reweight-params", true, {}};
+        used.emplace_back("--reweight");
+        if (cl.reweightParams) {
+            used.emplace_back("--reweight-params");
+            if (!mcstat::parseParamText(*cl.reweightParams, r.kv, r.problem))
+                r.problem = "--reweight-params: " + r.problem;
+        }
+        instead.push_back("--online reweight" +
+                          (r.kv.empty() ? "" : ":" + mcstat::paramText(r.kv)));
+        out.push_back(std::move(r));
+    } else if (cl.reweightParams) {
+        err = "--reweight-params needs --reweight";
         return false;
     }
-    const std::map<std::string, std::string> kv = {{"method", cl.pajotText},
-                                                   {"n", cl.pajotNText},
-                                                   {"delayed", cl.pajotDelayedText},
-                                                   {"t", cl.pajotTText},
-                                                   {"delta", cl.pajotDeltaText}};
-    return mcstat::parseOperationParams(*op, kv, values, err, "--pajot");
+    if (!used.empty())
+        fmt::print(stderr, "mcstat-render: note: {} {} deprecated: use {}\n",
+                   OIIO::Strutil::join(used, ", "), used.size() == 1 ? "is" : "are",
+                   OIIO::Strutil::join(instead, " "));
+    return true;
+}
+
+/// Every operation the command line asks to run online: --online NAME[:key=value...] (split as
+/// mcstat splits a command from its modifiers, core/params.h parseNamedParams), and the
+/// deprecated flags mapped onto it.
+bool onlineRequests(const CommandLine& cl, std::vector<OnlineRequest>& out, std::string& err) {
+    if (!deprecatedOnlineRequests(cl, out, err)) return false;
+    for (const std::string& text : cl.online) {
+        OnlineRequest r;
+        if (!mcstat::parseNamedParams(text, r.name, r.kv, r.problem))
+            r.problem = "--online " + r.name + ": " + r.problem;
+        r.flag = r.context = "--online " + r.name;
+        out.push_back(std::move(r));
+    }
+    return true;
+}
+
+/// The request's parameters as its registry entry's (parseOperationParams: each key one of the
+/// entry's ParamSpecs, each value of its type and range), as `mcstat --NAME:key=value` checks them.
+bool parseOnlineParams(const OnlineRequest& r, mcstat::ParamValues& values, std::string& err) {
+    if (!r.problem.empty()) {
+        err = r.problem;
+        return false;
+    }
+    const mcstat::Operation* op = mcstat::findOperation(r.name);
+    if (op == nullptr || op->state.start == nullptr) {
+        std::vector<std::string> names;
+        const std::string list = onlineOperationNames(&names);
+        const std::string near = mcstat::nearestName(r.name, names);
+        err = "--online: '" + mcstat::printable(r.name) +
+              "' is no operation this renderer runs online" +
+              (near.empty() ? std::string() : " (did you mean " + near + "?)") +
+              " (it runs: " + (list.empty() ? std::string("none") : list) + ")";
+        return false;
+    }
+    // The reweighting's kappa and spread apply when its cascades are reweighted, not online.
+    if (r.name == "reweight")
+        for (const char* later : {"kappa", "spread"})
+            if (r.kv.count(later) != 0) {
+                err = r.context + ": " + later +
+                      " is chosen when reweighting (mcstat --reweight:" + later + "=...)";
+                return false;
+            }
+    // As mcstat checks a command's modifiers: an unknown key is named with the nearest accepted
+    // one (the deprecated options keep their messages).
+    std::map<std::string, std::string> checked = r.kv;
+    if (!r.deprecated && !mcstat::checkModifiers(r.context, op->params, checked, err)) return false;
+    return mcstat::parseOperationParams(*op, r.kv, values, err, r.context);
 }
 
 /// A render to do, its options checked.
 struct Job {
     RenderOptions opt;
     Scene scene;
-    mcstat::ParamValues pajotValues;  ///< --pajot's or --reweight's parameters (the entry's)
-    bool wantPajot = false;           ///< --pajot given
-    /// The operation asked to run online (--pajot or --reweight), empty for none.
-    std::string onlineName;
-    /// The online run (--pajot, or a resumed file's state), started once the size is known.
+    mcstat::ParamValues onlineValues;  ///< the online operation's parameters (the entry's)
+    /// The operation asked to run online (--online NAME), empty for none, and the option that
+    /// asked for it (for messages).
+    std::string onlineName, onlineFlag;
+    bool deprecatedFlag = false;  ///< asked for by --pajot or --reweight
+    bool wantPajot = false;       ///< Pajot asked for (its learning phase has a warning)
+    /// The online run (--online, or a resumed file's state), started once the size is known.
     std::unique_ptr<mcstat::OnlineRun> online;
     int64_t maxSampleBytes = 0;
-    std::array<double, 3> luma{};  ///< the working space's luma, when --pajot or --compact needs it
+    std::array<double, 3> luma{};  ///< the working space's luma (for --online or --compact)
 };
 
 /// Checks every option but the output's into `job` and loads the scene.
 bool prepareJob(const CommandLine& cl, Job& job, std::string& err) {
     if (!parseRenderOptions(cl, job.opt, err)) return false;
     if (!loadSizedScene(cl, job.scene, err)) return false;
-    // Pajot and the records (format version 4).
-    job.wantPajot = !cl.pajotText.empty();
-    if (job.wantPajot && cl.reweight) {
-        err = "--pajot and --reweight cannot be combined: a file keeps one operation's state";
+    // The operation run online and the records (format version 4).
+    std::vector<OnlineRequest> asked;
+    if (!onlineRequests(cl, asked, err)) return false;
+    if (asked.size() > 1) {
+        err = asked[0].flag + " and " + asked[1].flag +
+              " cannot be combined: a file keeps one operation's state";
         return false;
     }
-    if (!cl.reweightParams.empty() && !cl.reweight) {
-        err = "--reweight-params needs --reweight";
-        return false;
+    if (!asked.empty()) {
+        job.onlineName = asked[0].name;
+        job.onlineFlag = asked[0].flag;
+        job.deprecatedFlag = asked[0].deprecated;
+        job.wantPajot = job.onlineName == "pajot";
     }
-    job.onlineName = job.wantPajot ? kOnlineOperation : cl.reweight ? kReweightOperation : "";
     // Before any sample: a config that cannot give the luma fails now, not after the render.
     if ((!job.onlineName.empty() || cl.compact) && !luma(job.luma, err)) return false;
-    if (job.wantPajot && !parsePajotOptions(cl, job.pajotValues, err)) return false;
-    if (cl.reweight && !parseReweightOptions(cl, job.pajotValues, err)) return false;
-    long long v = 0;
+    if (!asked.empty() && !parseOnlineParams(asked[0], job.onlineValues, err)) return false;
+    int64_t v = 0;
     if (!parseInt(cl.maxSampleBytesText, "--max-sample-bytes", 0, (1LL << 62), v, err))
         return false;
     job.maxSampleBytes = v;
@@ -555,8 +621,8 @@ bool renderReferenceOutput(const CommandLine& cl, const Job& job, RenderStats& s
                            Timings& timings, std::string& err) {
     if (!job.onlineName.empty() || cl.keepSamples || !cl.resumePath.empty() || cl.aovs) {
         err =
-            "--reference writes a plain EXR: --pajot, --reweight, --keep-samples, --aovs and "
-            "--resume do not apply";
+            "--reference writes a plain EXR: --online (--pajot, --reweight), --keep-samples, "
+            "--aovs and --resume do not apply";
         return false;
     }
     std::vector<float> rgb;
@@ -567,18 +633,20 @@ bool renderReferenceOutput(const CommandLine& cl, const Job& job, RenderStats& s
                              job.opt.spp, err);
 }
 
-/// Starts the online run: --pajot's, continuing the state parts of the resumed file `ph` (when
-/// it has some). The owner's registry entry decodes the state and checks that --pajot's
+/// Starts the online run: --online's, continuing the state parts of the resumed file `ph` (when
+/// it has some). The owner's registry entry decodes the state and checks that --online's
 /// parameters are the resumed run's.
 bool startOnline(const CommandLine& cl, const mcstat::StatsHeader* ph, Job& job, std::string& err) {
     const bool resumed = ph != nullptr && ph->hasState();
     const bool wanted = !job.onlineName.empty();
-    const std::string flag = "--" + job.onlineName;
+    const std::string& flag = job.onlineFlag;
     if (!resumed && !wanted) return true;
     if (!resumed && ph != nullptr) {
-        err = cl.resumePath + ": has no " +
-              (job.wantPajot ? std::string("Pajot state") : std::string("reweighting cascades")) +
-              " to continue (rendered without " + flag + ")";
+        const std::string what = job.wantPajot ? std::string("Pajot state")
+                                 : job.onlineName == "reweight"
+                                     ? std::string("reweighting cascades")
+                                     : job.onlineName + "'s state";
+        err = cl.resumePath + ": has no " + what + " to continue (rendered without " + flag + ")";
         return false;
     }
     const std::string name = resumed ? ph->state.operation : job.onlineName;
@@ -593,7 +661,7 @@ bool startOnline(const CommandLine& cl, const mcstat::StatsHeader* ph, Job& job,
               flag;
         return false;
     }
-    mcstat::ParamValues values = job.pajotValues;  // without the flag: the defaults, "stored"
+    mcstat::ParamValues values = job.onlineValues;  // without the flag: the defaults, "stored"
     if (!wanted && !mcstat::parseOperationParams(*op, {}, values, err)) return false;
     mcstat::PixelStateParts parts;
     if (resumed && !mcstat::readPixelStateParts(cl.resumePath, parts, err)) return false;
@@ -703,8 +771,9 @@ bool renderStatsOutput(const CommandLine& cl, Job& job, RenderStats& stats, Timi
     if (cl.keepSamples && !openRecords(cl, job, records, extras, err)) return false;
     if (job.wantPajot && job.online->learningSamples() > totalSpp)
         fmt::print(stderr,
-                   "mcstat-render: warning: --pajot-n {} exceeds --spp {}: no pixel ends its "
+                   "mcstat-render: warning: {}{} exceeds --spp {}: no pixel ends its "
                    "learning phase, and the Pajot estimate is the plain mean\n",
+                   job.deprecatedFlag ? std::string("--pajot-n ") : job.onlineFlag + ":n=",
                    job.online->learningSamples(), totalSpp);
     mcstat::StatsImage img;
     timings.renderClock = Stopwatch();

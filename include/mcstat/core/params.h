@@ -80,6 +80,17 @@ std::string nearestName(const std::string& name, const std::vector<std::string>&
 bool checkModifiers(const std::string& command, const std::vector<ParamSpec>& specs,
                     std::map<std::string, std::string>& mods, std::string& err);
 
+/// The one way a command reads its modifiers back: the typed value of modifier `name` of a
+/// command whose modifiers are `specs`, once the one check (checkModifiers) has accepted them and
+/// filled in their defaults. A modifier without a default that was not given is unset:
+/// ParamValue{} (empty text, numbers 0); `mods.count(name)` says whether it was given.
+ParamValue modifierValue(const std::vector<ParamSpec>& specs,
+                         const std::map<std::string, std::string>& mods, const std::string& name);
+/// The elements of list modifier `name` (ParamSpec::list), typed; empty when unset.
+std::vector<ParamValue> modifierList(const std::vector<ParamSpec>& specs,
+                                     const std::map<std::string, std::string>& mods,
+                                     const std::string& name);
+
 /// Moves the modifiers of `specs` out of `mods` into `out`, each parsed (parseParamValue, context
 /// `command`; an empty text is an error there, as any text its type refuses). The modifiers of a
 /// layer (ci, keeplight) are taken so, and the rest are the operation's own parameters. False with
@@ -95,6 +106,12 @@ bool takeModifiers(const std::string& command, const std::vector<ParamSpec>& spe
 /// Empty text is no keys.
 bool parseParamText(const std::string& text, std::map<std::string, std::string>& kv,
                     std::string& problem);
+/// Splits "NAME:key=value:key=value" at its first ':' into NAME and its parameters
+/// (parseParamText): a command with its modifiers (`--gmon:mode=channel:diag=1`), an operation the
+/// renderer runs online (`mcstat-render --online NAME:key=value`). No ':' is no parameters. `name`
+/// is set even on failure, when `problem` is parseParamText's line.
+bool parseNamedParams(const std::string& text, std::string& name,
+                      std::map<std::string, std::string>& kv, std::string& problem);
 /// `kv` in that grammar, keys in the map's order: what parseParamText reads back as `kv`.
 std::string paramText(const std::map<std::string, std::string>& kv);
 /// The shortest text of `v` that parseRealText reads back as exactly `v` ("0.2126", not
@@ -108,6 +125,12 @@ bool parseRealText(const std::string& text, double& out);
 /// Three comma-separated reals ("0.2126,0.7152,0.0722": luminance weights stored in a state
 /// part's parameter text), each as parseRealText reads it; false unless exactly three.
 bool parseRealTriple(const std::string& text, std::array<double, 3>& out);
+/// The whole text is a base-10 integer in [lo, hi] (parseIntegerText's syntax): the options and
+/// arguments that are no ParamSpec (`mcstat --threads N`, `mcstat-render --spp N`). False with
+/// one line in `err`: "<what>: expected an integer, got '<text>'" or "<what>: must be between
+/// <lo> and <hi> (got <value>)".
+bool parseInt(const std::string& text, const std::string& what, int64_t lo, int64_t hi,
+              int64_t& out, std::string& err);
 /// The whole text is a base-10 integer in [0, 2^64 - 1] (seeds), no sign, no spaces.
 bool parseUnsignedText(const std::string& text, uint64_t& out);
 

@@ -16,9 +16,11 @@
 #include <string>
 #include <vector>
 
+#include "mcstat/filters/pixel/gmon.h"
 #include "mcstat/filters/pixel/meridian.h"
 #include "mcstat/filters/pixel/myriad.h"
 #include "mcstat/filters/pixel/ranking.h"
+#include "mcstat/filters/pixel/tmpe.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "reference_estimators.h"

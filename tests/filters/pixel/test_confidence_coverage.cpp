@@ -28,6 +28,7 @@
 
 #include "mcstat/core/location_stats.h"
 #include "mcstat/core/parallel.h"
+#include "mcstat/filters/pixel/tmpe.h"
 #include "pixel_support.h"
 
 using namespace mcstat;

@@ -14,6 +14,7 @@
 
 #include "mcstat/filters/pixel/gmon.h"
 #include "mcstat/filters/pixel/ranking.h"
+#include "mcstat/filters/pixel/tmpe.h"
 #include "mcstat/filters/registry.h"
 #include "pixel_support.h"
 

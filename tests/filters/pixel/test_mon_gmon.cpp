@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "mcstat/filters/pixel/gmon.h"
 #include "mcstat/filters/pixel/ranking.h"
 #include "pixel_support.h"
 

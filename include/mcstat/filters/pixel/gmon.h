@@ -17,7 +17,13 @@ struct GmonParams : PixelParams {
     GiniInput gini = GiniInput::Magnitudes;
 };
 
-/// G-MoN (eq. 6) with c from the Gini coefficient (eq. 4), see gmonTrim (ranking.h).
+/// Number of means trimmed from each side by G-MoN (Buisine et al. section 4.3):
+/// c = floor(k - (1 - G) k) with k = floor(M/2), clamped to floor((M-1)/2) so that at least one
+/// mean (odd M) or the two middle means (even M) remain: the paper's c = k would divide by zero for
+/// even M.
+int gmonTrim(double G, int M);
+
+/// G-MoN (eq. 6) with c from the Gini coefficient (eq. 4), see gmonTrim.
 void estimateGMoN(const PixelBuffers& px, const GmonParams& p, PixelEstimate& out,
                   EstimatorScratch& s);
 /// Parameter "gini" (abs / shift) of G-MoN and G-MoN_b.

@@ -1,12 +1,12 @@
 // The ranked trimmed mean every rank estimator is made of (mean, MoN / MPE, G-MoN, G-MoN_b, TMPE):
 // rank the valid means (by luminance, or per channel), trim c from each side, average the rest
-// with the counts as weights. The estimators differ only in how c is chosen (TrimRule); this file
-// holds the ranking, the Gini coefficient and the fast path for M <= 64 (portable and AVX2, the
-// same bits), so each estimator's own file is its rule and its registry entry.
+// with the counts as weights. The estimators differ only in how c is chosen: a TrimRule each
+// estimator supplies from its own file (its trim, with its equation); this file holds the ranking,
+// the Gini coefficient and the fast path for M <= 64 (portable and AVX2, the same bits), and names
+// no estimator.
 //
-// Buisine, Delepoulle, Renaud, "Fireflies removing in Monte Carlo rendering with adaptive Median of
-// meaNs", EGSR 2021 (eq. 1, 2, 4-6); Jung, "Rendering of Teeth and Dental Restorations using Robust
-// Statistical Estimation Techniques", PhD thesis, University of Minnesota, 2016 (eq. 5.1, 5.2).
+// The Gini coefficient: Buisine, Delepoulle, Renaud, "Fireflies removing in Monte Carlo rendering
+// with adaptive Median of meaNs", EGSR 2021, eq. 4.
 #pragma once
 
 #include <cstddef>
@@ -27,18 +27,18 @@ enum class GiniInput {
     Shifted,
 };
 
-/// How many means a ranked estimator trims from each side, once the valid means are ranked.
+/// How many means a ranked estimator trims from each side, once the valid means are ranked: the
+/// policy an estimator supplies (gmon.cpp, tmpe.cpp, ...); the ranking calls it and knows no
+/// estimator.
 struct TrimRule {
-    enum Kind {
-        None,           ///< the plain mean (eq. 1): nothing trimmed, nothing ranked
-        Median,         ///< floor((M_v - 1) / 2): the median or the two middle means (eq. 2)
-        Gini,           ///< gmonTrim(G, M_v), G the Gini coefficient of the ranked means (eq. 6)
-        GiniThreshold,  ///< 0 when G <= value, else the median's (eq. 5)
-        Fraction,       ///< tmpeTrim(value, M_v) (Jung eq. 5.1)
-    };
-    Kind kind = None;
-    double value = 0.0;                      ///< GiniThreshold: the threshold; Fraction: alpha
-    GiniInput gini = GiniInput::Magnitudes;  ///< Gini, GiniThreshold: what G is computed on
+    /// The means trimmed from each side of the M_v >= 1 ranked valid means, in
+    /// [0, floor((M_v - 1) / 2)] (the median or the two middle means always stay); `G` is their
+    /// Gini coefficient when `usesGini`, else 0. Null: the plain mean, nothing ranked or trimmed
+    /// (summed in one pass).
+    int (*trim)(const TrimRule& rule, double G, int Mv) = nullptr;
+    bool usesGini = false;                   ///< G is computed (on `gini`) for `trim`
+    double value = 0.0;                      ///< the estimator's own parameter (alpha, threshold)
+    GiniInput gini = GiniInput::Magnitudes;  ///< with usesGini: what G is computed on
 };
 
 /// The ranked trimmed mean of `px` under `rule`: rgb, Gini coefficient (rules that use it), kept
@@ -46,7 +46,7 @@ struct TrimRule {
 void rankedTrimmedMean(const PixelBuffers& px, const PixelParams& p, TrimRule rule,
                        PixelEstimate& out, EstimatorScratch& s);
 
-/// The plain mean's pass (rankedTrimmedMean with TrimRule::None, without weights: the same
+/// The plain mean's pass (rankedTrimmedMean with no trim, without weights: the same
 /// bits) that also leaves what it found for the mean's interval (confidence.h,
 /// meanIntervalsFromSums): the valid buffers' indices in index order in `valid`, the sum of their
 /// counts in `n` and the count-weighted sums of R, G, B in `sum`. Returns the number of valid
@@ -62,17 +62,6 @@ double giniSorted(const double* values, size_t n);
 /// Magnitudes): the negative values, reversed, and the others are merged into ascending order of
 /// magnitude. When values[0] >= 0 it is giniSorted(values, n), bit for bit.
 double giniMagnitudes(const double* values, size_t n);
-
-/// Number of means trimmed from each side by G-MoN (Buisine et al. section 4.3):
-/// c = floor(k - (1 - G) k) with k = floor(M/2), clamped to floor((M-1)/2) so that at least one
-/// mean (odd M) or the two middle means (even M) remain: the paper's c = k would divide by zero for
-/// even M.
-int gmonTrim(double G, int M);
-
-/// Number of means TMPE trims from each side (Jung eq. 5.1): c = floor(alpha * M + 1e-9) (the 1e-9
-/// absorbs the rounding of alpha = i/M), clamped to [0, floor((M - 1) / 2)]. alpha = 0 gives 0 (the
-/// mean), alpha >= floor((M-1)/2)/M (e.g. 0.5) gives the cap: MPE (eq. 5.2).
-int tmpeTrim(double alpha, int M);
 
 namespace detail {
 /// Test hook: with false, the rank estimators' fast path runs its portable code even on a CPU with

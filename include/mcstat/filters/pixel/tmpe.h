@@ -14,6 +14,11 @@ struct TmpeParams : PixelParams {
     /// capped at floor((M_v - 1) / 2).
     double alpha = 0.25;
 };
+/// Number of means TMPE trims from each side (Jung eq. 5.1): c = floor(alpha * M + 1e-9) (the 1e-9
+/// absorbs the rounding of alpha = i/M), clamped to [0, floor((M - 1) / 2)]. alpha = 0 gives 0 (the
+/// mean), alpha >= floor((M-1)/2)/M (e.g. 0.5) gives the cap: MPE (eq. 5.2).
+int tmpeTrim(double alpha, int M);
+
 /// TMPE(alpha) (eq. 5.1).
 void estimateTMPE(const PixelBuffers& px, const TmpeParams& p, PixelEstimate& out,
                   EstimatorScratch& s);
