@@ -18,6 +18,7 @@
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
+#include "mcstat/review/display.h"
 
 namespace mcstat {
 
