@@ -58,6 +58,27 @@ Vec3 PathIntegrator::sampleDirect(const Bsdf& m, const Hit& hit, const Vec3& wo,
     return f * Le * (w / pdfLight);
 }
 
+namespace {
+
+/// The features of the path's first hit (normal, position, distance, albedo) and second hit
+/// (normal, position) at vertex `depth`, which the feature buffers store.
+void recordHitFeatures(PathSample& out, int depth, const Hit& hit, const Material* mat,
+                       const Bsdf& bsdf) {
+    if (depth == 0) {
+        out.hit = true;
+        out.normal = hit.n;
+        out.position = hit.p;
+        out.depth = hit.t;
+        out.albedo = mat ? featureAlbedo(bsdf) : Vec3();
+    } else if (depth == 1) {
+        out.hit2 = true;
+        out.normal2 = hit.n;
+        out.position2 = hit.p;
+    }
+}
+
+}  // namespace
+
 PathSample PathIntegrator::trace(const Ray& cameraRay, Pcg32& rng) const {
     PathSample out;
     Ray ray = cameraRay;
@@ -95,18 +116,8 @@ PathSample PathIntegrator::trace(const Ray& cameraRay, Pcg32& rng) const {
             shape.material >= 0 ? &scene_.materials[size_t(shape.material)] : nullptr;
         // The material here, its texture looked up at this point (at the path's time).
         const Bsdf bsdf = mat ? bsdfAt(*mat, texturePoint(shape, hit.p, ray.time)) : Bsdf{};
-        if (depth == 0) {
-            out.hit = true;
-            out.normal = hit.n;
-            out.position = hit.p;
-            out.depth = hit.t;
-            out.albedo = mat ? featureAlbedo(bsdf) : Vec3();
-            specularLobe = mat && bsdf.type != MaterialType::Diffuse;
-        } else if (depth == 1) {
-            out.hit2 = true;
-            out.normal2 = hit.n;
-            out.position2 = hit.p;
-        }
+        recordHitFeatures(out, depth, hit, mat, bsdf);
+        if (depth == 0) specularLobe = mat && bsdf.type != MaterialType::Diffuse;
         const Vec3 wo = -ray.d;
 
         const Vec3 Le = lights_.emitted(hit.shape, hit.n, wo);
