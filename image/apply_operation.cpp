@@ -9,9 +9,7 @@
 namespace mcstat {
 
 using OIIO::ImageBuf;
-using OIIO::ImageSpec;
 using OIIO::ROI;
-using OIIO::TypeDesc;
 
 using detail::headerOf;
 

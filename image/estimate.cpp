@@ -18,7 +18,6 @@ namespace mcstat {
 using OIIO::ImageBuf;
 using OIIO::ImageSpec;
 using OIIO::ROI;
-using OIIO::TypeDesc;
 
 std::vector<std::string> estimatorChannels(EstimatorMode mode, bool diagnostics) {
     std::vector<std::string> names = {"R", "G", "B"};

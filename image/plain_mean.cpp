@@ -6,7 +6,6 @@
 namespace mcstat {
 
 using OIIO::ImageBuf;
-using OIIO::ImageSpec;
 using OIIO::ROI;
 using OIIO::TypeDesc;
 

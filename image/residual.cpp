@@ -10,7 +10,6 @@ namespace mcstat {
 using OIIO::ImageBuf;
 using OIIO::ImageSpec;
 using OIIO::ROI;
-using OIIO::TypeDesc;
 
 using detail::headerOf;
 

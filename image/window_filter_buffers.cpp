@@ -12,7 +12,6 @@ using detail::fillFiltered;
 using OIIO::ImageBuf;
 using OIIO::ImageSpec;
 using OIIO::ROI;
-using OIIO::TypeDesc;
 
 namespace {
 

@@ -9,7 +9,6 @@
 namespace mcstat {
 
 using OIIO::ImageBuf;
-using OIIO::ImageSpec;
 using OIIO::ROI;
 using OIIO::TypeDesc;
 

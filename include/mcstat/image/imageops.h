@@ -14,7 +14,6 @@
 #include <map>
 #include <string>
 
-#include "mcstat/analysis/metrics.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/image_spec.h"
 #include "mcstat/stats_file.h"
