@@ -309,21 +309,18 @@ size_t halfOverflow(const OIIO::ImageBuf& img, const ImageSpec& spec) {
     return n;
 }
 
-bool writeRenderLike(const OIIO::ImageBuf& img, const StatsHeader& layout, const std::string& path,
-                     const ImageWriteOptions& opt, std::string& err, size_t* overflow) {
-    if (!checkOutputTarget(path, err)) return false;
-    const ImageSpec& src = img.spec();
-    if (src.nchannels < 3 || src.deep) {
-        err = format("{}: the image has no R, G, B to write as the render's beauty", path);
-        return false;
-    }
-    // Which part each channel goes to (in channel order), and its name there.
-    std::vector<std::string> partOf(size_t(src.nchannels), layout.beautyPart);
-    std::vector<std::string> nameOf(src.channelnames);
+namespace {
+
+/// Which part of the render each channel of `src` goes to (in channel order), and its name there:
+/// R, G, B the render's beauty names in its beauty part, an AOV its own part, a residual
+/// (appendResidual) beside its channel, named after the render's name.
+void renderPlaces(const ImageSpec& src, const StatsHeader& layout, std::vector<std::string>& partOf,
+                  std::vector<std::string>& nameOf) {
+    partOf.assign(size_t(src.nchannels), layout.beautyPart);
+    nameOf = src.channelnames;
     for (int c = 0; c < 3; ++c) nameOf[size_t(c)] = layout.beautyNames[size_t(c)];
     for (int c = 3; c < src.nchannels; ++c) {
         std::string n = src.channelnames[size_t(c)];
-        // A residual (appendResidual) goes beside its channel, named after the render's name.
         const bool residual = OIIO::Strutil::starts_with(n, "residual.");
         if (residual) n = n.substr(9);
         const int a = layout.aovIndex(n);
@@ -333,6 +330,20 @@ bool writeRenderLike(const OIIO::ImageBuf& img, const StatsHeader& layout, const
                 if (n == "RGB"[b] + std::string())
                     nameOf[size_t(c)] = "residual." + layout.beautyNames[size_t(b)];
     }
+}
+
+}  // namespace
+
+bool writeRenderLike(const OIIO::ImageBuf& img, const StatsHeader& layout, const std::string& path,
+                     const ImageWriteOptions& opt, std::string& err, size_t* overflow) {
+    if (!checkOutputTarget(path, err)) return false;
+    const ImageSpec& src = img.spec();
+    if (src.nchannels < 3 || src.deep) {
+        err = format("{}: the image has no R, G, B to write as the render's beauty", path);
+        return false;
+    }
+    std::vector<std::string> partOf, nameOf;
+    renderPlaces(src, layout, partOf, nameOf);
     std::vector<std::string> parts;  // in order of first channel, the beauty's first
     for (const std::string& p : partOf)
         if (std::find(parts.begin(), parts.end(), p) == parts.end()) parts.push_back(p);

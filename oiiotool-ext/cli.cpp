@@ -24,6 +24,7 @@
 #include "mcstat/image/removed_light_layers.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/ingest.h"
+#include "mcstat/review/display.h"
 #include "mcstat/version.h"
 
 namespace mcstat::cli {

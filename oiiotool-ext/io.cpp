@@ -19,6 +19,7 @@
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
 #include "mcstat/ingest.h"
+#include "mcstat/review/display.h"
 #include "mcstat/sample_records.h"
 #include "mcstat/temp_file.h"
 

@@ -22,6 +22,7 @@
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/keep_light_image.h"
 #include "mcstat/image/render_layout.h"
+#include "mcstat/review/display.h"
 #include "mcstat/review/review_pictures.h"
 #include "mcstat/temp_file.h"
 #include "plot.h"

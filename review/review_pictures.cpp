@@ -18,6 +18,7 @@
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/render_layout.h"
+#include "mcstat/review/display.h"
 
 namespace mcstat {
 
@@ -223,9 +224,12 @@ double colorScalePosition(const ColorScale& s, double v) {
     return std::clamp(t, 0.0, 1.0);
 }
 
-bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& channel,
-                       ColorScale& scale, std::string& err, ROI roi) {
-    const ImageSpec& spec = src.spec();
+namespace {
+
+/// The channel a heatmap draws (opt.channel, else relerr when there is one, else the first) and
+/// a known colour map, or false with `err`.
+bool heatmapChannel(const ImageSpec& spec, const HeatmapOptions& opt, int& channel,
+                    std::string& err) {
     if (spec.nchannels < 1) {
         err = "the image has no channels";
         return false;
@@ -249,6 +253,15 @@ bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& chan
             opt.map);
         return false;
     }
+    return true;
+}
+
+}  // namespace
+
+bool resolveColorScale(const ImageBuf& src, const HeatmapOptions& opt, int& channel,
+                       ColorScale& scale, std::string& err, ROI roi) {
+    const ImageSpec& spec = src.spec();
+    if (!heatmapChannel(spec, opt, channel, err)) return false;
     const std::string name = spec.channel_name(channel);
     ColorScale s;
     s.map = opt.map;

@@ -11,11 +11,11 @@
 #include <new>
 #include <unordered_map>
 
-#include "mcstat/exr-codec/deflate_codec.h"
-#include "mcstat/exr-codec/core_io.h"
-#include "mcstat/exr-codec/fd_stream.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/untrusted_text.h"
+#include "mcstat/exr-codec/core_io.h"
+#include "mcstat/exr-codec/deflate_codec.h"
+#include "mcstat/exr-codec/fd_stream.h"
 #include "mcstat/exr-codec/scratch_pool.h"
 
 namespace mcstat::detail {
@@ -56,6 +56,27 @@ struct Task {
     double cost;
 };
 
+/// A chunk as messages name it: "part 'NAME': the chunk of rows A..B" (made only for a message).
+struct ChunkWhere {
+    const PartInfo& info;
+    int chunkY, chunkEnd;  ///< file rows, chunkEnd exclusive
+    std::string operator()() const {
+        return fmt::format("part '{}': the chunk of rows {}..{}", printable(info.name), chunkY,
+                           chunkEnd - 1);
+    }
+};
+
+/// Where a chunk's channels are decoded to. The pipeline's strides are int32: a chunk within the
+/// rows asked for goes straight into the slices when theirs fit (`direct`), otherwise through
+/// planar scratch rows (`scratch`, one plane of chunkRows rows per channel) and a copy.
+struct ChunkPlan {
+    bool direct = false;
+    int blockY = 0;  ///< the file row of the first row asked for
+    size_t rowBytes = 0, chunkRows = 0;
+    uint8_t* scratch = nullptr;
+    std::vector<const FloatSlice*> target;  ///< per channel of the chunk: its slice, or none
+};
+
 }  // namespace
 
 struct FlatPartReader::Impl {
@@ -74,6 +95,24 @@ struct FlatPartReader::Impl {
     /// but Ok with `problem`.
     Result decode(const PartSlices& req, const std::unordered_map<std::string, size_t>& byName,
                   int chunkY, int firstRow, int rows, Worker& w, std::string& problem);
+
+  private:
+    /// The chunk at file row `chunkY` of part `part`: its chunk table entry into `ci`, checked
+    /// against the part's window and compression (a damaged file's lies end here).
+    Result chunkInfo(int part, int chunkY, const ChunkWhere& where, Worker& w, exr_chunk_info_t& ci,
+                     std::string& problem) const;
+    /// Points every channel of `dec` that a slice asks for at its destination (`plan`: the
+    /// slices themselves or the scratch rows) as FLOAT; Corrupt when a channel changed since the
+    /// header was read.
+    Result bindChannels(const PartSlices& req,
+                        const std::unordered_map<std::string, size_t>& byName,
+                        const exr_chunk_info_t& ci, int chunkY, const ChunkWhere& where,
+                        ChunkPlan& plan, exr_decode_pipeline_t& dec, std::string& problem) const;
+    /// OpenEXR's decoding routines for `dec`, ZIP's replaced by the worker's own decoder, run.
+    exr_result_t runPipeline(int part, const PartInfo& info, exr_decode_pipeline_t& dec,
+                             Worker& w) const;
+    /// The rows [from, to) of the chunk at `chunkY` from the scratch rows to their slices.
+    void copyScratchRows(const ChunkPlan& plan, int chunkY, int from, int to) const;
 };
 
 FlatPartReader::FlatPartReader() = default;
@@ -100,8 +139,7 @@ bool FlatPartReader::open(int fd, uint64_t size, const std::string& path, int x0
     const exr_result_t rv = exr_start_read(&im->ctxt, path.c_str(), &init);
     tPipelineWorker = nullptr;
     if (rv != EXR_ERR_SUCCESS) {
-        problem =
-            fmt::format("header: {}", coreMessage(rv, opener.message));
+        problem = fmt::format("header: {}", coreMessage(rv, opener.message));
         return false;
     }
     int count = 0;
@@ -178,26 +216,18 @@ bool FlatPartReader::readsAsFloat(int part, const std::string& channel) const {
     return false;
 }
 
-FlatPartReader::Result FlatPartReader::Impl::decode(
-    const PartSlices& req, const std::unordered_map<std::string, size_t>& byName, int chunkY,
-    int firstRow, int rows, Worker& w, std::string& problem) {
-    const PartInfo& info = parts[size_t(req.part)];
-    const int part = req.part;
-    const int lines = info.linesPerChunk;
-    const int chunkEnd = std::min(chunkY + lines, y0 + height);  // exclusive, file rows
-    const auto where = [&] {
-        return fmt::format("part '{}': the chunk of rows {}..{}", printable(info.name), chunkY,
-                           chunkEnd - 1);
-    };
+FlatPartReader::Result FlatPartReader::Impl::chunkInfo(int part, int chunkY,
+                                                       const ChunkWhere& where, Worker& w,
+                                                       exr_chunk_info_t& ci,
+                                                       std::string& problem) const {
+    const PartInfo& info = parts[size_t(part)];
     w.message.clear();
-    exr_chunk_info_t ci{};
-    exr_result_t rv = exr_read_scanline_chunk_info(ctxt, part, chunkY, &ci);
+    const exr_result_t rv = exr_read_scanline_chunk_info(ctxt, part, chunkY, &ci);
     if (rv != EXR_ERR_SUCCESS) {
-        problem = fmt::format("{}: {}", where(),
-                              coreMessage(rv, w.message));
+        problem = fmt::format("{}: {}", where(), coreMessage(rv, w.message));
         return rv == EXR_ERR_OUT_OF_MEMORY ? Result::OutOfMemory : Result::Corrupt;
     }
-    if (ci.start_y != chunkY || ci.height != chunkEnd - chunkY || ci.width != width ||
+    if (ci.start_y != chunkY || ci.height != where.chunkEnd - chunkY || ci.width != width ||
         ci.start_x != x0) {
         problem = fmt::format("{}: the chunk covers {}x{} pixels from ({}, {})", where(), ci.width,
                               ci.height, ci.start_x, ci.start_y);
@@ -208,12 +238,92 @@ FlatPartReader::Result FlatPartReader::Impl::decode(
                               ci.packed_size, ci.unpacked_size);
         return Result::Corrupt;
     }
-    const int blockY = y0 + firstRow, blockEnd = y0 + firstRow + rows;  // file rows
-    // The pipeline's strides are int32: a chunk within the rows asked for goes straight into
-    // the slices when theirs fit, otherwise through planar scratch rows and a copy.
-    bool direct = chunkY >= blockY && chunkEnd <= blockEnd;
+    return Result::Ok;
+}
+
+FlatPartReader::Result FlatPartReader::Impl::bindChannels(
+    const PartSlices& req, const std::unordered_map<std::string, size_t>& byName,
+    const exr_chunk_info_t& ci, int chunkY, const ChunkWhere& where, ChunkPlan& plan,
+    exr_decode_pipeline_t& dec, std::string& problem) const {
+    size_t found = 0;
+    for (size_t c = 0; c < plan.target.size(); ++c) {
+        exr_coding_channel_info_t& ch = dec.channels[c];
+        const auto it = byName.find(ch.channel_name != nullptr ? ch.channel_name : "");
+        ch.decode_to_ptr = nullptr;
+        if (it == byName.end()) continue;
+        // HALF is converted to FLOAT by the pipeline's unpack step (a renderer's half AOVs).
+        if ((ch.data_type != EXR_PIXEL_FLOAT && ch.data_type != EXR_PIXEL_HALF) ||
+            ch.x_samples != 1 || ch.y_samples != 1 || ch.width != width || ch.height != ci.height) {
+            problem = fmt::format("{}: channel '{}' changed while reading", where(),
+                                  printable(ch.channel_name));
+            return Result::Corrupt;
+        }
+        const FloatSlice& s = req.slices[it->second];
+        plan.target[c] = &s;
+        ++found;
+        ch.user_data_type = EXR_PIXEL_FLOAT;
+        ch.user_bytes_per_element = 4;
+        if (plan.direct) {
+            ch.decode_to_ptr =
+                reinterpret_cast<uint8_t*>(s.base + size_t(chunkY - plan.blockY) * s.lineStride);
+            ch.user_pixel_stride = int32_t(s.pixelStride);
+            ch.user_line_stride = int32_t(s.lineStride);
+        } else {
+            ch.decode_to_ptr = plan.scratch + c * plan.chunkRows * plan.rowBytes;
+            ch.user_pixel_stride = int32_t(sizeof(float));
+            ch.user_line_stride = int32_t(plan.rowBytes);
+        }
+    }
+    if (found != req.slices.size()) {
+        problem = fmt::format("{}: the file changed while reading (channels)", where());
+        return Result::Corrupt;
+    }
+    return Result::Ok;
+}
+
+exr_result_t FlatPartReader::Impl::runPipeline(int part, const PartInfo& info,
+                                               exr_decode_pipeline_t& dec, Worker& w) const {
+    exr_result_t rv = exr_decoding_choose_default_routines(ctxt, part, &dec);
+    if (rv == EXR_ERR_SUCCESS && isZipCompression(info.compression) &&
+        dec.decompress_fn != nullptr) {
+        dec.decompress_fn = &zipDecompressChunk;
+        dec.decoding_user_data = &w.zip;
+    }
+    if (rv == EXR_ERR_SUCCESS) rv = exr_decoding_run(ctxt, part, &dec);
+    return rv;
+}
+
+void FlatPartReader::Impl::copyScratchRows(const ChunkPlan& plan, int chunkY, int from,
+                                           int to) const {
+    for (size_t c = 0; c < plan.target.size(); ++c) {
+        const FloatSlice* s = plan.target[c];
+        if (s == nullptr) continue;
+        for (int y = from; y < to; ++y) {
+            const uint8_t* src =
+                plan.scratch + (c * plan.chunkRows + size_t(y - chunkY)) * plan.rowBytes;
+            char* dst = s->base + size_t(y - plan.blockY) * s->lineStride;
+            for (size_t x = 0; x < size_t(width); ++x)
+                std::memcpy(dst + x * s->pixelStride, src + x * sizeof(float), sizeof(float));
+        }
+    }
+}
+
+FlatPartReader::Result FlatPartReader::Impl::decode(
+    const PartSlices& req, const std::unordered_map<std::string, size_t>& byName, int chunkY,
+    int firstRow, int rows, Worker& w, std::string& problem) {
+    const PartInfo& info = parts[size_t(req.part)];
+    const int part = req.part;
+    const int chunkEnd = std::min(chunkY + info.linesPerChunk, y0 + height);  // exclusive
+    const ChunkWhere where{info, chunkY, chunkEnd};
+    exr_chunk_info_t ci{};
+    if (const Result r = chunkInfo(part, chunkY, where, w, ci, problem); r != Result::Ok) return r;
+    ChunkPlan plan;
+    plan.blockY = y0 + firstRow;
+    const int blockEnd = y0 + firstRow + rows;  // file rows
+    plan.direct = chunkY >= plan.blockY && chunkEnd <= blockEnd;
     for (const FloatSlice& s : req.slices)
-        direct = direct && s.pixelStride <= size_t(INT32_MAX) && s.lineStride <= size_t(INT32_MAX);
+        plan.direct =
+            plan.direct && s.pixelStride <= size_t(INT32_MAX) && s.lineStride <= size_t(INT32_MAX);
 
     // Everything that may throw before the pipeline exists (it owns allocations until destroyed).
     const exr_attr_chlist_t* chlist = nullptr;
@@ -221,89 +331,38 @@ FlatPartReader::Result FlatPartReader::Impl::decode(
         problem = fmt::format("{}: no channel list", where());
         return Result::Corrupt;
     }
-    const size_t rowBytes = size_t(width) * sizeof(float);
-    const size_t chunkRows = size_t(ci.height);
-    std::vector<const FloatSlice*> target(size_t(std::max(0, chlist->num_channels)), nullptr);
-    uint8_t* scratch = direct ? nullptr : w.rowScratch(target.size() * chunkRows * rowBytes);
+    plan.rowBytes = size_t(width) * sizeof(float);
+    plan.chunkRows = size_t(ci.height);
+    plan.target.assign(size_t(std::max(0, chlist->num_channels)), nullptr);
+    plan.scratch =
+        plan.direct ? nullptr : w.rowScratch(plan.target.size() * plan.chunkRows * plan.rowBytes);
 
     exr_decode_pipeline_t dec{};  // EXR_DECODE_PIPELINE_INITIALIZER: all zero
-    rv = exr_decoding_initialize(ctxt, part, &ci, &dec);
+    exr_result_t rv = exr_decoding_initialize(ctxt, part, &ci, &dec);
     Result result = Result::Ok;
-    if (rv == EXR_ERR_SUCCESS && size_t(std::max<int16_t>(0, dec.channel_count)) != target.size()) {
+    if (rv == EXR_ERR_SUCCESS &&
+        size_t(std::max<int16_t>(0, dec.channel_count)) != plan.target.size()) {
         problem = fmt::format("{}: the file changed while reading (channels)", where());
         result = Result::Corrupt;
     }
     if (rv == EXR_ERR_SUCCESS && result == Result::Ok) {
         dec.alloc_fn = &pipelineAlloc;
         dec.free_fn = &pipelineFree;
-        size_t found = 0;
-        for (size_t c = 0; c < target.size(); ++c) {
-            exr_coding_channel_info_t& ch = dec.channels[c];
-            const auto it = byName.find(ch.channel_name != nullptr ? ch.channel_name : "");
-            ch.decode_to_ptr = nullptr;
-            if (it == byName.end()) continue;
-            // HALF is converted to FLOAT by the pipeline's unpack step (a renderer's half AOVs).
-            if ((ch.data_type != EXR_PIXEL_FLOAT && ch.data_type != EXR_PIXEL_HALF) ||
-                ch.x_samples != 1 || ch.y_samples != 1 || ch.width != width ||
-                ch.height != ci.height) {
-                problem = fmt::format("{}: channel '{}' changed while reading", where(),
-                                      printable(ch.channel_name));
-                result = Result::Corrupt;
-                break;
-            }
-            const FloatSlice& s = req.slices[it->second];
-            target[c] = &s;
-            ++found;
-            ch.user_data_type = EXR_PIXEL_FLOAT;
-            ch.user_bytes_per_element = 4;
-            if (direct) {
-                ch.decode_to_ptr =
-                    reinterpret_cast<uint8_t*>(s.base + size_t(chunkY - blockY) * s.lineStride);
-                ch.user_pixel_stride = int32_t(s.pixelStride);
-                ch.user_line_stride = int32_t(s.lineStride);
-            } else {
-                ch.decode_to_ptr = scratch + c * chunkRows * rowBytes;
-                ch.user_pixel_stride = int32_t(sizeof(float));
-                ch.user_line_stride = int32_t(rowBytes);
-            }
-        }
-        if (result == Result::Ok && found != req.slices.size()) {
-            problem = fmt::format("{}: the file changed while reading (channels)", where());
-            result = Result::Corrupt;
-        }
-        if (result == Result::Ok) {
-            rv = exr_decoding_choose_default_routines(ctxt, part, &dec);
-            if (rv == EXR_ERR_SUCCESS && isZipCompression(info.compression) &&
-                dec.decompress_fn != nullptr) {
-                dec.decompress_fn = &zipDecompressChunk;
-                dec.decoding_user_data = &w.zip;
-            }
-            if (rv == EXR_ERR_SUCCESS) rv = exr_decoding_run(ctxt, part, &dec);
-        }
+        result = bindChannels(req, byName, ci, chunkY, where, plan, dec, problem);
+        if (result == Result::Ok) rv = runPipeline(part, info, dec, w);
     }
     if (result == Result::Ok && rv != EXR_ERR_SUCCESS) {
         // The codec's own reason first, else OpenEXR's first message for this chunk.
         const bool zipFailed = isZipCompression(info.compression) && rv == EXR_ERR_CORRUPT_CHUNK &&
                                !w.zip.problem().empty();
         problem = fmt::format("{}: {}", where(),
-                              zipFailed           ? w.zip.problem()
-                              : coreMessage(rv, w.message));
+                              zipFailed ? w.zip.problem() : coreMessage(rv, w.message));
         result = rv == EXR_ERR_OUT_OF_MEMORY ? Result::OutOfMemory : Result::Corrupt;
     }
     if (dec.context != nullptr) exr_decoding_destroy(ctxt, &dec);
-    if (result != Result::Ok || direct) return result;
+    if (result != Result::Ok || plan.direct) return result;
     // Scratch rows to the slices: the rows of the chunk that were asked for.
-    const int from = std::max(chunkY, blockY), to = std::min(chunkEnd, blockEnd);
-    for (size_t c = 0; c < target.size(); ++c) {
-        const FloatSlice* s = target[c];
-        if (s == nullptr) continue;
-        for (int y = from; y < to; ++y) {
-            const uint8_t* src = scratch + (c * chunkRows + size_t(y - chunkY)) * rowBytes;
-            char* dst = s->base + size_t(y - blockY) * s->lineStride;
-            for (size_t x = 0; x < size_t(width); ++x)
-                std::memcpy(dst + x * s->pixelStride, src + x * sizeof(float), sizeof(float));
-        }
-    }
+    copyScratchRows(plan, chunkY, std::max(chunkY, plan.blockY), std::min(chunkEnd, blockEnd));
     return Result::Ok;
 }
 

@@ -321,6 +321,233 @@ inline void neighboursBounds(const std::vector<PajotMode>& modes,
     }
 }
 
+/// The spans of the modes (see BoundSpan) and `absSlack`, the exact code's rounding of its points,
+/// values and closed forms (an absolute error per term of a few ulps of the values over nn, at most
+/// `total` terms). False when no certificate can be had: a window index beyond 2^52, or a slack of
+/// 1e-3 or more.
+bool boundSpans(const std::vector<PajotMode>& modes, int64_t total, double invNn,
+                std::vector<BoundSpan>& spans, double& absSlack) {
+    const double eps = std::numeric_limits<double>::epsilon();
+    double maxAbs = 0;
+    spans.resize(modes.size());
+    for (size_t j = 0; j < modes.size(); ++j) {
+        const PajotMode& m = modes[j];
+        maxAbs = std::max(maxAbs, std::max(std::fabs(double(m.lo)), std::fabs(double(m.hi))));
+        BoundSpan& sp = spans[j];
+        sp = BoundSpan();
+        if (m.n != 1 && m.lo != m.hi) {
+            sp.r = (double(m.hi) - double(m.lo)) / double(m.n - 1) * invNn;
+            sp.invR = 1.0 / sp.r;
+            // The closed form's window indices (x -+ nn - lo) / s, up to n - 1 + 2 / r in size,
+            // must stay below 2^52, where its floor and ceiling are exact (beyond, the exact
+            // code's conversions to int64_t give what they give): no certificate otherwise.
+            if (!(sp.invR < 281474976710656.0)) return false;
+        }
+    }
+    absSlack = (16.0 * eps * maxAbs * invNn + 64.0 * eps) * double(total);
+    return absSlack < 1e-3;
+}
+
+/// One mode j, not an isolated single one, as the bounds at its points see it.
+struct ModeBounds {
+    /// The modes with values within nn of mode j's [lo, hi], and what its points share.
+    ModeBounds(const std::vector<PajotMode>& modes_, const std::vector<BoundSpan>& spans_,
+               size_t j_, double nn, double invNn_, double absSlack_)
+        : modes(modes_),
+          spans(spans_),
+          j(j_),
+          below(j_),
+          above(j_ + 1),
+          q(std::min<int64_t>(modes_[j_].n, 16)),
+          lo(modes_[j_].lo),
+          hi(modes_[j_].hi),
+          width(hi - lo),
+          invNn(invNn_),
+          absSlack(absSlack_) {
+        while (below > 0 && double(modes[below - 1].hi) > lo - nn) --below;
+        while (above < modes.size() && double(modes[above].lo) < hi + nn) ++above;
+    }
+
+    const std::vector<PajotMode>& modes;
+    const std::vector<BoundSpan>& spans;
+    size_t j;
+    size_t below, above;  ///< the modes [below, above) have values within nn of [lo, hi]
+    int64_t q;            ///< its quadrature points
+    double lo, hi, width, invNn, absSlack;
+};
+
+/// A mode's grid sums: the whole grid's sum, within [gridLo, gridHi], which is also the own values'
+/// sum at a point whose window lies inside [lo, hi] (a, b >= 1; no other mode reaches such a
+/// point), within [innerLo, innerHi] with the bounds at values and between them, n and the
+/// rounding. All 0 for a mode of equal values.
+struct GridSums {
+    double gridLo = 0, gridHi = 0, innerLo = 0, innerHi = 0;
+};
+
+/// The grid sums of mode mb.j; only gridHi when `onlyHi` (the coarse bounds read no other).
+GridSums gridSums(const ModeBounds& mb, bool onlyHi) {
+    const PajotMode& m = mb.modes[mb.j];
+    const BoundSpan own = mb.spans[mb.j];
+    const double r = own.r;
+    GridSums g;
+    if (own.invR != 0.0) {
+        g.gridHi = 4.0 / 3.0 * own.invR + r * (1.0 / 6.0) + 0.04 * r * r;
+        if (!onlyHi) {
+            g.gridLo = 4.0 / 3.0 * own.invR - r * (1.0 / 3.0) - 0.04 * r * r;
+            g.innerLo = std::max(g.gridLo, mb.q == m.n ? 1.0 : r < 2.0 ? 1.0 - 0.25 * r * r : 0.0);
+            g.innerHi = std::min(g.gridHi, double(m.n));
+            g.innerLo = std::max(0.0, g.innerLo * (1.0 - 1e-9) - mb.absSlack);
+            g.innerHi = g.innerHi * (1.0 + 1e-9) + mb.absSlack;
+        }
+    }
+    return g;
+}
+
+/// The coarse bounds: one pair of bounds of S for every point of the mode, each multiplied into
+/// prodLo, prodHi once per point. Own values: at least (F(min(a, 1)) + F(min(b, 1))) / r less
+/// min(1, r/3 + 0.04 r^2) (the unimodal bound; the grid less its tails), a + b = w / nn with F
+/// concave and F(0) = 0, so at least F(min(w / nn, 1)) / r less that; at least 1 at values,
+/// 1 - (r/2)^2 elsewhere; at most the whole grid's sum, n and 4 / (3 r) + 1. Neighbours: at most
+/// what they add at the mode's nearest end (their upper bound decreases with the gap), at least 0.
+void coarseProducts(const ModeBounds& mb, double& prodLo, double& prodHi) {
+    const PajotMode& m = mb.modes[mb.j];
+    const BoundSpan own = mb.spans[mb.j];
+    const double r = own.r;
+    double sLo = double(m.n), sHi = double(m.n);
+    if (own.invR != 0.0) {
+        const double gridHi = gridSums(mb, true).gridHi;
+        const double fw = kernelIntegral(std::min(1.0, mb.width * mb.invNn));
+        sLo = std::max(fw * own.invR - std::min(1.0, r * (1.0 / 3.0) + 0.04 * r * r),
+                       mb.q == m.n ? 1.0
+                       : r < 2.0   ? 1.0 - 0.25 * r * r
+                                   : 0.0);
+        sHi = std::min(double(m.n), std::min(gridHi, 4.0 / 3.0 * own.invR + 1.0));
+    }
+    double unused = 0;
+    neighboursBounds(mb.modes, mb.spans, mb.below, mb.j, mb.above, mb.lo, mb.hi, mb.invNn, unused,
+                     sHi);
+    sLo = std::max(0.0, sLo * (1.0 - 1e-9) - mb.absSlack);
+    sHi = sHi * (1.0 + 1e-9) + mb.absSlack;
+    for (int64_t t = 0; t < mb.q; ++t) {
+        prodLo *= sLo;
+        prodHi *= sHi;
+    }
+}
+
+/// Bounds of the sum of a mode's own values (spacing r nn, not all equal) in the window of its
+/// quadrature point t, x, within nn of an end (a = (x - lo) / nn < 1 or b = (hi - x) / nn < 1):
+/// the grid's sum less its tails beyond lo and hi, the half grid at an end, the integral over the
+/// window's part inside [lo, hi] within 1, and the bounds at values and between them.
+void ownValuesBounds(const ModeBounds& mb, const GridSums& g, int64_t t, double x, double a,
+                     double b, double& sLo, double& sHi) {
+    const PajotMode& m = mb.modes[mb.j];
+    const BoundSpan own = mb.spans[mb.j];
+    const double r = own.r;
+    const double full = kernelIntegral(1.0);
+    // The grid's sum less its tails beyond lo and hi.
+    double fa = full, fb = full, tailLo = 0, tailHi = 0;
+    if (a < 1.0) {
+        fa = kernelIntegral(std::max(0.0, a));
+        tailHi += (full - fa) * own.invR;
+        tailLo += (full - kernelIntegral(std::min(1.0, std::max(0.0, a) + r))) * own.invR;
+    }
+    if (b < 1.0) {
+        fb = kernelIntegral(std::max(0.0, b));
+        tailHi += (full - fb) * own.invR;
+        tailLo += (full - kernelIntegral(std::min(1.0, std::max(0.0, b) + r))) * own.invR;
+    }
+    sLo = g.gridLo - tailHi;
+    sHi = std::min(double(m.n), g.gridHi - tailLo);
+    if ((x == mb.lo && b >= 1.0) || (x == mb.hi && a >= 1.0)) {
+        sLo = std::max(sLo, 0.5 * (g.gridLo + 1.0));
+        sHi = std::min(sHi, 0.5 * (g.gridHi + 1.0));
+    }
+    const double mid = (fa + fb) * own.invR;
+    sLo = std::max(sLo, mid - 1.0);
+    sHi = std::min(sHi, mid + 1.0);
+    if (mb.q == m.n || t == 0 || t == mb.q - 1)
+        sLo = std::max(sLo, 1.0);
+    else if (r < 2.0)
+        sLo = std::max(sLo, 1.0 - 0.25 * r * r);
+}
+
+/// The bounds per point: bounds of S at each of the mode's quadrature points (own values and the
+/// neighbours that reach the point), multiplied into prodLo, prodHi.
+void pointProducts(const ModeBounds& mb, double& prodLo, double& prodHi) {
+    const PajotMode& m = mb.modes[mb.j];
+    const BoundSpan own = mb.spans[mb.j];
+    const GridSums g = gridSums(mb, false);
+    const double* pos = quadraturePositions(mb.q);
+    for (int64_t t = 0; t < mb.q; ++t) {
+        const double x = mb.lo + mb.width * (mb.q == 1 ? 0.0 : pos[t]);
+        const double a = (x - mb.lo) * mb.invNn, b = (mb.hi - x) * mb.invNn;
+        if (a >= 1.0 && b >= 1.0 && own.invR != 0.0) {
+            prodLo *= g.innerLo;
+            prodHi *= g.innerHi;
+            continue;
+        }
+        double sLo, sHi;
+        if (own.invR == 0.0)
+            sLo = sHi = double(m.n);
+        else
+            ownValuesBounds(mb, g, t, x, a, b, sLo, sHi);
+        // Beyond nn from an end, no neighbour on that side is within nn of x.
+        neighboursBounds(mb.modes, mb.spans, a < 1.0 ? mb.below : mb.j, mb.j,
+                         b < 1.0 ? mb.above : mb.j + 1, x, x, mb.invNn, sLo, sHi);
+        prodLo *= std::max(0.0, sLo * (1.0 - 1e-9) - mb.absSlack);
+        prodHi *= sHi * (1.0 + 1e-9) + mb.absSlack;
+    }
+}
+
+/// Sums of w log S over the points, lower and upper: modes of up to 16 values have w = 1, so their
+/// bounds go into one running product (one log when it leaves [1e-200, 1e200], and at the end).
+struct LogSums {
+    double logLo = 0, logHi = 0, weight = 0;
+    double unitLo = 1, unitHi = 1;
+    int64_t terms = 0;
+
+    /// An isolated single mode: S = 1 exactly.
+    void addIsolated() {
+        weight += 1;
+        ++terms;
+    }
+
+    /// A mode of n values and q points whose bounds of S multiply to prodLo, prodHi.
+    void addMode(int64_t n, int64_t q, double prodLo, double prodHi) {
+        weight += double(n);
+        terms += q;
+        if (q == n) {
+            unitLo *= prodLo;
+            unitHi *= prodHi;
+            if (!(unitHi < 1e200) || unitLo < 1e-200) {
+                logLo += std::log(unitLo);  // -inf when a bound is 0: gLo = 0
+                logHi += std::log(unitHi);
+                unitLo = unitHi = 1;
+            }
+        } else {
+            const double w = double(n) / double(q);
+            logLo += w * std::log(prodLo);
+            logHi += w * std::log(prodHi);
+        }
+    }
+
+    /// gLo, gHi from the sums: 0.75 / (total nn) times the weighted geometric means, widened for
+    /// the exact code's logs, weighted sum and exp (a few ulps of up to about 750 per term). False
+    /// when a density could overflow or the slack is too large.
+    bool bounds(int64_t total, double nn, double& gLo, double& gHi) {
+        const double eps = std::numeric_limits<double>::epsilon();
+        logLo += std::log(unitLo);
+        logHi += std::log(unitHi);
+        const double scale = 0.75 / (double(total) * nn);
+        const double relSlack = 1e-9 + 4096.0 * eps * double(terms);
+        // Every density the exact code computes, at most 0.75 total / (total nn), must be finite.
+        if (!(relSlack < 1e-3) || !(scale > 0.0) || !(scale * double(total) < 1e300)) return false;
+        gLo = scale * std::exp(logLo / weight) * (1.0 - relSlack);
+        gHi = scale * std::exp(logHi / weight) * (1.0 + relSlack);
+        return gHi < HUGE_VAL;
+    }
+};
+
 /// Bounds of eq. 4's G as adrGeometricMeanDensity computes it (rounding included), over the same
 /// quadrature points, without their densities. At a point x of a mode of spacing s = r nn (values
 /// lo + i s, i < n, x in [lo, hi], a = (x - lo) / nn, b = (hi - x) / nn), the mode's own values in
@@ -345,164 +572,30 @@ inline void neighboursBounds(const std::vector<PajotMode>& modes,
 /// values give n (1 - u^2) exactly. Every bound is widened for the exact code's rounding: its
 /// points, values and closed forms (an absolute error per term of a few ulps of the values over nn,
 /// at most `total` terms), its logs, weighted sum and exp (a few ulps of up to about 750 per
-/// term). `coarse`: one pair of bounds per mode instead (cheaper, looser; see below). Returns false
-/// when no bounds can be formed (positions too coarse against nn, a product out of range); gLo may
-/// be 0.
+/// term). `coarse`: one pair of bounds per mode instead (cheaper, looser; coarseProducts). Returns
+/// false when no bounds can be formed (positions too coarse against nn, a product out of range);
+/// gLo may be 0.
 bool adrGeometricMeanBounds(const std::vector<PajotMode>& modes, int64_t total, double nn,
                             std::vector<BoundSpan>& spans, bool coarse, double& gLo, double& gHi) {
     const double invNn = 1.0 / nn;
-    const double eps = std::numeric_limits<double>::epsilon();
-    double maxAbs = 0;
-    spans.resize(modes.size());
+    double absSlack = 0;
+    if (!boundSpans(modes, total, invNn, spans, absSlack)) return false;
+    LogSums sums;
     for (size_t j = 0; j < modes.size(); ++j) {
-        const PajotMode& m = modes[j];
-        maxAbs = std::max(maxAbs, std::max(std::fabs(double(m.lo)), std::fabs(double(m.hi))));
-        BoundSpan& sp = spans[j];
-        sp = BoundSpan();
-        if (m.n != 1 && m.lo != m.hi) {
-            sp.r = (double(m.hi) - double(m.lo)) / double(m.n - 1) * invNn;
-            sp.invR = 1.0 / sp.r;
-            // The closed form's window indices (x -+ nn - lo) / s, up to n - 1 + 2 / r in size,
-            // must stay below 2^52, where its floor and ceiling are exact (beyond, the exact
-            // code's conversions to int64_t give what they give): no certificate otherwise.
-            if (!(sp.invR < 281474976710656.0)) return false;
-        }
-    }
-    const double absSlack = (16.0 * eps * maxAbs * invNn + 64.0 * eps) * double(total);
-    if (!(absSlack < 1e-3)) return false;
-    const double full = kernelIntegral(1.0);
-    // Sum of w log S over the points: modes of up to 16 values have w = 1, so their bounds go
-    // into one running product (one log when it leaves [1e-200, 1e200], and at the end).
-    double logLo = 0, logHi = 0, weight = 0;
-    double unitLo = 1, unitHi = 1;
-    int64_t terms = 0;
-    for (size_t j = 0; j < modes.size(); ++j) {
-        const PajotMode& m = modes[j];
-        if (isolatedSingle(modes, j, nn)) {  // S = 1 exactly
-            weight += 1;
-            ++terms;
+        if (isolatedSingle(modes, j, nn)) {
+            sums.addIsolated();
             continue;
         }
-        const int64_t q = std::min<int64_t>(m.n, 16);
-        const double* pos = quadraturePositions(q);
-        const double lo = m.lo, hi = m.hi, width = hi - lo;
-        const BoundSpan own = spans[j];
-        const double r = own.r;
-        // The whole grid's sum, which is also the own values' sum at a point whose window lies
-        // inside [lo, hi] (a, b >= 1; no other mode reaches such a point).
-        double gridLo = 0, gridHi = 0, innerLo = 0, innerHi = 0;
-        if (own.invR != 0.0) {
-            gridHi = 4.0 / 3.0 * own.invR + r * (1.0 / 6.0) + 0.04 * r * r;
-            if (!coarse) {  // the coarse pair reads only gridHi
-                gridLo = 4.0 / 3.0 * own.invR - r * (1.0 / 3.0) - 0.04 * r * r;
-                innerLo = std::max(gridLo, q == m.n ? 1.0 : r < 2.0 ? 1.0 - 0.25 * r * r : 0.0);
-                innerHi = std::min(gridHi, double(m.n));
-                innerLo = std::max(0.0, innerLo * (1.0 - 1e-9) - absSlack);
-                innerHi = innerHi * (1.0 + 1e-9) + absSlack;
-            }
-        }
-        // The modes with values within nn of [lo, hi].
-        size_t below = j, above = j + 1;
-        while (below > 0 && double(modes[below - 1].hi) > lo - nn) --below;
-        while (above < modes.size() && double(modes[above].lo) < hi + nn) ++above;
+        const ModeBounds mb(modes, spans, j, nn, invNn, absSlack);
         double prodLo = 1, prodHi = 1;
-        if (coarse) {
-            // One pair of bounds for every point of the mode. Own values: at least
-            // (F(min(a, 1)) + F(min(b, 1))) / r less min(1, r/3 + 0.04 r^2) (the unimodal bound;
-            // the grid less its tails), a + b = w / nn with F concave and F(0) = 0, so at least
-            // F(min(w / nn, 1)) / r less that; at least 1 at values, 1 - (r/2)^2 elsewhere; at
-            // most the whole grid's sum, n and 4 / (3 r) + 1. Neighbours: at most what they add at
-            // the mode's nearest end (their upper bound decreases with the gap), at least 0.
-            double sLo = double(m.n), sHi = double(m.n);
-            if (own.invR != 0.0) {
-                const double fw = kernelIntegral(std::min(1.0, width * invNn));
-                sLo = std::max(fw * own.invR - std::min(1.0, r * (1.0 / 3.0) + 0.04 * r * r),
-                               q == m.n  ? 1.0
-                               : r < 2.0 ? 1.0 - 0.25 * r * r
-                                         : 0.0);
-                sHi = std::min(double(m.n), std::min(gridHi, 4.0 / 3.0 * own.invR + 1.0));
-            }
-            double unused = 0;
-            neighboursBounds(modes, spans, below, j, above, lo, hi, invNn, unused, sHi);
-            sLo = std::max(0.0, sLo * (1.0 - 1e-9) - absSlack);
-            sHi = sHi * (1.0 + 1e-9) + absSlack;
-            for (int64_t t = 0; t < q; ++t) {
-                prodLo *= sLo;
-                prodHi *= sHi;
-            }
-        }
-        for (int64_t t = 0; t < q && !coarse; ++t) {
-            const double x = lo + width * (q == 1 ? 0.0 : pos[t]);
-            const double a = (x - lo) * invNn, b = (hi - x) * invNn;
-            if (a >= 1.0 && b >= 1.0 && own.invR != 0.0) {
-                prodLo *= innerLo;
-                prodHi *= innerHi;
-                continue;
-            }
-            double sLo, sHi;
-            if (own.invR == 0.0) {
-                sLo = sHi = double(m.n);
-            } else {
-                // The grid's sum less its tails beyond lo and hi.
-                double fa = full, fb = full, tailLo = 0, tailHi = 0;
-                if (a < 1.0) {
-                    fa = kernelIntegral(std::max(0.0, a));
-                    tailHi += (full - fa) * own.invR;
-                    tailLo +=
-                        (full - kernelIntegral(std::min(1.0, std::max(0.0, a) + r))) * own.invR;
-                }
-                if (b < 1.0) {
-                    fb = kernelIntegral(std::max(0.0, b));
-                    tailHi += (full - fb) * own.invR;
-                    tailLo +=
-                        (full - kernelIntegral(std::min(1.0, std::max(0.0, b) + r))) * own.invR;
-                }
-                sLo = gridLo - tailHi;
-                sHi = std::min(double(m.n), gridHi - tailLo);
-                if ((x == lo && b >= 1.0) || (x == hi && a >= 1.0)) {
-                    sLo = std::max(sLo, 0.5 * (gridLo + 1.0));
-                    sHi = std::min(sHi, 0.5 * (gridHi + 1.0));
-                }
-                const double mid = (fa + fb) * own.invR;
-                sLo = std::max(sLo, mid - 1.0);
-                sHi = std::min(sHi, mid + 1.0);
-                if (q == m.n || t == 0 || t == q - 1)
-                    sLo = std::max(sLo, 1.0);
-                else if (r < 2.0)
-                    sLo = std::max(sLo, 1.0 - 0.25 * r * r);
-            }
-            // Beyond nn from an end, no neighbour on that side is within nn of x.
-            neighboursBounds(modes, spans, a < 1.0 ? below : j, j, b < 1.0 ? above : j + 1, x, x,
-                             invNn, sLo, sHi);
-            prodLo *= std::max(0.0, sLo * (1.0 - 1e-9) - absSlack);
-            prodHi *= sHi * (1.0 + 1e-9) + absSlack;
-        }
+        if (coarse)
+            coarseProducts(mb, prodLo, prodHi);
+        else
+            pointProducts(mb, prodLo, prodHi);
         if (!(prodHi < 1e200)) return false;  // at most 16 factors of at most 2^32 each
-        weight += double(m.n);
-        terms += q;
-        if (q == m.n) {
-            unitLo *= prodLo;
-            unitHi *= prodHi;
-            if (!(unitHi < 1e200) || unitLo < 1e-200) {
-                logLo += std::log(unitLo);  // -inf when a bound is 0: gLo = 0
-                logHi += std::log(unitHi);
-                unitLo = unitHi = 1;
-            }
-        } else {
-            const double w = double(m.n) / double(q);
-            logLo += w * std::log(prodLo);
-            logHi += w * std::log(prodHi);
-        }
+        sums.addMode(modes[j].n, mb.q, prodLo, prodHi);
     }
-    logLo += std::log(unitLo);
-    logHi += std::log(unitHi);
-    const double scale = 0.75 / (double(total) * nn);
-    const double relSlack = 1e-9 + 4096.0 * eps * double(terms);
-    // Every density the exact code computes, at most 0.75 total / (total nn), must be finite.
-    if (!(relSlack < 1e-3) || !(scale > 0.0) || !(scale * double(total) < 1e300)) return false;
-    gLo = scale * std::exp(logLo / weight) * (1.0 - relSlack);
-    gHi = scale * std::exp(logHi / weight) * (1.0 + relSlack);
-    return gHi < HUGE_VAL;
+    return sums.bounds(total, nn, gLo, gHi);
 }
 
 }  // namespace

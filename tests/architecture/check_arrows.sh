@@ -59,7 +59,7 @@ rule measures "$core|analysis/(metrics|planner|two_sample)\.h" analysis include/
 # operation through its kernel and names no family; no tool, no ingest, no review.
 rule imagespec "$format|image/(image_spec|render_layout)\.h" image/image_spec.cpp \
   image/render_layout.cpp include/mcstat/image/image_spec.h include/mcstat/image/render_layout.h
-rule image "$format|filters/(operation|estimate|registry|aov_weights|removed_light|keep_light|interval)\.h|image/[a-z_]+\.h|color\.h|analysis/metrics\.h" \
+rule image "$format|filters/(operation|estimate|registry|aov_weights|removed_light|keep_light|interval)\.h|image/[a-z_]+\.h|analysis/metrics\.h" \
   image include/mcstat/image
 # Layer 4: ingest reads renderers' EXRs through the codec, never the format's private headers,
 # and sets up images through the spec library, not the operations.
@@ -69,8 +69,11 @@ rule ingest "$format|image/(image_spec|render_layout)\.h|color\.h|ingest\.h|chan
 # the measures, through the registry (no family of operations), and on no tool, no ingest and not
 # on each other; only the comparison's reports draw with the review pictures.
 onimage="$format|filters/(operation|estimate|registry)\.h|image/[a-z_]+\.h|analysis/(metrics|planner|two_sample)\.h"
-rule review "$onimage|review/review_pictures\.h" review include/mcstat/review
-rule compare "$onimage|compare/compare\.h" compare/compare.cpp include/mcstat/compare/compare.h
+rule review "$onimage|review/(review_pictures|display)\.h|color\.h" review include/mcstat/review
+rule compare "$onimage|compare/compare\.h" compare/compare.cpp compare/compare_checks.cpp \
+  compare/compare_checks.h compare/comparison.h compare/comparison.cpp compare/comparison_tile.cpp \
+  compare/comparison_decision.cpp compare/comparison_maps.cpp compare/side_values.cpp \
+  compare/compare_verdict.cpp compare/compare_params.cpp include/mcstat/compare/compare.h
 rule compare-report "$onimage|compare/(compare|compare_report|report_folder)\.h|review/review_pictures\.h" \
   compare/compare_report.cpp include/mcstat/compare/compare_report.h
 # A report folder (never a user's file lost) stands on the format layer's atomic writes alone.

@@ -18,6 +18,7 @@
 #include "mcstat/color.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
+#include "mcstat/review/display.h"
 #include "mcstat/review/review_pictures.h"
 #include "mcstat/stats_file.h"
 

@@ -2,7 +2,11 @@
 //   ImageBuf op(const Src&, ..., ROI roi = {}, int nthreads = 0)
 //   bool     op(ImageBuf& dst, const Src&, ..., ROI roi = {}, int nthreads = 0)
 // Errors are recorded on the returned / destination ImageBuf (has_error(), geterror()); nothing
-// throws.
+// throws. One theme per source file of image/: estimate.cpp, window_filter_image.cpp,
+// window_filter_buffers.cpp, apply_operation.cpp (the dispatcher), imageops_stream.cpp (the same,
+// streamed), residual.cpp, plain_mean.cpp, operation_modifiers.cpp, confidence_modifiers.cpp,
+// interval_width.cpp, samples_operation.cpp, describe_result.cpp. The display transform and the
+// image differences of review tools are review/'s (mcstat/review/display.h).
 #pragma once
 
 #include <OpenImageIO/imagebuf.h>
@@ -10,7 +14,6 @@
 #include <map>
 #include <string>
 
-#include "mcstat/analysis/metrics.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/image_spec.h"
 #include "mcstat/stats_file.h"
@@ -207,15 +210,5 @@ bool runSamplesOperation(OIIO::ImageBuf& dst, const std::string& path, const Sta
 
 /// The beauty part (plain mean) of a statistics file as an RGB float image.
 OIIO::ImageBuf beautyImage(const StatsImage& src);
-
-/// Display-encodes the R, G, B channels of `src` through the active OCIO config's default display
-/// and view (float result, unclamped).
-bool displayTransform(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, OIIO::ROI roi = {},
-                      int nthreads = 0);
-OIIO::ImageBuf displayTransform(const OIIO::ImageBuf& src, OIIO::ROI roi = {}, int nthreads = 0);
-
-/// Compares the RGB of `img` with `ref` (same size): see metrics.h. False with `err` on mismatch.
-bool diffImages(const OIIO::ImageBuf& img, const OIIO::ImageBuf& ref, const DiffOptions& opt,
-                DiffMetrics& out, std::string& err);
 
 }  // namespace mcstat

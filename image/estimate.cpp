@@ -1,0 +1,330 @@
+// A per-pixel estimator over a statistics image in memory (estimate, imageops.h): the estimate of
+// every pixel, with its diagnostics, confidence intervals, AOVs and removed-light layers.
+#include <OpenImageIO/imagebufalgo_util.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+
+#include "mcstat/filters/aov_weights.h"
+#include "mcstat/filters/interval.h"
+#include "mcstat/filters/removed_light.h"
+#include "mcstat/image/expected_interval.h"
+#include "mcstat/image/imageops.h"
+#include "mcstat/image/removed_light_pass.h"
+
+namespace mcstat {
+
+using OIIO::ImageBuf;
+using OIIO::ImageSpec;
+using OIIO::ROI;
+
+std::vector<std::string> estimatorChannels(EstimatorMode mode, bool diagnostics) {
+    std::vector<std::string> names = {"R", "G", "B"};
+    if (!diagnostics) return names;
+    if (mode == EstimatorMode::Luminance) {
+        names.insert(names.end(), {"gini", "kept", "excluded"});
+    } else {
+        names.insert(names.end(),
+                     {"gini.R", "gini.G", "gini.B", "kept.R", "kept.G", "kept.B", "excluded"});
+    }
+    return names;
+}
+
+namespace {
+
+/// What a compact file's intervals cover beside the estimator's target (mcstat:ciTarget).
+constexpr const char* kCompactIntervalTarget =
+    "; on a compact file's pixels that kept only their mean (no heavy tail: every estimator gives "
+    "the mean there), the expected value, by Student's t from the stored spread";
+
+/// dst.reset(spec) that keeps dst's pixel memory when it already has the same float layout (a
+/// caller estimating again into the same image: each new allocation of a 1080p result with its
+/// interval layers is some 18,000 fresh pages to fault in). Every pixel is written afterwards.
+void resetKeepingStorage(ImageBuf& dst, const ImageSpec& spec) {
+    if (dst.initialized() && dst.localpixels() && dst.storage() == ImageBuf::LOCALBUFFER) {
+        const ImageSpec& old = dst.spec();
+        if (old.x == spec.x && old.y == spec.y && old.z == spec.z && old.width == spec.width &&
+            old.height == spec.height && old.depth == spec.depth &&
+            old.nchannels == spec.nchannels && old.format == spec.format &&
+            old.channelformats.empty() && spec.channelformats.empty()) {
+            dst.specmod() = spec;
+            return;
+        }
+    }
+    dst.reset(spec, OIIO::InitializePixels::No);
+}
+
+/// What an estimator's result over `src` is refused for: buffer arrays that do not agree, AOV
+/// values that do not match the header, or AOVs with channel mode (no one weight per buffer).
+bool checkEstimateInput(ImageBuf& dst, const StatsImage& src, const Operation& est,
+                        const PixelKernel& kernel) {
+    // Fixed or adaptive M: consistent sub-buffer arrays make pixelBuffers(p) safe.
+    if (std::string why; !src.checkBufferLayout(why)) {
+        dst.errorfmt("estimate {}: statistics image has inconsistent buffer arrays ({})", est.name,
+                     why);
+        return false;
+    }
+    // AOVs (docs/aovs.md): the estimator's buffer weights, from the beauty, applied to every AOV.
+    const size_t A = src.header.aovs.size();
+    if (A > 0) {
+        // One value per buffer and AOV (fixed M, or every pixel's own buffers: version 6).
+        if (src.aov.size() != src.bufferCount.size() * A) {
+            dst.errorfmt("estimate {}: statistics image has {} AOV values for {} AOV channels",
+                         est.name, src.aov.size(), A);
+            return false;
+        }
+        if (kernel.mode != EstimatorMode::Luminance) {
+            dst.errorfmt(
+                "{}: mode=channel ranks R, G and B separately, so no one weight per sub-buffer "
+                "exists to apply to the file's {} AOV channels (they would stop adding up to the "
+                "beauty); use mode=lum (the default)",
+                est.name, A);
+            return false;
+        }
+    }
+    return true;
+}
+
+/// One estimate() pass: what every pixel reads, set up once and shared by the threads, and where
+/// each layer of a result pixel starts (R, G, B, diagnostics, intervals, AOVs, removed light).
+struct EstimatePass {
+    const StatsImage& src;
+    const PixelKernel& kernel;
+    bool diagnostics = false;
+    size_t A = 0;  ///< the file's AOVs
+    std::vector<std::string> names;
+    size_t firstCi = 0, firstAov = 0, firstRemoved = 0;
+    bool ci = false;
+    std::vector<size_t> ciAov;  ///< the AOVs with intervals (ciAovs: all but the labels)
+    std::vector<AovClass> classes;
+    /// citarget=expected: every pixel's spread and its neighbourhood's pooled variance.
+    std::vector<PixelSpread> spreads;
+    std::vector<double> pooled;
+
+    EstimatePass(const StatsImage& s, const PixelKernel& k, bool diag)
+        : src(s), kernel(k), diagnostics(diag), A(s.header.aovs.size()) {
+        const StatsHeader& h = src.header;
+        names = estimatorChannels(kernel.mode, diagnostics);
+        // Confidence intervals (docs/confidence.md): per channel, over the valid buffers' values.
+        firstCi = names.size();
+        const std::vector<std::string> ciNames = intervalChannels(kernel, h);
+        names.insert(names.end(), ciNames.begin(), ciNames.end());
+        ci = !ciNames.empty();
+        if (ci && kernel.ciAovs)
+            for (size_t a = 0; a < A; ++a)
+                if (h.aovs[a].cls != AovClass::Id) ciAov.push_back(a);
+        firstAov = names.size();
+        for (const std::string& n : aovOutputChannels(h)) names.push_back(n);
+        // The removed-light layers' first step (removed_light_pass.h), last, as
+        // appendRemovedLight adds them.
+        firstRemoved = names.size();
+        if (kernel.removedLight)
+            for (const std::string& n : removedLightChannels()) names.push_back(n);
+        classes = aovClasses(h.aovs);
+    }
+
+    /// The result's spec over `roi`: the layers above, the AOVs' roles, what the intervals cover.
+    ImageSpec spec(ROI roi, const Operation& est) const {
+        const StatsHeader& h = src.header;
+        ImageSpec spec = floatSpec(roi, names, h);
+        spec.alpha_channel = aovAlphaChannel(h, firstAov);
+        spec.z_channel = aovDepthChannel(h, firstAov);
+        setAovAttributes(spec, h, firstAov);
+        spec.attribute("mcstat:estimator", est.name);
+        if (ci) {
+            spec.attribute("mcstat:ciLevel", float(kernel.ciLevel));
+            // What it covers: a compositor reads a bare level as "the true value is in here",
+            // which only the mean's interval claims (docs/confidence.md).
+            spec.attribute("mcstat:ciTarget", h.compact && !kernel.ciExpected
+                                                  ? kernel.intervalTarget + kCompactIntervalTarget
+                                                  : kernel.intervalTarget);
+        }
+        return spec;
+    }
+};
+
+/// One thread's scratch for the pixels of an estimate() pass.
+struct PixelScratch {
+    EstimatorScratch scratch;
+    AovScratch aovScratch;
+    PixelEstimate e;
+    std::vector<int> valid;
+    std::vector<double> values, counts;
+};
+
+/// The interval of R, G and B of pixel `p` when the estimate did not give it in its own pass: the
+/// kernel's own over the valid buffers, the expected value's (citarget=expected), a compact
+/// pixel's from its stored spread `sp`, or the kernel's rule over each channel's buffer values.
+/// Leaves the valid buffers in w.valid for the AOVs' intervals.
+void channelIntervals(const EstimatePass& pass, size_t p, const PixelBuffers& pb, const float* sp,
+                      PixelScratch& w, ValueInterval iv[3]) {
+    const PixelKernel& kernel = pass.kernel;
+    int excluded = 0;
+    const int m = collectValidBuffers(pb, w.valid, excluded);
+    if (!kernel.ciExpected && !sp && kernel.pixelInterval) {
+        kernel.pixelInterval(pb, w.valid.data(), m, kernel.ciLevel, iv);
+        return;
+    }
+    w.values.resize(size_t(m));
+    w.counts.resize(size_t(m));
+    for (int i = 0; i < m; ++i) w.counts[size_t(i)] = pb.count[w.valid[size_t(i)]];
+    for (int c = 0; c < 3; ++c) {
+        if (kernel.ciExpected) {
+            const PixelSpread& s = pass.spreads[p];
+            iv[c] = expectedInterval(s.mean[c], s.s2[c], pass.pooled[p * 3 + size_t(c)], s.samples,
+                                     s.buffers, kernel.ciLevel);
+        } else if (sp) {
+            iv[c] = spreadInterval(pb.mean[c], sp[spreadIndex(c, c)], pb.count[0], int(sp[0]),
+                                   kernel.ciLevel);
+        } else {
+            for (int i = 0; i < m; ++i) w.values[size_t(i)] = pb.mean[3 * w.valid[size_t(i)] + c];
+            iv[c] = kernel.interval(w.values.data(), w.counts.data(), m, kernel.ciLevel);
+        }
+    }
+}
+
+/// An AOV's interval: the kernel's rule over its values in the beauty's valid buffers (w.valid;
+/// non-finite AOV values left out), written as the pair ci_low.<aov>, ci_high.<aov> after the
+/// channels' (`lo`: the first interval layer).
+void aovIntervals(const EstimatePass& pass, size_t p, const PixelBuffers& pb, PixelScratch& w,
+                  float* lo) {
+    const size_t A = pass.A;
+    const float* aov = A > 0 ? pass.src.aov.data() + pass.src.bufferBegin(p) * A : nullptr;
+    if (!pass.ciAov.empty()) {
+        w.values.resize(w.valid.size());
+        w.counts.resize(w.valid.size());
+    }
+    for (size_t i = 0; i < pass.ciAov.size(); ++i) {
+        int k = 0;
+        for (int b : w.valid) {
+            const float v = aov[size_t(b) * A + pass.ciAov[i]];
+            if (!std::isfinite(v)) continue;
+            w.values[size_t(k)] = v;
+            w.counts[size_t(k)] = pb.count[b];
+            ++k;
+        }
+        const ValueInterval aiv =
+            pass.kernel.interval(w.values.data(), w.counts.data(), k, pass.kernel.ciLevel);
+        lo[6 + 2 * i] = float(aiv.low);
+        lo[7 + 2 * i] = float(aiv.high);
+    }
+}
+
+/// The diagnostics layers: the Gini coefficient, the buffers kept and those excluded (per channel
+/// in channel mode).
+void writeDiagnostics(float* px, const PixelEstimate& e, EstimatorMode mode) {
+    if (mode == EstimatorMode::Luminance) {
+        px[3] = e.gini[0];
+        px[4] = float(e.kept[0]);
+        px[5] = float(e.excluded);
+    } else {
+        for (int c = 0; c < 3; ++c) {
+            px[3 + c] = e.gini[c];
+            px[6 + c] = float(e.kept[c]);
+        }
+        px[9] = float(e.excluded);
+    }
+}
+
+/// Pixel `p` of the statistics image into `px`, every layer of the pass. False when the estimator
+/// gave no buffer weights for the AOVs (their layers are then zero).
+bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& w) {
+    const StatsImage& src = pass.src;
+    const PixelKernel& kernel = pass.kernel;
+    const size_t A = pass.A;
+    const PixelBuffers pb = src.pixelBuffers(p);
+    // A compact file's pixel that kept only its mean (G-MoN trimmed nothing: the estimators give
+    // the mean there) has the mean's t interval from its spread.
+    const float* sp = pass.ci ? src.meanOnlySpread(p) : nullptr;
+    ValueInterval iv[3];
+    // The estimate and its interval from one pass over the buffers (the mean's).
+    const bool shared =
+        pass.ci && A == 0 && !kernel.ciExpected && !sp && kernel.estimateWithInterval;
+    if (shared)
+        kernel.estimateWithInterval(pb, kernel.ciLevel, w.e, w.scratch, iv);
+    else
+        kernel.estimate(pb, w.e, w.scratch);
+    bool weighted = true;
+    if (A > 0) {
+        if (w.scratch.bufferWeight.size() != size_t(pb.M)) {
+            weighted = false;
+            std::fill(px + pass.firstAov, px + pass.names.size(), 0.f);
+        } else {
+            applyAovWeights(w.scratch.bufferWeight.data(), size_t(pb.M),
+                            src.aov.data() + src.bufferBegin(p) * A, A, pass.classes.data(),
+                            px + pass.firstAov, w.aovScratch);
+        }
+    }
+    px[0] = w.e.rgb[0];
+    px[1] = w.e.rgb[1];
+    px[2] = w.e.rgb[2];
+    if (pass.ci) {
+        if (!shared) channelIntervals(pass, p, pb, sp, w, iv);
+        float* lo = px + pass.firstCi;
+        float* hi = lo + 3;
+        for (int c = 0; c < 3; ++c) {
+            lo[c] = float(iv[c].low);
+            hi[c] = float(iv[c].high);
+        }
+        aovIntervals(pass, p, pb, w, lo);
+    }
+    if (kernel.removedLight) {
+        const LumaSpread ls = lumaSpread(pb, kernel.removedLuma);
+        removedLightPixel(px, float(ls.mean), float(ls.se), kernel.removedLuma,
+                          px + pass.firstRemoved);
+    }
+    if (pass.diagnostics) writeDiagnostics(px, w.e, kernel.mode);
+    return weighted;
+}
+
+}  // namespace
+
+bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const PixelKernel& kernel,
+              bool diagnostics, ROI roi, int nthreads) {
+    const StatsHeader& h = src.header;
+    const ROI full = dataWindowROI(h);
+    roi = prepareRoi(roi, full);
+    if (!checkEstimateInput(dst, src, est, kernel)) return false;
+    EstimatePass pass(src, kernel, diagnostics);
+    resetKeepingStorage(dst, pass.spec(roi, est));
+
+    // citarget=expected: every pixel's spread and its neighbourhood's, over the whole of `src`
+    // (a streamed block carries cipool rows above and below: the same windows as the whole image).
+    if (pass.ci && kernel.ciExpected) {
+        pass.spreads = pixelSpreads(src, nthreads);
+        pass.pooled =
+            pooledSampleVariance(pass.spreads, h.width, h.height, kernel.ciPool, nthreads);
+    }
+    // Written straight into the local float buffer: ImageBuf::setpixel converts per call.
+    float* const base = static_cast<float*>(dst.localpixels());
+    const size_t nch = pass.names.size();
+    std::atomic<bool> noWeights{false};
+    OIIO::ImageBufAlgo::parallel_image(roi, nthreads, [&](ROI r) {
+        PixelScratch w;
+        w.scratch.wantWeights = pass.A > 0;
+        for (int y = r.ybegin; y < r.yend; ++y)
+            for (int x = r.xbegin; x < r.xend; ++x) {
+                const size_t p = size_t(y - h.originY) * size_t(h.width) + size_t(x - h.originX);
+                float* px =
+                    base +
+                    (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
+                if (!estimatePixel(pass, p, px, w)) noWeights = true;
+            }
+    });
+    if (noWeights) {
+        dst.errorfmt("estimate {}: the estimator gives no buffer weights, so it cannot carry AOVs",
+                     est.name);
+        return false;
+    }
+    return true;
+}
+
+ImageBuf estimate(const StatsImage& src, const Operation& est, const PixelKernel& kernel,
+                  bool diagnostics, ROI roi, int nthreads) {
+    ImageBuf dst;
+    estimate(dst, src, est, kernel, diagnostics, roi, nthreads);
+    return dst;
+}
+
+}  // namespace mcstat
