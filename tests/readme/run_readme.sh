@@ -8,6 +8,11 @@
 # Usage: run_readme.sh SOURCE_DIR BUILD_DIR WORK_DIR
 set -euo pipefail
 src=$1 build=$2 work=$3
+# The sanitizer build's suite sets LD_PRELOAD (CMakeLists.txt): it is kept for the README's own
+# commands below, where Debian's oiiotool and python3 load our instrumented plugin and module, and
+# taken from this script's helpers (awk, ln; mawk's own reads trip ASan).
+preload=${LD_PRELOAD:-}
+unset LD_PRELOAD
 [ -n "${KEEP:-}" ] || rm -rf "$work"
 mkdir -p "$work/out/demo"
 ln -s "$build" "$work/build"
@@ -32,9 +37,10 @@ awk '/^```sh$/ { inblock = 1; block = ""; next }
 n=$(grep -cvE '^\s*(#|$)' commands.sh)
 [ "$n" -ge 10 ] || { echo "run_readme: found only $n commands in README.md" >&2; exit 1; }
 unset OIIO_LIBRARY_PATH
-# The sanitizer build's suite preloads the sanitizer runtime into every command (CMakeLists.txt):
-# not into Blender, which loads none of our code and which the runtime's allocator only slows.
-if [ -n "${LD_PRELOAD:-}" ]; then
+# The sanitizer build's suite preloads the sanitizer runtime into every README command: not into
+# Blender, which loads none of our code and which the runtime's allocator only slows.
+if [ -n "$preload" ]; then
+  export LD_PRELOAD=$preload
   blender=$(command -v blender || echo blender)
   mkdir -p "$work/.tools"
   printf '#!/bin/sh\nexec env -u LD_PRELOAD "%s" "$@"\n' "$blender" >"$work/.tools/blender"

@@ -8,6 +8,10 @@
 # config too. Exits 1 with a message otherwise.
 set -euo pipefail
 src=$1 build=$2 work=$3
+# The sanitizer build's suite sets LD_PRELOAD (CMakeLists.txt): kept for the downstream suite,
+# whose python3 loads the instrumented module, and taken from the install and the configure.
+preload=${LD_PRELOAD:-}
+unset LD_PRELOAD
 rm -rf "$work"
 mkdir -p "$work"
 fail() { echo "test_downstream: $*" >&2; exit 1; }
@@ -15,7 +19,7 @@ fail() { echo "test_downstream: $*" >&2; exit 1; }
 cmake --install "$build" --prefix "$work/prefix" --component dev >/dev/null
 cmake --install "$build" --prefix "$work/prefix" --component bin >/dev/null
 cmake --install "$build" --prefix "$work/prefix" --component plugin >/dev/null  # mcstat_PLUGIN_DIR
-with_python=OFF  # the sanitizer build has no Python module (docs/python.md)
+with_python=OFF  # a build without the Python module (docs/python.md)
 if [ -d "$build/python/mcstat" ]; then
   with_python=ON
   cmake --install "$build" --prefix "$work/prefix" --component python >/dev/null  # mcstat_PYTHONPATH
@@ -40,7 +44,7 @@ done
 cmake -S "$src/tests/render-test/downstream" -B "$work/downstream" -DCMAKE_PREFIX_PATH="$work/prefix" \
   -DRENDERS="$work/renders" -DWITH_PYTHON=$with_python >"$work/configure.log" 2>&1 || { cat "$work/configure.log" >&2; fail "configure failed"; }
 set +e
-ctest --test-dir "$work/downstream" --output-on-failure >"$work/ctest.log" 2>&1
+LD_PRELOAD=$preload ctest --test-dir "$work/downstream" --output-on-failure >"$work/ctest.log" 2>&1
 status=$?
 set -e
 cat "$work/ctest.log"
@@ -49,7 +53,8 @@ grep -Eq 'same_scene \.+ +Passed' "$work/ctest.log" || fail "same_scene did not 
 grep -Eq 'ocio_config \.+ +Passed' "$work/ctest.log" || fail "oiiotool did not take the installed OCIO config"
 if [ $with_python = ON ]; then
   grep -Eq 'python_same_scene \.+ +Passed' "$work/ctest.log" || fail "the installed Python module's check did not pass"
-  ctest --test-dir "$work/downstream" -R python_same_scene -V >"$work/python.log" 2>&1 || true
+  LD_PRELOAD=$preload ctest --test-dir "$work/downstream" -R python_same_scene -V \
+    >"$work/python.log" 2>&1 || true
   grep -q "$work/prefix/.*mcstat/__init__.py SAME" "$work/python.log" ||
     { cat "$work/python.log" >&2; fail "Python did not import the installed module"; }
 fi
