@@ -16,6 +16,16 @@ CLI = BUILD / "oiiotool-ext" / "mcstat"
 RENDER = BUILD / "render-fixture" / "mcstat-render"
 
 
+def tool_env(**extra):
+    """The environment for a program that loads none of our code into an uninstrumented process
+    (bash scripts and their awk, chromium): without the sanitizer runtime the sanitizer build
+    preloads into python3 (its executables carry their own). Under it, mawk's own heap overflow
+    aborts the script."""
+    env = {k: v for k, v in os.environ.items() if k != "LD_PRELOAD"}
+    env.update({k: str(v) for k, v in extra.items()})
+    return env
+
+
 def run(*args, check=True):
     """Runs a command (str(args)); returns the CompletedProcess with text stdout/stderr."""
     p = subprocess.run([str(a) for a in args], capture_output=True, text=True)

@@ -20,7 +20,7 @@ from junitparser import Failure, JUnitXml
 
 import mcstat
 from mcstat.testing import assert_same_render, report_dir_for, report_name
-from conftest import CLI, RENDER, SOURCE, read_exr, run
+from conftest import CLI, RENDER, SOURCE, read_exr, run, tool_env
 
 RES = (32, 24)  # the render-test scenes' size
 SCENES = SOURCE / "tests/render-test/scenes"
@@ -141,9 +141,7 @@ def test_cli_page_never_overwrites_a_users_file(pair, tmp):
 
 def chromium_dom(page):
     """The page's DOM after load in Debian's headless chromium (about 1 s)."""
-    # Not with the sanitizer runtime the sanitizer build preloads into python3 (it loads none of
-    # our code).
-    env = {k: v for k, v in os.environ.items() if k != "LD_PRELOAD"}
+    env = tool_env()
     p = subprocess.run(["chromium", "--headless", "--disable-gpu", "--no-sandbox",
                         "--allow-file-access-from-files", "--virtual-time-budget=3000",
                         "--dump-dom", page.as_uri()], capture_output=True, text=True, timeout=60,

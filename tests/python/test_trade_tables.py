@@ -2,13 +2,12 @@
 and scripts/trade.sh run small with ONLY (the rows it writes, the detail column)."""
 
 import csv
-import os
 import subprocess
 import sys
 
 import pytest
 
-from conftest import BUILD, SOURCE
+from conftest import BUILD, SOURCE, tool_env
 
 TABLES = SOURCE / "scripts" / "trade_tables.py"
 HEADER = "scene,method,spp,seed,seconds,bytesPerPixel,relMSE,SSIM,PSNR,fireflies,pixels,nbias,nnoise"
@@ -75,7 +74,7 @@ def test_tables_of_a_run_before_the_detail_column(tmp_path):
 def test_trade_script_runs_only_the_methods_asked(tmp_path):
     # The whole script, small: one scene, one seed, 32 x 24; ONLY picks two methods besides the mean.
     out = tmp_path / "trade"
-    env = dict(os.environ, SKIP_BUILD="1", BUILD=str(BUILD), SCENES="detail", RES="32 24",
+    env = tool_env(SKIP_BUILD="1", BUILD=str(BUILD), SCENES="detail", RES="32 24",
                SPPS="4", SEEDS="1", REF_SPP="64", REF_SPP_SCENES="", MEAN_SPPS="8",
                ONLY="G-MoN keeplight,median 3x3 (oiiotool)", OUT=str(out))
     p = subprocess.run(["bash", str(SOURCE / "scripts" / "trade.sh")], env=env,
@@ -101,7 +100,7 @@ def test_trade_on_cycles_renders_runs_every_method_and_the_clamp(tmp_path):
     # clamp, a reference of 2 x 16 spp, the mean at 2 x the set's samples. Blender is a dependency
     # (scripts/install-deps.sh); the suite fails, not skips, without it.
     out = tmp_path / "cycles"
-    env = dict(os.environ, SKIP_BUILD="1", BUILD=str(BUILD), SCENES="detail=160", RES="32 24",
+    env = tool_env(SKIP_BUILD="1", BUILD=str(BUILD), SCENES="detail=160", RES="32 24",
                SPP="4", SEEDS="3", SETS="1", REF="2 16", MEAN_FACTORS="2", CLAMP="0.5",
                ONLY="G-MoN keeplight,median 3x3 (oiiotool),clamp 0.5 (Cycles)", OUT=str(out))
     p = subprocess.run(["bash", str(SOURCE / "scripts" / "trade_cycles.sh")], env=env,
@@ -128,7 +127,7 @@ def test_trade_refuses_a_folder_it_did_not_make(tmp_path, script):
     out = tmp_path / "project"
     out.mkdir()
     (out / "trade.csv").write_text("mine\n")
-    env = dict(os.environ, SKIP_BUILD="1", BUILD=str(BUILD), OUT=str(out))
+    env = tool_env(SKIP_BUILD="1", BUILD=str(BUILD), OUT=str(out))
     p = subprocess.run(["bash", str(SOURCE / "scripts" / script)], env=env, capture_output=True,
                        text=True, timeout=60)
     assert p.returncode == 1
