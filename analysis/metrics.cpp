@@ -7,7 +7,7 @@
 #include <memory>
 #include <vector>
 
-#include "mcstat/core/colour_space.h"
+#include "mcstat/core/color_space.h"
 
 namespace mcstat {
 

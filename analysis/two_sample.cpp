@@ -10,8 +10,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "mcstat/core/detail/math_policy.h"
 #include "mcstat/core/location_stats.h"
-#include "mcstat/core/math_policy.h"
 
 namespace mcstat {
 

@@ -2,7 +2,7 @@
 # its Cycles template, the OpenImageIO plugin, the libraries (static, or shared with
 # -DBUILD_SHARED_LIBS=ON) with their public headers and LICENSE,
 # an exported CMake package (find_package(mcstat CONFIG) giving mcstat::core, mcstat::filters,
-# mcstat::exrcodec, mcstat::exrdeep, mcstat::color, mcstat::imagespec, mcstat::imageops,
+# mcstat::exrdeep_codec, mcstat::exrdeep, mcstat::color, mcstat::image_spec, mcstat::image,
 # mcstat::ingest, mcstat::compare, mcstat::compare_report, mcstat_EXECUTABLE and
 # mcstat_add_render_test), mcstat.pc, the Python module (component python) and the built-in OCIO
 # config as a file (component bin: share/mcstat/config.ocio, for oiiotool --colorconfig and $OCIO).
@@ -16,7 +16,7 @@ set(MCSTAT_INSTALL_PLUGINDIR "${CMAKE_INSTALL_LIBDIR}/OpenImageIO-plugins"
 
 set(MCSTAT_INSTALL_DATADIR "${CMAKE_INSTALL_DATADIR}/mcstat"
     CACHE STRING "Where config.ocio (the built-in OCIO config) goes")
-set(_mcstat_libs mcstat_core mcstat_filters mcstat_compact mcstat_exrcodec mcstat_exrdeep mcstat_color mcstat_analysis mcstat_imagespec mcstat_imageops
+set(_mcstat_libs mcstat_core mcstat_filters mcstat_compact mcstat_exrdeep_codec mcstat_exrdeep mcstat_color mcstat_analysis mcstat_image_spec mcstat_image
                  mcstat_review mcstat_compare mcstat_compare_report mcstat_ingest)
 foreach(_lib IN LISTS _mcstat_libs)
   string(REPLACE "mcstat_" "" _export_name "${_lib}")
@@ -31,9 +31,15 @@ install(FILES "${PROJECT_BINARY_DIR}/include/mcstat/version.h"
   DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}/mcstat" COMPONENT dev)
 install(FILES "${PROJECT_SOURCE_DIR}/LICENSE"
   DESTINATION "${CMAKE_INSTALL_DOCDIR}" COMPONENT dev)
+# The public headers only (issue 51): every detail/ folder holds mcstat::detail, what the rooms
+# share among themselves (the OpenEXR Core codec, the rank keys, the Boost.Math policy), and stays
+# out, as OpenEXR keeps its internal_*.h and OIIO its *_pvt.h. No public header includes one
+# (tests/architecture/check_arrows.sh); the downstream package test compiles every installed header
+# on its own.
 install(DIRECTORY "${PROJECT_SOURCE_DIR}/include/mcstat"
   DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}" COMPONENT dev
-  FILES_MATCHING PATTERN "*.h")
+  FILES_MATCHING PATTERN "*.h"
+  PATTERN "detail" EXCLUDE)
 install(TARGETS mcstat mcstat-render RUNTIME DESTINATION "${CMAKE_INSTALL_BINDIR}" COMPONENT bin)
 install(FILES "${PROJECT_SOURCE_DIR}/color/config.ocio"
   DESTINATION "${MCSTAT_INSTALL_DATADIR}" COMPONENT bin)

@@ -1,5 +1,5 @@
-// Colour management through OpenColorIO (see include/mcstat/color.h).
-#include "mcstat/color.h"
+// Colour management through OpenColorIO (see include/mcstat/color/color.h).
+#include "mcstat/color/color.h"
 
 #include <OpenColorIO/OpenColorIO.h>
 #include <strings.h>
@@ -11,7 +11,7 @@
 #include <sstream>
 #include <vector>
 
-#include "mcstat/core/colour_space.h"
+#include "mcstat/core/color_space.h"
 #include "mcstat/core/untrusted_text.h"
 
 namespace OCIO = OCIO_NAMESPACE;
@@ -97,8 +97,8 @@ bool usableConfig(const ActiveConfig*& a, std::string& err) {
 /// their chromaticities to the config's scene-linear space because the config lacks the space.
 bool displaySource(const OCIO::ConstConfigRcPtr& cfg, const std::string& space,
                    const std::string& disp, const std::string& vw, std::string& src,
-                   std::array<std::array<double, 3>, 3>* matrix, bool& useMatrix,
-                   std::string& note, std::string& err) {
+                   std::array<std::array<double, 3>, 3>* matrix, bool& useMatrix, std::string& note,
+                   std::string& err) {
     src = OCIO::ROLE_SCENE_LINEAR;
     useMatrix = false;
     const WorkingSpace* ws = space.empty() ? nullptr : findWorkingSpace(space);

@@ -15,7 +15,7 @@
 #include <limits>
 #include <memory>
 
-#include "mcstat/core/colour_space.h"
+#include "mcstat/core/color_space.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/filters/aov_weights.h"
 #include "mcstat/filters/pixel/gmon.h"

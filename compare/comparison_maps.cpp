@@ -1,7 +1,7 @@
 // The comparison's images (comparison.h): the maps of p, z, effect and rejections per pixel and
 // tile, and on request both sides' R, G, B means.
 #include "comparison.h"
-#include "mcstat/image/image_spec.h"
+#include "mcstat/image/spec/image_spec.h"
 
 namespace mcstat::detail {
 

@@ -1,7 +1,7 @@
 // What one side of a comparison holds per pixel (comparison.h): its buffers' values of a quantity,
 // a compact pixel's stored spread, the reference image's value and variance, the R, G, B mean.
 #include "comparison.h"
-#include "mcstat/core/colour_space.h"
+#include "mcstat/core/color_space.h"
 
 namespace mcstat::detail {
 

@@ -7,7 +7,7 @@
 #include <cmath>
 #include <limits>
 
-#include "mcstat/core/math_policy.h"
+#include "mcstat/core/detail/math_policy.h"
 
 namespace mcstat {
 

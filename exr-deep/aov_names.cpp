@@ -1,7 +1,7 @@
 // AOV classes and names of the statistics file, version 5 (FORMAT.md "Version 5"; stats_file.h).
 #include <string>
 
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 
 namespace mcstat {
 

@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/exr-codec/core_part_writer.h"
-#include "mcstat/sample_records.h"
+#include "mcstat/exr-deep/codec/detail/core_part_writer.h"
+#include "mcstat/exr-deep/sample_records.h"
 
 namespace mcstat::detail {
 

@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "stats_layout.h"
 
 namespace mcstat::detail {

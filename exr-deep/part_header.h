@@ -7,7 +7,7 @@
 
 #include <string>
 
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 
 namespace mcstat::detail {
 

@@ -3,7 +3,7 @@
 // the statistics file, read back by blocks of rows; and an operation's per-pixel state, parts
 // an operation's state parts (flat: FLOAT and UINT channels; deep: FLOAT records), stored as given
 // with their owner and read back by name (what they mean: the owner's OperationState).
-#include "mcstat/sample_records.h"
+#include "mcstat/exr-deep/sample_records.h"
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfDeepFrameBuffer.h>
@@ -30,8 +30,8 @@
 #include "deep_frame_buffer.h"
 #include "extra_parts.h"
 #include "mcstat/core/params.h"
-#include "mcstat/exr-codec/fd_stream.h"
-#include "mcstat/temp_file.h"
+#include "mcstat/exr-deep/codec/detail/fd_stream.h"
+#include "mcstat/exr-deep/codec/temp_file.h"
 #include "part_header.h"
 #include "stats_layout.h"
 #include "window.h"

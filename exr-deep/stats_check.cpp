@@ -8,8 +8,8 @@
 #include <cmath>
 #include <exception>
 
-#include "mcstat/sample_records.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/sample_records.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "stats_layout.h"
 
 namespace mcstat {
@@ -35,8 +35,7 @@ bool checkStatsFile(const std::string& path, StatsCheckReport& report, std::stri
             return false;
         }
     } catch (const std::exception& e) {
-        err =
-            fmt::format("{}: OpenEXR's file checker failed ({})", path, libraryMessage(e.what()));
+        err = fmt::format("{}: OpenEXR's file checker failed ({})", path, libraryMessage(e.what()));
         return false;
     }
     report.openexrChecked = true;

@@ -5,7 +5,7 @@
 #include <fmt/format.h>
 
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "stats_layout.h"
 
 namespace mcstat {

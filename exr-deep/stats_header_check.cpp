@@ -16,9 +16,9 @@
 #include "header_checker.h"
 #include "mcstat/core/params.h"
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/exr-codec/core_io.h"
-#include "mcstat/exr-codec/exr_headers.h"
-#include "mcstat/exr-codec/fd_stream.h"
+#include "mcstat/exr-deep/codec/detail/core_io.h"
+#include "mcstat/exr-deep/codec/detail/exr_headers.h"
+#include "mcstat/exr-deep/codec/detail/fd_stream.h"
 #include "stats_layout.h"
 
 namespace mcstat::detail {

@@ -5,7 +5,7 @@
 #include <limits>
 #include <new>
 
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "stats_layout.h"
 
 namespace mcstat {

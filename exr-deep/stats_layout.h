@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/exr-codec/exr_headers.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/codec/detail/exr_headers.h"
+#include "mcstat/exr-deep/stats_file.h"
 
 namespace mcstat::layout {
 
@@ -77,8 +77,8 @@ inline constexpr const char* kAttrAssignment = "mcstat:assignment";        // st
 inline constexpr const char* kAttrRenderer = "mcstat:renderer";            // string
 inline constexpr const char* kAttrColorSpace = "mcstat:colorSpace";        // string
 inline constexpr const char* kAttrColorInteropID =
-    "colorInteropID";  // string, part 0 (OpenEXR 3.4)
-inline constexpr const char* kAttrSeeds = "mcstat:seeds";                  // string
+    "colorInteropID";                                      // string, part 0 (OpenEXR 3.4)
+inline constexpr const char* kAttrSeeds = "mcstat:seeds";  // string
 /// Version 2 on: int 0 (fixed M, part "buffers") or 1 (adaptive M, part "vbuffers").
 inline constexpr const char* kAttrAdaptiveM = "mcstat:adaptiveM";
 /// Version 6 on: string, present exactly in compact files: the rule that chose the pixels keeping

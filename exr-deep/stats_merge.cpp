@@ -12,7 +12,7 @@
 
 #include "mcstat/core/moments.h"
 #include "mcstat/core/parallel.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "stats_layout.h"
 
 namespace mcstat {

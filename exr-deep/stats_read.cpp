@@ -27,11 +27,11 @@
 #include <vector>
 
 #include "deep_frame_buffer.h"
-#include "mcstat/exr-codec/deep_part_reader.h"
-#include "mcstat/exr-codec/fd_stream.h"
-#include "mcstat/exr-codec/flat_part_reader.h"
-#include "mcstat/stats_file.h"
-#include "mcstat/exr-codec/exr_headers.h"
+#include "mcstat/exr-deep/codec/detail/deep_part_reader.h"
+#include "mcstat/exr-deep/codec/detail/exr_headers.h"
+#include "mcstat/exr-deep/codec/detail/fd_stream.h"
+#include "mcstat/exr-deep/codec/detail/flat_part_reader.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "stats_header_check.h"
 #include "stats_layout.h"
 #include "window.h"

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cstring>
 
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "stats_layout.h"
 
 namespace mcstat {

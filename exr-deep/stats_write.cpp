@@ -32,13 +32,13 @@
 
 #include "deep_frame_buffer.h"
 #include "extra_parts.h"
-#include "mcstat/core/colour_space.h"
-#include "mcstat/exr-codec/core_part_writer.h"
-#include "mcstat/exr-codec/exr_headers.h"
-#include "mcstat/exr-codec/fd_stream.h"
-#include "mcstat/sample_records.h"
-#include "mcstat/stats_file.h"
-#include "mcstat/temp_file.h"
+#include "mcstat/core/color_space.h"
+#include "mcstat/exr-deep/codec/detail/core_part_writer.h"
+#include "mcstat/exr-deep/codec/detail/exr_headers.h"
+#include "mcstat/exr-deep/codec/detail/fd_stream.h"
+#include "mcstat/exr-deep/codec/temp_file.h"
+#include "mcstat/exr-deep/sample_records.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "part_header.h"
 #include "stats_header_check.h"
 #include "stats_layout.h"
@@ -74,7 +74,7 @@ void insertAovAttributes(Imf::Header& hdr, const StatsHeader& h) {
 /// `chromaticities` of the working space and (OpenEXR 3.4's attribute, written as a plain string
 /// by older libraries) its `colorInteropID`. A space mcstat does not know gets neither: no label
 /// is better than a wrong one.
-void addColourSpace(Imf::Header& hdr, const std::string& space) {
+void addColorSpace(Imf::Header& hdr, const std::string& space) {
     const WorkingSpace* ws = findWorkingSpace(space);
     if (!ws) return;
     const Chromaticities& c = ws->xy;
@@ -90,7 +90,7 @@ std::vector<Imf::Header> makeHeaders(const StatsHeader& h) {
     for (int part = 0; part < layout::kPartCount; ++part) {
         const bool deep = h.adaptiveM && part == layout::kBuffers;
         Imf::Header hdr = detail::commonHeader(h, layout::partNames(h.adaptiveM)[part], deep);
-        if (part == layout::kBeauty) addColourSpace(hdr, h.colorSpace);
+        if (part == layout::kBeauty) addColorSpace(hdr, h.colorSpace);
         for (const layout::ChannelPlace& c :
              layout::partChannels(part, h.M, h.adaptiveM, layout::momentsOf(h)))
             hdr.channels().insert(c.name, Imf::Channel(Imf::FLOAT));

@@ -1,7 +1,7 @@
 // An operation's result described on its spec: the source's provenance, the operation and its
 // parameters (describeResult, imageops.h).
 #include "mcstat/image/imageops.h"
-#include "mcstat/image/render_layout.h"
+#include "mcstat/image/spec/render_layout.h"
 
 namespace mcstat {
 

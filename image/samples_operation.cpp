@@ -2,8 +2,8 @@
 // its SampleSource opened, its OperationImage turned into an ImageBuf.
 #include <memory>
 
+#include "mcstat/exr-deep/sample_records.h"
 #include "mcstat/image/imageops.h"
-#include "mcstat/sample_records.h"
 
 namespace mcstat {
 

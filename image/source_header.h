@@ -2,7 +2,7 @@
 // the templates over both (apply_operation.cpp, residual.cpp) read it one way.
 #pragma once
 
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 
 namespace mcstat::detail {
 

@@ -1,6 +1,6 @@
 // Finding the beauty and the features of a renderer's EXR by channel name (channel_naming.h,
 // docs/ingest.md "Channel naming").
-#include "mcstat/channel_naming.h"
+#include "mcstat/ingest/channel_naming.h"
 
 #include <fmt/format.h>
 

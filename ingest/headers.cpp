@@ -18,13 +18,13 @@
 #include <set>
 
 #include "ingest_plan.h"
-#include "mcstat/color.h"
-#include "mcstat/core/colour_space.h"
+#include "mcstat/color/color.h"
+#include "mcstat/core/color_space.h"
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/exr-codec/exr_headers.h"
-#include "mcstat/image/image_spec.h"
-#include "mcstat/image/render_layout.h"
-#include "mcstat/ingest.h"
+#include "mcstat/exr-deep/codec/detail/exr_headers.h"
+#include "mcstat/image/spec/image_spec.h"
+#include "mcstat/image/spec/render_layout.h"
+#include "mcstat/ingest/ingest.h"
 
 namespace mcstat {
 
@@ -184,8 +184,8 @@ bool agreesWithOiioColorSpace(const ImageSpec& spec, const WorkingSpace& ws, con
 
 }  // namespace
 
-bool colourSpaceOf(const ImageSpec& spec, std::string& space, std::string& source,
-                   std::string& problem, const std::string& path) {
+bool colorSpaceOf(const ImageSpec& spec, std::string& space, std::string& source,
+                  std::string& problem, const std::string& path) {
     space.clear();
     source.clear();
     // 1. colorInteropID (OpenEXR 3.4; OIIO passes an EXR's unknown attributes by name).
@@ -249,7 +249,7 @@ bool colourSpaceOf(const ImageSpec& spec, std::string& space, std::string& sourc
 
 namespace {
 
-/// The space of an input whose metadata names none (docs/colour.md): --ingest:colorspace= when
+/// The space of an input whose metadata names none (docs/color.md): --ingest:colorspace= when
 /// given (the user's word for this ingest), else what a rule of the OCIO config's file rules other
 /// than its Default one says of the path, else lin_rec709. A rule naming a space that is not
 /// scene-linear, or one mcstat cannot place, is refused as the same tag in the file would be.
@@ -512,7 +512,7 @@ bool readHeader(Ingest& s, size_t j, const std::string& path, std::string& err) 
         return false;
     }
     std::string problem2;
-    if (!colourSpaceOf(f.spec, f.space, f.spaceSource, problem2, f.path)) {
+    if (!colorSpaceOf(f.spec, f.space, f.spaceSource, problem2, f.path)) {
         err = f.path + ": " + problem2;
         return false;
     }

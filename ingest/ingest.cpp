@@ -1,7 +1,7 @@
-// Ingest of renderer output (include/mcstat/ingest.h, docs/ingest.md): many renders of one image,
-// one per seed, become one statistics file with one sub-buffer per file. The work is in four
+// Ingest of renderer output (include/mcstat/ingest/ingest.h, docs/ingest.md): many renders of one
+// image, one per seed, become one statistics file with one sub-buffer per file. The work is in four
 // rooms (ingest_plan.h); this file holds the whole-image call and the parameters.
-#include "mcstat/ingest.h"
+#include "mcstat/ingest/ingest.h"
 
 #include <OpenImageIO/strutil.h>
 #include <fmt/format.h>
@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "ingest_plan.h"
-#include "mcstat/core/colour_space.h"
+#include "mcstat/core/color_space.h"
 #include "mcstat/core/params.h"
 #include "mcstat/core/untrusted_text.h"
 
@@ -49,7 +49,7 @@ const std::vector<ParamSpec>& ingestParams() {
             textParam("colorspace", "",
                       "the working space of untagged renders (no colorInteropID, chromaticities or "
                       "oiio:ColorSpace): lin_rec709 (default), ACEScg, ACES2065-1, lin_p3d65, "
-                      "lin_rec2020 or their colorInteropID (docs/colour.md)"),
+                      "lin_rec2020 or their colorInteropID (docs/color.md)"),
             textParam("seed", "",
                       "PATTERN: each file's seed from its name, {seed} standing for the seed's "
                       "digits (e.g. seed_{seed}.exr; * and ? as in a glob); files also give it in "

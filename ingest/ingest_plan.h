@@ -13,7 +13,7 @@
 #include <utility>
 #include <vector>
 
-#include "mcstat/ingest.h"
+#include "mcstat/ingest/ingest.h"
 
 namespace mcstat::ingest_detail {
 
@@ -37,7 +37,7 @@ struct InputFile {
     FeatureChannels features;
     int64_t spp = 0;
     std::string sppKey;
-    std::string space;        ///< its working space (colourSpaceOf, or the assumed one)
+    std::string space;        ///< its working space (colorSpaceOf, or the assumed one)
     std::string spaceSource;  ///< what said so: "colorInteropID lin_ap1_scene", "untagged: ..."
     std::string seed;         ///< its seed in decimal (seeds.cpp), "" when nothing says it
     std::string seedSource;   ///< what said so: "Note stamp" or "name"

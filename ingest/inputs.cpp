@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "ingest_plan.h"
-#include "mcstat/ingest.h"
+#include "mcstat/ingest/ingest.h"
 
 namespace mcstat {
 

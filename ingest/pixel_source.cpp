@@ -18,15 +18,15 @@
 #include <set>
 
 #include "ingest_plan.h"
-#include "mcstat/color.h"
-#include "mcstat/core/colour_space.h"
+#include "mcstat/color/color.h"
+#include "mcstat/core/color_space.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/exr-codec/exr_headers.h"
-#include "mcstat/exr-codec/fd_stream.h"
-#include "mcstat/exr-codec/flat_part_reader.h"
-#include "mcstat/image/image_spec.h"
-#include "mcstat/ingest.h"
+#include "mcstat/exr-deep/codec/detail/exr_headers.h"
+#include "mcstat/exr-deep/codec/detail/fd_stream.h"
+#include "mcstat/exr-deep/codec/detail/flat_part_reader.h"
+#include "mcstat/image/spec/image_spec.h"
+#include "mcstat/ingest/ingest.h"
 
 namespace mcstat {
 

@@ -17,7 +17,7 @@
 #include "ingest_plan.h"
 #include "mcstat/core/params.h"
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/ingest.h"
+#include "mcstat/ingest/ingest.h"
 
 namespace mcstat {
 

@@ -38,14 +38,14 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/color.h"
+#include "mcstat/color/color.h"
 #include "mcstat/core/untrusted_text.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/keep_light_image.h"
 #include "mcstat/image/operation_input.h"
-#include "mcstat/image/render_layout.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/image/spec/render_layout.h"
 #include "mcstat/version.h"
 
 OIIO_PLUGIN_NAMESPACE_BEGIN
@@ -492,7 +492,7 @@ bool McstatInput::readHeader() {
             return false;
         }
         m_header = reader.header();
-        // The luminance of the file's own working space (docs/colour.md).
+        // The luminance of the file's own working space (docs/color.md).
         if (!mcstat::lumaCoefficients(m_header.colorSpace, m_luma, err)) {
             errorfmt("{}: {}", m_path, err);
             return false;

@@ -15,15 +15,15 @@
 #include <functional>
 #include <set>
 
-#include "mcstat/color.h"
+#include "mcstat/color/color.h"
 #include "mcstat/core/progress.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/keep_light_image.h"
 #include "mcstat/image/operation_input.h"
 #include "mcstat/image/removed_light_layers.h"
-#include "mcstat/image/render_layout.h"
-#include "mcstat/ingest.h"
+#include "mcstat/image/spec/render_layout.h"
+#include "mcstat/ingest/ingest.h"
 #include "mcstat/review/display.h"
 #include "mcstat/version.h"
 
@@ -298,7 +298,7 @@ bool cmdDiff(State& st, const std::string& cmd, const std::vector<std::string>& 
         err = format("{}: {}", cmd, err);
         return false;
     }
-    // One luminance and one display for both sides: the same working space (docs/colour.md).
+    // One luminance and one display for both sides: the same working space (docs/color.md).
     if (!sameSpace(cmd, top.name, opt.space, args[0], refSpace, err, isImageFile(top), true))
         return false;
     DiffMetrics m;
@@ -619,7 +619,7 @@ std::vector<Command> buildTable() {
          1,
          "FILE",
          "The OCIO config for every later command, as oiiotool's (instead of $OCIO or mcstat's "
-         "own); ocio:// URIs need OpenColorIO 2.2 (docs/colour.md)",
+         "own); ocio:// URIs need OpenColorIO 2.2 (docs/color.md)",
          {},
          &cmdColorConfig,
          ""},
@@ -745,7 +745,7 @@ std::vector<Command> buildTable() {
                  "Jung's error-rate planner: buffers M, windows and spp for fewer than one "
                  "overestimated pixel (docs/planner.md); needs no input",
                  planParams(), &cmdPlan, ""});
-    appendReviewCommands(t);  // review.cpp: contact sheet, heatmaps, quality-vs-spp plot
+    appendReviewCommands(t);  // review_command.cpp: contact sheet, heatmaps, quality-vs-spp plot
     appendTradeCommands(t);   // trade_plot.cpp: the speed/accuracy trade
     t.push_back({"--dup", 0, "", "Duplicate the top of the stack", {}, &cmdDup, ""});
     t.push_back({"--pop", 0, "", "Remove the top of the stack", {}, &cmdPop, ""});
@@ -922,7 +922,7 @@ void warning(const std::string& text) {
 bool imageSpace(const OIIO::ImageSpec& spec, const std::string& what, std::string& space,
                 std::string& err) {
     std::string source, problem;
-    if (!colourSpaceOf(spec, space, source, problem, what)) {
+    if (!colorSpaceOf(spec, space, source, problem, what)) {
         err = what + ": " + problem;
         return false;
     }
@@ -955,13 +955,13 @@ bool sameSpace(const std::string& cmd, const std::string& a, const std::string& 
                                                     toA ? spaceB : spaceA, toA ? spaceA : spaceB);
     std::string what;
     if (command.empty())
-        what = "convert one to the other's space first (docs/colour.md)";
+        what = "convert one to the other's space first (docs/color.md)";
     else if (bFile || aFile)
         what = format("convert {} to {} first: {}", bFile ? b : a, toA ? spaceA : spaceB, command);
     else
         what = format(
             "re-ingest one side's renders converted to the other's space, each with {} "
-            "(docs/colour.md)",
+            "(docs/color.md)",
             command);
     err = format("{}: {} is in {} but {} is in {}: {}", cmd, a, printable(spaceA), b,
                  printable(spaceB), what);

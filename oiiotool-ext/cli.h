@@ -14,10 +14,10 @@
 #include "mcstat/analysis/metrics.h"
 #include "mcstat/compact/compact.h"
 #include "mcstat/core/untrusted_text.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/registry.h"
-#include "mcstat/image/render_layout.h"
-#include "mcstat/ingest.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/image/spec/render_layout.h"
+#include "mcstat/ingest/ingest.h"
 
 namespace mcstat::cli {
 
@@ -107,8 +107,8 @@ bool quiet();
 /// "mcstat: warning: TEXT" / "mcstat: note: TEXT" on stderr, unless quiet().
 void warning(const std::string& text);
 
-/// The working space of an item (docs/colour.md): a statistics item's mcstat:colorSpace; an
-/// image's as ingest reads an input's (colourSpaceOf: colorInteropID, chromaticities,
+/// The working space of an item (docs/color.md): a statistics item's mcstat:colorSpace; an
+/// image's as ingest reads an input's (colorSpaceOf: colorInteropID, chromaticities,
 /// oiio:ColorSpace), lin_rec709 when it names none. False with `err` naming the item when its
 /// metadata names a space mcstat cannot place.
 bool itemSpace(const Item& item, std::string& space, std::string& err);
@@ -194,7 +194,7 @@ bool selectRGB(const OIIO::ImageBuf& src, const std::string& layer, const std::s
 /// sheets, heatmaps, plots): -o writes them as they are, without the OCIO display view.
 inline constexpr const char* kDisplayReferredAttr = "mcstat:displayReferred";
 
-// Implemented in compare.cpp: the noise-aware comparison (docs/compare.md).
+// Implemented in compare_command.cpp: the noise-aware comparison (docs/compare.md).
 bool cmdCompare(State&, const std::string&, const std::vector<std::string>&, const Modifiers&,
                 std::string&);
 /// --compare's modifiers: the test, its level and control, what is tested, tiles, tolerances.
@@ -211,7 +211,7 @@ std::vector<ParamSpec> compactModifiers();
 /// --plan's modifiers, typed as registry parameters (m is a comma-separated list of such values).
 const std::vector<ParamSpec>& planParams();
 
-// Implemented in review.cpp: pictures for review tools (contact sheet, heatmaps, quality plot).
+// Implemented in review_command.cpp: pictures for review tools (contact sheet, heatmaps, quality plot).
 /// Appends the review commands to the command table.
 void appendReviewCommands(std::vector<Command>& table);
 /// trade_plot.cpp: --tradeplot.

@@ -22,7 +22,7 @@
 #include "cli.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/params.h"
-#include "mcstat/temp_file.h"
+#include "mcstat/exr-deep/codec/temp_file.h"
 
 extern char** environ;
 

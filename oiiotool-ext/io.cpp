@@ -12,16 +12,16 @@
 #include <set>
 
 #include "cli.h"
-#include "mcstat/color.h"
-#include "mcstat/core/colour_space.h"
+#include "mcstat/color/color.h"
+#include "mcstat/core/color_space.h"
 #include "mcstat/core/progress.h"
+#include "mcstat/exr-deep/codec/temp_file.h"
+#include "mcstat/exr-deep/sample_records.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
-#include "mcstat/image/render_layout.h"
-#include "mcstat/ingest.h"
+#include "mcstat/image/spec/render_layout.h"
+#include "mcstat/ingest/ingest.h"
 #include "mcstat/review/display.h"
-#include "mcstat/sample_records.h"
-#include "mcstat/temp_file.h"
 
 namespace mcstat::cli {
 
@@ -116,7 +116,7 @@ bool makeSceneLinear(const std::string& path, OIIO::ImageBuf& rgb, std::string& 
     // Its working space as ingest reads an input's; the pixels are labelled with it, so that
     // the comparison can refuse a reference in another space.
     std::string known, source, problem;
-    const bool placed = colourSpaceOf(spec, known, source, problem, path);
+    const bool placed = colorSpaceOf(spec, known, source, problem, path);
     const bool tagged = spec.find_attribute("chromaticities") ||
                         !spec.get_string_attribute("colorInteropID").empty() ||
                         !spec.get_string_attribute("openexr:colorInteropID").empty();

@@ -18,7 +18,7 @@
 #include "cli.h"
 #include "mcstat/core/params.h"
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/temp_file.h"
+#include "mcstat/exr-deep/codec/temp_file.h"
 #include "plot.h"
 
 namespace mcstat::cli {

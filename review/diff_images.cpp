@@ -4,7 +4,7 @@
 
 #include <vector>
 
-#include "mcstat/color.h"
+#include "mcstat/color/color.h"
 #include "mcstat/review/display.h"
 
 namespace mcstat {

@@ -2,8 +2,8 @@
 // active OCIO config's default display and view, in the pixels' own working space.
 #include <OpenImageIO/imagebufalgo.h>
 
-#include "mcstat/color.h"
-#include "mcstat/image/image_spec.h"
+#include "mcstat/color/color.h"
+#include "mcstat/image/spec/image_spec.h"
 #include "mcstat/review/display.h"
 
 namespace mcstat {
@@ -27,7 +27,7 @@ bool displayTransform(ImageBuf& dst, const ImageBuf& src, ROI roi, int nthreads)
     }
     std::string err;
     auto* pixels = static_cast<float*>(out.localpixels());
-    // The pixels' working space (docs/colour.md): an ACEScg result is not shown as Rec.709.
+    // The pixels' working space (docs/color.md): an ACEScg result is not shown as Rec.709.
     const std::string space = src.spec().get_string_attribute("oiio:ColorSpace");
     if (!applyDisplayTransform(pixels, long(roi.npixels()), err, "", "", space)) {
         dst.errorfmt("{}", err);

@@ -17,7 +17,7 @@
 #include "mcstat/core/untrusted_text.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
-#include "mcstat/image/render_layout.h"
+#include "mcstat/image/spec/render_layout.h"
 #include "mcstat/review/display.h"
 
 namespace mcstat {

@@ -10,7 +10,7 @@
 #     which plain MC (every power of two, 8..2048) first matches RPF's relMSE, and its SSIM.
 #  3. Pictures: docs/images/rpf_SCENE.png (MC 8 spp | RPF 8 spp | reference, sRGB, clamped) and
 #     docs/images/rpf_maps_SCENE.png (the first pass's dependency maps, the report's Fig. 6:
-#     rpf.colourOnRandom | rpf.textureOnRandom | rpf.alpha | rpf.textureBeta, grey 0..1).
+#     rpf.colorOnRandom | rpf.textureOnRandom | rpf.alpha | rpf.textureBeta, grey 0..1).
 #  4. Where RPF's error is (EXPLAIN scenes, default dof; RPF with every draw, kept=0, the report's
 #     rule): docs/images/rpf_error_SCENE.png (per-pixel
 #     relative squared error of RPF 8 and of MC 64 against the reference, log scale, and the first
@@ -240,15 +240,15 @@ md_begin 3 "3. Pictures"
 md_cmds <<EOF
 $M $out/SCENE-8-keep.mcstat --rpf:maps=1 -o $out/SCENE-rpf8-maps.exr
 oiiotool IMAGE --ch R,G,B --colorconvert linear sRGB --clamp:min=0:max=1 -d uint8 -o TILE.png
-oiiotool IMAGE --ch rpf.colourOnRandom --clamp:min=0:max=1 -d uint8 -o TILE.png   # each map, grey 0..1
+oiiotool IMAGE --ch rpf.colorOnRandom --clamp:min=0:max=1 -d uint8 -o TILE.png   # each map, grey 0..1
 oiiotool TILES... --mosaic:pad=4 Nx1 -o docs/images/rpf_SCENE.png
 EOF
 md_text "rpf_SCENE.png: MC 8 spp (the samples RPF filters) | RPF 8 spp | ${REF_SPP}-spp reference;"
 md_text "sRGB, clamped to [0, 1]. rpf_maps_SCENE.png: the first pass's dependency maps (the report's"
-md_text "Fig. 6), grey 0..1: rpf.colourOnRandom (W_c^r, eq. 11) | rpf.textureOnRandom (W_f^r of the"
+md_text "Fig. 6), grey 0..1: rpf.colorOnRandom (W_c^r, eq. 11) | rpf.textureOnRandom (W_f^r of the"
 md_text "texture value, eq. 9) | rpf.alpha (eq. 15) | rpf.textureBeta (eq. 16)."
 md_text
-maps=(rpf.colourOnRandom rpf.textureOnRandom rpf.alpha rpf.textureBeta)
+maps=(rpf.colorOnRandom rpf.textureOnRandom rpf.alpha rpf.textureBeta)
 for scene in $SCENES; do
   ensure_ref "$scene"; ensure_mc "$scene" 8; ensure_rpf "$scene"; ensure_maps "$scene"
   tiles=()

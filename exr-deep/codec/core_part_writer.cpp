@@ -1,4 +1,4 @@
-#include "mcstat/exr-codec/core_part_writer.h"
+#include "mcstat/exr-deep/codec/detail/core_part_writer.h"
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfChromaticitiesAttribute.h>
@@ -22,13 +22,13 @@
 #include <mutex>
 #include <new>
 
-#include "mcstat/exr-codec/deflate_codec.h"
-#include "mcstat/exr-codec/core_io.h"
-#include "mcstat/exr-codec/fd_stream.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/exr-codec/scratch_pool.h"
-#include "mcstat/temp_file.h"
+#include "mcstat/exr-deep/codec/detail/core_io.h"
+#include "mcstat/exr-deep/codec/detail/deflate_codec.h"
+#include "mcstat/exr-deep/codec/detail/fd_stream.h"
+#include "mcstat/exr-deep/codec/detail/scratch_pool.h"
+#include "mcstat/exr-deep/codec/temp_file.h"
 
 namespace mcstat::detail {
 
@@ -252,7 +252,7 @@ struct CorePartWriter::Impl {
     Fd spillFd;
     uint64_t spillSize = 0;
     detail::ScratchPool<Worker> pool;  ///< scratch of the threads encoding chunks
-    Worker main;                      ///< the calling thread's, for the serial steps' messages
+    Worker main;                       ///< the calling thread's, for the serial steps' messages
 
     ~Impl() {
         if (ctxt != nullptr) exr_finish(&ctxt);
@@ -598,9 +598,8 @@ bool CorePartWriter::Impl::copyChunk(Task& t, Worker& w) {
                                  t.out.data());
     }
     if (rv != EXR_ERR_SUCCESS) {
-        t.problem =
-            fmt::format("part '{}': {}: the chunk of row {}: {}", ps.name, ps.copyPath, fileRow,
-                        coreMessage(rv, w.message));
+        t.problem = fmt::format("part '{}': {}: the chunk of row {}: {}", ps.name, ps.copyPath,
+                                fileRow, coreMessage(rv, w.message));
         return false;
     }
     t.tableBytes = ci.sample_count_table_size;

@@ -1,4 +1,4 @@
-#include "mcstat/exr-codec/deep_part_reader.h"
+#include "mcstat/exr-deep/codec/detail/deep_part_reader.h"
 
 #include <fmt/format.h>
 
@@ -7,11 +7,11 @@
 #include <cstring>
 #include <new>
 
-#include "mcstat/exr-codec/deflate_codec.h"
-#include "mcstat/exr-codec/fd_stream.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/exr-codec/scratch_pool.h"
+#include "mcstat/exr-deep/codec/detail/deflate_codec.h"
+#include "mcstat/exr-deep/codec/detail/fd_stream.h"
+#include "mcstat/exr-deep/codec/detail/scratch_pool.h"
 
 namespace mcstat::detail {
 

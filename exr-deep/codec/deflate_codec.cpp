@@ -1,4 +1,4 @@
-#include "mcstat/exr-codec/deflate_codec.h"
+#include "mcstat/exr-deep/codec/detail/deflate_codec.h"
 
 #include <fmt/format.h>
 #include <libdeflate.h>

@@ -1,6 +1,6 @@
 // OpenEXR headers read byte by byte, before any OpenEXR reader sizes anything by them
 // (exr_headers.h).
-#include "mcstat/exr-codec/exr_headers.h"
+#include "mcstat/exr-deep/codec/detail/exr_headers.h"
 
 #include <fmt/format.h>
 #include <unistd.h>
@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/exr-codec/fd_stream.h"
+#include "mcstat/exr-deep/codec/detail/fd_stream.h"
 
 namespace mcstat::detail {
 

@@ -1,4 +1,4 @@
-#include "mcstat/exr-codec/fd_stream.h"
+#include "mcstat/exr-deep/codec/detail/fd_stream.h"
 
 #include <OpenEXR/Iex.h>
 #include <OpenEXR/ImfThreading.h>

@@ -1,4 +1,4 @@
-#include "mcstat/exr-codec/flat_part_reader.h"
+#include "mcstat/exr-deep/codec/detail/flat_part_reader.h"
 
 #include <OpenEXR/openexr.h>
 #include <fmt/format.h>
@@ -13,10 +13,10 @@
 
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/exr-codec/core_io.h"
-#include "mcstat/exr-codec/deflate_codec.h"
-#include "mcstat/exr-codec/fd_stream.h"
-#include "mcstat/exr-codec/scratch_pool.h"
+#include "mcstat/exr-deep/codec/detail/core_io.h"
+#include "mcstat/exr-deep/codec/detail/deflate_codec.h"
+#include "mcstat/exr-deep/codec/detail/fd_stream.h"
+#include "mcstat/exr-deep/codec/detail/scratch_pool.h"
 
 namespace mcstat::detail {
 

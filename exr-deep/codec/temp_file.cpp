@@ -1,4 +1,4 @@
-#include "mcstat/temp_file.h"
+#include "mcstat/exr-deep/codec/temp_file.h"
 
 #include <dirent.h>
 #include <fmt/format.h>

@@ -6,7 +6,8 @@
 #include <limits>
 #include <vector>
 
-#include "mcstat/core/colour_space.h"
+#include "mcstat/core/color_space.h"
+#include "mcstat/filters/pixel/detail/rank_keys.h"
 #include "mcstat/filters/pixel/ranking.h"
 
 namespace mcstat::detail {

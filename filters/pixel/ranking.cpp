@@ -11,7 +11,8 @@
 #include <cstdint>
 #include <limits>
 
-#include "mcstat/core/colour_space.h"
+#include "mcstat/core/color_space.h"
+#include "mcstat/filters/pixel/detail/rank_keys.h"
 
 namespace mcstat {
 

@@ -140,8 +140,8 @@ void reweightImage(const CascadeImage& img, const ReweightParams& p, std::vector
     for (int i = 0; i < C; ++i) scale[size_t(i)] = p.start * std::pow(p.base, i);
     const double oneOverK = 1.0 / p.kappa;
     const double optimizeForError = std::clamp(oneOverK, 0.0, 1.0);
-    const double colourFactor = (1.0 + 0.6 * (p.base - 1.0)) * (1.0 - optimizeForError) +
-                                optimizeForError;  // mix(mix(1, b, .6), 1, 1/kappa)
+    const double colorFactor = (1.0 + 0.6 * (p.base - 1.0)) * (1.0 - optimizeForError) +
+                               optimizeForError;  // mix(mix(1, b, .6), 1, 1/kappa)
     // c_i(q): the luminance of the counts of cascades i-1, i, i+1 at pixel q.
     auto counts = [&](size_t q, int i) {
         const double* s = img.sum.data() + q * size_t(C) * 3;
@@ -174,9 +174,9 @@ void reweightImage(const CascadeImage& img, const ReweightParams& p, std::vector
                     double r = global - oneOverK;
                     if (r >= 0.0) r = local - oneOverK;
                     const double currScale = N * oneOverK / scale[size_t(i)];
-                    double colour = std::max(lum(p.luma, e), 0.05) * currScale;
-                    colour *= colourFactor;
-                    double w = std::clamp((r + colour) * 0.5, 0.0, 1.0);
+                    double color = std::max(lum(p.luma, e), 0.05) * currScale;
+                    color *= colorFactor;
+                    double w = std::clamp((r + color) * 0.5, 0.0, 1.0);
                     if (!(oneOverK < 1e6)) w = 1.0;  // the reference's switch: kappa <= 1e-6 is off
                     for (int k = 0; k < 3; ++k) e[k] += w * s[size_t(i) * 3 + size_t(k)] / N;
                     if (weights) (*weights)[pix * size_t(C) + size_t(i)] = w;

@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "mcstat/core/parallel.h"
+#include "mcstat/exr-deep/sample_records.h"
 #include "mcstat/filters/samples/rpf_filter.h"
-#include "mcstat/sample_records.h"
 
 namespace mcstat {
 
@@ -21,8 +21,8 @@ namespace {
 
 /// maps=1 (Fig. 6), per pixel from pass 0: W_c^r (eq. 11), W_f^r of the texture value (eq. 9,
 /// mean over T1.*), mean alpha (eq. 15), mean beta of T1 (eq. 16) and |N|.
-const std::vector<std::string> kMapChannels{"rpf.colourOnRandom", "rpf.textureOnRandom",
-                                            "rpf.alpha", "rpf.textureBeta", "rpf.neighbours"};
+const std::vector<std::string> kMapChannels{"rpf.colorOnRandom", "rpf.textureOnRandom", "rpf.alpha",
+                                            "rpf.textureBeta", "rpf.neighbours"};
 
 bool startsWith(const std::string& s, const char* prefix) { return s.rfind(prefix, 0) == 0; }
 
@@ -152,8 +152,8 @@ struct RpfPlan {
 /// The colour channel (0..2) whose spikes (section 6.1) an AOV follows: the one of the same
 /// letter for light and data passes ("diffuse.R"), else -1.
 int spikeChannelOf(const AovChannel& a) {
-    const bool colour = a.cls == AovClass::Light || a.cls == AovClass::Data;
-    if (!colour || a.name.size() < 2 || a.name[a.name.size() - 2] != '.') return -1;
+    const bool color = a.cls == AovClass::Light || a.cls == AovClass::Data;
+    if (!color || a.name.size() < 2 || a.name[a.name.size() - 2] != '.') return -1;
     switch (a.name.back()) {
         case 'R':
         case 'r':
@@ -264,7 +264,7 @@ void storeMaps(const RpfPixelReport& r, const std::vector<int>& texture, float* 
         tb += r.beta.empty() ? 0.0 : r.beta[size_t(k)];
     }
     const double nt = std::max<size_t>(texture.size(), 1);
-    o[0] = float(r.colourOnRandom);
+    o[0] = float(r.colorOnRandom);
     o[1] = float(tr / nt);
     o[2] = float((r.alpha[0] + r.alpha[1] + r.alpha[2]) / 3.0);
     o[3] = float(tb / nt);
@@ -342,7 +342,7 @@ Operation rpfOperation() {
     const ParamSpec maps =
         flagParam("maps", "0",
                   "add the first pass's dependency maps (the report's Fig. 6): channels "
-                  "rpf.colourOnRandom (eq. 11), rpf.textureOnRandom (eq. 9), rpf.alpha (eq. 15), "
+                  "rpf.colorOnRandom (eq. 11), rpf.textureOnRandom (eq. 9), rpf.alpha (eq. 15), "
                   "rpf.textureBeta (eq. 16), rpf.neighbours (|N|)");
     return samplesOperation(
         "rpf", "RPF",

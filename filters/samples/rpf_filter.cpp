@@ -222,7 +222,7 @@ struct Scratch {
     std::vector<float> xs;        // dims x members (by dimension), normalised (section 4.3)
     std::vector<float> cs;        // members x 3: the current colours c', normalised for eq. 18
     std::vector<float> z;         // k x members: the weighted coordinates of eq. 18, by dimension
-    std::vector<float> colour;    // 3 x members: the current colours c', by channel
+    std::vector<float> color;     // 3 x members: the current colours c', by channel
     std::vector<float> d2;        // members: squared distances, then weights
     // The draws already seen for this pixel (Algorithm 2): per sample of the box, by its place in
     // the box's rows, the pixel's stamp and its member index (-1: failed the clustering test).
@@ -385,18 +385,18 @@ RpfWeights dependencyWeights(const RpfLayout& layout, int pass, double epsilon, 
             f += dcfk[size_t(k * nf + l)];
         }
         const double wcr = randomFraction(r, p, epsilon);  // eq. 10
-        w.colourChannelOnRandom[size_t(k)] = wcr;
+        w.colorChannelOnRandom[size_t(k)] = wcr;
         w.alpha[size_t(k)] = std::max(1.0 - 2.0 * grow * wcr, 0.0);  // eq. 15
         dcr += r;
         dcp += p;
         dcf += f;  // eq. 8
     }
-    w.colourOnRandom =
-        (w.colourChannelOnRandom[0] + w.colourChannelOnRandom[1] + w.colourChannelOnRandom[2]) /
+    w.colorOnRandom =
+        (w.colorChannelOnRandom[0] + w.colorChannelOnRandom[1] + w.colorChannelOnRandom[2]) /
         3.0;  // eq. 11
     w.beta.assign(size_t(nf), 0.0);
     w.featureOnRandom.assign(size_t(nf), 0.0);
-    w.colourOnFeature.assign(size_t(nf), 0.0);
+    w.colorOnFeature.assign(size_t(nf), 0.0);
     const double all = dcr + dcp + dcf;
     for (int k = 0; k < nf; ++k) {
         double r = 0, p = 0;
@@ -407,7 +407,7 @@ RpfWeights dependencyWeights(const RpfLayout& layout, int pass, double epsilon, 
         const double wfr = randomFraction(r, p, epsilon);                       // eq. 9
         const double wcf = all > 0 ? dck / all : 0.0;                           // eq. 12
         w.featureOnRandom[size_t(k)] = wfr;
-        w.colourOnFeature[size_t(k)] = wcf;
+        w.colorOnFeature[size_t(k)] = wcf;
         w.beta[size_t(k)] = wcf * std::max(1.0 - grow * wfr, 0.0);  // eq. 16
     }
     return w;
@@ -602,13 +602,13 @@ void reportPixel(size_t n, const RpfWeights& wt, RpfPixelReport& report) {
     report.neighbours = int(n);
     report.alpha = wt.alpha;
     report.beta = wt.beta;
-    report.colourOnRandom = wt.colourOnRandom;
+    report.colorOnRandom = wt.colorOnRandom;
     report.featureOnRandom = wt.featureOnRandom;
 }
 
 /// Algorithm 4 lines 2-3 (eq. 19) and eq. 18 as one squared distance: sc.z holds coordinate k of
 /// every sample of N scaled by sqrt(weight_k / (2 sigma^2)), by dimension (rows of |N|, so that
-/// the loops over N run on contiguous floats), sc.colour N's current colours by channel. Returns
+/// the loops over N run on contiguous floats), sc.color N's current colours by channel. Returns
 /// the number of coordinates.
 size_t bilateralCoordinates(const RpfWindow& w, const RpfParams& prm, const RpfWeights& wt,
                             size_t s, const std::vector<float>& cIn, Scratch& sc) {
@@ -616,7 +616,7 @@ size_t bilateralCoordinates(const RpfWindow& w, const RpfParams& prm, const RpfW
     const size_t n = sc.members.size();
     // sigma_c^2 = sigma_f^2 = sigma^2 / (1 - W_c^r)^2.
     const double sigma2 = 8.0 * prm.sigma8sq / double(s);
-    const double keepShare = (1.0 - wt.colourOnRandom) * (1.0 - wt.colourOnRandom);
+    const double keepShare = (1.0 - wt.colorOnRandom) * (1.0 - wt.colorOnRandom);
     sc.scale.clear();
     sc.source.clear();  // -1 - k: colour channel k; else the dims index
     for (int k = 0; k < 3; ++k)
@@ -639,9 +639,9 @@ size_t bilateralCoordinates(const RpfWindow& w, const RpfParams& prm, const RpfW
             zk[i] = float(double(v) * sc.scale[k]);
         }
     }
-    sc.colour.resize(3 * n);
+    sc.color.resize(3 * n);
     for (size_t j = 0; j < n; ++j)
-        for (size_t c = 0; c < 3; ++c) sc.colour[c * n + j] = cIn[sc.members[j] * 3 + c];
+        for (size_t c = 0; c < 3; ++c) sc.color[c * n + j] = cIn[sc.members[j] * 3 + c];
     sc.d2.resize(n);
     return kz;
 }
@@ -664,10 +664,10 @@ void bilateralWeights(size_t i, size_t kz, Scratch& sc) {
 
 /// Eq. 20: the filtered colour c'' of a sample, N's current colours weighted by sc.d2 (in double),
 /// summed over N's draws in order.
-void filterColour(const Scratch& sc, float* out) {
+void filterColor(const Scratch& sc, float* out) {
     const size_t n = sc.members.size();
     const float* d2 = sc.d2.data();
-    const float* r = sc.colour.data();
+    const float* r = sc.color.data();
     const float* g = r + n;
     const float* bl = g + n;
     double acc[3] = {0, 0, 0}, wsum = 0;
@@ -752,7 +752,7 @@ void filterPixel(const RpfWindow& w, const RpfParams& prm, int pass, const Offse
     const size_t A = aIn ? w.aovs : 0;
     for (size_t i = 0; i < s; ++i) {
         bilateralWeights(i, kz, sc);
-        filterColour(sc, cOut.data() + (first + i) * 3);
+        filterColor(sc, cOut.data() + (first + i) * 3);
         if (A > 0) filterAovs(w, aIn, sc, aOut + (first + i) * A);
     }
     if (prm.spikes && s >= 2) removeSpikes(w, first, s, A, cOut, aOut, sc);

@@ -13,10 +13,10 @@
 
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/untrusted_text.h"
+#include "mcstat/exr-deep/sample_records.h"
 #include "mcstat/filters/aov_weights.h"
 #include "mcstat/filters/samples/sample_delaying_kde.h"
 #include "mcstat/filters/samples/sample_delaying_state.h"
-#include "mcstat/sample_records.h"
 
 namespace mcstat {
 

@@ -8,7 +8,7 @@
 #include <cstdlib>
 #include <limits>
 
-#include "mcstat/core/colour_space.h"
+#include "mcstat/core/color_space.h"
 #include "mcstat/core/moments.h"
 #include "mcstat/core/params.h"
 

@@ -8,9 +8,10 @@
 #include <cstring>
 #include <limits>
 
-#include "mcstat/core/colour_space.h"
+#include "mcstat/core/color_space.h"
+#include "mcstat/exr-deep/stats_file.h"  // kMaxBuffers, for the overflow bound below
+#include "mcstat/filters/window/detail/window_sort.h"
 #include "mcstat/filters/window/window_kernel.h"
-#include "mcstat/stats_file.h"  // kMaxBuffers, for the overflow bound below
 
 namespace mcstat {
 

@@ -9,8 +9,9 @@
 #include <limits>
 #include <memory>
 
-#include "mcstat/core/colour_space.h"
+#include "mcstat/core/color_space.h"
 #include "mcstat/filters/operation.h"
+#include "mcstat/filters/window/detail/window_sort.h"
 
 namespace mcstat {
 

@@ -46,8 +46,8 @@ for c, (ax, channel) in enumerate(zip(axes, "RGB")):
     j = np.arange(s.M)[held]
     ax.scatter(j, buffers[held, c], s=8 + 40 * counts[held] / max(1, counts.max()), color="0.3",
                label="sub-buffers")
-    for (name, v), style, colour in zip(estimates.items(), ("-", "--", ":"), ("C0", "C1", "C3")):
-        ax.axhline(v[c], linestyle=style, color=colour, label=name)
+    for (name, v), style, color in zip(estimates.items(), ("-", "--", ":"), ("C0", "C1", "C3")):
+        ax.axhline(v[c], linestyle=style, color=color, label=name)
     ax.set_title(channel)
     ax.set_xlabel("sub-buffer")
 axes[0].legend(fontsize=7)

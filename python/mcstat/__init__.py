@@ -69,7 +69,7 @@ class Stats:
     count    (H, W)              samples per pixel; variance (H, W, 3) their variance
     aovs     dict                AOV name -> (H, W, M, n) or (H, W, M) (aov_channels: every name)
     features dict                'N', 'P', 'Albedo' (H, W, 3), 'Z', 'A' (H, W): those the file holds
-    header   dict                M, spp, seeds, colour_space, width, height, data_window, ...
+    header   dict                M, spp, seeds, color_space, width, height, data_window, ...
 
     For a fixed-M file the arrays are views of the image mcstat holds (no copy): writing into
     them changes what write() writes and what estimate() sees. Adaptive layouts' (and compact

@@ -33,7 +33,7 @@ from . import compare
 
 __all__ = ["assert_same_render", "report_dir_for", "report_name"]
 
-MANIFEST = ".mcstat-report"  # include/mcstat/compare/report_folder.h: the same file, the same rule
+MANIFEST = ".mcstat-report"  # include/mcstat/compare/report/report_folder.h: the same file, the same rule
 _SAFE = re.compile(r"[^A-Za-z0-9_.\-\[\]]+")
 _MAX_NAME = 120
 _MAX_CANDIDATES = 100

@@ -13,7 +13,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 
 namespace mcstat::python {
 

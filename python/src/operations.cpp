@@ -2,14 +2,14 @@
 // uses (image/imageops.h, compare/compare.h): equal to `mcstat FILE --OP` bit for bit.
 #include "bindings.h"
 #include "mcstat/compare/compare.h"
-#include "mcstat/compare/compare_report.h"
+#include "mcstat/compare/report/compare_report.h"
 #include "mcstat/core/untrusted_text.h"
+#include "mcstat/exr-deep/codec/temp_file.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/keep_light_image.h"
 #include "mcstat/image/operation_input.h"
 #include "mcstat/image/removed_light_layers.h"
-#include "mcstat/temp_file.h"
 
 namespace mcstat::python {
 

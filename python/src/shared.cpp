@@ -2,7 +2,7 @@
 // an image as numpy arrays. The calls of the module point one way: module.cpp calls the binders of
 // stats.cpp and operations.cpp, which call this file, which calls none of them.
 #include "bindings.h"
-#include "mcstat/color.h"
+#include "mcstat/color/color.h"
 
 namespace mcstat::python {
 

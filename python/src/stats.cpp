@@ -4,7 +4,7 @@
 #include <limits>
 
 #include "bindings.h"
-#include "mcstat/ingest.h"
+#include "mcstat/ingest/ingest.h"
 
 namespace mcstat::python {
 
@@ -178,7 +178,7 @@ py::dict headerDict(const StatsHeader& h) {
     d["spp"] = h.spp;
     d["assignment"] = h.assignment;
     d["renderer"] = h.renderer;
-    d["colour_space"] = h.colorSpace;
+    d["color_space"] = h.colorSpace;
     d["seeds"] = listTuple(h.seeds);
     d["scene"] = h.scene;
     d["variance"] = h.variance;

@@ -9,7 +9,7 @@
 
 #include <string>
 
-#include "mcstat/render/scene.h"
+#include "mcstat/render-fixture/scene.h"
 #include "ray.h"
 
 namespace mcstat::render {

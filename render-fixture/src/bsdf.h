@@ -2,7 +2,7 @@
 // Directions point away from the surface: wo toward the viewer, wi toward the light.
 #pragma once
 
-#include "mcstat/render/scene.h"
+#include "mcstat/render-fixture/scene.h"
 #include "rng.h"
 
 namespace mcstat::render {

@@ -3,7 +3,7 @@
 // parameters: pixel jitter, lens position, shutter time.
 #pragma once
 
-#include "mcstat/render/scene.h"
+#include "mcstat/render-fixture/scene.h"
 #include "ray.h"
 #include "rng.h"
 

@@ -15,8 +15,8 @@
 
 #include "integrator.h"
 #include "mcstat/core/moments.h"
-#include "mcstat/render/render.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
+#include "mcstat/render-fixture/render.h"
 
 namespace mcstat::render {
 

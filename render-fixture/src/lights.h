@@ -5,7 +5,7 @@
 
 #include <vector>
 
-#include "mcstat/render/scene.h"
+#include "mcstat/render-fixture/scene.h"
 #include "rng.h"
 
 namespace mcstat::render {

@@ -22,20 +22,20 @@
 #include <string>
 #include <thread>
 
-#include "mcstat/color.h"
+#include "mcstat/color/color.h"
 #include "mcstat/compact/compact.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/params.h"
 #include "mcstat/core/progress.h"
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/exr-codec/fd_stream.h"
+#include "mcstat/exr-deep/codec/detail/fd_stream.h"
+#include "mcstat/exr-deep/codec/temp_file.h"
+#include "mcstat/exr-deep/sample_records.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/registry.h"
-#include "mcstat/image/image_spec.h"
-#include "mcstat/render/render.h"
-#include "mcstat/render/scene.h"
-#include "mcstat/sample_records.h"
-#include "mcstat/stats_file.h"
-#include "mcstat/temp_file.h"
+#include "mcstat/image/spec/image_spec.h"
+#include "mcstat/render-fixture/render.h"
+#include "mcstat/render-fixture/scene.h"
 #include "mcstat/version.h"
 
 namespace {

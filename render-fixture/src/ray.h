@@ -1,7 +1,7 @@
 // A ray with unit direction, and the offset that keeps secondary rays off the surface they leave.
 #pragma once
 
-#include "mcstat/render/vec3.h"
+#include "mcstat/render-fixture/vec3.h"
 
 namespace mcstat::render {
 

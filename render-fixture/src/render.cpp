@@ -4,7 +4,7 @@
 // checkpoints; at each, sigma_image is reduced sequentially and buffer counts grow. Pilot: a pilot
 // pass over all rows, a sequential reduction of sigma_image, then the main pass with each pixel's
 // own buffer count.
-#include "mcstat/render/render.h"
+#include "mcstat/render-fixture/render.h"
 
 #include <OpenImageIO/parallel.h>
 #include <OpenImageIO/thread.h>

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <utility>
 
-#include "mcstat/render/vec3.h"
+#include "mcstat/render-fixture/vec3.h"
 
 namespace mcstat::render {
 

@@ -1,6 +1,6 @@
 // Scene loading: JSON text -> validated Scene. Every error is one line naming the source and the
 // JSON path of the offending value ("scene.json: shapes[2].radius: expected a number, got string").
-#include "mcstat/render/scene.h"
+#include "mcstat/render-fixture/scene.h"
 
 #include <cmath>
 #include <cstdint>

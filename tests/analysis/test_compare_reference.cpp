@@ -14,7 +14,7 @@
 #include <random>
 
 #include "mcstat/compare/compare.h"
-#include "mcstat/compare/compare_report.h"
+#include "mcstat/compare/report/compare_report.h"
 #include "mcstat/image/imageops.h"
 
 namespace mcstat {

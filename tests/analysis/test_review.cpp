@@ -172,7 +172,7 @@ TEST(ReviewOps, ErrorMapAveragesToCompareImages) {
 
 // ---- heatmap ------------------------------------------------------------------------------------
 
-TEST(ReviewOps, HeatmapColoursFollowTheErrorAndTheBar) {
+TEST(ReviewOps, HeatmapColorsFollowTheErrorAndTheBar) {
     // relerr growing left to right over four decades: log scale by default.
     const int w = 64, h = 3;
     std::vector<float> v(w * h);

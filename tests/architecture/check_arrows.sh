@@ -10,75 +10,91 @@ root=${1:?usage: check_arrows.sh ROOT}
 cd "$root" || exit 2
 bad=0
 
-# rule ROOM ALLOWED FILES...: every '#include "mcstat/X"' in FILES must match the extended regex
-# ALLOWED (matched against X).
+# rule FOLDER ALLOWED: one rule per folder (issue 51). A folder is a room: its sources FOLDER/*,
+# its public headers include/mcstat/FOLDER/* and its private shared ones include/mcstat/FOLDER/
+# detail/* (not installed); a sub-folder with a rule of its own is a room of its own (maxdepth 1).
+# Every '#include "mcstat/X"' of the room's files must match the extended regex ALLOWED (against X).
+# The renderer keeps its headers beside it (render-fixture/include/mcstat/render-fixture/, not
+# installed): its sources are render-fixture/src/.
 rule() {
-  local room=$1 allowed=$2
-  shift 2
+  local folder=$1 allowed=$2
+  local dirs=("$folder" "include/mcstat/$folder" "include/mcstat/$folder/detail")
+  [ "$folder" != render-fixture ] ||
+    dirs=(render-fixture/src render-fixture/include/mcstat/render-fixture)
   local files
-  files=$(find "$@" -maxdepth 1 -type f \( -name '*.h' -o -name '*.cpp' \) 2>/dev/null | sort)
-  [ -n "$files" ] || { echo "check_arrows: room $room: no files in $*"; bad=1; return; }
+  files=$(find "${dirs[@]}" -maxdepth 1 -type f \( -name '*.h' -o -name '*.cpp' \) 2>/dev/null | sort)
+  [ -n "$files" ] || { echo "check_arrows: folder $folder: no files"; bad=1; return; }
   while IFS=: read -r file line text; do
     local header=${text#*\"mcstat/}
     header=${header%%\"*}
     if ! [[ $header =~ ^($allowed)$ ]]; then
-      echo "$file:$line: includes mcstat/$header; $room may include only mcstat/($allowed)"
+      echo "$file:$line: includes mcstat/$header; $folder may include only mcstat/($allowed)"
       bad=1
     fi
   done < <(grep -Hn '^#include "mcstat/' $files)
 }
 
-core='core/[a-z_]+\.h'
-codec="$core|exr-codec/[a-z_]+\.h|temp_file\.h"
-format="$codec|stats_file\.h|sample_records\.h|temp_file\.h"
+# The headers of a room: public, and its detail/ (mcstat::detail, shared with the rooms above).
+room() { echo "$1/(detail/)?[a-z_0-9]+\\.h"; }
+core=$(room core)
+codec="$core|$(room exr-deep/codec)"
+format="$codec|$(room exr-deep)"
 kernel='filters/(operation|estimate)\.h'
+measures="$core|$(room analysis)"
+spec="$format|$(room image/spec)"
+onimage="$spec|filters/(operation|estimate|registry)\.h|$(room image)|$measures"
+anything='[a-z_0-9/-]+\.h'
 
-# Layer 0: core depends on nothing.
-rule core "$core" core include/mcstat/core
-# The colour config stands beside the stack.
-rule color "$core|color\.h" color
-rule color "$core" include/mcstat/color.h
+# Layer 0: core depends on nothing; the colour config stands beside the stack.
+rule core "$core"
+rule color "$core|$(room color)"
 # Layer 1: OpenEXR through its Core API (no statistics file), then the file format (no operation).
-rule exr-codec "$codec" exr-deep/codec include/mcstat/exr-codec
-rule exr-deep "$format" exr-deep include/mcstat/stats_file.h include/mcstat/sample_records.h \
-  include/mcstat/temp_file.h
-# Layer 2: what an operation is names no family; each family reaches only the interface.
-rule operation "$core|$kernel" include/mcstat/filters/operation.h include/mcstat/filters/estimate.h
-rule registry "$core|$kernel" include/mcstat/filters/registry.h
-# The per-pixel intervals implement filters/interval.h (the intervals from a stored spread).
-rule pixel "$core|$kernel|filters/interval\.h|filters/pixel/[a-z_0-9]+\.h" filters/pixel include/mcstat/filters/pixel
-rule window "$core|$kernel|filters/window/[a-z_0-9]+\.h|stats_file\.h" filters/window \
-  include/mcstat/filters/window
-rule samples "$format|$kernel|filters/aov_weights\.h|filters/samples/[a-z_0-9]+\.h" filters/samples \
-  include/mcstat/filters/samples
-rule filters "$format|filters/.+\.h" filters include/mcstat/filters
-rule compact "$format|filters/.+\.h|compact/compact\.h" compact include/mcstat/compact
-# Layer 2, the measures (analysis/): no image, no file.
-rule measures "$core|analysis/(metrics|planner|two_sample)\.h" analysis include/mcstat/analysis
+rule exr-deep/codec "$codec"
+rule exr-deep "$format"
+# Layer 2: the operations. Each family reaches only the interface (operation.h, estimate.h); the
+# per-pixel intervals implement filters/interval.h; the 3D filters read the buffer limit.
+rule filters "$format|filters/.+\.h"
+rule filters/pixel "$core|$kernel|filters/interval\.h|$(room filters/pixel)"
+rule filters/window "$core|$kernel|$(room filters/window)|exr-deep/stats_file\.h"
+rule filters/samples "$format|$kernel|filters/aov_weights\.h|$(room filters/samples)"
+rule compact "$format|filters/.+\.h|$(room compact)"
+# Layer 2, the measures: no image, no file.
+rule analysis "$measures"
 # Layer 3: the specs of images (below the operations), then the image layer, which runs every
 # operation through its kernel and names no family; no tool, no ingest, no review.
-rule imagespec "$format|image/(image_spec|render_layout)\.h" image/image_spec.cpp \
-  image/render_layout.cpp include/mcstat/image/image_spec.h include/mcstat/image/render_layout.h
-rule image "$format|filters/(operation|estimate|registry|aov_weights|removed_light|keep_light|interval)\.h|image/[a-z_]+\.h|analysis/metrics\.h" \
-  image include/mcstat/image
-# Layer 4: ingest reads renderers' EXRs through the codec, never the format's private headers,
-# and sets up images through the spec library, not the operations.
-rule ingest "$format|image/(image_spec|render_layout)\.h|color\.h|ingest\.h|channel_naming\.h" ingest \
-  include/mcstat/ingest.h include/mcstat/channel_naming.h
-# Layer 4 on the image layer: the review pictures and the comparison stand on the image layer and
-# the measures, through the registry (no family of operations), and on no tool, no ingest and not
-# on each other; only the comparison's reports draw with the review pictures.
-onimage="$format|filters/(operation|estimate|registry)\.h|image/[a-z_]+\.h|analysis/(metrics|planner|two_sample)\.h"
-rule review "$onimage|review/(review_pictures|display)\.h|color\.h" review include/mcstat/review
-rule compare "$onimage|compare/compare\.h" compare/compare.cpp compare/compare_checks.cpp \
-  compare/compare_checks.h compare/comparison.h compare/comparison.cpp compare/comparison_tile.cpp \
-  compare/comparison_decision.cpp compare/comparison_maps.cpp compare/side_values.cpp \
-  compare/compare_verdict.cpp compare/compare_params.cpp include/mcstat/compare/compare.h
-rule compare-report "$onimage|compare/(compare|compare_report|report_folder)\.h|review/review_pictures\.h" \
-  compare/compare_report.cpp include/mcstat/compare/compare_report.h
-# A report folder (never a user's file lost) stands on the format layer's atomic writes alone.
-rule report-folder "$format|compare/report_folder\.h" compare/report_folder.cpp \
-  include/mcstat/compare/report_folder.h
+rule image/spec "$spec"
+rule image "$spec|filters/(operation|estimate|registry|aov_weights|removed_light|keep_light|interval)\.h|$(room image)|analysis/metrics\.h"
+# Layer 4: ingest reads renderers' EXRs through the codec and sets up images through the spec
+# library, not the operations. The review pictures and the comparison stand on the image layer and
+# the measures, through the registry (no family), on no tool, no ingest and not on each other; only
+# the comparison's reports draw with the review pictures.
+rule ingest "$spec|color/color\.h|$(room ingest)"
+rule review "$onimage|$(room review)|color/color\.h"
+rule compare "$onimage|$(room compare)"
+rule compare/report "$onimage|compare/compare\.h|$(room compare/report)|review/review_pictures\.h"
+# Layer 5: the tools and the bindings stand on everything below them.
+rule render-fixture "$anything"
+rule oiiotool-ext "$anything"
+rule oiio-plugin "$anything"
+rule python/src "$anything"
+
+# Within filters/: the operation interface and the registry name no family (one check, not a room:
+# the files of filters/ above may name each family's header).
+while IFS=: read -r file line text; do
+  header=${text#*\"mcstat/}
+  header=${header%%\"*}
+  if ! [[ $header =~ ^($core|$kernel)$ ]]; then
+    echo "$file:$line: includes mcstat/$header; the operation interface may include only mcstat/($core|$kernel)"
+    bad=1
+  fi
+done < <(grep -Hn '^#include "mcstat/' include/mcstat/filters/operation.h \
+  include/mcstat/filters/estimate.h include/mcstat/filters/registry.h)
+
+# Public headers never include a detail/ header: the install leaves every detail/ folder out.
+while IFS=: read -r file line text; do
+  echo "$file:$line: a public header includes a private one (detail/, not installed)"
+  bad=1
+done < <(find include -name '*.h' -not -path '*/detail/*' -print0 | xargs -0 grep -Hn '^#include "mcstat/.*/detail/')
 
 # Private headers: a quoted include that is not mcstat/... is a header of the includer's folder.
 while IFS=: read -r file line text; do
@@ -89,7 +105,7 @@ while IFS=: read -r file line text; do
     bad=1
   fi
 done < <(grep -rHn --include='*.h' --include='*.cpp' '^#include "' core color exr-deep filters \
-  compact analysis image ingest review compare oiiotool-ext oiio-plugin render-fixture 2>/dev/null |
+  compact analysis image ingest review compare oiiotool-ext oiio-plugin render-fixture python/src 2>/dev/null |
   grep -v '^[^:]*:[0-9]*:#include "mcstat/')
 
 # Operation state parts are generic (issue 35): the format and the tools know state parts by their

@@ -13,7 +13,7 @@
 #include <stdexcept>
 #include <tuple>
 
-#include "mcstat/color.h"
+#include "mcstat/color/color.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/keep_light_image.h"

@@ -17,8 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/exr-codec/deflate_codec.h"
 #include "mcstat/core/parallel.h"
+#include "mcstat/exr-deep/codec/detail/deflate_codec.h"
 
 namespace {
 

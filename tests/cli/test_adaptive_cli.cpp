@@ -9,9 +9,9 @@
 #include <vector>
 
 #include "cli_support.h"
-#include "mcstat/color.h"
+#include "mcstat/color/color.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/registry.h"
-#include "mcstat/stats_file.h"
 
 using namespace mcstat;
 

@@ -12,9 +12,9 @@
 #include <string>
 
 #include "cli_support.h"
-#include "mcstat/color.h"
+#include "mcstat/color/color.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/registry.h"
-#include "mcstat/stats_file.h"
 
 using namespace mcstat;
 

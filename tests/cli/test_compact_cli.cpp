@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "cli_support.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 
 using namespace mcstat;
 

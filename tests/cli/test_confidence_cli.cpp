@@ -11,9 +11,9 @@
 
 #include "cli_support.h"
 #include "mcstat/core/location_stats.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
-#include "mcstat/stats_file.h"
 
 using namespace mcstat;
 

@@ -189,7 +189,7 @@ TEST_F(ContentCli, SrgbPngReferenceIsMadeSceneLinearBeforeComparing) {
         << r.err;
 }
 
-TEST_F(ContentCli, ReferenceInAColourSpaceOcioDoesNotKnowIsRefused) {
+TEST_F(ContentCli, ReferenceInAColorSpaceOcioDoesNotKnowIsRefused) {
     render("--M 4", "s.mcstat");
     OIIO::ImageBuf img(OIIO::ImageSpec(40, 30, 3, OIIO::TypeDesc::UINT8));
     const float grey[3] = {0.5f, 0.5f, 0.5f};

@@ -11,7 +11,7 @@
 #include <random>
 
 #include "cli_support.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 
 namespace {
 

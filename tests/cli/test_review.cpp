@@ -15,12 +15,12 @@
 #include <vector>
 
 #include "cli_support.h"
-#include "mcstat/color.h"
+#include "mcstat/color/color.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/review/display.h"
 #include "mcstat/review/review_pictures.h"
-#include "mcstat/stats_file.h"
 
 using namespace mcstat;
 

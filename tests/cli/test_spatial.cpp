@@ -14,13 +14,13 @@
 #include <vector>
 
 #include "cli_support.h"
-#include "mcstat/color.h"
+#include "mcstat/color/color.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/pixel/median.h"
 #include "mcstat/filters/pixel/tmpe.h"
 #include "mcstat/filters/window/filter3d.h"
 #include "mcstat/filters/window/mif.h"
 #include "mcstat/filters/window/window_rank.h"
-#include "mcstat/stats_file.h"
 
 using namespace mcstat;
 

@@ -14,7 +14,7 @@
 #include <thread>
 
 #include "cli_support.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "raw_exr.h"
 
 using namespace mcstat;

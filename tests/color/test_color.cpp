@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cstdlib>
 
-#include "mcstat/color.h"
+#include "mcstat/color/color.h"
 
 using namespace mcstat;
 

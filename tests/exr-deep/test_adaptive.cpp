@@ -14,7 +14,7 @@
 #include <map>
 #include <random>
 
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "raw_exr.h"
 #include "sample_accumulator.h"
 #include "test_support.h"

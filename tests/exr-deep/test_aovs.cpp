@@ -15,8 +15,8 @@
 #include <limits>
 #include <memory>
 
-#include "mcstat/sample_records.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/sample_records.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "raw_exr.h"
 #include "sample_accumulator.h"
 #include "test_support.h"

@@ -28,8 +28,8 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/sample_records.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/sample_records.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "sample_accumulator.h"
 #include "test_support.h"
 

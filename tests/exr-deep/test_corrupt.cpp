@@ -11,7 +11,7 @@
 #include <cstring>
 #include <limits>
 
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "raw_exr.h"
 #include "sample_accumulator.h"
 #include "test_support.h"

@@ -15,10 +15,10 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/exr-codec/deep_part_reader.h"
-#include "mcstat/exr-codec/fd_stream.h"
-#include "mcstat/exr-codec/flat_part_reader.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/codec/detail/deep_part_reader.h"
+#include "mcstat/exr-deep/codec/detail/fd_stream.h"
+#include "mcstat/exr-deep/codec/detail/flat_part_reader.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "raw_exr.h"
 #include "sample_accumulator.h"
 #include "test_support.h"

@@ -6,7 +6,7 @@
 #include <cstdlib>
 #include <random>
 
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "sample_accumulator.h"
 #include "test_support.h"
 

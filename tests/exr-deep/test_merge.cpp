@@ -7,7 +7,7 @@
 #include <cstring>
 #include <functional>
 
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "sample_accumulator.h"
 #include "test_support.h"
 

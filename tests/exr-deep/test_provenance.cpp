@@ -7,7 +7,7 @@
 #include <cmath>
 #include <limits>
 
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "raw_exr.h"
 #include "sample_accumulator.h"
 #include "test_support.h"

@@ -4,7 +4,7 @@
 // tests/image/test_stream.cpp.)
 #include <gtest/gtest.h>
 
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "raw_exr.h"
 #include "sample_accumulator.h"
 #include "test_support.h"

@@ -9,7 +9,7 @@
 #include <memory>
 #include <stdexcept>
 
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 
 namespace mcstat::test {
 

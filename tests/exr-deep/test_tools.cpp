@@ -5,7 +5,7 @@
 #include <array>
 #include <cstdio>
 
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "sample_accumulator.h"
 #include "test_support.h"
 

@@ -10,8 +10,8 @@
 #include <algorithm>
 #include <chrono>
 
-#include "mcstat/stats_file.h"
-#include "mcstat/temp_file.h"
+#include "mcstat/exr-deep/codec/temp_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "sample_accumulator.h"
 #include "test_support.h"
 

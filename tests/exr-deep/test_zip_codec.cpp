@@ -12,7 +12,7 @@
 #include <random>
 #include <vector>
 
-#include "mcstat/exr-codec/deflate_codec.h"
+#include "mcstat/exr-deep/codec/detail/deflate_codec.h"
 
 namespace mcstat::detail {
 namespace {
@@ -65,12 +65,18 @@ std::vector<uint8_t> libdeflateLevel4(const std::vector<uint8_t>& in) {
 TEST(ZipCodec, EveryChunkIsLibdeflatesLevel4StreamByteForByte) {
     ZipEncoder z;
     const std::vector<std::vector<uint8_t>> chunks = {
-        countTable(30, 80),                           // 120 bytes, the table that differed
-        countTable(1, 7),       countTable(1023, 3),  // 4,092 bytes
-        noisyFloats(1, 1),      noisyFloats(2, 2),     noisyFloats(1000, 3), noisyFloats(4095, 4),
-        noisyFloats(4096, 5),   noisyFloats(37580, 6),  // the size of a chunk whose ISA-L stream
-                                                        // differed between processes
-        noisyFloats(250000, 7), countTable(2000, 80),
+        countTable(30, 80),  // 120 bytes, the table that differed
+        countTable(1, 7),
+        countTable(1023, 3),  // 4,092 bytes
+        noisyFloats(1, 1),
+        noisyFloats(2, 2),
+        noisyFloats(1000, 3),
+        noisyFloats(4095, 4),
+        noisyFloats(4096, 5),
+        noisyFloats(37580, 6),  // the size of a chunk whose ISA-L stream
+                                // differed between processes
+        noisyFloats(250000, 7),
+        countTable(2000, 80),
     };
     for (const auto& c : chunks) {
         SCOPED_TRACE(c.size());

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "mcstat/exr-deep/sample_records.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/pixel/gmonb.h"
 #include "mcstat/filters/pixel/meridian.h"
 #include "mcstat/filters/pixel/myriad.h"
@@ -14,8 +16,6 @@
 #include "mcstat/filters/registry.h"
 #include "mcstat/filters/window/window_rank.h"
 #include "mcstat/image/imageops.h"
-#include "mcstat/sample_records.h"
-#include "mcstat/stats_file.h"
 
 using namespace mcstat;
 

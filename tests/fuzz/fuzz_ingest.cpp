@@ -10,8 +10,8 @@
 
 #include "fuzz_support.h"
 #include "mcstat/image/imageops.h"
-#include "mcstat/image/render_layout.h"
-#include "mcstat/ingest.h"
+#include "mcstat/image/spec/render_layout.h"
+#include "mcstat/ingest/ingest.h"
 
 using namespace mcstat;
 

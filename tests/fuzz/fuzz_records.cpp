@@ -2,9 +2,9 @@
 // (SampleRecordsReader, by blocks of rows, with every channel and with R, G, B, Z alone), Pajot's
 // parts `pajot` and `modes`, and the per-sample operations (Pajot, RPF) over what was accepted.
 #include "fuzz_support.h"
+#include "mcstat/exr-deep/sample_records.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/filters/samples/sample_delaying_state.h"
-#include "mcstat/sample_records.h"
 
 using namespace mcstat;
 

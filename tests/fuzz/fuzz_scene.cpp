@@ -3,7 +3,7 @@
 #include <string>
 
 #include "fuzz_support.h"
-#include "mcstat/render/scene.h"
+#include "mcstat/render-fixture/scene.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const std::string text(reinterpret_cast<const char*>(data), size);

@@ -12,7 +12,7 @@
 #include <string>
 
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 
 namespace mcstat::fuzz {
 

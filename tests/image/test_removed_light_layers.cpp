@@ -12,10 +12,10 @@
 #include <random>
 #include <string>
 
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/removed_light_layers.h"
-#include "mcstat/stats_file.h"
 
 using namespace mcstat;
 

@@ -19,10 +19,10 @@
 #include <vector>
 
 #include "filters/pixel/pixel_support.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/filters/window/window_kernel.h"
 #include "mcstat/image/imageops.h"
-#include "mcstat/stats_file.h"
 
 using namespace mcstat;
 using mcstat::testing::kLuma;

@@ -1,7 +1,7 @@
 // Channel naming: the beauty and the features are found by name in each renderer's convention.
 #include <gtest/gtest.h>
 
-#include "mcstat/channel_naming.h"
+#include "mcstat/ingest/channel_naming.h"
 #include "render_files.h"
 
 namespace mcstat {

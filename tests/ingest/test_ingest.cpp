@@ -7,10 +7,10 @@
 #include <fstream>
 #include <limits>
 
-#include "mcstat/image/imageops.h"
 #include "mcstat/filters/registry.h"
-#include "mcstat/image/render_layout.h"
-#include "mcstat/ingest.h"
+#include "mcstat/image/imageops.h"
+#include "mcstat/image/spec/render_layout.h"
+#include "mcstat/ingest/ingest.h"
 #include "render_files.h"
 
 namespace mcstat {

@@ -14,10 +14,10 @@
 #include <random>
 #include <set>
 
-#include "mcstat/color.h"
+#include "mcstat/color/color.h"
 #include "mcstat/image/imageops.h"
-#include "mcstat/image/render_layout.h"
-#include "mcstat/ingest.h"
+#include "mcstat/image/spec/render_layout.h"
+#include "mcstat/ingest/ingest.h"
 
 namespace mcstat {
 namespace {

@@ -10,7 +10,7 @@
 #include <numeric>
 
 #include "../cli/cli_support.h"
-#include "mcstat/color.h"
+#include "mcstat/color/color.h"
 #include "render_files.h"
 
 namespace mcstat::testing {

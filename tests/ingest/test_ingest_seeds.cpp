@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "../cli/cli_support.h"
-#include "mcstat/ingest.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
+#include "mcstat/ingest/ingest.h"
 #include "render_files.h"
 
 namespace mcstat::testing {

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/ingest.h"
+#include "mcstat/ingest/ingest.h"
 #include "render_files.h"
 
 namespace mcstat {

@@ -70,6 +70,27 @@ run_step("compile with pkg-config flags" "${CXX}" -std=c++17 ${_extra} "${SOURCE
 run_step("run the pkg-config consumer" "${WORK_DIR}/consumer-pc")
 check_output("consumer (pkg-config)" "${step_output}")
 
-# 3. The installed tool runs from the prefix (with shared libraries: through its RPATH).
+# 3. Only the public headers are installed (issue 51): no detail/ folder (mcstat::detail), and
+# every installed header compiles in one translation unit with the pkg-config flags alone, so none
+# includes a header the install left out.
+file(GLOB_RECURSE _details LIST_DIRECTORIES true "${_prefix}/include/mcstat/*")
+list(FILTER _details INCLUDE REGEX "/detail(/|$)")
+if(_details)
+  message(FATAL_ERROR "cmake --install installed private headers: ${_details}")
+endif()
+file(GLOB_RECURSE _headers RELATIVE "${_prefix}/include" "${_prefix}/include/mcstat/*.h")
+list(LENGTH _headers _nheaders)
+if(_nheaders LESS 40)
+  message(FATAL_ERROR "cmake --install installed only ${_nheaders} headers: ${_headers}")
+endif()
+set(_all "${WORK_DIR}/all_headers.cpp")
+file(WRITE "${_all}" "")
+foreach(_h IN LISTS _headers)
+  file(APPEND "${_all}" "#include \"${_h}\"\n")
+endforeach()
+run_step("compile every installed header" "${CXX}" -std=c++17 -fsyntax-only ${_extra} "${_all}"
+  ${_pc_flags})
+
+# 4. The installed tool runs from the prefix (with shared libraries: through its RPATH).
 run_step("the installed mcstat" "${_prefix}/bin/mcstat" --version)
 message(STATUS "consumer: CMake package and pkg-config builds print the expected G-MoN value")

@@ -22,10 +22,10 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/color.h"
+#include "mcstat/color/color.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
-#include "mcstat/stats_file.h"
 #include "mcstat/version.h"
 
 namespace {

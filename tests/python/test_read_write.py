@@ -16,7 +16,7 @@ def test_read_arrays_match_the_file(scene):
     s = mcstat.read(scene)
     h = s.header
     assert (h["width"], h["height"], h["M"], h["spp"]) == (40, 30, 8, 64)
-    assert h["seeds"] == ("1",) and h["colour_space"] == "lin_rec709" and not h["adaptive"]
+    assert h["seeds"] == ("1",) and h["color_space"] == "lin_rec709" and not h["adaptive"]
     # Every list in the header is a tuple of str (issue 50), as beauty_channels is.
     assert h["beauty_channels"] == ("R", "G", "B") and h["sources"] == ()
     assert isinstance(h["features"], tuple) and "Albedo" in h["features"]

@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/render/render.h"
-#include "mcstat/render/scene.h"
+#include "mcstat/render-fixture/render.h"
+#include "mcstat/render-fixture/scene.h"
 
 namespace mcstat::render::testutil {
 

@@ -15,8 +15,8 @@
 #include <vector>
 
 #include "film.h"
-#include "mcstat/render/render.h"
-#include "mcstat/render/scene.h"
+#include "mcstat/render-fixture/render.h"
+#include "mcstat/render-fixture/scene.h"
 
 namespace {
 

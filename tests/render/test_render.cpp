@@ -18,8 +18,8 @@
 
 #include "film.h"
 #include "integrator.h"
-#include "mcstat/render/render.h"
-#include "mcstat/render/scene.h"
+#include "mcstat/render-fixture/render.h"
+#include "mcstat/render-fixture/scene.h"
 #include "render_test_util.h"
 #include "rng.h"
 

@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/sample_records.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/sample_records.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "tool_test.h"
 
 namespace mcstat {
@@ -137,7 +137,7 @@ TEST_F(RenderAovs, TheBeautyAndEverythingElseAreBitIdenticalWithoutAovs) {
     EXPECT_EQ(a.coverage, b.coverage);
 }
 
-TEST_F(RenderAovs, RecordsCarryEverySamplesAovsWhichSumToItsColour) {
+TEST_F(RenderAovs, RecordsCarryEverySamplesAovsWhichSumToItsColor) {
     const std::string f = path("k.mcstat");
     testing::ToolRun r =
         render("--scene default --res 12 10 --spp 6 --M 3 --aovs --keep-samples -o " + f);

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <string>
 
-#include "mcstat/sample_records.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/sample_records.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "tool_test.h"
 
 namespace mcstat {

@@ -28,7 +28,7 @@ namespace mcstat {
 
 struct DiffOptions {
     std::array<double, 3> luma{0.0, 0.0, 0.0};
-    /// The working space of both images (colour_space.h; empty: the OCIO config's scene_linear):
+    /// The working space of both images (color_space.h; empty: the OCIO config's scene_linear):
     /// SSIM's display values go through a display transform right for it (applyDisplayTransform).
     std::string space;
     double relmseEpsilon = 0.01;

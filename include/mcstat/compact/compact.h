@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "mcstat/core/pixel_buffers.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/pixel/pixel_estimate.h"
-#include "mcstat/stats_file.h"
 
 namespace mcstat {
 

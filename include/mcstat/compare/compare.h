@@ -23,7 +23,7 @@
 
 #include "mcstat/analysis/two_sample.h"
 #include "mcstat/core/params.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 
 namespace mcstat {
 

@@ -13,7 +13,7 @@
 #include <cstddef>
 #include <vector>
 
-#include "mcstat/stats_file.h"  // AovClass
+#include "mcstat/exr-deep/stats_file.h"  // AovClass
 
 namespace mcstat {
 

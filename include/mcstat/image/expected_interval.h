@@ -14,7 +14,7 @@
 
 #include <vector>
 
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 
 namespace mcstat {
 

@@ -14,9 +14,9 @@
 #include <map>
 #include <string>
 
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/registry.h"
-#include "mcstat/image/image_spec.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/image/spec/image_spec.h"
 
 namespace mcstat {
 

@@ -14,9 +14,9 @@
 #include <vector>
 
 #include "mcstat/core/params.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/keep_light.h"
 #include "mcstat/filters/registry.h"
-#include "mcstat/stats_file.h"
 
 namespace mcstat {
 

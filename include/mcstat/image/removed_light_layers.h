@@ -7,8 +7,8 @@
 
 #include <array>
 
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/image/removed_light_pass.h"
-#include "mcstat/stats_file.h"
 
 namespace mcstat {
 

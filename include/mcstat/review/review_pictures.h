@@ -106,7 +106,7 @@ bool colorBar(OIIO::ImageBuf& dst, int width, const ColorScale& scale,
               const ReviewStyle& style = {});
 OIIO::ImageBuf colorBar(int width, const ColorScale& scale, const ReviewStyle& style = {});
 
-/// Heatmap of one channel of `src` within `roi`: colour_map of the position on the resolved scale,
+/// Heatmap of one channel of `src` within `roi`: color_map of the position on the resolved scale,
 /// through the OCIO display view (OIIO's maps are scene-linear; the built-in config's view gives
 /// their published sRGB values), NaN / Inf pixels kNonFiniteColor, upscaled `opt.scale` times,
 /// with a colour bar (a binary channel: its two-swatch legend) under it unless opt.colorBar is

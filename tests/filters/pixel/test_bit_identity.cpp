@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "mcstat/filters/pixel/detail/rank_keys.h"
 #include "mcstat/filters/pixel/gmon.h"
 #include "mcstat/filters/pixel/meridian.h"
 #include "mcstat/filters/pixel/myriad.h"
@@ -100,13 +101,11 @@ class PixelGen {
         count.assign(size_t(M), 0.f);
         const int family = pick(10);
         const int counts = pick(6);
-        const int colour = pick(3);
+        const int color = pick(3);
         for (int j = 0; j < M; ++j) {
             const float v = value(family);
             for (int c = 0; c < 3; ++c)
-                mean[size_t(j) * 3 + c] = colour == 0   ? v
-                                          : colour == 1 ? value(family)
-                                                        : v * (c + 1);
+                mean[size_t(j) * 3 + c] = color == 0 ? v : color == 1 ? value(family) : v * (c + 1);
             count[size_t(j)] = countValue(counts);
         }
         // Duplicates: whole buffers copied (luminance and channel ties), sometimes other counts.

@@ -253,7 +253,7 @@ TEST(Estimators, ExtremeValuesStayFinite) {
 
 // ---- luminance mode --------------------------------------------------------------------------
 
-TEST(Estimators, LuminanceModeReturnsAChosenBuffersColour) {
+TEST(Estimators, LuminanceModeReturnsAChosenBuffersColor) {
     // luminances .2126 (red), .7152 (green), .0722 (blue): the median is the red buffer
     Pixel px({{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, {1, 1, 1});
     PixelEstimate lum = run("mon", px, EstimatorMode::Luminance);

@@ -337,7 +337,7 @@ TEST(Meridian, LimitsTiesAndWeights) {
     EXPECT_EQ(k.kept[0], 2);
 }
 
-TEST(Meridian, LuminanceReturnsOneBuffersColour) {
+TEST(Meridian, LuminanceReturnsOneBuffersColor) {
     Opts o;
     o.mode = EstimatorMode::Luminance;
     Pixel px({{0.2f, 0.3f, 0.1f}, {0.22f, 0.31f, 0.1f}, {30, 30, 30}, {0.21f, 0.29f, 0.12f}},

@@ -8,8 +8,8 @@
 #include <cmath>
 #include <random>
 
+#include "mcstat/exr-deep/sample_records.h"
 #include "mcstat/filters/registry.h"
-#include "mcstat/sample_records.h"
 
 namespace mcstat {
 namespace {
@@ -162,7 +162,7 @@ TEST(AovSamples, PajotSplatsWholeSamples) {
     EXPECT_EQ(runSamples("pajot", src, {{"method", "hybrid"}}).channels.size(), 4u);
 }
 
-TEST(AovSamples, RpfGivesAovsTheColoursWeights) {
+TEST(AovSamples, RpfGivesAovsTheColorsWeights) {
     MemorySamples src = scene(12, 10, 8, 9);
     for (const char* spikes : {"0", "1"}) {
         const OperationImage out =

@@ -17,11 +17,11 @@
 #include <string>
 
 #include "mcstat/core/params.h"
+#include "mcstat/exr-deep/sample_records.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/filters/samples/sample_delaying.h"
 #include "mcstat/filters/samples/sample_delaying_state.h"
-#include "mcstat/sample_records.h"
-#include "mcstat/stats_file.h"
 #include "pajot_reference.h"
 #include "tool_test.h"
 

@@ -204,7 +204,7 @@ TEST(Reweight, HighCountsGiveTheMean) {
     }
 }
 
-TEST(Reweight, NoSamplesIsZeroAndOneSampleRestsOnTheColourTerm) {
+TEST(Reweight, NoSamplesIsZeroAndOneSampleRestsOnTheColorTerm) {
     std::vector<std::vector<float>> s(4, std::vector<float>{3.f});  // 2x2, one sample each
     s[0].clear();                                                   // pixel 0: none
     // spp = 1: a pixel's one sample counts exactly 1 in its cascades' counts, so where the block

@@ -11,10 +11,10 @@
 #include <string>
 #include <vector>
 
+#include "mcstat/exr-deep/sample_records.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/filters/samples/cascade_reweighting_operation.h"
-#include "mcstat/sample_records.h"
-#include "mcstat/stats_file.h"
 #include "tool_test.h"
 
 namespace mcstat {

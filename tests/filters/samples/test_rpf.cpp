@@ -69,7 +69,7 @@ std::vector<float> normalised(std::vector<float> xs, int dims) {
     return xs;
 }
 
-TEST(RpfWeights, ColourDrivenOnlyByARandomParameterGetsNoColourWeight) {
+TEST(RpfWeights, ColorDrivenOnlyByARandomParameterGetsNoColorWeight) {
     // Colour = the random parameter (e.g. the light sample: a penumbra); screen position and the
     // feature are independent of it. Eq. 10 gives W_c,k^r near 1, so eq. 15 clamps alpha to 0:
     // the bilateral filter ignores colour differences here.
@@ -86,13 +86,13 @@ TEST(RpfWeights, ColourDrivenOnlyByARandomParameterGetsNoColourWeight) {
     }
     const RpfWeights w = rpfFeatureWeights(L, normalised(xs, L.dims()).data(), 3000, 0);
     for (int k = 0; k < 3; ++k) {
-        EXPECT_GT(w.colourChannelOnRandom[size_t(k)], 0.95);
+        EXPECT_GT(w.colorChannelOnRandom[size_t(k)], 0.95);
         EXPECT_EQ(w.alpha[size_t(k)], 0.0);
     }
-    EXPECT_GT(w.colourOnRandom, 0.95);
+    EXPECT_GT(w.colorOnRandom, 0.95);
 }
 
-TEST(RpfWeights, ColourDrivenOnlyByTheTextureFeatureWeighsThatFeature) {
+TEST(RpfWeights, ColorDrivenOnlyByTheTextureFeatureWeighsThatFeature) {
     // The report's Fig. 6 case: colour = texture value, the texture a function of screen position
     // only (a checker over x); a second feature is noise drawn from the random parameter. The
     // texture gets a high beta (eq. 16); the noise feature, dependent on r (eq. 9), gets ~0.
@@ -117,7 +117,7 @@ TEST(RpfWeights, ColourDrivenOnlyByTheTextureFeatureWeighsThatFeature) {
     // Colour does not depend on r: alpha stays near 1 (eq. 15 at t = 0).
     for (int k = 0; k < 3; ++k) EXPECT_GT(w.alpha[size_t(k)], 0.9);
     // Eq. 16 by hand from the reported fractions.
-    EXPECT_NEAR(w.beta[0], w.colourOnFeature[0] * std::max(1.0 - w.featureOnRandom[0], 0.0), 1e-12);
+    EXPECT_NEAR(w.beta[0], w.colorOnFeature[0] * std::max(1.0 - w.featureOnRandom[0], 0.0), 1e-12);
 }
 
 TEST(RpfWeights, LaterPassesWeighTheRandomShareMore) {
@@ -136,8 +136,8 @@ TEST(RpfWeights, LaterPassesWeighTheRandomShareMore) {
     const std::vector<float> nx = normalised(xs, L.dims());
     const RpfWeights w0 = rpfFeatureWeights(L, nx.data(), 3000, 0);
     const RpfWeights w3 = rpfFeatureWeights(L, nx.data(), 3000, 3);
-    EXPECT_EQ(w0.colourChannelOnRandom[0], w3.colourChannelOnRandom[0]);
-    const double wcr = w0.colourChannelOnRandom[0];
+    EXPECT_EQ(w0.colorChannelOnRandom[0], w3.colorChannelOnRandom[0]);
+    const double wcr = w0.colorChannelOnRandom[0];
     EXPECT_NEAR(w0.alpha[0], std::max(1 - 2 * wcr, 0.0), 1e-12);
     EXPECT_NEAR(w3.alpha[0], std::max(1 - 2 * 1.3 * wcr, 0.0), 1e-12);
 }
@@ -355,7 +355,7 @@ TEST(RpfFilter, OneThreadAndFourGiveTheSameBytesOnASmallImage) {
                 ASSERT_EQ(rep[q].neighbours, rep1[q].neighbours) << q;
                 ASSERT_EQ(rep[q].alpha, rep1[q].alpha) << q;
                 ASSERT_EQ(rep[q].beta, rep1[q].beta) << q;
-                ASSERT_EQ(rep[q].colourOnRandom, rep1[q].colourOnRandom) << q;
+                ASSERT_EQ(rep[q].colorOnRandom, rep1[q].colorOnRandom) << q;
                 ASSERT_EQ(rep[q].featureOnRandom, rep1[q].featureOnRandom) << q;
             }
             EXPECT_EQ(rows, 4 * H);  // every row of every pass reported once (all passes: H rows)

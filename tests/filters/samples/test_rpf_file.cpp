@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/sample_records.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/sample_records.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "tool_test.h"
 
 namespace mcstat {

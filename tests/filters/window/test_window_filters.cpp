@@ -211,7 +211,7 @@ TEST(SpatialFilters, OneByOneWindowIsIdentity) {
         }
 }
 
-TEST(SpatialFilters, LuminanceModeReturnsAPixelsColourChannelModeMixes) {
+TEST(SpatialFilters, LuminanceModeReturnsAPixelsColorChannelModeMixes) {
     // three pixels in a row; luminance ranks B < A < C; channels rank differently
     const std::vector<float> img = {0.9f, 0.1f, 0.1f,   // A: Y = 0.2709
                                     0.0f, 0.2f, 0.0f,   // B: Y = 0.1430

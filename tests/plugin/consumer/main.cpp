@@ -1,5 +1,5 @@
 // Calls G-MoN through an installed mcstat package, twice: directly on one hand-made pixel
-// (mcstat::filters) and as an image operation on a 1x1 statistics image (mcstat::imageops, which
+// (mcstat::filters) and as an image operation on a 1x1 statistics image (mcstat::image, which
 // pulls in mcstat::exrdeep, OpenImageIO and, for the luma weights, mcstat::color and OpenColorIO).
 //
 // Five buffers of 4 samples with grey means 1, 2, 1000, 3, 4. Sorted: 1 2 3 4 1000, Gini
@@ -10,7 +10,7 @@
 #include <cstdio>
 #include <string>
 
-#include "mcstat/color.h"
+#include "mcstat/color/color.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 

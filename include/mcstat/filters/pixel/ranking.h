@@ -63,15 +63,4 @@ double giniSorted(const double* values, size_t n);
 /// magnitude. When values[0] >= 0 it is giniSorted(values, n), bit for bit.
 double giniMagnitudes(const double* values, size_t n);
 
-namespace detail {
-/// Test hook: with false, the rank estimators' fast path runs its portable code even on a CPU with
-/// AVX2 (both versions give the same bits; the bit-identity test checks each). true restores the
-/// CPU's choice. Returns the previous setting. Not thread-safe: call it between estimates.
-bool setUseAvx2(bool on);
-/// For the M-estimators (myriad, meridian): order[r] = the position of the key of rank r, in the
-/// order "key ascending, ties by position", for n <= 64 keys, none NaN. `key` must have room for n
-/// rounded up to a multiple of 8 (the padding is overwritten). The rank estimators' fast ranking.
-void rankKeys(double* key, int n, int* order);
-}  // namespace detail
-
 }  // namespace mcstat

@@ -7,9 +7,9 @@
 
 #include <string>
 
+#include "mcstat/exr-deep/sample_records.h"
 #include "mcstat/filters/operation.h"
 #include "mcstat/filters/samples/cascade_reweighting.h"
-#include "mcstat/sample_records.h"
 
 namespace mcstat {
 

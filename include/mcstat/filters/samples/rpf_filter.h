@@ -89,7 +89,7 @@ struct RpfPixelReport {
     int neighbours = 0;                   ///< |N| after clustering
     std::array<double, 3> alpha{};        ///< eq. 15
     std::vector<double> beta;             ///< eq. 16, per feature
-    double colourOnRandom = 0;            ///< W_c^r, eq. 11
+    double colorOnRandom = 0;             ///< W_c^r, eq. 11
     std::vector<double> featureOnRandom;  ///< W_f,k^r, eq. 9, per feature
 };
 
@@ -111,10 +111,10 @@ inline double randomFraction(double dr, double dp, double epsilon) {
 struct RpfWeights {
     std::array<double, 3> alpha{};
     std::vector<double> beta;
-    double colourOnRandom = 0;                      ///< W_c^r
-    std::array<double, 3> colourChannelOnRandom{};  ///< W_c,k^r
-    std::vector<double> featureOnRandom;            ///< W_f,k^r
-    std::vector<double> colourOnFeature;            ///< W_c^f,k
+    double colorOnRandom = 0;                      ///< W_c^r
+    std::array<double, 3> colorChannelOnRandom{};  ///< W_c,k^r
+    std::vector<double> featureOnRandom;           ///< W_f,k^r
+    std::vector<double> colorOnFeature;            ///< W_c^f,k
 };
 RpfWeights rpfFeatureWeights(const RpfLayout& layout, const float* xs, size_t n, int pass,
                              double epsilon = 1e-10);

@@ -12,9 +12,9 @@
 #include <string>
 #include <vector>
 
+#include "mcstat/exr-deep/sample_records.h"
 #include "mcstat/filters/operation.h"
 #include "mcstat/filters/samples/sample_delaying_kde.h"
-#include "mcstat/sample_records.h"
 
 namespace mcstat {
 

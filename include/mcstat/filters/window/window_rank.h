@@ -143,13 +143,6 @@ struct SpatialScratch : WindowScratch {
 void weightedTrimmedMean(const WindowElement* elems, int n, const SpatialParams& p,
                          PixelEstimate& out, SpatialScratch& s);
 
-namespace detail {
-/// Sorts s.ranked ascending by key, ties by element index (the pair order).
-void sortRanked(SpatialScratch& s);
-/// Normalises recorded weights by their sum (the average's denominator).
-void normaliseWeights(std::vector<SpatialScratch::WeightedElement>* rec, double wsum);
-}  // namespace detail
-
 // ---- the window filters' parameters (their registry entries: mif.h, filter3d.h) -----------------
 
 /// "size": the window, KxL odd in [1, kMaxSpatialWindow].

@@ -1,5 +1,5 @@
 // The specs of the images mcstat makes, apart from the operations that fill them: windows, float
-// channels, the working space's labels, the AOV attributes. A small library (mcstat::imagespec)
+// channels, the working space's labels, the AOV attributes. A small library (mcstat::image_spec)
 // below the image layer, so that ingest and the renderer set up images without linking every
 // operation.
 #pragma once
@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
 
 namespace mcstat {
 
@@ -24,9 +24,9 @@ inline OIIO::ROI prepareRoi(OIIO::ROI roi, OIIO::ROI full) {
     return roi.defined() ? OIIO::roi_intersection(roi, full) : full;
 }
 
-/// Labels `spec` with working space `colorSpace` (colour_space.h) as an EXR carries it: the
+/// Labels `spec` with working space `colorSpace` (color_space.h) as an EXR carries it: the
 /// `chromaticities` and the `colorInteropID`; a space mcstat does not know gets neither.
-void labelColourSpace(OIIO::ImageSpec& spec, const std::string& colorSpace);
+void labelColorSpace(OIIO::ImageSpec& spec, const std::string& colorSpace);
 
 /// The display window of a statistics image (the data window unless the header says otherwise,
 /// e.g. an ingested render with overscan).

@@ -1,6 +1,6 @@
 // Working colour spaces of scene-linear RGB: what a render's pixels mean, read from its metadata
 // (colorInteropID, chromaticities, oiio:ColorSpace), kept in the statistics file and used for its
-// luminance. Pure arithmetic, no OCIO (color.h adds the config). docs/colour.md describes the
+// luminance. Pure arithmetic, no OCIO (color.h adds the config). docs/color.md describes the
 // rules.
 #pragma once
 

@@ -9,8 +9,8 @@
 #include <cstdint>
 #include <string>
 
-#include "mcstat/exr-codec/fd_stream.h"
-#include "mcstat/exr-codec/scratch_pool.h"
+#include "mcstat/exr-deep/codec/detail/fd_stream.h"
+#include "mcstat/exr-deep/codec/detail/scratch_pool.h"
 
 namespace mcstat::detail {
 

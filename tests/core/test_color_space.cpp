@@ -2,7 +2,7 @@
 // the standards and their technical bulletins publish, and the lookups by name and chromaticities.
 #include <gtest/gtest.h>
 
-#include "mcstat/core/colour_space.h"
+#include "mcstat/core/color_space.h"
 
 namespace mcstat {
 namespace {
@@ -24,7 +24,7 @@ const Published kPublished[] = {
     {"lin_rec2020", {0.2627002120, 0.6779980715, 0.0593017165}},
 };
 
-TEST(ColourSpace, LumaFromChromaticitiesMatchesPublishedValues) {
+TEST(ColorSpace, LumaFromChromaticitiesMatchesPublishedValues) {
     for (const Published& p : kPublished) {
         const WorkingSpace* s = findWorkingSpace(p.name);
         ASSERT_NE(s, nullptr) << p.name;
@@ -35,7 +35,7 @@ TEST(ColourSpace, LumaFromChromaticitiesMatchesPublishedValues) {
     }
 }
 
-TEST(ColourSpace, Ap1MatrixMatchesAcesBulletin) {
+TEST(ColorSpace, Ap1MatrixMatchesAcesBulletin) {
     // TB-2014-004 AP1 to XYZ, all three rows.
     const double published[3][3] = {{0.6624541811, 0.1340042065, 0.1561876870},
                                     {0.2722287168, 0.6740817658, 0.0536895174},
@@ -47,7 +47,7 @@ TEST(ColourSpace, Ap1MatrixMatchesAcesBulletin) {
             EXPECT_NEAR(m[size_t(r)][size_t(c)], published[r][c], 1e-6) << r << c;
 }
 
-TEST(ColourSpace, Rec709ToAp1MatchesTheAcesConfigsMatrix) {
+TEST(ColorSpace, Rec709ToAp1MatchesTheAcesConfigsMatrix) {
     // The ACES reference configs' Rec.709 -> ACEScg (Bradford D65 -> ACES white).
     const double published[3][3] = {{0.6130974024, 0.3395231462, 0.0473794514},
                                     {0.0701937225, 0.9163538791, 0.0134523985},
@@ -63,7 +63,7 @@ TEST(ColourSpace, Rec709ToAp1MatchesTheAcesConfigsMatrix) {
         for (int c = 0; c < 3; ++c) EXPECT_NEAR(m[size_t(r)][size_t(c)], r == c, 1e-12);
 }
 
-TEST(ColourSpace, DegenerateChromaticitiesAreRefused) {
+TEST(ColorSpace, DegenerateChromaticitiesAreRefused) {
     std::array<double, 3> w{};
     Chromaticities zeroY = findWorkingSpace("lin_rec709")->xy;
     zeroY.gy = 0.0;
@@ -72,7 +72,7 @@ TEST(ColourSpace, DegenerateChromaticitiesAreRefused) {
     EXPECT_FALSE(lumaFromChromaticities(same, w));
 }
 
-TEST(ColourSpace, NamesInteropIdsAndAliases) {
+TEST(ColorSpace, NamesInteropIdsAndAliases) {
     EXPECT_STREQ(findWorkingSpace("lin_ap1_scene")->name, "ACEScg");
     EXPECT_STREQ(findWorkingSpace("acescg")->name, "ACEScg");
     EXPECT_STREQ(findWorkingSpace("AP0")->name, "ACES2065-1");
@@ -83,7 +83,7 @@ TEST(ColourSpace, NamesInteropIdsAndAliases) {
     EXPECT_EQ(findWorkingSpace("ACEScct"), nullptr);
 }
 
-TEST(ColourSpace, MatchChromaticitiesAsFilesStoreThem) {
+TEST(ColorSpace, MatchChromaticitiesAsFilesStoreThem) {
     // As float, the way the attribute holds them.
     const Chromaticities ap1{float(0.713), float(0.293), float(0.165),   float(0.830),
                              float(0.128), float(0.044), float(0.32168), float(0.33767)};

@@ -14,9 +14,9 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/channel_naming.h"
 #include "mcstat/core/params.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/exr-deep/stats_file.h"
+#include "mcstat/ingest/channel_naming.h"
 
 namespace mcstat {
 
@@ -26,7 +26,7 @@ namespace mcstat {
 /// twice. An item that names an existing file is taken as it is, commas and all.
 bool expandInputs(const std::string& pattern, std::vector<std::string>& paths, std::string& err);
 
-/// What an image's metadata says about its colour space (docs/colour.md), read in this order:
+/// What an image's metadata says about its colour space (docs/color.md), read in this order:
 /// the string `colorInteropID` (OpenEXR 3.4), the `chromaticities` (float[8]), OIIO's
 /// `oiio:ColorSpace` (OIIO's "Linear" of any float EXR says nothing). `space` is the working
 /// space's name (findWorkingSpace), empty when the file is untagged; `source` says which
@@ -36,8 +36,8 @@ bool expandInputs(const std::string& pattern, std::vector<std::string>& paths, s
 /// other: colorInteropID against the chromaticities, or either against an oiio:ColorSpace that
 /// names another space (a copy converted by `oiiotool --colorconvert linear sRGB` keeps its
 /// source's colorInteropID beside its own oiio:ColorSpace sRGB).
-bool colourSpaceOf(const OIIO::ImageSpec& spec, std::string& space, std::string& source,
-                   std::string& problem, const std::string& path = {});
+bool colorSpaceOf(const OIIO::ImageSpec& spec, std::string& space, std::string& source,
+                  std::string& problem, const std::string& path = {});
 
 /// `text` as one word of a POSIX shell: as it is when it holds only characters no shell treats
 /// specially (letters, digits, `_-+.,/:=@%`), else in single quotes.
@@ -48,7 +48,7 @@ std::string shellWord(const std::string& text);
 /// scene-linear space (sceneLinearName, color.h). Runs as printed.
 std::string linearizeCommand(const std::string& path, const std::string& from);
 /// A stock oiiotool command converting the scene-linear image `path` ("IN" when empty) from
-/// working space `from` to `to` (colour_space.h names) that needs no OCIO config: the matrix
+/// working space `from` to `to` (color_space.h names) that needs no OCIO config: the matrix
 /// rgbToRgb gives (--ccmatrix), the chromaticities erased and colorInteropID set to `to`'s, into
 /// STEM_<to>.exr. "" when either space is unknown.
 std::string convertSpaceCommand(const std::string& path, const std::string& from,

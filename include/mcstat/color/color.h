@@ -13,7 +13,7 @@ namespace mcstat {
 inline constexpr const char* kSceneLinear = "lin_rec709";
 
 /// Luminance weights of the working space `space` (a statistics file's mcstat:colorSpace, an
-/// image's oiio:ColorSpace; any name findWorkingSpace knows, colour_space.h): the active config's
+/// image's oiio:ColorSpace; any name findWorkingSpace knows, color_space.h): the active config's
 /// luma (Config::getDefaultLumaCoefs) when the config's scene_linear colour space is `space` and
 /// its luma agrees with the space's primaries (to 1e-3: the built-in config's 0.2126, 0.7152,
 /// 0.0722 for lin_rec709), else the Y row of the RGB-to-XYZ matrix from the space's
@@ -60,7 +60,7 @@ bool fileRuleColorSpace(const std::string& path, std::string& ocioName, std::str
 /// Converts interleaved RGB scene-linear pixels in place to display-encoded values through the
 /// active config's display/view transform (default display and view when empty).
 /// Returns false with `err` set when the config or the transform cannot be built.
-/// `space` is the pixels' working space (colour_space.h; empty: the config's scene_linear): a space
+/// `space` is the pixels' working space (color_space.h; empty: the config's scene_linear): a space
 /// the config has goes through the config (an ACES config and ACEScg); otherwise a matrix from its
 /// chromaticities to the config's scene-linear space comes first, and `note` (if non-null) says so.
 bool applyDisplayTransform(float* rgb, long npixels, std::string& err,

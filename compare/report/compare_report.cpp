@@ -1,6 +1,6 @@
 // Reports of a noise-aware comparison: JUnit XML, JSON and a review page
-// (include/mcstat/compare/compare_report.h, docs/compare.md "Reports for CI").
-#include "mcstat/compare/compare_report.h"
+// (include/mcstat/compare/report/compare_report.h, docs/compare.md "Reports for CI").
+#include "mcstat/compare/report/compare_report.h"
 
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
@@ -17,10 +17,10 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "mcstat/compare/report_folder.h"
+#include "mcstat/compare/report/report_folder.h"
 #include "mcstat/core/untrusted_text.h"
+#include "mcstat/exr-deep/codec/temp_file.h"
 #include "mcstat/review/review_pictures.h"
-#include "mcstat/temp_file.h"
 
 namespace mcstat {
 

@@ -1,5 +1,5 @@
-// Report folders that never lose a user's file (include/mcstat/compare/report_folder.h).
-#include "mcstat/compare/report_folder.h"
+// Report folders that never lose a user's file (include/mcstat/compare/report/report_folder.h).
+#include "mcstat/compare/report/report_folder.h"
 
 #include <OpenImageIO/hash.h>
 #include <fmt/format.h>
@@ -12,7 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/temp_file.h"
+#include "mcstat/exr-deep/codec/temp_file.h"
 
 namespace mcstat {
 

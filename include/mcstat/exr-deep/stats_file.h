@@ -26,16 +26,16 @@ inline constexpr const char* kStatsExtension = "mcstat";
 /// writer writes header.formatVersion as given, which must be at least requiredFormatVersion():
 /// a rendered fixed-M image keeps version 1 (what every reader knows).
 /// Version 4 adds optional parts after the four: per-sample records (`records`) and the state parts
-/// an operation owns (a flat and a deep part, StateOwner); include/mcstat/sample_records.h reads
-/// and writes them.
-/// Version 5 adds the input render's own layout (files made by `mcstat --ingest` from production
-/// renders): the part `aovs` (every AOV, alpha, light group, data pass and ID matte per
-/// sub-buffer), the input's channel names of the beauty and its metadata (FORMAT.md "Version 5").
-/// Version 6 adds compact files (`mcstat --compact`, FORMAT.md "Version 6"): the layout of
-/// adaptive M decided after the samples are in, each pixel holding its M sub-buffers or one (their
-/// mean), AOVs in the deep part, and the between-buffer spread of every pixel in part moments.
-/// Version 7 slims a compact file's part moments to the count and the spread: its mean was part
-/// beauty's and its per-sample variance nothing of a compact file's used (FORMAT.md "Version 7").
+/// an operation owns (a flat and a deep part, StateOwner); include/mcstat/exr-deep/sample_records.h
+/// reads and writes them. Version 5 adds the input render's own layout (files made by `mcstat
+/// --ingest` from production renders): the part `aovs` (every AOV, alpha, light group, data pass
+/// and ID matte per sub-buffer), the input's channel names of the beauty and its metadata
+/// (FORMAT.md "Version 5"). Version 6 adds compact files (`mcstat --compact`, FORMAT.md "Version
+/// 6"): the layout of adaptive M decided after the samples are in, each pixel holding its M
+/// sub-buffers or one (their mean), AOVs in the deep part, and the between-buffer spread of every
+/// pixel in part moments. Version 7 slims a compact file's part moments to the count and the
+/// spread: its mean was part beauty's and its per-sample variance nothing of a compact file's used
+/// (FORMAT.md "Version 7").
 inline constexpr int kStatsFormatVersion = 7;
 /// The version a fixed-M file is written with by default (readable by version-1 readers).
 inline constexpr int kStatsFormatVersionFixed = 1;

@@ -1,9 +1,9 @@
 // The specs of the images mcstat makes (image_spec.h).
-#include "mcstat/image/image_spec.h"
+#include "mcstat/image/spec/image_spec.h"
 
 #include <OpenImageIO/strutil.h>
 
-#include "mcstat/core/colour_space.h"
+#include "mcstat/core/color_space.h"
 
 namespace mcstat {
 
@@ -17,7 +17,7 @@ OIIO::ROI displayWindowROI(const StatsHeader& h) {
                      h.displayY + h.displayHeight);
 }
 
-void labelColourSpace(ImageSpec& spec, const std::string& colorSpace) {
+void labelColorSpace(ImageSpec& spec, const std::string& colorSpace) {
     const WorkingSpace* ws = findWorkingSpace(colorSpace);
     if (!ws) return;
     const Chromaticities& c = ws->xy;
@@ -41,7 +41,7 @@ ImageSpec floatSpec(ROI data, const std::vector<std::string>& channels, ROI disp
     spec.alpha_channel = -1;
     spec.z_channel = -1;
     if (!colorSpace.empty()) spec.attribute("oiio:ColorSpace", colorSpace);
-    labelColourSpace(spec, colorSpace);
+    labelColorSpace(spec, colorSpace);
     return spec;
 }
 

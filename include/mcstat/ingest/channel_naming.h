@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/stats_file.h"  // Feature bits
+#include "mcstat/exr-deep/stats_file.h"  // Feature bits
 
 namespace mcstat {
 

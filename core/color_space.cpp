@@ -1,5 +1,5 @@
-// Working colour spaces (colour_space.h).
-#include "mcstat/core/colour_space.h"
+// Working colour spaces (color_space.h).
+#include "mcstat/core/color_space.h"
 
 #include <strings.h>
 

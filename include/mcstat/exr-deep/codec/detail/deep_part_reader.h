@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/exr-codec/flat_part_reader.h"
+#include "mcstat/exr-deep/codec/detail/flat_part_reader.h"
 
 namespace mcstat::detail {
 

@@ -16,15 +16,15 @@
 #include <utility>
 
 #include "cli.h"
-#include "mcstat/color.h"
+#include "mcstat/color/color.h"
 #include "mcstat/compare/compare.h"
+#include "mcstat/exr-deep/codec/temp_file.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/keep_light_image.h"
-#include "mcstat/image/render_layout.h"
+#include "mcstat/image/spec/render_layout.h"
 #include "mcstat/review/display.h"
 #include "mcstat/review/review_pictures.h"
-#include "mcstat/temp_file.h"
 #include "plot.h"
 
 namespace mcstat::cli {
@@ -152,7 +152,7 @@ bool readReference(const std::string& path, const Modifiers& mods, const std::st
 }
 
 /// Refuses a reference (read by readReference, which labels its space) in another working space
-/// than `space`, the space of `what`: one luminance and one display for both (docs/colour.md).
+/// than `space`, the space of `what`: one luminance and one display for both (docs/color.md).
 bool referenceInSpace(const std::string& cmd, const std::string& what, const std::string& space,
                       const std::string& refName, const OIIO::ImageBuf& ref, std::string& err) {
     std::string refSpace;

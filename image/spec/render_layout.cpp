@@ -1,5 +1,5 @@
 // Drop-in outputs: the input render's names, parts, windows and metadata (render_layout.h).
-#include "mcstat/image/render_layout.h"
+#include "mcstat/image/spec/render_layout.h"
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
@@ -12,7 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "mcstat/core/untrusted_text.h"
-#include "mcstat/temp_file.h"
+#include "mcstat/exr-deep/codec/temp_file.h"
 
 namespace mcstat {
 

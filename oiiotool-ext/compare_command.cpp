@@ -3,18 +3,17 @@
 // one-sample test against the image as the reference (docs/compare.md). The verdict and its
 // evidence go to stdout, the maps replace the two items, and the process exits 2 when they differ
 // (idiff's FAILURE) once every command has run.
-#include "mcstat/compare/compare.h"
-
 #include <OpenImageIO/strutil.h>
 
 #include <chrono>
 #include <cstdio>
 
 #include "cli.h"
-#include "mcstat/color.h"
-#include "mcstat/compare/compare_report.h"
+#include "mcstat/color/color.h"
+#include "mcstat/compare/compare.h"
+#include "mcstat/compare/report/compare_report.h"
 #include "mcstat/core/progress.h"
-#include "mcstat/image/render_layout.h"
+#include "mcstat/image/spec/render_layout.h"
 
 namespace mcstat::cli {
 

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "mcstat/render/vec3.h"
+#include "mcstat/render-fixture/vec3.h"
 
 namespace mcstat::render {
 

@@ -9,10 +9,10 @@
 #include <string>
 #include <vector>
 
+#include "mcstat/exr-deep/sample_records.h"
+#include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/operation.h"
-#include "mcstat/render/scene.h"
-#include "mcstat/sample_records.h"
-#include "mcstat/stats_file.h"
+#include "mcstat/render-fixture/scene.h"
 
 namespace mcstat::render {
 

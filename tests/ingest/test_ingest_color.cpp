@@ -1,4 +1,4 @@
-// Colour-managed renders (docs/colour.md, issue 33): the working space of the inputs is read,
+// Colour-managed renders (docs/color.md, issue 33): the working space of the inputs is read,
 // kept in the statistics file, labelled on every result and used for the luminance. The same 21
 // seed renders in Rec.709 and in ACEScg (built here from real renders by the ACES Rec.709 -> AP1
 // matrix) give G-MoN results that agree after conversion, pixel by pixel.
@@ -13,9 +13,9 @@
 #include <cstdlib>
 
 #include "../cli/cli_support.h"
-#include "mcstat/color.h"
-#include "mcstat/core/colour_space.h"
-#include "mcstat/ingest.h"
+#include "mcstat/color/color.h"
+#include "mcstat/core/color_space.h"
+#include "mcstat/ingest/ingest.h"
 
 namespace mcstat::testing {
 namespace {
@@ -55,7 +55,7 @@ void writeRGB(const std::string& path, int w, int h, const std::vector<float>& r
     out->close();
 }
 
-class IngestColour : public CliFixture {
+class IngestColor : public CliFixture {
   protected:
     static constexpr int kW = 32, kH = 24, kSeeds = 21;
     /// Seed s of the default scene (8 spp), its RGB in Rec.709.
@@ -112,7 +112,7 @@ void expectLabelled(const OIIO::ImageSpec& s, const char* space, const std::stri
     EXPECT_EQ(s.get_string_attribute("colorInteropID"), ws->interopID) << what;
 }
 
-TEST_F(IngestColour, AcesAndRec709VersionsOfTheSameRendersGiveTheSameGMoN) {
+TEST_F(IngestColor, AcesAndRec709VersionsOfTheSameRendersGiveTheSameGMoN) {
     writeBoth();
     // The fixture renderer labels its own output.
     OIIO::ImageSpec fixture;
@@ -172,7 +172,7 @@ TEST_F(IngestColour, AcesAndRec709VersionsOfTheSameRendersGiveTheSameGMoN) {
     EXPECT_GT(wrong, 0);
 }
 
-TEST_F(IngestColour, UntaggedRendersTakeTheColorspaceModifier) {
+TEST_F(IngestColor, UntaggedRendersTakeTheColorspaceModifier) {
     writeBoth();
     const Result r = mcstat("--ingest:colorspace=lin_ap1_scene '" + path("untagged_s*.exr") +
                             "' -o " + path("u.mcstat"));
@@ -185,7 +185,7 @@ TEST_F(IngestColour, UntaggedRendersTakeTheColorspaceModifier) {
     EXPECT_NE(bad.err.find("colorspace 'ACEScct' is unknown"), std::string::npos) << bad.err;
 }
 
-TEST_F(IngestColour, MixedSpacesAndUnknownSpacesAreRefusedInOneLine) {
+TEST_F(IngestColor, MixedSpacesAndUnknownSpacesAreRefusedInOneLine) {
     writeBoth();
     // ap1_s1..s21 and rec709_s1: two spaces, both files named.
     std::string list = path("rec709_s1.exr");
@@ -237,7 +237,7 @@ TEST_F(IngestColour, MixedSpacesAndUnknownSpacesAreRefusedInOneLine) {
         << odd.err;
 }
 
-TEST_F(IngestColour, CompareAndMergeRefuseDifferentSpaces) {
+TEST_F(IngestColor, CompareAndMergeRefuseDifferentSpaces) {
     writeBoth();
     ASSERT_EQ(mcstat("--ingest '" + path("rec709_s*.exr") + "' -o " + path("a.mcstat")).code, 0);
     ASSERT_EQ(mcstat("--ingest '" + path("ap1_s*.exr") + "' -o " + path("b.mcstat")).code, 0);
@@ -306,7 +306,7 @@ double worstRelative(const std::vector<float>& a, const std::vector<float>& b) {
     return worst;
 }
 
-TEST_F(IngestColour, DisplayEncodedRendersAreRefusedWithAConversionThatRunsAsPrinted) {
+TEST_F(IngestColor, DisplayEncodedRendersAreRefusedWithAConversionThatRunsAsPrinted) {
     // A float render converted to the sRGB display encoding with stock oiiotool: the TIFF keeps
     // float pixels and says oiio:ColorSpace sRGB (taken as linear, 0.5 would be 0.735). Refused in
     // one line with the conversion to run, which must run as printed on a machine without $OCIO:
@@ -353,7 +353,7 @@ TEST_F(IngestColour, DisplayEncodedRendersAreRefusedWithAConversionThatRunsAsPri
     ::unsetenv("OCIO");
 }
 
-TEST_F(IngestColour, ConvertedPngsAreRefusedAsIntegerDataAndTheirTagsAsContradictory) {
+TEST_F(IngestColor, ConvertedPngsAreRefusedAsIntegerDataAndTheirTagsAsContradictory) {
     // The report: `oiiotool seed.exr --colorconvert linear sRGB -d uint8 -o seed.png` keeps the
     // EXR's colorInteropID lin_rec709_scene beside the PNG's oiio:ColorSpace sRGB, and --ingest of
     // such PNGs took them as linear light clipped at 1 (max 1.0 against the EXRs' 240.6), exit 0.
@@ -401,10 +401,10 @@ TEST_F(IngestColour, ConvertedPngsAreRefusedAsIntegerDataAndTheirTagsAsContradic
               std::string::npos)
         << r.err;
 
-    // The tags contradict each other, which colourSpaceOf refuses whatever the pixels: a
+    // The tags contradict each other, which colorSpaceOf refuses whatever the pixels: a
     // reference image of --diff (which takes 8-bit pictures) is refused for it alone.
     std::string space, source, problem;
-    EXPECT_FALSE(colourSpaceOf(png, space, source, problem));
+    EXPECT_FALSE(colorSpaceOf(png, space, source, problem));
     EXPECT_EQ(problem,
               "colorInteropID 'lin_rec709_scene' says lin_rec709 but oiio:ColorSpace says 'sRGB': "
               "the file contradicts itself, and which is right cannot be told from it (a copy "
@@ -418,7 +418,7 @@ TEST_F(IngestColour, ConvertedPngsAreRefusedAsIntegerDataAndTheirTagsAsContradic
         << r.err;
 }
 
-TEST_F(IngestColour, TagsThatNameTwoSpacesAreRefusedAndTagsThatAgreeAreNot) {
+TEST_F(IngestColor, TagsThatNameTwoSpacesAreRefusedAndTagsThatAgreeAreNot) {
     const WorkingSpace* ap1 = findWorkingSpace("ACEScg");
     const Chromaticities& c = ap1->xy;
     const float xy[8] = {float(c.rx), float(c.ry), float(c.gx), float(c.gy),
@@ -446,7 +446,7 @@ TEST_F(IngestColour, TagsThatNameTwoSpacesAreRefusedAndTagsThatAgreeAreNot) {
         if (k.colorSpace) spec.attribute("oiio:ColorSpace", k.colorSpace);
         std::string space, source, problem;
         const std::string what = std::string(k.id ? k.id : "-") + " / " + k.colorSpace;
-        EXPECT_EQ(colourSpaceOf(spec, space, source, problem), k.space != nullptr) << what;
+        EXPECT_EQ(colorSpaceOf(spec, space, source, problem), k.space != nullptr) << what;
         if (k.space) {
             EXPECT_EQ(space, k.space) << what;
         } else {
@@ -458,7 +458,7 @@ TEST_F(IngestColour, TagsThatNameTwoSpacesAreRefusedAndTagsThatAgreeAreNot) {
     }
 }
 
-TEST_F(IngestColour, ColorConfigTakesAFileAndRefusesUnsupportedUrisInOneLine) {
+TEST_F(IngestColor, ColorConfigTakesAFileAndRefusesUnsupportedUrisInOneLine) {
     if (ocioVersion() >= "2.2") GTEST_SKIP() << "this OCIO has built-in configs";
     const Result uri = mcstat("--colorconfig ocio://default --threads 1");
     EXPECT_NE(uri.code, 0);
@@ -531,7 +531,7 @@ std::string configWithFileRules(const std::string& path) {
     return path;
 }
 
-TEST_F(IngestColour, TheConfigsFileRulesPlaceUntaggedRendersAfterTheModifier) {
+TEST_F(IngestColor, TheConfigsFileRulesPlaceUntaggedRendersAfterTheModifier) {
     writeSynthetic(path("u_ap1_s"), 5, true, false);
     writeSynthetic(path("u_disp_s"), 5, false, false);
     const std::string cfg = configWithFileRules(path("rules.ocio"));
@@ -562,7 +562,7 @@ TEST_F(IngestColour, TheConfigsFileRulesPlaceUntaggedRendersAfterTheModifier) {
     EXPECT_FALSE(OIIO::Filesystem::exists(path("disp.mcstat")));
 }
 
-TEST_F(IngestColour, AnOcioUriInTheEnvironmentIsAOneLineErrorWhereThisOcioHasNone) {
+TEST_F(IngestColor, AnOcioUriInTheEnvironmentIsAOneLineErrorWhereThisOcioHasNone) {
     if (ocioVersion() >= "2.2") GTEST_SKIP() << "this OCIO has built-in configs";
     writeSynthetic(path("s"), 3, false, true);
     ASSERT_EQ(mcstat("--ingest '" + path("s*.exr") + "' -o " + path("a.mcstat")).code, 0);
@@ -588,7 +588,7 @@ double diffValue(const std::string& text, const std::string& key) {
     return at == std::string::npos ? std::nan("") : std::atof(text.c_str() + at + key.size() + 1);
 }
 
-TEST_F(IngestColour, DiffAndErrorMapRefuseAReferenceInAnotherSpaceAndDisplayTheirOwn) {
+TEST_F(IngestColor, DiffAndErrorMapRefuseAReferenceInAnotherSpaceAndDisplayTheirOwn) {
     writeSynthetic(path("a709_s"), 7, false, true);
     writeSynthetic(path("ap1_s"), 7, true, true);
     for (const char* k : {"a709", "ap1"}) {
@@ -627,7 +627,7 @@ TEST_F(IngestColour, DiffAndErrorMapRefuseAReferenceInAnotherSpaceAndDisplayThei
     }
 }
 
-TEST_F(IngestColour, SpaceConversionsPrintedByARefusalRunAsPrintedWithoutAConfig) {
+TEST_F(IngestColor, SpaceConversionsPrintedByARefusalRunAsPrintedWithoutAConfig) {
     // Statistics in lin_rec709 against a reference in ACEScg: the refusal prints the conversion,
     // which needs no OCIO config (stock oiiotool's own knows neither space): a matrix and tags.
     WithoutOcio stock;
