@@ -454,7 +454,8 @@ bool reweightSamples(const SamplesRequest& req, OperationImage& out, std::string
     if (!h.hasRecords && !haveStored) {
         err = path +
               ": has neither per-sample records nor reweighting cascades: render with "
-              "mcstat-render --keep-samples (any parameters) or --reweight (the online cascades)";
+              "mcstat-render --keep-samples (any parameters) or --online reweight (the online "
+              "cascades)";
         return false;
     }
     CascadeImage img;

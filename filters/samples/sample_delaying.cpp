@@ -220,8 +220,8 @@ bool pajotSamples(const SamplesRequest& req, OperationImage& out, std::string& e
     if (!h.hasRecords && !haveStored) {
         err = path +
               ": has neither per-sample records nor Pajot's online state: render with "
-              "mcstat-render --keep-samples (to compute it here, any parameters) or --pajot "
-              "hybrid (the online result)";
+              "mcstat-render --keep-samples (to compute it here, any parameters) or --online "
+              "pajot:method=hybrid (the online result)";
         return false;
     }
     PajotImage stored;

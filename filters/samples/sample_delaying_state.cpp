@@ -319,7 +319,14 @@ std::unique_ptr<OnlineRun> startPajotRun(const ParamValues& values,
                                          std::string& err) {
     auto run = std::make_unique<PajotRun>();
     const bool stored = values.at("method").text == "stored";
-    if (!stored || resume == nullptr) {
+    if (stored && resume == nullptr) {
+        // A new online run needs the estimator to run; "stored" (the default) reads a result.
+        err =
+            "choose the online estimator, method=adr, rot or hybrid (e.g. --online "
+            "pajot:method=hybrid)";
+        return nullptr;
+    }
+    if (!stored) {
         if (!pajotParamsFrom(values, luma, run->params, err)) return nullptr;
     }
     try {

@@ -96,6 +96,10 @@ TEST_F(RenderTool, OnlineRefusesABadParameterInOneLine) {
     const std::pair<std::string, std::string> bad[] = {
         {"--online pajot:method=adr:n=0",
          "--online pajot: n must be an integer in [1, 1000000], not '0'"},
+        // Without a method: the default ("stored") reads a result; rendering needs an estimator.
+        {"--online pajot",
+         "--online pajot: choose the online estimator, method=adr, rot or hybrid (e.g. --online "
+         "pajot:method=hybrid)"},
         {"--online pajot:method=fast",
          "--online pajot: method must be 'stored', 'adr', 'rot' or 'hybrid'"},
         {"--online pajot:method=adr:mdoe=1", "--online pajot has no modifier 'mdoe'"},

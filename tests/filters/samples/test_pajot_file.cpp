@@ -246,6 +246,8 @@ TEST_F(PajotFile, RefusalsAreOneLineErrorsBeforeAnyWork) {
     EXPECT_NE(r.code, 0);
     EXPECT_NE(r.err.find("neither per-sample records nor Pajot's online state"), std::string::npos)
         << r.err;
+    // It names the renderer's flags as they are (--online NAME:key=value), not deprecated ones.
+    EXPECT_NE(r.err.find("--online pajot:method=hybrid"), std::string::npos) << r.err;
     // Stored result only: other parameters need the records.
     ASSERT_EQ(render("--scene tiny --spp 8 --pajot rot --pajot-n 4 -o " + path("s.mcstat")).code,
               0);

@@ -129,6 +129,7 @@ TEST_F(ReweightFile, RefusalsAreOneLineErrors) {
     r = mcstat(path("plain.mcstat") + " --reweight -o " + path("o.exr"));
     EXPECT_NE(r.err.find("neither per-sample records nor reweighting cascades"), std::string::npos)
         << r.err;
+    EXPECT_NE(r.err.find("--online reweight"), std::string::npos) << r.err;
 }
 
 TEST_F(ReweightFile, AResumedRenderEqualsTheStraightOne) {
