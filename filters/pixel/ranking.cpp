@@ -106,7 +106,7 @@ inline int trimFor(const TrimRule& rule, double G, int Mv) {
 inline bool needsGini(const TrimRule& rule) { return rule.usesGini; }
 
 /// G of the ranked keys under the rule's GiniInput.
-inline double giniOf(TrimRule rule, const double* sorted, size_t n) {
+inline double giniOf(const TrimRule& rule, const double* sorted, size_t n) {
     return rule.gini == GiniInput::Magnitudes ? giniMagnitudes(sorted, n) : giniSorted(sorted, n);
 }
 
@@ -115,7 +115,7 @@ inline double giniOf(TrimRule rule, const double* sorted, size_t n) {
 /// (any M, vectors in the scratch); reduceSmall below is the fast path for M <= kSmallM and gives
 /// the same bits.
 void reduceGeneral(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out,
-                   EstimatorScratch& s, TrimRule policy) {
+                   EstimatorScratch& s, const TrimRule& policy) {
     out = PixelEstimate{};
     const int Mv = collectValid(px, s, out.excluded);
     if (Mv == 0) return;  // no sample: black, kept = 0
@@ -476,7 +476,7 @@ double giniWithFullAverage(const PixelBuffers& px, const SmallPixel& sp, int c0,
 /// One pixel (luminance, NC = 3) or one channel (NC = 1): G if the policy needs it, the trim, the
 /// average.
 template <int NC>
-void rankedReduce(const PixelBuffers& px, SmallPixel& sp, TrimRule policy, int c0,
+void rankedReduce(const PixelBuffers& px, SmallPixel& sp, const TrimRule& policy, int c0,
                   PixelEstimate& out, double& G, int& c) {
     const int Mv = sp.n;
     rankSmall(sp);
@@ -499,7 +499,7 @@ void rankedReduce(const PixelBuffers& px, SmallPixel& sp, TrimRule policy, int c
 /// Returns false (nothing written) when a key
 /// is NaN (only possible with non-finite luminance weights): the general path then decides.
 bool reduceSmall(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out,
-                 TrimRule policy) {
+                 const TrimRule& policy) {
     SmallPixel sp;
     const bool lum = p.mode == EstimatorMode::Luminance;
     const int M = px.M;
@@ -588,7 +588,7 @@ void meanOnePass(const PixelBuffers& px, PixelEstimate& out) {
 }
 
 void reduce(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out, EstimatorScratch& s,
-            TrimRule policy) {
+            const TrimRule& policy) {
     if (s.wantWeights) {
         // Weights wanted (AOVs): the general path, which keeps its ranking in s.order. It gives
         // the fast path's bits (tests/filters/pixel/test_bit_identity.cpp), so the beauty does not
@@ -651,7 +651,7 @@ bool setUseAvx2(bool on) {
 }
 }  // namespace detail
 
-void rankedTrimmedMean(const PixelBuffers& px, const PixelParams& p, TrimRule rule,
+void rankedTrimmedMean(const PixelBuffers& px, const PixelParams& p, const TrimRule& rule,
                        PixelEstimate& out, EstimatorScratch& s) {
     reduce(px, p, out, s, rule);
 }

@@ -43,7 +43,7 @@ struct TrimRule {
 
 /// The ranked trimmed mean of `px` under `rule`: rgb, Gini coefficient (rules that use it), kept
 /// and excluded buffers and, with s.wantWeights, the buffer weights (pixel_estimate.h).
-void rankedTrimmedMean(const PixelBuffers& px, const PixelParams& p, TrimRule rule,
+void rankedTrimmedMean(const PixelBuffers& px, const PixelParams& p, const TrimRule& rule,
                        PixelEstimate& out, EstimatorScratch& s);
 
 /// The plain mean's pass (rankedTrimmedMean with no trim, without weights: the same
