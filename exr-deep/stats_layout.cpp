@@ -327,6 +327,3 @@ std::vector<float>& arrayOf(StatsImage& img, Array a) { return arrayOfImpl(img, 
 const std::vector<float>& arrayOf(const StatsImage& img, Array a) { return arrayOfImpl(img, a); }
 
 }  // namespace mcstat::layout
-
-namespace mcstat::detail {
-}  // namespace mcstat::detail

@@ -54,7 +54,6 @@ ParamSpec modeParam(const std::string& help) {
         {{"luminance", "lum"}, {"rgb", "channel"}});
 }
 
-
 std::vector<const ParamSpec*> Operation::settable() const {
     std::vector<const ParamSpec*> v;
     for (const ParamSpec& p : params)

@@ -211,7 +211,8 @@ std::vector<ParamSpec> compactModifiers();
 /// --plan's modifiers, typed as registry parameters (m is a comma-separated list of such values).
 const std::vector<ParamSpec>& planParams();
 
-// Implemented in review_command.cpp: pictures for review tools (contact sheet, heatmaps, quality plot).
+// Implemented in review_command.cpp: pictures for review tools (contact sheet, heatmaps, quality
+// plot).
 /// Appends the review commands to the command table.
 void appendReviewCommands(std::vector<Command>& table);
 /// trade_plot.cpp: --tradeplot.

@@ -115,8 +115,8 @@ TEST_F(HostileNames, NoCommandPrintsAControlByteAndErrorsStayOneLine) {
 // channel names hold a newline, a form feed and other raw bytes; the refusal is one line with
 // every one of them escaped.
 TEST_F(HostileNames, TheFuzzFindingIsOneLineWithItsBytesEscaped) {
-    const std::string finding =
-        std::string(MCSTAT_SOURCE_DIR) + "/tests/fuzz/regressions/ingest/channel-name-with-newline.exr";
+    const std::string finding = std::string(MCSTAT_SOURCE_DIR) +
+                                "/tests/fuzz/regressions/ingest/channel-name-with-newline.exr";
     const Result r = run("--ingest:spp=4 " + finding + " -o " + path("y.mcstat"), 1);
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
     EXPECT_EQ(r.err.rfind("mcstat: --ingest: " + finding + ": no RGB channels", 0), 0) << r.err;

@@ -20,7 +20,6 @@
 
 namespace mcstat {
 
-
 /// Every operation, in a stable order: the per-pixel estimators, then the neighbourhood filters,
 /// then the per-sample operations.
 const std::vector<Operation>& operationRegistry();
