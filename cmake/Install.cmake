@@ -34,8 +34,8 @@ install(FILES "${PROJECT_SOURCE_DIR}/LICENSE"
 # The public headers only (issue 51): every detail/ folder holds mcstat::detail, what the rooms
 # share among themselves (the OpenEXR Core codec, the rank keys, the Boost.Math policy), and stays
 # out, as OpenEXR keeps its internal_*.h and OIIO its *_pvt.h. No public header includes one
-# (tests/architecture/check_arrows.sh); the downstream package test compiles every installed header
-# on its own.
+# (tests/architecture/check_arrows.sh); plugin.consumer (tests/plugin/consumer_test.cmake) finds no
+# detail/ folder in the prefix and compiles every installed header with the pkg-config flags alone.
 install(DIRECTORY "${PROJECT_SOURCE_DIR}/include/mcstat"
   DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}" COMPONENT dev
   FILES_MATCHING PATTERN "*.h"

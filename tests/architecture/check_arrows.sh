@@ -10,6 +10,20 @@ root=${1:?usage: check_arrows.sh ROOT}
 cd "$root" || exit 2
 bad=0
 
+# includes_only WHO ALLOWED FILES...: every '#include "mcstat/X"' in FILES must match ALLOWED.
+includes_only() {
+  local who=$1 allowed=$2
+  shift 2
+  while IFS=: read -r file line text; do
+    local header=${text#*\"mcstat/}
+    header=${header%%\"*}
+    if ! [[ $header =~ ^($allowed)$ ]]; then
+      echo "$file:$line: includes mcstat/$header; $who may include only mcstat/($allowed)"
+      bad=1
+    fi
+  done < <(grep -Hn '^#include "mcstat/' "$@")
+}
+
 # rule FOLDER ALLOWED: one rule per folder (issue 51). A folder is a room: its sources FOLDER/*,
 # its public headers include/mcstat/FOLDER/* and its private shared ones include/mcstat/FOLDER/
 # detail/* (not installed); a sub-folder with a rule of its own is a room of its own (maxdepth 1).
@@ -24,14 +38,7 @@ rule() {
   local files
   files=$(find "${dirs[@]}" -maxdepth 1 -type f \( -name '*.h' -o -name '*.cpp' \) 2>/dev/null | sort)
   [ -n "$files" ] || { echo "check_arrows: folder $folder: no files"; bad=1; return; }
-  while IFS=: read -r file line text; do
-    local header=${text#*\"mcstat/}
-    header=${header%%\"*}
-    if ! [[ $header =~ ^($allowed)$ ]]; then
-      echo "$file:$line: includes mcstat/$header; $folder may include only mcstat/($allowed)"
-      bad=1
-    fi
-  done < <(grep -Hn '^#include "mcstat/' $files)
+  includes_only "$folder" "$allowed" $files
 }
 
 # The headers of a room: public, and its detail/ (mcstat::detail, shared with the rooms above).
@@ -80,15 +87,8 @@ rule python/src "$anything"
 
 # Within filters/: the operation interface and the registry name no family (one check, not a room:
 # the files of filters/ above may name each family's header).
-while IFS=: read -r file line text; do
-  header=${text#*\"mcstat/}
-  header=${header%%\"*}
-  if ! [[ $header =~ ^($core|$kernel)$ ]]; then
-    echo "$file:$line: includes mcstat/$header; the operation interface may include only mcstat/($core|$kernel)"
-    bad=1
-  fi
-done < <(grep -Hn '^#include "mcstat/' include/mcstat/filters/operation.h \
-  include/mcstat/filters/estimate.h include/mcstat/filters/registry.h)
+includes_only "the operation interface" "$core|$kernel" include/mcstat/filters/operation.h \
+  include/mcstat/filters/estimate.h include/mcstat/filters/registry.h
 
 # Public headers never include a detail/ header: the install leaves every detail/ folder out.
 while IFS=: read -r file line text; do
