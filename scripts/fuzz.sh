@@ -24,7 +24,7 @@ command -v clang++ >/dev/null || { echo "fuzz: clang++ is missing (scripts/insta
 fuzz_names=()
 for t in "${targets[@]}"; do fuzz_names+=("fuzz_$t"); done
 [ -n "${SKIP_BUILD:-}" ] || CC=clang CXX=clang++ MCSTAT_TARGETS="${fuzz_names[*]}" scripts/build.sh "$build" \
-  -DMCSTAT_FUZZ=ON -DMCSTAT_WERROR=ON -DMCSTAT_BUILD_TESTS=OFF -DMCSTAT_BUILD_BENCHMARKS=OFF \
+  -DMCSTAT_FUZZ=ON -DMCSTAT_FUZZ_COVERAGE=all -DMCSTAT_WERROR=ON -DMCSTAT_BUILD_TESTS=OFF -DMCSTAT_BUILD_BENCHMARKS=OFF \
   -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG" >"$build.log" 2>&1 || { tail -40 "$build.log" >&2; exit 1; }
 
 ledger="$build/fuzz-ledger.tsv"

@@ -16,6 +16,7 @@ packages=(
   gnuplot-nox                            # mcstat --qualityplot draws its plot with gnuplot (pngcairo)
   fonts-dejavu-core                      # OIIO's render_text needs a font: DejaVuSans labels the review pictures
   clang libclang-rt-14-dev               # the sanitizer suite and the fuzzers: clang, libFuzzer, ASan/UBSan runtimes
+  lld                                    # cmake/Linker.cmake: links in a fraction of GNU ld's time
   clang-format                           # tests/architecture/check_format.sh: every C++ file as .clang-format writes it
   blender python3-numpy python3-openimageio  # tests/aovs: real Cycles renders through ingest, checked in Python
   graphviz                               # dot: docs/images/architecture.png is drawn from architecture.dot
