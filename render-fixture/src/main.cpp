@@ -2,7 +2,6 @@
 // --reference) into a plain mean-only EXR for high-spp reference images.
 #include <OpenImageIO/argparse.h>
 #include <OpenImageIO/filesystem.h>
-#include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
 #include <fmt/format.h>
 #include <unistd.h>
@@ -33,10 +32,10 @@
 #include "mcstat/exr-deep/sample_records.h"
 #include "mcstat/exr-deep/stats_file.h"
 #include "mcstat/filters/registry.h"
-#include "mcstat/image/spec/image_spec.h"
 #include "mcstat/render-fixture/render.h"
 #include "mcstat/render-fixture/scene.h"
 #include "mcstat/version.h"
+#include "reference_exr.h"
 
 namespace {
 
@@ -55,34 +54,6 @@ bool parseSeed(const std::string& text, uint64_t& out, std::string& err,
         err = fmt::format("{}: expected a non-negative 64-bit integer, got '{}'", what, text);
         return false;
     }
-    return true;
-}
-
-/// Writes a float RGB EXR through OIIO: to a temporary name in the same directory, renamed when
-/// complete, so a crash never leaves a truncated reference behind.
-bool writeReferenceExr(const std::string& path, int width, int height,
-                       const std::vector<float>& rgb, uint64_t seed, int64_t spp,
-                       std::string& err) {
-    // OIIO picks the writer by extension, so the temporary keeps ".exr" at the end.
-    if (!mcstat::checkOutputTarget(path, err)) return false;
-    mcstat::TemporaryFile tmp(path, ".exr");
-    auto out = OIIO::ImageOutput::create("openexr");
-    if (!out) {
-        err = path + ": cannot create an OpenEXR writer: " + OIIO::geterror();
-        return false;
-    }
-    OIIO::ImageSpec spec =
-        mcstat::floatSpec(OIIO::ROI(0, width, 0, height), {"R", "G", "B"}, {}, "lin_rec709");
-    spec.attribute("compression", "zip");
-    spec.attribute("Software", kRendererName);
-    spec.attribute("mcstat:seeds", std::to_string(seed));
-    spec.attribute("mcstat:spp", std::to_string(spp));
-    if (!out->open(tmp.path(), spec) || !out->write_image(OIIO::TypeDesc::FLOAT, rgb.data()) ||
-        !out->close()) {
-        err = path + ": " + out->geterror();
-        return false;  // tmp removes the partial file
-    }
-    if (!tmp.commit(err)) return false;
     return true;
 }
 
@@ -629,8 +600,8 @@ bool renderReferenceOutput(const CommandLine& cl, const Job& job, RenderStats& s
     timings.renderClock = Stopwatch();
     if (!renderReference(job.scene, job.opt, rgb, err, &stats)) return false;
     timings.renderDone();
-    return writeReferenceExr(cl.outPath, job.scene.width, job.scene.height, rgb, job.opt.seed,
-                             job.opt.spp, err);
+    return writeReferenceExr(cl.outPath, job.scene.width, job.scene.height, rgb, kRenderColorSpace,
+                             job.opt.seed, job.opt.spp, err);
 }
 
 /// Starts the online run: --online's, continuing the state parts of the resumed file `ph` (when

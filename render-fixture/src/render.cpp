@@ -241,7 +241,7 @@ StatsImage newStatsImage(const Scene& scene, const RenderOptions& opt, int M) {
     h.renderer = kRendererName;
     h.scene = scene.identity;
     if (opt.clamp > 0.0) h.scene += " clamp " + mcstat::realText(opt.clamp);
-    h.colorSpace = "lin_rec709";
+    h.colorSpace = kRenderColorSpace;
     h.seeds = std::to_string(opt.seed);
     if (opt.adaptiveM) h.formatVersion = kStatsFormatVersionAdaptive;
     if (opt.aovs) {

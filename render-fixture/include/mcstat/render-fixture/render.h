@@ -17,6 +17,8 @@
 namespace mcstat::render {
 
 inline constexpr const char* kRendererName = "mcstat-render 0.1";
+/// The working space of every image the renderer writes (its scenes' colours are Rec.709 linear).
+inline constexpr const char* kRenderColorSpace = "lin_rec709";
 
 /// Default seed of the adaptive-M pilot pass: independent of --seed, so that renders of the same
 /// scene with different seeds choose the same buffer counts and can be merged (ASCII "pilot").
