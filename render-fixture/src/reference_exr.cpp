@@ -18,6 +18,8 @@
 namespace mcstat::render {
 namespace {
 
+constexpr const char* kChannels[3] = {"R", "G", "B"};  ///< in the order of `rgb`'s floats
+
 /// The EXR capDate of now, local time ("YYYY:MM:DD HH:MM:SS", the standard attribute's form).
 std::string captureDate() {
     const std::time_t now = std::time(nullptr);
@@ -32,8 +34,7 @@ Imf::Header referenceHeader(int width, int height, const std::string& colorSpace
                             int64_t spp) {
     Imf::Header header(width, height);
     header.compression() = Imf::ZIP_COMPRESSION;
-    for (const char* name : {"R", "G", "B"})
-        header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+    for (const char* name : kChannels) header.channels().insert(name, Imf::Channel(Imf::FLOAT));
     header.insert("Software", Imf::StringAttribute(kRendererName));
     Imf::addCapDate(header, captureDate());
     header.insert("mcstat:seeds", Imf::StringAttribute(std::to_string(seed)));
@@ -67,10 +68,8 @@ bool writeReferenceExr(const std::string& path, int width, int height,
         Imf::FrameBuffer frame;
         const size_t pixel = 3 * sizeof(float), row = pixel * size_t(width);
         char* base = const_cast<char*>(reinterpret_cast<const char*>(rgb.data()));
-        for (int c = 0; c < 3; ++c)
-            frame.insert(c == 0   ? "R"
-                         : c == 1 ? "G"
-                                  : "B",
+        for (size_t c = 0; c < 3; ++c)
+            frame.insert(kChannels[c],
                          Imf::Slice(Imf::FLOAT, base + c * sizeof(float), pixel, row));
         out.setFrameBuffer(frame);
         out.writePixels(height);
