@@ -151,6 +151,9 @@ struct PixelScratch {
     PixelEstimate e;
     std::vector<int> valid;
     std::vector<double> values, counts;
+    /// The removed light's luminance spreads of the pixels of a run (estimateRun).
+    std::vector<PixelBuffers> runBuffers;
+    std::vector<LumaSpread> runSpreads;
 };
 
 /// The interval of R, G and B of pixel `p` when the estimate did not give it in its own pass: the
@@ -227,9 +230,11 @@ void writeDiagnostics(float* px, const PixelEstimate& e, EstimatorMode mode) {
     }
 }
 
-/// Pixel `p` of the statistics image into `px`, every layer of the pass. False when the estimator
-/// gave no buffer weights for the AOVs (their layers are then zero).
-bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& w) {
+/// Pixel `p` of the statistics image into `px`, every layer of the pass; `ls` is its luminance
+/// spread when the pass writes the removed light. False when the estimator gave no buffer weights
+/// for the AOVs (their layers are then zero).
+bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& w,
+                   const LumaSpread* ls) {
     const StatsImage& src = pass.src;
     const PixelKernel& kernel = pass.kernel;
     const size_t A = pass.A;
@@ -269,12 +274,38 @@ bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& 
         }
         aovIntervals(pass, p, pb, w, lo);
     }
-    if (kernel.removedLight) {
-        const LumaSpread ls = lumaSpread(pb, kernel.removedLuma);
-        removedLightPixel(px, float(ls.mean), float(ls.se), kernel.removedLuma,
+    if (ls)
+        removedLightPixel(px, float(ls->mean), float(ls->se), kernel.removedLuma,
                           px + pass.firstRemoved);
-    }
     if (pass.diagnostics) writeDiagnostics(px, w.e, kernel.mode);
+    return weighted;
+}
+
+/// Pixels x0 to x1 of row y: their luminance spreads first when the pass writes the removed
+/// light (lumaSpreads runs four pixels at once; the run is short enough that its buffers are still
+/// in cache for the estimates), then each pixel. False as estimatePixel.
+bool estimateRun(const EstimatePass& pass, int y, int x0, int x1, const ROI& roi, float* base,
+                 PixelScratch& w) {
+    const StatsHeader& h = pass.src.header;
+    const size_t nch = pass.names.size();
+    const size_t row = size_t(y - h.originY) * size_t(h.width);
+    const LumaSpread* spreads = nullptr;
+    if (pass.kernel.removedLight) {
+        w.runBuffers.resize(size_t(x1 - x0));
+        w.runSpreads.resize(size_t(x1 - x0));
+        for (int x = x0; x < x1; ++x)
+            w.runBuffers[size_t(x - x0)] = pass.src.pixelBuffers(row + size_t(x - h.originX));
+        lumaSpreads(w.runBuffers.data(), x1 - x0, pass.kernel.removedLuma, w.runSpreads.data());
+        spreads = w.runSpreads.data();
+    }
+    bool weighted = true;
+    for (int x = x0; x < x1; ++x) {
+        const size_t p = row + size_t(x - h.originX);
+        float* px =
+            base + (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
+        if (!estimatePixel(pass, p, px, w, spreads ? spreads + (x - x0) : nullptr))
+            weighted = false;
+    }
     return weighted;
 }
 
@@ -298,19 +329,15 @@ bool estimate(ImageBuf& dst, const StatsImage& src, const Operation& est, const 
     }
     // Written straight into the local float buffer: ImageBuf::setpixel converts per call.
     float* const base = static_cast<float*>(dst.localpixels());
-    const size_t nch = pass.names.size();
     std::atomic<bool> noWeights{false};
     OIIO::ImageBufAlgo::parallel_image(roi, nthreads, [&](ROI r) {
         PixelScratch w;
         w.scratch.wantWeights = pass.A > 0;
+        constexpr int kRun = 64;  // pixels: 64 x 21 buffers of R, G, B and count are 21 KB
         for (int y = r.ybegin; y < r.yend; ++y)
-            for (int x = r.xbegin; x < r.xend; ++x) {
-                const size_t p = size_t(y - h.originY) * size_t(h.width) + size_t(x - h.originX);
-                float* px =
-                    base +
-                    (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
-                if (!estimatePixel(pass, p, px, w)) noWeights = true;
-            }
+            for (int x = r.xbegin; x < r.xend; x += kRun)
+                if (!estimateRun(pass, y, x, std::min(x + kRun, r.xend), roi, base, w))
+                    noWeights = true;
     });
     if (noWeights) {
         dst.errorfmt("estimate {}: the estimator gives no buffer weights, so it cannot carry AOVs",

@@ -177,6 +177,57 @@ TEST(LumaSpread, TheAllValidShortcutGivesTheGeneralSums) {
     }
 }
 
+// lumaSpreads (four pixels per AVX2 register where all four share M and are all valid) gives
+// lumaSpread's bits for every pixel of a run that mixes runs of four, leftovers, other M, invalid
+// buffers (NaN, +inf, count 0), M = 1 and M over the stack size, and the extremes: 1e38 (squares
+// near 1e77, finite in double), denormals, negatives and zeros.
+TEST(LumaSpread, FourPixelsAtOnceGiveEachPixelsBits) {
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    const std::array<double, 3> luma = mcstat::testing::kLuma;
+    const float kDenormal = std::numeric_limits<float>::denorm_min() * 7.f;
+    std::vector<std::vector<float>> means, counts;
+    auto add = [&](int M, int kind) {
+        std::vector<float> mean(static_cast<size_t>(M) * 3), count(static_cast<size_t>(M));
+        for (size_t i = 0; i < mean.size(); ++i) {
+            const float r = u(rng);
+            mean[i] = kind == 1   ? (r < 0.3f ? 1e38f : -r)
+                      : kind == 2 ? (r < 0.5f ? kDenormal : 0.f)
+                                  : (r - 0.2f) * (r < 0.05f ? 3e4f : 1.f);
+        }
+        for (int j = 0; j < M; ++j) count[size_t(j)] = float(1 + int(u(rng) * 50.f));
+        if (kind == 3) mean[size_t(3 * (M - 1))] = kNaN;
+        if (kind == 4) mean[1] = kInf;
+        if (kind == 5) count[0] = 0.f;
+        means.push_back(std::move(mean));
+        counts.push_back(std::move(count));
+    };
+    for (int M :
+         {21, 21, 21, 21, 21, 21, 21, 2, 2, 2, 2, 64, 64, 64, 64, 1, 1, 1, 1, 70, 70, 70, 70, 5})
+        add(M, 0);
+    for (int kind = 1; kind <= 5; ++kind)
+        for (int i = 0; i < 4; ++i) add(9, kind == 3 && i == 2 ? 0 : kind);
+    for (int i = 0; i < 4; ++i) add(i % 2 ? 8 : 9, 0);  // alternating M: never four alike
+    std::vector<PixelBuffers> px;
+    for (size_t i = 0; i < means.size(); ++i)
+        px.push_back({means[i].data(), counts[i].data(), int(counts[i].size())});
+    std::vector<LumaSpread> batch(px.size());
+    lumaSpreads(px.data(), int(px.size()), luma, batch.data());
+    for (size_t i = 0; i < px.size(); ++i) {
+        const LumaSpread one = lumaSpread(px[i], luma);
+        EXPECT_EQ(batch[i].valid, one.valid) << i;
+        // Bit for bit, NaN included (memcmp: NaN != NaN).
+        EXPECT_EQ(std::memcmp(&batch[i].mean, &one.mean, sizeof(double)), 0)
+            << i << ": " << batch[i].mean << " vs " << one.mean;
+        EXPECT_EQ(std::memcmp(&batch[i].se, &one.se, sizeof(double)), 0)
+            << i << ": " << batch[i].se << " vs " << one.se;
+    }
+    // The extremes went through the four-pixel path and stayed finite: 1e38 among small values.
+    EXPECT_EQ(batch[24].valid, 9);
+    EXPECT_TRUE(std::isfinite(batch[24].mean));
+    EXPECT_TRUE(std::isfinite(batch[24].se) && batch[24].se > 1e36) << batch[24].se;
+}
+
 // Rows on any number of threads: the same bits.
 TEST(LocalRemovedZ, SameOnAnyThreadCount) {
     const int W = 67, H = 41;

@@ -44,6 +44,13 @@ bool isValidBuffer(const PixelBuffers& px, int j);
 /// square that overflows double makes se +inf (z then 0), never NaN.
 LumaSpread lumaSpread(const PixelBuffers& px, const std::array<double, 3>& luma);
 
+/// lumaSpread of n pixels, out[i] of px[i]: the same values, bit for bit. Each of lumaSpread's
+/// sums is a chain of M dependent additions, so one pixel's spread waits on the adder's latency;
+/// here four pixels of equal M (2 to 64) whose buffers are all valid run as the four lanes of
+/// AVX2 registers where the processor has it (each lane the same operations in the same order,
+/// without fused multiply-adds), and any other pixel runs lumaSpread.
+void lumaSpreads(const PixelBuffers* px, int n, const std::array<double, 3>& luma, LumaSpread* out);
+
 /// z = d / se for one pixel: 0 when d is 0 or not finite, or se is 0, NaN or +inf (a pixel
 /// without the buffers to measure its noise is never called significant).
 double removedZ(double d, double se);
