@@ -154,6 +154,11 @@ struct PixelScratch {
     /// The removed light's luminance spreads of the pixels of a run (estimateRun).
     std::vector<PixelBuffers> runBuffers;
     std::vector<LumaSpread> runSpreads;
+    /// The run's intervals where the kernel takes runs (PixelKernel::runIntervals): for each
+    /// pixel of the run its index among those given (-1: not given, channelIntervals' case).
+    std::vector<PixelBuffers> runIntervalBuffers;
+    std::vector<ValueInterval> runIntervals;  // 3 per pixel given
+    std::vector<int> runIntervalOf;
 };
 
 /// The interval of R, G and B of pixel `p` when the estimate did not give it in its own pass: the
@@ -231,10 +236,11 @@ void writeDiagnostics(float* px, const PixelEstimate& e, EstimatorMode mode) {
 }
 
 /// Pixel `p` of the statistics image into `px`, every layer of the pass; `ls` is its luminance
-/// spread when the pass writes the removed light. False when the estimator gave no buffer weights
-/// for the AOVs (their layers are then zero).
+/// spread when the pass writes the removed light, `given` its interval when estimateRun took it
+/// with the run's. False when the estimator gave no buffer weights for the AOVs (their layers are
+/// then zero).
 bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& w,
-                   const LumaSpread* ls) {
+                   const LumaSpread* ls, const ValueInterval* given) {
     const StatsImage& src = pass.src;
     const PixelKernel& kernel = pass.kernel;
     const size_t A = pass.A;
@@ -265,7 +271,10 @@ bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& 
     px[1] = w.e.rgb[1];
     px[2] = w.e.rgb[2];
     if (pass.ci) {
-        if (!shared) channelIntervals(pass, p, pb, sp, w, iv);
+        if (given)
+            std::copy(given, given + 3, iv);
+        else if (!shared)
+            channelIntervals(pass, p, pb, sp, w, iv);
         float* lo = px + pass.firstCi;
         float* hi = lo + 3;
         for (int c = 0; c < 3; ++c) {
@@ -279,6 +288,27 @@ bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& 
                           px + pass.firstRemoved);
     if (pass.diagnostics) writeDiagnostics(px, w.e, kernel.mode);
     return weighted;
+}
+
+/// The intervals of the n pixels from `p0` on that the kernel takes as a run (runIntervals): those
+/// whose buffers are all valid, of a pass with intervals of the kernel's own (no AOV intervals,
+/// not citarget=expected, not a compact file's pixel without buffers). False: none taken.
+bool runIntervals(const EstimatePass& pass, size_t p0, int n, PixelScratch& w) {
+    const PixelKernel& kernel = pass.kernel;
+    if (!pass.ci || pass.A > 0 || kernel.ciExpected || !kernel.runIntervals) return false;
+    w.runIntervalBuffers.clear();
+    w.runIntervalOf.assign(size_t(n), -1);
+    for (int i = 0; i < n; ++i) {
+        const size_t p = p0 + size_t(i);
+        const PixelBuffers pb = pass.src.pixelBuffers(p);
+        if (!allBuffersValid(pb) || pass.src.meanOnlySpread(p)) continue;
+        w.runIntervalOf[size_t(i)] = int(w.runIntervalBuffers.size());
+        w.runIntervalBuffers.push_back(pb);
+    }
+    w.runIntervals.resize(3 * w.runIntervalBuffers.size());
+    kernel.runIntervals(w.runIntervalBuffers.data(), int(w.runIntervalBuffers.size()),
+                        kernel.ciLevel, w.runIntervals.data());
+    return true;
 }
 
 /// Pixels x0 to x1 of row y: their luminance spreads first when the pass writes the removed
@@ -298,12 +328,15 @@ bool estimateRun(const EstimatePass& pass, int y, int x0, int x1, const ROI& roi
         lumaSpreads(w.runBuffers.data(), x1 - x0, pass.kernel.removedLuma, w.runSpreads.data());
         spreads = w.runSpreads.data();
     }
+    const bool given = runIntervals(pass, row + size_t(x0 - h.originX), x1 - x0, w);
     bool weighted = true;
     for (int x = x0; x < x1; ++x) {
         const size_t p = row + size_t(x - h.originX);
         float* px =
             base + (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
-        if (!estimatePixel(pass, p, px, w, spreads ? spreads + (x - x0) : nullptr))
+        const int iv = given ? w.runIntervalOf[size_t(x - x0)] : -1;
+        if (!estimatePixel(pass, p, px, w, spreads ? spreads + (x - x0) : nullptr,
+                           iv >= 0 ? w.runIntervals.data() + 3 * size_t(iv) : nullptr))
             weighted = false;
     }
     return weighted;

@@ -2,7 +2,7 @@
 // (core/location_stats.h), shared with --compare's tests (analysis/two_sample.cpp).
 #include "mcstat/filters/pixel/confidence.h"
 
-#include <emmintrin.h>
+#include <immintrin.h>
 
 #include <algorithm>
 #include <array>
@@ -224,6 +224,42 @@ void sortUnrolled(int m, const PixelBuffers& px, const int* valid, float (*lanes
     fns[m - 2](px, valid, lanes);
 }
 
+/// UnrolledNetwork<M> on two pixels at once: pixel a's lanes in the low half of eight-float AVX
+/// registers, pixel b's in the high half, the same comparators (min and max per lane, so each half
+/// gets the four-float network's values).
+template <int M>
+struct UnrolledNetwork2 {
+    __attribute__((target("avx"))) static void compareExchange(__m256& a, __m256& b) {
+        const __m256 lo = _mm256_min_ps(a, b);
+        b = _mm256_max_ps(a, b);
+        a = lo;
+    }
+    template <size_t... I>
+    __attribute__((target("avx"))) static void run(__m256* v, std::index_sequence<I...>) {
+        constexpr auto& pairs = UnrolledNetwork<M>::kPairs;
+        (compareExchange(v[pairs[I][0]], v[pairs[I][1]]), ...);
+    }
+    /// Every buffer of a and b (both of M buffers, all valid) sorted into la and lb.
+    __attribute__((target("avx"))) static void sort(const PixelBuffers& a, const PixelBuffers& b,
+                                                    float (*la)[4], float (*lb)[4]) {
+        __m256 v[M];
+        for (int i = 0; i < M; ++i) v[i] = _mm256_set_m128(loadLane(b, i), loadLane(a, i));
+        run(v, std::make_index_sequence<size_t(UnrolledNetwork<M>::size())>{});
+        for (int i = 0; i < M; ++i) {
+            _mm_store_ps(la[i], _mm256_castps256_ps128(v[i]));
+            _mm_store_ps(lb[i], _mm256_extractf128_ps(v[i], 1));
+        }
+    }
+};
+
+template <int... M>
+void sortUnrolled2(int m, const PixelBuffers& a, const PixelBuffers& b, float (*la)[4],
+                   float (*lb)[4], std::integer_sequence<int, M...>) {
+    using Fn = void (*)(const PixelBuffers&, const PixelBuffers&, float(*)[4], float(*)[4]);
+    static constexpr Fn fns[] = {&UnrolledNetwork2<M + 2>::sort...};
+    fns[m - 2](a, b, la, lb);
+}
+
 /// The valid buffers' R, G, B (and a zero) as four-float lanes, sorted lane by lane: lane c of
 /// v[r] is the r-th smallest of channel c. Values are the buffers' floats (the per-channel path
 /// sorts the same values widened to double, which orders them the same way).
@@ -245,6 +281,14 @@ struct SortedLanes {
     }
     double at(int rank, int c) const { return double(v[rank][c]); }
 };
+
+/// The median's interval of each channel from a pixel's sorted lanes: ranks k - 1 and m - k (all
+/// of them when k is 0: rememberedMedianRank).
+void medianFromLanes(const float (*lanes)[4], int m, int k, ValueInterval out[3]) {
+    for (int c = 0; c < 3; ++c)
+        out[c] = k == 0 ? ValueInterval{double(lanes[0][c]), double(lanes[m - 1][c]), true}
+                        : ValueInterval{double(lanes[k - 1][c]), double(lanes[m - k][c]), false};
+}
 
 /// One channel's values of the valid buffers, widened to double (the per-channel path's input).
 void gatherChannel(const PixelBuffers& px, const int* valid, int m, int c, double* out) {
@@ -304,9 +348,29 @@ void medianIntervals(const PixelBuffers& px, const int* valid, int m, double lev
     const int k = rememberedMedianRank(m, level);
     SortedLanes s;
     s.load(px, valid, m);
-    for (int c = 0; c < 3; ++c)
-        out[c] = k == 0 ? ValueInterval{s.at(0, c), s.at(m - 1, c), true}
-                        : ValueInterval{s.at(k - 1, c), s.at(m - k, c), false};
+    medianFromLanes(s.v, m, k, out);
+}
+
+void medianIntervalsRun(const PixelBuffers* px, int n, double level, ValueInterval* out) {
+    static const bool avx = (__builtin_cpu_init(), __builtin_cpu_supports("avx") != 0);
+    std::vector<int> all;  // 0, 1, ..., M - 1: every buffer valid
+    int i = 0;
+    while (i < n) {
+        const int m = px[i].M;
+        if (avx && i + 1 < n && px[i + 1].M == m && m >= 2 && m <= kUnrolledMax) {
+            alignas(16) float la[kUnrolledMax][4], lb[kUnrolledMax][4];
+            sortUnrolled2(m, px[i], px[i + 1], la, lb,
+                          std::make_integer_sequence<int, kUnrolledMax - 1>{});
+            const int k = rememberedMedianRank(m, level);
+            medianFromLanes(la, m, k, out + 3 * i);
+            medianFromLanes(lb, m, k, out + 3 * (i + 1));
+            i += 2;
+            continue;
+        }
+        for (int j = int(all.size()); j < m; ++j) all.push_back(j);
+        medianIntervals(px[i], all.data(), m, level, out + 3 * i);
+        ++i;
+    }
 }
 
 void yuenIntervals(const PixelBuffers& px, const int* valid, int m, int g, double level,

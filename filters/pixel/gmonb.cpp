@@ -36,6 +36,9 @@ PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     };
     k.pixelInterval = [](const PixelBuffers& px, const int* valid, int m, double level,
                          ValueInterval out[3]) { medianIntervals(px, valid, m, level, out); };
+    k.runIntervals = [](const PixelBuffers* px, int n, double level, ValueInterval* out) {
+        medianIntervalsRun(px, n, level, out);
+    };
     return k;
 }
 

@@ -70,6 +70,11 @@ struct PixelKernel {
     std::function<void(const PixelBuffers& px, const int* valid, int m, double level,
                        ValueInterval rgb[3])>
         pixelInterval;
+    /// `pixelInterval` over n pixels whose buffers are all valid (pixel i's valid buffers 0 to
+    /// px[i].M - 1), rgb[3 i + c] of px[i]'s channel c: the same values, with several pixels at
+    /// once. Null: `pixelInterval` per pixel.
+    std::function<void(const PixelBuffers* px, int n, double level, ValueInterval* rgb)>
+        runIntervals;
     /// `estimate` (without weights) and `pixelInterval` from one pass over the buffers, with the
     /// same results as the two calls (the mean: its sums are its interval's first pass). Null:
     /// the two calls.

@@ -283,3 +283,56 @@ TEST(Confidence, PixelIntervalsEqualThePerChannelOnes) {
                 }
         }
 }
+
+// runIntervals (MoN, G-MoN, G-MoN_b: two pixels of equal M per eight-float network) gives each
+// pixel pixelInterval's bits, sign of zero included: runs of pairs and of lone pixels, M = 1 to 40
+// and 64, 65 (past the unrolled networks), zeros of both signs, denormals, +-3e38 and ties.
+TEST(Confidence, RunIntervalsEqualThePixelOnes) {
+    std::mt19937 rng(52);
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    const float kinds[] = {0.f, -0.f, 1e-40f, -1e-40f, 3e38f, -3e38f, 0.5f, 0.5f, 2.f};
+    std::vector<int> ms;
+    for (int M = 1; M <= 40; ++M) ms.insert(ms.end(), {M, M, M});  // a pair, then one left over
+    ms.insert(ms.end(), {64, 64, 65, 65, 7, 8, 7, 8});
+    std::vector<std::vector<float>> means, counts;
+    for (size_t i = 0; i < ms.size(); ++i) {
+        const int M = ms[i];
+        std::vector<float> mean(static_cast<size_t>(M) * 3), count(static_cast<size_t>(M));
+        for (size_t v = 0; v < mean.size(); ++v) {
+            const float r = u(rng);
+            mean[v] = i % 3 == 0   ? kinds[size_t(r * 9.f) % 9]
+                      : i % 3 == 1 ? float(int(r * 4.f))  // many ties
+                                   : (r - 0.3f) * 100.f;
+        }
+        for (float& n : count) n = float(1 + int(u(rng) * 40.f));
+        means.push_back(std::move(mean));
+        counts.push_back(std::move(count));
+    }
+    std::vector<PixelBuffers> px;
+    for (size_t i = 0; i < ms.size(); ++i) px.push_back({means[i].data(), counts[i].data(), ms[i]});
+    for (const char* name : {"mon", "gmon", "gmonb"}) {
+        const PixelKernel k = kernelOf(name);
+        ASSERT_TRUE(bool(k.runIntervals)) << name;
+        for (double level : {0.5, 0.9, 0.95}) {
+            std::vector<ValueInterval> run(3 * px.size());
+            k.runIntervals(px.data(), int(px.size()), level, run.data());
+            for (size_t i = 0; i < px.size(); ++i) {
+                std::vector<int> valid;
+                int excluded = 0;
+                const int m = collectValidBuffers(px[i], valid, excluded);
+                ASSERT_EQ(m, px[i].M);
+                ValueInterval one[3];
+                k.pixelInterval(px[i], valid.data(), m, level, one);
+                for (int c = 0; c < 3; ++c) {
+                    const ValueInterval& r = run[3 * i + size_t(c)];
+                    EXPECT_TRUE(std::memcmp(&r.low, &one[c].low, sizeof(double)) == 0 &&
+                                std::memcmp(&r.high, &one[c].high, sizeof(double)) == 0 &&
+                                r.full == one[c].full)
+                        << name << " level " << level << " pixel " << i << " M " << px[i].M << " c "
+                        << c << ": [" << r.low << ", " << r.high << "] against [" << one[c].low
+                        << ", " << one[c].high << "]";
+                }
+            }
+        }
+    }
+}

@@ -61,6 +61,12 @@ void meanIntervalsFromSums(const PixelBuffers& px, const int* valid, int m, doub
                            const double sum[3], double level, ValueInterval out[3]);
 void medianIntervals(const PixelBuffers& px, const int* valid, int m, double level,
                      ValueInterval out[3]);
+/// medianIntervals of n pixels whose buffers are all valid (pixel i's valid buffers are 0 to
+/// px[i].M - 1), out[3 i + c] of px[i]'s channel c: the same values, bit for bit. Two neighbouring
+/// pixels of equal M (2 to 32) are sorted by one network on eight-float AVX lanes where the
+/// processor has it (each half the four-float network's comparators on one pixel: minima and maxima
+/// are exact), any other pixel by medianIntervals.
+void medianIntervalsRun(const PixelBuffers* px, int n, double level, ValueInterval* out);
 void yuenIntervals(const PixelBuffers& px, const int* valid, int m, int g, double level,
                    ValueInterval out[3]);
 
