@@ -311,9 +311,10 @@ bool runIntervals(const EstimatePass& pass, size_t p0, int n, PixelScratch& w) {
     return true;
 }
 
-/// Pixels x0 to x1 of row y: their luminance spreads first when the pass writes the removed
-/// light (lumaSpreads runs four pixels at once; the run is short enough that its buffers are still
-/// in cache for the estimates), then each pixel. False as estimatePixel.
+/// Pixels x0 to x1 of row y: first their luminance spreads when the pass writes the removed light
+/// (lumaSpreads runs four pixels at once) and their intervals where the kernel takes runs (two at
+/// once), then each pixel; the run is short enough that its buffers are still in cache for the
+/// estimates. False as estimatePixel.
 bool estimateRun(const EstimatePass& pass, int y, int x0, int x1, const ROI& roi, float* base,
                  PixelScratch& w) {
     const StatsHeader& h = pass.src.header;
