@@ -7,6 +7,7 @@
 #include <cmath>
 #include <vector>
 
+#include "mcstat/core/cpu_features.h"
 #include "mcstat/core/parallel.h"
 
 namespace mcstat {
@@ -78,12 +79,6 @@ LumaSpread lumaSpread(const PixelBuffers& px, const std::array<double, 3>& luma)
 
 namespace {
 
-/// Whether lumaSpreads runs four pixels at once (set once from the CPU).
-bool spreadsUseAvx2() {
-    static const bool on = (__builtin_cpu_init(), __builtin_cpu_supports("avx2") != 0);
-    return on;
-}
-
 /// Four pixels' lumaSpread, one per lane: px[0..3] share M in [2, kSpreadStackM] and every
 /// buffer is valid. Each lane computes lumaSpread's all-valid path: Y_j = (l0 R + l1 G) + l2 B,
 /// n += n_j, sum += n_j Y_j, mean = sum / n, ss += (n_j dev) dev, se = sqrt(ss / (M - 1) / n),
@@ -130,7 +125,7 @@ __attribute__((target("avx2"))) void lumaSpread4(const PixelBuffers* px,
 
 void lumaSpreads(const PixelBuffers* px, int n, const std::array<double, 3>& luma,
                  LumaSpread* out) {
-    const bool wide = spreadsUseAvx2();
+    const bool wide = cpuHasAvx2();
     int i = 0;
     while (i < n) {
         const int M = px[i].M;

@@ -13,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "mcstat/core/cpu_features.h"
 #include "mcstat/core/location_stats.h"
 
 namespace mcstat {
@@ -360,7 +361,7 @@ void medianIntervals(const PixelBuffers& px, const int* valid, int m, double lev
 }
 
 void medianIntervalsRun(const PixelBuffers* px, int n, double level, ValueInterval* out) {
-    static const bool avx = (__builtin_cpu_init(), __builtin_cpu_supports("avx") != 0);
+    const bool avx = cpuHasAvx();
     std::vector<int> all;  // 0, 1, ..., M - 1: every buffer valid
     int i = 0;
     while (i < n) {

@@ -12,6 +12,7 @@
 #include <limits>
 
 #include "mcstat/core/color_space.h"
+#include "mcstat/core/cpu_features.h"
 #include "mcstat/filters/pixel/detail/rank_keys.h"
 
 namespace mcstat {
@@ -173,7 +174,7 @@ void reduceGeneral(const PixelBuffers& px, const PixelParams& p, PixelEstimate& 
 /// Whether the fast path uses its AVX2 functions (set once from the CPU; detail::setUseAvx2 lets
 /// the bit-identity test run the portable versions too). Both give the same bits.
 bool& useAvx2() {
-    static bool on = (__builtin_cpu_init(), __builtin_cpu_supports("avx2") != 0);
+    static bool on = cpuHasAvx2();
     return on;
 }
 
@@ -646,7 +647,7 @@ void rankKeys(double* key, int n, int* order) {
 
 bool setUseAvx2(bool on) {
     const bool before = useAvx2();
-    useAvx2() = on && __builtin_cpu_supports("avx2");
+    useAvx2() = on && cpuHasAvx2();
     return before;
 }
 }  // namespace detail
