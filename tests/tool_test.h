@@ -13,6 +13,8 @@
 #include <sstream>
 #include <string>
 
+#include "tool_run.h"
+
 namespace mcstat::testing {
 
 struct ToolRun {
@@ -46,7 +48,7 @@ class ToolTest : public ::testing::Test {
     std::string path(const std::string& n) const { return dir + "/" + n; }
     ToolRun run(const std::string& exe, const std::string& args) const {
         const std::string e = path("stderr.txt"), o = path("stdout.txt");
-        const int status = std::system((exe + " " + args + " >" + o + " 2>" + e).c_str());
+        const int status = runTool(exe, args, o, e);  // as std::system would, without a start
         return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(e), slurp(o)};
     }
     ToolRun render(const std::string& args) const {

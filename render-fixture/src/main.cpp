@@ -23,6 +23,7 @@
 
 #include "mcstat/color/color.h"
 #include "mcstat/compact/compact.h"
+#include "mcstat/core/fork_server.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/params.h"
 #include "mcstat/core/progress.h"
@@ -822,7 +823,9 @@ void report(const CommandLine& cl, const Job& job, const RenderStats& stats,
 
 }  // namespace
 
-int main(int argc, const char** argv) {
+namespace {
+
+int runRender(int argc, const char** argv) {
     // Ctrl-C or a kill removes the temporary files of the output (the target is never touched).
     mcstat::removeTemporariesOnSignals();
     CommandLine cl;
@@ -838,4 +841,15 @@ int main(int argc, const char** argv) {
     if (!written) return fail(err);
     report(cl, job, stats, timings);
     return 0;
+}
+
+}  // namespace
+
+int main(int argc, const char** argv) {
+    // The test suites' helpers start one renderer as a fork server (mcstat/core/fork_server.h).
+    if (const int socket = mcstat::forkServerSocket(); socket >= 0)
+        return mcstat::serveForks(socket, [](int n, char** args) {
+            return runRender(n, const_cast<const char**>(args));
+        });
+    return runRender(argc, argv);
 }

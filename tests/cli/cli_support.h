@@ -1,5 +1,6 @@
-// Running the `mcstat` binary from tests: one process, stdout and stderr captured in files named
-// after the running test, so tests run in parallel (ctest -j) never share them.
+// Running the `mcstat` binary from tests (through its fork server, tool_run.h): stdout and stderr
+// captured in files named after the running test, so tests run in parallel (ctest -j) never share
+// them.
 #pragma once
 
 #include <OpenImageIO/filesystem.h>
@@ -10,6 +11,8 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+
+#include "tool_run.h"
 
 namespace mcstat::testing {
 
@@ -31,9 +34,8 @@ inline Result runMcstat(const std::string& args,
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
     const std::string stem = dir + "/" + info->test_suite_name() + "." + info->name();
     const std::string o = stem + ".stdout", e = stem + ".stderr";
-    const std::string cmd = std::string(MCSTAT_EXE) + " " + args + " >" + o + " 2>" + e;
     Result r;
-    const int status = std::system(cmd.c_str());
+    const int status = runTool(MCSTAT_EXE, args, o, e);
     r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     r.out = slurp(o);
     r.err = slurp(e);

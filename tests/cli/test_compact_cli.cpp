@@ -29,7 +29,7 @@ class CompactCli : public mcstat::testing::CliFixture {
         const std::string cmd = std::string(MCSTAT_RENDER_EXE) +
                                 " --res 40 30 --spp 90 --M 9 --aovs --seed 3 --quiet " + extra +
                                 " -o " + path(name);
-        ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+        ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0) << cmd;
     }
 };
 
@@ -76,7 +76,7 @@ TEST_F(CompactCli, GMoNOfTheCompactFileIsTheFullFilesBitForBit) {
     const std::string cmd = std::string(MCSTAT_RENDER_EXE) +
                             " --res 40 30 --spp 90 --M 9 --seed 4 --quiet -o " +
                             path("plain.mcstat");
-    ASSERT_EQ(std::system(cmd.c_str()), 0);
+    ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0);
     r = mcstat(path("plain.mcstat") + " --dup --compact --gmon:mode=channel -o " + path("c.exr") +
                " --pop --gmon:mode=channel -o " + path("d.exr"));
     ASSERT_EQ(r.code, 0) << r.err;
@@ -95,7 +95,7 @@ TEST_F(CompactCli, TheRendererWritesTheSameCompactFile) {
     const std::string cmd = std::string(MCSTAT_RENDER_EXE) +
                             " --res 8 8 --spp 4 --adaptive-m --compact -o " + path("x.mcstat") +
                             " 2>" + path("err.txt");
-    EXPECT_NE(std::system(cmd.c_str()), 0);
+    EXPECT_NE(mcstat::testing::runCommand(cmd.c_str()), 0);
     EXPECT_NE(mcstat::testing::slurp(path("err.txt"))
                   .find("--compact cannot be combined with --adaptive-m"),
               std::string::npos);
@@ -154,7 +154,7 @@ TEST_F(CompactCli, CompareTestsTheTilesOfCompactFilesFromTheirPixelsSpreads) {
         const std::string cmd = std::string(MCSTAT_RENDER_EXE) + " --quiet --scene " + scene +
                                 " --res 96 72 --spp 128 --M 16 --seed " + std::to_string(seed) +
                                 " -o " + path(std::string(name) + ".mcstat");
-        ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+        ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0) << cmd;
         ASSERT_EQ(mcstat(path(std::string(name) + ".mcstat") + " --compact -o " +
                          path(std::string(name) + "-c.mcstat"))
                       .code,
@@ -210,7 +210,7 @@ TEST_F(CompactCli, MergeAndRecompactAreRefusedWithOneLine) {
     // Adaptive M chose its buffers while rendering.
     const std::string cmd = std::string(MCSTAT_RENDER_EXE) +
                             " --res 16 12 --spp 64 --adaptive-m --quiet -o " + path("ad.mcstat");
-    ASSERT_EQ(std::system(cmd.c_str()), 0);
+    ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0);
     r = mcstat(path("ad.mcstat") + " --compact -o " + path("y.mcstat"));
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.err.find("adaptive M"), std::string::npos) << r.err;

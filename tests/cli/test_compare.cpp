@@ -43,7 +43,7 @@ class CompareCli : public mcstat::testing::CliFixture {
                                 " --res 64 48 --spp " + std::to_string(spp) + " --M " +
                                 std::to_string(M) + " --seed " + std::to_string(seed) + " " +
                                 extra + " -o " + path(out) + " >/dev/null 2>&1";
-        ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+        ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0) << cmd;
     }
     Result compare(const std::string& a, const std::string& b, const std::string& mods = "") {
         return mcstat(path(a) + " " + path(b) + " --compare" + mods);
@@ -286,7 +286,7 @@ TEST_F(CompareCli, IdenticalFilesReferenceImagesAndRefusals) {
     auto reference = [&](const std::string& scene, const std::string& out) {
         const std::string cmd = std::string(MCSTAT_RENDER_EXE) + " --quiet --scene " + scene +
                                 " --res 64 48 --spp 2048 --seed 9 --reference -o " + path(out);
-        ASSERT_EQ(std::system(cmd.c_str()), 0);
+        ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0);
     };
     reference("arealight", "ref.exr");
     reference(sceneVariant("arealight", "bright",
@@ -330,7 +330,7 @@ TEST_F(CompareCli, IdenticalFilesReferenceImagesAndRefusals) {
     const std::string small = std::string(MCSTAT_RENDER_EXE) +
                               " --quiet --scene arealight --res 32 24 --spp 16 --M 4 -o " +
                               path("small.mcstat");
-    ASSERT_EQ(std::system(small.c_str()), 0);
+    ASSERT_EQ(mcstat::testing::runCommand(small.c_str()), 0);
     r = compare("a.mcstat", "small.mcstat");
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.err.find("data windows"), std::string::npos) << r.err;

@@ -167,7 +167,7 @@ TEST_F(ConfidenceCli, CompactFilesKeepTheirIntervals) {
     const std::string render = std::string(MCSTAT_RENDER_EXE) +
                                " --quiet --scene default --res 40 30 --spp 180 --M 9 --seed 5 -o " +
                                path("full.mcstat");
-    ASSERT_EQ(std::system(render.c_str()), 0) << render;
+    ASSERT_EQ(mcstat::testing::runCommand(render.c_str()), 0) << render;
     ASSERT_EQ(mcstat(path("full.mcstat") + " --compact -o " + path("small.mcstat")).code, 0);
     auto r = mcstat(path("small.mcstat") + " --gmon:ci=0.95 -o " + path("c.exr"));
     ASSERT_EQ(r.code, 0) << r.err;

@@ -24,7 +24,7 @@ class ContentCli : public mcstat::testing::CliFixture {
         const std::string cmd = std::string(MCSTAT_RENDER_EXE) +
                                 " --quiet --scene default --res 40 30 --spp 16 " + extra + " -o " +
                                 path(name);
-        ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+        ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0) << cmd;
     }
     static size_t lines(const std::string& s) {
         return size_t(std::count(s.begin(), s.end(), '\n'));
@@ -179,7 +179,8 @@ TEST_F(ContentCli, SrgbPngReferenceIsMadeSceneLinearBeforeComparing) {
     EXPECT_EQ(lines(r.err), 1u) << r.err;  // the EXR references need no note
     // A PNG that declares linear data (stock oiiotool writes gamma 1 from an EXR): compared as
     // it is, with a note that 8 bits quantise and clip it.
-    ASSERT_EQ(std::system(("oiiotool " + path("ref.exr") + " -o " + path("linear.png")).c_str()),
+    ASSERT_EQ(mcstat::testing::runCommand(
+                  ("oiiotool " + path("ref.exr") + " -o " + path("linear.png")).c_str()),
               0);
     r = mcstat(path("test.exr") + " --diff " + path("linear.png"));
     ASSERT_EQ(r.code, 0) << r.err;

@@ -28,7 +28,7 @@ class FramesCli : public mcstat::testing::CliFixture {
                     std::string(MCSTAT_RENDER_EXE) +
                     " --quiet --scene default --res 24 16 --spp 4 --reference --seed " +
                     std::to_string(100 * f + s) + " -o " + path(name);
-                ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+                ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0) << cmd;
             }
     }
     std::string frameFile(const std::string& stem, int f, const std::string& ext) {

@@ -21,7 +21,7 @@ class HabitsCli : public mcstat::testing::CliFixture {
         stats = path("s.mcstat");
         const std::string cmd = std::string(MCSTAT_RENDER_EXE) +
                                 " --quiet --scene default --res 24 16 --spp 8 --M 4 -o " + stats;
-        ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+        ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0) << cmd;
     }
     std::string stats;
 };
@@ -141,7 +141,7 @@ TEST_F(HabitsCli, CompareSaysWhereAnExactFindingsNoiseWouldComeFrom) {
 TEST_F(HabitsCli, TheRendererSaysItsVersionAndNamesWhatItWrites) {
     const auto render = [&](const std::string& args, Result& r) {
         const std::string o = path("render.out"), e = path("render.err");
-        const int status = std::system(
+        const int status = mcstat::testing::runCommand(
             (std::string(MCSTAT_RENDER_EXE) + " " + args + " >" + o + " 2>" + e).c_str());
         r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
         r.out = mcstat::testing::slurp(o);
@@ -173,7 +173,7 @@ TEST_F(HabitsCli, RendersOfDifferentScenesDoNotMergeUnlessForced) {
         const std::string cmd = std::string(MCSTAT_RENDER_EXE) + " --quiet --scene " + scene +
                                 " --res 24 16 --spp 8 --M 4 --seed " + std::to_string(seed) +
                                 " -o " + path(out);
-        ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+        ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0) << cmd;
     };
     render("default", 2, "d2.mcstat");
     render("caustic", 3, "c3.mcstat");

@@ -22,7 +22,7 @@ class KeepLightCli : public mcstat::testing::CliFixture {
     void render(const std::string& args, const std::string& out) const {
         const std::string cmd = std::string(MCSTAT_RENDER_EXE) + " --quiet --res 48 36 --M 9 " +
                                 args + " -o " + path(out);
-        ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+        ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0) << cmd;
     }
 };
 

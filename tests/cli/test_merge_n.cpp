@@ -28,7 +28,7 @@ class MergeN : public mcstat::testing::CliFixture {
             const std::string cmd = std::string(MCSTAT_RENDER_EXE) +
                                     " --quiet --scene default --res 24 16 --spp 6 --M 4 --seed " +
                                     std::to_string(s) + " -o " + seedFile(s);
-            ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+            ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0) << cmd;
         }
     }
     std::string seedFile(int s) { return path("s" + std::to_string(s) + ".mcstat"); }
@@ -122,7 +122,7 @@ TEST_F(MergeN, SixtyFourFilesGiveTheSameBytesInAnyOrder) {
                                 " --quiet --threads 1 --scene default --res 12 8 --spp 2 --M 2 "
                                 "--seed " +
                                 std::to_string(s) + " -o " + names.back();
-        ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+        ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0) << cmd;
     }
     const auto joined = [](const std::vector<std::string>& v) {
         std::string out;
@@ -148,7 +148,7 @@ TEST_F(MergeN, RefusalsNameTheFiles) {
     std::string cmd = std::string(MCSTAT_RENDER_EXE) +
                       " --quiet --scene default --res 24 16 --spp 4 --reference -o " +
                       path("ref.exr");
-    ASSERT_EQ(std::system(cmd.c_str()), 0);
+    ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0);
     Result r = mcstat(path("ref.exr") + " " + files({1, 2, 3}) + "--merge -o " + path("x.mcstat"));
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.err.find("ref.exr is an image (merge only the top N with --merge:n=N)"),

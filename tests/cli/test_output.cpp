@@ -20,7 +20,7 @@ class OutputCli : public mcstat::testing::CliFixture {
         const std::string cmd = std::string(MCSTAT_RENDER_EXE) +
                                 " --quiet --scene default --res 32 24 --spp 8 --M 4 --aovs -o " +
                                 path("aov.mcstat");
-        ASSERT_EQ(std::system(cmd.c_str()), 0);
+        ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0);
     }
     OIIO::ImageSpec specOf(const std::string& name) {
         OIIO::ImageBuf b(path(name));
@@ -106,7 +106,7 @@ TEST_F(OutputCli, StreamedEstimateShowsProgressOnATerminalOnly) {
     // On a terminal (util-linux's script gives the command a pseudo-terminal): the progress line.
     const std::string cmd = "script -qec '" + std::string(MCSTAT_EXE) + " " + path("aov.mcstat") +
                             " --gmon -o " + path("g2.exr") + "' /dev/null > " + path("tty.txt");
-    ASSERT_EQ(std::system(cmd.c_str()), 0);
+    ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0);
     const std::string tty = mcstat::testing::slurp(path("tty.txt"));
     EXPECT_NE(tty.find("mcstat: --gmon 100.0%"), std::string::npos) << tty;
 }

@@ -39,7 +39,7 @@ class ReviewCli : public mcstat::testing::CliFixture {
     void render(const std::string& args) const {
         const std::string cmd = std::string(MCSTAT_RENDER_EXE) +
                                 " --scene default --res 32 24 --quiet " + args + " >/dev/null";
-        ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+        ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0) << cmd;
     }
     /// `mcstat ARGS` run in the test's directory, so short names (and the item names built from
     /// them, e.g. "gmon(a.mcstat)") can be used.
@@ -48,7 +48,7 @@ class ReviewCli : public mcstat::testing::CliFixture {
         const std::string cmd =
             "cd '" + dir + "' && " + MCSTAT_EXE + " " + args + " >'" + o + "' 2>'" + e + "'";
         Result r;
-        const int status = std::system(cmd.c_str());
+        const int status = mcstat::testing::runCommand(cmd.c_str());
         r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
         r.out = mcstat::testing::slurp(o);
         r.err = mcstat::testing::slurp(e);
@@ -518,7 +518,7 @@ TEST_F(ReviewCli, QualityPlotRefusals) {
     const std::string out = path("nognuplot.err");
     const std::string cmd = "cd " + dir + " && env PATH=" + dir + " " + MCSTAT_EXE +
                             " a.mcstat --qualityplot ref.exr >/dev/null 2>" + out;
-    const int status = std::system(cmd.c_str());
+    const int status = mcstat::testing::runCommand(cmd.c_str());
     EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << status;
     EXPECT_EQ(mcstat::testing::slurp(out),
               "mcstat: --qualityplot: needs gnuplot (scripts/install-deps.sh installs "

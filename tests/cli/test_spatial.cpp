@@ -247,7 +247,7 @@ TEST_F(Spatial, Filters3DOnARenderedAdaptiveFileVotePerSample) {
     const std::string f = path("adaptive.mcstat");
     const std::string cmd = std::string(MCSTAT_RENDER_EXE) +
                             " --scene tiny --spp 96 --adaptive-m --threads 2 --quiet -o " + f;
-    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0) << cmd;
     StatsImage s;
     std::string err;
     ASSERT_TRUE(readStatsFile(f, s, err)) << err;

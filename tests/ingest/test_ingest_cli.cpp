@@ -38,7 +38,7 @@ class IngestCli : public CliFixture {
                                     "--quiet -o ",
                                     kW, kH, 1000 + s) +
                                 plain;
-        EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+        EXPECT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0) << cmd;
         OIIO::ImageSpec spec;
         const std::vector<float> rgb = pixelsOf(plain, spec);
         ExrSpec e;
@@ -293,7 +293,7 @@ TEST_F(IngestCli, ManyInputsNeverHoldManyFilesOpen) {
     const std::string cmd = "ulimit -n " + std::to_string(highest + 41) + " && " +
                             std::string(MCSTAT_EXE) + " --ingest '" + path("r*.exr") +
                             "' --info > " + path("out.txt") + " 2>&1";
-    const int status = std::system(("bash -c \"" + cmd + "\"").c_str());
+    const int status = mcstat::testing::runCommand(("bash -c \"" + cmd + "\"").c_str());
     const std::string out = slurp(path("out.txt"));
     EXPECT_EQ(WEXITSTATUS(status), 0) << out;
     EXPECT_NE(out.find("M = 100 sub-buffers, spp = 200"), std::string::npos) << out;
@@ -316,7 +316,7 @@ TEST_F(IngestCli, MergeOfTwoIngestsOnTheCommandLine) {
         std::string(MCSTAT_RENDER_EXE) +
         fmt(" --scene default --res {} {} --spp 8 --M 2 --seed 77 --quiet -o ", kW, kH) +
         path("rendered.mcstat");
-    ASSERT_EQ(std::system(cmd.c_str()), 0);
+    ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0);
     r = mcstat(path("a.mcstat") + " " + path("rendered.mcstat") + " --merge");
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.err.find("sample assignments differ ('perfile' vs 'roundrobin')"),

@@ -66,7 +66,7 @@ class IngestColor : public CliFixture {
             OIIO::Strutil::fmt::format(" --scene default --res {} {} --spp 8 --seed {} --quiet -o ",
                                        kW, kH, 1000 + s) +
             plain;
-        EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+        EXPECT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0) << cmd;
         OIIO::ImageSpec spec;
         return readRGB(plain, spec);
     }
@@ -293,7 +293,7 @@ std::string printedCommand(const std::string& err, const std::string& marker) {
 
 /// Runs a shell command line as a user would paste it; its exit status.
 int runShell(const std::string& cmd) {
-    const int status = std::system((cmd + " >/dev/null 2>&1").c_str());
+    const int status = mcstat::testing::runCommand((cmd + " >/dev/null 2>&1").c_str());
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
@@ -313,11 +313,11 @@ TEST_F(IngestColor, DisplayEncodedRendersAreRefusedWithAConversionThatRunsAsPrin
     // OIIO's own config knows "linear" and "sRGB", not lin_rec709 (which the message printed).
     WithoutOcio stock;
     const std::string exr = path("render.exr"), tif = path("s 1.tif");
-    ASSERT_EQ(std::system((std::string(MCSTAT_RENDER_EXE) +
-                           " --scene default --res 32 24 --spp 8 "
-                           "--seed 5 --reference --quiet -o " +
-                           exr)
-                              .c_str()),
+    ASSERT_EQ(mcstat::testing::runCommand((std::string(MCSTAT_RENDER_EXE) +
+                                           " --scene default --res 32 24 --spp 8 "
+                                           "--seed 5 --reference --quiet -o " +
+                                           exr)
+                                              .c_str()),
               0);
     ASSERT_EQ(runShell("oiiotool " + exr + " --colorconvert linear sRGB -d float -o '" + tif + "'"),
               0);
@@ -360,12 +360,13 @@ TEST_F(IngestColor, ConvertedPngsAreRefusedAsIntegerDataAndTheirTagsAsContradict
     WithoutOcio stock;
     for (int s = 1; s <= 2; ++s) {
         const std::string exr = path(OIIO::Strutil::fmt::format("seed_{}.exr", s));
-        ASSERT_EQ(std::system((std::string(MCSTAT_RENDER_EXE) +
-                               OIIO::Strutil::fmt::format(" --scene default --res 32 24 --spp 8 "
-                                                          "--seed {} --reference --quiet -o ",
-                                                          s) +
-                               exr)
-                                  .c_str()),
+        ASSERT_EQ(mcstat::testing::runCommand(
+                      (std::string(MCSTAT_RENDER_EXE) +
+                       OIIO::Strutil::fmt::format(" --scene default --res 32 24 --spp 8 "
+                                                  "--seed {} --reference --quiet -o ",
+                                                  s) +
+                       exr)
+                          .c_str()),
                   0);
         ASSERT_EQ(runShell("oiiotool " + exr + " --colorconvert linear sRGB -d uint8 -o " +
                            path(OIIO::Strutil::fmt::format("seed_{}.png", s))),

@@ -110,7 +110,9 @@ TEST_F(RenderAovs, InfoListsTheAovsByLayerWithTheirClass) {
     const std::string f = path("i.mcstat");
     ASSERT_EQ(render("--scene tiny --spp 4 --M 3 --aovs -o " + f).code, 0);
     const std::string out = path("info.txt");
-    ASSERT_EQ(std::system((std::string(MCSTAT_EXE) + " " + f + " --info >" + out).c_str()), 0);
+    ASSERT_EQ(mcstat::testing::runCommand(
+                  (std::string(MCSTAT_EXE) + " " + f + " --info >" + out).c_str()),
+              0);
     const std::string info = testing::slurp(out);
     EXPECT_NE(info.find("format 5"), std::string::npos) << info;
     EXPECT_NE(info.find("aovs (19 channels x 3 sub-buffers):"), std::string::npos) << info;
