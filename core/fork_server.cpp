@@ -1,5 +1,6 @@
-// The fork server (include/mcstat/core/fork_server.h): one request at a time, each in a fork.
-#include "mcstat/core/fork_server.h"
+// The fork server (include/mcstat/core/detail/fork_server.h): one request at a time, each in a
+// fork.
+#include "mcstat/core/detail/fork_server.h"
 
 #if defined(__has_feature)
 #if __has_feature(address_sanitizer)
@@ -27,7 +28,7 @@
 #include <thread>
 #include <vector>
 
-namespace mcstat {
+namespace mcstat::detail {
 
 namespace {
 
@@ -168,4 +169,4 @@ int serveForks(int socket, const std::function<int(int, char**)>& run) {
     return 0;
 }
 
-}  // namespace mcstat
+}  // namespace mcstat::detail

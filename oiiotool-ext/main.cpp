@@ -1,6 +1,6 @@
 // mcstat: robust images from Monte Carlo statistics files. See `mcstat --help`.
 #include "cli.h"
-#include "mcstat/core/fork_server.h"
+#include "mcstat/core/detail/fork_server.h"
 #include "mcstat/exr-deep/codec/temp_file.h"
 
 namespace {
@@ -14,8 +14,9 @@ int runMcstat(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    // The test suites' helpers start one mcstat as a fork server (mcstat/core/fork_server.h).
-    if (const int socket = mcstat::forkServerSocket(); socket >= 0)
-        return mcstat::serveForks(socket, runMcstat);
+    // The test suites' helpers start one mcstat as a fork server
+    // (mcstat/core/detail/fork_server.h).
+    if (const int socket = mcstat::detail::forkServerSocket(); socket >= 0)
+        return mcstat::detail::serveForks(socket, runMcstat);
     return runMcstat(argc, argv);
 }

@@ -1,8 +1,8 @@
 // Running the project's tools from tests as `std::system("EXE ARGS >OUT 2>ERR")` would, without
 // paying a process start for each run: one fork server per tool and test process
-// (mcstat/core/fork_server.h) runs each command in a fork of a started tool. A start costs about
-// 0.2 s here (0.33 s under ASan), almost all of it the dynamic loader; the suites run the tools
-// some 600 times each.
+// (mcstat/core/detail/fork_server.h) runs each command in a fork of a started tool. A start costs
+// about 0.2 s here (0.33 s under ASan), almost all of it the dynamic loader; the suites run the
+// tools some 600 times each.
 //
 // The server's fork is the same program with the same arguments, folder, descriptors,
 // environment, resource limits and umask, so it does what the shell's start would. Whatever the

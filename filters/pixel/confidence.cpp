@@ -299,6 +299,91 @@ void medianFromLanes(const float (*lanes)[4], int m, int k, ValueInterval out[3]
                         : ValueInterval{double(lanes[k - 1][c]), double(lanes[m - k][c]), false};
 }
 
+/// Yuen's interval of each channel from its trimmed sum and the winsorised values' sum of squared
+/// deviations (h the values kept inside the trim).
+void yuenFromSums(int h, const double sum[3], const double ss[3], double level,
+                  ValueInterval out[3]) {
+    const double q = twoSidedQuantile(level, double(h - 1));
+    for (int c = 0; c < 3; ++c) {
+        LocationSummary ls;
+        ls.estimate = sum[c] / h;
+        ls.variance = ss[c] / (double(h) * (h - 1));
+        ls.df = h - 1;
+        out[c] = tIntervalWith(ls, q);
+    }
+}
+
+/// Yuen's interval of each channel from a pixel's sorted lanes (m <= kNetworkMax, h = m - 2 g at
+/// least 2): yuenSummary's sums, the three channels side by side (for each channel the same
+/// additions in the same order): the winsorised values once, as doubles; the trimmed sum and the
+/// winsorised sum are independent chains, so they share a loop.
+void yuenFromLanes(const float (*lanes)[4], int m, int g, double level, ValueInterval out[3]) {
+    const int h = m - 2 * g;
+    double w[3][kNetworkMax];
+    for (int j = 0; j < m; ++j) {
+        const int r = std::clamp(j, g, m - g - 1);
+        for (int c = 0; c < 3; ++c) w[c][j] = double(lanes[r][c]);
+    }
+    double sum[3] = {0.0, 0.0, 0.0}, wsum[3] = {0.0, 0.0, 0.0};
+    for (int j = 0; j < g; ++j)
+        for (int c = 0; c < 3; ++c) wsum[c] += w[c][j];
+    for (int j = g; j < m - g; ++j)
+        for (int c = 0; c < 3; ++c) {
+            sum[c] += w[c][j];  // inside the trim the winsorised value is the value
+            wsum[c] += w[c][j];
+        }
+    for (int j = m - g; j < m; ++j)
+        for (int c = 0; c < 3; ++c) wsum[c] += w[c][j];
+    double wmean[3], ss[3] = {0.0, 0.0, 0.0};
+    for (int c = 0; c < 3; ++c) wmean[c] = wsum[c] / m;
+    for (int j = 0; j < m; ++j)
+        for (int c = 0; c < 3; ++c) {
+            const double dv = w[c][j] - wmean[c];
+            ss[c] += dv * dv;
+        }
+    yuenFromSums(h, sum, ss, level, out);
+}
+
+/// A sorted lane's four floats widened to doubles.
+__attribute__((target("avx"))) inline __m256d widenedLane(const float (*lanes)[4], int r) {
+    return _mm256_cvtps_pd(_mm_load_ps(lanes[r]));
+}
+
+/// yuenFromLanes on two pixels of equal m and g at once, each pixel's R, G, B (and a lane never
+/// read) the four lanes of AVX double registers: for each channel the same operations in the same
+/// order (additions, one division, subtractions, products; no FMA), so the same bits. The two
+/// pixels' chains of dependent additions are independent and overlap.
+__attribute__((target("avx"))) void yuenFromLanes2(const float (*la)[4], const float (*lb)[4],
+                                                   int m, int g, double level, ValueInterval oa[3],
+                                                   ValueInterval ob[3]) {
+    const int h = m - 2 * g;
+    __m256d sa = _mm256_setzero_pd(), sb = sa, wa = sa, wb = sa;
+    const __m256d loA = widenedLane(la, g), loB = widenedLane(lb, g);
+    const __m256d hiA = widenedLane(la, m - g - 1), hiB = widenedLane(lb, m - g - 1);
+    for (int j = 0; j < g; ++j) wa = _mm256_add_pd(wa, loA), wb = _mm256_add_pd(wb, loB);
+    for (int j = g; j < m - g; ++j) {
+        const __m256d xa = widenedLane(la, j), xb = widenedLane(lb, j);
+        sa = _mm256_add_pd(sa, xa), wa = _mm256_add_pd(wa, xa);
+        sb = _mm256_add_pd(sb, xb), wb = _mm256_add_pd(wb, xb);
+    }
+    for (int j = m - g; j < m; ++j) wa = _mm256_add_pd(wa, hiA), wb = _mm256_add_pd(wb, hiB);
+    const __m256d n = _mm256_set1_pd(double(m));
+    const __m256d meanA = _mm256_div_pd(wa, n), meanB = _mm256_div_pd(wb, n);
+    __m256d qa = _mm256_setzero_pd(), qb = qa;
+    for (int j = 0; j < m; ++j) {
+        const int r = std::clamp(j, g, m - g - 1);
+        const __m256d da = _mm256_sub_pd(widenedLane(la, r), meanA),
+                      db = _mm256_sub_pd(widenedLane(lb, r), meanB);
+        qa = _mm256_add_pd(qa, _mm256_mul_pd(da, da));
+        qb = _mm256_add_pd(qb, _mm256_mul_pd(db, db));
+    }
+    alignas(32) double sumA[4], sumB[4], ssA[4], ssB[4];
+    _mm256_store_pd(sumA, sa), _mm256_store_pd(sumB, sb);
+    _mm256_store_pd(ssA, qa), _mm256_store_pd(ssB, qb);
+    yuenFromSums(h, sumA, ssA, level, oa);
+    yuenFromSums(h, sumB, ssB, level, ob);
+}
+
 /// One channel's values of the valid buffers, widened to double (the per-channel path's input).
 void gatherChannel(const PixelBuffers& px, const int* valid, int m, int c, double* out) {
     for (int i = 0; i < m; ++i) out[i] = double(px.mean[3 * size_t(valid[i]) + size_t(c)]);
@@ -397,38 +482,28 @@ void yuenIntervals(const PixelBuffers& px, const int* valid, int m, int g, doubl
     }
     SortedLanes s;
     s.load(px, valid, m);
-    // yuenSummary's sums, the three channels side by side (for each channel the same additions
-    // in the same order): the winsorised values once, as doubles; the trimmed sum and the
-    // winsorised sum are independent chains, so they share a loop.
-    double w[3][kNetworkMax];
-    for (int j = 0; j < m; ++j) {
-        const int r = std::clamp(j, g, m - g - 1);
-        for (int c = 0; c < 3; ++c) w[c][j] = s.at(r, c);
-    }
-    double sum[3] = {0.0, 0.0, 0.0}, wsum[3] = {0.0, 0.0, 0.0};
-    for (int j = 0; j < g; ++j)
-        for (int c = 0; c < 3; ++c) wsum[c] += w[c][j];
-    for (int j = g; j < m - g; ++j)
-        for (int c = 0; c < 3; ++c) {
-            sum[c] += w[c][j];  // inside the trim the winsorised value is the value
-            wsum[c] += w[c][j];
+    yuenFromLanes(s.v, m, g, level, out);
+}
+
+void yuenIntervalsRun(const PixelBuffers* px, int n, const std::function<int(int)>& trim,
+                      double level, ValueInterval* out) {
+    const bool avx = cpuHasAvx();
+    std::vector<int> all;  // 0, 1, ..., M - 1: every buffer valid
+    int i = 0;
+    while (i < n) {
+        const int m = px[i].M;
+        const int g = m >= 2 ? std::clamp(trim(m), 0, (m - 1) / 2) : 0;
+        if (avx && i + 1 < n && px[i + 1].M == m && m >= 2 && m <= kUnrolledMax && m - 2 * g >= 2) {
+            alignas(16) float la[kUnrolledMax][4], lb[kUnrolledMax][4];
+            sortUnrolled2(m, px[i], px[i + 1], la, lb,
+                          std::make_integer_sequence<int, kUnrolledMax - 1>{});
+            yuenFromLanes2(la, lb, m, g, level, out + 3 * i, out + 3 * (i + 1));
+            i += 2;
+            continue;
         }
-    for (int j = m - g; j < m; ++j)
-        for (int c = 0; c < 3; ++c) wsum[c] += w[c][j];
-    double wmean[3], ss[3] = {0.0, 0.0, 0.0};
-    for (int c = 0; c < 3; ++c) wmean[c] = wsum[c] / m;
-    for (int j = 0; j < m; ++j)
-        for (int c = 0; c < 3; ++c) {
-            const double dv = w[c][j] - wmean[c];
-            ss[c] += dv * dv;
-        }
-    const double q = twoSidedQuantile(level, double(h - 1));
-    for (int c = 0; c < 3; ++c) {
-        LocationSummary ls;
-        ls.estimate = sum[c] / h;
-        ls.variance = ss[c] / (double(h) * (h - 1));
-        ls.df = h - 1;
-        out[c] = tIntervalWith(ls, q);
+        for (int j = int(all.size()); j < m; ++j) all.push_back(j);
+        yuenIntervals(px[i], all.data(), m, trim(m), level, out + 3 * i);
+        ++i;
     }
 }
 

@@ -58,6 +58,11 @@ PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
                                         double level, ValueInterval out[3]) {
         yuenIntervals(px, valid, m, tmpeTrim(alpha, m), level, out);
     };
+    k.runIntervals = [alpha = p.alpha](const PixelBuffers* px, int n, double level,
+                                       ValueInterval* out) {
+        yuenIntervalsRun(
+            px, n, [alpha](int m) { return tmpeTrim(alpha, m); }, level, out);
+    };
     return k;
 }
 

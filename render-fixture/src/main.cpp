@@ -23,7 +23,7 @@
 
 #include "mcstat/color/color.h"
 #include "mcstat/compact/compact.h"
-#include "mcstat/core/fork_server.h"
+#include "mcstat/core/detail/fork_server.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/core/params.h"
 #include "mcstat/core/progress.h"
@@ -846,9 +846,10 @@ int runRender(int argc, const char** argv) {
 }  // namespace
 
 int main(int argc, const char** argv) {
-    // The test suites' helpers start one renderer as a fork server (mcstat/core/fork_server.h).
-    if (const int socket = mcstat::forkServerSocket(); socket >= 0)
-        return mcstat::serveForks(socket, [](int n, char** args) {
+    // The test suites' helpers start one renderer as a fork server
+    // (mcstat/core/detail/fork_server.h).
+    if (const int socket = mcstat::detail::forkServerSocket(); socket >= 0)
+        return mcstat::detail::serveForks(socket, [](int n, char** args) {
             return runRender(n, const_cast<const char**>(args));
         });
     return runRender(argc, argv);

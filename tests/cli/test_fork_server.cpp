@@ -1,6 +1,6 @@
-// The tests' fork server (tests/tool_run.h, mcstat/core/fork_server.h): a command line runs as the
-// shell would run it, split and unquoted as sh splits it, with the same status, output and files,
-// and anything the server cannot reproduce goes to the shell.
+// The tests' fork server (tests/tool_run.h, mcstat/core/detail/fork_server.h): a command line runs
+// as the shell would run it, split and unquoted as sh splits it, with the same status, output and
+// files, and anything the server cannot reproduce goes to the shell.
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
 #include <dirent.h>

@@ -310,8 +310,16 @@ TEST(Confidence, RunIntervalsEqualThePixelOnes) {
     }
     std::vector<PixelBuffers> px;
     for (size_t i = 0; i < ms.size(); ++i) px.push_back({means[i].data(), counts[i].data(), ms[i]});
-    for (const char* name : {"mon", "gmon", "gmonb"}) {
-        const PixelKernel k = kernelOf(name);
+    // TMPE: its default trim, none (h = M), and the most (h down to 1 or 2: the median's path).
+    const std::vector<std::pair<const char*, std::map<std::string, std::string>>> kernels = {
+        {"mon", {}},
+        {"gmon", {}},
+        {"gmonb", {}},
+        {"tmpe", {}},
+        {"tmpe", {{"alpha", "0"}}},
+        {"tmpe", {{"alpha", "0.45"}}}};
+    for (const auto& [name, kv] : kernels) {
+        const PixelKernel k = kernelOf(name, EstimatorMode::Luminance, kv);
         ASSERT_TRUE(bool(k.runIntervals)) << name;
         for (double level : {0.5, 0.9, 0.95}) {
             std::vector<ValueInterval> run(3 * px.size());

@@ -30,6 +30,8 @@
 // at 0.95 with M < 6): the range [x_(1), x_(M)], full.
 #pragma once
 
+#include <functional>
+
 #include "mcstat/core/pixel_buffers.h"
 #include "mcstat/filters/estimate.h"
 #include "mcstat/filters/interval.h"
@@ -69,5 +71,12 @@ void medianIntervals(const PixelBuffers& px, const int* valid, int m, double lev
 void medianIntervalsRun(const PixelBuffers* px, int n, double level, ValueInterval* out);
 void yuenIntervals(const PixelBuffers& px, const int* valid, int m, int g, double level,
                    ValueInterval out[3]);
+/// yuenIntervals of n pixels whose buffers are all valid, `trim(M)` the g of a pixel of M buffers:
+/// the same values, bit for bit. Two neighbouring pixels of equal M (2 to 32) and at least two
+/// values inside the trim are sorted by medianIntervalsRun's eight-float network, and their sums
+/// run side by side on four-double AVX lanes (one lane per channel, the same additions in the same
+/// order); any other pixel goes to yuenIntervals.
+void yuenIntervalsRun(const PixelBuffers* px, int n, const std::function<int(int)>& trim,
+                      double level, ValueInterval* out);
 
 }  // namespace mcstat

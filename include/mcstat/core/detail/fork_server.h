@@ -15,7 +15,7 @@
 
 #include <functional>
 
-namespace mcstat {
+namespace mcstat::detail {
 
 /// The socket a parent passed down (MCSTAT_FORK_SERVER_FD), or -1 when this process is not a fork
 /// server. Removes the variable, so that the workers' environment is the parent's.
@@ -26,4 +26,4 @@ int forkServerSocket();
 /// Returns the server's exit status (0 when the client closed the socket).
 int serveForks(int socket, const std::function<int(int, char**)>& run);
 
-}  // namespace mcstat
+}  // namespace mcstat::detail
