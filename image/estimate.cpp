@@ -249,9 +249,10 @@ bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& 
     // the mean there) has the mean's t interval from its spread.
     const float* sp = pass.ci ? src.meanOnlySpread(p) : nullptr;
     ValueInterval iv[3];
-    // The estimate and its interval from one pass over the buffers (the mean's).
+    // The estimate and its interval from one pass over the buffers (the mean's), unless the run's
+    // intervals were taken already.
     const bool shared =
-        pass.ci && A == 0 && !kernel.ciExpected && !sp && kernel.estimateWithInterval;
+        pass.ci && A == 0 && !kernel.ciExpected && !sp && !given && kernel.estimateWithInterval;
     if (shared)
         kernel.estimateWithInterval(pb, kernel.ciLevel, w.e, w.scratch, iv);
     else

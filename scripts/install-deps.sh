@@ -5,6 +5,7 @@ set -euo pipefail
 
 packages=(
   cmake g++ make pkg-config time
+  ninja-build                            # scripts/build.sh: the generator of a new build folder
   libopenimageio-dev openimageio-tools   # images, threading, argument parsing; oiiotool for checks
   libopenexr-dev openexr                 # the statistics file; exrheader for checks
   libdeflate-dev                         # ZIP chunks of statistics files inflated and deflated
