@@ -85,7 +85,7 @@ inline std::optional<ShellCommand> parseShellCommand(const std::string& line) {
             inWord = quoted = true;
         } else if (c == '\\') {
             if (i + 1 >= line.size() || line[i + 1] == '\n') return std::nullopt;
-            word += line[++i], inWord = true;
+            word += line[++i], inWord = quoted = true;  // `\2>f` is stdout's, as '2'>f
         } else if (c == '>') {
             const int stream = inWord && !quoted && word == "2" ? 2 : 1;
             if (stream == 2) word.clear(), inWord = false;
@@ -115,9 +115,9 @@ inline std::optional<ShellCommand> parseShellCommand(const std::string& line) {
             cmd.words.push_back(words[w]);
             continue;
         }
-        if (redirect[w] == kAnd) return std::nullopt;
         std::string& target = redirect[w] == 1 ? cmd.out : cmd.err;
-        if (!target.empty() || words[w].empty()) return std::nullopt;  // sh would open both
+        // Two files for one stream: the shell opens both; a '' file: the shell's error.
+        if (!target.empty() || words[w].empty()) return std::nullopt;
         target = words[w];
     }
     if (cmd.words.empty() || cmd.words[0] == "cd") return std::nullopt;

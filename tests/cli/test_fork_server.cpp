@@ -66,6 +66,11 @@ TEST(ShellCommand, ReadsTheFolderAndTheRedirections) {
     ASSERT_TRUE(cmd);
     EXPECT_EQ(cmd->words, (std::vector<std::string>{"x", "2", "2"}));
     EXPECT_EQ(cmd->out, "f");
+    cmd = parseShellCommand("x \\2>f");  // an escaped 2 is a word, as a quoted one
+    ASSERT_TRUE(cmd);
+    EXPECT_EQ(cmd->words, (std::vector<std::string>{"x", "2"}));
+    EXPECT_EQ(cmd->out, "f");
+    EXPECT_EQ(cmd->err, "");
     cmd = parseShellCommand("x 2>f");
     ASSERT_TRUE(cmd);
     EXPECT_EQ(cmd->err, "f");
