@@ -159,6 +159,9 @@ struct PixelScratch {
     std::vector<PixelBuffers> runIntervalBuffers;
     std::vector<ValueInterval> runIntervals;  // 3 per pixel given
     std::vector<int> runIntervalOf;
+    /// The run's estimates where the kernel gives them with the intervals
+    /// (PixelKernel::estimatesWithIntervals), as runIntervals.
+    std::vector<PixelEstimate> runEstimates;
 };
 
 /// The interval of R, G and B of pixel `p` when the estimate did not give it in its own pass: the
@@ -237,10 +240,11 @@ void writeDiagnostics(float* px, const PixelEstimate& e, EstimatorMode mode) {
 
 /// Pixel `p` of the statistics image into `px`, every layer of the pass; `ls` is its luminance
 /// spread when the pass writes the removed light, `given` its interval when estimateRun took it
-/// with the run's. False when the estimator gave no buffer weights for the AOVs (their layers are
-/// then zero).
+/// with the run's, and `givenEstimate` its estimate when the run's came with the intervals. False
+/// when the estimator gave no buffer weights for the AOVs (their layers are then zero).
 bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& w,
-                   const LumaSpread* ls, const ValueInterval* given) {
+                   const LumaSpread* ls, const ValueInterval* given,
+                   const PixelEstimate* givenEstimate) {
     const StatsImage& src = pass.src;
     const PixelKernel& kernel = pass.kernel;
     const size_t A = pass.A;
@@ -248,13 +252,8 @@ bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& 
     // A compact file's pixel that kept only its mean (G-MoN trimmed nothing: the estimators give
     // the mean there) has the mean's t interval from its spread.
     const float* sp = pass.ci ? src.meanOnlySpread(p) : nullptr;
-    ValueInterval iv[3];
-    // The estimate and its interval from one pass over the buffers (the mean's), unless the run's
-    // intervals were taken already.
-    const bool shared =
-        pass.ci && A == 0 && !kernel.ciExpected && !sp && !given && kernel.estimateWithInterval;
-    if (shared)
-        kernel.estimateWithInterval(pb, kernel.ciLevel, w.e, w.scratch, iv);
+    if (givenEstimate)
+        w.e = *givenEstimate;
     else
         kernel.estimate(pb, w.e, w.scratch);
     bool weighted = true;
@@ -272,9 +271,10 @@ bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& 
     px[1] = w.e.rgb[1];
     px[2] = w.e.rgb[2];
     if (pass.ci) {
+        ValueInterval iv[3];
         if (given)
             std::copy(given, given + 3, iv);
-        else if (!shared)
+        else
             channelIntervals(pass, p, pb, sp, w, iv);
         float* lo = px + pass.firstCi;
         float* hi = lo + 3;
@@ -291,25 +291,37 @@ bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& 
     return weighted;
 }
 
-/// The intervals of the n pixels from `p0` on that the kernel takes as a run (runIntervals): those
-/// whose buffers are all valid, of a pass with intervals of the kernel's own (no AOV intervals,
-/// not citarget=expected, not a compact file's pixel without buffers). False: none taken.
-bool runIntervals(const EstimatePass& pass, size_t p0, int n, PixelScratch& w) {
+/// What runIntervals took for a run.
+enum class RunGiven { Nothing, Intervals, EstimatesAndIntervals };
+
+/// The intervals of the n pixels from `p0` on that the kernel takes as a run, in a pass with
+/// intervals of the kernel's own (no AOV intervals, not citarget=expected), never of a compact
+/// file's pixel without buffers: with their estimates (estimatesWithIntervals: any pixel), or
+/// alone (runIntervals: the pixels whose buffers are all valid).
+RunGiven runIntervals(const EstimatePass& pass, size_t p0, int n, PixelScratch& w) {
     const PixelKernel& kernel = pass.kernel;
-    if (!pass.ci || pass.A > 0 || kernel.ciExpected || !kernel.runIntervals) return false;
+    const bool withEstimates = bool(kernel.estimatesWithIntervals);
+    if (!pass.ci || pass.A > 0 || kernel.ciExpected || (!kernel.runIntervals && !withEstimates))
+        return RunGiven::Nothing;
     w.runIntervalBuffers.clear();
     w.runIntervalOf.assign(size_t(n), -1);
     for (int i = 0; i < n; ++i) {
         const size_t p = p0 + size_t(i);
         const PixelBuffers pb = pass.src.pixelBuffers(p);
-        if (!allBuffersValid(pb) || pass.src.meanOnlySpread(p)) continue;
+        if ((!withEstimates && !allBuffersValid(pb)) || pass.src.meanOnlySpread(p)) continue;
         w.runIntervalOf[size_t(i)] = int(w.runIntervalBuffers.size());
         w.runIntervalBuffers.push_back(pb);
     }
-    w.runIntervals.resize(3 * w.runIntervalBuffers.size());
-    kernel.runIntervals(w.runIntervalBuffers.data(), int(w.runIntervalBuffers.size()),
-                        kernel.ciLevel, w.runIntervals.data());
-    return true;
+    const int taken = int(w.runIntervalBuffers.size());
+    w.runIntervals.resize(3 * size_t(taken));
+    if (withEstimates) {
+        w.runEstimates.resize(size_t(taken));
+        kernel.estimatesWithIntervals(w.runIntervalBuffers.data(), taken, kernel.ciLevel,
+                                      w.runEstimates.data(), w.runIntervals.data());
+        return RunGiven::EstimatesAndIntervals;
+    }
+    kernel.runIntervals(w.runIntervalBuffers.data(), taken, kernel.ciLevel, w.runIntervals.data());
+    return RunGiven::Intervals;
 }
 
 /// Pixels x0 to x1 of row y: first their luminance spreads when the pass writes the removed light
@@ -330,15 +342,17 @@ bool estimateRun(const EstimatePass& pass, int y, int x0, int x1, const ROI& roi
         lumaSpreads(w.runBuffers.data(), x1 - x0, pass.kernel.removedLuma, w.runSpreads.data());
         spreads = w.runSpreads.data();
     }
-    const bool given = runIntervals(pass, row + size_t(x0 - h.originX), x1 - x0, w);
+    const RunGiven given = runIntervals(pass, row + size_t(x0 - h.originX), x1 - x0, w);
     bool weighted = true;
     for (int x = x0; x < x1; ++x) {
         const size_t p = row + size_t(x - h.originX);
         float* px =
             base + (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
-        const int iv = given ? w.runIntervalOf[size_t(x - x0)] : -1;
+        const int iv = given != RunGiven::Nothing ? w.runIntervalOf[size_t(x - x0)] : -1;
+        const bool withEstimate = iv >= 0 && given == RunGiven::EstimatesAndIntervals;
         if (!estimatePixel(pass, p, px, w, spreads ? spreads + (x - x0) : nullptr,
-                           iv >= 0 ? w.runIntervals.data() + 3 * size_t(iv) : nullptr))
+                           iv >= 0 ? w.runIntervals.data() + 3 * size_t(iv) : nullptr,
+                           withEstimate ? w.runEstimates.data() + iv : nullptr))
             weighted = false;
     }
     return weighted;

@@ -15,6 +15,9 @@
 
 #include "mcstat/core/cpu_features.h"
 #include "mcstat/core/location_stats.h"
+#include "mcstat/filters/pixel/detail/rank_keys.h"
+#include "mcstat/filters/pixel/ranking.h"
+#include "mean_pass.h"
 
 namespace mcstat {
 
@@ -405,8 +408,93 @@ void meanIntervals(const PixelBuffers& px, const int* valid, int m, double level
     meanIntervalsFromSums(px, valid, m, n, sum, level, out);
 }
 
+namespace {
+
+/// A pixel's mean interval from its means and its sums of squares in the lanes of AVX registers
+/// (R, G, B and a lane never read): tIntervalWith's variance ss / df / n, half = q sqrt(variance),
+/// [x - half, x + half], variance 0: [x, x]. Each lane's operations are the portable code's, in
+/// the same order, correctly rounded in any width, no FMA: the same bits, with a third of the
+/// divisions and square roots.
+__attribute__((target("avx2"))) void meanIntervalEndsAvx2(int m, double n, __m256d mean, __m256d ss,
+                                                          double level, ValueInterval* out) {
+    if (degenerateAll(m, out)) return;
+    const double df = m - 1;
+    const double q = twoSidedQuantile(level, df);
+    const __m256d var = _mm256_div_pd(_mm256_div_pd(ss, _mm256_set1_pd(df)), _mm256_set1_pd(n));
+    const __m256d half = _mm256_mul_pd(_mm256_set1_pd(q), _mm256_sqrt_pd(var));
+    const __m256d zero = _mm256_cmp_pd(var, _mm256_setzero_pd(), _CMP_EQ_OQ);
+    alignas(32) double lo[4], hi[4];
+    _mm256_store_pd(lo, _mm256_blendv_pd(_mm256_sub_pd(mean, half), mean, zero));
+    _mm256_store_pd(hi, _mm256_blendv_pd(_mm256_add_pd(mean, half), mean, zero));
+    for (int c = 0; c < 3; ++c) out[c] = {lo[c], hi[c], false};
+}
+
+/// (R, G, B, 0) of a buffer's three float means, widened, read without touching memory past them.
+__attribute__((target("avx2"))) inline __m256d widenedMeans(const float* v) {
+    const __m128 rg = _mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(v)));
+    return _mm256_cvtps_pd(_mm_insert_ps(rg, _mm_load_ss(v + 2), 0x20));
+}
+
+/// meanIntervalsFromSums on AVX2: a pixel's R, G, B (and a lane that stays 0) in the lanes of one
+/// register through every step, the means, the sums of squares (w dv) dv, and the ends
+/// (meanIntervalEndsAvx2). The same bits.
+__attribute__((target("avx2"))) void meanIntervalsFromSumsAvx2(const PixelBuffers& px,
+                                                               const int* valid, int m, double n,
+                                                               const double sum[3], double level,
+                                                               ValueInterval out[3]) {
+    const __m256d mean =
+        _mm256_div_pd(_mm256_setr_pd(sum[0], sum[1], sum[2], 0.0), _mm256_set1_pd(n));
+    __m256d ss = _mm256_setzero_pd();
+    for (int j = 0; j < m; ++j) {
+        const __m256d dv = _mm256_sub_pd(widenedMeans(px.mean + 3 * size_t(valid[j])), mean);
+        const __m256d w = _mm256_set1_pd(double(px.count[valid[j]]));
+        ss = _mm256_add_pd(ss, _mm256_mul_pd(_mm256_mul_pd(w, dv), dv));
+    }
+    meanIntervalEndsAvx2(m, n, mean, ss, level, out);
+}
+
+/// The plain mean's estimate and interval of K pixels of equal M (at most kWidenedMax) on AVX2,
+/// side by side so that the pixels' chains of dependent additions overlap: meanPassAvx2 keeps
+/// each valid buffer widened to double, so the interval's second pass reads them from the stack
+/// with no index; then as meanIntervalsFromSumsAvx2. The same bits as plainMeanPass and
+/// meanIntervalsFromSums.
+constexpr int kWidenedMax = 64;
+template <int K>
+__attribute__((target("avx2"))) void meanRunAvx2(const PixelBuffers* px, double level,
+                                                 PixelEstimate* e, ValueInterval* out) {
+    alignas(32) double widened[K][4 * kWidenedMax];
+    double* keep[K];
+    for (int k = 0; k < K; ++k) keep[k] = widened[k];
+    double sums[K][4];
+    int m[K];
+    detail::meanPassAvx2<detail::MeanPassKeeps::Widened, K>(px, e, nullptr, sums, m, keep);
+    int most = 0;
+    __m256d mean[K], ss[K];
+    for (int k = 0; k < K; ++k) {
+        most = std::max(most, m[k]);
+        mean[k] = _mm256_div_pd(_mm256_setr_pd(sums[k][1], sums[k][2], sums[k][3], 0.0),
+                                _mm256_set1_pd(sums[k][0]));
+        ss[k] = _mm256_setzero_pd();
+    }
+    most = std::min(most, kWidenedMax);  // m[k] <= px[k].M <= kWidenedMax: tells the compiler
+    for (int j = 0; j < most; ++j)
+        for (int k = 0; k < K; ++k) {
+            if (j >= m[k]) continue;
+            // (m0, m1, m2, n): the fourth lane's sum is never read.
+            const __m256d x = _mm256_load_pd(widened[k] + 4 * j);
+            const __m256d dv = _mm256_sub_pd(x, mean[k]);
+            const __m256d w = _mm256_permute4x64_pd(x, 0xff);
+            ss[k] = _mm256_add_pd(ss[k], _mm256_mul_pd(_mm256_mul_pd(w, dv), dv));
+        }
+    for (int k = 0; k < K; ++k)
+        meanIntervalEndsAvx2(m[k], sums[k][0], mean[k], ss[k], level, out + 3 * k);
+}
+
+}  // namespace
+
 void meanIntervalsFromSums(const PixelBuffers& px, const int* valid, int m, double n,
                            const double sum[3], double level, ValueInterval out[3]) {
+    if (detail::usesAvx2()) return meanIntervalsFromSumsAvx2(px, valid, m, n, sum, level, out);
     if (degenerateAll(m, out)) return;
     double est[3], ss[3] = {0.0, 0.0, 0.0};
     for (int c = 0; c < 3; ++c) est[c] = sum[c] / n;
@@ -425,6 +513,29 @@ void meanIntervalsFromSums(const PixelBuffers& px, const int* valid, int m, doub
         s.df = m - 1;
         s.variance = ss[c] / s.df / n;
         out[c] = tIntervalWith(s, q);
+    }
+}
+
+void meanEstimatesWithIntervals(const PixelBuffers* px, int n, double level, PixelEstimate* e,
+                                ValueInterval* out) {
+    const bool avx2 = detail::usesAvx2();
+    std::vector<int> valid;
+    for (int i = 0; i < n;) {
+        ValueInterval* rgb = out + 3 * size_t(i);
+        if (avx2 && px[i].M <= kWidenedMax) {
+            if (i + 1 < n && px[i].M == px[i + 1].M) {
+                meanRunAvx2<2>(px + i, level, e + i, rgb);
+                i += 2;
+            } else {
+                meanRunAvx2<1>(px + i, level, e + i, rgb);
+                ++i;
+            }
+            continue;
+        }
+        double w, sum[3];
+        const int m = plainMeanPass(px[i], e[i], valid, w, sum);
+        meanIntervalsFromSums(px[i], valid.data(), m, w, sum, level, rgb);
+        ++i;
     }
 }
 

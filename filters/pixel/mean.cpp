@@ -24,12 +24,7 @@ PixelKernel bind(const ParamValues& values, const std::array<double, 3>& luma) {
     };
     k.pixelInterval = [](const PixelBuffers& px, const int* valid, int m, double level,
                          ValueInterval out[3]) { meanIntervals(px, valid, m, level, out); };
-    k.estimateWithInterval = [](const PixelBuffers& px, double level, PixelEstimate& e,
-                                EstimatorScratch& s, ValueInterval out[3]) {
-        double n = 0.0, sum[3];
-        const int m = plainMeanPass(px, e, s.order, n, sum);
-        meanIntervalsFromSums(px, s.order.data(), m, n, sum, level, out);
-    };
+    k.estimatesWithIntervals = &meanEstimatesWithIntervals;
     return k;
 }
 

@@ -14,6 +14,7 @@
 #include "mcstat/core/color_space.h"
 #include "mcstat/core/cpu_features.h"
 #include "mcstat/filters/pixel/detail/rank_keys.h"
+#include "mean_pass.h"
 
 namespace mcstat {
 
@@ -584,8 +585,21 @@ int meanPass(const PixelBuffers& px, PixelEstimate& out, int* valid, double* sum
     return Mv;
 }
 
+/// meanPass, or detail::meanPassAvx2 (the same bits) where the processor allows.
+template <bool kRecord>
+int meanPasses(const PixelBuffers& px, PixelEstimate& out, int* valid, double* sums) {
+    if (!useAvx2()) return meanPass<kRecord>(px, out, valid, sums);
+    using detail::MeanPassKeeps;
+    constexpr MeanPassKeeps keep = kRecord ? MeanPassKeeps::Valid : MeanPassKeeps::Nothing;
+    double s[1][4];
+    int m = 0;
+    detail::meanPassAvx2<keep, 1>(&px, &out, &valid, s, &m, nullptr);
+    if constexpr (kRecord) std::copy(s[0], s[0] + 4, sums);
+    return m;
+}
+
 void meanOnePass(const PixelBuffers& px, PixelEstimate& out) {
-    meanPass<false>(px, out, nullptr, nullptr);
+    meanPasses<false>(px, out, nullptr, nullptr);
 }
 
 void reduce(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out, EstimatorScratch& s,
@@ -623,7 +637,7 @@ int plainMeanPass(const PixelBuffers& px, PixelEstimate& out, std::vector<int>& 
                   double sum[3]) {
     valid.resize(size_t(px.M));
     double sums[4];
-    const int m = meanPass<true>(px, out, valid.data(), sums);
+    const int m = meanPasses<true>(px, out, valid.data(), sums);
     valid.resize(size_t(m));
     n = sums[0];
     sum[0] = sums[1];
@@ -650,6 +664,8 @@ bool setUseAvx2(bool on) {
     useAvx2() = on && cpuHasAvx2();
     return before;
 }
+
+bool usesAvx2() { return useAvx2(); }
 }  // namespace detail
 
 void rankedTrimmedMean(const PixelBuffers& px, const PixelParams& p, const TrimRule& rule,

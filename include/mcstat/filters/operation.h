@@ -75,12 +75,12 @@ struct PixelKernel {
     /// once. Null: `pixelInterval` per pixel.
     std::function<void(const PixelBuffers* px, int n, double level, ValueInterval* rgb)>
         runIntervals;
-    /// `estimate` (without weights) and `pixelInterval` from one pass over the buffers, with the
-    /// same results as the two calls (the mean: its sums are its interval's first pass). Null:
-    /// the two calls.
-    std::function<void(const PixelBuffers& px, double level, PixelEstimate& e, EstimatorScratch& s,
-                       ValueInterval rgb[3])>
-        estimateWithInterval;
+    /// `estimate` (without weights) and `pixelInterval` of n pixels from one pass over each
+    /// pixel's buffers, e[i] and rgb[3 i + c] with the same bits as the two calls (the mean: its
+    /// sums are its interval's first pass, and two pixels go side by side). Null: the two calls.
+    std::function<void(const PixelBuffers* px, int n, double level, PixelEstimate* e,
+                       ValueInterval* rgb)>
+        estimatesWithIntervals;
     /// What the interval covers, in words (the file's mcstat:ciTarget): the expected value for
     /// the mean's, the median of the buffer means for MoN's, ... (docs/confidence.md).
     std::string intervalTarget;

@@ -11,6 +11,7 @@
 
 #include "mcstat/core/location_stats.h"
 #include "mcstat/filters/pixel/confidence.h"
+#include "mcstat/filters/pixel/detail/rank_keys.h"
 #include "pixel_support.h"
 
 using namespace mcstat;
@@ -210,7 +211,7 @@ bool sameBound(double a, double b) {
 // every m from 0 to 70 (the network's largest m is 64; above it the per-channel path), with ties,
 // negatives, zeros of both signs, denormals, float's largest values, unequal counts and
 // invalid buffers. A network missing one comparator leaves some m unsorted and fails here. The
-// mean's estimateWithInterval (one pass for both) gives the estimate's bits and these intervals.
+// mean's estimatesWithIntervals (one pass for both) gives the estimate's bits and these intervals.
 TEST(Confidence, PixelIntervalsEqualThePerChannelOnes) {
     std::mt19937 rng(2026);
     std::uniform_real_distribution<float> u(0.f, 1.f);
@@ -245,12 +246,12 @@ TEST(Confidence, PixelIntervalsEqualThePerChannelOnes) {
                     for (double level : {0.9, 0.95}) {
                         ValueInterval fast[3];
                         k.pixelInterval(px, valid.data(), m, level, fast);
-                        if (k.estimateWithInterval) {  // the mean: estimate and interval in one
+                        if (k.estimatesWithIntervals) {  // the mean: estimate and interval in one
                             PixelEstimate alone, shared;
-                            EstimatorScratch s1, s2;
+                            EstimatorScratch s1;
                             k.estimate(px, alone, s1);
                             ValueInterval both[3];
-                            k.estimateWithInterval(px, level, shared, s2, both);
+                            k.estimatesWithIntervals(&px, 1, level, &shared, both);
                             for (int c = 0; c < 3; ++c) {
                                 EXPECT_EQ(std::memcmp(&alone.rgb[size_t(c)], &shared.rgb[size_t(c)],
                                                       sizeof(float)),
@@ -343,4 +344,80 @@ TEST(Confidence, RunIntervalsEqualThePixelOnes) {
             }
         }
     }
+}
+
+// The mean's estimatesWithIntervals over a run (two pixels of equal M side by side) gives each
+// pixel what estimate and pixelInterval give it alone, bit for bit: pairs and lone pixels, M = 0
+// to 66 (past the pairs' 64), pairs of unequal M, invalid buffers (Inf, NaN, negative and zero
+// counts: unequal numbers of valid buffers in a pair), zeros of both signs, denormals, +-3e38.
+TEST(Confidence, MeanRunEstimatesEqualThePixelOnes) {
+    std::mt19937 rng(53);
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    const float kinds[] = {0.f, -0.f, 1e-40f, -1e-40f, 3e38f, -3e38f, 0.5f, 0.5f, 2.f};
+    std::vector<int> ms;
+    for (int M = 0; M <= 66; ++M) ms.insert(ms.end(), {M, M, M});
+    ms.insert(ms.end(), {7, 8, 21, 20, 1, 2});
+    std::vector<std::vector<float>> means, counts;
+    for (size_t i = 0; i < ms.size(); ++i) {
+        const int M = ms[i];
+        std::vector<float> mean(static_cast<size_t>(M) * 3), count(static_cast<size_t>(M));
+        for (float& v : mean) {
+            const float r = u(rng);
+            v = i % 3 == 0 ? kinds[size_t(r * 9.f) % 9] : (r - 0.3f) * 100.f;
+            if (u(rng) < 0.03f)
+                v = u(rng) < 0.5f ? std::numeric_limits<float>::infinity()
+                                  : std::numeric_limits<float>::quiet_NaN();
+        }
+        for (float& n : count) {
+            n = float(1 + int(u(rng) * 40.f));
+            if (u(rng) < 0.05f) n = u(rng) < 0.5f ? 0.f : -1.f;
+        }
+        means.push_back(std::move(mean));
+        counts.push_back(std::move(count));
+    }
+    std::vector<PixelBuffers> px;
+    for (size_t i = 0; i < ms.size(); ++i) px.push_back({means[i].data(), counts[i].data(), ms[i]});
+    const PixelKernel k = kernelOf("mean", EstimatorMode::Luminance, {});
+    ASSERT_TRUE(bool(k.estimatesWithIntervals));
+    const double levels[] = {0.5, 0.95};
+    // Each pixel alone, as the processor computes it (pixelInterval is checked against the
+    // per-channel intervals above, estimate against the oracle in test_bit_identity.cpp).
+    std::vector<PixelEstimate> alone(px.size());
+    std::vector<ValueInterval> one(2 * 3 * px.size());
+    for (size_t i = 0; i < px.size(); ++i) {
+        EstimatorScratch s;
+        k.estimate(px[i], alone[i], s);
+        std::vector<int> valid;
+        int excluded = 0;
+        const int m = collectValidBuffers(px[i], valid, excluded);
+        for (int l = 0; l < 2; ++l)
+            k.pixelInterval(px[i], valid.data(), m, levels[l],
+                            one.data() + 3 * (l * px.size() + i));
+    }
+    // The run, with the AVX2 passes and with the portable ones.
+    for (bool avx2 : {true, false})
+        for (int l = 0; l < 2; ++l) {
+            const bool before = detail::setUseAvx2(avx2);
+            std::vector<PixelEstimate> e(px.size());
+            std::vector<ValueInterval> run(3 * px.size());
+            k.estimatesWithIntervals(px.data(), int(px.size()), levels[l], e.data(), run.data());
+            detail::setUseAvx2(before);
+            for (size_t i = 0; i < px.size(); ++i) {
+                EXPECT_EQ(std::memcmp(alone[i].rgb.data(), e[i].rgb.data(), sizeof(float) * 3), 0)
+                    << "avx2 " << avx2 << " pixel " << i << " M " << px[i].M;
+                EXPECT_EQ(alone[i].kept, e[i].kept) << "pixel " << i;
+                EXPECT_EQ(alone[i].excluded, e[i].excluded) << "pixel " << i;
+                for (int c = 0; c < 3; ++c) {
+                    const ValueInterval& r = run[3 * i + size_t(c)];
+                    const ValueInterval& o = one[3 * (size_t(l) * px.size() + i) + size_t(c)];
+                    EXPECT_TRUE((std::memcmp(&r.low, &o.low, sizeof(double)) == 0 &&
+                                 std::memcmp(&r.high, &o.high, sizeof(double)) == 0 &&
+                                 r.full == o.full) ||
+                                (std::isnan(r.low) && std::isnan(o.low)))
+                        << "avx2 " << avx2 << " level " << levels[l] << " pixel " << i << " M "
+                        << px[i].M << " c " << c << ": [" << r.low << ", " << r.high
+                        << "] against [" << o.low << ", " << o.high << "]";
+                }
+            }
+        }
 }

@@ -61,6 +61,12 @@ void meanIntervals(const PixelBuffers& px, const int* valid, int m, double level
 /// while it estimates the mean: the estimate and the interval share that pass).
 void meanIntervalsFromSums(const PixelBuffers& px, const int* valid, int m, double n,
                            const double sum[3], double level, ValueInterval out[3]);
+/// The plain mean's estimate (plainMeanPass, ranking.h) and meanIntervals of n pixels, out[3 i + c]
+/// of px[i]'s channel c: the same bits as the two calls per pixel. With AVX2, two neighbouring
+/// pixels of equal M (up to 64) go side by side through both passes, their chains of dependent
+/// additions overlapping, and the second pass reads the buffers the first widened.
+void meanEstimatesWithIntervals(const PixelBuffers* px, int n, double level, PixelEstimate* e,
+                                ValueInterval* out);
 void medianIntervals(const PixelBuffers& px, const int* valid, int m, double level,
                      ValueInterval out[3]);
 /// medianIntervals of n pixels whose buffers are all valid (pixel i's valid buffers are 0 to
