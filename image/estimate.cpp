@@ -151,9 +151,12 @@ struct PixelScratch {
     PixelEstimate e;
     std::vector<int> valid;
     std::vector<double> values, counts;
-    /// The removed light's luminance spreads of the pixels of a run (estimateRun).
-    std::vector<PixelBuffers> runBuffers;
-    std::vector<LumaSpread> runSpreads;
+    /// The removed light's luminance spreads of four pixels (estimateRun): the pixels' buffers
+    /// and, where the estimates left them (EstimatorScratch::LumaKeys), their buffers'
+    /// luminances and counts, four lanes per buffer.
+    PixelBuffers groupBuffers[4];
+    LumaSpread groupSpreads[4];
+    std::vector<double> groupKeys, groupCounts;  // 4 x 64
     /// The run's intervals where the kernel takes runs (PixelKernel::runIntervals): for each
     /// pixel of the run its index among those given (-1: not given, channelIntervals' case).
     std::vector<PixelBuffers> runIntervalBuffers;
@@ -238,13 +241,12 @@ void writeDiagnostics(float* px, const PixelEstimate& e, EstimatorMode mode) {
     }
 }
 
-/// Pixel `p` of the statistics image into `px`, every layer of the pass; `ls` is its luminance
-/// spread when the pass writes the removed light, `given` its interval when estimateRun took it
-/// with the run's, and `givenEstimate` its estimate when the run's came with the intervals. False
-/// when the estimator gave no buffer weights for the AOVs (their layers are then zero).
+/// Pixel `p` of the statistics image into `px`, every layer of the pass but the removed light's
+/// (estimateRun adds it); `given` its interval when estimateRun took it with the run's, and
+/// `givenEstimate` its estimate when the run's came with the intervals. False when the estimator
+/// gave no buffer weights for the AOVs (their layers are then zero).
 bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& w,
-                   const LumaSpread* ls, const ValueInterval* given,
-                   const PixelEstimate* givenEstimate) {
+                   const ValueInterval* given, const PixelEstimate* givenEstimate) {
     const StatsImage& src = pass.src;
     const PixelKernel& kernel = pass.kernel;
     const size_t A = pass.A;
@@ -284,9 +286,6 @@ bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& 
         }
         aovIntervals(pass, p, pb, w, lo);
     }
-    if (ls)
-        removedLightPixel(px, float(ls->mean), float(ls->se), kernel.removedLuma,
-                          px + pass.firstRemoved);
     if (pass.diagnostics) writeDiagnostics(px, w.e, kernel.mode);
     return weighted;
 }
@@ -324,36 +323,62 @@ RunGiven runIntervals(const EstimatePass& pass, size_t p0, int n, PixelScratch& 
     return RunGiven::Intervals;
 }
 
-/// Pixels x0 to x1 of row y: first their luminance spreads when the pass writes the removed light
-/// (lumaSpreads runs four pixels at once) and their intervals where the kernel takes runs (two at
-/// once), then each pixel; the run is short enough that its buffers are still in cache for the
-/// estimates. False as estimatePixel.
+/// Pixels x0 to x1 of row y: first their intervals where the kernel takes runs (two at once),
+/// then each pixel; with the removed light, four pixels at a time, then their luminance spreads,
+/// from the buffers' luminances the estimates left where they did (lumaSpread4FromKeys), else from
+/// the buffers (lumaSpreads), then their removed-light values. The run is short enough that its
+/// buffers are still in cache for the estimates. False as estimatePixel.
 bool estimateRun(const EstimatePass& pass, int y, int x0, int x1, const ROI& roi, float* base,
                  PixelScratch& w) {
     const StatsHeader& h = pass.src.header;
+    const PixelKernel& kernel = pass.kernel;
     const size_t nch = pass.names.size();
     const size_t row = size_t(y - h.originY) * size_t(h.width);
-    const LumaSpread* spreads = nullptr;
-    if (pass.kernel.removedLight) {
-        w.runBuffers.resize(size_t(x1 - x0));
-        w.runSpreads.resize(size_t(x1 - x0));
-        for (int x = x0; x < x1; ++x)
-            w.runBuffers[size_t(x - x0)] = pass.src.pixelBuffers(row + size_t(x - h.originX));
-        lumaSpreads(w.runBuffers.data(), x1 - x0, pass.kernel.removedLuma, w.runSpreads.data());
-        spreads = w.runSpreads.data();
-    }
     const RunGiven given = runIntervals(pass, row + size_t(x0 - h.originX), x1 - x0, w);
+    auto pixelOut = [&](int x) {
+        return base + (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
+    };
     bool weighted = true;
-    for (int x = x0; x < x1; ++x) {
+    auto one = [&](int x) {
         const size_t p = row + size_t(x - h.originX);
-        float* px =
-            base + (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
         const int iv = given != RunGiven::Nothing ? w.runIntervalOf[size_t(x - x0)] : -1;
         const bool withEstimate = iv >= 0 && given == RunGiven::EstimatesAndIntervals;
-        if (!estimatePixel(pass, p, px, w, spreads ? spreads + (x - x0) : nullptr,
+        if (!estimatePixel(pass, p, pixelOut(x), w,
                            iv >= 0 ? w.runIntervals.data() + 3 * size_t(iv) : nullptr,
                            withEstimate ? w.runEstimates.data() + iv : nullptr))
             weighted = false;
+    };
+    if (!kernel.removedLight) {
+        for (int x = x0; x < x1; ++x) one(x);
+        return weighted;
+    }
+    EstimatorScratch::LumaKeys& keys = w.scratch.lumaKeys;
+    w.groupKeys.resize(4 * 64);
+    w.groupCounts.resize(4 * 64);
+    for (int g = x0; g < x1; g += 4) {
+        const int k = std::min(4, x1 - g);
+        bool fromKeys = k == 4;
+        for (int i = 0; i < k; ++i) {
+            w.groupBuffers[i] = pass.src.pixelBuffers(row + size_t(g + i - h.originX));
+            const int M = w.groupBuffers[i].M;
+            fromKeys = fromKeys && M >= 2 && M <= 64 && M == w.groupBuffers[0].M;
+            keys = {};
+            if (fromKeys)
+                keys = {w.groupKeys.data() + i, w.groupCounts.data() + i, 4, kernel.removedLuma};
+            one(g + i);
+            fromKeys = fromKeys && keys.given;
+        }
+        keys = {};
+        if (fromKeys)
+            lumaSpread4FromKeys(w.groupKeys.data(), w.groupCounts.data(), w.groupBuffers[0].M,
+                                w.groupSpreads);
+        else
+            lumaSpreads(w.groupBuffers, k, kernel.removedLuma, w.groupSpreads);
+        for (int i = 0; i < k; ++i) {
+            float* px = pixelOut(g + i);
+            removedLightPixel(px, float(w.groupSpreads[i].mean), float(w.groupSpreads[i].se),
+                              kernel.removedLuma, px + pass.firstRemoved);
+        }
     }
     return weighted;
 }

@@ -54,30 +54,28 @@ bool finishRemovedLight(ImageBuf& img, int first, const std::array<double, 3>& l
     const size_t n = size_t(spec.width) * size_t(spec.height), nch = size_t(spec.nchannels);
     float* px = static_cast<float*>(img.localpixels());
     // The image's sums in pixel order (the same for any thread count).
-    std::vector<float> d(n), se(n), zlocal(n);
     double removed = 0.0, total = 0.0, variance = 0.0;
     for (size_t p = 0; p < n; ++p) {
         const float* q = px + p * nch;
         const float* r = q + first;
         const double dp = double(r[3]) - lumaOf(q, luma);
-        d[p] = r[0];
-        se[p] = r[1];
-        if (std::isfinite(dp) && std::isfinite(se[p])) {
+        if (std::isfinite(dp) && std::isfinite(r[1])) {
             removed += dp;
-            variance += double(se[p]) * double(se[p]);
+            variance += double(r[1]) * double(r[1]);
         }
         if (std::isfinite(r[3])) total += double(r[3]);
     }
-    localRemovedZ(d.data(), se.data(), spec.width, spec.height, opt.radius, zlocal.data(),
-                  nthreads);
+    // zlocal from the image's d and se into the fourth channel, whose luminance mean the sums
+    // above were its last reader.
+    float* d = px + first;
+    localRemovedZ(d, d + 1, nch, spec.width, spec.height, opt.radius, d + 3, nch, nthreads);
     double significant = 0.0;
     for (size_t p = 0; p < n; ++p)
-        if (zlocal[p] > opt.zLimit) significant += double(d[p]);
+        if (d[p * nch + 3] > opt.zLimit) significant += double(d[p * nch]);
     parallelFor(0, int64_t(n), 0, nthreads, [&](int64_t b, int64_t e) {
         for (size_t p = size_t(b); p < size_t(e); ++p) {
             float* r = px + p * nch + first;
-            r[3] = zlocal[p];
-            r[4] = zlocal[p] > opt.zLimit ? 1.f : 0.f;
+            r[4] = r[3] > opt.zLimit ? 1.f : 0.f;
         }
     });
     ImageSpec& s = img.specmod();

@@ -497,11 +497,25 @@ void rankedReduce(const PixelBuffers& px, SmallPixel& sp, const TrimRule& policy
     weightedAverageSmall<NC>(px, sp, c, Mv - c, c0, out);
 }
 
+/// Leaves a pixel's buffer luminances and counts, every buffer valid, where the caller asked
+/// (EstimatorScratch::LumaKeys) if they were computed with the coefficients it gave. Out of line:
+/// reduceSmall's registers stay its own when nobody asks.
+__attribute__((noinline)) void leaveLumaKeys(const SmallPixel& sp, int M,
+                                             const std::array<double, 3>& luma,
+                                             EstimatorScratch::LumaKeys& k) {
+    if (k.luma != luma) return;
+    for (int j = 0; j < M; ++j) {
+        k.key[j * k.stride] = sp.key[j];
+        k.count[j * k.stride] = sp.count[j];
+    }
+    k.given = true;
+}
+
 /// The fast path of reduceGeneral for px.M <= kSmallM and every policy but Mean (meanOnePass).
 /// Returns false (nothing written) when a key
 /// is NaN (only possible with non-finite luminance weights): the general path then decides.
 bool reduceSmall(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out,
-                 const TrimRule& policy) {
+                 EstimatorScratch& s, const TrimRule& policy) {
     SmallPixel sp;
     const bool lum = p.mode == EstimatorMode::Luminance;
     const int M = px.M;
@@ -513,6 +527,7 @@ bool reduceSmall(const PixelBuffers& px, const PixelParams& p, PixelEstimate& ou
     if (mk.nanKey) return false;
     const int excluded = __builtin_popcountll(mk.bad);
     const int n = __builtin_popcountll(mk.take);
+    if (s.lumaKeys.key && n == M && lum) leaveLumaKeys(sp, M, p.luma, s.lumaKeys);
     if (n != M) {
         // Some buffers left out (rare): keep the valid ones in index order, in place (i <= j).
         int i = 0;
@@ -627,7 +642,7 @@ void reduce(const PixelBuffers& px, const PixelParams& p, PixelEstimate& out, Es
         return;
     }
     if (policy.trim == nullptr) return meanOnePass(px, out);
-    if (px.M <= kSmallM && reduceSmall(px, p, out, policy)) return;
+    if (px.M <= kSmallM && reduceSmall(px, p, out, s, policy)) return;
     reduceGeneral(px, p, out, s, policy);
 }
 

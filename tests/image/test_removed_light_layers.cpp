@@ -8,14 +8,17 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <random>
 #include <string>
 
 #include "mcstat/exr-deep/stats_file.h"
+#include "mcstat/filters/pixel/detail/rank_keys.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/removed_light_layers.h"
+#include "mcstat/image/removed_light_pass.h"
 
 using namespace mcstat;
 
@@ -191,3 +194,96 @@ TEST(RemovedLightLayers, StreamedFileGivesTheSameBits) {
 }
 
 }  // namespace
+
+namespace {
+
+/// W x H, M buffers of random values: each pixel's buffers mostly noise around a level, some
+/// fireflies, and in some pixels an invalid buffer (NaN or Inf mean, zero, negative or infinite
+/// count) or extreme values (3e38, denormals).
+StatsImage randomImage(int W, int H, int M, unsigned seed) {
+    StatsImage s;
+    s.header.width = W;
+    s.header.height = H;
+    s.header.M = M;
+    s.header.spp = M * 4;
+    std::string err;
+    EXPECT_TRUE(s.allocate(err)) << err;
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    for (size_t p = 0; p < size_t(W) * size_t(H); ++p) {
+        const float level = u(rng) * 2.f;
+        for (int j = 0; j < M; ++j) {
+            const size_t k = s.bufferBegin(p) + size_t(j);
+            s.bufferCount[k] = 4.f;
+            for (int c = 0; c < 3; ++c) {
+                float v = level * (0.5f + u(rng));
+                if (u(rng) < 0.02f) v *= 1000.f;  // a firefly
+                s.bufferMean[k * 3 + size_t(c)] = v;
+            }
+            const float r = u(rng);
+            if (r < 0.004f)
+                s.bufferMean[k * 3 + 1] = std::numeric_limits<float>::quiet_NaN();
+            else if (r < 0.008f)
+                s.bufferMean[k * 3] = std::numeric_limits<float>::infinity();
+            else if (r < 0.012f)
+                s.bufferCount[k] = 0.f;
+            else if (r < 0.016f)
+                s.bufferCount[k] = -1.f;
+            else if (r < 0.020f)
+                s.bufferCount[k] = std::numeric_limits<float>::infinity();
+            else if (r < 0.024f)
+                s.bufferMean[k * 3 + 2] = 3e38f;
+            else if (r < 0.028f)
+                s.bufferMean[k * 3 + 1] = 1e-40f;
+        }
+        s.count[p] = float(4 * M);
+    }
+    return s;
+}
+
+}  // namespace
+
+// The removed-light layers that an estimate computes in its own pass, from the buffers'
+// luminances its ranking computed (four pixels at a time, EstimatorScratch::LumaKeys) or from
+// the buffers where it has none, equal bit for bit those that appendRemovedLight computes from
+// the buffers afterwards: every per-pixel estimator, M = 9 and 21 (the rank estimators' fast
+// path) and 65 (past it), a width that leaves groups of fewer than four pixels, invalid buffers
+// and extreme values, luminance coefficients with three nonzero weights, the AVX2 and the portable
+// ranking, one and two threads.
+TEST(RemovedLightLayers, InPassEqualsAppendedBitForBit) {
+    const std::array<double, 3> luma{0.2126, 0.7152, 0.0722};
+    for (const int M : {9, 21, 65}) {
+        const StatsImage s = randomImage(37, 9, M, 7u + unsigned(M));
+        for (const char* name : {"mean", "median", "mon", "gmon", "gmonb", "tmpe"}) {
+            const Operation& op = *findOperation(name);
+            ParamValues plain, removed;
+            std::string err;
+            ASSERT_TRUE(parseOperationParams(op, {}, plain, err)) << err;
+            removed = plain;
+            setRemovedLightValues(removed, RemovedLightOptions{});
+            for (const bool avx2 : {true, false})
+                for (const int threads : {1, 2}) {
+                    const bool before = detail::setUseAvx2(avx2);
+                    OIIO::ImageBuf inPass, appended;
+                    ASSERT_TRUE(applyOperation(inPass, s, op, removed, luma, false, {}, threads))
+                        << inPass.geterror();
+                    ASSERT_TRUE(applyOperation(appended, s, op, plain, luma, false, {}, threads))
+                        << appended.geterror();
+                    ASSERT_TRUE(appendRemovedLight(appended, s, luma, {}, threads))
+                        << appended.geterror();
+                    detail::setUseAvx2(before);
+                    ASSERT_EQ(inPass.spec().channelnames, appended.spec().channelnames);
+                    const size_t n =
+                        size_t(inPass.spec().image_pixels()) * size_t(inPass.nchannels());
+                    EXPECT_EQ(0, std::memcmp(inPass.localpixels(), appended.localpixels(),
+                                             n * sizeof(float)))
+                        << name << " M " << M << " avx2 " << avx2 << " threads " << threads;
+                    for (const char* a : {"mcstat:removed:energyFraction", "mcstat:removed:zImage",
+                                          "mcstat:removed:significantFraction"})
+                        EXPECT_EQ(inPass.spec().get_float_attribute(a),
+                                  appended.spec().get_float_attribute(a))
+                            << name << " " << a;
+                }
+        }
+    }
+}

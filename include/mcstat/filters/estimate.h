@@ -50,6 +50,19 @@ struct EstimatorScratch {
     /// no such weights exist: bufferWeight is left empty.
     bool wantWeights = false;
     std::vector<double> bufferWeight;
+    /// Set by the caller before an estimate to also get the buffers' luminances as the estimate
+    /// computed them, for the removed light's spread (removed_light.h, lumaSpread4FromKeys):
+    /// key[j * stride] = (l0 R_j + l1 G_j) + l2 B_j in double, count[j * stride] = n_j. The rank
+    /// estimators' fast path leaves them, and sets `given`, when it ranked by luminance with
+    /// exactly these coefficients and every buffer is valid (count > 0 and finite, finite means);
+    /// otherwise `given` stays false and the caller computes the spread from the buffers.
+    struct LumaKeys {
+        double* key = nullptr;
+        double* count = nullptr;
+        int stride = 1;
+        std::array<double, 3> luma{0.0, 0.0, 0.0};
+        bool given = false;
+    } lumaKeys;
 };
 
 /// Per-thread scratch of a window kernel's pass (operation.h: WindowPass). The family derives its

@@ -21,6 +21,8 @@
 #pragma once
 
 #include <array>
+#include <cmath>
+#include <cstddef>
 
 #include "mcstat/core/pixel_buffers.h"
 
@@ -51,9 +53,18 @@ LumaSpread lumaSpread(const PixelBuffers& px, const std::array<double, 3>& luma)
 /// without fused multiply-adds), and any other pixel runs lumaSpread.
 void lumaSpreads(const PixelBuffers* px, int n, const std::array<double, 3>& luma, LumaSpread* out);
 
+/// lumaSpread of four pixels of equal M (2 to 64) whose buffers are all valid, from their buffers'
+/// luminances and counts as an estimate computed them (EstimatorScratch::LumaKeys: pixel i's
+/// buffer j at key[4 j + i], count[4 j + i], Y_j = (l0 R + l1 G) + l2 B in double with lumaSpread's
+/// coefficients): the same values, bit for bit, without reading the buffers again.
+void lumaSpread4FromKeys(const double* key, const double* count, int M, LumaSpread out[4]);
+
 /// z = d / se for one pixel: 0 when d is 0 or not finite, or se is 0, NaN or +inf (a pixel
 /// without the buffers to measure its noise is never called significant).
-double removedZ(double d, double se);
+inline double removedZ(double d, double se) {
+    if (d == 0.0 || !std::isfinite(d) || !(se > 0.0) || !std::isfinite(se)) return 0.0;
+    return d / se;
+}
 
 /// The neighbourhood significance: out[p] = sum d / sqrt(sum se^2) over the (2 radius + 1)^2
 /// window around p, clipped to the width x height image (row-major, one value per pixel).
@@ -61,5 +72,10 @@ double removedZ(double d, double se);
 /// nthreads threads (0: all), each output its own sums: the same values on any thread count.
 void localRemovedZ(const float* d, const float* se, int width, int height, int radius, float* out,
                    int nthreads = 1);
+/// localRemovedZ over values `stride` floats apart (d[p * stride], se[p * stride]: two channels of
+/// an interleaved image), out[p * outStride]; no temporary of the image's size. out's values must
+/// not be d's or se's.
+void localRemovedZ(const float* d, const float* se, size_t stride, int width, int height,
+                   int radius, float* out, size_t outStride, int nthreads);
 
 }  // namespace mcstat
