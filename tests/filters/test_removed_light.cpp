@@ -199,13 +199,16 @@ TEST(LumaSpread, FourPixelsAtOnceGiveEachPixelsBits) {
         if (kind == 3) mean[size_t(3 * (M - 1))] = kNaN;
         if (kind == 4) mean[1] = kInf;
         if (kind == 5) count[0] = 0.f;
+        if (kind == 6) count[M - 1] = -1.f;
+        if (kind == 7) count[1] = kInf;
+        if (kind == 8) count[2] = -0.f;
         means.push_back(std::move(mean));
         counts.push_back(std::move(count));
     };
     for (int M :
          {21, 21, 21, 21, 21, 21, 21, 2, 2, 2, 2, 64, 64, 64, 64, 1, 1, 1, 1, 70, 70, 70, 70, 5})
         add(M, 0);
-    for (int kind = 1; kind <= 5; ++kind)
+    for (int kind = 1; kind <= 8; ++kind)
         for (int i = 0; i < 4; ++i) add(9, kind == 3 && i == 2 ? 0 : kind);
     for (int i = 0; i < 4; ++i) add(i % 2 ? 8 : 9, 0);  // alternating M: never four alike
     std::vector<PixelBuffers> px;
