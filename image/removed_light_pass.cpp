@@ -4,7 +4,6 @@
 
 #include <cmath>
 
-#include "mcstat/core/parallel.h"
 #include "mcstat/filters/operation.h"
 #include "mcstat/filters/removed_light.h"
 
@@ -69,15 +68,14 @@ bool finishRemovedLight(ImageBuf& img, int first, const std::array<double, 3>& l
     // above were its last reader.
     float* d = px + first;
     localRemovedZ(d, d + 1, nch, spec.width, spec.height, opt.radius, d + 3, nch, nthreads);
+    // The significant light's sum in pixel order, and the flags in the same pass.
     double significant = 0.0;
-    for (size_t p = 0; p < n; ++p)
-        if (d[p * nch + 3] > opt.zLimit) significant += double(d[p * nch]);
-    parallelFor(0, int64_t(n), 0, nthreads, [&](int64_t b, int64_t e) {
-        for (size_t p = size_t(b); p < size_t(e); ++p) {
-            float* r = px + p * nch + first;
-            r[4] = r[3] > opt.zLimit ? 1.f : 0.f;
-        }
-    });
+    for (size_t p = 0; p < n; ++p) {
+        float* r = d + p * nch;
+        const bool flagged = r[3] > opt.zLimit;
+        if (flagged) significant += double(r[0]);
+        r[4] = flagged ? 1.f : 0.f;
+    }
     ImageSpec& s = img.specmod();
     s.attribute("mcstat:removed:energyFraction", float(total != 0.0 ? removed / total : 0.0));
     s.attribute("mcstat:removed:significantFraction",
