@@ -290,15 +290,29 @@ bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& 
     return weighted;
 }
 
-/// What runIntervals took for a run.
-enum class RunGiven { Nothing, Intervals, EstimatesAndIntervals };
+/// What takeRun took for a run.
+enum class RunGiven { Nothing, Intervals, EstimatesAndIntervals, Estimates };
 
-/// The intervals of the n pixels from `p0` on that the kernel takes as a run, in a pass with
-/// intervals of the kernel's own (no AOV intervals, not citarget=expected), never of a compact
-/// file's pixel without buffers: with their estimates (estimatesWithIntervals: any pixel), or
-/// alone (runIntervals: the pixels whose buffers are all valid).
-RunGiven runIntervals(const EstimatePass& pass, size_t p0, int n, PixelScratch& w) {
+/// What the kernel computes for the n pixels from `p0` on as a run, before the pixels one by one:
+/// in a pass with intervals of the kernel's own (no AOV intervals, not citarget=expected), never
+/// of a compact file's pixel without buffers, the intervals with their estimates
+/// (estimatesWithIntervals: any pixel) or alone (runIntervals: the pixels whose buffers are all
+/// valid); in a pass with no interval, no AOVs and no removed light, the estimates alone
+/// (PixelKernel::estimates).
+RunGiven takeRun(const EstimatePass& pass, size_t p0, int n, PixelScratch& w) {
     const PixelKernel& kernel = pass.kernel;
+    if (!pass.ci && pass.A == 0 && !kernel.removedLight && kernel.estimates) {
+        // No interval: the kernel's estimates of the whole run at once.
+        w.runIntervalBuffers.resize(size_t(n));
+        w.runIntervalOf.resize(size_t(n));
+        for (int i = 0; i < n; ++i) {
+            w.runIntervalBuffers[size_t(i)] = pass.src.pixelBuffers(p0 + size_t(i));
+            w.runIntervalOf[size_t(i)] = i;
+        }
+        w.runEstimates.resize(size_t(n));
+        kernel.estimates(w.runIntervalBuffers.data(), n, w.runEstimates.data());
+        return RunGiven::Estimates;
+    }
     const bool withEstimates = bool(kernel.estimatesWithIntervals);
     if (!pass.ci || pass.A > 0 || kernel.ciExpected || (!kernel.runIntervals && !withEstimates))
         return RunGiven::Nothing;
@@ -334,7 +348,7 @@ bool estimateRun(const EstimatePass& pass, int y, int x0, int x1, const ROI& roi
     const PixelKernel& kernel = pass.kernel;
     const size_t nch = pass.names.size();
     const size_t row = size_t(y - h.originY) * size_t(h.width);
-    const RunGiven given = runIntervals(pass, row + size_t(x0 - h.originX), x1 - x0, w);
+    const RunGiven given = takeRun(pass, row + size_t(x0 - h.originX), x1 - x0, w);
     auto pixelOut = [&](int x) {
         return base + (size_t(y - roi.ybegin) * size_t(roi.width()) + size_t(x - roi.xbegin)) * nch;
     };
@@ -342,9 +356,11 @@ bool estimateRun(const EstimatePass& pass, int y, int x0, int x1, const ROI& roi
     auto one = [&](int x) {
         const size_t p = row + size_t(x - h.originX);
         const int iv = given != RunGiven::Nothing ? w.runIntervalOf[size_t(x - x0)] : -1;
-        const bool withEstimate = iv >= 0 && given == RunGiven::EstimatesAndIntervals;
+        const bool withEstimate =
+            iv >= 0 && (given == RunGiven::EstimatesAndIntervals || given == RunGiven::Estimates);
+        const bool withInterval = iv >= 0 && given != RunGiven::Estimates;
         if (!estimatePixel(pass, p, pixelOut(x), w,
-                           iv >= 0 ? w.runIntervals.data() + 3 * size_t(iv) : nullptr,
+                           withInterval ? w.runIntervals.data() + 3 * size_t(iv) : nullptr,
                            withEstimate ? w.runEstimates.data() + iv : nullptr))
             weighted = false;
     };

@@ -3,6 +3,7 @@
 // per-pixel and neighbourhood tests of filters/removed_light.h.
 #include "mcstat/image/removed_light_layers.h"
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -37,6 +38,18 @@ PixelKernel spreadKernel(const std::array<double, 3>& luma) {
             if (isValidBuffer(px, j)) n += (s.bufferWeight[size_t(j)] = double(px.count[j]));
         if (n > 0.0)
             for (double& w : s.bufferWeight) w /= n;
+    };
+    // Without weights (no AOVs), a run's spreads four pixels at a time (lumaSpreads).
+    k.estimates = [luma](const PixelBuffers* px, int n, PixelEstimate* e) {
+        LumaSpread sp[64];
+        for (int i0 = 0; i0 < n; i0 += 64) {
+            const int m = std::min(64, n - i0);
+            lumaSpreads(px + i0, m, luma, sp);
+            for (int i = 0; i < m; ++i) {
+                e[i0 + i] = PixelEstimate{};
+                e[i0 + i].rgb = {float(sp[i].mean), float(sp[i].se), float(sp[i].valid)};
+            }
+        }
     };
     return k;
 }

@@ -81,6 +81,9 @@ struct PixelKernel {
     std::function<void(const PixelBuffers* px, int n, double level, PixelEstimate* e,
                        ValueInterval* rgb)>
         estimatesWithIntervals;
+    /// `estimate` (without weights) of n pixels at once, e[i] of px[i]: the same values, where
+    /// several pixels go faster together than one by one. Null: `estimate` per pixel.
+    std::function<void(const PixelBuffers* px, int n, PixelEstimate* e)> estimates;
     /// What the interval covers, in words (the file's mcstat:ciTarget): the expected value for
     /// the mean's, the median of the buffer means for MoN's, ... (docs/confidence.md).
     std::string intervalTarget;
