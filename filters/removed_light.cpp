@@ -79,7 +79,7 @@ LumaSpread lumaSpread(const PixelBuffers& px, const std::array<double, 3>& luma)
 
 namespace {
 
-/// The end of four pixels' lumaSpread (lumaSpread4, lumaSpread4FromKeys), one per lane: from the
+/// The end of four pixels' lumaSpread (lumaSpread4), one per lane: from the
 /// luminances ys[4 j + i] and counts ns[4 j + i] of pixel i's M buffers and the sums n and sum,
 /// mean = sum / n, ss += (n_j dev) dev, se = sqrt(ss / (M - 1) / n).
 __attribute__((target("avx2"))) void finishSpread4(const double* ys, const double* ns, int M,
@@ -98,16 +98,39 @@ __attribute__((target("avx2"))) void finishSpread4(const double* ys, const doubl
     for (int i = 0; i < 4; ++i) out[i] = LumaSpread{meanOut[i], seOut[i], M};
 }
 
-/// lumaSpread4FromKeys on AVX2: the sums of lumaSpread4 over the given luminances and counts.
-__attribute__((target("avx2"))) void spread4FromKeysAvx2(const double* key, const double* count,
+/// lumaSpread8FromKeys on AVX2: lumaSpread4's sums over the given luminances and counts, for two
+/// groups of four pixels (lanes 0-3 and 4-7 of key[8 j + i]) side by side, so that the two
+/// groups' chains of dependent additions overlap (the sums of one group alone wait on the
+/// adder's latency). Each lane's operations are finishSpread4's, in its order.
+__attribute__((target("avx2"))) void spread8FromKeysAvx2(const double* key, const double* count,
                                                          int M, LumaSpread* out) {
-    __m256d n = _mm256_setzero_pd(), sum = n;
+    __m256d nA = _mm256_setzero_pd(), sumA = nA, nB = nA, sumB = nA;
     for (int j = 0; j < M; ++j) {
-        const __m256d w = _mm256_loadu_pd(count + 4 * j);
-        n = _mm256_add_pd(n, w);
-        sum = _mm256_add_pd(sum, _mm256_mul_pd(w, _mm256_loadu_pd(key + 4 * j)));
+        const __m256d wA = _mm256_loadu_pd(count + 8 * j), wB = _mm256_loadu_pd(count + 8 * j + 4);
+        nA = _mm256_add_pd(nA, wA);
+        nB = _mm256_add_pd(nB, wB);
+        sumA = _mm256_add_pd(sumA, _mm256_mul_pd(wA, _mm256_loadu_pd(key + 8 * j)));
+        sumB = _mm256_add_pd(sumB, _mm256_mul_pd(wB, _mm256_loadu_pd(key + 8 * j + 4)));
     }
-    finishSpread4(key, count, M, n, sum, out);
+    const __m256d meanA = _mm256_div_pd(sumA, nA), meanB = _mm256_div_pd(sumB, nB);
+    __m256d ssA = _mm256_setzero_pd(), ssB = ssA;
+    for (int j = 0; j < M; ++j) {
+        const __m256d devA = _mm256_sub_pd(_mm256_loadu_pd(key + 8 * j), meanA);
+        const __m256d devB = _mm256_sub_pd(_mm256_loadu_pd(key + 8 * j + 4), meanB);
+        ssA = _mm256_add_pd(
+            ssA, _mm256_mul_pd(_mm256_mul_pd(_mm256_loadu_pd(count + 8 * j), devA), devA));
+        ssB = _mm256_add_pd(
+            ssB, _mm256_mul_pd(_mm256_mul_pd(_mm256_loadu_pd(count + 8 * j + 4), devB), devB));
+    }
+    const __m256d df = _mm256_set1_pd(double(M - 1));
+    const __m256d seA = _mm256_sqrt_pd(_mm256_div_pd(_mm256_div_pd(ssA, df), nA));
+    const __m256d seB = _mm256_sqrt_pd(_mm256_div_pd(_mm256_div_pd(ssB, df), nB));
+    alignas(32) double mean[8], se[8];
+    _mm256_store_pd(mean, meanA);
+    _mm256_store_pd(mean + 4, meanB);
+    _mm256_store_pd(se, seA);
+    _mm256_store_pd(se + 4, seB);
+    for (int i = 0; i < 8; ++i) out[i] = LumaSpread{mean[i], se[i], M};
 }
 
 /// Four pixels' lumaSpread, one per lane: px[0..3] share M in [2, kSpreadStackM]. Each lane
@@ -152,20 +175,20 @@ __attribute__((target("avx2"))) int lumaSpread4(const PixelBuffers* px,
 
 }  // namespace
 
-void lumaSpread4FromKeys(const double* key, const double* count, int M, LumaSpread out[4]) {
-    if (cpuHasAvx2()) return spread4FromKeysAvx2(key, count, M, out);
+void lumaSpread8FromKeys(const double* key, const double* count, int M, LumaSpread out[8]) {
+    if (cpuHasAvx2()) return spread8FromKeysAvx2(key, count, M, out);
     // lumaSpread's all-valid path per pixel, over its lane of the arrays.
-    for (int i = 0; i < 4; ++i) {
+    for (int i = 0; i < 8; ++i) {
         double n = 0.0, sum = 0.0;
         for (int j = 0; j < M; ++j) {
-            n += count[4 * j + i];
-            sum += count[4 * j + i] * key[4 * j + i];
+            n += count[8 * j + i];
+            sum += count[8 * j + i] * key[8 * j + i];
         }
         const double mean = sum / n;
         double ss = 0.0;
         for (int j = 0; j < M; ++j) {
-            const double dev = key[4 * j + i] - mean;
-            ss += count[4 * j + i] * dev * dev;
+            const double dev = key[8 * j + i] - mean;
+            ss += count[8 * j + i] * dev * dev;
         }
         out[i] = LumaSpread{mean, std::sqrt(ss / double(M - 1) / n), M};
     }

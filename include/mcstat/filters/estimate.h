@@ -51,7 +51,7 @@ struct EstimatorScratch {
     bool wantWeights = false;
     std::vector<double> bufferWeight;
     /// Set by the caller before an estimate to also get the buffers' luminances as the estimate
-    /// computed them, for the removed light's spread (removed_light.h, lumaSpread4FromKeys):
+    /// computed them, for the removed light's spread (removed_light.h, lumaSpread8FromKeys):
     /// key[j * stride] = (l0 R_j + l1 G_j) + l2 B_j in double, count[j * stride] = n_j. The rank
     /// estimators' fast path leaves them, and sets `given`, when it ranked by luminance with
     /// exactly these coefficients and every buffer is valid (count > 0 and finite, finite means);

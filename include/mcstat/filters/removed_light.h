@@ -53,11 +53,11 @@ LumaSpread lumaSpread(const PixelBuffers& px, const std::array<double, 3>& luma)
 /// without fused multiply-adds), and any other pixel runs lumaSpread.
 void lumaSpreads(const PixelBuffers* px, int n, const std::array<double, 3>& luma, LumaSpread* out);
 
-/// lumaSpread of four pixels of equal M (2 to 64) whose buffers are all valid, from their buffers'
-/// luminances and counts as an estimate computed them (EstimatorScratch::LumaKeys: pixel i's
-/// buffer j at key[4 j + i], count[4 j + i], Y_j = (l0 R + l1 G) + l2 B in double with lumaSpread's
-/// coefficients): the same values, bit for bit, without reading the buffers again.
-void lumaSpread4FromKeys(const double* key, const double* count, int M, LumaSpread out[4]);
+/// lumaSpread of eight pixels of equal M (2 to 64) whose buffers are all valid, from their
+/// buffers' luminances and counts as an estimate computed them (EstimatorScratch::LumaKeys: pixel
+/// i's buffer j at key[8 j + i], count[8 j + i], Y_j = (l0 R + l1 G) + l2 B in double with
+/// lumaSpread's coefficients): the same values, bit for bit, without reading the buffers again.
+void lumaSpread8FromKeys(const double* key, const double* count, int M, LumaSpread out[8]);
 
 /// z = d / se for one pixel: 0 when d is 0 or not finite, or se is 0, NaN or +inf (a pixel
 /// without the buffers to measure its noise is never called significant).
