@@ -79,29 +79,10 @@ LumaSpread lumaSpread(const PixelBuffers& px, const std::array<double, 3>& luma)
 
 namespace {
 
-/// The end of four pixels' lumaSpread (lumaSpread4), one per lane: from the
-/// luminances ys[4 j + i] and counts ns[4 j + i] of pixel i's M buffers and the sums n and sum,
-/// mean = sum / n, ss += (n_j dev) dev, se = sqrt(ss / (M - 1) / n).
-__attribute__((target("avx2"))) void finishSpread4(const double* ys, const double* ns, int M,
-                                                   __m256d n, __m256d sum, LumaSpread* out) {
-    const __m256d mean = _mm256_div_pd(sum, n);
-    __m256d ss = _mm256_setzero_pd();
-    for (int j = 0; j < M; ++j) {
-        const __m256d dev = _mm256_sub_pd(_mm256_loadu_pd(ys + 4 * j), mean);
-        ss = _mm256_add_pd(ss, _mm256_mul_pd(_mm256_mul_pd(_mm256_loadu_pd(ns + 4 * j), dev), dev));
-    }
-    const __m256d se =
-        _mm256_sqrt_pd(_mm256_div_pd(_mm256_div_pd(ss, _mm256_set1_pd(double(M - 1))), n));
-    alignas(32) double meanOut[4], seOut[4];
-    _mm256_store_pd(meanOut, mean);
-    _mm256_store_pd(seOut, se);
-    for (int i = 0; i < 4; ++i) out[i] = LumaSpread{meanOut[i], seOut[i], M};
-}
-
 /// lumaSpread8FromKeys on AVX2: lumaSpread4's sums over the given luminances and counts, for two
 /// groups of four pixels (lanes 0-3 and 4-7 of key[8 j + i]) side by side, so that the two
 /// groups' chains of dependent additions overlap (the sums of one group alone wait on the
-/// adder's latency). Each lane's operations are finishSpread4's, in its order.
+/// adder's latency). Each lane's operations are lumaSpread4's, in its order.
 __attribute__((target("avx2"))) void spread8FromKeysAvx2(const double* key, const double* count,
                                                          int M, LumaSpread* out) {
     __m256d nA = _mm256_setzero_pd(), sumA = nA, nB = nA, sumB = nA;
@@ -169,7 +150,18 @@ __attribute__((target("avx2"))) int lumaSpread4(const PixelBuffers* px,
         n = _mm256_add_pd(n, w);
         sum = _mm256_add_pd(sum, _mm256_mul_pd(w, y));
     }
-    finishSpread4(ys[0], ns[0], M, n, sum, out);
+    const __m256d mean = _mm256_div_pd(sum, n);
+    __m256d ss = _mm256_setzero_pd();
+    for (int j = 0; j < M; ++j) {
+        const __m256d dev = _mm256_sub_pd(_mm256_load_pd(ys[j]), mean);
+        ss = _mm256_add_pd(ss, _mm256_mul_pd(_mm256_mul_pd(_mm256_load_pd(ns[j]), dev), dev));
+    }
+    const __m256d se =
+        _mm256_sqrt_pd(_mm256_div_pd(_mm256_div_pd(ss, _mm256_set1_pd(double(M - 1))), n));
+    alignas(32) double meanOut[4], seOut[4];
+    _mm256_store_pd(meanOut, mean);
+    _mm256_store_pd(seOut, se);
+    for (int i = 0; i < 4; ++i) out[i] = LumaSpread{meanOut[i], seOut[i], M};
     return _mm256_movemask_pd(bad);
 }
 

@@ -429,12 +429,6 @@ __attribute__((target("avx2"))) void meanIntervalEndsAvx2(int m, double n, __m25
     for (int c = 0; c < 3; ++c) out[c] = {lo[c], hi[c], false};
 }
 
-/// (R, G, B, 0) of a buffer's three float means, widened, read without touching memory past them.
-__attribute__((target("avx2"))) inline __m256d widenedMeans(const float* v) {
-    const __m128 rg = _mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(v)));
-    return _mm256_cvtps_pd(_mm_insert_ps(rg, _mm_load_ss(v + 2), 0x20));
-}
-
 /// meanIntervalsFromSums on AVX2: a pixel's R, G, B (and a lane that stays 0) in the lanes of one
 /// register through every step, the means, the sums of squares (w dv) dv, and the ends
 /// (meanIntervalEndsAvx2). The same bits.
@@ -446,7 +440,9 @@ __attribute__((target("avx2"))) void meanIntervalsFromSumsAvx2(const PixelBuffer
         _mm256_div_pd(_mm256_setr_pd(sum[0], sum[1], sum[2], 0.0), _mm256_set1_pd(n));
     __m256d ss = _mm256_setzero_pd();
     for (int j = 0; j < m; ++j) {
-        const __m256d dv = _mm256_sub_pd(widenedMeans(px.mean + 3 * size_t(valid[j])), mean);
+        // (R, G, B, 0): a zero count in the fourth lane, which is never read.
+        const __m256d x = _mm256_cvtps_pd(detail::bufferLanes(px.mean + 3 * size_t(valid[j]), 0.f));
+        const __m256d dv = _mm256_sub_pd(x, mean);
         const __m256d w = _mm256_set1_pd(double(px.count[valid[j]]));
         ss = _mm256_add_pd(ss, _mm256_mul_pd(_mm256_mul_pd(w, dv), dv));
     }
