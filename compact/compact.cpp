@@ -182,7 +182,7 @@ bool compactHeader(const StatsHeader& full, const std::string& name, const Compa
     out.compactRule = compactRuleText(rule);
     out.state = StateOwner();  // per-sample state and records stay in the full file
     out.hasRecords = false;
-    out.formatVersion = kStatsFormatVersionSlimMoments;
+    out.formatVersion = kStatsFormatVersionMeansInBeauty;
     return true;
 }
 
@@ -266,6 +266,10 @@ bool CompactStatsSource::read(int firstRow, int rows, unsigned /*parts*/, StatsI
             for (size_t j = 0; j < M; ++j) n += double(px.count[j]);
             std::copy(mean.begin() + long(p * 3), mean.begin() + long(p * 3 + 3),
                       out.bufferMean.begin() + long(k * 3));
+            // Version 8 keeps this mean once, in part beauty (what stock tools show, so they show
+            // G-MoN's value: the count-weighted mean, summed in G-MoN's rank order).
+            std::copy(mean.begin() + long(p * 3), mean.begin() + long(p * 3 + 3),
+                      out.beauty.begin() + long(p * 3));
             out.bufferCount[k] = float(n);
             std::copy(aovMean.begin() + long(p * A), aovMean.begin() + long((p + 1) * A),
                       out.aov.begin() + long(k * A));

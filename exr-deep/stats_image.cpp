@@ -2,6 +2,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <new>
 
@@ -347,6 +348,21 @@ bool validateStats(const StatsImage& img, unsigned parts, const std::string& wha
     if (std::string why; buffers && !img.checkBufferLayout(why)) {
         err = what + ": " + why;
         return false;
+    }
+    if (buffers && (parts & kStatsPartBeauty) && compactMeansInBeauty(h)) {
+        // Version 8 stores the mean of a pixel with one buffer once, in part beauty.
+        for (size_t p = 0; p < pixels; ++p) {
+            const float* m = img.bufferMean.data() + 3 * img.bufferBegin(p);
+            const float* b = img.beauty.data() + 3 * p;
+            if (img.buffersOf(p) != 1 || std::memcmp(m, b, 3 * sizeof(float)) == 0) continue;
+            err = fmt::format(
+                "{}: pixel ({}, {}) keeps one buffer, whose mean ({}, {}, {}) a compact file of "
+                "format {} stores in part '{}', but that part holds ({}, {}, {})",
+                what, h.originX + int64_t(p % size_t(h.width)),
+                h.originY + int64_t(p / size_t(h.width)), m[0], m[1], m[2], h.formatVersion,
+                layout::kPartNames[layout::kBeauty], b[0], b[1], b[2]);
+            return false;
+        }
     }
     if (!buffers && !moments) return true;
     for (size_t p = 0; p < pixels; ++p) {

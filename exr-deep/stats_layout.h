@@ -198,9 +198,12 @@ const std::vector<float>& arrayOf(const StatsImage& img, Array a);
 namespace mcstat::detail {
 /// The parts a read of `parts` reads: with the adaptive layout the AOVs live in the deep part
 /// `vbuffers`, so asking for them reads the buffers too.
+/// A compact file of version 8 keeps the mean of a pixel with one buffer in part beauty, so asking
+/// for the buffers reads beauty too.
 inline unsigned partsToRead(const StatsHeader& h, unsigned parts) {
-    return h.adaptiveM && !h.aovs.empty() && (parts & kStatsPartAovs) ? parts | kStatsPartBuffers
-                                                                      : parts;
+    if (h.adaptiveM && !h.aovs.empty() && (parts & kStatsPartAovs)) parts |= kStatsPartBuffers;
+    if (compactMeansInBeauty(h) && (parts & kStatsPartBuffers)) parts |= kStatsPartBeauty;
+    return parts;
 }
 /// Sizes the arrays of the parts in `parts` (StatsParts) for img.header's pixels and `buffers`
 /// sub-buffers in total, keeping their storage; `offsets` (adaptive M) moves into bufferOffset.

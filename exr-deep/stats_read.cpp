@@ -262,6 +262,30 @@ void readDeepBuffers(Imf::MultiPartInputFile& in, detail::DeepPartReader& deep, 
     dp.readPixels(h.originY, h.originY + h.height - 1);
 }
 
+/// Version 8 (compactMeansInBeauty): the mean of each pixel with one buffer from part beauty into
+/// its buffer, whose deep sample must hold R = G = B = 0 (+0, as the writer stores them). False
+/// with `err` naming the first pixel where it does not.
+bool meansFromBeauty(StatsImage& blk, const std::string& path, std::string& err) {
+    const StatsHeader& h = blk.header;
+    for (size_t p = 0; p < blk.pixelCount(); ++p) {
+        if (blk.buffersOf(p) != 1) continue;
+        float* m = blk.bufferMean.data() + 3 * blk.bufferBegin(p);
+        static constexpr float kZero[3] = {0.f, 0.f, 0.f};
+        if (std::memcmp(m, kZero, sizeof kZero) != 0) {
+            err = fmt::format(
+                "{}: pixel ({}, {}): part '{}' holds a mean ({}, {}, {}) for a pixel with one "
+                "buffer, which a compact file of format {} keeps in part '{}' (0 here)",
+                path, h.originX + int64_t(p % size_t(h.width)),
+                h.originY + int64_t(p / size_t(h.width)),
+                layout::kPartNamesAdaptive[layout::kBuffers], m[0], m[1], m[2], h.formatVersion,
+                layout::kPartNames[layout::kBeauty]);
+            return false;
+        }
+        std::memcpy(m, blk.beauty.data() + 3 * p, sizeof kZero);
+    }
+    return true;
+}
+
 }  // namespace
 
 bool readStatsHeader(const std::string& path, StatsHeader& hdr, std::string& err,
@@ -408,6 +432,9 @@ bool StatsFileReader::read(int firstRow, int rows, unsigned parts, StatsImage& b
             readDeepBuffers(*im.file, im.deep, firstRow, im.threads, im.deepCounts, block,
                             (parts & kStatsPartAovs) != 0);
         readFlatParts(*im.file, im.flat, firstRow, im.threads, parts, block);
+        if (compactMeansInBeauty(h) && (parts & kStatsPartBuffers) &&
+            !meansFromBeauty(block, im.path, err))
+            return false;
     } catch (const std::bad_alloc&) {
         err = im.path + ": out of memory while reading pixels";
         return false;

@@ -121,6 +121,17 @@ std::string dirOf(const std::string& path) {
     return slash == 0 ? "/" : path.substr(0, slash);
 }
 
+/// The buffer means of `blk` as part vbuffers stores them. With compactMeansInBeauty (version 8)
+/// a pixel with one buffer stores R = G = B = 0, since part beauty holds its mean (validateStats
+/// checks that they are the same floats): then a copy in `zeroed`, else blk's own array.
+const float* deepMeans(const StatsImage& blk, std::vector<float>& zeroed) {
+    if (!compactMeansInBeauty(blk.header)) return blk.bufferMean.data();
+    zeroed = blk.bufferMean;
+    for (size_t p = 0; p < blk.pixelCount(); ++p)
+        if (blk.buffersOf(p) == 1) std::fill_n(zeroed.data() + 3 * blk.bufferBegin(p), 3, 0.f);
+    return zeroed.data();
+}
+
 /// Adaptive M: rows of part "vbuffers" from `blk` (a block of rows, origin at its first row), one
 /// deep sample per sub-buffer (R, G, B, count; Z = buffer index, A = 1).
 void writeDeepBuffers(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
@@ -129,6 +140,8 @@ void writeDeepBuffers(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
     // Z and A are the same for every pixel: j and 1 for sample j, so all pixels point at one row.
     std::vector<float> zs(size_t(h.M)), ones(size_t(h.M), 1.f);
     for (size_t j = 0; j < zs.size(); ++j) zs[j] = float(j);
+    std::vector<float> zeroed;
+    const float* means = deepMeans(blk, zeroed);
     std::vector<uint32_t> m(pixels);
     DeepFrameBufferSet fb(h, m.data());
     const size_t A = h.aovs.size();
@@ -139,7 +152,7 @@ void writeDeepBuffers(Imf::MultiPartOutputFile& out, const StatsImage& blk) {
     for (size_t p = 0; p < pixels; ++p) {
         const size_t k = blk.bufferBegin(p);
         m[p] = uint32_t(blk.buffersOf(p));
-        for (size_t c = 0; c < 3; ++c) fb.point(c, p, blk.bufferMean.data() + k * 3 + c);
+        for (size_t c = 0; c < 3; ++c) fb.point(c, p, means + k * 3 + c);
         fb.point(3, p, blk.bufferCount.data() + k);
         fb.point(4, p, zs.data());
         fb.point(5, p, ones.data());
@@ -182,6 +195,7 @@ struct DeepBufferRows {
     std::vector<uint32_t> counts;
     std::vector<float> zs;
     float one = 1.f;
+    std::vector<float> zeroedMeans;  ///< deepMeans's copy, when it makes one
 };
 
 /// The rows of every part of `blk` for the Core writer, in part order (read only; `deep` holds
@@ -201,10 +215,10 @@ std::vector<detail::PartRows> partRows(const StatsImage& blk, DeepBufferRows& de
             for (size_t j = 0; j < deep.zs.size(); ++j) deep.zs[j] = float(j);
             const auto bytes = [](const float* f) { return reinterpret_cast<const char*>(f); };
             rows.counts = deep.counts.data();
+            const float* means = deepMeans(blk, deep.zeroedMeans);
             for (size_t c = 0; c < 3; ++c)
-                rows.deep.push_back({layout::kDeepChannels[c],
-                                     bytes(blk.bufferMean.data() + k0 * 3 + c), 3 * sizeof(float),
-                                     false});
+                rows.deep.push_back({layout::kDeepChannels[c], bytes(means + k0 * 3 + c),
+                                     3 * sizeof(float), false});
             rows.deep.push_back({layout::kDeepChannels[3], bytes(blk.bufferCount.data() + k0),
                                  sizeof(float), false});
             rows.deep.push_back(

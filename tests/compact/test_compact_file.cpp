@@ -1,8 +1,11 @@
-// The compact file on disk (FORMAT.md "Version 6"): round trip through the writer and the
-// streaming reader, AOVs in the deep part, the header check's refusals.
+// The compact file on disk (FORMAT.md "Version 6" to "Version 8"): round trip through the writer
+// and the streaming reader, AOVs in the deep part, one-buffer pixels' means in part beauty, older
+// versions, the header check's refusals.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <random>
 
 #include "mcstat/compact/compact.h"
@@ -69,9 +72,9 @@ void expectSame(const StatsImage& a, const StatsImage& b) {
 TEST(CompactFile, RoundTripsWithAovsInTheDeepPart) {
     test::ScratchDir dir;
     const StatsImage small = compacted(sample(13, 9, 9));
-    // Version 7: part moments holds the count and the spread, not the mean (part beauty's) nor
-    // the per-sample variance.
-    ASSERT_EQ(small.header.formatVersion, kStatsFormatVersionSlimMoments);
+    // Version 8: part moments holds the count and the spread, not the mean (part beauty's) nor
+    // the per-sample variance (version 7), and a one-buffer pixel's mean is beauty's.
+    ASSERT_EQ(small.header.formatVersion, kStatsFormatVersionMeansInBeauty);
     EXPECT_TRUE(small.mean.empty());
     EXPECT_TRUE(small.variance.empty());
     EXPECT_EQ(small.count.size(), small.pixelCount());
@@ -122,6 +125,110 @@ TEST(CompactFile, Version6FilesWithTheMomentsMeanAndVarianceStillRead) {
     EXPECT_TRUE(back.variance.empty());
     EXPECT_EQ(back.bufferMean, v6.bufferMean);
     EXPECT_LT(test::readBytes(dir.file("v7.mcstat")).size(), test::readBytes(path).size());
+}
+
+/// The bytes of `path` with every part's mcstat:formatVersion changed from `from` to `to`.
+std::vector<unsigned char> withVersion(const std::string& path, int from, int to) {
+    std::vector<unsigned char> bytes = test::readBytes(path);
+    const std::string key = std::string("mcstat:formatVersion") + '\0' + "int" + '\0';
+    const std::string value = std::string("\x04\0\0\0", 4) + char(from) + std::string(3, '\0');
+    std::string text(bytes.begin(), bytes.end());
+    int changed = 0;
+    for (size_t at = text.find(key + value); at != std::string::npos;
+         at = text.find(key + value, at + 1)) {
+        bytes[at + key.size() + 4] = static_cast<unsigned char>(to);
+        ++changed;
+    }
+    EXPECT_EQ(changed, 4) << "one attribute per part";
+    return bytes;
+}
+
+TEST(CompactFile, AOneBufferPixelsMeanIsStoredOnceInPartBeauty) {
+    test::ScratchDir dir;
+    const StatsImage small = compacted(sample(13, 9, 9));
+    size_t one = 0;
+    for (size_t p = 0; p < small.pixelCount(); ++p) {
+        if (small.buffersOf(p) != 1) continue;
+        ++one;
+        // What stock tools show there is G-MoN's value, the buffer's mean, to the bit.
+        const float* m = small.bufferMean.data() + 3 * small.bufferBegin(p);
+        EXPECT_EQ(0, std::memcmp(m, small.beauty.data() + 3 * p, 3 * sizeof(float))) << p;
+    }
+    ASSERT_GT(one, 0u);
+    std::string err;
+    const std::string path = dir.file("v8.mcstat");
+    ASSERT_TRUE(writeStatsFile(path, small, err)) << err;
+    // The deep sample of such a pixel holds 0: read as version 7, which takes it as it is.
+    test::writeBytes(dir.file("as7.mcstat"), withVersion(path, 8, 7));
+    StatsImage raw;
+    ASSERT_TRUE(readStatsFile(dir.file("as7.mcstat"), raw, err)) << err;
+    for (size_t p = 0; p < raw.pixelCount(); ++p) {
+        const float* m = raw.bufferMean.data() + 3 * raw.bufferBegin(p);
+        if (raw.buffersOf(p) == 1)
+            EXPECT_TRUE(m[0] == 0.f && m[1] == 0.f && m[2] == 0.f) << p;
+        else
+            EXPECT_EQ(0, std::memcmp(m, small.bufferMean.data() + 3 * small.bufferBegin(p),
+                                     9 * 3 * sizeof(float)))
+                << p;
+    }
+    EXPECT_EQ(raw.bufferCount, small.bufferCount);
+    EXPECT_EQ(raw.aov, small.aov);
+    // The buffers alone, by blocks: beauty comes along, the means are the image's.
+    StatsFileReader reader;
+    ASSERT_TRUE(reader.open(path, err)) << err;
+    StatsImage block;
+    ASSERT_TRUE(reader.read(3, 4, kStatsPartBuffers, block, err)) << err;
+    const size_t first = 3 * size_t(small.header.width);
+    for (size_t p = 0; p < block.pixelCount(); ++p)
+        EXPECT_EQ(0, std::memcmp(block.bufferMean.data() + 3 * block.bufferBegin(p),
+                                 small.bufferMean.data() + 3 * small.bufferBegin(first + p),
+                                 size_t(block.buffersOf(p)) * 3 * sizeof(float)))
+            << p;
+}
+
+TEST(CompactFile, Version7FilesWithTheMeansInTheDeepPartStillRead) {
+    // What --compact wrote before version 8: a one-buffer pixel's mean in its deep sample, part
+    // beauty the full file's plain mean. It reads, and writes back, as it is.
+    test::ScratchDir dir;
+    StatsImage v7 = compacted(sample(13, 9, 9));
+    v7.header.formatVersion = kStatsFormatVersionSlimMoments;
+    for (size_t p = 0; p < v7.pixelCount(); ++p)
+        if (v7.buffersOf(p) == 1) v7.beauty[3 * p] = 0.25f;  // not the buffer's: beauty is not read
+    std::string err;
+    const std::string path = dir.file("v7.mcstat");
+    ASSERT_TRUE(writeStatsFile(path, v7, err)) << err;
+    StatsImage back;
+    ASSERT_TRUE(readStatsFile(path, back, err)) << err;
+    EXPECT_EQ(back.header.formatVersion, kStatsFormatVersionSlimMoments);
+    expectSame(v7, back);
+    // Version 8 is smaller: the means of the 100 pixels of 117 without buffers are stored once.
+    StatsImage v8 = compacted(sample(13, 9, 9));
+    ASSERT_TRUE(writeStatsFile(dir.file("v8.mcstat"), v8, err)) << err;
+    EXPECT_LT(test::readBytes(dir.file("v8.mcstat")).size(), test::readBytes(path).size());
+}
+
+TEST(CompactFile, Version8MeansInTwoPlacesAreRefused) {
+    test::ScratchDir dir;
+    StatsImage small = compacted(sample(13, 9, 9));
+    size_t p = 0;
+    while (small.buffersOf(p) != 1) ++p;
+    // Written: a beauty that is not the one buffer's mean.
+    StatsImage bad = small;
+    bad.beauty[3 * p + 1] = std::nextafter(bad.beauty[3 * p + 1], 2.f);
+    std::string err;
+    EXPECT_FALSE(writeStatsFile(dir.file("bad.mcstat"), bad, err));
+    EXPECT_TRUE(test::contains(err, "stores in part 'beauty', but that part holds")) << err;
+    EXPECT_FALSE(std::filesystem::exists(dir.file("bad.mcstat")));
+    // Read: a deep sample that holds a mean where version 8 keeps 0 (a version-7 file whose
+    // version attribute says 8).
+    small.header.formatVersion = kStatsFormatVersionSlimMoments;
+    ASSERT_TRUE(writeStatsFile(dir.file("v7.mcstat"), small, err)) << err;
+    test::writeBytes(dir.file("as8.mcstat"), withVersion(dir.file("v7.mcstat"), 7, 8));
+    StatsImage back;
+    EXPECT_FALSE(readStatsFile(dir.file("as8.mcstat"), back, err));
+    EXPECT_TRUE(test::contains(err, "as8.mcstat: pixel (")) << err;
+    EXPECT_TRUE(test::contains(err, "which a compact file of format 8 keeps in part 'beauty'"))
+        << err;
 }
 
 TEST(CompactFile, WrittenByBlocksGivesTheSameBytes) {

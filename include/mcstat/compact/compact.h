@@ -59,7 +59,7 @@ bool compactKeeps(const PixelBuffers& px, const CompactRule& rule, CompactScratc
 void bufferSpread(const PixelBuffers& px, const std::vector<int>& valid, float* out);
 
 /// The header of the compact file made from a file with header `full` (named `name` in
-/// messages) under `rule`: the adaptive layout, format version 6, the rule's text, no per-sample
+/// messages) under `rule`: the adaptive layout, format version 8, the rule's text, no per-sample
 /// parts. False with `err` for an adaptive or already compact file, or an invalid rule.
 bool compactHeader(const StatsHeader& full, const std::string& name, const CompactRule& rule,
                    StatsHeader& out, std::string& err);

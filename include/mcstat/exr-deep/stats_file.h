@@ -35,8 +35,9 @@ inline constexpr const char* kStatsExtension = "mcstat";
 /// sub-buffers or one (their mean), AOVs in the deep part, and the between-buffer spread of every
 /// pixel in part moments. Version 7 slims a compact file's part moments to the count and the
 /// spread: its mean was part beauty's and its per-sample variance nothing of a compact file's used
-/// (FORMAT.md "Version 7").
-inline constexpr int kStatsFormatVersion = 7;
+/// (FORMAT.md "Version 7"). Version 8 stores a compact file's one-buffer pixels' means once, in
+/// part beauty, and zeros in their deep sample (FORMAT.md "Version 8").
+inline constexpr int kStatsFormatVersion = 8;
 /// The version a fixed-M file is written with by default (readable by version-1 readers).
 inline constexpr int kStatsFormatVersionFixed = 1;
 /// The first version that can hold adaptive M.
@@ -50,9 +51,12 @@ inline constexpr int kStatsFormatVersionSamples = 4;
 inline constexpr int kStatsFormatVersionAovs = 5;
 /// The first version that can hold compact files and AOVs with the deep part `vbuffers`.
 inline constexpr int kStatsFormatVersionCompact = 6;
-/// The version `--compact` writes: a compact file whose part moments holds the count and the
-/// spread only (a version-6 compact file also holds mean.* and variance.*, and still reads).
+/// A compact file whose part moments holds the count and the spread only (a version-6 compact
+/// file also holds mean.* and variance.*, and still reads).
 inline constexpr int kStatsFormatVersionSlimMoments = 7;
+/// The version `--compact` writes: version 7's layout, and a pixel that keeps one buffer (of M > 1)
+/// holds its mean in part beauty only, R = G = B = 0 in its deep sample (compactMeansInBeauty).
+inline constexpr int kStatsFormatVersionMeansInBeauty = 8;
 
 /// What an AOV channel holds, which decides how an operation combines its sub-buffers
 /// (docs/aovs.md). Every operation computes weights from the beauty once per output pixel; the
@@ -193,6 +197,14 @@ struct StatsHeader {
     /// The AOV channel index of `name`, or -1.
     int aovIndex(const std::string& name) const;
 };
+
+/// Version 8 (FORMAT.md "Version 8"): whether a file of `h` keeps the mean of each pixel that has
+/// one buffer of M > 1 in part beauty alone, its deep sample holding R = G = B = 0 (a compact
+/// file of version 8 or later). In memory nothing changes: the reader puts beauty's mean in the
+/// buffer, the writer requires them to be the same floats.
+inline bool compactMeansInBeauty(const StatsHeader& h) {
+    return h.compact && h.M > 1 && h.formatVersion >= kStatsFormatVersionMeansInBeauty;
+}
 
 /// The lowest format version that can hold what `h` describes: 5 for AOVs, beauty names other
 /// than R, G, B, a beauty part name or source metadata; 4 for the optional parts, 3 for
