@@ -78,7 +78,8 @@ std::vector<std::string> describeStatsHeader(const StatsHeader& h) {
     const bool slim = layout::momentsOf(h) == layout::Moments::Slim;
     if (slim)
         lines.push_back(
-            "  variance: not kept (a compact file of version 7 keeps the spread of the buffers "
+            "  variance: not kept (a compact file of version 7 or later keeps the spread of the "
+            "buffers "
             "--compare needs)");
     if (h.formatVersion >= kStatsFormatVersionProvenance && !slim) {
         // What version 3 says about where the data came from (FORMAT.md, "Version 3").

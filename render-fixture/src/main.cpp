@@ -210,7 +210,7 @@ void addPerSampleOptions(OIIO::ArgParse& ap, CommandLine& cl) {
         .action([&](OIIO::cspan<const char*>) { cl.aovs = true; });
     ap.arg("--compact")
         .help(
-            "write a compact file (format 7, docs/compact.md): a pixel keeps its sub-buffers only "
+            "write a compact file (format 8, docs/compact.md): a pixel keeps its sub-buffers only "
             "where G-MoN would trim one, else their mean, decided once every sample is in; G-MoN "
             "of the file equals the full file's bit for bit. Fixed M, without --keep-samples, "
             "--online or --resume")

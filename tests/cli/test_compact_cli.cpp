@@ -106,7 +106,7 @@ TEST_F(CompactCli, InfoCheckAndCompare) {
     ASSERT_EQ(mcstat(path("full.mcstat") + " --compact -o " + path("small.mcstat")).code, 0);
     auto r = mcstat(path("small.mcstat") + " --info");
     ASSERT_EQ(r.code, 0) << r.err;
-    EXPECT_NE(r.out.find("format 7"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("format 8"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("keep their 9 sub-buffers"), std::string::npos) << r.out;
     r = mcstat(path("small.mcstat") + " --check");
     EXPECT_EQ(r.code, 0) << r.err << r.out;

@@ -135,7 +135,7 @@ TEST(AovFormat, RequiredVersionIsFiveForTheInputsLayout) {
     e.compactRule = "gmon";
     EXPECT_EQ(requiredFormatVersion(e), kStatsFormatVersionCompact)
         << "a compact file of version 6 (moments with mean and variance) stays valid";
-    EXPECT_EQ(kStatsFormatVersion, kStatsFormatVersionSlimMoments);
+    EXPECT_EQ(kStatsFormatVersion, kStatsFormatVersionMeansInBeauty);
     EXPECT_EQ(kStatsAllParts, kStatsPartBeauty | kStatsPartBuffers | kStatsPartMoments |
                                   kStatsPartFeatures | kStatsPartAovs);
 }
@@ -944,10 +944,10 @@ TEST_F(AovCorrupt, BeautyAttributes) {
 }
 
 TEST_F(AovCorrupt, NewerVersionIsRefusedFirst) {
-    // What a version-7 reader says about version 8, as a version-4 reader said about version 5.
+    // What a version-8 reader says about version 9, as a version-4 reader said about version 5.
     setIntOnAll(parts, "mcstat:formatVersion", kStatsFormatVersion + 1);
     const std::string err = readError();
-    EXPECT_TRUE(contains(err, "written by a newer mcstat (format 8); this reader knows 7")) << err;
+    EXPECT_TRUE(contains(err, "written by a newer mcstat (format 9); this reader knows 8")) << err;
 }
 
 TEST_F(AovCorrupt, PartAovsInAnOlderVersion) {

@@ -637,7 +637,7 @@ TEST_F(Plugin, CompactFilesGiveTheFullFilesGMoNWithAovs) {
     EXPECT_TRUE(samePixels(a, b));
     r = run("oiiotool --info -v " + quote(small));
     ASSERT_EQ(r.code, 0) << r.err;
-    EXPECT_NE(r.out.find("mcstat:formatVersion: 7"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("mcstat:formatVersion: 8"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("mcstat:compact: \"gmon luma="), std::string::npos) << r.out;
 }
 
