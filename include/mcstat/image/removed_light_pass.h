@@ -37,6 +37,10 @@ std::vector<std::string> removedLightChannels();
 /// until finishRemovedLight replaces it by zlocal.
 void removedLightPixel(const float* rgb, float spreadMean, float spreadSe,
                        const std::array<double, 3>& luma, float out[5]);
+/// Where removedLightPixel's `out` holds the standard error and the luminance mean (before
+/// finishRemovedLight): an estimate() pass with PixelKernel::removedLight and no finish gives the
+/// buffers' luminance spread of every pixel along with the estimate (keep_light_image.cpp).
+inline constexpr int kPixelStepSe = 1, kPixelStepLumaMean = 3;
 
 /// The second step over `img`, whose channels [first, first + 5) hold removedLightPixel's values
 /// for the R, G, B of channels 0-2: the image's sums (in pixel order), removed.zlocal and
