@@ -19,7 +19,8 @@ namespace {
 /// own overloads of estimate() and windowFilter().
 template <class Source>
 bool runOperationOn(ImageBuf& dst, Source& src, const Operation& op, const ParamValues& values,
-                    const std::array<double, 3>& luma, bool diagnostics, ROI roi, int nthreads) {
+                    const std::array<double, 3>& luma, bool diagnostics, bool keepLight, ROI roi,
+                    int nthreads) {
     switch (op.input) {
         case InputKind::BufferMeans: {
             PixelKernel kernel = op.bindPixel(values, luma);
@@ -28,6 +29,14 @@ bool runOperationOn(ImageBuf& dst, Source& src, const Operation& op, const Param
             RemovedLightOptions removed;
             kernel.removedLight = removedLightValues(values, removed);
             kernel.removedLuma = luma;
+            if (keepLight) {
+                // What keeplight reads of the buffers, in this pass too (keep_light_image.h): the
+                // plain mean and the removed-light layers' per-pixel step (their luminance
+                // spread), which it takes off the result.
+                kernel.removedLight = true;
+                kernel.plainMeanLayers = true;
+                return estimate(dst, src, op, kernel, diagnostics, roi, nthreads);
+            }
             if (!estimate(dst, src, op, kernel, diagnostics, roi, nthreads)) return false;
             return !kernel.removedLight ||
                    finishRemovedLight(dst, dst.nchannels() - 5, luma, removed, nthreads);
@@ -85,7 +94,7 @@ bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const Par
             op.name);
         return false;
     }
-    if (!runOperationOn(dst, src, op, values, luma, diagnostics, roi, nthreads)) return false;
+    if (!runOperationOn(dst, src, op, values, luma, diagnostics, keep, roi, nthreads)) return false;
     return !keep || keepLight(dst, src, luma, keepLightParams(values), nthreads);
 }
 

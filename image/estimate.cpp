@@ -94,7 +94,10 @@ struct EstimatePass {
     bool diagnostics = false;
     size_t A = 0;  ///< the file's AOVs
     std::vector<std::string> names;
-    size_t firstCi = 0, firstAov = 0, firstRemoved = 0;
+    size_t firstCi = 0, firstAov = 0, firstRemoved = 0, firstPlainMean = 0;
+    /// PixelKernel::plainMeanLayers: the "mean" estimator's kernel, and the AOV output channels.
+    PixelKernel meanKernel;
+    size_t aovOutputs = 0;
     bool ci = false;
     std::vector<size_t> ciAov;  ///< the AOVs with intervals (ciAovs: all but the labels)
     std::vector<AovClass> classes;
@@ -121,6 +124,15 @@ struct EstimatePass {
         firstRemoved = names.size();
         if (kernel.removedLight)
             for (const std::string& n : removedLightChannels()) names.push_back(n);
+        aovOutputs = firstRemoved - firstAov;
+        // The plain mean's layers (keeplight), after all the others.
+        firstPlainMean = names.size();
+        if (kernel.plainMeanLayers) {
+            meanKernel = findOperation("mean")->bindPixel(ParamValues(), kernel.removedLuma);
+            for (size_t c = 0; c < 3; ++c) names.push_back(kPlainMeanPrefix + names[c]);
+            for (size_t a = firstAov; a < firstAov + aovOutputs; ++a)
+                names.push_back(kPlainMeanPrefix + names[a]);
+        }
         classes = aovClasses(h.aovs);
     }
 
@@ -169,7 +181,29 @@ struct PixelScratch {
     /// The run's estimates where the kernel gives them with the intervals
     /// (PixelKernel::estimatesWithIntervals), as runIntervals.
     std::vector<PixelEstimate> runEstimates;
+    /// PixelKernel::plainMeanLayers: the plain mean's own estimate and scratch.
+    EstimatorScratch meanScratch;
+    PixelEstimate meanEstimate;
 };
+
+/// PixelKernel::plainMeanLayers: the plain mean of pixel `p` (buffers `pb`) into `out`: R, G, B,
+/// then the AOVs as plainMean gives them (the "mean" estimator's weights applied to each AOV, or
+/// zeros where it gives none, which it always does). The same calls as a pass of the "mean"
+/// estimator, so the same bits.
+void plainMeanPixel(const EstimatePass& pass, size_t p, const PixelBuffers& pb, float* out,
+                    PixelScratch& w) {
+    w.meanScratch.wantWeights = pass.A > 0;
+    pass.meanKernel.estimate(pb, w.meanEstimate, w.meanScratch);
+    for (int c = 0; c < 3; ++c) out[c] = w.meanEstimate.rgb[size_t(c)];
+    if (pass.A == 0) return;
+    if (w.meanScratch.bufferWeight.size() != size_t(pb.M)) {
+        std::fill(out + 3, out + 3 + pass.aovOutputs, 0.f);
+        return;
+    }
+    applyAovWeights(w.meanScratch.bufferWeight.data(), size_t(pb.M),
+                    pass.src.aov.data() + pass.src.bufferBegin(p) * pass.A, pass.A,
+                    pass.classes.data(), out + 3, w.aovScratch);
+}
 
 /// The interval of R, G and B of pixel `p` when the estimate did not give it in its own pass: the
 /// kernel's own over the valid buffers, the expected value's (citarget=expected), a compact
@@ -291,6 +325,7 @@ bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& 
         aovIntervals(pass, p, pb, w, lo);
     }
     if (pass.diagnostics) writeDiagnostics(px, w.e, kernel.mode);
+    if (kernel.plainMeanLayers) plainMeanPixel(pass, p, pb, px + pass.firstPlainMean, w);
     return weighted;
 }
 

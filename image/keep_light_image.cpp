@@ -3,8 +3,11 @@
 // by blocks of rows, in parallel), then filters/keep_light.h's choice of scale and return.
 #include "mcstat/image/keep_light_image.h"
 
+#include <OpenImageIO/imagebufalgo.h>
+
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "mcstat/core/float_rounding.h"
 #include "mcstat/core/parallel.h"
@@ -81,6 +84,44 @@ bool meanWithSpread(ImageBuf& dst, Source& src, const std::array<double, 3>& lum
     return true;
 }
 
+/// The plain mean and its luminance spread that the operation's own pass appended to `robust`
+/// (PixelKernel::plainMeanLayers and the removed-light layers' per-pixel step: apply_operation.cpp)
+/// moved into `mean` as meanWithSpread gives them (R, G, B, the AOVs, then the step's channels
+/// from `spreadChannel` on), and taken off `robust`, which keeps exactly the operation's
+/// channels. `taken` false, with nothing changed, when `robust` holds no such layers; false on
+/// failure (the error on `mean`).
+bool takePassLayers(ImageBuf& robust, ImageBuf& mean, int& spreadChannel, bool& taken) {
+    taken = false;
+    const OIIO::ImageSpec& rs = robust.spec();
+    if (rs.nchannels < 3) return true;
+    const std::vector<std::string> step = removedLightChannels();
+    const int firstStep = rs.channelindex(step[0]);
+    const int firstMean = rs.channelindex(kPlainMeanPrefix + rs.channelnames[0]);
+    if (firstStep < 3 || firstMean != firstStep + int(step.size())) return true;
+    std::vector<int> order;
+    std::vector<std::string> names;
+    for (int c = firstMean; c < rs.nchannels; ++c) {
+        order.push_back(c);
+        names.push_back(rs.channelnames[size_t(c)].substr(std::strlen(kPlainMeanPrefix)));
+    }
+    spreadChannel = int(order.size());
+    for (size_t i = 0; i < step.size(); ++i) {
+        order.push_back(firstStep + int(i));
+        names.push_back(step[i]);
+    }
+    ImageBuf kept;
+    std::vector<int> own(static_cast<size_t>(firstStep));
+    for (int c = 0; c < firstStep; ++c) own[size_t(c)] = c;
+    if (!OIIO::ImageBufAlgo::channels(mean, robust, int(order.size()), order, {}, names) ||
+        !OIIO::ImageBufAlgo::channels(kept, robust, firstStep, own)) {
+        if (!mean.has_error()) mean.errorfmt("{}", kept.geterror());
+        return false;
+    }
+    robust = std::move(kept);
+    taken = true;
+    return true;
+}
+
 template <class Source>
 bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
                  const KeepLightParams& params, int nthreads) {
@@ -90,15 +131,22 @@ bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& lum
                         params.gamma, params.maxRadius);
         return false;
     }
+    // The plain mean and its spread from the operation's own pass where it gave them, else from
+    // a pass of their own.
+    ImageBuf mean;
+    int spreadChannel = 0;
+    bool taken = false;
+    if (!takePassLayers(robust, mean, spreadChannel, taken)) {
+        robust.errorfmt("keeplight: {}", mean.geterror());
+        return false;
+    }
     const OIIO::ImageSpec& rs = robust.spec();
     if (rs.nchannels < 3 || rs.format != OIIO::TypeDesc::FLOAT || !robust.localpixels()) {
         robust.errorfmt("keeplight: the result is not a float image with R, G, B first");
         return false;
     }
     const ROI roi = robust.roi();
-    ImageBuf mean;
-    int spreadChannel = 0;
-    if (!meanWithSpread(mean, src, luma, roi, nthreads, spreadChannel)) {
+    if (!taken && !meanWithSpread(mean, src, luma, roi, nthreads, spreadChannel)) {
         robust.errorfmt("keeplight: {}", mean.geterror());
         return false;
     }

@@ -104,8 +104,10 @@ void BM_Layers(benchmark::State& state, const Operation* est, const std::string&
     }
     PixelKernel kernel = est->bindPixel(values, lumaCoefficients());
     bindConfidence(kernel, values);
-    // The removed light as applyOperation computes it for a per-pixel estimator: in its pass.
-    kernel.removedLight = what == "removed";
+    // The removed light as applyOperation computes it for a per-pixel estimator: in its pass;
+    // with keeplight, the plain mean and the removed light's per-pixel step in that pass too.
+    kernel.removedLight = what == "removed" || what == "keeplight";
+    kernel.plainMeanLayers = what == "keeplight";
     kernel.removedLuma = lumaCoefficients();
     OIIO::ImageBuf out;
     for (auto _ : state) {

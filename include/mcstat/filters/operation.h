@@ -101,7 +101,15 @@ struct PixelKernel {
     /// (image/removed_light_pass.h), with the working space's luminance weights.
     bool removedLight = false;
     std::array<double, 3> removedLuma{};
+    /// Set by the caller (the image layer, for keeplight): the plain mean of the pixel's R, G, B
+    /// and AOVs, the "mean" estimator's values bit for bit, appended after every other layer as
+    /// kPlainMeanPrefix + name, from this pass while the pixel's buffers are at hand (keeplight
+    /// takes them and removes them: one read of a file's buffers instead of two).
+    bool plainMeanLayers = false;
 };
+
+/// The prefix of the layers PixelKernel::plainMeanLayers appends ("keeplight.mean.R", ...).
+inline constexpr const char* kPlainMeanPrefix = "keeplight.mean.";
 /// Binds parsed values (every parameter of the operation, defaults applied) and the luminance
 /// weights (from the colour config) to the operation's own parameter struct and kernel.
 using BindPixelFn = PixelKernel (*)(const ParamValues& values, const std::array<double, 3>& luma);
