@@ -17,6 +17,7 @@
 #include "mcstat/filters/pixel/detail/rank_keys.h"
 #include "mcstat/filters/registry.h"
 #include "mcstat/image/imageops.h"
+#include "mcstat/image/keep_light_image.h"
 #include "mcstat/image/removed_light_layers.h"
 #include "mcstat/image/removed_light_pass.h"
 
@@ -284,6 +285,57 @@ TEST(RemovedLightLayers, InPassEqualsAppendedBitForBit) {
                                   appended.spec().get_float_attribute(a))
                             << name << " " << a;
                 }
+        }
+    }
+}
+
+// keeplight over a per-pixel estimator reads the buffers once: the estimate's own pass gives the
+// plain mean (R, G, B and the AOVs) and the buffers' luminance spread as layers keeplight takes
+// off (PixelKernel::plainMeanLayers). The result equals, bit for bit and channel for channel,
+// keeplight after the plain estimate, which computes the two in a pass of their own: every
+// per-pixel estimator, M = 9 and 21, invalid buffers and extreme values, AOVs of every class (a
+// light group that sums with the beauty, alpha, a data pass, a label), one and two threads.
+TEST(KeepLightLayers, InPassEqualsASeparatePassBitForBit) {
+    const std::array<double, 3> luma{0.2126, 0.7152, 0.0722};
+    for (const int M : {9, 21}) {
+        StatsImage s = randomImage(37, 9, M, 11u + unsigned(M));
+        s.header.aovs = {{"A", AovClass::Alpha, ""},
+                         {"key.R", AovClass::Light, ""},
+                         {"N.X", AovClass::Data, ""},
+                         {"IndexOB", AovClass::Id, ""}};
+        s.header.formatVersion = requiredFormatVersion(s.header);
+        s.aov.resize(s.bufferMean.size() / 3 * s.header.aovs.size());
+        for (size_t k = 0; k < s.bufferCount.size(); ++k) {
+            s.aov[k * 4] = 1.f;
+            s.aov[k * 4 + 1] = 0.5f * s.bufferMean[k * 3];
+            s.aov[k * 4 + 2] = float(k % 7) / 7.f;
+            s.aov[k * 4 + 3] = float(k % 3);
+        }
+        for (const char* name : {"mean", "median", "mon", "gmon", "gmonb", "tmpe"}) {
+            const Operation& op = *findOperation(name);
+            ParamValues plain, keep;
+            std::string err;
+            ASSERT_TRUE(parseOperationParams(op, {}, plain, err)) << err;
+            keep = plain;
+            keep["keeplight"].integer = 1;
+            for (const int threads : {1, 2}) {
+                OIIO::ImageBuf inPass, separate;
+                ASSERT_TRUE(applyOperation(inPass, s, op, keep, luma, false, {}, threads))
+                    << inPass.geterror();
+                ASSERT_TRUE(applyOperation(separate, s, op, plain, luma, false, {}, threads))
+                    << separate.geterror();
+                ASSERT_TRUE(keepLight(separate, s, luma, KeepLightParams(), threads))
+                    << separate.geterror();
+                ASSERT_EQ(inPass.spec().channelnames, separate.spec().channelnames) << name;
+                EXPECT_EQ(inPass.spec().alpha_channel, separate.spec().alpha_channel) << name;
+                const size_t n = size_t(inPass.spec().image_pixels()) * size_t(inPass.nchannels());
+                EXPECT_EQ(
+                    0, std::memcmp(inPass.localpixels(), separate.localpixels(), n * sizeof(float)))
+                    << name << " M " << M << " threads " << threads;
+                EXPECT_EQ(inPass.spec().get_float_attribute("mcstat:keeplight:returned"),
+                          separate.spec().get_float_attribute("mcstat:keeplight:returned"))
+                    << name;
+            }
         }
     }
 }
