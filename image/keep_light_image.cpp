@@ -3,8 +3,6 @@
 // by blocks of rows, in parallel), then filters/keep_light.h's choice of scale and return.
 #include "mcstat/image/keep_light_image.h"
 
-#include <OpenImageIO/imagebufalgo.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -88,37 +86,50 @@ bool meanWithSpread(ImageBuf& dst, Source& src, const std::array<double, 3>& lum
 /// (PixelKernel::plainMeanLayers and the removed-light layers' per-pixel step: apply_operation.cpp)
 /// moved into `mean` as meanWithSpread gives them (R, G, B, the AOVs, then the step's channels
 /// from `spreadChannel` on), and taken off `robust`, which keeps exactly the operation's
-/// channels. `taken` false, with nothing changed, when `robust` holds no such layers; false on
-/// failure (the error on `mean`).
-bool takePassLayers(ImageBuf& robust, ImageBuf& mean, int& spreadChannel, bool& taken) {
-    taken = false;
+/// channels. False, with nothing changed, when `robust` holds no such layers. Plain copies, rows
+/// in parallel.
+bool takePassLayers(ImageBuf& robust, ImageBuf& mean, int& spreadChannel, int nthreads) {
     const OIIO::ImageSpec& rs = robust.spec();
-    if (rs.nchannels < 3) return true;
+    if (rs.nchannels < 3 || rs.format != OIIO::TypeDesc::FLOAT || !robust.localpixels())
+        return false;
     const std::vector<std::string> step = removedLightChannels();
     const int firstStep = rs.channelindex(step[0]);
     const int firstMean = rs.channelindex(kPlainMeanPrefix + rs.channelnames[0]);
-    if (firstStep < 3 || firstMean != firstStep + int(step.size())) return true;
+    if (firstStep < 3 || firstMean != firstStep + int(step.size())) return false;
+    // mean: the plain mean's channels under their own names, then the step's.
     std::vector<int> order;
-    std::vector<std::string> names;
+    OIIO::ImageSpec ms(rs.width, rs.height, 0, OIIO::TypeDesc::FLOAT);
+    ms.x = rs.x;
+    ms.y = rs.y;
     for (int c = firstMean; c < rs.nchannels; ++c) {
         order.push_back(c);
-        names.push_back(rs.channelnames[size_t(c)].substr(std::strlen(kPlainMeanPrefix)));
+        ms.channelnames.push_back(rs.channelnames[size_t(c)].substr(std::strlen(kPlainMeanPrefix)));
     }
     spreadChannel = int(order.size());
     for (size_t i = 0; i < step.size(); ++i) {
         order.push_back(firstStep + int(i));
-        names.push_back(step[i]);
+        ms.channelnames.push_back(step[i]);
     }
-    ImageBuf kept;
-    std::vector<int> own(static_cast<size_t>(firstStep));
-    for (int c = 0; c < firstStep; ++c) own[size_t(c)] = c;
-    if (!OIIO::ImageBufAlgo::channels(mean, robust, int(order.size()), order, {}, names) ||
-        !OIIO::ImageBufAlgo::channels(kept, robust, firstStep, own)) {
-        if (!mean.has_error()) mean.errorfmt("{}", kept.geterror());
-        return false;
-    }
+    ms.nchannels = int(order.size());
+    // robust: its own channels, spec and metadata as they were (alpha and depth come before).
+    OIIO::ImageSpec ks = rs;
+    ks.nchannels = firstStep;
+    ks.channelnames.resize(size_t(firstStep));
+    ks.channelformats.clear();
+    ImageBuf kept(ks, OIIO::InitializePixels::No);
+    mean.reset(ms, OIIO::InitializePixels::No);
+    const size_t nin = size_t(rs.nchannels), nk = size_t(firstStep), nm = order.size();
+    const float* src = static_cast<const float*>(robust.localpixels());
+    float* kp = static_cast<float*>(kept.localpixels());
+    float* mp = static_cast<float*>(mean.localpixels());
+    parallelFor(0, rs.height, 0, nthreads, [&](int64_t yb, int64_t ye) {
+        for (size_t p = size_t(yb) * size_t(rs.width); p < size_t(ye) * size_t(rs.width); ++p) {
+            const float* q = src + p * nin;
+            std::copy(q, q + nk, kp + p * nk);
+            for (size_t i = 0; i < nm; ++i) mp[p * nm + i] = q[order[i]];
+        }
+    });
     robust = std::move(kept);
-    taken = true;
     return true;
 }
 
@@ -135,11 +146,7 @@ bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& lum
     // a pass of their own.
     ImageBuf mean;
     int spreadChannel = 0;
-    bool taken = false;
-    if (!takePassLayers(robust, mean, spreadChannel, taken)) {
-        robust.errorfmt("keeplight: {}", mean.geterror());
-        return false;
-    }
+    const bool taken = takePassLayers(robust, mean, spreadChannel, nthreads);
     const OIIO::ImageSpec& rs = robust.spec();
     if (rs.nchannels < 3 || rs.format != OIIO::TypeDesc::FLOAT || !robust.localpixels()) {
         robust.errorfmt("keeplight: the result is not a float image with R, G, B first");
