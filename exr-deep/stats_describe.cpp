@@ -79,8 +79,7 @@ std::vector<std::string> describeStatsHeader(const StatsHeader& h) {
     if (slim)
         lines.push_back(
             "  variance: not kept (a compact file of version 7 or later keeps the spread of the "
-            "buffers "
-            "--compare needs)");
+            "buffers --compare needs)");
     if (h.formatVersion >= kStatsFormatVersionProvenance && !slim) {
         // What version 3 says about where the data came from (FORMAT.md, "Version 3").
         const char* variance = h.variance == kVarianceSamples ? "from every sample (Welford)"

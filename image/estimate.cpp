@@ -95,9 +95,8 @@ struct EstimatePass {
     size_t A = 0;  ///< the file's AOVs
     std::vector<std::string> names;
     size_t firstCi = 0, firstAov = 0, firstRemoved = 0, firstPlainMean = 0;
-    /// PixelKernel::plainMeanLayers: the "mean" estimator's kernel, and the AOV output channels.
+    /// PixelKernel::plainMeanLayers: the "mean" estimator's kernel.
     PixelKernel meanKernel;
-    size_t aovOutputs = 0;
     bool ci = false;
     std::vector<size_t> ciAov;  ///< the AOVs with intervals (ciAovs: all but the labels)
     std::vector<AovClass> classes;
@@ -124,13 +123,12 @@ struct EstimatePass {
         firstRemoved = names.size();
         if (kernel.removedLight)
             for (const std::string& n : removedLightChannels()) names.push_back(n);
-        aovOutputs = firstRemoved - firstAov;
         // The plain mean's layers (keeplight), after all the others.
         firstPlainMean = names.size();
         if (kernel.plainMeanLayers) {
             meanKernel = findOperation("mean")->bindPixel(ParamValues(), kernel.removedLuma);
             for (size_t c = 0; c < 3; ++c) names.push_back(kPlainMeanPrefix + names[c]);
-            for (size_t a = firstAov; a < firstAov + aovOutputs; ++a)
+            for (size_t a = firstAov; a < firstAov + A; ++a)
                 names.push_back(kPlainMeanPrefix + names[a]);
         }
         classes = aovClasses(h.aovs);
@@ -186,23 +184,29 @@ struct PixelScratch {
     PixelEstimate meanEstimate;
 };
 
+/// Pixel `p`'s A AOV values (buffers `pb`) into `out` with the buffer weights an estimate left
+/// in `weight` (applyAovWeights); false, with zeros, when it left none.
+bool weightedAovs(const EstimatePass& pass, size_t p, const PixelBuffers& pb,
+                  const std::vector<double>& weight, float* out, AovScratch& s) {
+    if (weight.size() != size_t(pb.M)) {
+        std::fill(out, out + pass.A, 0.f);
+        return false;
+    }
+    applyAovWeights(weight.data(), size_t(pb.M),
+                    pass.src.aov.data() + pass.src.bufferBegin(p) * pass.A, pass.A,
+                    pass.classes.data(), out, s);
+    return true;
+}
+
 /// PixelKernel::plainMeanLayers: the plain mean of pixel `p` (buffers `pb`) into `out`: R, G, B,
-/// then the AOVs as plainMean gives them (the "mean" estimator's weights applied to each AOV, or
-/// zeros where it gives none, which it always does). The same calls as a pass of the "mean"
+/// then the AOVs with the "mean" estimator's weights. The same calls as a pass of the "mean"
 /// estimator, so the same bits.
 void plainMeanPixel(const EstimatePass& pass, size_t p, const PixelBuffers& pb, float* out,
                     PixelScratch& w) {
     w.meanScratch.wantWeights = pass.A > 0;
     pass.meanKernel.estimate(pb, w.meanEstimate, w.meanScratch);
     for (int c = 0; c < 3; ++c) out[c] = w.meanEstimate.rgb[size_t(c)];
-    if (pass.A == 0) return;
-    if (w.meanScratch.bufferWeight.size() != size_t(pb.M)) {
-        std::fill(out + 3, out + 3 + pass.aovOutputs, 0.f);
-        return;
-    }
-    applyAovWeights(w.meanScratch.bufferWeight.data(), size_t(pb.M),
-                    pass.src.aov.data() + pass.src.bufferBegin(p) * pass.A, pass.A,
-                    pass.classes.data(), out + 3, w.aovScratch);
+    if (pass.A > 0) weightedAovs(pass, p, pb, w.meanScratch.bufferWeight, out + 3, w.aovScratch);
 }
 
 /// The interval of R, G and B of pixel `p` when the estimate did not give it in its own pass: the
@@ -296,17 +300,8 @@ bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& 
         w.e = *givenEstimate;
     else
         kernel.estimate(pb, w.e, w.scratch);
-    bool weighted = true;
-    if (A > 0) {
-        if (w.scratch.bufferWeight.size() != size_t(pb.M)) {
-            weighted = false;
-            std::fill(px + pass.firstAov, px + pass.names.size(), 0.f);
-        } else {
-            applyAovWeights(w.scratch.bufferWeight.data(), size_t(pb.M),
-                            src.aov.data() + src.bufferBegin(p) * A, A, pass.classes.data(),
-                            px + pass.firstAov, w.aovScratch);
-        }
-    }
+    const bool weighted = A == 0 || weightedAovs(pass, p, pb, w.scratch.bufferWeight,
+                                                 px + pass.firstAov, w.aovScratch);
     px[0] = w.e.rgb[0];
     px[1] = w.e.rgb[1];
     px[2] = w.e.rgb[2];

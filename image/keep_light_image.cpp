@@ -10,7 +10,6 @@
 #include "mcstat/core/float_rounding.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/image/imageops.h"
-#include "mcstat/image/removed_light_layers.h"
 #include "mcstat/image/removed_light_pass.h"
 
 namespace mcstat {
@@ -65,7 +64,7 @@ bool albedoGuide(StatsBlockSource& src, const std::array<double, 3>& luma, std::
 /// buffers, their luminance spread: the removed-light layers' per-pixel step
 /// (removed_light_pass.h), whose channels kPixelStepLumaMean and kPixelStepSe from
 /// `spreadChannel` on hold the buffers' luminance mean and its standard error, the same floats
-/// as lumaSpreadImage's. One read of every buffer instead of two.
+/// as lumaSpreadImage's (removed_light_layers.h). One read of every buffer instead of two.
 template <class Source>
 bool meanWithSpread(ImageBuf& dst, Source& src, const std::array<double, 3>& luma, ROI roi,
                     int nthreads, int& spreadChannel) {
