@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 
 #include "mcstat/core/parallel.h"
@@ -283,15 +284,53 @@ std::vector<double> guideSums(const float* guide, int width, int height, int r, 
     return sums;
 }
 
+/// The sources of one gather: at each sender p (need[p]) that `mine` picks, its residual
+/// divided by its window's weight sum share(p, x, y); 0 elsewhere (a row that held something and
+/// holds no sender now is cleared). rowHas[y]: row y holds a nonzero value.
+template <class Mine, class Share>
+void senderRows(const double* residual, const std::vector<uint8_t>& need,
+                const std::vector<uint8_t>& rowNeed, Mine mine, Share share, int width, int height,
+                size_t nc, std::vector<double>& source, std::vector<uint8_t>& rowHas,
+                int nthreads) {
+    const size_t w = size_t(width);
+    parallelFor(0, height, 0, nthreads, [&](int64_t yb, int64_t ye) {
+        for (int y = int(yb); y < int(ye); ++y) {
+            double* row = source.data() + size_t(y) * w * nc;
+            if (!rowNeed[size_t(y)]) {
+                if (rowHas[size_t(y)]) std::fill(row, row + w * nc, 0.0);
+                rowHas[size_t(y)] = 0;
+                continue;
+            }
+            bool any = false;
+            for (int x = 0; x < width; ++x) {
+                const size_t p = size_t(y) * w + size_t(x);
+                const bool from = need[p] && mine(p);
+                const double sum = from ? share(p, x, y) : 1.0;
+                for (size_t c = 0; c < nc; ++c) {
+                    const double v = residual[p * nc + c];
+                    double s = 0.0;
+                    if (from && v != 0.0 && std::isfinite(v)) {
+                        s = v / sum;
+                        any = true;
+                    }
+                    row[size_t(x) * nc + c] = s;
+                }
+            }
+            rowHas[size_t(y)] = any;
+        }
+    });
+}
+
 }  // namespace
 
 void returnResidual(const float* robust, const double* residual, const uint8_t* scale,
                     const std::vector<int>& radii, int width, int height, int nch, float* out,
-                    int nthreads, const float* guide) {
+                    int nthreads, const float* guide, const float* clusterGuide) {
     const size_t w = size_t(width), n = w * size_t(height), nc = size_t(nch);
-    // What each pixel receives, per channel: `plain` by the tent alone, `guided` to be multiplied
-    // by the pixel's guide value.
-    std::vector<double> plain(n * nc, 0.0), guided(guide ? n * nc : 0, 0.0);
+    // What each pixel receives, per channel: `plain` by the tent alone, `guided` and `clustered`
+    // to be multiplied by the pixel's guide and cluster guide values.
+    std::vector<double> plain(n * nc, 0.0), guided(guide ? n * nc : 0, 0.0),
+        clustered(clusterGuide ? n * nc : 0, 0.0);
     std::vector<double> source, rows;
     // need[p]: p sends light at the radius at hand; rowNeed: its row holds such a p; rowHas: the
     // source's row holds a nonzero value (the others are 0).
@@ -324,42 +363,35 @@ void returnResidual(const float* robust, const double* residual, const uint8_t* 
         }
         // With a guide, p's light goes to q in proportion to tent(q - p) guide[q]: its weights
         // over the window sum to 1 when divided by the guide's tent sum at p. A window whose guide
-        // is 0 everywhere (no surface to put the light on) takes the tent alone.
+        // is 0 everywhere (no surface to put the light on) takes the next: the cluster guide
+        // (radius 1 only), the guide, the tent alone.
+        enum Kernel : int { kByCluster, kByGuide, kByTent };
+        const bool byCluster = clusterGuide && r == 1;
+        const std::vector<double> clusterNorm =
+            byCluster ? guideSums(clusterGuide, width, height, r, nthreads) : std::vector<double>();
         const std::vector<double> norm =
             guide ? guideSums(guide, width, height, r, nthreads) : std::vector<double>();
-        for (const bool byGuide : {true, false}) {
-            if (byGuide && !guide) continue;
-            parallelFor(0, height, 0, nthreads, [&](int64_t yb, int64_t ye) {
-                for (int y = int(yb); y < int(ye); ++y) {
-                    double* row = source.data() + size_t(y) * w * nc;
-                    if (!rowNeed[size_t(y)]) {
-                        if (rowHas[size_t(y)]) std::fill(row, row + w * nc, 0.0);
-                        rowHas[size_t(y)] = 0;
-                        continue;
-                    }
-                    const double wy = tentSumClosed(y, r, height);
-                    bool any = false;
-                    for (int x = 0; x < width; ++x) {
-                        const size_t p = size_t(y) * w + size_t(x);
-                        const bool mine = guide && norm[p] > 0.0;
-                        const bool from = need[p] && mine == byGuide;
-                        const double share =
-                            from ? (byGuide ? norm[p] : tentSumClosed(x, r, width) * wy) : 1.0;
-                        for (size_t c = 0; c < nc; ++c) {
-                            const double v = residual[p * nc + c];
-                            double s = 0.0;
-                            if (from && v != 0.0 && std::isfinite(v)) {
-                                s = v / share;
-                                any = true;
-                            }
-                            row[size_t(x) * nc + c] = s;
-                        }
-                    }
-                    rowHas[size_t(y)] = any;
-                }
-            });
+        auto kernelOf = [&](size_t p) {
+            if (byCluster && clusterNorm[p] > 0.0) return kByCluster;
+            if (guide && norm[p] > 0.0) return kByGuide;
+            return kByTent;
+        };
+        for (const Kernel kernel : {kByCluster, kByGuide, kByTent}) {
+            if ((kernel == kByCluster && !byCluster) || (kernel == kByGuide && !guide)) continue;
+            auto share = [&](size_t p, int x, int y) {
+                return kernel == kByCluster ? clusterNorm[p]
+                       : kernel == kByGuide
+                           ? norm[p]
+                           : tentSumClosed(x, r, width) * tentSumClosed(y, r, height);
+            };
+            senderRows(
+                residual, need, rowNeed, [&](size_t p) { return kernelOf(p) == kernel; }, share,
+                width, height, nc, source, rowHas, nthreads);
             if (std::any_of(rowHas.begin(), rowHas.end(), [](uint8_t v) { return v != 0; }))
-                gatherTent(source, rowHas, width, height, r, nc, rows, byGuide ? guided : plain,
+                gatherTent(source, rowHas, width, height, r, nc, rows,
+                           kernel == kByCluster ? clustered
+                           : kernel == kByGuide ? guided
+                                                : plain,
                            nthreads);
         }
     }
@@ -367,10 +399,36 @@ void returnResidual(const float* robust, const double* residual, const uint8_t* 
         for (size_t q = size_t(b); q < size_t(e); ++q)
             for (size_t c = 0; c < nc; ++c) {
                 const size_t i = q * nc + c;
-                const double add = plain[i] + (guide ? double(guide[q]) * guided[i] : 0.0);
+                const double add = plain[i] + (guide ? double(guide[q]) * guided[i] : 0.0) +
+                                   (clusterGuide ? double(clusterGuide[q]) * clustered[i] : 0.0);
                 out[i] = add != 0.0 ? float(double(robust[i]) + add) : robust[i];
             }
     });
+}
+
+std::vector<float> keepLightClusterGuide(const float* d, int width, int height, int nthreads) {
+    const size_t w = size_t(width), n = w * size_t(height);
+    std::vector<float> g(n, 0.f);
+    auto at = [&](int x, int y) {
+        const float v = d[size_t(y) * w + size_t(x)];
+        return std::isfinite(v) && v > 0.f ? double(v) : 0.0;
+    };
+    parallelFor(0, height, 0, nthreads, [&](int64_t yb, int64_t ye) {
+        for (int y = int(yb); y < int(ye); ++y)
+            for (int x = 0; x < width; ++x) {
+                double sum = 0.0, weight = 0.0;
+                for (int dy = -1; dy <= 1; ++dy)
+                    for (int dx = -1; dx <= 1; ++dx) {
+                        const int qx = x + dx, qy = y + dy;
+                        if (qx < 0 || qy < 0 || qx >= width || qy >= height) continue;
+                        const double t = double((2 - std::abs(dx)) * (2 - std::abs(dy)));
+                        sum += t * at(qx, qy);
+                        weight += t;
+                    }
+                g[size_t(y) * w + size_t(x)] = float(sum / weight);
+            }
+    });
+    return g;
 }
 
 }  // namespace mcstat

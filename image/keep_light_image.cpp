@@ -218,8 +218,10 @@ bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& lum
     if (guide.size() != n ||
         std::all_of(guide.begin(), guide.end(), [](float g) { return g == 0.f; }))
         guide.clear();
+    // A supported cluster's light goes where its own light was found (keep_light.h).
+    const std::vector<float> cluster = keepLightClusterGuide(d.data(), width, height, nthreads);
     returnResidual(values.data(), residual.data(), scale.data(), radii, width, height, int(nc),
-                   out.data(), nthreads, guide.empty() ? nullptr : guide.data());
+                   out.data(), nthreads, guide.empty() ? nullptr : guide.data(), cluster.data());
     double returnedY = 0.0;
     for (size_t p = 0; p < n; ++p) {
         double y = 0.0;

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <limits>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "mcstat/filters/keep_light.h"
@@ -219,6 +220,50 @@ TEST(KeepLight, ASmallCausticOfFireflyLikePixelsIsKeptClose) {
         }
 }
 
+// A thin caustic, a line of one-pixel-wide events whose 3 x 3 neighbourhoods are significant
+// together (z = 15 / sqrt(3 * 16) = 2.17): each pixel keeps radius 1, and by the cluster guide
+// its light stays on its line. By hand, at the line's middle: the guide is (2 + 4 + 2) 5 / 16 =
+// 2.5 on the line and (1 + 2 + 1) 5 / 16 = 1.25 beside it; a sender's tent puts 2, 4, 2 on its
+// row and 1, 2, 1 on each row beside it, so its window's guided sum is 8 x 2.5 + 2 x 4 x 1.25 =
+// 30. A pixel on the line gets 5 x 8 x 2.5 / 30 = 10 / 3 from its three senders, one beside it
+// 5 x 4 x 1.25 / 30 = 5 / 6: 2 / 3 of the light stays on the line, where the tent alone keeps
+// half (5 x 8 / 16 = 2.5 on the line, 5 x 4 / 16 = 1.25 beside it).
+TEST(KeepLight, AThinCausticStaysOnItsLine) {
+    Field f(64, 64, 1);
+    for (int x = 10; x < 54; ++x) {
+        const size_t p = f.at(x, 30);
+        f.residual[p] = 5.0;
+        f.d[p] = 5.f;
+        f.se[p] = 4.f;
+        f.active[p] = 1;
+    }
+    const std::vector<int> radii = keepLightRadii(32);
+    std::vector<uint8_t> scale(f.d.size());
+    keepLightScales(f.d.data(), f.se.data(), f.active.data(), f.w, f.h, {}, scale.data(), 2);
+    for (int x = 11; x < 53; ++x) ASSERT_EQ(radii[scale[f.at(x, 30)]], 1) << x;
+    // The two ends, whose 3 x 3 neighbourhoods hold two events (z = 1.77), go wide; kept at radius
+    // 1 here, so that nothing but the line's own light reaches the pixels checked by hand.
+    scale[f.at(10, 30)] = scale[f.at(53, 30)] = scale[f.at(30, 30)];
+    const std::vector<float> cluster = keepLightClusterGuide(f.d.data(), f.w, f.h, 2);
+    EXPECT_FLOAT_EQ(cluster[f.at(30, 30)], 2.5f);
+    EXPECT_FLOAT_EQ(cluster[f.at(30, 29)], 1.25f);
+    EXPECT_FLOAT_EQ(cluster[f.at(30, 28)], 0.f);
+    std::vector<float> guided(f.robust.size()), tent(f.robust.size());
+    returnResidual(f.robust.data(), f.residual.data(), scale.data(), radii, f.w, f.h, 1,
+                   guided.data(), 2, nullptr, cluster.data());
+    returnResidual(f.robust.data(), f.residual.data(), scale.data(), radii, f.w, f.h, 1,
+                   tent.data(), 2);
+    EXPECT_NEAR(guided[f.at(30, 30)], 10.0 / 3.0, 1e-6);
+    EXPECT_NEAR(guided[f.at(30, 29)], 5.0 / 6.0, 1e-6);
+    EXPECT_NEAR(guided[f.at(30, 31)], 5.0 / 6.0, 1e-6);
+    EXPECT_EQ(guided[f.at(30, 28)], 0.f);
+    EXPECT_NEAR(tent[f.at(30, 30)], 2.5, 1e-6);
+    EXPECT_NEAR(tent[f.at(30, 29)], 1.25, 1e-6);
+    double total = 0.0;
+    for (float v : guided) total += v;
+    EXPECT_NEAR(total, 44 * 5.0, 1e-9 * 220.0 + 1e-5);
+}
+
 // AOVs go back by the beauty's kernels: where two light groups summed to the beauty's residual,
 // the returned groups sum to the returned beauty (to float rounding).
 TEST(KeepLight, AovsThatSummedToTheBeautyStillSum) {
@@ -256,33 +301,39 @@ TEST(KeepLight, AovsThatSummedToTheBeautyStillSum) {
 }
 
 /// The return written the plain way: every q sums, over every p, residual(p) times p's weight at
-/// q, t(q - p) g(q) / sum over q' inside the image of t(q' - p) g(q') (g = 1 without a guide, and
-/// where p's window has no guide).
+/// q, t(q - p) g(q) / sum over q' inside the image of t(q' - p) g(q'). g is the cluster guide for
+/// a window of radius 1, else the guide, else 1 (without one, or where p's window has none).
 std::vector<double> directReturn(const Field& f, int nch, const std::vector<uint8_t>& scale,
-                                 const std::vector<int>& radii, const float* guide) {
+                                 const std::vector<int>& radii, const float* guide,
+                                 const float* clusterGuide = nullptr) {
     std::vector<double> out(f.robust.begin(), f.robust.end());
     for (int py = 0; py < f.h; ++py)
         for (int px = 0; px < f.w; ++px) {
             const size_t p = f.at(px, py);
             const int r = radii[scale[p]];
-            auto g = [&](int x, int y) { return guide ? double(guide[f.at(x, y)]) : 1.0; };
             auto t = [&](int x, int y) {
                 return double(r + 1 - std::abs(x - px)) * double(r + 1 - std::abs(y - py));
             };
-            double norm = 0.0, plainNorm = 0.0;
-            for (int y = std::max(0, py - r); y <= std::min(f.h - 1, py + r); ++y)
-                for (int x = std::max(0, px - r); x <= std::min(f.w - 1, px + r); ++x) {
-                    norm += t(x, y) * g(x, y);
-                    plainNorm += t(x, y);
-                }
-            const bool byGuide = norm > 0.0;
+            auto normOf = [&](const float* g) {
+                double norm = 0.0;
+                for (int y = std::max(0, py - r); y <= std::min(f.h - 1, py + r); ++y)
+                    for (int x = std::max(0, px - r); x <= std::min(f.w - 1, px + r); ++x)
+                        norm += t(x, y) * (g ? double(g[f.at(x, y)]) : 1.0);
+                return norm;
+            };
+            const float* g = nullptr;
+            if (clusterGuide && r == 1 && normOf(clusterGuide) > 0.0)
+                g = clusterGuide;
+            else if (guide && normOf(guide) > 0.0)
+                g = guide;
+            const double norm = normOf(g);
             for (int y = std::max(0, py - r); y <= std::min(f.h - 1, py + r); ++y)
                 for (int x = std::max(0, px - r); x <= std::min(f.w - 1, px + r); ++x)
                     for (int c = 0; c < nch; ++c) {
                         const double v = f.residual[p * size_t(nch) + size_t(c)];
                         if (v == 0.0 || !std::isfinite(v)) continue;
                         out[f.at(x, y) * size_t(nch) + size_t(c)] +=
-                            byGuide ? v * t(x, y) * g(x, y) / norm : v * t(x, y) / plainNorm;
+                            v * t(x, y) * (g ? double(g[f.at(x, y)]) : 1.0) / norm;
                     }
         }
     return out;
@@ -307,16 +358,21 @@ TEST(KeepLight, TheGatherEqualsThePlainSums) {
             std::vector<uint8_t> scale(f.d.size());
             for (size_t p = 0; p < scale.size(); ++p) scale[p] = uint8_t(p % 3);
             const std::vector<int> radii = {0, std::min(r, 2), r};
-            for (const float* g :
-                 {static_cast<const float*>(nullptr), static_cast<const float*>(guide.data())}) {
+            // A cluster guide that is 0 over whole windows in places (d <= 0 there).
+            const std::vector<float> cluster = keepLightClusterGuide(f.d.data(), f.w, f.h, 2);
+            using Guides = std::pair<const float*, const float*>;
+            const float* const g0 = guide.data();
+            const float* const c0 = cluster.data();
+            for (const auto& [g, cg] : {Guides{nullptr, nullptr}, Guides{g0, nullptr},
+                                        Guides{nullptr, c0}, Guides{g0, c0}}) {
                 std::vector<float> out(f.robust.size());
                 returnResidual(f.robust.data(), f.residual.data(), scale.data(), radii, f.w, f.h, 3,
-                               out.data(), 2, g);
-                const std::vector<double> want = directReturn(f, 3, scale, radii, g);
+                               out.data(), 2, g, cg);
+                const std::vector<double> want = directReturn(f, 3, scale, radii, g, cg);
                 for (size_t i = 0; i < out.size(); ++i)
                     ASSERT_NEAR(out[i], want[i], 1e-6 * std::fabs(want[i]) + 1e-4)
-                        << "seed " << seed << " r " << r << " guide " << (g != nullptr) << " at "
-                        << i;
+                        << "seed " << seed << " r " << r << " guide " << (g != nullptr)
+                        << " cluster guide " << (cg != nullptr) << " at " << i;
             }
         }
     }

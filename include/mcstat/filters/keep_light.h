@@ -71,8 +71,21 @@ void keepLightScales(const float* d, const float* se, const uint8_t* active, int
 /// weights divided by their sum over p's window: light stays off what has no surface (guide 0:
 /// the background, black surfaces) and each window still returns all of its pixel's light. A
 /// window whose guide is 0 everywhere takes the tent alone.
+///
+/// With `clusterGuide` (keepLightClusterGuide), a window of radius 1, a supported cluster's
+/// (keepLightScales), takes it instead of `guide`: the cluster's light goes where its own light
+/// was found, so a thin caustic stays on its line instead of the tent's square around it. A
+/// window of radius 1 whose cluster guide is 0 everywhere takes `guide`, then the tent.
 void returnResidual(const float* robust, const double* residual, const uint8_t* scale,
                     const std::vector<int>& radii, int width, int height, int nch, float* out,
-                    int nthreads = 0, const float* guide = nullptr);
+                    int nthreads = 0, const float* guide = nullptr,
+                    const float* clusterGuide = nullptr);
+
+/// The guide of a supported cluster's return: at each pixel, the 3 x 3 tent's weighted mean
+/// (weights 1 2 1 by 1 2 1, divided by their sum inside the image) of the positive luminance
+/// residual max(d, 0) (non-finite d counts as 0). It follows the events the buffers put where
+/// they are dense (a caustic's line), and fills the one-pixel gaps between sparse ones (a broad
+/// caustic's grain), where d itself would give each event's light back to the event alone.
+std::vector<float> keepLightClusterGuide(const float* d, int width, int height, int nthreads = 0);
 
 }  // namespace mcstat
