@@ -70,6 +70,22 @@ install(PROGRAMS "${PROJECT_BINARY_DIR}/install/mcstat-blender"
 install(FILES "${PROJECT_SOURCE_DIR}/farm/templates/cycles_seed.py"
               "${PROJECT_SOURCE_DIR}/tests/aovs/cycles_caustic.py"
   DESTINATION "${MCSTAT_INSTALL_BLENDERDIR}" COMPONENT blender)
+# mcstat-farm (docs/farm.md): the shot's jobs on Slurm. Installed beside mcstat and mcstat-render,
+# which it runs; its templates go to share/mcstat/farm/templates, which {farm} names in a template.
+set(MCSTAT_INSTALL_FARMDIR "${CMAKE_INSTALL_DATADIR}/mcstat/farm"
+    CACHE STRING "Where mcstat-farm's templates go (relative to the prefix)")
+file(RELATIVE_PATH _mcstat_farm_rel "/${CMAKE_INSTALL_BINDIR}" "/${MCSTAT_INSTALL_FARMDIR}")
+file(READ "${PROJECT_SOURCE_DIR}/farm/mcstat-farm" _mcstat_farm)
+string(REPLACE "\nINSTALLED_FARM_DATA = None\n" "\nINSTALLED_FARM_DATA = \"${_mcstat_farm_rel}\"\n"
+       _mcstat_farm "${_mcstat_farm}")
+file(WRITE "${PROJECT_BINARY_DIR}/install/mcstat-farm" "${_mcstat_farm}")
+set_property(DIRECTORY "${PROJECT_SOURCE_DIR}" APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS
+             "${PROJECT_SOURCE_DIR}/farm/mcstat-farm")
+install(PROGRAMS "${PROJECT_BINARY_DIR}/install/mcstat-farm"
+  DESTINATION "${CMAKE_INSTALL_BINDIR}" COMPONENT bin)
+file(GLOB _mcstat_farm_templates CONFIGURE_DEPENDS "${PROJECT_SOURCE_DIR}/farm/templates/*.tmpl")
+install(FILES ${_mcstat_farm_templates} "${PROJECT_SOURCE_DIR}/farm/templates/cycles_seed.py"
+  DESTINATION "${MCSTAT_INSTALL_FARMDIR}/templates" COMPONENT bin)
 if(TARGET mcstat_oiio_plugin)
   install(TARGETS mcstat_oiio_plugin
     LIBRARY DESTINATION "${MCSTAT_INSTALL_PLUGINDIR}" COMPONENT plugin)

@@ -4,8 +4,8 @@
 # downstream project (downstream/CMakeLists.txt: find_package(mcstat) and mcstat_add_render_test)
 # against the installed package and runs its CTest suite: same_scene must pass, brighter_light
 # must fail, each leaving its JUnit, JSON and report page. The project enables no language (a
-# render-test-only project needs no compiler) and checks the installed Python module and OCIO
-# config too. Exits 1 with a message otherwise.
+# render-test-only project needs no compiler) and checks the installed Python module, OCIO config
+# and mcstat-farm too. Exits 1 with a message otherwise.
 set -euo pipefail
 src=$1 build=$2 work=$3
 # The sanitizer build's suite sets LD_PRELOAD (CMakeLists.txt): kept for the downstream suite,
@@ -24,6 +24,18 @@ if [ -d "$build/python/mcstat" ]; then
   with_python=ON
   cmake --install "$build" --prefix "$work/prefix" --component python >/dev/null  # mcstat_PYTHONPATH
 fi
+
+# The installed mcstat-farm runs the installed mcstat-render and mcstat beside it (neither PATH's
+# nor the build tree's) with the installed templates: one frame of two seeds, without Slurm.
+env -u MCSTAT_BIN_DIR PATH=/usr/bin:/bin "$work/prefix/bin/mcstat-farm" run-local "$work/shot" \
+  --name t --frames 1 --seeds 2 --spp 4 --res 16 12 --fanin 2 --estimate none \
+  --template-file "$work/prefix/share/mcstat/farm/templates/fixture-stats.tmpl" \
+  >"$work/farm.log" 2>&1 || { cat "$work/farm.log" >&2; fail "the installed mcstat-farm failed"; }
+[ -s "$work/shot/out/t.0001.mcstat" ] || fail "the installed mcstat-farm wrote no frame"
+grep -q "$work/prefix/bin/mcstat-render" "$work/shot/logs/f0001/render.f0001.s0001."*.log ||
+  fail "the installed mcstat-farm did not run the installed mcstat-render"
+[ -f "$work/prefix/share/mcstat/farm/templates/cycles_seed.py" ] ||
+  fail "the farm's Cycles template ({farm}/templates/cycles_seed.py) is not installed"
 
 render="$build/render-fixture/mcstat-render"
 scene="$src/tests/render-test/scenes/box.json"  # 32 x 24, its light seen directly
