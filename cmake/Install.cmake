@@ -52,21 +52,27 @@ else()
   set(MCSTAT_CONFIG_PYTHON_EXECUTABLE "")
 endif()
 
+# A Python program of farm/ installed to bin, told where its data went: the line
+# `MARK = None` becomes `MARK = "<DATADIR relative to bin>"` in the installed copy, which the
+# program resolves against its own folder. Reconfigures when the program changes.
+function(mcstat_install_program name mark datadir component)
+  file(RELATIVE_PATH rel "/${CMAKE_INSTALL_BINDIR}" "/${datadir}")
+  file(READ "${PROJECT_SOURCE_DIR}/farm/${name}" text)
+  string(REPLACE "\n${mark} = None\n" "\n${mark} = \"${rel}\"\n" text "${text}")
+  file(WRITE "${PROJECT_BINARY_DIR}/install/${name}" "${text}")
+  set_property(DIRECTORY "${PROJECT_SOURCE_DIR}" APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS
+               "${PROJECT_SOURCE_DIR}/farm/${name}")
+  install(PROGRAMS "${PROJECT_BINARY_DIR}/install/${name}"
+    DESTINATION "${CMAKE_INSTALL_BINDIR}" COMPONENT ${component})
+endfunction()
+
 # mcstat-blender (farm/mcstat-blender, docs/ingest.md "Seeds"): renders a Blender scene once per
 # seed through the farm's Cycles template, which goes with it with the caustic scene it renders
 # when no .blend is given. The installed copy knows where they are relative to itself. Component
 # `blender`: tests/aovs installs it alone.
 set(MCSTAT_INSTALL_BLENDERDIR "${CMAKE_INSTALL_DATADIR}/mcstat/blender"
     CACHE STRING "Where mcstat-blender's Cycles template goes (relative to the prefix)")
-file(RELATIVE_PATH _mcstat_blender_rel "/${CMAKE_INSTALL_BINDIR}" "/${MCSTAT_INSTALL_BLENDERDIR}")
-file(READ "${PROJECT_SOURCE_DIR}/farm/mcstat-blender" _mcstat_blender)
-string(REPLACE "\nINSTALLED_TEMPLATES = None\n" "\nINSTALLED_TEMPLATES = \"${_mcstat_blender_rel}\"\n"
-       _mcstat_blender "${_mcstat_blender}")
-file(WRITE "${PROJECT_BINARY_DIR}/install/mcstat-blender" "${_mcstat_blender}")
-set_property(DIRECTORY "${PROJECT_SOURCE_DIR}" APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS
-             "${PROJECT_SOURCE_DIR}/farm/mcstat-blender")
-install(PROGRAMS "${PROJECT_BINARY_DIR}/install/mcstat-blender"
-  DESTINATION "${CMAKE_INSTALL_BINDIR}" COMPONENT blender)
+mcstat_install_program(mcstat-blender INSTALLED_TEMPLATES "${MCSTAT_INSTALL_BLENDERDIR}" blender)
 install(FILES "${PROJECT_SOURCE_DIR}/farm/templates/cycles_seed.py"
               "${PROJECT_SOURCE_DIR}/tests/aovs/cycles_caustic.py"
   DESTINATION "${MCSTAT_INSTALL_BLENDERDIR}" COMPONENT blender)
@@ -74,15 +80,7 @@ install(FILES "${PROJECT_SOURCE_DIR}/farm/templates/cycles_seed.py"
 # which it runs; its templates go to share/mcstat/farm/templates, which {farm} names in a template.
 set(MCSTAT_INSTALL_FARMDIR "${CMAKE_INSTALL_DATADIR}/mcstat/farm"
     CACHE STRING "Where mcstat-farm's templates go (relative to the prefix)")
-file(RELATIVE_PATH _mcstat_farm_rel "/${CMAKE_INSTALL_BINDIR}" "/${MCSTAT_INSTALL_FARMDIR}")
-file(READ "${PROJECT_SOURCE_DIR}/farm/mcstat-farm" _mcstat_farm)
-string(REPLACE "\nINSTALLED_FARM_DATA = None\n" "\nINSTALLED_FARM_DATA = \"${_mcstat_farm_rel}\"\n"
-       _mcstat_farm "${_mcstat_farm}")
-file(WRITE "${PROJECT_BINARY_DIR}/install/mcstat-farm" "${_mcstat_farm}")
-set_property(DIRECTORY "${PROJECT_SOURCE_DIR}" APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS
-             "${PROJECT_SOURCE_DIR}/farm/mcstat-farm")
-install(PROGRAMS "${PROJECT_BINARY_DIR}/install/mcstat-farm"
-  DESTINATION "${CMAKE_INSTALL_BINDIR}" COMPONENT bin)
+mcstat_install_program(mcstat-farm INSTALLED_FARM_DATA "${MCSTAT_INSTALL_FARMDIR}" bin)
 file(GLOB _mcstat_farm_templates CONFIGURE_DEPENDS "${PROJECT_SOURCE_DIR}/farm/templates/*.tmpl")
 install(FILES ${_mcstat_farm_templates} "${PROJECT_SOURCE_DIR}/farm/templates/cycles_seed.py"
   DESTINATION "${MCSTAT_INSTALL_FARMDIR}/templates" COMPONENT bin)
