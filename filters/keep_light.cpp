@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <limits>
 
+#include "keep_light_rows.h"
 #include "mcstat/core/parallel.h"
 
 namespace mcstat {
@@ -59,22 +60,37 @@ std::vector<int> keepLightRadii(int maxRadius) {
     return radii;
 }
 
-void keepLightScales(const float* d, const float* se, const uint8_t* active, int width, int height,
-                     const KeepLightParams& params, uint8_t* scale, int nthreads) {
+namespace keeplight {
+
+bool HeldRows::sends(size_t p) const {
+    for (size_t c = 0; c < nc; ++c) {
+        const double v = residual[p * nc + c];
+        if (v != 0.0 && std::isfinite(v)) return true;
+    }
+    return false;
+}
+
+int haloRows(const KeepLightParams& params) { return std::max(1, params.maxRadius); }
+
+void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int y1, uint8_t* scale,
+                int nthreads) {
     const std::vector<int> radii = keepLightRadii(params.maxRadius);
-    const size_t n = size_t(width) * size_t(height);
-    std::fill(scale, scale + n, uint8_t(0));
-    const AreaSums sumD(width, height, [&](size_t p) { return finiteOrZero(d[p]); });
-    const AreaSums sumV(width, height, [&](size_t p) {
-        const double s = finiteOrZero(se[p]);
+    const int width = held.width, height = held.height;
+    // The window sums over the rows the windows reach: [s0, s1), clipped to the image.
+    const int halo = haloRows(params);
+    const int s0 = std::max(0, y0 - halo), s1 = std::min(height, y1 + halo);
+    const size_t base = held.at(0, s0);
+    std::fill(scale, scale + size_t(y1 - y0) * size_t(width), uint8_t(0));
+    const AreaSums sumD(width, s1 - s0, [&](size_t p) { return finiteOrZero(held.d[base + p]); });
+    const AreaSums sumV(width, s1 - s0, [&](size_t p) {
+        const double s = finiteOrZero(held.se[base + p]);
         return s * s;
     });
     const double gamma = params.gamma;
-    parallelFor(0, height, 0, nthreads, [&](int64_t yb, int64_t ye) {
+    parallelFor(y0, y1, 0, nthreads, [&](int64_t yb, int64_t ye) {
         for (int y = int(yb); y < int(ye); ++y)
             for (int x = 0; x < width; ++x) {
-                const size_t p = size_t(y) * size_t(width) + size_t(x);
-                if (!active[p]) continue;
+                if (!held.active[held.at(x, y)]) continue;
                 // Intersect the windows' intervals from the smallest up; keep the last radius
                 // whose intersection is not empty.
                 double lo = -std::numeric_limits<double>::infinity();
@@ -82,10 +98,11 @@ void keepLightScales(const float* d, const float* se, const uint8_t* active, int
                 uint8_t chosen = 0;
                 for (size_t k = 0; k < radii.size(); ++k) {
                     const auto [x0, x1] = clipped(x, radii[k], width);
-                    const auto [y0, y1] = clipped(y, radii[k], height);
-                    const double area = double(x1 - x0) * double(y1 - y0);
-                    const double m = sumD.box(x0, y0, x1, y1) / area;
-                    const double s = std::sqrt(std::max(0.0, sumV.box(x0, y0, x1, y1))) / area;
+                    const auto [wy0, wy1] = clipped(y, radii[k], height);
+                    const double area = double(x1 - x0) * double(wy1 - wy0);
+                    const double m = sumD.box(x0, wy0 - s0, x1, wy1 - s0) / area;
+                    const double s =
+                        std::sqrt(std::max(0.0, sumV.box(x0, wy0 - s0, x1, wy1 - s0))) / area;
                     lo = std::max(lo, m - gamma * s);
                     hi = std::min(hi, m + gamma * s);
                     if (!(lo <= hi)) break;
@@ -94,13 +111,28 @@ void keepLightScales(const float* d, const float* se, const uint8_t* active, int
                 // Light its 3 x 3 neighbours' buffers support together (a caustic too small
                 // for the intervals to tell from a few fireflies) stays within a pixel.
                 const auto [x0, x1] = clipped(x, 1, width);
-                const auto [y0, y1] = clipped(y, 1, height);
-                const double v = sumV.box(x0, y0, x1, y1);
-                if (v > 0.0 && sumD.box(x0, y0, x1, y1) / std::sqrt(v) >= params.supportZ)
+                const auto [wy0, wy1] = clipped(y, 1, height);
+                const double v = sumV.box(x0, wy0 - s0, x1, wy1 - s0);
+                if (v > 0.0 &&
+                    sumD.box(x0, wy0 - s0, x1, wy1 - s0) / std::sqrt(v) >= params.supportZ)
                     chosen = std::min<uint8_t>(chosen, uint8_t(1));
-                scale[p] = chosen;
+                scale[size_t(y - y0) * size_t(width) + size_t(x)] = chosen;
             }
     });
+}
+
+}  // namespace keeplight
+
+void keepLightScales(const float* d, const float* se, const uint8_t* active, int width, int height,
+                     const KeepLightParams& params, uint8_t* scale, int nthreads) {
+    keeplight::HeldRows held;
+    held.width = width;
+    held.height = height;
+    held.count = height;
+    held.d = d;
+    held.se = se;
+    held.active = active;
+    keeplight::scalesRows(held, params, 0, height, scale, nthreads);
 }
 
 namespace {
@@ -216,18 +248,19 @@ void tentSparseLine(const double* src, size_t stride, int n, int r, size_t L,
     }
 }
 
-/// One gather of a radius over nc interleaved channels: into[q * nc + c] += sum over p within r
-/// of q (inside the image) of tent(q - p) source[p * nc + c], where only rows y with rowHas[y]
-/// hold sources (the others are not read). Rows first, then columns, each by tentSparseLine. Every
-/// output sums only
-/// the sources inside its window: a pixel that none reaches gets exactly 0. Columns are split
-/// among threads, rows too; no result depends on the split.
+/// One gather of a radius over nc interleaved channels, for the output rows [outFirst, outFirst +
+/// outRows) of a source of srcRows rows: into[(y - outFirst) * width * nc + x * nc + c] += sum
+/// over p within r of (x, y) (inside the source) of tent((x, y) - p) source[p * nc + c], where
+/// only rows y with rowHas[y] hold sources (the others are not read). Rows first, then columns,
+/// each by tentSparseLine. Every output sums only the sources inside its window: a pixel that none
+/// reaches gets exactly 0. Columns are split among threads, rows too; no result depends on the
+/// split. `rows` (srcRows rows) is scratch.
 void gatherTent(const std::vector<double>& source, const std::vector<uint8_t>& rowHas, int width,
-                int height, int r, size_t nc, std::vector<double>& rows, std::vector<double>& into,
-                int nthreads) {
+                int srcRows, int r, size_t nc, std::vector<double>& rows, std::vector<double>& into,
+                int outFirst, int outRows, int nthreads) {
     const size_t w = size_t(width), rowLen = w * nc;
-    std::vector<uint8_t> rowUsed(size_t(height), 0);
-    parallelFor(0, height, 0, nthreads, [&](int64_t yb, int64_t ye) {
+    std::vector<uint8_t> rowUsed(size_t(srcRows), 0);
+    parallelFor(0, srcRows, 0, nthreads, [&](int64_t yb, int64_t ye) {
         std::vector<int> xs;
         std::vector<double> mid, pre, suf;
         for (int y = int(yb); y < int(ye); ++y) {
@@ -239,19 +272,22 @@ void gatherTent(const std::vector<double>& source, const std::vector<uint8_t>& r
             if (!xs.empty()) tentSparseLine(src, nc, width, r, nc, xs, dst, nc, mid, pre, suf);
         }
     });
-    // Columns: the rows within r of a used row, in strips of columns.
-    int first = height, last = -1;
-    for (int y = 0; y < height; ++y)
+    // Columns: the rows within r of a used row and of an output row, in strips of columns.
+    int first = srcRows, last = -1;
+    for (int y = 0; y < srcRows; ++y)
         if (rowUsed[size_t(y)]) {
             first = std::min(first, y);
             last = y;
         }
     if (last < 0) return;
-    const int y0 = std::max(0, first - r), y1 = std::min(height, last + r + 1);
+    const int y0 = std::max({0, first - r, outFirst - r});
+    const int y1 = std::min({srcRows, last + r + 1, outFirst + outRows + r});
+    if (y0 >= y1) return;
     // The rows outside [first, last] hold no source: their horizontal sums are 0.
     for (int y = y0; y < y1; ++y)
         if (!rowUsed[size_t(y)])
             std::fill(rows.data() + size_t(y) * rowLen, rows.data() + size_t(y + 1) * rowLen, 0.0);
+    const int o0 = std::max(y0, outFirst), o1 = std::min(y1, outFirst + outRows);
     constexpr size_t kStrip = 64;
     const int64_t strips = int64_t((rowLen + kStrip - 1) / kStrip);
     parallelFor(0, strips, 0, nthreads, [&](int64_t sb, int64_t se) {
@@ -265,8 +301,8 @@ void gatherTent(const std::vector<double>& source, const std::vector<uint8_t>& r
             if (js.empty()) continue;
             col.resize(size_t(n) * L);
             tentSparseLine(base, rowLen, n, r, L, js, col.data(), L, mid, pre, suf);
-            for (int y = y0; y < y1; ++y) {
-                double* d = into.data() + size_t(y) * rowLen + l0;
+            for (int y = o0; y < o1; ++y) {
+                double* d = into.data() + size_t(y - outFirst) * rowLen + l0;
                 const double* c = col.data() + size_t(y - y0) * L;
                 for (size_t l = 0; l < L; ++l) d[l] += c[l];
             }
@@ -274,40 +310,46 @@ void gatherTent(const std::vector<double>& source, const std::vector<uint8_t>& r
     });
 }
 
-/// The guide's tent sums of radius r, sum over q within r of p, inside the image, of tent(q - p)
-/// guide[q], at every pixel (rows, then columns, by tentLine).
-std::vector<double> guideSums(const float* guide, int width, int height, int r, int nthreads) {
-    const size_t w = size_t(width), n = w * size_t(height);
-    std::vector<double> g(guide, guide + n), rows(n, 0.0), sums(n, 0.0);
-    gatherTent(g, std::vector<uint8_t>(size_t(height), 1), width, height, r, 1, rows, sums,
-               nthreads);
+/// The guide's tent sums of radius r at every pixel of rows [y0, y1): sum over q within r of p,
+/// inside the image, of tent(q - p) guide[q] (rows, then columns, by tentLine), row y0 first.
+std::vector<double> guideSums(const keeplight::HeldRows& held, const float* guide, int y0, int y1,
+                              int r, int nthreads) {
+    const int s0 = std::max(0, y0 - r), s1 = std::min(held.height, y1 + r);
+    const size_t w = size_t(held.width);
+    const float* from = guide + held.at(0, s0);
+    std::vector<double> g(from, from + size_t(s1 - s0) * w), rows(g.size(), 0.0),
+        sums(size_t(y1 - y0) * w, 0.0);
+    gatherTent(g, std::vector<uint8_t>(size_t(s1 - s0), 1), held.width, s1 - s0, r, 1, rows, sums,
+               y0 - s0, y1 - y0, nthreads);
     return sums;
 }
 
-/// The sources of one gather: at each sender p (need[p]) that `mine` picks, its residual
-/// divided by its window's weight sum share(p, x, y); 0 elsewhere (a row that held something and
-/// holds no sender now is cleared). rowHas[y]: row y holds a nonzero value.
+/// The sources of one gather over rows [s0, s0 + nRows) of the image: at each sender p (need[p],
+/// row s0 first) that `mine` picks, its residual divided by its window's weight sum share(p, x,
+/// y) (p as held.at gives it, y the image row); 0 elsewhere (a row that held something and holds
+/// no sender now is cleared). rowHas[i]: source row i holds a nonzero value.
 template <class Mine, class Share>
-void senderRows(const double* residual, const std::vector<uint8_t>& need,
-                const std::vector<uint8_t>& rowNeed, Mine mine, Share share, int width, int height,
-                size_t nc, std::vector<double>& source, std::vector<uint8_t>& rowHas,
+void senderRows(const keeplight::HeldRows& held, int s0, int nRows,
+                const std::vector<uint8_t>& need, const std::vector<uint8_t>& rowNeed, Mine mine,
+                Share share, std::vector<double>& source, std::vector<uint8_t>& rowHas,
                 int nthreads) {
-    const size_t w = size_t(width);
-    parallelFor(0, height, 0, nthreads, [&](int64_t yb, int64_t ye) {
-        for (int y = int(yb); y < int(ye); ++y) {
-            double* row = source.data() + size_t(y) * w * nc;
-            if (!rowNeed[size_t(y)]) {
-                if (rowHas[size_t(y)]) std::fill(row, row + w * nc, 0.0);
-                rowHas[size_t(y)] = 0;
+    const size_t w = size_t(held.width), nc = held.nc;
+    parallelFor(0, nRows, 0, nthreads, [&](int64_t ib, int64_t ie) {
+        for (int i = int(ib); i < int(ie); ++i) {
+            double* row = source.data() + size_t(i) * w * nc;
+            if (!rowNeed[size_t(i)]) {
+                if (rowHas[size_t(i)]) std::fill(row, row + w * nc, 0.0);
+                rowHas[size_t(i)] = 0;
                 continue;
             }
+            const int y = s0 + i;
             bool any = false;
-            for (int x = 0; x < width; ++x) {
-                const size_t p = size_t(y) * w + size_t(x);
-                const bool from = need[p] && mine(p);
+            for (int x = 0; x < held.width; ++x) {
+                const size_t p = held.at(x, y);
+                const bool from = need[size_t(i) * w + size_t(x)] && mine(p);
                 const double sum = from ? share(p, x, y) : 1.0;
                 for (size_t c = 0; c < nc; ++c) {
-                    const double v = residual[p * nc + c];
+                    const double v = held.residual[p * nc + c];
                     double s = 0.0;
                     if (from && v != 0.0 && std::isfinite(v)) {
                         s = v / sum;
@@ -316,104 +358,146 @@ void senderRows(const double* residual, const std::vector<uint8_t>& need,
                     row[size_t(x) * nc + c] = s;
                 }
             }
-            rowHas[size_t(y)] = any;
+            rowHas[size_t(i)] = any;
         }
     });
+}
+
+/// need[i * width + x]: pixel (x, s0 + i) sends light at radius index k; rowNeed[i]: its row
+/// holds such a pixel. False when none does.
+bool sendersAt(const keeplight::HeldRows& held, size_t k, int s0, int nRows,
+               std::vector<uint8_t>& need, std::vector<uint8_t>& rowNeed, int nthreads) {
+    const size_t w = size_t(held.width);
+    need.assign(size_t(nRows) * w, 0);
+    rowNeed.assign(size_t(nRows), 0);
+    parallelFor(0, nRows, 0, nthreads, [&](int64_t ib, int64_t ie) {
+        for (int i = int(ib); i < int(ie); ++i) {
+            bool any = false;
+            for (int x = 0; x < held.width; ++x) {
+                const size_t p = held.at(x, s0 + i);
+                const uint8_t n = held.scale[p] == k && held.sends(p);
+                need[size_t(i) * w + size_t(x)] = n;
+                any = any || n;
+            }
+            rowNeed[size_t(i)] = any;
+        }
+    });
+    return std::any_of(rowNeed.begin(), rowNeed.end(), [](uint8_t v) { return v != 0; });
 }
 
 }  // namespace
 
-void returnResidual(const float* robust, const double* residual, const uint8_t* scale,
-                    const std::vector<int>& radii, int width, int height, int nch, float* out,
-                    int nthreads, const float* guide, const float* clusterGuide) {
-    const size_t w = size_t(width), n = w * size_t(height), nc = size_t(nch);
-    // What each pixel receives, per channel: `plain` by the tent alone, `guided` and `clustered`
-    // to be multiplied by the pixel's guide and cluster guide values.
-    std::vector<double> plain(n * nc, 0.0), guided(guide ? n * nc : 0, 0.0),
-        clustered(clusterGuide ? n * nc : 0, 0.0);
-    std::vector<double> source, rows;
-    // need[p]: p sends light at the radius at hand; rowNeed: its row holds such a p; rowHas: the
-    // source's row holds a nonzero value (the others are 0).
-    std::vector<uint8_t> need(n), rowNeed(static_cast<size_t>(height)),
-        rowHas(static_cast<size_t>(height), 0);
-    auto sends = [&](size_t p) {
-        for (size_t c = 0; c < nc; ++c) {
-            const double v = residual[p * nc + c];
-            if (v != 0.0 && std::isfinite(v)) return true;
-        }
-        return false;
-    };
+namespace keeplight {
+
+void normsRows(const HeldRows& held, const std::vector<int>& radii, int y0, int y1, double* norm,
+               double* clusterNorm, int nthreads) {
+    const size_t w = size_t(held.width), n = size_t(y1 - y0) * w;
+    if (norm) std::fill(norm, norm + n, 0.0);
+    if (clusterNorm) std::fill(clusterNorm, clusterNorm + n, 0.0);
+    std::vector<uint8_t> need, rowNeed;
     for (size_t k = 0; k < radii.size(); ++k) {
         const int r = radii[k];
-        parallelFor(0, height, 0, nthreads, [&](int64_t yb, int64_t ye) {
-            for (size_t y = size_t(yb); y < size_t(ye); ++y) {
-                bool any = false;
-                for (size_t p = y * w; p < (y + 1) * w; ++p) {
-                    need[p] = scale[p] == k && sends(p);
-                    any = any || need[p];
-                }
-                rowNeed[y] = any;
-            }
-        });
-        if (std::none_of(rowNeed.begin(), rowNeed.end(), [](uint8_t v) { return v != 0; }))
+        const bool byCluster = held.cluster && clusterNorm && r == 1;
+        const bool byGuide = held.guide && norm;
+        if (!(byCluster || byGuide) || !sendersAt(held, k, y0, y1 - y0, need, rowNeed, nthreads))
             continue;
-        if (source.empty()) {
-            source.assign(n * nc, 0.0);
-            rows.assign(n * nc, 0.0);
+        for (int pass = 0; pass < 2; ++pass) {
+            if (!(pass == 0 ? byCluster : byGuide)) continue;
+            const std::vector<double> sums =
+                guideSums(held, pass == 0 ? held.cluster : held.guide, y0, y1, r, nthreads);
+            double* to = pass == 0 ? clusterNorm : norm;
+            for (size_t i = 0; i < n; ++i)
+                if (need[i]) to[i] = sums[i];
         }
+    }
+}
+
+void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int y1, double* add,
+                GatherScratch& scratch, int nthreads) {
+    const size_t w = size_t(held.width), nc = held.nc, n = size_t(y1 - y0) * w;
+    const int width = held.width, height = held.height;
+    // What each pixel receives, per channel: `plain` by the tent alone, `guided` and `clustered`
+    // to be multiplied by the pixel's guide and cluster guide values.
+    std::vector<double>&plain = scratch.plain, &guided = scratch.guided,
+    &clustered = scratch.clustered;
+    plain.assign(n * nc, 0.0);
+    guided.assign(held.guide ? n * nc : 0, 0.0);
+    clustered.assign(held.cluster ? n * nc : 0, 0.0);
+    // The sources of a radius, the rows within r of [y0, y1): a source row i whose rowHas[i] is 0
+    // holds zeros, from one radius and one call to the next (senderRows clears the rows it
+    // leaves), so only the rows that held something are written again.
+    std::vector<double>&source = scratch.source, &rows = scratch.rows;
+    std::vector<uint8_t>&need = scratch.need, &rowNeed = scratch.rowNeed, &rowHas = scratch.rowHas;
+    if (scratch.rowLength != w * nc) {
+        source.clear();
+        rowHas.clear();
+        scratch.rowLength = w * nc;
+    }
+    int maxRadius = 0;
+    for (int r : radii) maxRadius = std::max(maxRadius, r);
+    const size_t most = size_t(std::min(height, y1 + maxRadius) - std::max(0, y0 - maxRadius));
+    if (rowHas.size() < most) {
+        source.resize(most * w * nc, 0.0);
+        rowHas.resize(most, 0);
+    }
+    rows.resize(source.size());
+    // need: the pixel sends light at the radius at hand; rowNeed: its row holds such a pixel;
+    // rowHas: the source's row holds a nonzero value (the others are 0). Per radius, the senders
+    // are the rows within r of [y0, y1).
+    for (size_t k = 0; k < radii.size(); ++k) {
+        const int r = radii[k];
+        const int s0 = std::max(0, y0 - r), s1 = std::min(height, y1 + r), nRows = s1 - s0;
+        if (!sendersAt(held, k, s0, nRows, need, rowNeed, nthreads)) continue;
         // With a guide, p's light goes to q in proportion to tent(q - p) guide[q]: its weights
-        // over the window sum to 1 when divided by the guide's tent sum at p. A window whose guide
-        // is 0 everywhere (no surface to put the light on) takes the next: the cluster guide
-        // (radius 1 only), the guide, the tent alone.
+        // over the window sum to 1 when divided by the guide's tent sum at p (normsRows). A
+        // window whose guide is 0 everywhere (no surface to put the light on) takes the next:
+        // the cluster guide (radius 1 only), the guide, the tent alone.
         enum Kernel : int { kByCluster, kByGuide, kByTent };
-        const bool byCluster = clusterGuide && r == 1;
-        const std::vector<double> clusterNorm =
-            byCluster ? guideSums(clusterGuide, width, height, r, nthreads) : std::vector<double>();
-        const std::vector<double> norm =
-            guide ? guideSums(guide, width, height, r, nthreads) : std::vector<double>();
+        const bool byCluster = held.cluster && r == 1;
         auto kernelOf = [&](size_t p) {
-            if (byCluster && clusterNorm[p] > 0.0) return kByCluster;
-            if (guide && norm[p] > 0.0) return kByGuide;
+            if (byCluster && held.clusterNorm[p] > 0.0) return kByCluster;
+            if (held.guide && held.norm[p] > 0.0) return kByGuide;
             return kByTent;
         };
         for (const Kernel kernel : {kByCluster, kByGuide, kByTent}) {
-            if ((kernel == kByCluster && !byCluster) || (kernel == kByGuide && !guide)) continue;
+            if ((kernel == kByCluster && !byCluster) || (kernel == kByGuide && !held.guide))
+                continue;
             auto share = [&](size_t p, int x, int y) {
-                return kernel == kByCluster ? clusterNorm[p]
+                return kernel == kByCluster ? held.clusterNorm[p]
                        : kernel == kByGuide
-                           ? norm[p]
+                           ? held.norm[p]
                            : tentSumClosed(x, r, width) * tentSumClosed(y, r, height);
             };
             senderRows(
-                residual, need, rowNeed, [&](size_t p) { return kernelOf(p) == kernel; }, share,
-                width, height, nc, source, rowHas, nthreads);
+                held, s0, nRows, need, rowNeed, [&](size_t p) { return kernelOf(p) == kernel; },
+                share, source, rowHas, nthreads);
             if (std::any_of(rowHas.begin(), rowHas.end(), [](uint8_t v) { return v != 0; }))
-                gatherTent(source, rowHas, width, height, r, nc, rows,
+                gatherTent(source, rowHas, width, nRows, r, nc, rows,
                            kernel == kByCluster ? clustered
                            : kernel == kByGuide ? guided
                                                 : plain,
-                           nthreads);
+                           y0 - s0, y1 - y0, nthreads);
         }
     }
     parallelFor(0, int64_t(n), 0, nthreads, [&](int64_t b, int64_t e) {
-        for (size_t q = size_t(b); q < size_t(e); ++q)
+        for (size_t q = size_t(b); q < size_t(e); ++q) {
+            const size_t h = held.at(int(q % w), y0 + int(q / w));
             for (size_t c = 0; c < nc; ++c) {
                 const size_t i = q * nc + c;
-                const double add = plain[i] + (guide ? double(guide[q]) * guided[i] : 0.0) +
-                                   (clusterGuide ? double(clusterGuide[q]) * clustered[i] : 0.0);
-                out[i] = add != 0.0 ? float(double(robust[i]) + add) : robust[i];
+                add[i] = plain[i] + (held.guide ? double(held.guide[h]) * guided[i] : 0.0) +
+                         (held.cluster ? double(held.cluster[h]) * clustered[i] : 0.0);
             }
+        }
     });
 }
 
-std::vector<float> keepLightClusterGuide(const float* d, int width, int height, int nthreads) {
-    const size_t w = size_t(width), n = w * size_t(height);
-    std::vector<float> g(n, 0.f);
+void clusterRows(const HeldRows& held, int y0, int y1, float* out, int nthreads) {
+    const int width = held.width, height = held.height;
     auto at = [&](int x, int y) {
-        const float v = d[size_t(y) * w + size_t(x)];
+        const float v = held.d[held.at(x, y)];
         return std::isfinite(v) && v > 0.f ? double(v) : 0.0;
     };
-    parallelFor(0, height, 0, nthreads, [&](int64_t yb, int64_t ye) {
+    parallelFor(y0, y1, 0, nthreads, [&](int64_t yb, int64_t ye) {
         for (int y = int(yb); y < int(ye); ++y)
             for (int x = 0; x < width; ++x) {
                 double sum = 0.0, weight = 0.0;
@@ -425,9 +509,47 @@ std::vector<float> keepLightClusterGuide(const float* d, int width, int height, 
                         sum += t * at(qx, qy);
                         weight += t;
                     }
-                g[size_t(y) * w + size_t(x)] = float(sum / weight);
+                out[size_t(y - y0) * size_t(width) + size_t(x)] = float(sum / weight);
             }
     });
+}
+
+}  // namespace keeplight
+
+void returnResidual(const float* robust, const double* residual, const uint8_t* scale,
+                    const std::vector<int>& radii, int width, int height, int nch, float* out,
+                    int nthreads, const float* guide, const float* clusterGuide) {
+    const size_t n = size_t(width) * size_t(height), nc = size_t(nch);
+    keeplight::HeldRows held;
+    held.width = width;
+    held.height = height;
+    held.count = height;
+    held.nc = nc;
+    held.residual = residual;
+    held.scale = scale;
+    held.guide = guide;
+    held.cluster = clusterGuide;
+    std::vector<double> norm(guide ? n : 0), clusterNorm(clusterGuide ? n : 0), add(n * nc);
+    keeplight::normsRows(held, radii, 0, height, guide ? norm.data() : nullptr,
+                         clusterGuide ? clusterNorm.data() : nullptr, nthreads);
+    held.norm = norm.data();
+    held.clusterNorm = clusterNorm.data();
+    keeplight::GatherScratch scratch;
+    keeplight::gatherRows(held, radii, 0, height, add.data(), scratch, nthreads);
+    parallelFor(0, int64_t(n * nc), 0, nthreads, [&](int64_t b, int64_t e) {
+        for (size_t i = size_t(b); i < size_t(e); ++i)
+            out[i] = add[i] != 0.0 ? float(double(robust[i]) + add[i]) : robust[i];
+    });
+}
+
+std::vector<float> keepLightClusterGuide(const float* d, int width, int height, int nthreads) {
+    keeplight::HeldRows held;
+    held.width = width;
+    held.height = height;
+    held.count = height;
+    held.d = d;
+    std::vector<float> g(size_t(width) * size_t(height), 0.f);
+    keeplight::clusterRows(held, 0, height, g.data(), nthreads);
     return g;
 }
 

@@ -1,6 +1,8 @@
 // The removed light given back over a statistics file (include/mcstat/image/keep_light_image.h):
-// the plain mean and the buffers' luminance spread in one estimate() pass (in memory or streamed
-// by blocks of rows, in parallel), then filters/keep_light.h's choice of scale and return.
+// the plain mean and the buffers' luminance spread from the operation's own pass (or from a pass
+// of their own, a band of rows at a time), then filters/keep_light_stream.h's choice of scale and
+// return by bands of rows, written into the result as each band is done: beside the result, the
+// memory held is a few bands of rows, whatever the image's height.
 #include "mcstat/image/keep_light_image.h"
 
 #include <algorithm>
@@ -9,6 +11,7 @@
 
 #include "mcstat/core/float_rounding.h"
 #include "mcstat/core/parallel.h"
+#include "mcstat/filters/keep_light_stream.h"
 #include "mcstat/image/imageops.h"
 #include "mcstat/image/removed_light_pass.h"
 
@@ -22,41 +25,41 @@ namespace {
 const StatsHeader& headerOf(const StatsImage& s) { return s.header; }
 const StatsHeader& headerOf(const StatsBlockSource& s) { return s.header(); }
 
-/// The guide of the return (keep_light.h): the first hit's albedo as luminance, >= 0, so that
-/// irradiance goes back and the surface's texture multiplies it, and nothing goes where no surface
-/// was hit (albedo 0). Empty when the file keeps no albedo (renders ingested without one): the
-/// tent alone then.
-bool albedoGuide(const StatsImage& s, const std::array<double, 3>& luma, std::vector<float>& g,
-                 std::string&) {
-    g.clear();
-    if (!(s.header.features & kFeatureAlbedo) || s.albedo.size() != 3 * s.pixelCount()) return true;
-    g.resize(s.pixelCount());
-    for (size_t p = 0; p < g.size(); ++p) {
-        const double y = luma[0] * double(s.albedo[3 * p]) + luma[1] * double(s.albedo[3 * p + 1]) +
-                         luma[2] * double(s.albedo[3 * p + 2]);
-        g[p] = std::isfinite(y) && y > 0.0 ? float(y) : 0.f;
+/// The guide of the return (keep_light.h) at the pixels of `s` from index p0, n of them, into g:
+/// the first hit's albedo as luminance, >= 0, so that irradiance goes back and the surface's
+/// texture multiplies it, and nothing goes where no surface was hit (albedo 0).
+void albedoLuma(const StatsImage& s, size_t p0, size_t n, const std::array<double, 3>& luma,
+                float* g) {
+    if (s.albedo.size() < 3 * (p0 + n)) {  // a block that kept no albedo: no surface to guide
+        std::fill(g, g + n, 0.f);
+        return;
     }
-    return true;
+    for (size_t i = 0; i < n; ++i) {
+        const float* a = s.albedo.data() + 3 * (p0 + i);
+        const double y = luma[0] * double(a[0]) + luma[1] * double(a[1]) + luma[2] * double(a[2]);
+        g[i] = std::isfinite(y) && y > 0.0 ? float(y) : 0.f;
+    }
 }
 
-bool albedoGuide(StatsBlockSource& src, const std::array<double, 3>& luma, std::vector<float>& g,
-                 std::string& err) {
-    g.clear();
-    const StatsHeader& h = src.header();
-    if (!(h.features & kFeatureAlbedo)) return true;
-    const int rows = src.blockRows(kStatsPartFeatures);
+/// Whether the file keeps an albedo to guide the return with (renders ingested without one: the
+/// tent alone).
+bool hasAlbedo(const StatsImage& s) {
+    return (s.header.features & kFeatureAlbedo) && s.albedo.size() == 3 * s.pixelCount();
+}
+bool hasAlbedo(StatsBlockSource& src) { return src.header().features & kFeatureAlbedo; }
+
+/// The guide of rows [y0, y1) (0-based in the data window) into g.
+bool albedoRows(const StatsImage& s, int y0, int y1, const std::array<double, 3>& luma, float* g,
+                std::string&) {
+    const size_t w = size_t(s.header.width);
+    albedoLuma(s, size_t(y0) * w, size_t(y1 - y0) * w, luma, g);
+    return true;
+}
+bool albedoRows(StatsBlockSource& src, int y0, int y1, const std::array<double, 3>& luma, float* g,
+                std::string& err) {
     StatsImage block;
-    std::vector<float> part;
-    for (int y = 0; y < h.height; y += rows) {
-        const int n = std::min(rows, h.height - y);
-        if (!src.read(y, n, kStatsPartFeatures, block, err)) return false;
-        if (!albedoGuide(block, luma, part, err)) return false;
-        if (part.empty()) {  // this block kept no albedo: no guide at all
-            g.clear();
-            return true;
-        }
-        g.insert(g.end(), part.begin(), part.end());
-    }
+    if (!src.read(y0, y1 - y0, kStatsPartFeatures, block, err)) return false;
+    albedoLuma(block, 0, size_t(y1 - y0) * size_t(src.header().width), luma, g);
     return true;
 }
 
@@ -81,55 +84,102 @@ bool meanWithSpread(ImageBuf& dst, Source& src, const std::array<double, 3>& lum
     return true;
 }
 
-/// The plain mean and its luminance spread that the operation's own pass appended to `robust`
-/// (PixelKernel::plainMeanLayers and the removed-light layers' per-pixel step: apply_operation.cpp)
-/// moved into `mean` as meanWithSpread gives them (R, G, B, the AOVs, then the step's channels
-/// from `spreadChannel` on), and taken off `robust`, which keeps exactly the operation's
-/// channels. False, with nothing changed, when `robust` holds no such layers. Plain copies, rows
-/// in parallel.
-bool takePassLayers(ImageBuf& robust, ImageBuf& mean, int& spreadChannel, int nthreads) {
-    const OIIO::ImageSpec& rs = robust.spec();
-    if (rs.nchannels < 3 || rs.format != OIIO::TypeDesc::FLOAT || !robust.localpixels())
-        return false;
+/// Where the operation's own pass put the plain mean and its luminance spread in `robust`
+/// (PixelKernel::plainMeanLayers and the removed-light layers' per-pixel step:
+/// apply_operation.cpp): the step's channels from firstStep on, then the plain mean's (R, G, B, the
+/// AOVs, each named kPlainMeanPrefix + the result's name) from firstMean on. `names` are the plain
+/// mean's channel names without the prefix. firstStep < 0 when `robust` holds no such layers.
+struct PassLayers {
+    int firstStep = -1, firstMean = -1;
+    OIIO::ImageSpec names;
+};
+
+PassLayers passLayersOf(const OIIO::ImageSpec& rs) {
+    PassLayers l;
     const std::vector<std::string> step = removedLightChannels();
     const int firstStep = rs.channelindex(step[0]);
     const int firstMean = rs.channelindex(kPlainMeanPrefix + rs.channelnames[0]);
-    if (firstStep < 3 || firstMean != firstStep + int(step.size())) return false;
-    // mean: the plain mean's channels under their own names, then the step's.
-    std::vector<int> order;
-    OIIO::ImageSpec ms(rs.width, rs.height, 0, OIIO::TypeDesc::FLOAT);
-    ms.x = rs.x;
-    ms.y = rs.y;
-    for (int c = firstMean; c < rs.nchannels; ++c) {
-        order.push_back(c);
-        ms.channelnames.push_back(rs.channelnames[size_t(c)].substr(std::strlen(kPlainMeanPrefix)));
-    }
-    spreadChannel = int(order.size());
-    for (size_t i = 0; i < step.size(); ++i) {
-        order.push_back(firstStep + int(i));
-        ms.channelnames.push_back(step[i]);
-    }
-    ms.nchannels = int(order.size());
-    // robust: its own channels, spec and metadata as they were (alpha and depth come before).
+    if (firstStep < 3 || firstMean != firstStep + int(step.size())) return l;
+    l.firstStep = firstStep;
+    l.firstMean = firstMean;
+    for (int c = firstMean; c < rs.nchannels; ++c)
+        l.names.channelnames.push_back(
+            rs.channelnames[size_t(c)].substr(std::strlen(kPlainMeanPrefix)));
+    l.names.nchannels = int(l.names.channelnames.size());
+    return l;
+}
+
+/// `robust` without the pass's layers (its channels before firstStep; spec and metadata as they
+/// were): a plain copy, rows in parallel.
+void dropPassLayers(ImageBuf& robust, int firstStep, int nthreads) {
+    const OIIO::ImageSpec& rs = robust.spec();
     OIIO::ImageSpec ks = rs;
     ks.nchannels = firstStep;
     ks.channelnames.resize(size_t(firstStep));
     ks.channelformats.clear();
     ImageBuf kept(ks, OIIO::InitializePixels::No);
-    mean.reset(ms, OIIO::InitializePixels::No);
-    const size_t nin = size_t(rs.nchannels), nk = size_t(firstStep), nm = order.size();
-    const float* src = static_cast<const float*>(robust.localpixels());
-    float* kp = static_cast<float*>(kept.localpixels());
-    float* mp = static_cast<float*>(mean.localpixels());
+    const size_t nin = size_t(rs.nchannels), nk = size_t(firstStep);
+    const float* from = static_cast<const float*>(robust.localpixels());
+    float* to = static_cast<float*>(kept.localpixels());
     parallelFor(0, rs.height, 0, nthreads, [&](int64_t yb, int64_t ye) {
-        for (size_t p = size_t(yb) * size_t(rs.width); p < size_t(ye) * size_t(rs.width); ++p) {
-            const float* q = src + p * nin;
-            std::copy(q, q + nk, kp + p * nk);
-            for (size_t i = 0; i < nm; ++i) mp[p * nm + i] = q[order[i]];
-        }
+        for (size_t p = size_t(yb) * size_t(rs.width); p < size_t(ye) * size_t(rs.width); ++p)
+            std::copy(from + p * nin, from + p * nin + nk, to + p * nk);
     });
     robust = std::move(kept);
-    return true;
+}
+
+/// The plain mean and its luminance spread of the rows being filled: pixel p's (index from the
+/// rows' first) plain mean channel c at base[p * stride + c], its step's from `spread` on.
+struct MeanRows {
+    const float* base = nullptr;
+    size_t stride = 0;
+    int spread = 0;
+};
+
+/// The stream's inputs of rows [y0, y1) (keep_light_stream.h): each residual channel's plain mean
+/// (at meanAt in `mean`) minus the result (at `from` in rp, nin channels per pixel, w pixels per
+/// row), the luminance residual, the plain mean's standard error; and per row the plain mean's
+/// luminance and the residual's, into rowMeanY[y] and rowReturnedY[y].
+void residualRows(const float* rp, size_t nin, size_t w, const MeanRows& mean,
+                  const std::vector<int>& from, const std::vector<int>& meanAt,
+                  const std::array<double, 3>& luma, int y0, int y1, const KeepLightBandIn& in,
+                  double* rowMeanY, double* rowReturnedY, int nthreads) {
+    const size_t nc = from.size();
+    parallelFor(y0, y1, 0, nthreads, [&](int64_t yb, int64_t ye) {
+        for (size_t y = size_t(yb); y < size_t(ye); ++y) {
+            double rowY = 0.0, returnedY = 0.0;
+            for (size_t x = 0; x < w; ++x) {
+                const size_t p = y * w + x, i0 = (y - size_t(y0)) * w + x;
+                const float* m = mean.base + i0 * mean.stride;
+                double dy = 0.0;
+                bool active = false;
+                for (size_t i = 0; i < nc; ++i) {
+                    const float r = rp[p * nin + size_t(from[i])];
+                    const float mv = m[meanAt[i]];
+                    // A difference within float rounding of the two values is no light: the
+                    // mean and an estimator that trims nothing may sum the same buffers in
+                    // other orders.
+                    const double v = withinFloatRounding(mv, r) ? 0.0 : double(mv) - double(r);
+                    in.residual[i0 * nc + i] = v;
+                    if (v != 0.0 && std::isfinite(v)) active = true;
+                    if (from[i] < 3 && std::isfinite(v)) dy += luma[size_t(from[i])] * v;
+                }
+                // The luminance residual and its scale, the plain mean's standard error from
+                // the buffers. A pixel that lost nothing counts as an exact 0 (se 0): the
+                // estimator kept its mean, and a compact file, which keeps no buffers there,
+                // gives the same choice.
+                in.d[i0] = float(dy);
+                in.active[i0] = active;
+                const float* step = m + mean.spread;
+                in.se[i0] = active ? step[kPixelStepSe] : 0.f;
+                if (std::isfinite(step[kPixelStepLumaMean]))
+                    rowY += double(step[kPixelStepLumaMean]);
+                returnedY += dy;
+            }
+            rowMeanY[y] = rowY;
+            rowReturnedY[y] = returnedY;
+        }
+    });
 }
 
 template <class Source>
@@ -141,98 +191,82 @@ bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& lum
                         params.gamma, params.maxRadius);
         return false;
     }
-    // The plain mean and its spread from the operation's own pass where it gave them, else from
-    // a pass of their own.
-    ImageBuf mean;
-    int spreadChannel = 0;
-    const bool taken = takePassLayers(robust, mean, spreadChannel, nthreads);
     const OIIO::ImageSpec& rs = robust.spec();
     if (rs.nchannels < 3 || rs.format != OIIO::TypeDesc::FLOAT || !robust.localpixels()) {
         robust.errorfmt("keeplight: the result is not a float image with R, G, B first");
         return false;
     }
+    // The plain mean and its spread from the operation's own pass where it gave them, else from
+    // a pass of their own, a band of rows at a time.
+    const PassLayers layers = passLayersOf(rs);
+    const bool inPass = layers.firstStep >= 0;
     const ROI roi = robust.roi();
-    if (!taken && !meanWithSpread(mean, src, luma, roi, nthreads, spreadChannel)) {
-        robust.errorfmt("keeplight: {}", mean.geterror());
-        return false;
-    }
-    std::vector<int> meanIndex;
-    // The beauty and every AOV but the labels, as appendResidual picks them.
-    const std::vector<int> from = residualChannels(rs, mean.spec(), headerOf(src), meanIndex);
     const int width = roi.width(), height = roi.height();
-    // The removed-light channels of the mean's pass (after its R, G, B and AOVs) are not
-    // residual channels: residualChannels matches the result's channels by name.
-    const size_t n = roi.npixels(), nc = from.size(), nin = size_t(rs.nchannels),
-                 nm = size_t(mean.nchannels());
+    const size_t w = size_t(width), nin = size_t(rs.nchannels);
     float* rp = static_cast<float*>(robust.localpixels());
-    const float* mp = static_cast<const float*>(mean.localpixels());
-    const float* sp = mp + spreadChannel;  // pixel p's removed-light step at sp + nm * p
-    std::vector<float> values(n * nc), d(n), se(n);
-    std::vector<double> residual(n * nc);
-    std::vector<uint8_t> active(n, 0), scale(n);
-    // Per pixel, in parallel; the luminance sum of the plain mean by rows, then summed in row
-    // order (the same bits at any thread count).
-    std::vector<double> rowMeanY(size_t(height), 0.0);
-    parallelFor(0, height, 0, nthreads, [&](int64_t yb, int64_t ye) {
-        for (size_t y = size_t(yb); y < size_t(ye); ++y) {
-            double rowY = 0.0;
-            for (size_t p = y * size_t(width); p < (y + 1) * size_t(width); ++p) {
-                double dy = 0.0;
-                for (size_t i = 0; i < nc; ++i) {
-                    const float r = rp[p * nin + size_t(from[i])];
-                    const float m = mp[p * nm + size_t(meanIndex[i])];
-                    // A difference within float rounding of the two values is no light: the mean
-                    // and an estimator that trims nothing may sum the same buffers in other
-                    // orders.
-                    const double v = withinFloatRounding(m, r) ? 0.0 : double(m) - double(r);
-                    values[p * nc + i] = r;
-                    residual[p * nc + i] = v;
-                    if (v != 0.0 && std::isfinite(v)) active[p] = 1;
-                    if (from[i] < 3 && std::isfinite(v)) dy += luma[size_t(from[i])] * v;
-                }
-                // The luminance residual and its scale, the plain mean's standard error from the
-                // buffers. A pixel that lost nothing counts as an exact 0 (se 0): the estimator
-                // kept its mean, and a compact file, which keeps no buffers there, gives the same
-                // choice.
-                d[p] = float(dy);
-                const float* step = sp + nm * p;
-                se[p] = active[p] ? step[kPixelStepSe] : 0.f;
-                if (std::isfinite(step[kPixelStepLumaMean]))
-                    rowY += double(step[kPixelStepLumaMean]);
-            }
-            rowMeanY[y] = rowY;
-        }
-    });
-    double meanY = 0.0;
-    for (double v : rowMeanY) meanY += v;
-    keepLightScales(d.data(), se.data(), active.data(), width, height, params, scale.data(),
-                    nthreads);
-    const std::vector<int> radii = keepLightRadii(params.maxRadius);
-    std::vector<float> guide, out(n * nc);
+    // The residual channels (the beauty and every AOV but the labels, as appendResidual picks
+    // them) and where each one's plain mean lies: known once the mean's channels are.
+    std::vector<int> from, meanAt;
+    auto channelsOf = [&](const OIIO::ImageSpec& meanSpec, int offset) {
+        from = residualChannels(robust.spec(), meanSpec, headerOf(src), meanAt);
+        for (int& m : meanAt) m += offset;
+    };
+    if (inPass) channelsOf(layers.names, layers.firstMean);
+    ImageBuf band;  // the plain mean of the rows being filled, without the pass's layers
     std::string err;
-    if (!albedoGuide(src, luma, guide, err)) {
+    // Per row, summed in row order at the end: the same bits at any thread count.
+    std::vector<double> rowMeanY(size_t(height), 0.0), rowReturnedY(size_t(height), 0.0);
+    auto fill = [&](int y0, int y1, const KeepLightBandIn& in) {
+        MeanRows mean;
+        if (inPass) {
+            mean = {rp + size_t(y0) * w * nin, nin, layers.firstStep};
+        } else {
+            const ROI rows(roi.xbegin, roi.xend, roi.ybegin + y0, roi.ybegin + y1);
+            int spread = 0;
+            if (!meanWithSpread(band, src, luma, rows, nthreads, spread)) {
+                err = band.geterror();
+                return false;
+            }
+            mean = {static_cast<const float*>(band.localpixels()), size_t(band.nchannels()),
+                    spread};
+        }
+        residualRows(rp, nin, w, mean, from, meanAt, luma, y0, y1, in, rowMeanY.data(),
+                     rowReturnedY.data(), nthreads);
+        return !in.guide || albedoRows(src, y0, y1, luma, in.guide, err);
+    };
+    auto take = [&](int y0, int y1, const double* add) {
+        const size_t nc = from.size();
+        parallelFor(y0, y1, 0, nthreads, [&](int64_t yb, int64_t ye) {
+            for (size_t p = size_t(yb) * w; p < size_t(ye) * w; ++p)
+                for (size_t i = 0; i < nc; ++i) {
+                    float& r = rp[p * nin + size_t(from[i])];
+                    const double a = add[(p - size_t(y0) * w) * nc + i];
+                    if (a != 0.0) r = float(double(r) + a);
+                }
+        });
+        return true;
+    };
+    // The number of residual channels, known before the first band: from the pass's layers, or
+    // from the mean of the first row.
+    if (!inPass) {
+        int spread = 0;
+        if (!meanWithSpread(band, src, luma, ROI(roi.xbegin, roi.xend, roi.ybegin, roi.ybegin + 1),
+                            nthreads, spread)) {
+            robust.errorfmt("keeplight: {}", band.geterror());
+            return false;
+        }
+        channelsOf(band.spec(), 0);
+    }
+    if (!keepLightStream(width, height, int(from.size()), hasAlbedo(src), params, fill, take,
+                         nthreads)) {
         robust.errorfmt("keeplight: {}", err);
         return false;
     }
-    // No guide where it holds no surface at all (albedo 0 everywhere): the tent alone then.
-    if (guide.size() != n ||
-        std::all_of(guide.begin(), guide.end(), [](float g) { return g == 0.f; }))
-        guide.clear();
-    // A supported cluster's light goes where its own light was found (keep_light.h).
-    const std::vector<float> cluster = keepLightClusterGuide(d.data(), width, height, nthreads);
-    returnResidual(values.data(), residual.data(), scale.data(), radii, width, height, int(nc),
-                   out.data(), nthreads, guide.empty() ? nullptr : guide.data(), cluster.data());
-    double returnedY = 0.0;
-    for (size_t p = 0; p < n; ++p) {
-        double y = 0.0;
-        for (size_t i = 0; i < nc; ++i) {
-            if (from[i] < 3) {
-                const double v = residual[p * nc + i];
-                if (std::isfinite(v)) y += luma[size_t(from[i])] * v;
-            }
-            rp[p * nin + size_t(from[i])] = out[p * nc + i];
-        }
-        returnedY += y;
+    if (inPass) dropPassLayers(robust, layers.firstStep, nthreads);
+    double meanY = 0.0, returnedY = 0.0;
+    for (size_t y = 0; y < size_t(height); ++y) {
+        meanY += rowMeanY[y];
+        returnedY += rowReturnedY[y];
     }
     robust.specmod().attribute("mcstat:keeplight:returned",
                                float(meanY != 0.0 ? returnedY / meanY : 0.0));

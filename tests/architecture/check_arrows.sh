@@ -70,7 +70,7 @@ rule analysis "$measures"
 # Layer 3: the specs of images (below the operations), then the image layer, which runs every
 # operation through its kernel and names no family; no tool, no ingest, no review.
 rule image/spec "$spec"
-rule image "$spec|filters/(operation|estimate|registry|aov_weights|removed_light|keep_light|interval)\.h|$(room image)|analysis/metrics\.h"
+rule image "$spec|filters/(operation|estimate|registry|aov_weights|removed_light|keep_light|keep_light_stream|interval)\.h|$(room image)|analysis/metrics\.h"
 # Layer 4: ingest reads renderers' EXRs through the codec and sets up images through the spec
 # library, not the operations. The review pictures and the comparison stand on the image layer and
 # the measures, through the registry (no family), on no tool, no ingest and not on each other; only

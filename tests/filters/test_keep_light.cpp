@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "mcstat/filters/keep_light.h"
+#include "mcstat/filters/keep_light_stream.h"
 
 namespace mcstat {
 namespace {
@@ -406,6 +407,157 @@ TEST(KeepLight, NonFiniteResidualsStayOut) {
         total += v;
     }
     EXPECT_NEAR(total, 4.0, 1e-6);  // float outputs
+}
+
+// The stream (keep_light_stream.h): the whole-image steps over a band at a time.
+
+/// A guide in [0, 1) with black rows (no surface), as the albedo gives it.
+std::vector<float> randomGuide(const Field& f, unsigned seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    std::vector<float> g(f.d.size());
+    for (size_t p = 0; p < g.size(); ++p) g[p] = (p / size_t(f.w)) % 7 == 3 ? 0.f : u(rng);
+    return g;
+}
+
+/// The whole-image functions as keep_light_image gave them before the stream: scales, cluster
+/// guide, return with both guides.
+std::vector<float> wholeImage(const Field& f, const std::vector<float>* guide,
+                              const KeepLightParams& p, int nthreads) {
+    std::vector<uint8_t> scale(f.d.size());
+    keepLightScales(f.d.data(), f.se.data(), f.active.data(), f.w, f.h, p, scale.data(), nthreads);
+    const std::vector<float> cluster = keepLightClusterGuide(f.d.data(), f.w, f.h, nthreads);
+    std::vector<float> out(f.robust.size());
+    returnResidual(f.robust.data(), f.residual.data(), scale.data(), keepLightRadii(p.maxRadius),
+                   f.w, f.h, 3, out.data(), nthreads, guide ? guide->data() : nullptr,
+                   cluster.data());
+    return out;
+}
+
+/// What the stream gives, and the most rows fill ran ahead of take.
+struct Streamed {
+    std::vector<float> out;
+    int mostAhead = 0;
+};
+
+Streamed streamed(const Field& f, const std::vector<float>* guide, const KeepLightParams& p,
+                  int bandRows, int nthreads) {
+    const size_t w = size_t(f.w);
+    Streamed s;
+    s.out.assign(f.robust.size(), std::numeric_limits<float>::quiet_NaN());
+    int filled = 0, taken = 0;
+    auto fill = [&](int y0, int y1, const KeepLightBandIn& in) {
+        EXPECT_EQ(y0, filled);  // in order, each row once
+        for (size_t i = 0; i < size_t(y1 - y0) * w; ++i) {
+            const size_t q = size_t(y0) * w + i;
+            std::copy_n(f.residual.data() + q * 3, 3, in.residual + i * 3);
+            in.d[i] = f.d[q];
+            in.se[i] = f.se[q];
+            in.active[i] = f.active[q];
+            if (in.guide) in.guide[i] = (*guide)[q];
+        }
+        filled = y1;
+        s.mostAhead = std::max(s.mostAhead, filled - taken);
+        return true;
+    };
+    auto take = [&](int y0, int y1, const double* add) {
+        EXPECT_EQ(y0, taken);
+        for (size_t i = 0; i < size_t(y1 - y0) * w * 3; ++i) {
+            const size_t q = size_t(y0) * w * 3 + i;
+            s.out[q] = add[i] != 0.0 ? float(double(f.robust[q]) + add[i]) : f.robust[q];
+        }
+        taken = y1;
+        return true;
+    };
+    EXPECT_TRUE(keepLightStream(f.w, f.h, 3, guide != nullptr, p, fill, take, nthreads, bandRows));
+    EXPECT_EQ(taken, f.h);
+    return s;
+}
+
+KeepLightParams withRadius(int r) {
+    KeepLightParams p;
+    p.maxRadius = r;
+    return p;
+}
+
+// One band holding every row is the whole-image functions, bit for bit.
+TEST(KeepLightStream, OneBandIsTheWholeImageBitForBit) {
+    const Field f = randomField(61, 47, 11);
+    const std::vector<float> guide = randomGuide(f, 11);
+    for (const std::vector<float>* g : {static_cast<const std::vector<float>*>(nullptr), &guide}) {
+        const std::vector<float> want = wholeImage(f, g, {}, 2);
+        const Streamed got = streamed(f, g, {}, 47, 2);
+        EXPECT_EQ(std::memcmp(want.data(), got.out.data(), want.size() * sizeof(float)), 0)
+            << "guide " << (g != nullptr);
+    }
+}
+
+// Bands of any height, down to one row, give the whole image's values up to the sums' order (the
+// scales and weights are the same: a different choice would move light by whole pixels), conserve
+// every channel's light, and never read further ahead than a band and 2 R + 1 rows.
+TEST(KeepLightStream, BandsGiveTheWholeImageUpToRounding) {
+    const Field f = randomField(53, 97, 12);
+    const std::vector<float> guide = randomGuide(f, 12);
+    for (int r : {0, 1, 4, 32})
+        for (const std::vector<float>* g :
+             {static_cast<const std::vector<float>*>(nullptr), &guide}) {
+            const KeepLightParams p = withRadius(r);
+            const std::vector<float> want = wholeImage(f, g, p, 2);
+            for (int band : {1, 3, 16, 40}) {
+                const Streamed got = streamed(f, g, p, band, 2);
+                const int halo = std::max(1, r);
+                EXPECT_LE(got.mostAhead, band + 2 * halo + 1) << r << " " << band;
+                for (size_t i = 0; i < want.size(); ++i)
+                    ASSERT_NEAR(got.out[i], want[i], 1e-6 * std::fabs(want[i]) + 1e-9)
+                        << "radius " << r << " band " << band << " guide " << (g != nullptr)
+                        << " at " << i;
+                for (int c = 0; c < 3; ++c) {
+                    double after = 0.0, before = 0.0, size = 0.0;
+                    for (size_t q = 0; q < f.d.size(); ++q) {
+                        after += got.out[q * 3 + size_t(c)];
+                        before += f.robust[q * 3 + size_t(c)] + f.residual[q * 3 + size_t(c)];
+                        size += std::fabs(got.out[q * 3 + size_t(c)]);
+                    }
+                    EXPECT_NEAR(after, before, 1e-6 * size) << r << " " << band << " " << c;
+                }
+            }
+        }
+}
+
+TEST(KeepLightStream, SameBitsForAnyThreadCount) {
+    const Field f = randomField(71, 203, 13);
+    const std::vector<float> guide = randomGuide(f, 13);
+    const Streamed one = streamed(f, &guide, {}, 24, 1);
+    for (int t : {2, 3, 8}) {
+        const Streamed many = streamed(f, &guide, {}, 24, t);
+        EXPECT_EQ(std::memcmp(one.out.data(), many.out.data(), one.out.size() * sizeof(float)), 0)
+            << t;
+    }
+}
+
+// A tall image holds no more than a short one: fill stays a band and 2 R + 1 rows ahead of take
+// (what the stream holds is those rows and R more behind), whatever the height.
+TEST(KeepLightStream, HoldsAFewBandsWhateverTheHeight) {
+    for (int h : {300, 3000}) {
+        const Field f = randomField(8, h, 14);
+        const Streamed got = streamed(f, nullptr, withRadius(8), 32, 2);
+        EXPECT_LE(got.mostAhead, 32 + 2 * 8 + 1) << h;
+        EXPECT_GE(got.mostAhead, 32) << h;  // a band is filled whole
+    }
+}
+
+// A false from fill or from take ends the stream with false, and nothing is called after it.
+TEST(KeepLightStream, FalseFromTheCallerStopsIt) {
+    const Field f = randomField(10, 100, 15);
+    for (const bool fillFails : {true, false}) {
+        int fills = 0, takes = 0;
+        // Bands of 10 rows, radius 2: the first band's rows 0 to 5 are returned once it is filled.
+        auto fill = [&](int, int, const KeepLightBandIn&) { return ++fills < 2 || !fillFails; };
+        auto take = [&](int, int, const double*) { return ++takes < 1 || fillFails; };
+        EXPECT_FALSE(keepLightStream(f.w, f.h, 3, false, withRadius(2), fill, take, 2, 10));
+        EXPECT_EQ(fills, fillFails ? 2 : 1);
+        EXPECT_EQ(takes, 1);
+    }
 }
 
 }  // namespace

@@ -294,11 +294,14 @@ TEST(RemovedLightLayers, InPassEqualsAppendedBitForBit) {
 // off (PixelKernel::plainMeanLayers). The result equals, bit for bit and channel for channel,
 // keeplight after the plain estimate, which computes the two in a pass of their own: every
 // per-pixel estimator, M = 9 and 21, invalid buffers and extreme values, AOVs of every class (a
-// light group that sums with the beauty, alpha, a data pass, a label), one and two threads.
+// light group that sums with the beauty, alpha, a data pass, a label), one and two threads. A
+// tall image goes by several bands of rows (keep_light_stream.h): both ways read each band's
+// rows where they lie, so every channel's light is the plain mean's.
 TEST(KeepLightLayers, InPassEqualsASeparatePassBitForBit) {
     const std::array<double, 3> luma{0.2126, 0.7152, 0.0722};
-    for (const int M : {9, 21}) {
-        StatsImage s = randomImage(37, 9, M, 11u + unsigned(M));
+    for (const auto& [M, w, h] : {std::array<int, 3>{9, 37, 9}, std::array<int, 3>{21, 37, 9},
+                                  std::array<int, 3>{9, 5, 300}}) {
+        StatsImage s = randomImage(w, h, M, 11u + unsigned(M) + unsigned(h));
         s.header.aovs = {{"A", AovClass::Alpha, ""},
                          {"key.R", AovClass::Light, ""},
                          {"N.X", AovClass::Data, ""},
@@ -335,6 +338,27 @@ TEST(KeepLightLayers, InPassEqualsASeparatePassBitForBit) {
                 EXPECT_EQ(inPass.spec().get_float_attribute("mcstat:keeplight:returned"),
                           separate.spec().get_float_attribute("mcstat:keeplight:returned"))
                     << name;
+                // Every returned channel's sum is the plain mean's (the "mean" estimator's).
+                OIIO::ImageBuf mean;
+                ASSERT_TRUE(
+                    applyOperation(mean, s, *findOperation("mean"), {}, luma, false, {}, threads));
+                for (const char* c : {"R", "G", "B", "key.R"}) {
+                    const int a = inPass.spec().channelindex(c), b = mean.spec().channelindex(c);
+                    ASSERT_GE(a, 0) << c;
+                    ASSERT_GE(b, 0) << c;
+                    double got = 0.0, want = 0.0, size = 0.0;
+                    const float* gp = static_cast<const float*>(inPass.localpixels());
+                    const float* mp = static_cast<const float*>(mean.localpixels());
+                    for (size_t p = 0; p < size_t(w) * size_t(h); ++p) {
+                        const float g = gp[p * size_t(inPass.nchannels()) + size_t(a)];
+                        const float m = mp[p * size_t(mean.nchannels()) + size_t(b)];
+                        if (!std::isfinite(m)) continue;  // an invalid pixel's mean: not light
+                        got += g;
+                        want += m;
+                        size += std::fabs(g);
+                    }
+                    EXPECT_NEAR(got, want, 1e-6 * size) << name << " " << c << " " << w << "x" << h;
+                }
             }
         }
     }

@@ -39,7 +39,8 @@ KeepLightParams keepLightParams(const ParamValues& values);
 /// Gives `robust` (an operation's float result over `src`: R, G, B first, then any channels, the
 /// file's AOVs under their names; its data window) the light it removed: each returned channel
 /// (R, G, B and every AOV but the labels, as appendResidual picks them) becomes robust + the
-/// residuals of its neighbourhood, each spread by its pixel's box (filters/keep_light.h). Other
+/// residuals of its neighbourhood, each spread by its pixel's window (filters/keep_light.h), by
+/// bands of rows (filters/keep_light_stream.h): beside `robust`, a few bands are held. Other
 /// channels are left as they are. Adds mcstat:keeplight:returned (the luminance returned over the
 /// plain mean's, the fraction of the light the estimate had removed), :gamma and :maxRadius.
 /// Errors on `robust`.

@@ -1,0 +1,72 @@
+// The steps of keep_light.h over bands of rows (internal to mcstat::filters): each reads per-pixel
+// arrays that hold only some rows of the image and computes a range of rows of its output, so
+// that keepLightStream (keep_light_stream.cpp) holds a few bands whatever the image's height and
+// the whole-image functions of keep_light.h are the same steps over every row. Every window is
+// clipped to the image, never to the rows held: the caller holds every row a window reaches.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "mcstat/filters/keep_light.h"
+
+namespace mcstat::keeplight {
+
+/// Per-pixel arrays that hold rows [first, first + count) of a width x height image, row `first`
+/// at index 0 (null where a step does not read them or the caller has none).
+struct HeldRows {
+    int width = 0, height = 0;            ///< the whole image
+    int first = 0, count = 0;             ///< the rows held
+    size_t nc = 0;                        ///< residual channels per pixel
+    const double* residual = nullptr;     ///< nc per pixel
+    const float* d = nullptr;             ///< the luminance residual
+    const float* se = nullptr;            ///< the plain mean's standard error
+    const uint8_t* active = nullptr;      ///< the pixel carries a residual
+    const float* guide = nullptr;         ///< the return's guide (albedo luminance), or null
+    const float* cluster = nullptr;       ///< the cluster guide, or null
+    const uint8_t* scale = nullptr;       ///< index into the radii, from scalesRows
+    const double* norm = nullptr;         ///< from normsRows, with a guide
+    const double* clusterNorm = nullptr;  ///< from normsRows, with a cluster guide
+
+    /// Index of pixel (x, y), y an image row within the rows held.
+    size_t at(int x, int y) const { return size_t(y - first) * size_t(width) + size_t(x); }
+    /// Whether pixel index p (as at() gives it) carries a finite nonzero residual to send.
+    bool sends(size_t p) const;
+};
+
+/// The rows beyond [y0, y1) that each step reads: its windows' largest radius (at least 1, the
+/// support test's and the cluster guide's 3 x 3).
+int haloRows(const KeepLightParams& params);
+
+/// keepLightScales for rows [y0, y1) into scale (rows [y0, y1) only): reads d, se, active over
+/// [y0 - haloRows, y1 + haloRows) clipped to the image.
+void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int y1, uint8_t* scale,
+                int nthreads);
+
+/// keepLightClusterGuide for rows [y0, y1) into out (rows [y0, y1) only): reads d over
+/// [y0 - 1, y1 + 1) clipped to the image.
+void clusterRows(const HeldRows& held, int y0, int y1, float* out, int nthreads);
+
+/// The weight sums of each sender's window over rows [y0, y1), at its own radius: norm[p] the
+/// guide's tent sum (with a guide), clusterNorm[p] the cluster guide's (radius 1 only); 0 where
+/// p sends nothing or has no such window. Reads residual, scale, guide, cluster over
+/// [y0 - radius, y1 + radius).
+void normsRows(const HeldRows& held, const std::vector<int>& radii, int y0, int y1, double* norm,
+               double* clusterNorm, int nthreads);
+
+/// gatherRows' buffers, kept from one call to the next so that a stream's bands reuse them.
+struct GatherScratch {
+    std::vector<double> source, rows, plain, guided, clustered;
+    std::vector<uint8_t> need, rowNeed, rowHas;
+    size_t rowLength = 0;  ///< the source rows' doubles (width x channels) the buffers are for
+};
+
+/// The light that rows [y0, y1) receive, add[(y - y0) * width * nc + x * nc + c] (returnResidual's
+/// sum over senders, with the guide and cluster guide of the receiving pixel applied): reads
+/// residual, scale, norm, clusterNorm over [y0 - radius, y1 + radius), guide and cluster over
+/// [y0, y1).
+void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int y1, double* add,
+                GatherScratch& scratch, int nthreads);
+
+}  // namespace mcstat::keeplight
