@@ -32,10 +32,11 @@ bool runOperationOn(ImageBuf& dst, Source& src, const Operation& op, const Param
             if (keepLight) {
                 // What keeplight reads of the buffers, in this pass too (keep_light_image.h): the
                 // plain mean and the removed-light layers' per-pixel step (their luminance
-                // spread), which it takes off the result.
+                // spread), band by band with the return.
                 kernel.removedLight = true;
                 kernel.plainMeanLayers = true;
-                return estimate(dst, src, op, kernel, diagnostics, roi, nthreads);
+                return keepLightEstimate(dst, src, op, kernel, diagnostics, luma,
+                                         keepLightParams(values), nthreads);
             }
             if (!estimate(dst, src, op, kernel, diagnostics, roi, nthreads)) return false;
             return !kernel.removedLight ||
@@ -95,7 +96,9 @@ bool applyOperationTo(ImageBuf& dst, Source& src, const Operation& op, const Par
         return false;
     }
     if (!runOperationOn(dst, src, op, values, luma, diagnostics, keep, roi, nthreads)) return false;
-    return !keep || keepLight(dst, src, luma, keepLightParams(values), nthreads);
+    // A per-pixel estimator gave its light back band by band in its own pass.
+    return !keep || op.input == InputKind::BufferMeans ||
+           keepLight(dst, src, luma, keepLightParams(values), nthreads);
 }
 
 }  // namespace

@@ -84,11 +84,11 @@ bool meanWithSpread(ImageBuf& dst, Source& src, const std::array<double, 3>& lum
     return true;
 }
 
-/// Where the operation's own pass put the plain mean and its luminance spread in `robust`
-/// (PixelKernel::plainMeanLayers and the removed-light layers' per-pixel step:
-/// apply_operation.cpp): the step's channels from firstStep on, then the plain mean's (R, G, B, the
-/// AOVs, each named kPlainMeanPrefix + the result's name) from firstMean on. `names` are the plain
-/// mean's channel names without the prefix. firstStep < 0 when `robust` holds no such layers.
+/// Where the operation's own pass put the plain mean and its luminance spread in its result
+/// (PixelKernel::plainMeanLayers and the removed-light layers' per-pixel step): the step's
+/// channels from firstStep on, then the plain mean's (R, G, B, the AOVs, each named
+/// kPlainMeanPrefix + the result's name) from firstMean on. `names` are the plain mean's channel
+/// names without the prefix. firstStep < 0 when the result holds no such layers.
 struct PassLayers {
     int firstStep = -1, firstMean = -1;
     OIIO::ImageSpec names;
@@ -107,25 +107,6 @@ PassLayers passLayersOf(const OIIO::ImageSpec& rs) {
             rs.channelnames[size_t(c)].substr(std::strlen(kPlainMeanPrefix)));
     l.names.nchannels = int(l.names.channelnames.size());
     return l;
-}
-
-/// `robust` without the pass's layers (its channels before firstStep; spec and metadata as they
-/// were): a plain copy, rows in parallel.
-void dropPassLayers(ImageBuf& robust, int firstStep, int nthreads) {
-    const OIIO::ImageSpec& rs = robust.spec();
-    OIIO::ImageSpec ks = rs;
-    ks.nchannels = firstStep;
-    ks.channelnames.resize(size_t(firstStep));
-    ks.channelformats.clear();
-    ImageBuf kept(ks, OIIO::InitializePixels::No);
-    const size_t nin = size_t(rs.nchannels), nk = size_t(firstStep);
-    const float* from = static_cast<const float*>(robust.localpixels());
-    float* to = static_cast<float*>(kept.localpixels());
-    parallelFor(0, rs.height, 0, nthreads, [&](int64_t yb, int64_t ye) {
-        for (size_t p = size_t(yb) * size_t(rs.width); p < size_t(ye) * size_t(rs.width); ++p)
-            std::copy(from + p * nin, from + p * nin + nk, to + p * nk);
-    });
-    robust = std::move(kept);
 }
 
 /// The plain mean and its luminance spread of the rows being filled: pixel p's (index from the
@@ -182,60 +163,66 @@ void residualRows(const float* rp, size_t nin, size_t w, const MeanRows& mean,
     });
 }
 
-template <class Source>
-bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
-                 const KeepLightParams& params, int nthreads) {
+/// One band of rows [y0, y1) (0-based in the data window) of what the stream reads: the plain
+/// mean and its luminance spread (`mean`, into `img`), and the names of the plain mean's channels,
+/// the first at firstMean in a pixel (residualChannels matches them with the result's).
+struct Band {
+    int y0 = 0, y1 = 0;
+    ImageBuf img;
+    MeanRows mean;
+    OIIO::ImageSpec meanNames;
+    int firstMean = 0;
+};
+
+/// The stream's band height: keepLightBandRows, in whole chunks of a file, so that no chunk is
+/// decoded for two bands.
+int bandRowsOf(const StatsImage&, const KeepLightParams& p) { return keepLightBandRows(p); }
+int bandRowsOf(StatsBlockSource& src, const KeepLightParams& p) {
+    const int chunk = std::max(1, src.chunkRows());
+    return (keepLightBandRows(p) + chunk - 1) / chunk * chunk;
+}
+
+/// The light given back to `robust`, the result over `roi` (the data window), by bands of rows
+/// (keep_light_stream.h): makeBand(y0, y1, band, err) gives each band's plain mean and spread and,
+/// where the result is computed band by band too, puts its rows into `robust` first.
+template <class Source, class MakeBand>
+bool returnByBands(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
+                   const KeepLightParams& params, ROI roi, int nthreads, MakeBand makeBand) {
     if (!(params.gamma > 0.0) || !std::isfinite(params.gamma) || params.maxRadius < 0 ||
         params.maxRadius > 1024) {
         robust.errorfmt("keeplight: gamma {} and radius {}: need gamma > 0, radius in [0, 1024]",
                         params.gamma, params.maxRadius);
         return false;
     }
+    const int width = roi.width(), height = roi.height(), bandRows = bandRowsOf(src, params);
+    Band band;
+    std::string err;
+    if (!makeBand(0, std::min(bandRows, height), band, err)) {
+        robust.errorfmt("keeplight: {}", err);
+        return false;
+    }
     const OIIO::ImageSpec& rs = robust.spec();
-    if (rs.nchannels < 3 || rs.format != OIIO::TypeDesc::FLOAT || !robust.localpixels()) {
+    if (rs.nchannels < 3 || rs.format != OIIO::TypeDesc::FLOAT || !robust.localpixels() ||
+        rs.width != width || rs.height != height) {
         robust.errorfmt("keeplight: the result is not a float image with R, G, B first");
         return false;
     }
-    // The plain mean and its spread from the operation's own pass where it gave them, else from
-    // a pass of their own, a band of rows at a time.
-    const PassLayers layers = passLayersOf(rs);
-    const bool inPass = layers.firstStep >= 0;
-    const ROI roi = robust.roi();
-    const int width = roi.width(), height = roi.height();
-    const size_t w = size_t(width), nin = size_t(rs.nchannels);
-    float* rp = static_cast<float*>(robust.localpixels());
     // The residual channels (the beauty and every AOV but the labels, as appendResidual picks
-    // them) and where each one's plain mean lies: known once the mean's channels are.
-    std::vector<int> from, meanAt;
-    auto channelsOf = [&](const OIIO::ImageSpec& meanSpec, int offset) {
-        from = residualChannels(robust.spec(), meanSpec, headerOf(src), meanAt);
-        for (int& m : meanAt) m += offset;
-    };
-    if (inPass) channelsOf(layers.names, layers.firstMean);
-    ImageBuf band;  // the plain mean of the rows being filled, without the pass's layers
-    std::string err;
+    // them) and where each one's plain mean lies in a band's pixel.
+    std::vector<int> meanAt;
+    const std::vector<int> from = residualChannels(rs, band.meanNames, headerOf(src), meanAt);
+    for (int& m : meanAt) m += band.firstMean;
+    const size_t w = size_t(width), nin = size_t(rs.nchannels), nc = from.size();
+    float* rp = static_cast<float*>(robust.localpixels());
     // Per row, summed in row order at the end: the same bits at any thread count.
     std::vector<double> rowMeanY(size_t(height), 0.0), rowReturnedY(size_t(height), 0.0);
     auto fill = [&](int y0, int y1, const KeepLightBandIn& in) {
-        MeanRows mean;
-        if (inPass) {
-            mean = {rp + size_t(y0) * w * nin, nin, layers.firstStep};
-        } else {
-            const ROI rows(roi.xbegin, roi.xend, roi.ybegin + y0, roi.ybegin + y1);
-            int spread = 0;
-            if (!meanWithSpread(band, src, luma, rows, nthreads, spread)) {
-                err = band.geterror();
-                return false;
-            }
-            mean = {static_cast<const float*>(band.localpixels()), size_t(band.nchannels()),
-                    spread};
-        }
-        residualRows(rp, nin, w, mean, from, meanAt, luma, y0, y1, in, rowMeanY.data(),
+        if ((band.y0 != y0 || band.y1 != y1) && !makeBand(y0, y1, band, err)) return false;
+        residualRows(rp, nin, w, band.mean, from, meanAt, luma, y0, y1, in, rowMeanY.data(),
                      rowReturnedY.data(), nthreads);
         return !in.guide || albedoRows(src, y0, y1, luma, in.guide, err);
     };
     auto take = [&](int y0, int y1, const double* add) {
-        const size_t nc = from.size();
         parallelFor(y0, y1, 0, nthreads, [&](int64_t yb, int64_t ye) {
             for (size_t p = size_t(yb) * w; p < size_t(ye) * w; ++p)
                 for (size_t i = 0; i < nc; ++i) {
@@ -246,23 +233,11 @@ bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& lum
         });
         return true;
     };
-    // The number of residual channels, known before the first band: from the pass's layers, or
-    // from the mean of the first row.
-    if (!inPass) {
-        int spread = 0;
-        if (!meanWithSpread(band, src, luma, ROI(roi.xbegin, roi.xend, roi.ybegin, roi.ybegin + 1),
-                            nthreads, spread)) {
-            robust.errorfmt("keeplight: {}", band.geterror());
-            return false;
-        }
-        channelsOf(band.spec(), 0);
-    }
-    if (!keepLightStream(width, height, int(from.size()), hasAlbedo(src), params, fill, take,
-                         nthreads)) {
+    if (!keepLightStream(width, height, int(nc), hasAlbedo(src), params, fill, take, nthreads,
+                         bandRows)) {
         robust.errorfmt("keeplight: {}", err);
         return false;
     }
-    if (inPass) dropPassLayers(robust, layers.firstStep, nthreads);
     double meanY = 0.0, returnedY = 0.0;
     for (size_t y = 0; y < size_t(height); ++y) {
         meanY += rowMeanY[y];
@@ -273,6 +248,77 @@ bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& lum
     robust.specmod().attribute("mcstat:keeplight:gamma", float(params.gamma));
     robust.specmod().attribute("mcstat:keeplight:maxRadius", params.maxRadius);
     return true;
+}
+
+/// keepLight: the result is given; each band's plain mean and spread from a pass of its own.
+template <class Source>
+bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
+                 const KeepLightParams& params, int nthreads) {
+    const ROI roi = robust.roi();
+    auto makeBand = [&](int y0, int y1, Band& b, std::string& err) {
+        const ROI rows(roi.xbegin, roi.xend, roi.ybegin + y0, roi.ybegin + y1);
+        int spread = 0;
+        if (!meanWithSpread(b.img, src, luma, rows, nthreads, spread)) {
+            err = b.img.geterror();
+            return false;
+        }
+        b.y0 = y0;
+        b.y1 = y1;
+        b.mean = {static_cast<const float*>(b.img.localpixels()), size_t(b.img.nchannels()),
+                  spread};
+        b.meanNames = b.img.spec();
+        b.firstMean = 0;
+        return true;
+    };
+    return returnByBands(robust, src, luma, params, roi, nthreads, makeBand);
+}
+
+/// keepLightEstimate: the result too is computed band by band, its own pass giving the band's
+/// plain mean and spread as layers that stay in the band.
+template <class Source>
+bool keepLightEstimateTo(ImageBuf& dst, Source& src, const Operation& op, const PixelKernel& kernel,
+                         bool diagnostics, const std::array<double, 3>& luma,
+                         const KeepLightParams& params, int nthreads) {
+    const ROI roi = dataWindowROI(headerOf(src));
+    bool allocated = false;
+    auto makeBand = [&](int y0, int y1, Band& b, std::string& err) {
+        const ROI rows(roi.xbegin, roi.xend, roi.ybegin + y0, roi.ybegin + y1);
+        if (!estimate(b.img, src, op, kernel, diagnostics, rows, nthreads)) {
+            err = b.img.geterror();
+            return false;
+        }
+        const OIIO::ImageSpec& bs = b.img.spec();
+        const PassLayers layers = passLayersOf(bs);
+        if (layers.firstStep < 0 || bs.format != OIIO::TypeDesc::FLOAT) {
+            err = op.name + ": the estimate's pass gave no plain mean";
+            return false;
+        }
+        const size_t nin = size_t(bs.nchannels), nk = size_t(layers.firstStep),
+                     w = size_t(roi.width());
+        if (!allocated) {  // the result: the band's spec over every row, without the layers
+            OIIO::ImageSpec spec = bs;
+            spec.y = roi.ybegin;
+            spec.height = roi.height();
+            spec.nchannels = layers.firstStep;
+            spec.channelnames.resize(nk);
+            spec.channelformats.clear();
+            dst.reset(spec, OIIO::InitializePixels::No);
+            allocated = true;
+        }
+        const float* from = static_cast<const float*>(b.img.localpixels());
+        float* to = static_cast<float*>(dst.localpixels()) + size_t(y0) * w * nk;
+        parallelFor(0, y1 - y0, 0, nthreads, [&](int64_t yb, int64_t ye) {
+            for (size_t p = size_t(yb) * w; p < size_t(ye) * w; ++p)
+                std::copy(from + p * nin, from + p * nin + nk, to + p * nk);
+        });
+        b.y0 = y0;
+        b.y1 = y1;
+        b.mean = {from, nin, layers.firstStep};
+        b.meanNames = layers.names;
+        b.firstMean = layers.firstMean;
+        return true;
+    };
+    return returnByBands(dst, src, luma, params, roi, nthreads, makeBand);
 }
 
 }  // namespace
@@ -337,6 +383,20 @@ bool keepLight(ImageBuf& robust, const StatsImage& src, const std::array<double,
 bool keepLight(ImageBuf& robust, StatsBlockSource& src, const std::array<double, 3>& luma,
                const KeepLightParams& params, int nthreads) {
     return keepLightTo(robust, src, luma, params, nthreads);
+}
+
+bool keepLightEstimate(ImageBuf& dst, const StatsImage& src, const Operation& op,
+                       const PixelKernel& kernel, bool diagnostics,
+                       const std::array<double, 3>& luma, const KeepLightParams& params,
+                       int nthreads) {
+    return keepLightEstimateTo(dst, src, op, kernel, diagnostics, luma, params, nthreads);
+}
+
+bool keepLightEstimate(ImageBuf& dst, StatsBlockSource& src, const Operation& op,
+                       const PixelKernel& kernel, bool diagnostics,
+                       const std::array<double, 3>& luma, const KeepLightParams& params,
+                       int nthreads) {
+    return keepLightEstimateTo(dst, src, op, kernel, diagnostics, luma, params, nthreads);
 }
 
 }  // namespace mcstat

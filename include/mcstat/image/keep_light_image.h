@@ -49,4 +49,18 @@ bool keepLight(OIIO::ImageBuf& robust, const StatsImage& src, const std::array<d
 bool keepLight(OIIO::ImageBuf& robust, StatsBlockSource& src, const std::array<double, 3>& luma,
                const KeepLightParams& params = {}, int nthreads = 0);
 
+/// A per-pixel estimator's result over the whole data window of `src` with its light given back,
+/// computed band by band with keepLight's return: `kernel` (bound from `op`, with removedLight and
+/// plainMeanLayers set) gives each band's result and, in the same pass over the buffers, its
+/// plain mean and luminance spread, which stay in the band. The same pixels and attributes as
+/// estimate() then keepLight(); beside the result, a few bands of rows are held. Errors on dst.
+bool keepLightEstimate(OIIO::ImageBuf& dst, const StatsImage& src, const Operation& op,
+                       const PixelKernel& kernel, bool diagnostics,
+                       const std::array<double, 3>& luma, const KeepLightParams& params,
+                       int nthreads = 0);
+bool keepLightEstimate(OIIO::ImageBuf& dst, StatsBlockSource& src, const Operation& op,
+                       const PixelKernel& kernel, bool diagnostics,
+                       const std::array<double, 3>& luma, const KeepLightParams& params,
+                       int nthreads = 0);
+
 }  // namespace mcstat
