@@ -69,7 +69,7 @@ struct HeldBands {
 }  // namespace
 
 int keepLightBandRows(const KeepLightParams& params) {
-    return std::max(32, keeplight::haloRows(params));
+    return std::max(64, 2 * keeplight::haloRows(params));
 }
 
 bool keepLightStream(int width, int height, int nch, bool guided, const KeepLightParams& params,

@@ -38,9 +38,10 @@ using KeepLightFill = std::function<bool(int y0, int y1, const KeepLightBandIn& 
 /// add != 0 ? float(robust + add) : robust); false stops the stream.
 using KeepLightTake = std::function<bool(int y0, int y1, const double* add)>;
 
-/// The rows of a band when the caller names none: R, at least 32. Smaller bands hold less (at
-/// 1920 x 1080, M = 21, `--gmon:keeplight=1` peaks at 277 MB with bands of 32 rows, 398 MB with
-/// 128) and repeat more of the halos' work (3 % more time with 32 than with 128).
+/// The rows of a band when the caller names none: 2 R, at least 64, so that the halos' repeated
+/// work is at most the band's own. Smaller bands hold less and repeat more (1920 x 1080, M = 21,
+/// `--gmon:keeplight=1` from a file: bands of 32, 64 and 128 rows peak at 277, 338 and 390 MB,
+/// `--gmon` alone at 266 MB, and take 2.99, 2.93 and 2.83 s, docs/keep-light.md).
 int keepLightBandRows(const KeepLightParams& params);
 
 /// keepLightScales, keepLightClusterGuide and returnResidual (with the guide when `guided`) over a
