@@ -297,6 +297,12 @@ for combo in "9 8" "10 3" "1 2"; do
   cmp "$T.single.mcstat" "$T/out/t.0005.mcstat" || fail "$1 seeds, fan-in $2: the tree differs from --merge:fanin=$2"
 done
 
+step "report on a shot run without Slurm: complete, and no word of the queue when no controller answers"
+rc=0; SLURM_CONF=/nonexistent/slurm.conf "$farm/mcstat-farm" report "$T" >"$T.report" 2>&1 || rc=$?
+[[ $rc -eq 0 ]] || { cat "$T.report"; fail "report of a complete run-local shot: exit 0 expected, got $rc"; }
+! grep -q "queue could not be read" "$T.report" ||
+  { cat "$T.report"; fail "report of a run-local shot asked squeue"; }
+
 step "a compact shot (run-local --compact): the frame's file is the merge compacted, in the same job"
 T=$work/compact
 run "$farm/mcstat-farm" run-local "$T" --name c --frames 2 --seeds 3 --spp 16 --res 32 24 \
