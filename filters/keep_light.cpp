@@ -63,6 +63,7 @@ std::vector<int> keepLightRadii(int maxRadius) {
 namespace keeplight {
 
 bool HeldRows::sends(size_t p) const {
+    if (active) return active[p] != 0;  // the caller's flag: the same test, once per pixel
     for (size_t c = 0; c < nc; ++c) {
         const double v = residual[p * nc + c];
         if (v != 0.0 && std::isfinite(v)) return true;

@@ -31,7 +31,9 @@ struct HeldRows {
 
     /// Index of pixel (x, y), y an image row within the rows held.
     size_t at(int x, int y) const { return size_t(y - first) * size_t(width) + size_t(x); }
-    /// Whether pixel index p (as at() gives it) carries a finite nonzero residual to send.
+    /// Whether pixel index p (as at() gives it) carries a finite nonzero residual to send: `active`
+    /// where the caller gives it (keepLightStream's callers set it by this very test), else the
+    /// residual's channels.
     bool sends(size_t p) const;
 };
 
