@@ -126,10 +126,7 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
 
 void keepLightScales(const float* d, const float* se, const uint8_t* active, int width, int height,
                      const KeepLightParams& params, uint8_t* scale, int nthreads) {
-    keeplight::HeldRows held;
-    held.width = width;
-    held.height = height;
-    held.count = height;
+    keeplight::HeldRows held = keeplight::HeldRows::whole(width, height);
     held.d = d;
     held.se = se;
     held.active = active;
@@ -521,10 +518,7 @@ void returnResidual(const float* robust, const double* residual, const uint8_t* 
                     const std::vector<int>& radii, int width, int height, int nch, float* out,
                     int nthreads, const float* guide, const float* clusterGuide) {
     const size_t n = size_t(width) * size_t(height), nc = size_t(nch);
-    keeplight::HeldRows held;
-    held.width = width;
-    held.height = height;
-    held.count = height;
+    keeplight::HeldRows held = keeplight::HeldRows::whole(width, height);
     held.nc = nc;
     held.residual = residual;
     held.scale = scale;
@@ -544,10 +538,7 @@ void returnResidual(const float* robust, const double* residual, const uint8_t* 
 }
 
 std::vector<float> keepLightClusterGuide(const float* d, int width, int height, int nthreads) {
-    keeplight::HeldRows held;
-    held.width = width;
-    held.height = height;
-    held.count = height;
+    keeplight::HeldRows held = keeplight::HeldRows::whole(width, height);
     held.d = d;
     std::vector<float> g(size_t(width) * size_t(height), 0.f);
     keeplight::clusterRows(held, 0, height, g.data(), nthreads);

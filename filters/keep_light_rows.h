@@ -29,6 +29,14 @@ struct HeldRows {
     const double* norm = nullptr;         ///< from normsRows, with a guide
     const double* clusterNorm = nullptr;  ///< from normsRows, with a cluster guide
 
+    /// Every row of a width x height image held (the whole-image functions of keep_light.h).
+    static HeldRows whole(int width, int height) {
+        HeldRows h;
+        h.width = width;
+        h.height = height;
+        h.count = height;
+        return h;
+    }
     /// Index of pixel (x, y), y an image row within the rows held.
     size_t at(int x, int y) const { return size_t(y - first) * size_t(width) + size_t(x); }
     /// Whether pixel index p (as at() gives it) carries a finite nonzero residual to send: `active`
