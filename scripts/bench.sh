@@ -269,7 +269,7 @@ if want height; then
     stats_file "$out/height-$h-seed4.mcstat" 1920 "$h" 8 4  # the second render merged
   done
   printf "%-44s %10s %10s %10s\n" "command (peak RSS MiB / wall s)" "540 rows" "1080 rows" "2160 rows"
-  for op in gmon 3dwtmf plugin merge; do
+  for op in gmon gmon:keeplight=1 3dwtmf plugin merge; do
     names=()
     for h in 540 1080 2160; do
       f=$out/height-$h.mcstat
