@@ -14,34 +14,17 @@ namespace mcstat {
 
 namespace {
 
-/// A summed-area table in double of a width x height array, for window sums of the scale choice
-/// (a decision statistic: its rounding, relative to the image's sums, never reaches an output
-/// value, which returnResidual sums directly).
-class AreaSums {
-  public:
-    template <class Value>
-    AreaSums(int width, int height, Value value)
-        : w_(size_t(width) + 1), s_(w_ * (size_t(height) + 1), 0.0) {
-        for (int y = 0; y < height; ++y) {
-            double row = 0.0;
-            for (int x = 0; x < width; ++x) {
-                row += value(size_t(y) * size_t(width) + size_t(x));
-                s_[(size_t(y) + 1) * w_ + size_t(x) + 1] = s_[size_t(y) * w_ + size_t(x) + 1] + row;
-            }
-        }
-    }
-    /// The sum over [x0, x1) x [y0, y1).
-    double box(int x0, int y0, int x1, int y1) const {
-        return s_[size_t(y1) * w_ + size_t(x1)] - s_[size_t(y0) * w_ + size_t(x1)] -
-               s_[size_t(y1) * w_ + size_t(x0)] + s_[size_t(y0) * w_ + size_t(x0)];
-    }
-
-  private:
-    size_t w_;
-    std::vector<double> s_;
-};
-
 double finiteOrZero(float v) { return std::isfinite(v) ? double(v) : 0.0; }
+
+/// What the scale choice reads of d and se: non-finite values as 0, magnitudes above 1e10 as 1e10.
+/// The window sums are differences of a summed-area table, which carries every value below and
+/// to the right of it: a firefly of 1e38 would leave about 1e22 of rounding in the sums of
+/// windows that do not hold it, and choose their scales at random. At 1e10 that rounding is about
+/// 2e-6, below any standard error a render has; a pixel that bright is a lone firefly either way.
+double decisionValue(float v) {
+    constexpr double kBound = 1e10;
+    return std::max(-kBound, std::min(kBound, finiteOrZero(v)));
+}
 
 /// The part of [c - r, c + r] inside [0, n).
 std::pair<int, int> clipped(int c, int r, int n) {
@@ -73,20 +56,38 @@ bool HeldRows::sends(size_t p) const {
 
 int haloRows(const KeepLightParams& params) { return std::max(1, params.maxRadius); }
 
+void areaSumRows(const HeldRows& held, int y0, int y1, double* sumD, double* sumV) {
+    const size_t w = size_t(held.width), w1 = w + 1;
+    for (int y = y0; y < y1; ++y) {
+        const double* pd = sumD + size_t(y - y0) * w1;
+        const double* pv = sumV + size_t(y - y0) * w1;
+        double* cd = sumD + size_t(y - y0 + 1) * w1;
+        double* cv = sumV + size_t(y - y0 + 1) * w1;
+        cd[0] = cv[0] = 0.0;
+        double rowD = 0.0, rowV = 0.0;
+        for (size_t x = 0; x < w; ++x) {
+            const size_t p = held.at(int(x), y);
+            const double se = decisionValue(held.se[p]);
+            rowD += decisionValue(held.d[p]);
+            rowV += se * se;
+            cd[x + 1] = pd[x + 1] + rowD;
+            cv[x + 1] = pv[x + 1] + rowV;
+        }
+    }
+}
+
 void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int y1, uint8_t* scale,
                 int nthreads) {
     const std::vector<int> radii = keepLightRadii(params.maxRadius);
     const int width = held.width, height = held.height;
-    // The window sums over the rows the windows reach: [s0, s1), clipped to the image.
-    const int halo = haloRows(params);
-    const int s0 = std::max(0, y0 - halo), s1 = std::min(height, y1 + halo);
-    const size_t base = held.at(0, s0);
     std::fill(scale, scale + size_t(y1 - y0) * size_t(width), uint8_t(0));
-    const AreaSums sumD(width, s1 - s0, [&](size_t p) { return finiteOrZero(held.d[base + p]); });
-    const AreaSums sumV(width, s1 - s0, [&](size_t p) {
-        const double s = finiteOrZero(held.se[base + p]);
-        return s * s;
-    });
+    // The window sums from the summed-area tables' rows, counted from the image's top.
+    const size_t w1 = size_t(width) + 1;
+    auto box = [&](const double* t, int x0, int wy0, int x1, int wy1) {
+        const double* top = t + size_t(wy0 - held.first) * w1;
+        const double* bottom = t + size_t(wy1 - held.first) * w1;
+        return bottom[x1] - top[x1] - bottom[x0] + top[x0];
+    };
     const double gamma = params.gamma;
     parallelFor(y0, y1, 0, nthreads, [&](int64_t yb, int64_t ye) {
         for (int y = int(yb); y < int(ye); ++y)
@@ -101,9 +102,9 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
                     const auto [x0, x1] = clipped(x, radii[k], width);
                     const auto [wy0, wy1] = clipped(y, radii[k], height);
                     const double area = double(x1 - x0) * double(wy1 - wy0);
-                    const double m = sumD.box(x0, wy0 - s0, x1, wy1 - s0) / area;
+                    const double m = box(held.areaD, x0, wy0, x1, wy1) / area;
                     const double s =
-                        std::sqrt(std::max(0.0, sumV.box(x0, wy0 - s0, x1, wy1 - s0))) / area;
+                        std::sqrt(std::max(0.0, box(held.areaV, x0, wy0, x1, wy1))) / area;
                     lo = std::max(lo, m - gamma * s);
                     hi = std::min(hi, m + gamma * s);
                     if (!(lo <= hi)) break;
@@ -113,9 +114,8 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
                 // for the intervals to tell from a few fireflies) stays within a pixel.
                 const auto [x0, x1] = clipped(x, 1, width);
                 const auto [wy0, wy1] = clipped(y, 1, height);
-                const double v = sumV.box(x0, wy0 - s0, x1, wy1 - s0);
-                if (v > 0.0 &&
-                    sumD.box(x0, wy0 - s0, x1, wy1 - s0) / std::sqrt(v) >= params.supportZ)
+                const double v = box(held.areaV, x0, wy0, x1, wy1);
+                if (v > 0.0 && box(held.areaD, x0, wy0, x1, wy1) / std::sqrt(v) >= params.supportZ)
                     chosen = std::min<uint8_t>(chosen, uint8_t(1));
                 scale[size_t(y - y0) * size_t(width) + size_t(x)] = chosen;
             }
@@ -130,6 +130,11 @@ void keepLightScales(const float* d, const float* se, const uint8_t* active, int
     held.d = d;
     held.se = se;
     held.active = active;
+    const size_t tableSize = (size_t(width) + 1) * (size_t(height) + 1);
+    std::vector<double> areaD(tableSize, 0.0), areaV(tableSize, 0.0);
+    keeplight::areaSumRows(held, 0, height, areaD.data(), areaV.data());
+    held.areaD = areaD.data();
+    held.areaV = areaV.data();
     keeplight::scalesRows(held, params, 0, height, scale, nthreads);
 }
 

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -544,6 +545,57 @@ TEST(KeepLightStream, HoldsAFewBandsWhateverTheHeight) {
         EXPECT_LE(got.mostAhead, 32 + 2 * 8 + 1) << h;
         EXPECT_GE(got.mostAhead, 32) << h;  // a band is filled whole
     }
+}
+
+// The extremes by bands: images of one row, one column, one pixel, fewer rows than the radius;
+// NaN and infinite residuals and a firefly of 1e38 on the bands' boundaries. Every band height
+// gives the whole image's values (to float rounding) and only finite ones.
+TEST(KeepLightStream, ExtremeShapesAndValues) {
+    for (const auto& [w, h, r] :
+         {std::array<int, 3>{1, 1, 32}, std::array<int, 3>{1, 50, 4}, std::array<int, 3>{50, 1, 4},
+          std::array<int, 3>{7, 5, 1024}, std::array<int, 3>{9, 40, 2}}) {
+        Field f = randomField(w, h, 16);
+        const double inf = std::numeric_limits<double>::infinity();
+        for (int y = 0; y < h; y += 3) {  // every third row: a boundary of bands of 1 and 3 rows
+            const size_t p = f.at(w / 2, y);
+            f.residual[p * 3] = y % 2 ? std::numeric_limits<double>::quiet_NaN() : 1e38;
+            f.residual[p * 3 + 1] = y % 2 ? inf : -1e38;
+            f.d[p] = y % 2 ? std::numeric_limits<float>::quiet_NaN() : 1e38f;
+            f.se[p] = y % 2 ? std::numeric_limits<float>::infinity() : 1e38f;
+            f.active[p] = 1;
+        }
+        const KeepLightParams p = withRadius(r);
+        const std::vector<float> want = wholeImage(f, nullptr, p, 2);
+        for (int band : {1, 3, h}) {
+            const Streamed got = streamed(f, nullptr, p, band, 2);
+            for (size_t i = 0; i < want.size(); ++i) {
+                ASSERT_TRUE(std::isfinite(got.out[i])) << w << "x" << h << " band " << band;
+                ASSERT_NEAR(got.out[i], want[i], 1e-6 * std::fabs(want[i]) + 1e-9)
+                    << w << "x" << h << " radius " << r << " band " << band << " at " << i;
+            }
+        }
+    }
+}
+
+// A firefly of 1e38 in the middle of a tall image returned by bands of 5 rows: the rows beyond
+// its window keep the robust values bit for bit, those within it all got light.
+TEST(KeepLightStream, RowsBeyondTheWindowAreUntouched) {
+    Field f(3, 200, 3);
+    for (size_t i = 0; i < f.robust.size(); ++i) f.robust[i] = 0.1f * float(i % 7);
+    const size_t p = f.at(1, 100);
+    for (int c = 0; c < 3; ++c) f.residual[p * 3 + size_t(c)] = 1e38;
+    f.d[p] = f.se[p] = 1e38f;
+    f.active[p] = 1;
+    const Streamed got = streamed(f, nullptr, {}, 5, 2);
+    for (int y = 0; y < 200; ++y)
+        for (size_t i = f.at(0, y) * 3; i < f.at(0, y + 1) * 3; ++i) {
+            if (std::abs(y - 100) <= 32) {
+                EXPECT_GT(got.out[i], f.robust[i]) << y;
+                EXPECT_TRUE(std::isfinite(got.out[i])) << y;
+            } else {
+                EXPECT_EQ(got.out[i], f.robust[i]) << y;  // exactly
+            }
+        }
 }
 
 // A false from fill or from take ends the stream with false, and nothing is called after it.
