@@ -16,16 +16,6 @@ namespace {
 
 double finiteOrZero(float v) { return std::isfinite(v) ? double(v) : 0.0; }
 
-/// What the scale choice reads of d and se: non-finite values as 0, magnitudes above 1e10 as 1e10.
-/// The window sums are differences of a summed-area table, which carries every value below and
-/// to the right of it: a firefly of 1e38 would leave about 1e22 of rounding in the sums of
-/// windows that do not hold it, and choose their scales at random. At 1e10 that rounding is about
-/// 2e-6, below any standard error a render has; a pixel that bright is a lone firefly either way.
-double decisionValue(float v) {
-    constexpr double kBound = 1e10;
-    return std::max(-kBound, std::min(kBound, finiteOrZero(v)));
-}
-
 /// The part of [c - r, c + r] inside [0, n).
 std::pair<int, int> clipped(int c, int r, int n) {
     return {std::max(0, c - r), std::min(n, c + r + 1)};
@@ -56,72 +46,6 @@ bool HeldRows::sends(size_t p) const {
 
 int haloRows(const KeepLightParams& params) { return std::max(1, params.maxRadius); }
 
-void areaSumRows(const HeldRows& held, int y0, int y1, double* sumD, double* sumV) {
-    const size_t w = size_t(held.width), w1 = w + 1;
-    for (int y = y0; y < y1; ++y) {
-        const double* pd = sumD + size_t(y - y0) * w1;
-        const double* pv = sumV + size_t(y - y0) * w1;
-        double* cd = sumD + size_t(y - y0 + 1) * w1;
-        double* cv = sumV + size_t(y - y0 + 1) * w1;
-        cd[0] = cv[0] = 0.0;
-        double rowD = 0.0, rowV = 0.0;
-        for (size_t x = 0; x < w; ++x) {
-            const size_t p = held.at(int(x), y);
-            const double se = decisionValue(held.se[p]);
-            rowD += decisionValue(held.d[p]);
-            rowV += se * se;
-            cd[x + 1] = pd[x + 1] + rowD;
-            cv[x + 1] = pv[x + 1] + rowV;
-        }
-    }
-}
-
-void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int y1, uint8_t* scale,
-                int nthreads) {
-    const std::vector<int> radii = keepLightRadii(params.maxRadius);
-    const int width = held.width, height = held.height;
-    std::fill(scale, scale + size_t(y1 - y0) * size_t(width), uint8_t(0));
-    // The window sums from the summed-area tables' rows, counted from the image's top.
-    const size_t w1 = size_t(width) + 1;
-    auto box = [&](const double* t, int x0, int wy0, int x1, int wy1) {
-        const double* top = t + size_t(wy0 - held.first) * w1;
-        const double* bottom = t + size_t(wy1 - held.first) * w1;
-        return bottom[x1] - top[x1] - bottom[x0] + top[x0];
-    };
-    const double gamma = params.gamma;
-    parallelFor(y0, y1, 0, nthreads, [&](int64_t yb, int64_t ye) {
-        for (int y = int(yb); y < int(ye); ++y)
-            for (int x = 0; x < width; ++x) {
-                if (!held.active[held.at(x, y)]) continue;
-                // Intersect the windows' intervals from the smallest up; keep the last radius
-                // whose intersection is not empty.
-                double lo = -std::numeric_limits<double>::infinity();
-                double hi = std::numeric_limits<double>::infinity();
-                uint8_t chosen = 0;
-                for (size_t k = 0; k < radii.size(); ++k) {
-                    const auto [x0, x1] = clipped(x, radii[k], width);
-                    const auto [wy0, wy1] = clipped(y, radii[k], height);
-                    const double area = double(x1 - x0) * double(wy1 - wy0);
-                    const double m = box(held.areaD, x0, wy0, x1, wy1) / area;
-                    const double s =
-                        std::sqrt(std::max(0.0, box(held.areaV, x0, wy0, x1, wy1))) / area;
-                    lo = std::max(lo, m - gamma * s);
-                    hi = std::min(hi, m + gamma * s);
-                    if (!(lo <= hi)) break;
-                    chosen = uint8_t(k);
-                }
-                // Light its 3 x 3 neighbours' buffers support together (a caustic too small
-                // for the intervals to tell from a few fireflies) stays within a pixel.
-                const auto [x0, x1] = clipped(x, 1, width);
-                const auto [wy0, wy1] = clipped(y, 1, height);
-                const double v = box(held.areaV, x0, wy0, x1, wy1);
-                if (v > 0.0 && box(held.areaD, x0, wy0, x1, wy1) / std::sqrt(v) >= params.supportZ)
-                    chosen = std::min<uint8_t>(chosen, uint8_t(1));
-                scale[size_t(y - y0) * size_t(width) + size_t(x)] = chosen;
-            }
-    });
-}
-
 }  // namespace keeplight
 
 void keepLightScales(const float* d, const float* se, const uint8_t* active, int width, int height,
@@ -130,11 +54,6 @@ void keepLightScales(const float* d, const float* se, const uint8_t* active, int
     held.d = d;
     held.se = se;
     held.active = active;
-    const size_t tableSize = (size_t(width) + 1) * (size_t(height) + 1);
-    std::vector<double> areaD(tableSize, 0.0), areaV(tableSize, 0.0);
-    keeplight::areaSumRows(held, 0, height, areaD.data(), areaV.data());
-    held.areaD = areaD.data();
-    held.areaV = areaV.data();
     keeplight::scalesRows(held, params, 0, height, scale, nthreads);
 }
 
@@ -388,9 +307,98 @@ bool sendersAt(const keeplight::HeldRows& held, size_t k, int s0, int nRows,
     return std::any_of(rowNeed.begin(), rowNeed.end(), [](uint8_t v) { return v != 0; });
 }
 
+/// The scale choice's values of rows [s0, s1), two per pixel: d and se^2 (non-finite as 0).
+void decisionValues(const keeplight::HeldRows& held, int s0, int s1, std::vector<double>& vals) {
+    const size_t w2 = 2 * size_t(held.width);
+    vals.resize(size_t(s1 - s0) * w2);
+    for (int y = s0; y < s1; ++y)
+        for (int x = 0; x < held.width; ++x) {
+            const size_t p = held.at(x, y);
+            const double se = finiteOrZero(held.se[p]);
+            double* v = vals.data() + size_t(y - s0) * w2 + 2 * size_t(x);
+            v[0] = finiteOrZero(held.d[p]);
+            v[1] = se * se;
+        }
+}
+
+/// The scale choice's window sums at radius r for the pixels of rows [y0, y1): out[2 p] the sum of
+/// d, out[2 p + 1] the sum of se^2 over the window of radius r around p inside the image, p
+/// counted from row y0, from decisionValues' `vals` of rows [s0, s1) (every row within r of
+/// [y0, y1) inside the image). Columns, then rows, by van Herk's blocks (boxForward, no
+/// subtraction: a firefly of 1e38 leaves no rounding in a window that does not hold it), the
+/// blocks aligned on the image's rows and columns, so that the sums are the same bits whatever
+/// rows the caller holds.
+void windowSums(const std::vector<double>& vals, int width, int s0, int s1, int r, int y0, int y1,
+                std::vector<double>& out, std::vector<double>& cols, std::vector<double>& pre,
+                std::vector<double>& suf) {
+    const int B = 2 * r + 1;
+    const size_t w2 = 2 * size_t(width);
+    // Element t of the columns is the image's row a0 + t, a0 a multiple of B: sum j covers rows
+    // a0 + j to a0 + j + 2r, the window of row a0 + j + r.
+    const int a0 = (y0 - r) >= 0 ? (y0 - r) / B * B : -((r - y0 + B - 1) / B) * B;
+    const int first = y0 - r - a0, rows = y1 - r - a0;
+    cols.resize(size_t(rows) * w2);
+    boxForward(vals.data(), w2, s0 - a0, s1 - s0, rows, 2 * r, w2, cols.data(), w2, pre, suf);
+    // Along each row, element t is column t - r: the same blocks for every row.
+    out.resize(size_t(y1 - y0) * w2);
+    for (int j = first; j < rows; ++j)
+        boxForward(cols.data() + size_t(j) * w2, 2, r, width, width, 2 * r, 2,
+                   out.data() + size_t(j - first) * w2, 2, pre, suf);
+}
+
 }  // namespace
 
 namespace keeplight {
+
+void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int y1, uint8_t* scale,
+                int nthreads) {
+    const std::vector<int> radii = keepLightRadii(params.maxRadius);
+    const int width = held.width, height = held.height;
+    std::fill(scale, scale + size_t(y1 - y0) * size_t(width), uint8_t(0));
+    const double gamma = params.gamma;
+    const int halo = haloRows(params);
+    // By chunks of rows, each radius's window sums (and radius 1's, the support test's) at once.
+    constexpr int kChunk = 64;
+    std::vector<std::vector<double>> sums(radii.size() + 1);
+    std::vector<double> vals, cols, pre, suf;
+    for (int c0 = y0; c0 < y1; c0 += kChunk) {
+        const int c1 = std::min(y1, c0 + kChunk);
+        const int s0 = std::max(0, c0 - halo), s1 = std::min(height, c1 + halo);
+        decisionValues(held, s0, s1, vals);
+        for (size_t k = 0; k <= radii.size(); ++k)
+            windowSums(vals, width, s0, s1, k < radii.size() ? radii[k] : 1, c0, c1, sums[k], cols,
+                       pre, suf);
+        parallelFor(c0, c1, 0, nthreads, [&](int64_t yb, int64_t ye) {
+            for (int y = int(yb); y < int(ye); ++y)
+                for (int x = 0; x < width; ++x) {
+                    if (!held.active[held.at(x, y)]) continue;
+                    const size_t i = 2 * (size_t(y - c0) * size_t(width) + size_t(x));
+                    // Intersect the windows' intervals from the smallest up; keep the last radius
+                    // whose intersection is not empty.
+                    double lo = -std::numeric_limits<double>::infinity();
+                    double hi = std::numeric_limits<double>::infinity();
+                    uint8_t chosen = 0;
+                    for (size_t k = 0; k < radii.size(); ++k) {
+                        const auto [x0, x1] = clipped(x, radii[k], width);
+                        const auto [wy0, wy1] = clipped(y, radii[k], height);
+                        const double area = double(x1 - x0) * double(wy1 - wy0);
+                        const double m = sums[k][i] / area;
+                        const double s = std::sqrt(std::max(0.0, sums[k][i + 1])) / area;
+                        lo = std::max(lo, m - gamma * s);
+                        hi = std::min(hi, m + gamma * s);
+                        if (!(lo <= hi)) break;
+                        chosen = uint8_t(k);
+                    }
+                    // Light its 3 x 3 neighbours' buffers support together (a caustic too small
+                    // for the intervals to tell from a few fireflies) stays within a pixel.
+                    const std::vector<double>& one = sums[radii.size()];
+                    if (one[i + 1] > 0.0 && one[i] / std::sqrt(one[i + 1]) >= params.supportZ)
+                        chosen = std::min<uint8_t>(chosen, uint8_t(1));
+                    scale[size_t(y - y0) * size_t(width) + size_t(x)] = chosen;
+                }
+        });
+    }
+}
 
 void normsRows(const HeldRows& held, const std::vector<int>& radii, int y0, int y1, double* norm,
                double* clusterNorm, int nthreads) {

@@ -16,21 +16,15 @@ namespace mcstat::keeplight {
 /// Per-pixel arrays that hold rows [first, first + count) of a width x height image, row `first`
 /// at index 0 (null where a step does not read them or the caller has none).
 struct HeldRows {
-    int width = 0, height = 0;         ///< the whole image
-    int first = 0, count = 0;          ///< the rows held
-    size_t nc = 0;                     ///< residual channels per pixel
-    const double* residual = nullptr;  ///< nc per pixel
-    const float* d = nullptr;          ///< the luminance residual
-    const float* se = nullptr;         ///< the plain mean's standard error
-    const uint8_t* active = nullptr;   ///< the pixel carries a residual
-    const float* guide = nullptr;      ///< the return's guide (albedo luminance), or null
-    const float* cluster = nullptr;    ///< the cluster guide, or null
-    /// The summed-area tables of the scale choice's values (decisionValue(d) and its se squared):
-    /// row y (y in [first, first + count]) at (y - first) * (width + 1), the sums over the image's
-    /// rows above y and its columns left of x at x. Counted from the image's top, whatever rows are
-    /// held: every band gets the whole image's window sums, bit for bit.
-    const double* areaD = nullptr;
-    const double* areaV = nullptr;
+    int width = 0, height = 0;            ///< the whole image
+    int first = 0, count = 0;             ///< the rows held
+    size_t nc = 0;                        ///< residual channels per pixel
+    const double* residual = nullptr;     ///< nc per pixel
+    const float* d = nullptr;             ///< the luminance residual
+    const float* se = nullptr;            ///< the plain mean's standard error
+    const uint8_t* active = nullptr;      ///< the pixel carries a residual
+    const float* guide = nullptr;         ///< the return's guide (albedo luminance), or null
+    const float* cluster = nullptr;       ///< the cluster guide, or null
     const uint8_t* scale = nullptr;       ///< index into the radii, from scalesRows
     const double* norm = nullptr;         ///< from normsRows, with a guide
     const double* clusterNorm = nullptr;  ///< from normsRows, with a cluster guide
@@ -55,12 +49,9 @@ struct HeldRows {
 /// support test's and the cluster guide's 3 x 3).
 int haloRows(const KeepLightParams& params);
 
-/// The summed-area tables' rows y0 + 1 to y1 (after row y0, already at sumD and sumV), from d and
-/// se of rows [y0, y1): one row after the other, the same additions whatever rows are held.
-void areaSumRows(const HeldRows& held, int y0, int y1, double* sumD, double* sumV);
-
-/// keepLightScales for rows [y0, y1) into scale (rows [y0, y1) only): reads active over [y0, y1)
-/// and the summed-area tables' rows over [y0 - haloRows, y1 + haloRows] clipped to the image.
+/// keepLightScales for rows [y0, y1) into scale (rows [y0, y1) only): reads active over [y0, y1),
+/// d and se over [y0 - haloRows, y1 + haloRows) clipped to the image. The window sums are the
+/// same bits whatever rows are held.
 void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int y1, uint8_t* scale,
                 int nthreads);
 

@@ -19,11 +19,8 @@ struct HeldBands {
     std::vector<double> residual, norm, clusterNorm;
     std::vector<float> d, se, guide, cluster;
     std::vector<uint8_t> active, scale;
-    /// The scale choice's summed-area tables, rows [first, end] (one more than the pixels').
-    std::vector<double> areaD, areaV;
 
     size_t offset(int y) const { return size_t(y - first) * width; }
-    size_t areaOffset(int y) const { return size_t(y - first) * (width + 1); }
     template <class F>
     void each(F f) {
         f(residual, nc);
@@ -39,8 +36,6 @@ struct HeldBands {
     void growTo(int y) {
         const size_t rows = size_t(y - first);
         each([&](auto& v, size_t k) { v.resize(rows * width * k); });
-        areaD.resize((rows + 1) * (width + 1), 0.0);  // row `first` of an empty stream: zeros
-        areaV.resize((rows + 1) * (width + 1), 0.0);
         end = y;
     }
     void dropBefore(int y) {
@@ -49,8 +44,6 @@ struct HeldBands {
         each([&](auto& v, size_t k) {
             v.erase(v.begin(), v.begin() + std::ptrdiff_t(rows * width * k));
         });
-        for (std::vector<double>* a : {&areaD, &areaV})
-            a->erase(a->begin(), a->begin() + std::ptrdiff_t(rows * (width + 1)));
         first = y;
     }
     keeplight::HeldRows view(int height) const {
@@ -66,8 +59,6 @@ struct HeldBands {
         h.active = active.data();
         h.guide = guided ? guide.data() : nullptr;
         h.cluster = cluster.data();
-        h.areaD = areaD.data();
-        h.areaV = areaV.data();
         h.scale = scale.data();
         h.norm = guided ? norm.data() : nullptr;
         h.clusterNorm = clusterNorm.data();
@@ -107,9 +98,6 @@ bool keepLightStream(int width, int height, int nch, bool guided, const KeepLigh
                                      held.se.data() + o, held.active.data() + o,
                                      guided ? held.guide.data() + o : nullptr};
             if (!fill(filled, y1, in)) return false;
-            keeplight::areaSumRows(held.view(height), filled, y1,
-                                   held.areaD.data() + held.areaOffset(filled),
-                                   held.areaV.data() + held.areaOffset(filled));
             filled = y1;
         }
         const bool all = filled == height;

@@ -130,6 +130,31 @@ TEST(KeepLight, PixelsBeyondEveryWindowAreUntouched) {
         }
 }
 
+// A firefly of 1e38 far above and left of a supported caustic leaves the caustic's scales as they
+// are without it: the window sums of the scale choice are differences of summed-area tables,
+// which carry the firefly into every window below and right of it (decisionValue's bound).
+TEST(KeepLight, AFarFireflyOf1e38ChangesNoOtherScale) {
+    Field f(96, 96, 1);
+    for (int y = 60; y < 69; ++y)
+        for (int x = 60; x < 69; ++x) {
+            const size_t p = f.at(x, y);
+            f.residual[p] = 1e-3;
+            f.d[p] = 1e-3f;
+            f.se[p] = 3e-4f;
+            f.active[p] = 1;
+        }
+    std::vector<uint8_t> alone, with;
+    giveBack(f, 1, {}, 2, &alone);
+    const size_t far = f.at(2, 2);
+    f.residual[far] = 1e38;
+    f.d[far] = f.se[far] = 1e38f;
+    f.active[far] = 1;
+    giveBack(f, 1, {}, 2, &with);
+    for (int y = 60; y < 69; ++y)
+        for (int x = 60; x < 69; ++x)
+            EXPECT_EQ(alone[f.at(x, y)], with[f.at(x, y)]) << x << "," << y;
+}
+
 // A firefly alone (d = se, its neighbours exact zeros): its window grows to the largest, and its
 // light is spread thin: no pixel gets more than a hundredth of it.
 TEST(KeepLight, ALoneFireflyIsSpreadWide) {

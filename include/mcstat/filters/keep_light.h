@@ -54,8 +54,9 @@ std::vector<int> keepLightRadii(int maxRadius);
 
 /// ICI's choice per pixel over a width x height image (row-major): scale[p] is the index into
 /// keepLightRadii(params.maxRadius) of p's window. `d` is the luminance residual, `se` the plain
-/// mean's standard error; non-finite values count as 0, magnitudes above 1e10 as 1e10 (see
-/// docs/keep-light.md: the window sums' rounding). Only pixels with active[p] != 0 are
+/// mean's standard error; non-finite values count as 0. The window sums are direct (no
+/// summed-area table): a firefly of 1e38 changes no other window's sum. Only pixels with
+/// active[p] != 0 are
 /// decided (the others get 0): the rest carry no residual. Deterministic, any thread count.
 void keepLightScales(const float* d, const float* se, const uint8_t* active, int width, int height,
                      const KeepLightParams& params, uint8_t* scale, int nthreads = 0);
