@@ -131,8 +131,8 @@ TEST(KeepLight, PixelsBeyondEveryWindowAreUntouched) {
 }
 
 // A firefly of 1e38 far above and left of a supported caustic leaves the caustic's scales as they
-// are without it: the window sums of the scale choice are differences of summed-area tables,
-// which carry the firefly into every window below and right of it (decisionValue's bound).
+// are without it: the scale choice sums each window directly (a summed-area table would carry
+// the firefly's rounding into every window below and right of it, and fails this test).
 TEST(KeepLight, AFarFireflyOf1e38ChangesNoOtherScale) {
     Field f(96, 96, 1);
     for (int y = 60; y < 69; ++y)
