@@ -360,14 +360,17 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
     // By chunks of rows, each radius's window sums (and radius 1's, the support test's) at once.
     constexpr int kChunk = 64;
     std::vector<std::vector<double>> sums(radii.size() + 1);
+    // The support test's windows of radius 1: the radii's own where they hold it.
+    const size_t oneAt = size_t(std::find(radii.begin(), radii.end(), 1) - radii.begin());
     std::vector<double> vals, cols, pre, suf;
     for (int c0 = y0; c0 < y1; c0 += kChunk) {
         const int c1 = std::min(y1, c0 + kChunk);
         const int s0 = std::max(0, c0 - halo), s1 = std::min(height, c1 + halo);
         decisionValues(held, s0, s1, vals);
-        for (size_t k = 0; k <= radii.size(); ++k)
-            windowSums(vals, width, s0, s1, k < radii.size() ? radii[k] : 1, c0, c1, sums[k], cols,
-                       pre, suf);
+        for (size_t k = 0; k < radii.size(); ++k)
+            windowSums(vals, width, s0, s1, radii[k], c0, c1, sums[k], cols, pre, suf);
+        if (oneAt == radii.size())  // no window of radius 1 among the radii (maxRadius 0)
+            windowSums(vals, width, s0, s1, 1, c0, c1, sums[oneAt], cols, pre, suf);
         parallelFor(c0, c1, 0, nthreads, [&](int64_t yb, int64_t ye) {
             for (int y = int(yb); y < int(ye); ++y)
                 for (int x = 0; x < width; ++x) {
@@ -391,7 +394,7 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
                     }
                     // Light its 3 x 3 neighbours' buffers support together (a caustic too small
                     // for the intervals to tell from a few fireflies) stays within a pixel.
-                    const std::vector<double>& one = sums[radii.size()];
+                    const std::vector<double>& one = sums[oneAt];
                     if (one[i + 1] > 0.0 && one[i] / std::sqrt(one[i + 1]) >= params.supportZ)
                         chosen = std::min<uint8_t>(chosen, uint8_t(1));
                     scale[size_t(y - y0) * size_t(width) + size_t(x)] = chosen;
