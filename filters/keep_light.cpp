@@ -308,17 +308,20 @@ bool sendersAt(const keeplight::HeldRows& held, size_t k, int s0, int nRows,
 }
 
 /// The scale choice's values of rows [s0, s1), two per pixel: d and se^2 (non-finite as 0).
-void decisionValues(const keeplight::HeldRows& held, int s0, int s1, std::vector<double>& vals) {
+void decisionValues(const keeplight::HeldRows& held, int s0, int s1, std::vector<double>& vals,
+                    int nthreads) {
     const size_t w2 = 2 * size_t(held.width);
     vals.resize(size_t(s1 - s0) * w2);
-    for (int y = s0; y < s1; ++y)
-        for (int x = 0; x < held.width; ++x) {
-            const size_t p = held.at(x, y);
-            const double se = finiteOrZero(held.se[p]);
-            double* v = vals.data() + size_t(y - s0) * w2 + 2 * size_t(x);
-            v[0] = finiteOrZero(held.d[p]);
-            v[1] = se * se;
-        }
+    parallelFor(s0, s1, 0, nthreads, [&](int64_t yb, int64_t ye) {
+        for (int y = int(yb); y < int(ye); ++y)
+            for (int x = 0; x < held.width; ++x) {
+                const size_t p = held.at(x, y);
+                const double se = finiteOrZero(held.se[p]);
+                double* v = vals.data() + size_t(y - s0) * w2 + 2 * size_t(x);
+                v[0] = finiteOrZero(held.d[p]);
+                v[1] = se * se;
+            }
+    });
 }
 
 /// The scale choice's window sums at radius r for the pixels of rows [y0, y1): out[2 p] the sum of
@@ -327,10 +330,10 @@ void decisionValues(const keeplight::HeldRows& held, int s0, int s1, std::vector
 /// [y0, y1) inside the image). Columns, then rows, by van Herk's blocks (boxForward, no
 /// subtraction: a firefly of 1e38 leaves no rounding in a window that does not hold it), the
 /// blocks aligned on the image's rows and columns, so that the sums are the same bits whatever
-/// rows the caller holds.
+/// rows the caller holds. Strips of columns, then rows, in parallel: each sum is the same at any
+/// thread count.
 void windowSums(const std::vector<double>& vals, int width, int s0, int s1, int r, int y0, int y1,
-                std::vector<double>& out, std::vector<double>& cols, std::vector<double>& pre,
-                std::vector<double>& suf) {
+                std::vector<double>& out, std::vector<double>& cols, int nthreads) {
     const int B = 2 * r + 1;
     const size_t w2 = 2 * size_t(width);
     // Element t of the columns is the image's row a0 + t, a0 a multiple of B: sum j covers rows
@@ -338,12 +341,24 @@ void windowSums(const std::vector<double>& vals, int width, int s0, int s1, int 
     const int a0 = (y0 - r) >= 0 ? (y0 - r) / B * B : -((r - y0 + B - 1) / B) * B;
     const int first = y0 - r - a0, rows = y1 - r - a0;
     cols.resize(size_t(rows) * w2);
-    boxForward(vals.data(), w2, s0 - a0, s1 - s0, rows, 2 * r, w2, cols.data(), w2, pre, suf);
+    constexpr size_t kStrip = 256;
+    const int64_t strips = int64_t((w2 + kStrip - 1) / kStrip);
+    parallelFor(0, strips, 0, nthreads, [&](int64_t sb, int64_t se) {
+        std::vector<double> pre, suf;
+        for (int64_t st = sb; st < se; ++st) {
+            const size_t l0 = size_t(st) * kStrip, L = std::min(kStrip, w2 - l0);
+            boxForward(vals.data() + l0, w2, s0 - a0, s1 - s0, rows, 2 * r, L, cols.data() + l0, w2,
+                       pre, suf);
+        }
+    });
     // Along each row, element t is column t - r: the same blocks for every row.
     out.resize(size_t(y1 - y0) * w2);
-    for (int j = first; j < rows; ++j)
-        boxForward(cols.data() + size_t(j) * w2, 2, r, width, width, 2 * r, 2,
-                   out.data() + size_t(j - first) * w2, 2, pre, suf);
+    parallelFor(first, rows, 0, nthreads, [&](int64_t jb, int64_t je) {
+        std::vector<double> pre, suf;
+        for (int j = int(jb); j < int(je); ++j)
+            boxForward(cols.data() + size_t(j) * w2, 2, r, width, width, 2 * r, 2,
+                       out.data() + size_t(j - first) * w2, 2, pre, suf);
+    });
 }
 
 }  // namespace
@@ -362,15 +377,15 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
     std::vector<std::vector<double>> sums(radii.size() + 1);
     // The support test's windows of radius 1: the radii's own where they hold it.
     const size_t oneAt = size_t(std::find(radii.begin(), radii.end(), 1) - radii.begin());
-    std::vector<double> vals, cols, pre, suf;
+    std::vector<double> vals, cols;
     for (int c0 = y0; c0 < y1; c0 += kChunk) {
         const int c1 = std::min(y1, c0 + kChunk);
         const int s0 = std::max(0, c0 - halo), s1 = std::min(height, c1 + halo);
-        decisionValues(held, s0, s1, vals);
+        decisionValues(held, s0, s1, vals, nthreads);
         for (size_t k = 0; k < radii.size(); ++k)
-            windowSums(vals, width, s0, s1, radii[k], c0, c1, sums[k], cols, pre, suf);
+            windowSums(vals, width, s0, s1, radii[k], c0, c1, sums[k], cols, nthreads);
         if (oneAt == radii.size())  // no window of radius 1 among the radii (maxRadius 0)
-            windowSums(vals, width, s0, s1, 1, c0, c1, sums[oneAt], cols, pre, suf);
+            windowSums(vals, width, s0, s1, 1, c0, c1, sums[oneAt], cols, nthreads);
         parallelFor(c0, c1, 0, nthreads, [&](int64_t yb, int64_t ye) {
             for (int y = int(yb); y < int(ye); ++y)
                 for (int x = 0; x < width; ++x) {

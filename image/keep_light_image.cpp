@@ -254,6 +254,11 @@ bool returnByBands(ImageBuf& robust, Source& src, const std::array<double, 3>& l
 template <class Source>
 bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
                  const KeepLightParams& params, int nthreads) {
+    if (passLayersOf(robust.spec()).firstStep >= 0) {
+        robust.errorfmt("keeplight: the result holds its pass's plain mean layers; "
+                        "keepLightEstimate computes the estimate with them");
+        return false;
+    }
     const ROI roi = robust.roi();
     auto makeBand = [&](int y0, int y1, Band& b, std::string& err) {
         const ROI rows(roi.xbegin, roi.xend, roi.ybegin + y0, roi.ybegin + y1);
