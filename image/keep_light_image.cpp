@@ -255,8 +255,9 @@ template <class Source>
 bool keepLightTo(ImageBuf& robust, Source& src, const std::array<double, 3>& luma,
                  const KeepLightParams& params, int nthreads) {
     if (passLayersOf(robust.spec()).firstStep >= 0) {
-        robust.errorfmt("keeplight: the result holds its pass's plain mean layers; "
-                        "keepLightEstimate computes the estimate with them");
+        robust.errorfmt(
+            "keeplight: the result holds its pass's plain mean layers; "
+            "keepLightEstimate computes the estimate with them");
         return false;
     }
     const ROI roi = robust.roi();
