@@ -564,7 +564,7 @@ void returnResidual(const float* robust, const double* residual, const uint8_t* 
     keeplight::gatherRows(held, radii, 0, height, add.data(), scratch, nthreads);
     parallelFor(0, int64_t(n * nc), 0, nthreads, [&](int64_t b, int64_t e) {
         for (size_t i = size_t(b); i < size_t(e); ++i)
-            out[i] = add[i] != 0.0 ? float(double(robust[i]) + add[i]) : robust[i];
+            out[i] = withReturnedLight(robust[i], add[i]);
     });
 }
 

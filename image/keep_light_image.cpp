@@ -227,8 +227,7 @@ bool returnByBands(ImageBuf& robust, Source& src, const std::array<double, 3>& l
             for (size_t p = size_t(yb) * w; p < size_t(ye) * w; ++p)
                 for (size_t i = 0; i < nc; ++i) {
                     float& r = rp[p * nin + size_t(from[i])];
-                    const double a = add[(p - size_t(y0) * w) * nc + i];
-                    if (a != 0.0) r = float(double(r) + a);
+                    r = withReturnedLight(r, add[(p - size_t(y0) * w) * nc + i]);
                 }
         });
         return true;

@@ -83,6 +83,13 @@ void returnResidual(const float* robust, const double* residual, const uint8_t* 
                     int nthreads = 0, const float* guide = nullptr,
                     const float* clusterGuide = nullptr);
 
+/// A channel's value with the light returned to it, as returnResidual writes it and every caller
+/// of keepLightStream must: robust + add rounded once to float where add is not 0, robust bit for
+/// bit where it is (a pixel no returned light reaches is untouched).
+inline float withReturnedLight(float robust, double add) {
+    return add != 0.0 ? float(double(robust) + add) : robust;
+}
+
 /// The guide of a supported cluster's return: at each pixel, the 3 x 3 tent's weighted mean
 /// (weights 1 2 1 by 1 2 1, divided by their sum inside the image) of the positive luminance
 /// residual max(d, 0) (non-finite d counts as 0). It follows the events the buffers put where

@@ -34,8 +34,8 @@ struct KeepLightBandIn {
 /// Fills rows [y0, y1) (called in order, each row once); false stops the stream.
 using KeepLightFill = std::function<bool(int y0, int y1, const KeepLightBandIn& in)>;
 /// Takes the light returned to rows [y0, y1) (in order, each row once): add[(y - y0) * width *
-/// nch + x * nch + c], to be added to the robust value where it is not 0 (returnResidual's out is
-/// add != 0 ? float(robust + add) : robust); false stops the stream.
+/// nch + x * nch + c], to be added to the robust value where it is not 0 (withReturnedLight,
+/// keep_light.h); false stops the stream.
 using KeepLightTake = std::function<bool(int y0, int y1, const double* add)>;
 
 /// The rows of a band when the caller names none: 2 R, at least 64, so that the halos' repeated
