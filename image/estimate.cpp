@@ -355,6 +355,11 @@ RunGiven takeRun(const EstimatePass& pass, size_t p0, int n, PixelScratch& w) {
     for (int i = 0; i < n; ++i) {
         const size_t p = p0 + size_t(i);
         const PixelBuffers pb = pass.src.pixelBuffers(p);
+        // The validity test is these buffers' first read: the buffers a few pixels on are asked
+        // for meanwhile (pixel_buffers.h, prefetchBuffers). estimatesWithIntervals asks for its
+        // own.
+        if (!withEstimates && p + kPrefetchPixels < pass.src.pixelCount())
+            prefetchBuffers(pass.src.pixelBuffers(p + kPrefetchPixels));
         if ((!withEstimates && !allBuffersValid(pb)) || pass.src.meanOnlySpread(p)) continue;
         w.runIntervalOf[size_t(i)] = int(w.runIntervalBuffers.size());
         w.runIntervalBuffers.push_back(pb);
@@ -389,6 +394,9 @@ bool estimateRun(const EstimatePass& pass, int y, int x0, int x1, const ROI& roi
     bool weighted = true;
     auto one = [&](int x) {
         const size_t p = row + size_t(x - h.originX);
+        // The buffers a few pixels on, while this one is estimated (pixel_buffers.h).
+        if (p + kPrefetchPixels < pass.src.pixelCount())
+            prefetchBuffers(pass.src.pixelBuffers(p + kPrefetchPixels));
         const int iv = given != RunGiven::Nothing ? w.runIntervalOf[size_t(x - x0)] : -1;
         const bool withEstimate =
             iv >= 0 && (given == RunGiven::EstimatesAndIntervals || given == RunGiven::Estimates);

@@ -53,6 +53,31 @@ struct RGBImageView {
     int width = 0, height = 0;
 };
 
+/// Asks the processor to bring px's buffers (means and counts) into cache, line by line: a hint
+/// that reads and changes nothing. A pass over pixels asks a few pixels ahead of the one it works
+/// on (kPrefetchPixels): the hardware's own prefetch does not always follow the buffers' stream (on
+/// this project's 2-core virtual machine, the mean's pass over a 1080p, M = 21 image waited on
+/// memory for most of its time).
+// Always inlined: GCC 12 takes a function whose only effect is a prefetch for one without
+// effects, and drops its calls (ipa-pure-const).
+/// The first kPrefetchBytesMost bytes: a thousand buffers would be more than the cache holds.
+[[gnu::always_inline]] inline void prefetchLines(const void* p, size_t bytes) {
+    constexpr size_t kPrefetchBytesMost = 2048;
+    bytes = bytes < kPrefetchBytesMost ? bytes : kPrefetchBytesMost;
+    const char* b = static_cast<const char*>(p);
+    for (size_t i = 0; i < bytes; i += 64) __builtin_prefetch(b + i);
+    __builtin_prefetch(b + bytes - 1);  // the last line when b is not on a line's start
+}
+[[gnu::always_inline]] inline void prefetchBuffers(const PixelBuffers& px) {
+    if (px.M <= 0) return;
+    prefetchLines(px.mean, 3 * sizeof(float) * size_t(px.M));
+    prefetchLines(px.count, sizeof(float) * size_t(px.M));
+}
+
+/// How many pixels ahead a pass asks for buffers (prefetchBuffers): a pixel's M = 21 buffers are
+/// 336 bytes, which its estimate takes about 50 to 100 ns to read, about a memory access's latency.
+inline constexpr int kPrefetchPixels = 4;
+
 /// Whether every buffer of px is valid (count > 0, count and every channel finite), the common
 /// case, tested on the floats' bits in a loop the compiler vectorises: every mean finite (exponent
 /// bits not all ones) and every count a finite float above 0 (as an int, in (0, 0x7f800000)).
