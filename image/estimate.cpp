@@ -324,6 +324,14 @@ bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& 
     return weighted;
 }
 
+/// Asks for the buffers of the pixel kPrefetchPixels after p, where the image has one
+/// (prefetchBuffers, pixel_buffers.h). Always inlined, as prefetchBuffers is: GCC would drop calls
+/// to a function whose only effect is a prefetch.
+[[gnu::always_inline]] inline void prefetchAhead(const StatsImage& src, size_t p) {
+    if (p + kPrefetchPixels < src.pixelCount())
+        prefetchBuffers(src.pixelBuffers(p + kPrefetchPixels));
+}
+
 /// What takeRun took for a run.
 enum class RunGiven { Nothing, Intervals, EstimatesAndIntervals, Estimates };
 
@@ -359,8 +367,7 @@ RunGiven takeRun(const EstimatePass& pass, size_t p0, int n, PixelScratch& w) {
         // The validity test is these buffers' first read: the buffers a few pixels on are asked
         // for meanwhile (pixel_buffers.h, prefetchBuffers). estimatesWithIntervals asks for its
         // own.
-        if (!withEstimates && p + kPrefetchPixels < pass.src.pixelCount())
-            prefetchBuffers(pass.src.pixelBuffers(p + kPrefetchPixels));
+        if (!withEstimates) prefetchAhead(pass.src, p);
         if ((!withEstimates && !allBuffersValid(pb)) || pass.src.meanOnlySpread(p)) continue;
         // Field by field from the registers: push_back(pb) stored pb on the stack in halves and
         // read it back whole, a failed store forwarding on every pixel (6 % of the mean's :ci).
@@ -399,9 +406,7 @@ bool estimateRun(const EstimatePass& pass, int y, int x0, int x1, const ROI& roi
     bool weighted = true;
     auto one = [&](int x) {
         const size_t p = row + size_t(x - h.originX);
-        // The buffers a few pixels on, while this one is estimated (pixel_buffers.h).
-        if (p + kPrefetchPixels < pass.src.pixelCount())
-            prefetchBuffers(pass.src.pixelBuffers(p + kPrefetchPixels));
+        prefetchAhead(pass.src, p);  // while this one is estimated
         const int iv = given != RunGiven::Nothing ? w.runIntervalOf[size_t(x - x0)] : -1;
         const bool withEstimate =
             iv >= 0 && (given == RunGiven::EstimatesAndIntervals || given == RunGiven::Estimates);

@@ -53,14 +53,10 @@ struct RGBImageView {
     int width = 0, height = 0;
 };
 
-/// Asks the processor to bring px's buffers (means and counts) into cache, line by line: a hint
-/// that reads and changes nothing. A pass over pixels asks a few pixels ahead of the one it works
-/// on (kPrefetchPixels): the hardware's own prefetch does not always follow the buffers' stream (on
-/// this project's 2-core virtual machine, the mean's pass over a 1080p, M = 21 image waited on
-/// memory for most of its time).
-// Always inlined: GCC 12 takes a function whose only effect is a prefetch for one without
-// effects, and drops its calls (ipa-pure-const).
-/// The first kPrefetchBytesMost bytes: a thousand buffers would be more than the cache holds.
+/// Asks the processor to bring the `bytes` bytes from p into cache, line by line (at most the
+/// first kPrefetchBytesMost: a thousand buffers would be more than the cache holds). A hint that
+/// reads and changes nothing. Always inlined: GCC 12 takes a function whose only effect is a
+/// prefetch for one without effects, and drops its calls (ipa-pure-const).
 [[gnu::always_inline]] inline void prefetchLines(const void* p, size_t bytes) {
     constexpr size_t kPrefetchBytesMost = 2048;
     bytes = bytes < kPrefetchBytesMost ? bytes : kPrefetchBytesMost;
@@ -68,6 +64,11 @@ struct RGBImageView {
     for (size_t i = 0; i < bytes; i += 64) __builtin_prefetch(b + i);
     __builtin_prefetch(b + bytes - 1);  // the last line when b is not on a line's start
 }
+
+/// Asks the processor to bring px's buffers (means and counts) into cache (prefetchLines). A pass
+/// over pixels asks kPrefetchPixels ahead of the one it works on: the hardware's own prefetch does
+/// not always follow the buffers' stream (on this project's 2-core virtual machine, the mean's
+/// pass over a 1080p, M = 21 image waited on memory for most of its time).
 [[gnu::always_inline]] inline void prefetchBuffers(const PixelBuffers& px) {
     if (px.M <= 0) return;
     prefetchLines(px.mean, 3 * sizeof(float) * size_t(px.M));

@@ -56,8 +56,8 @@ std::vector<int> keepLightRadii(int maxRadius);
 /// keepLightRadii(params.maxRadius) of p's window. `d` is the luminance residual, `se` the plain
 /// mean's standard error; non-finite values count as 0. The window sums are direct (no
 /// summed-area table): a firefly of 1e38 changes no other window's sum. Only pixels with
-/// active[p] != 0 are
-/// decided (the others get 0): the rest carry no residual. Deterministic, any thread count.
+/// active[p] != 0 are decided (the others get 0): the rest carry no residual. Deterministic, any
+/// thread count.
 void keepLightScales(const float* d, const float* se, const uint8_t* active, int width, int height,
                      const KeepLightParams& params, uint8_t* scale, int nthreads = 0);
 
