@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "mcstat/core/pixel_buffers.h"
 #include "mcstat/filters/operation.h"
 #include "mcstat/filters/removed_light.h"
 
@@ -23,6 +24,21 @@ namespace {
 
 double lumaOf(const float* rgb, const std::array<double, 3>& luma) {
     return luma[0] * double(rgb[0]) + luma[1] * double(rgb[1]) + luma[2] * double(rgb[2]);
+}
+
+/// How many pixels ahead finishRemovedLight's passes ask for the pixels they read: its two loops
+/// run on one thread (their sums in pixel order), and without asking they waited on memory for
+/// most of their time (perf: 60 % of their samples on two loads, a 1080p G-MoN's :removed).
+constexpr size_t kFinishAhead = 64;
+
+/// The lines of pixel p + kFinishAhead that a pass reads: its R, G, B and its removed-light
+/// channels from `first` on (one line, or two apart when the pixel holds many AOVs).
+[[gnu::always_inline]] inline void prefetchFinish(const float* px, size_t p, size_t n, size_t nch,
+                                                  int first) {
+    if (p + kFinishAhead >= n) return;
+    const float* q = px + (p + kFinishAhead) * nch;
+    prefetchLines(q, 3 * sizeof(float));
+    prefetchLines(q + first, 5 * sizeof(float));
 }
 
 }  // namespace
@@ -55,6 +71,7 @@ bool finishRemovedLight(ImageBuf& img, int first, const std::array<double, 3>& l
     // The image's sums in pixel order (the same for any thread count).
     double removed = 0.0, total = 0.0, variance = 0.0;
     for (size_t p = 0; p < n; ++p) {
+        prefetchFinish(px, p, n, nch, first);
         const float* q = px + p * nch;
         const float* r = q + first;
         const double dp = double(r[3]) - lumaOf(q, luma);
@@ -71,6 +88,7 @@ bool finishRemovedLight(ImageBuf& img, int first, const std::array<double, 3>& l
     // The significant light's sum in pixel order, and the flags in the same pass.
     double significant = 0.0;
     for (size_t p = 0; p < n; ++p) {
+        prefetchFinish(px, p, n, nch, first);
         float* r = d + p * nch;
         const bool flagged = r[3] > opt.zLimit;
         if (flagged) significant += double(r[0]);
