@@ -360,15 +360,14 @@ RunGiven takeRun(const EstimatePass& pass, size_t p0, int n, PixelScratch& w) {
         return RunGiven::Nothing;
     w.runIntervalBuffers.resize(size_t(n));
     w.runIntervalOf.assign(size_t(n), -1);
+    w.runIntervals.resize(3 * size_t(n));
     int taken = 0;
-    for (int i = 0; i < n; ++i) {
+    // Pixel i of the run goes to the kernel as the next one taken when it is to be given an
+    // interval (a valid one where the kernel asks so).
+    auto take = [&](int i, bool testValid) {
         const size_t p = p0 + size_t(i);
         const PixelBuffers pb = pass.src.pixelBuffers(p);
-        // The validity test is these buffers' first read: the buffers a few pixels on are asked
-        // for meanwhile (pixel_buffers.h, prefetchBuffers). estimatesWithIntervals asks for its
-        // own.
-        if (!withEstimates) prefetchAhead(pass.src, p);
-        if ((!withEstimates && !allBuffersValid(pb)) || pass.src.meanOnlySpread(p)) continue;
+        if ((testValid && !allBuffersValid(pb)) || pass.src.meanOnlySpread(p)) return;
         // Field by field from the registers: push_back(pb) stored pb on the stack in halves and
         // read it back whole, a failed store forwarding on every pixel (6 % of the mean's :ci).
         PixelBuffers& to = w.runIntervalBuffers[size_t(taken)];
@@ -376,15 +375,29 @@ RunGiven takeRun(const EstimatePass& pass, size_t p0, int n, PixelScratch& w) {
         to.count = pb.count;
         to.M = pb.M;
         w.runIntervalOf[size_t(i)] = taken++;
-    }
-    w.runIntervals.resize(3 * size_t(taken));
-    if (withEstimates) {
+    };
+    if (withEstimates) {  // estimatesWithIntervals asks for the buffers ahead itself
+        for (int i = 0; i < n; ++i) take(i, false);
         w.runEstimates.resize(size_t(taken));
         kernel.estimatesWithIntervals(w.runIntervalBuffers.data(), taken, kernel.ciLevel,
                                       w.runEstimates.data(), w.runIntervals.data());
         return RunGiven::EstimatesAndIntervals;
     }
-    kernel.runIntervals(w.runIntervalBuffers.data(), taken, kernel.ciLevel, w.runIntervals.data());
+    // kChunk pixels at a time: their validity tests, then their intervals, while the next
+    // kChunk pixels' buffers are asked for. The validity test is the buffers' first read: tested
+    // all before any interval, the run's read overlapped no computation.
+    constexpr int kChunk = 8;
+    for (int c0 = 0; c0 < n; c0 += kChunk) {
+        const int c1 = std::min(n, c0 + kChunk), first = taken;
+        for (int i = c0; i < c1; ++i) {
+            if (p0 + size_t(i + kChunk) < pass.src.pixelCount())
+                prefetchBuffers(pass.src.pixelBuffers(p0 + size_t(i + kChunk)));
+            take(i, true);
+        }
+        if (taken > first)
+            kernel.runIntervals(w.runIntervalBuffers.data() + first, taken - first, kernel.ciLevel,
+                                w.runIntervals.data() + 3 * size_t(first));
+    }
     return RunGiven::Intervals;
 }
 
