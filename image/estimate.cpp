@@ -324,12 +324,12 @@ bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& 
     return weighted;
 }
 
-/// Asks for the buffers of the pixel kPrefetchPixels after p, where the image has one
-/// (prefetchBuffers, pixel_buffers.h). Always inlined, as prefetchBuffers is: GCC would drop calls
-/// to a function whose only effect is a prefetch.
-[[gnu::always_inline]] inline void prefetchAhead(const StatsImage& src, size_t p) {
-    if (p + kPrefetchPixels < src.pixelCount())
-        prefetchBuffers(src.pixelBuffers(p + kPrefetchPixels));
+/// Asks for the buffers of the pixel `ahead` after p, where the image has one (prefetchBuffers,
+/// pixel_buffers.h). Always inlined, as prefetchBuffers is: GCC would drop calls to a function
+/// whose only effect is a prefetch.
+[[gnu::always_inline]] inline void prefetchAhead(const StatsImage& src, size_t p,
+                                                 size_t ahead = kPrefetchPixels) {
+    if (p + ahead < src.pixelCount()) prefetchBuffers(src.pixelBuffers(p + ahead));
 }
 
 /// What takeRun took for a run.
@@ -363,11 +363,11 @@ RunGiven takeRun(const EstimatePass& pass, size_t p0, int n, PixelScratch& w) {
     w.runIntervals.resize(3 * size_t(n));
     int taken = 0;
     // Pixel i of the run goes to the kernel as the next one taken when it is to be given an
-    // interval (a valid one where the kernel asks so).
-    auto take = [&](int i, bool testValid) {
+    // interval (runIntervals: only where its buffers are all valid).
+    auto take = [&](int i) {
         const size_t p = p0 + size_t(i);
         const PixelBuffers pb = pass.src.pixelBuffers(p);
-        if ((testValid && !allBuffersValid(pb)) || pass.src.meanOnlySpread(p)) return;
+        if ((!withEstimates && !allBuffersValid(pb)) || pass.src.meanOnlySpread(p)) return;
         // Field by field from the registers: push_back(pb) stored pb on the stack in halves and
         // read it back whole, a failed store forwarding on every pixel (6 % of the mean's :ci).
         PixelBuffers& to = w.runIntervalBuffers[size_t(taken)];
@@ -377,7 +377,7 @@ RunGiven takeRun(const EstimatePass& pass, size_t p0, int n, PixelScratch& w) {
         w.runIntervalOf[size_t(i)] = taken++;
     };
     if (withEstimates) {  // estimatesWithIntervals asks for the buffers ahead itself
-        for (int i = 0; i < n; ++i) take(i, false);
+        for (int i = 0; i < n; ++i) take(i);
         w.runEstimates.resize(size_t(taken));
         kernel.estimatesWithIntervals(w.runIntervalBuffers.data(), taken, kernel.ciLevel,
                                       w.runEstimates.data(), w.runIntervals.data());
@@ -390,9 +390,8 @@ RunGiven takeRun(const EstimatePass& pass, size_t p0, int n, PixelScratch& w) {
     for (int c0 = 0; c0 < n; c0 += kChunk) {
         const int c1 = std::min(n, c0 + kChunk), first = taken;
         for (int i = c0; i < c1; ++i) {
-            if (p0 + size_t(i + kChunk) < pass.src.pixelCount())
-                prefetchBuffers(pass.src.pixelBuffers(p0 + size_t(i + kChunk)));
-            take(i, true);
+            prefetchAhead(pass.src, p0 + size_t(i), kChunk);
+            take(i);
         }
         if (taken > first)
             kernel.runIntervals(w.runIntervalBuffers.data() + first, taken - first, kernel.ciLevel,

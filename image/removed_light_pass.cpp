@@ -31,14 +31,11 @@ double lumaOf(const float* rgb, const std::array<double, 3>& luma) {
 /// most of their time (perf: 60 % of their samples on two loads, a 1080p G-MoN's :removed).
 constexpr size_t kFinishAhead = 64;
 
-/// The lines of pixel p + kFinishAhead that a pass reads: its R, G, B and its removed-light
-/// channels from `first` on (one line, or two apart when the pixel holds many AOVs).
-[[gnu::always_inline]] inline void prefetchFinish(const float* px, size_t p, size_t n, size_t nch,
-                                                  int first) {
-    if (p + kFinishAhead >= n) return;
-    const float* q = px + (p + kFinishAhead) * nch;
-    prefetchLines(q, 3 * sizeof(float));
-    prefetchLines(q + first, 5 * sizeof(float));
+/// Asks for `count` channels from `at` (a channel of pixel 0) of pixel p + kFinishAhead, where
+/// the image's n pixels of nch channels have one: the channels a pass reads of each pixel.
+[[gnu::always_inline]] inline void prefetchFinish(const float* at, size_t p, size_t n, size_t nch,
+                                                  size_t count) {
+    if (p + kFinishAhead < n) prefetchLines(at + (p + kFinishAhead) * nch, count * sizeof(float));
 }
 
 }  // namespace
@@ -71,7 +68,8 @@ bool finishRemovedLight(ImageBuf& img, int first, const std::array<double, 3>& l
     // The image's sums in pixel order (the same for any thread count).
     double removed = 0.0, total = 0.0, variance = 0.0;
     for (size_t p = 0; p < n; ++p) {
-        prefetchFinish(px, p, n, nch, first);
+        prefetchFinish(px, p, n, nch, 3);          // R, G, B
+        prefetchFinish(px + first, p, n, nch, 5);  // the removed-light channels
         const float* q = px + p * nch;
         const float* r = q + first;
         const double dp = double(r[3]) - lumaOf(q, luma);
@@ -88,7 +86,7 @@ bool finishRemovedLight(ImageBuf& img, int first, const std::array<double, 3>& l
     // The significant light's sum in pixel order, and the flags in the same pass.
     double significant = 0.0;
     for (size_t p = 0; p < n; ++p) {
-        prefetchFinish(px, p, n, nch, first);
+        prefetchFinish(d, p, n, nch, 5);  // only the removed-light channels: R, G, B are not read
         float* r = d + p * nch;
         const bool flagged = r[3] > opt.zLimit;
         if (flagged) significant += double(r[0]);
