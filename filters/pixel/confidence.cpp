@@ -463,20 +463,17 @@ __attribute__((target("avx2"))) void meanRunAvx2(const PixelBuffers* px, double 
     for (int k = 0; k < K; ++k) keep[k] = widened[k];
     double sums[K][4];
     int m[K];
-    detail::meanPassAvx2<detail::MeanPassKeeps::Widened, K>(px, e, nullptr, sums, m, keep);
-    int most = 0;
     __m256d mean[K], ss[K];
-    for (int k = 0; k < K; ++k) {
-        most = std::max(most, m[k]);
-        mean[k] = _mm256_div_pd(_mm256_setr_pd(sums[k][1], sums[k][2], sums[k][3], 0.0),
-                                _mm256_set1_pd(sums[k][0]));
-        ss[k] = _mm256_setzero_pd();
-    }
+    for (int k = 0; k < K; ++k) mean[k] = ss[k] = _mm256_setzero_pd();
+    // The estimate's divisions are the interval's means (lanes s_c / w: the portable code's).
+    detail::meanPassAvx2<detail::MeanPassKeeps::Widened, K>(px, e, nullptr, sums, m, keep, mean);
+    int most = 0;
+    for (int k = 0; k < K; ++k) most = std::max(most, m[k]);
     most = std::min(most, kWidenedMax);  // m[k] <= px[k].M <= kWidenedMax: tells the compiler
     for (int j = 0; j < most; ++j)
         for (int k = 0; k < K; ++k) {
             if (j >= m[k]) continue;
-            // (m0, m1, m2, n): the fourth lane's sum is never read.
+            // (m0, m1, m2, n): the fourth lane's sums are never read.
             const __m256d x = _mm256_load_pd(widened[k] + 4 * j);
             const __m256d dv = _mm256_sub_pd(x, mean[k]);
             const __m256d w = _mm256_permute4x64_pd(x, 0xff);
@@ -521,13 +518,17 @@ void meanEstimatesWithIntervals(const PixelBuffers* px, int n, double level, Pix
                                 ValueInterval* out) {
     const bool avx2 = detail::usesAvx2();
     std::vector<int> valid;
+    int asked = kPrefetchPixels;  // pixels whose buffers were asked for
     for (int i = 0; i < n;) {
         ValueInterval* rgb = out + 3 * size_t(i);
         // The buffers a few pixels on, while these are summed (pixel_buffers.h).
-        for (int a = i + kPrefetchPixels; a < std::min(n, i + kPrefetchPixels + 2); ++a)
-            prefetchBuffers(px[a]);
+        for (; asked < std::min(n, i + kPrefetchPixels + 4); ++asked) prefetchBuffers(px[asked]);
         if (avx2 && px[i].M <= kWidenedMax) {
-            if (i + 1 < n && px[i].M == px[i + 1].M) {
+            if (i + 3 < n && px[i].M == px[i + 1].M && px[i].M == px[i + 2].M &&
+                px[i].M == px[i + 3].M) {
+                meanRunAvx2<4>(px + i, level, e + i, rgb);
+                i += 4;
+            } else if (i + 1 < n && px[i].M == px[i + 1].M) {
                 meanRunAvx2<2>(px + i, level, e + i, rgb);
                 i += 2;
             } else {

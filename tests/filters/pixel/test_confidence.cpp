@@ -346,16 +346,17 @@ TEST(Confidence, RunIntervalsEqualThePixelOnes) {
     }
 }
 
-// The mean's estimatesWithIntervals over a run (two pixels of equal M side by side) gives each
-// pixel what estimate and pixelInterval give it alone, bit for bit: pairs and lone pixels, M = 0
-// to 66 (past the pairs' 64), pairs of unequal M, invalid buffers (Inf, NaN, negative and zero
-// counts: unequal numbers of valid buffers in a pair), zeros of both signs, denormals, +-3e38.
+// The mean's estimatesWithIntervals over a run (four or two pixels of equal M side by side)
+// gives each pixel what estimate and pixelInterval give it alone, bit for bit: seven pixels of
+// each M (four, two and one side by side), M = 0 to 66 (past the side-by-side passes' 64),
+// neighbours of unequal M, invalid buffers (Inf, NaN, negative and zero counts: unequal numbers
+// of valid buffers side by side), zeros of both signs, denormals, +-3e38.
 TEST(Confidence, MeanRunEstimatesEqualThePixelOnes) {
     std::mt19937 rng(53);
     std::uniform_real_distribution<float> u(0.f, 1.f);
     const float kinds[] = {0.f, -0.f, 1e-40f, -1e-40f, 3e38f, -3e38f, 0.5f, 0.5f, 2.f};
     std::vector<int> ms;
-    for (int M = 0; M <= 66; ++M) ms.insert(ms.end(), {M, M, M});
+    for (int M = 0; M <= 66; ++M) ms.insert(ms.end(), {M, M, M, M, M, M, M});
     ms.insert(ms.end(), {7, 8, 21, 20, 1, 2});
     std::vector<std::vector<float>> means, counts;
     for (size_t i = 0; i < ms.size(); ++i) {
