@@ -341,14 +341,23 @@ bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& 
     if (p + ahead < src.pixelCount()) prefetchBuffers(src.pixelBuffers(p + ahead));
 }
 
-/// What takeRun took for a run.
-enum class RunGiven { Nothing, Intervals, EstimatesAndIntervals, Estimates };
+/// What takeRun took for a run: EstimatesAndIntervals from one call of the kernel's (pixels
+/// taken in order), EstimatesThenIntervals every pixel's estimate (by its place in the run) and
+/// the intervals of those taken.
+enum class RunGiven {
+    Nothing,
+    Intervals,
+    EstimatesAndIntervals,
+    EstimatesThenIntervals,
+    Estimates
+};
 
 /// What the kernel computes for the n pixels from `p0` on as a run, before the pixels one by one:
 /// in a pass with intervals of the kernel's own (no AOV intervals, not citarget=expected), never
 /// of a compact file's pixel without buffers, the intervals with their estimates
 /// (estimatesWithIntervals: any pixel) or alone (runIntervals: the pixels whose buffers are all
-/// valid); in a pass with no interval, no AOVs and no removed light, the estimates alone
+/// valid), after every pixel's estimate in a pass without removed light and plain-mean layers;
+/// in a pass with no interval, no AOVs and no removed light, the estimates alone
 /// (PixelKernel::estimates).
 RunGiven takeRun(const EstimatePass& pass, size_t p0, int n, PixelScratch& w) {
     const PixelKernel& kernel = pass.kernel;
@@ -392,21 +401,32 @@ RunGiven takeRun(const EstimatePass& pass, size_t p0, int n, PixelScratch& w) {
                                       w.runEstimates.data(), w.runIntervals.data());
         return RunGiven::EstimatesAndIntervals;
     }
-    // kChunk pixels at a time: their validity tests, then their intervals, while the next
-    // kChunk pixels' buffers are asked for. The validity test is the buffers' first read: tested
-    // all before any interval, the run's read overlapped no computation.
+    // kChunk pixels at a time: their estimates where the pass allows, their validity tests, then
+    // their intervals. The first of these reads the buffers from memory. The estimates ask for
+    // the pixel kPrefetchPixels on, as in a pass without intervals, and the tests and intervals
+    // then read the buffers from cache (first in a run of tests, the reads overlapped little
+    // computation: G-MoN's and TMPE's :ci spent some 10 % of their time waiting on them). Without
+    // estimates the tests ask for the next kChunk pixels.
+    const bool estimatesFirst = !kernel.removedLight && !kernel.plainMeanLayers;
+    if (estimatesFirst) w.runEstimates.resize(size_t(n));
     constexpr int kChunk = 8;
     for (int c0 = 0; c0 < n; c0 += kChunk) {
         const int c1 = std::min(n, c0 + kChunk), first = taken;
+        if (estimatesFirst)
+            for (int i = c0; i < c1; ++i) {
+                const size_t p = p0 + size_t(i);
+                prefetchAhead(pass.src, p);
+                kernel.estimate(pass.src.pixelBuffers(p), w.runEstimates[size_t(i)], w.scratch);
+            }
         for (int i = c0; i < c1; ++i) {
-            prefetchAhead(pass.src, p0 + size_t(i), kChunk);
+            if (!estimatesFirst) prefetchAhead(pass.src, p0 + size_t(i), kChunk);
             take(i);
         }
         if (taken > first)
             kernel.runIntervals(w.runIntervalBuffers.data() + first, taken - first, kernel.ciLevel,
                                 w.runIntervals.data() + 3 * size_t(first));
     }
-    return RunGiven::Intervals;
+    return estimatesFirst ? RunGiven::EstimatesThenIntervals : RunGiven::Intervals;
 }
 
 /// Pixels x0 to x1 of row y: first their intervals where the kernel takes runs (two at once),
@@ -432,19 +452,20 @@ bool estimateRun(const EstimatePass& pass, int y, int x0, int x1, const ROI& roi
     auto one = [&](int x) {
         const size_t p = row + size_t(x - h.originX);
         const int iv = given != RunGiven::Nothing ? w.runIntervalOf[size_t(x - x0)] : -1;
-        const bool withEstimate =
-            iv >= 0 && (given == RunGiven::EstimatesAndIntervals || given == RunGiven::Estimates);
-        const bool withInterval = iv >= 0 && given != RunGiven::Estimates;
-        if (withEstimate && givenWhole) {
-            writeEstimateLayers(pass, pixelOut(x), w.runEstimates[size_t(iv)],
-                                withInterval ? w.runIntervals.data() + 3 * size_t(iv) : nullptr);
+        const ValueInterval* interval = iv >= 0 && given != RunGiven::Estimates
+                                            ? w.runIntervals.data() + 3 * size_t(iv)
+                                            : nullptr;
+        const PixelEstimate* estimate =
+            given == RunGiven::EstimatesThenIntervals ? w.runEstimates.data() + (x - x0)
+            : iv >= 0 && (given == RunGiven::EstimatesAndIntervals || given == RunGiven::Estimates)
+                ? w.runEstimates.data() + iv
+                : nullptr;
+        if (estimate && givenWhole && (interval || !pass.ci)) {
+            writeEstimateLayers(pass, pixelOut(x), *estimate, interval);
             return;
         }
-        prefetchAhead(pass.src, p);  // while this one is estimated
-        if (!estimatePixel(pass, p, pixelOut(x), w,
-                           withInterval ? w.runIntervals.data() + 3 * size_t(iv) : nullptr,
-                           withEstimate ? w.runEstimates.data() + iv : nullptr))
-            weighted = false;
+        if (!estimate) prefetchAhead(pass.src, p);  // while this one is estimated
+        if (!estimatePixel(pass, p, pixelOut(x), w, interval, estimate)) weighted = false;
     };
     if (!kernel.removedLight) {
         for (int x = x0; x < x1; ++x) one(x);
