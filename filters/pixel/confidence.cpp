@@ -352,6 +352,25 @@ __attribute__((target("avx"))) inline __m256d widenedLane(const float (*lanes)[4
     return _mm256_cvtps_pd(_mm_load_ps(lanes[r]));
 }
 
+/// yuenFromSums of a pixel whose R, G, B sums are the first three lanes of AVX registers (`sum`
+/// the trimmed sum, `ss` the winsorised squared deviations; the fourth lane is never read): each
+/// lane's operations are the portable code's (the estimate sum / h, the variance
+/// ss / (h (h - 1)), half = q sqrt(variance), and tIntervalWith's ends), correctly rounded in any
+/// width, so the same bits, with a third of the divisions and square roots. Always inlined: a call
+/// that takes AVX registers leaves their upper halves set for the portable caller (see
+/// meanRunAvx2's _mm256_zeroupper).
+[[gnu::always_inline]] __attribute__((target("avx"))) inline void yuenEndsAvx(
+    int h, double q, __m256d sum, __m256d ss, ValueInterval out[3]) {
+    const __m256d estimate = _mm256_div_pd(sum, _mm256_set1_pd(double(h)));
+    const __m256d variance = _mm256_div_pd(ss, _mm256_set1_pd(double(h) * (h - 1)));
+    const __m256d half = _mm256_mul_pd(_mm256_set1_pd(q), _mm256_sqrt_pd(variance));
+    const __m256d zero = _mm256_cmp_pd(variance, _mm256_setzero_pd(), _CMP_EQ_OQ);
+    alignas(32) double lo[4], hi[4];
+    _mm256_store_pd(lo, _mm256_blendv_pd(_mm256_sub_pd(estimate, half), estimate, zero));
+    _mm256_store_pd(hi, _mm256_blendv_pd(_mm256_add_pd(estimate, half), estimate, zero));
+    for (int c = 0; c < 3; ++c) out[c] = {lo[c], hi[c], false};
+}
+
 /// yuenFromLanes on two pixels of equal m and g at once, each pixel's R, G, B (and a lane never
 /// read) the four lanes of AVX double registers: for each channel the same operations in the same
 /// order (additions, one division, subtractions, products; no FMA), so the same bits. The two
@@ -380,11 +399,9 @@ __attribute__((target("avx"))) void yuenFromLanes2(const float (*la)[4], const f
         qa = _mm256_add_pd(qa, _mm256_mul_pd(da, da));
         qb = _mm256_add_pd(qb, _mm256_mul_pd(db, db));
     }
-    alignas(32) double sumA[4], sumB[4], ssA[4], ssB[4];
-    _mm256_store_pd(sumA, sa), _mm256_store_pd(sumB, sb);
-    _mm256_store_pd(ssA, qa), _mm256_store_pd(ssB, qb);
-    yuenFromSums(h, sumA, ssA, level, oa);
-    yuenFromSums(h, sumB, ssB, level, ob);
+    const double q = twoSidedQuantile(level, double(h - 1));
+    yuenEndsAvx(h, q, sa, qa, oa);
+    yuenEndsAvx(h, q, sb, qb, ob);
 }
 
 /// One channel's values of the valid buffers, widened to double (the per-channel path's input).
@@ -604,11 +621,14 @@ void yuenIntervals(const PixelBuffers& px, const int* valid, int m, int g, doubl
 void yuenIntervalsRun(const PixelBuffers* px, int n, const std::function<int(int)>& trim,
                       double level, ValueInterval* out) {
     const bool avx = cpuHasAvx();
-    std::vector<int> all;  // 0, 1, ..., M - 1: every buffer valid
-    int i = 0;
+    std::vector<int> all;             // 0, 1, ..., M - 1: every buffer valid
+    int i = 0, trimmedM = -1, g = 0;  // the trim g of the last m asked (a run's M rarely changes)
     while (i < n) {
         const int m = px[i].M;
-        const int g = m >= 2 ? std::clamp(trim(m), 0, (m - 1) / 2) : 0;
+        if (m != trimmedM) {
+            g = m >= 2 ? std::clamp(trim(m), 0, (m - 1) / 2) : 0;
+            trimmedM = m;
+        }
         if (avx && i + 1 < n && px[i + 1].M == m && m >= 2 && m <= kUnrolledMax && m - 2 * g >= 2) {
             alignas(16) float la[kUnrolledMax][4], lb[kUnrolledMax][4];
             sortUnrolled2(m, px[i], px[i + 1], la, lb,
@@ -618,7 +638,7 @@ void yuenIntervalsRun(const PixelBuffers* px, int n, const std::function<int(int
             continue;
         }
         for (int j = int(all.size()); j < m; ++j) all.push_back(j);
-        yuenIntervals(px[i], all.data(), m, trim(m), level, out + 3 * i);
+        yuenIntervals(px[i], all.data(), m, g, level, out + 3 * i);
         ++i;
     }
 }
