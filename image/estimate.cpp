@@ -471,7 +471,13 @@ bool estimateRun(const EstimatePass& pass, int y, int x0, int x1, const ROI& roi
         for (int x = x0; x < x1; ++x) one(x);
         return weighted;
     }
+    // The keys' place is set field by field: a whole LumaKeys assigned from a temporary was
+    // stored in parts and read back whole, a failed store forwarding on every pixel (perf put 5 %
+    // of TMPE :removed's samples on those two loads). Only `key` tells an estimate to leave
+    // them.
     EstimatorScratch::LumaKeys& keys = w.scratch.lumaKeys;
+    keys.stride = kGroup;
+    keys.luma = kernel.removedLuma;
     w.groupKeys.resize(kGroup * 64);
     w.groupCounts.resize(kGroup * 64);
     for (int g = x0; g < x1; g += kGroup) {
@@ -481,14 +487,14 @@ bool estimateRun(const EstimatePass& pass, int y, int x0, int x1, const ROI& roi
             w.groupBuffers[i] = pass.src.pixelBuffers(row + size_t(g + i - h.originX));
             const int M = w.groupBuffers[i].M;
             fromKeys = fromKeys && M >= 2 && M <= 64 && M == w.groupBuffers[0].M;
-            keys = {};
-            if (fromKeys)
-                keys = {w.groupKeys.data() + i, w.groupCounts.data() + i, kGroup,
-                        kernel.removedLuma};
+            keys.key = fromKeys ? w.groupKeys.data() + i : nullptr;
+            keys.count = fromKeys ? w.groupCounts.data() + i : nullptr;
+            keys.given = false;
             one(g + i);
             fromKeys = fromKeys && keys.given;
         }
-        keys = {};
+        keys.key = keys.count = nullptr;
+        keys.given = false;
         if (fromKeys)
             lumaSpread8FromKeys(w.groupKeys.data(), w.groupCounts.data(), w.groupBuffers[0].M,
                                 w.groupSpreads);
