@@ -429,11 +429,12 @@ RunGiven takeRun(const EstimatePass& pass, size_t p0, int n, PixelScratch& w) {
     return estimatesFirst ? RunGiven::EstimatesThenIntervals : RunGiven::Intervals;
 }
 
-/// Pixels x0 to x1 of row y: first their intervals where the kernel takes runs (two at once),
-/// then each pixel; with the removed light, eight pixels at a time, then their luminance spreads,
-/// from the buffers' luminances the estimates left where they did (lumaSpread8FromKeys), else from
-/// the buffers (lumaSpreads), then their removed-light values. The run is short enough that its
-/// buffers are still in cache for the estimates. False as estimatePixel.
+/// Pixels x0 to x1 of row y: first what takeRun takes of them (their intervals, and with them or
+/// before them their estimates), then each pixel; with the removed light, eight pixels at a time,
+/// then their luminance spreads, from the buffers' luminances the estimates left where they did
+/// (lumaSpread8FromKeys), else from the buffers (lumaSpreads), then their removed-light values. The
+/// run is short enough that its buffers are still in cache for the estimates. False as
+/// estimatePixel.
 bool estimateRun(const EstimatePass& pass, int y, int x0, int x1, const ROI& roi, float* base,
                  PixelScratch& w) {
     const StatsHeader& h = pass.src.header;
