@@ -352,23 +352,29 @@ __attribute__((target("avx"))) inline __m256d widenedLane(const float (*lanes)[4
     return _mm256_cvtps_pd(_mm_load_ps(lanes[r]));
 }
 
-/// yuenFromSums of a pixel whose R, G, B sums are the first three lanes of AVX registers (`sum`
-/// the trimmed sum, `ss` the winsorised squared deviations; the fourth lane is never read): each
-/// lane's operations are the portable code's (the estimate sum / h, the variance
-/// ss / (h (h - 1)), half = q sqrt(variance), and tIntervalWith's ends), correctly rounded in any
-/// width, so the same bits, with a third of the divisions and square roots. Always inlined: a call
+/// tIntervalWith of R, G and B at once, their estimates and variances the first three lanes of AVX
+/// registers (the fourth is never read): half = q sqrt(variance), [x - half, x + half], variance 0:
+/// [x, x]. Correctly rounded in any width, so the portable code's bits. Always inlined: a call
 /// that takes AVX registers leaves their upper halves set for the portable caller (see
 /// meanRunAvx2's _mm256_zeroupper).
-[[gnu::always_inline]] __attribute__((target("avx"))) inline void yuenEndsAvx(
-    int h, double q, __m256d sum, __m256d ss, ValueInterval out[3]) {
-    const __m256d estimate = _mm256_div_pd(sum, _mm256_set1_pd(double(h)));
-    const __m256d variance = _mm256_div_pd(ss, _mm256_set1_pd(double(h) * (h - 1)));
+[[gnu::always_inline]] __attribute__((target("avx"))) inline void tIntervalsAvx(
+    __m256d estimate, __m256d variance, double q, ValueInterval out[3]) {
     const __m256d half = _mm256_mul_pd(_mm256_set1_pd(q), _mm256_sqrt_pd(variance));
     const __m256d zero = _mm256_cmp_pd(variance, _mm256_setzero_pd(), _CMP_EQ_OQ);
     alignas(32) double lo[4], hi[4];
     _mm256_store_pd(lo, _mm256_blendv_pd(_mm256_sub_pd(estimate, half), estimate, zero));
     _mm256_store_pd(hi, _mm256_blendv_pd(_mm256_add_pd(estimate, half), estimate, zero));
     for (int c = 0; c < 3; ++c) out[c] = {lo[c], hi[c], false};
+}
+
+/// yuenFromSums of a pixel whose R, G, B sums are the first three lanes of AVX registers (`sum`
+/// the trimmed sum, `ss` the winsorised squared deviations): each lane's operations are the
+/// portable code's (the estimate sum / h, the variance ss / (h (h - 1)), then tIntervalWith's),
+/// so the same bits, with a third of the divisions and square roots.
+[[gnu::always_inline]] __attribute__((target("avx"))) inline void yuenEndsAvx(
+    int h, double q, __m256d sum, __m256d ss, ValueInterval out[3]) {
+    tIntervalsAvx(_mm256_div_pd(sum, _mm256_set1_pd(double(h))),
+                  _mm256_div_pd(ss, _mm256_set1_pd(double(h) * (h - 1))), q, out);
 }
 
 /// yuenFromLanes on two pixels of equal m and g at once, each pixel's R, G, B (and a lane never
@@ -428,22 +434,16 @@ void meanIntervals(const PixelBuffers& px, const int* valid, int m, double level
 namespace {
 
 /// A pixel's mean interval from its means and its sums of squares in the lanes of AVX registers
-/// (R, G, B and a lane never read): tIntervalWith's variance ss / df / n, half = q sqrt(variance),
-/// [x - half, x + half], variance 0: [x, x]. Each lane's operations are the portable code's, in
-/// the same order, correctly rounded in any width, no FMA: the same bits, with a third of the
-/// divisions and square roots.
+/// (R, G, B and a lane never read): the variance ss / df / n, then tIntervalsAvx. Each lane's
+/// operations are the portable code's, in the same order, correctly rounded in any width, no FMA:
+/// the same bits, with a third of the divisions and square roots.
 __attribute__((target("avx2"))) void meanIntervalEndsAvx2(int m, double n, __m256d mean, __m256d ss,
                                                           double level, ValueInterval* out) {
     if (degenerateAll(m, out)) return;
     const double df = m - 1;
     const double q = twoSidedQuantile(level, df);
-    const __m256d var = _mm256_div_pd(_mm256_div_pd(ss, _mm256_set1_pd(df)), _mm256_set1_pd(n));
-    const __m256d half = _mm256_mul_pd(_mm256_set1_pd(q), _mm256_sqrt_pd(var));
-    const __m256d zero = _mm256_cmp_pd(var, _mm256_setzero_pd(), _CMP_EQ_OQ);
-    alignas(32) double lo[4], hi[4];
-    _mm256_store_pd(lo, _mm256_blendv_pd(_mm256_sub_pd(mean, half), mean, zero));
-    _mm256_store_pd(hi, _mm256_blendv_pd(_mm256_add_pd(mean, half), mean, zero));
-    for (int c = 0; c < 3; ++c) out[c] = {lo[c], hi[c], false};
+    tIntervalsAvx(mean, _mm256_div_pd(_mm256_div_pd(ss, _mm256_set1_pd(df)), _mm256_set1_pd(n)), q,
+                  out);
 }
 
 /// meanIntervalsFromSums on AVX2: a pixel's R, G, B (and a lane that stays 0) in the lanes of one
