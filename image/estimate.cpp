@@ -320,15 +320,13 @@ bool estimatePixel(const EstimatePass& pass, size_t p, float* px, PixelScratch& 
         kernel.estimate(pb, w.e, w.scratch);
     const bool weighted = A == 0 || weightedAovs(pass, p, pb, w.scratch.bufferWeight,
                                                  px + pass.firstAov, w.aovScratch);
-    ValueInterval iv[3];
-    if (pass.ci) {
-        if (given) {
-            std::copy(given, given + 3, iv);
-        } else {
-            // A compact file's pixel that kept only its mean (G-MoN trimmed nothing: the
-            // estimators give the mean there) has the mean's t interval from its spread.
-            channelIntervals(pass, p, pb, src.meanOnlySpread(p), w, iv);
-        }
+    ValueInterval computed[3];
+    const ValueInterval* iv = given;
+    if (pass.ci && !given) {
+        // A compact file's pixel that kept only its mean (G-MoN trimmed nothing: the estimators
+        // give the mean there) has the mean's t interval from its spread.
+        channelIntervals(pass, p, pb, src.meanOnlySpread(p), w, computed);
+        iv = computed;
     }
     writeEstimateLayers(pass, px, w.e, pass.ci ? iv : nullptr);
     if (pass.ci) aovIntervals(pass, p, pb, w, px + pass.firstCi);
