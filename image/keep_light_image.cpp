@@ -335,9 +335,9 @@ std::vector<ParamSpec> keepLightModifiers() {
                       "(docs/keep-light.md)"),
             realParam("keeplightgamma", 0.0, 100.0, true, "",
                       "with keeplight=1: the scale choice's threshold in standard errors "
-                      "(default 3; larger spreads wider)"),
+                      "(default 4; larger spreads wider)"),
             intParam("keeplightradius", 0, 1024, "",
-                     "with keeplight=1: the largest window radius in pixels (default 32)")};
+                     "with keeplight=1: the largest window radius in pixels (default 64)")};
 }
 
 bool takeKeepLightModifiers(const std::string& context, std::map<std::string, std::string>& mods,

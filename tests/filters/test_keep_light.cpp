@@ -117,11 +117,12 @@ TEST(KeepLight, PixelsBeyondEveryWindowAreUntouched) {
     f.active[p] = 1;
     std::vector<uint8_t> scale;
     const std::vector<float> out = giveBack(f, 1, {}, 1, &scale);
-    EXPECT_EQ(keepLightRadii(32)[scale[p]], 32);  // a lone firefly: the widest window
+    const int R = KeepLightParams().maxRadius;
+    EXPECT_EQ(keepLightRadii(R)[scale[p]], R);  // a lone firefly: the widest window
     for (int y = 0; y < 3; ++y)
         for (int x = 0; x < 200; ++x) {
             const size_t q = f.at(x, y);
-            if (x <= 5 + 32) {
+            if (x <= 5 + R) {
                 EXPECT_GT(out[q], f.robust[q]) << x << "," << y;
                 EXPECT_TRUE(std::isfinite(out[q]));
             } else {
@@ -158,14 +159,15 @@ TEST(KeepLight, AFarFireflyOf1e38ChangesNoOtherScale) {
 // A firefly alone (d = se, its neighbours exact zeros): its window grows to the largest, and its
 // light is spread thin: no pixel gets more than a hundredth of it.
 TEST(KeepLight, ALoneFireflyIsSpreadWide) {
-    Field f(96, 96, 1);
-    const size_t p = f.at(50, 40);
+    const int R = KeepLightParams().maxRadius;
+    Field f(2 * R + 40, 2 * R + 30, 1);  // its window inside the image
+    const size_t p = f.at(R + 20, R + 10);
     f.residual[p] = 900.0;
     f.d[p] = f.se[p] = 900.f;
     f.active[p] = 1;
     std::vector<uint8_t> scale;
     const std::vector<float> out = giveBack(f, 1, {}, 2, &scale);
-    EXPECT_EQ(keepLightRadii(32)[scale[p]], 32);
+    EXPECT_EQ(keepLightRadii(R)[scale[p]], R);
     double total = 0.0, peak = 0.0;
     for (float v : out) {
         total += v;
@@ -173,8 +175,9 @@ TEST(KeepLight, ALoneFireflyIsSpreadWide) {
     }
     EXPECT_NEAR(total, 900.0, 1e-6);
     EXPECT_LT(peak, 9.0);
-    EXPECT_NEAR(peak, 900.0 / (33.0 * 33.0), 1e-3);  // the tent's centre: (r + 1)^2 of (r + 1)^4
-    EXPECT_GT(out[f.at(50 + 20, 40 - 20)], 0.f);
+    // The tent's centre: (r + 1)^2 of (r + 1)^4.
+    EXPECT_NEAR(peak, 900.0 / (double(R + 1) * double(R + 1)), 1e-3);
+    EXPECT_GT(out[f.at(R + 20 + R / 2, R + 10 - R / 2)], 0.f);
 }
 
 // A caustic: a 9 x 9 region whose every pixel lost light its buffers support (d = 10, se = 3:
@@ -192,7 +195,7 @@ TEST(KeepLight, ASupportedCausticIsKeptClose) {
         }
     std::vector<uint8_t> scale;
     const std::vector<float> out = giveBack(f, 1, {}, 2, &scale);
-    const std::vector<int> radii = keepLightRadii(32);
+    const std::vector<int> radii = keepLightRadii(KeepLightParams().maxRadius);
     double inside = 0.0, total = 0.0;
     for (int y = 0; y < 96; ++y)
         for (int x = 0; x < 96; ++x) {
@@ -231,7 +234,8 @@ TEST(KeepLight, ASmallCausticOfFireflyLikePixelsIsKeptClose) {
             f.se[p] = 4.5f;
             f.active[p] = 1;
         }
-    const std::vector<int> radii = keepLightRadii(32);
+    const int R = KeepLightParams().maxRadius;
+    const std::vector<int> radii = keepLightRadii(R);
     std::vector<uint8_t> scale;
     giveBack(f, 1, {}, 1, &scale);
     for (size_t p = 0; p < scale.size(); ++p)
@@ -243,7 +247,7 @@ TEST(KeepLight, ASmallCausticOfFireflyLikePixelsIsKeptClose) {
     giveBack(f, 1, iciAlone, 1, &scale);
     for (size_t p = 0; p < scale.size(); ++p)
         if (f.active[p]) {
-            EXPECT_EQ(radii[scale[p]], 32) << p;
+            EXPECT_EQ(radii[scale[p]], R) << p;
         }
 }
 
@@ -264,7 +268,7 @@ TEST(KeepLight, AThinCausticStaysOnItsLine) {
         f.se[p] = 4.f;
         f.active[p] = 1;
     }
-    const std::vector<int> radii = keepLightRadii(32);
+    const std::vector<int> radii = keepLightRadii(KeepLightParams().maxRadius);
     std::vector<uint8_t> scale(f.d.size());
     keepLightScales(f.d.data(), f.se.data(), f.active.data(), f.w, f.h, {}, scale.data(), 2);
     for (int x = 11; x < 53; ++x) ASSERT_EQ(radii[scale[f.at(x, 30)]], 1) << x;
@@ -317,8 +321,8 @@ TEST(KeepLight, AovsThatSummedToTheBeautyStillSum) {
     const KeepLightParams params;
     keepLightScales(f.d.data(), f.se.data(), f.active.data(), f.w, f.h, params, scale.data(), 2);
     std::vector<float> out(n * 9);
-    returnResidual(robust.data(), residual.data(), scale.data(), keepLightRadii(32), f.w, f.h, 9,
-                   out.data(), 2);
+    returnResidual(robust.data(), residual.data(), scale.data(), keepLightRadii(params.maxRadius),
+                   f.w, f.h, 9, out.data(), 2);
     for (size_t p = 0; p < n; ++p)
         for (int c = 0; c < 3; ++c) {
             const double beauty = out[p * 9 + size_t(c)];
@@ -612,9 +616,10 @@ TEST(KeepLightStream, RowsBeyondTheWindowAreUntouched) {
     f.d[p] = f.se[p] = 1e38f;
     f.active[p] = 1;
     const Streamed got = streamed(f, nullptr, {}, 5, 2);
+    const int R = KeepLightParams().maxRadius;
     for (int y = 0; y < 200; ++y)
         for (size_t i = f.at(0, y) * 3; i < f.at(0, y + 1) * 3; ++i) {
-            if (std::abs(y - 100) <= 32) {
+            if (std::abs(y - 100) <= R) {
                 EXPECT_GT(got.out[i], f.robust[i]) << y;
                 EXPECT_TRUE(std::isfinite(got.out[i])) << y;
             } else {

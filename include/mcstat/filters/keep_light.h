@@ -29,8 +29,9 @@
 // (z = 1, the light in one or two of M = 9 buffers), every window's mean is n d / area with
 // standard error sqrt(n) d / area, so all intervals hold 0 while sqrt(n) < gamma and the light
 // spreads to the largest radius. The pooled 3 x 3 test (KeepLightParams::supportZ) catches such a
-// cluster. Gamma, the radius and supportZ were tuned on the fixture's caustic and default scenes
-// (docs/keep-light.md).
+// cluster. Gamma and the radius were chosen on the fixture's firefly scenes and on Blender Cycles
+// renders together (docs/keep-light.md, "The scale's two settings"); supportZ on the fixture's
+// caustic and default scenes.
 #pragma once
 
 #include <cstdint>
@@ -40,8 +41,8 @@ namespace mcstat {
 
 /// The scale choice's parameters.
 struct KeepLightParams {
-    double gamma = 3.0;  ///< ICI threshold: the intervals' half width in standard errors
-    int maxRadius = 32;  ///< the largest window radius (the radii are 0, 1, 2, 4, ... up to it)
+    double gamma = 4.0;  ///< ICI threshold: the intervals' half width in standard errors
+    int maxRadius = 64;  ///< the largest window radius (the radii are 0, 1, 2, 4, ... up to it)
     /// A pixel whose 3 x 3 neighbourhood's removed light is significant together, sum d /
     /// sqrt(sum se^2) >= supportZ (removed_light.h's pooled test), keeps at most radius 1: a
     /// caustic of a few pixels, each of which alone looks like a firefly (z about 1: with M = 9
