@@ -17,6 +17,7 @@ of the same file (`mcstat STATS --gmon:keeplight=1 -o CLI.exr`, the same setting
 status 1 when the two differ by more than 2 %.
 """
 import argparse
+import os
 import sys
 
 import numpy as np
@@ -176,10 +177,18 @@ def main():
     if a.out:
         spec = oiio.ImageSpec(img.shape[1], img.shape[0], 3, oiio.FLOAT)
         spec.channelnames = ("R", "G", "B")
-        out = oiio.ImageOutput.create(a.out)
-        if out is None or not out.open(a.out, spec) or not out.write_image(img.astype(np.float32)):
-            sys.exit(f"keep_light_model: {a.out}: {oiio.geterror()}")
-        out.close()
+        # Written under a temporary name in the same folder, then renamed: never half a file.
+        base, ext = os.path.splitext(a.out)
+        tmp = f"{base}.tmp{os.getpid()}{ext}"
+        out = oiio.ImageOutput.create(tmp)
+        ok = out is not None and out.open(tmp, spec) and out.write_image(img.astype(np.float32))
+        if out is not None:
+            ok = out.close() and ok
+        if not ok:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+            sys.exit(f"keep_light_model: {a.out}: {oiio.geterror() or 'cannot write it'}")
+        os.replace(tmp, a.out)
     if not a.ref:
         return 0
     ref = beauty(a.ref)
