@@ -2,6 +2,7 @@
 #include "mcstat/filters/keep_light.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
@@ -48,11 +49,13 @@ int haloRows(const KeepLightParams& params) { return std::max(1, params.maxRadiu
 
 }  // namespace keeplight
 
-void keepLightScales(const float* d, const float* se, const uint8_t* active, int width, int height,
-                     const KeepLightParams& params, uint8_t* scale, int nthreads) {
+void keepLightScales(const float* d, const float* se, const float* robustY, const uint8_t* active,
+                     int width, int height, const KeepLightParams& params, uint8_t* scale,
+                     int nthreads) {
     keeplight::HeldRows held = keeplight::HeldRows::whole(width, height);
     held.d = d;
     held.se = se;
+    held.robustY = robustY;
     held.active = active;
     keeplight::scalesRows(held, params, 0, height, scale, nthreads);
 }
@@ -361,6 +364,31 @@ void windowSums(const std::vector<double>& vals, int width, int s0, int s1, int 
     });
 }
 
+/// Whether p's neighbours say that its plain mean is a better estimate than its robust value:
+/// the median of the robust luminance over the 3 x 3 window inside the image (its finite values)
+/// lies nearer the mean's luminance, robustY + d, than the robust one. At the edge of a bright
+/// surface a pixel that the surface covers in part sees it in a few samples, which a robust
+/// estimator takes for fireflies; its neighbours along the edge and on the surface, whose robust
+/// values hold that light, put the median above the midpoint between the robust value and the
+/// mean. A firefly's neighbours are its surface's robust values, near its own.
+bool meanNearerNeighbours(const keeplight::HeldRows& held, int x, int y) {
+    const size_t p = held.at(x, y);
+    const double robust = held.robustY[p], d = held.d[p];
+    if (!std::isfinite(robust) || !std::isfinite(d)) return false;
+    std::array<double, 9> v;
+    size_t n = 0;
+    const auto [x0, x1] = clipped(x, 1, held.width);
+    const auto [y0, y1] = clipped(y, 1, held.height);
+    for (int j = y0; j < y1; ++j)
+        for (int i = x0; i < x1; ++i) {
+            const float r = held.robustY[held.at(i, j)];
+            if (std::isfinite(r)) v[n++] = double(r);
+        }
+    std::sort(v.begin(), v.begin() + std::ptrdiff_t(n));  // n >= 1: p's own is finite
+    const double median = n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+    return std::fabs(robust + d - median) < std::fabs(robust - median);
+}
+
 }  // namespace
 
 namespace keeplight {
@@ -412,6 +440,9 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
                     const std::vector<double>& one = sums[oneAt];
                     if (one[i + 1] > 0.0 && one[i] / std::sqrt(one[i + 1]) >= params.supportZ)
                         chosen = std::min<uint8_t>(chosen, uint8_t(1));
+                    // Light that the neighbours' robust values say belongs to this pixel (the
+                    // edge of a bright surface) stays in it: the pixel is its plain mean.
+                    if (held.robustY && meanNearerNeighbours(held, x, y)) chosen = 0;
                     scale[size_t(y - y0) * size_t(width) + size_t(x)] = chosen;
                 }
         });

@@ -22,6 +22,7 @@ struct HeldRows {
     const double* residual = nullptr;     ///< nc per pixel
     const float* d = nullptr;             ///< the luminance residual
     const float* se = nullptr;            ///< the plain mean's standard error
+    const float* robustY = nullptr;       ///< the robust estimate's luminance, or null
     const uint8_t* active = nullptr;      ///< the pixel carries a residual
     const float* guide = nullptr;         ///< the return's guide (albedo luminance), or null
     const float* cluster = nullptr;       ///< the cluster guide, or null
@@ -50,7 +51,8 @@ struct HeldRows {
 int haloRows(const KeepLightParams& params);
 
 /// keepLightScales for rows [y0, y1) into scale (rows [y0, y1) only): reads active over [y0, y1),
-/// d and se over [y0 - haloRows, y1 + haloRows) clipped to the image. The window sums are the
+/// d and se over [y0 - haloRows, y1 + haloRows) and robustY over [y0 - 1, y1 + 1), clipped to the
+/// image. The window sums are the
 /// same bits whatever rows are held.
 void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int y1, uint8_t* scale,
                 int nthreads);

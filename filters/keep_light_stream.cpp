@@ -17,7 +17,7 @@ struct HeldBands {
     bool guided = false;
     int first = 0, end = 0;
     std::vector<double> residual, norm, clusterNorm;
-    std::vector<float> d, se, guide, cluster;
+    std::vector<float> d, se, robustY, guide, cluster;
     std::vector<uint8_t> active, scale;
 
     size_t offset(int y) const { return size_t(y - first) * width; }
@@ -28,6 +28,7 @@ struct HeldBands {
         f(clusterNorm, 1);
         f(d, 1);
         f(se, 1);
+        f(robustY, 1);
         f(guide, guided ? 1 : 0);
         f(cluster, 1);
         f(active, 1);
@@ -56,6 +57,7 @@ struct HeldBands {
         h.residual = residual.data();
         h.d = d.data();
         h.se = se.data();
+        h.robustY = robustY.data();
         h.active = active.data();
         h.guide = guided ? guide.data() : nullptr;
         h.cluster = cluster.data();
@@ -94,8 +96,11 @@ bool keepLightStream(int width, int height, int nch, bool guided, const KeepLigh
             const int y1 = std::min(height, filled + band);
             held.growTo(y1);
             const size_t o = held.offset(filled);
-            const KeepLightBandIn in{held.residual.data() + o * held.nc, held.d.data() + o,
-                                     held.se.data() + o, held.active.data() + o,
+            const KeepLightBandIn in{held.residual.data() + o * held.nc,
+                                     held.d.data() + o,
+                                     held.se.data() + o,
+                                     held.robustY.data() + o,
+                                     held.active.data() + o,
                                      guided ? held.guide.data() + o : nullptr};
             if (!fill(filled, y1, in)) return false;
             filled = y1;

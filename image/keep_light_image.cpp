@@ -150,6 +150,9 @@ void residualRows(const float* rp, size_t nin, size_t w, const MeanRows& mean,
                 // estimator kept its mean, and a compact file, which keeps no buffers there,
                 // gives the same choice.
                 in.d[i0] = float(dy);
+                const float* rgb = rp + p * nin;  // R, G, B first (returnByBands checks it)
+                in.robustY[i0] = float(luma[0] * double(rgb[0]) + luma[1] * double(rgb[1]) +
+                                       luma[2] * double(rgb[2]));
                 in.active[i0] = active;
                 const float* step = m + mean.spread;
                 in.se[i0] = active ? step[kPixelStepSe] : 0.f;

@@ -21,6 +21,7 @@ namespace {
 struct Field {
     int w, h;
     std::vector<float> robust, d, se;
+    std::vector<float> robustY;  ///< the robust luminance, or empty (no edge test)
     std::vector<double> residual;
     std::vector<uint8_t> active;
     Field(int w_, int h_, int nch = 3)
@@ -32,13 +33,15 @@ struct Field {
           residual(size_t(w_ * h_ * nch), 0.0),
           active(size_t(w_ * h_), 0) {}
     size_t at(int x, int y) const { return size_t(y) * size_t(w) + size_t(x); }
+    const float* robustYOrNull() const { return robustY.empty() ? nullptr : robustY.data(); }
 };
 
 /// Scales then return, as keep_light_image does: the output per channel.
 std::vector<float> giveBack(const Field& f, int nch, const KeepLightParams& p, int nthreads,
                             std::vector<uint8_t>* scaleOut = nullptr) {
     std::vector<uint8_t> scale(f.d.size());
-    keepLightScales(f.d.data(), f.se.data(), f.active.data(), f.w, f.h, p, scale.data(), nthreads);
+    keepLightScales(f.d.data(), f.se.data(), f.robustYOrNull(), f.active.data(), f.w, f.h, p,
+                    scale.data(), nthreads);
     std::vector<float> out(f.robust.size());
     returnResidual(f.robust.data(), f.residual.data(), scale.data(), keepLightRadii(p.maxRadius),
                    f.w, f.h, nch, out.data(), nthreads);
@@ -64,6 +67,12 @@ Field randomField(int w, int h, unsigned seed) {
             f.se[p] = float(std::fabs(size));
             f.active[p] = 1;
         }
+    // The robust luminance, so that the edge test takes part wherever the mean is nearer the
+    // neighbours' median.
+    f.robustY.resize(f.d.size());
+    for (size_t p = 0; p < f.d.size(); ++p)
+        f.robustY[p] = 0.2126f * f.robust[p * 3] + 0.7152f * f.robust[p * 3 + 1] +
+                       0.0722f * f.robust[p * 3 + 2];
     return f;
 }
 
@@ -270,7 +279,8 @@ TEST(KeepLight, AThinCausticStaysOnItsLine) {
     }
     const std::vector<int> radii = keepLightRadii(KeepLightParams().maxRadius);
     std::vector<uint8_t> scale(f.d.size());
-    keepLightScales(f.d.data(), f.se.data(), f.active.data(), f.w, f.h, {}, scale.data(), 2);
+    keepLightScales(f.d.data(), f.se.data(), f.robustYOrNull(), f.active.data(), f.w, f.h, {},
+                    scale.data(), 2);
     for (int x = 11; x < 53; ++x) ASSERT_EQ(radii[scale[f.at(x, 30)]], 1) << x;
     // The two ends, whose 3 x 3 neighbourhoods hold two events (z = 1.77), go wide; kept at radius
     // 1 here, so that nothing but the line's own light reaches the pixels checked by hand.
@@ -293,6 +303,72 @@ TEST(KeepLight, AThinCausticStaysOnItsLine) {
     double total = 0.0;
     for (float v : guided) total += v;
     EXPECT_NEAR(total, 44 * 5.0, 1e-9 * 220.0 + 1e-5);
+}
+
+/// The edge of a bright surface, as a defocused emitter's in the fixture's dof scene: rows 0 to 3
+/// the surface (robust 17), row 4 the pixels it covers in part, rows 5 on the dark floor (0.1).
+/// Row 4's robust values hold some of its light (1.0, where three of nine buffers saw it); the
+/// pixel at (4, 4) saw it in one buffer, so the robust estimate dropped it: robust 0.05, mean
+/// 0.55 (d = se = 0.5). Returns the field and that pixel.
+std::pair<Field, size_t> partlyCoveredEdge() {
+    Field f(9, 9, 1);
+    f.robustY.assign(f.d.size(), 0.1f);
+    for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 9; ++x) f.robustY[f.at(x, y)] = 17.f;
+    for (int x = 0; x < 9; ++x) f.robustY[f.at(x, 4)] = 1.f;
+    const size_t p = f.at(4, 4);
+    f.robustY[p] = 0.05f;
+    for (size_t q = 0; q < f.d.size(); ++q) f.robust[q] = f.robustY[q];
+    f.residual[p] = 0.5;
+    f.d[p] = f.se[p] = 0.5f;
+    f.active[p] = 1;
+    return {f, p};
+}
+
+// The pixel's neighbours put the median of their robust values at 1.0, nearer its mean (0.55)
+// than its robust value (0.05): it keeps its light, and is its plain mean. Without the robust
+// luminance the same pixel looks like a lone firefly (d = se) and goes wide.
+TEST(KeepLight, AnEdgesPartlyCoveredPixelKeepsItsLight) {
+    auto [f, p] = partlyCoveredEdge();
+    std::vector<uint8_t> scale;
+    const std::vector<float> out = giveBack(f, 1, {}, 2, &scale);
+    EXPECT_EQ(scale[p], 0);
+    EXPECT_FLOAT_EQ(out[p], 0.55f);
+    for (size_t q = 0; q < out.size(); ++q) {
+        if (q == p) continue;
+        EXPECT_EQ(out[q], f.robust[q]) << q;  // nothing moved elsewhere
+    }
+    // Non-finite neighbours take no part: two of the floor's three below it, NaN and infinite,
+    // leave 1.0 the median of the seven others.
+    f.robustY[f.at(3, 5)] = std::numeric_limits<float>::quiet_NaN();
+    f.robustY[f.at(5, 5)] = std::numeric_limits<float>::infinity();
+    giveBack(f, 1, {}, 2, &scale);
+    EXPECT_EQ(scale[p], 0);
+    // Its own robust luminance not finite: no test, the choice without it.
+    f.robustY[p] = std::numeric_limits<float>::quiet_NaN();
+    giveBack(f, 1, {}, 2, &scale);
+    EXPECT_GT(scale[p], 1);
+    f.robustY.clear();
+    giveBack(f, 1, {}, 2, &scale);
+    EXPECT_GT(scale[p], 1);
+}
+
+// A firefly beside an emitter (the fixture's default scene: one buffer's event of 37.6 at a pixel
+// whose reference is 0.25, the light at 200 above it): three of its nine neighbours are the
+// emitter, the median is the floor's, nearer its robust value than its mean (4.9). Spread wide.
+TEST(KeepLight, AFireflyBesideAnEmitterIsStillSpread) {
+    Field f(9, 9, 1);
+    f.robustY.assign(f.d.size(), 0.25f);
+    for (int x = 0; x < 9; ++x) f.robustY[f.at(x, 3)] = 200.f;
+    const size_t p = f.at(4, 4);
+    for (size_t q = 0; q < f.d.size(); ++q) f.robust[q] = f.robustY[q];
+    f.residual[p] = 4.65;
+    f.d[p] = f.se[p] = 4.65f;
+    f.active[p] = 1;
+    std::vector<uint8_t> scale;
+    const std::vector<float> out = giveBack(f, 1, {}, 2, &scale);
+    EXPECT_GT(scale[p], 1);
+    EXPECT_LT(out[p], 0.25f + 0.5f);
 }
 
 // AOVs go back by the beauty's kernels: where two light groups summed to the beauty's residual,
@@ -319,7 +395,8 @@ TEST(KeepLight, AovsThatSummedToTheBeautyStillSum) {
         }
     std::vector<uint8_t> scale(n);
     const KeepLightParams params;
-    keepLightScales(f.d.data(), f.se.data(), f.active.data(), f.w, f.h, params, scale.data(), 2);
+    keepLightScales(f.d.data(), f.se.data(), f.robustYOrNull(), f.active.data(), f.w, f.h, params,
+                    scale.data(), 2);
     std::vector<float> out(n * 9);
     returnResidual(robust.data(), residual.data(), scale.data(), keepLightRadii(params.maxRadius),
                    f.w, f.h, 9, out.data(), 2);
@@ -455,7 +532,8 @@ std::vector<float> randomGuide(const Field& f, unsigned seed) {
 std::vector<float> wholeImage(const Field& f, const std::vector<float>* guide,
                               const KeepLightParams& p, int nthreads) {
     std::vector<uint8_t> scale(f.d.size());
-    keepLightScales(f.d.data(), f.se.data(), f.active.data(), f.w, f.h, p, scale.data(), nthreads);
+    keepLightScales(f.d.data(), f.se.data(), f.robustYOrNull(), f.active.data(), f.w, f.h, p,
+                    scale.data(), nthreads);
     const std::vector<float> cluster = keepLightClusterGuide(f.d.data(), f.w, f.h, nthreads);
     std::vector<float> out(f.robust.size());
     returnResidual(f.robust.data(), f.residual.data(), scale.data(), keepLightRadii(p.maxRadius),
@@ -483,6 +561,7 @@ Streamed streamed(const Field& f, const std::vector<float>* guide, const KeepLig
             std::copy_n(f.residual.data() + q * 3, 3, in.residual + i * 3);
             in.d[i] = f.d[q];
             in.se[i] = f.se[q];
+            in.robustY[i] = f.robustY.empty() ? 0.f : f.robustY[q];  // 0: no pixel passes
             in.active[i] = f.active[q];
             if (in.guide) in.guide[i] = (*guide)[q];
         }
@@ -592,6 +671,10 @@ TEST(KeepLightStream, ExtremeShapesAndValues) {
             f.d[p] = y % 2 ? std::numeric_limits<float>::quiet_NaN() : 1e38f;
             f.se[p] = y % 2 ? std::numeric_limits<float>::infinity() : 1e38f;
             f.active[p] = 1;
+            // The robust luminance beside it: NaN, infinite, 1e38 (the edge test's median).
+            f.robustY[f.at(w / 3, y)] =
+                y % 3 ? std::numeric_limits<float>::quiet_NaN()
+                      : (y % 2 ? 1e38f : -std::numeric_limits<float>::infinity());
         }
         const KeepLightParams p = withRadius(r);
         const std::vector<float> want = wholeImage(f, nullptr, p, 2);

@@ -32,6 +32,15 @@
 // cluster. Gamma and the radius were chosen on the fixture's firefly scenes and on Blender Cycles
 // renders together (docs/keep-light.md, "The scale's two settings"); supportZ on the fixture's
 // caustic and default scenes.
+//
+// One case wants no spread at all. At the edge of a bright surface (an emitter, a lit highlight,
+// a defocused one) a pixel that the surface covers in part sees it in a few of its samples, and
+// a robust estimator takes them for fireflies: the plain mean is the right value there, and the
+// robust one is far too dark. Its neighbours tell: where the median of the 3 x 3 window's robust
+// luminance lies nearer the pixel's mean than its robust value, the pixel keeps its light (radius
+// 0: it is its plain mean). A firefly's neighbours are its surface's robust values, which lie
+// near its own robust value; a firefly beside an emitter has the emitter in at most three or so
+// of its nine, never the median.
 #pragma once
 
 #include <cstdint>
@@ -56,11 +65,15 @@ std::vector<int> keepLightRadii(int maxRadius);
 /// ICI's choice per pixel over a width x height image (row-major): scale[p] is the index into
 /// keepLightRadii(params.maxRadius) of p's window. `d` is the luminance residual, `se` the plain
 /// mean's standard error; non-finite values count as 0. The window sums are direct (no
-/// summed-area table): a firefly of 1e38 changes no other window's sum. Only pixels with
-/// active[p] != 0 are decided (the others get 0): the rest carry no residual. Deterministic, any
-/// thread count.
-void keepLightScales(const float* d, const float* se, const uint8_t* active, int width, int height,
-                     const KeepLightParams& params, uint8_t* scale, int nthreads = 0);
+/// summed-area table): a firefly of 1e38 changes no other window's sum. With `robustY` (the
+/// robust estimate's luminance; null: no such test), a pixel whose 3 x 3 window's median of it
+/// lies nearer the pixel's mean (robustY + d) than its robust value gets scale 0 (the edge of a
+/// bright surface, above); non-finite values of robustY take no part in the median, and a pixel
+/// whose own robustY or d is not finite is not tested. Only pixels with active[p] != 0 are decided
+/// (the others get 0): the rest carry no residual. Deterministic, any thread count.
+void keepLightScales(const float* d, const float* se, const float* robustY, const uint8_t* active,
+                     int width, int height, const KeepLightParams& params, uint8_t* scale,
+                     int nthreads = 0);
 
 /// Adds every pixel's residual back with its tent of radius radii[scale[p]]: for each channel c
 /// of `nch` interleaved channels, out[q][c] = robust[q][c] + sum over p within that radius of q of

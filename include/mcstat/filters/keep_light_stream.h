@@ -27,6 +27,7 @@ struct KeepLightBandIn {
     double* residual;  ///< the residual per channel, nch per pixel (mean - robust)
     float* d;          ///< the luminance residual
     float* se;         ///< the plain mean's standard error (0 where the pixel carries nothing)
+    float* robustY;    ///< the robust estimate's luminance (keepLightScales' edge test)
     uint8_t* active;   ///< 1 where the pixel carries a finite nonzero residual
     float* guide;      ///< the return's guide (>= 0), or null when the stream has none
 };
