@@ -91,6 +91,45 @@ TEST_F(KeepLightCli, ThePlainMeansLightInEveryChannelAndAovsStillSum) {
         }
 }
 
+// Rule 5 end to end (docs/keep-light.md): at the edges of the dof scene's defocused light, pixels
+// whose 3 x 3 neighbours' G-MoN median lies nearer their plain mean than their G-MoN value keep
+// their light: the light-keeping image is their mean, up to the little that wide senders bring.
+// Without the robust luminance in the stream (or with the wrong one) they go wide and stay near
+// G-MoN's value, a whole residual away.
+TEST_F(KeepLightCli, AnEdgesPixelsKeepTheirLightWhereTheirNeighboursSaySo) {
+    render("--scene dof --spp 64 --seed 3", "f.mcstat");
+    const mcstat::testing::Result r = mcstat(
+        path("f.mcstat") + " --dup --mean -o " + path("mean.exr") + " --pop --dup --gmon -o " +
+        path("gmon.exr") + " --pop --gmon:keeplight=1 -o " + path("kl.exr"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    const Channels mean = readChannels(path("mean.exr")), gmon = readChannels(path("gmon.exr")),
+                   kl = readChannels(path("kl.exr"));
+    const int w = kl.spec.width, h = kl.spec.height;
+    // The fixture writes linear Rec.709: its luminance.
+    auto lum = [w](const Channels& c, int x, int y) {
+        const size_t p = size_t(y) * size_t(w) + size_t(x);
+        return 0.2126 * c.px.at("R")[p] + 0.7152 * c.px.at("G")[p] + 0.0722 * c.px.at("B")[p];
+    };
+    int kept = 0;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const double m = lum(mean, x, y), g = lum(gmon, x, y), d = m - g;
+            // A residual far above the light that wide senders bring (about 0.001 a pixel here).
+            if (std::fabs(d) < 0.02) continue;
+            std::vector<double> win;
+            for (int j = std::max(0, y - 1); j <= std::min(h - 1, y + 1); ++j)
+                for (int i = std::max(0, x - 1); i <= std::min(w - 1, x + 1); ++i)
+                    win.push_back(lum(gmon, i, j));
+            std::sort(win.begin(), win.end());
+            const size_t n = win.size();
+            const double median = n % 2 ? win[n / 2] : 0.5 * (win[n / 2 - 1] + win[n / 2]);
+            if (!(std::fabs(m - median) < std::fabs(g - median))) continue;
+            ++kept;
+            EXPECT_NEAR(lum(kl, x, y), m, 0.1 * std::fabs(d)) << x << "," << y << " gmon " << g;
+        }
+    EXPECT_GE(kept, 2);  // the light's edges (four pixels with this seed)
+}
+
 TEST_F(KeepLightCli, ACompactFileGivesTheFullFilesPixels) {
     render("--scene caustic --spp 256 --aovs --seed 5", "f.mcstat");
     ASSERT_EQ(mcstat(path("f.mcstat") + " --compact -o " + path("c.mcstat")).code, 0);
