@@ -52,8 +52,7 @@ int haloRows(const KeepLightParams& params);
 
 /// keepLightScales for rows [y0, y1) into scale (rows [y0, y1) only): reads active over [y0, y1),
 /// d and se over [y0 - haloRows, y1 + haloRows) and robustY over [y0 - 1, y1 + 1), clipped to the
-/// image. The window sums are the
-/// same bits whatever rows are held.
+/// image. The window sums are the same bits whatever rows are held.
 void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int y1, uint8_t* scale,
                 int nthreads);
 

@@ -39,8 +39,9 @@
 // robust one is far too dark. Its neighbours tell: where the median of the 3 x 3 window's robust
 // luminance lies nearer the pixel's mean than its robust value, the pixel keeps its light (radius
 // 0: it is its plain mean). A firefly's neighbours are its surface's robust values, which lie
-// near its own robust value; a firefly beside an emitter has the emitter in at most three or so
-// of its nine, never the median.
+// near its own robust value; a firefly beside an emitter's straight edge has the emitter in three
+// of its nine, not the median. (In an emitter's inside corner, five of nine, it would keep its
+// light: a corner's pixel is rare, and its light stays where the mean put it.)
 #pragma once
 
 #include <cstdint>
