@@ -17,15 +17,6 @@
 
 namespace {
 
-class KeepLightCli : public mcstat::testing::CliFixture {
-  protected:
-    void render(const std::string& args, const std::string& out) const {
-        const std::string cmd = std::string(MCSTAT_RENDER_EXE) + " --quiet --res 48 36 --M 9 " +
-                                args + " -o " + path(out);
-        ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0) << cmd;
-    }
-};
-
 struct Channels {
     OIIO::ImageSpec spec;
     std::map<std::string, std::vector<float>> px;
@@ -51,6 +42,30 @@ Channels readChannels(const std::string& file) {
     return out;
 }
 
+/// The plain mean, G-MoN and G-MoN with :keeplight=1 of one render.
+struct MeanGmonKeepLight {
+    Channels mean, gmon, kl;
+};
+
+class KeepLightCli : public mcstat::testing::CliFixture {
+  protected:
+    void render(const std::string& args, const std::string& out) const {
+        const std::string cmd = std::string(MCSTAT_RENDER_EXE) + " --quiet --res 48 36 --M 9 " +
+                                args + " -o " + path(out);
+        ASSERT_EQ(mcstat::testing::runCommand(cmd.c_str()), 0) << cmd;
+    }
+    /// Renders `args` and runs the three images of it.
+    MeanGmonKeepLight threeImages(const std::string& args) {
+        render(args, "f.mcstat");
+        const mcstat::testing::Result r = mcstat(
+            path("f.mcstat") + " --dup --mean -o " + path("mean.exr") + " --pop --dup --gmon -o " +
+            path("gmon.exr") + " --pop --gmon:keeplight=1 -o " + path("kl.exr"));
+        EXPECT_EQ(r.code, 0) << r.err;
+        return {readChannels(path("mean.exr")), readChannels(path("gmon.exr")),
+                readChannels(path("kl.exr"))};
+    }
+};
+
 bool sameBits(const Channels& a, const Channels& b) {
     if (a.px.size() != b.px.size()) return false;
     for (const auto& [name, v] : a.px) {
@@ -66,13 +81,7 @@ const char* const kPaths[] = {"emission",         "background",      "diffuse_di
                               "diffuse_indirect", "specular_direct", "specular_indirect"};
 
 TEST_F(KeepLightCli, ThePlainMeansLightInEveryChannelAndAovsStillSum) {
-    render("--scene default --spp 64 --aovs --seed 3", "f.mcstat");
-    const mcstat::testing::Result r = mcstat(
-        path("f.mcstat") + " --dup --mean -o " + path("mean.exr") + " --pop --dup --gmon -o " +
-        path("gmon.exr") + " --pop --gmon:keeplight=1 -o " + path("kl.exr"));
-    ASSERT_EQ(r.code, 0) << r.err;
-    const Channels mean = readChannels(path("mean.exr")), gmon = readChannels(path("gmon.exr")),
-                   kl = readChannels(path("kl.exr"));
+    const auto [mean, gmon, kl] = threeImages("--scene default --spp 64 --aovs --seed 3");
     EXPECT_EQ(kl.spec.channelnames, gmon.spec.channelnames);  // nothing dropped, nothing added
     // G-MoN took light (so the test can fail); keeplight gives all of it back, per channel.
     EXPECT_LT(gmon.sum("R"), 0.995 * mean.sum("R"));
@@ -97,13 +106,7 @@ TEST_F(KeepLightCli, ThePlainMeansLightInEveryChannelAndAovsStillSum) {
 // Without the robust luminance in the stream (or with the wrong one) they go wide and stay near
 // G-MoN's value, a whole residual away.
 TEST_F(KeepLightCli, AnEdgesPixelsKeepTheirLightWhereTheirNeighboursSaySo) {
-    render("--scene dof --spp 64 --seed 3", "f.mcstat");
-    const mcstat::testing::Result r = mcstat(
-        path("f.mcstat") + " --dup --mean -o " + path("mean.exr") + " --pop --dup --gmon -o " +
-        path("gmon.exr") + " --pop --gmon:keeplight=1 -o " + path("kl.exr"));
-    ASSERT_EQ(r.code, 0) << r.err;
-    const Channels mean = readChannels(path("mean.exr")), gmon = readChannels(path("gmon.exr")),
-                   kl = readChannels(path("kl.exr"));
+    const auto [mean, gmon, kl] = threeImages("--scene dof --spp 64 --seed 3");
     const int w = kl.spec.width, h = kl.spec.height;
     // The fixture writes linear Rec.709: its luminance.
     auto lum = [w](const Channels& c, int x, int y) {
