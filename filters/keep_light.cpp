@@ -365,23 +365,25 @@ void windowSums(const std::vector<double>& vals, int width, int s0, int s1, int 
 }
 
 /// Whether p's neighbours say that its plain mean is a better estimate than its robust value:
-/// the median of the robust luminance over the 3 x 3 window inside the image (its finite values)
-/// lies nearer the mean's luminance, robustY + d, than the robust one. At the edge of a bright
-/// surface a pixel that the surface covers in part sees it in a few samples, which a robust
-/// estimator takes for fireflies; its neighbours along the edge and on the surface, whose robust
-/// values hold that light, put the median above the midpoint between the robust value and the
-/// mean. A firefly's neighbours are its surface's robust values, near its own.
+/// the median of the robust luminance over the 3 x 3 window (its finite values) lies nearer the
+/// mean's luminance, robustY + d, than the robust one. Beyond the image the window takes the
+/// nearest pixel inside it, so a border pixel's own row or column counts twice and the median is
+/// one of nine values (a clipped window of six averages its two middle ones, and that midpoint
+/// kept fireflies on the fixture's border rows). At the edge of a bright surface a pixel that
+/// the surface covers in part sees it in a few samples, which a robust estimator takes for
+/// fireflies; its neighbours along the edge and on the surface, whose robust values hold that
+/// light, put the median above the midpoint between the robust value and the mean. A firefly's
+/// neighbours are its surface's robust values, near its own.
 bool meanNearerNeighbours(const keeplight::HeldRows& held, int x, int y) {
     const size_t p = held.at(x, y);
     const double robust = held.robustY[p], d = held.d[p];
     if (!std::isfinite(robust) || !std::isfinite(d)) return false;
     std::array<double, 9> v;
     size_t n = 0;
-    const auto [x0, x1] = clipped(x, 1, held.width);
-    const auto [y0, y1] = clipped(y, 1, held.height);
-    for (int j = y0; j < y1; ++j)
-        for (int i = x0; i < x1; ++i) {
-            const float r = held.robustY[held.at(i, j)];
+    for (int j = y - 1; j <= y + 1; ++j)
+        for (int i = x - 1; i <= x + 1; ++i) {
+            const int ci = std::clamp(i, 0, held.width - 1), cj = std::clamp(j, 0, held.height - 1);
+            const float r = held.robustY[held.at(ci, cj)];
             if (std::isfinite(r)) v[n++] = double(r);
         }
     std::sort(v.begin(), v.begin() + std::ptrdiff_t(n));  // n >= 1: p's own is finite

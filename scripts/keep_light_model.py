@@ -126,11 +126,11 @@ def scales(d, se, active, gamma, radii, support_z):
 
 
 def mean_nearer_neighbours(robust_y, d):
-    """Rule 0 (the edge of a bright surface): where the median of the 3 x 3 window's robust
-    luminance (inside the image, finite values only) lies nearer the pixel's mean than its robust
-    value, the pixel keeps its light."""
+    """Rule 5 (the edge of a bright surface): where the median of the 3 x 3 window's robust
+    luminance (finite values only; beyond the image, the nearest pixel inside it) lies nearer the
+    pixel's mean than its robust value, the pixel keeps its light."""
     h, w = robust_y.shape
-    pad = np.pad(robust_y, 1, constant_values=np.nan)
+    pad = np.pad(robust_y, 1, mode="edge")
     win = np.stack([pad[j:j + h, i:i + w] for j in range(3) for i in range(3)], -1)
     win = np.where(np.isfinite(win), win, np.nan)
     with warnings.catch_warnings():  # a window of non-finite values only: no median, no test

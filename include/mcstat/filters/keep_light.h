@@ -69,9 +69,10 @@ std::vector<int> keepLightRadii(int maxRadius);
 /// summed-area table): a firefly of 1e38 changes no other window's sum. With `robustY` (the
 /// robust estimate's luminance; null: no such test), a pixel whose 3 x 3 window's median of it
 /// lies nearer the pixel's mean (robustY + d) than its robust value gets scale 0 (the edge of a
-/// bright surface, above); non-finite values of robustY take no part in the median, and a pixel
-/// whose own robustY or d is not finite is not tested. Only pixels with active[p] != 0 are decided
-/// (the others get 0): the rest carry no residual. Deterministic, any thread count.
+/// bright surface, above; beyond the image the window takes the nearest pixel inside it);
+/// non-finite values of robustY take no part in the median, and a pixel whose own robustY or d
+/// is not finite is not tested. Only pixels with active[p] != 0 are decided (the others get 0):
+/// the rest carry no residual. Deterministic, any thread count.
 void keepLightScales(const float* d, const float* se, const float* robustY, const uint8_t* active,
                      int width, int height, const KeepLightParams& params, uint8_t* scale,
                      int nthreads = 0);
