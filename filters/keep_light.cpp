@@ -444,7 +444,7 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
                         chosen = std::min<uint8_t>(chosen, uint8_t(1));
                     // Light that the neighbours' robust values say belongs to this pixel (the
                     // edge of a bright surface) stays in it: the pixel is its plain mean.
-                    if (held.robustY && meanNearerNeighbours(held, x, y)) chosen = 0;
+                    if (chosen != 0 && held.robustY && meanNearerNeighbours(held, x, y)) chosen = 0;
                     scale[size_t(y - y0) * size_t(width) + size_t(x)] = chosen;
                 }
         });

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "mcstat/core/color_space.h"
 #include "mcstat/core/float_rounding.h"
 #include "mcstat/core/parallel.h"
 #include "mcstat/filters/keep_light_stream.h"
@@ -36,7 +37,7 @@ void albedoLuma(const StatsImage& s, size_t p0, size_t n, const std::array<doubl
     }
     for (size_t i = 0; i < n; ++i) {
         const float* a = s.albedo.data() + 3 * (p0 + i);
-        const double y = luma[0] * double(a[0]) + luma[1] * double(a[1]) + luma[2] * double(a[2]);
+        const double y = luminance(luma, a);
         g[i] = std::isfinite(y) && y > 0.0 ? float(y) : 0.f;
     }
 }
@@ -151,8 +152,7 @@ void residualRows(const float* rp, size_t nin, size_t w, const MeanRows& mean,
                 // gives the same choice.
                 in.d[i0] = float(dy);
                 const float* rgb = rp + p * nin;  // R, G, B first (returnByBands checks it)
-                in.robustY[i0] = float(luma[0] * double(rgb[0]) + luma[1] * double(rgb[1]) +
-                                       luma[2] * double(rgb[2]));
+                in.robustY[i0] = float(luminance(luma, rgb));
                 in.active[i0] = active;
                 const float* step = m + mean.spread;
                 in.se[i0] = active ? step[kPixelStepSe] : 0.f;
