@@ -7,6 +7,7 @@
 #include <cmath>
 #include <vector>
 
+#include "mcstat/core/color_space.h"
 #include "mcstat/core/cpu_features.h"
 #include "mcstat/core/parallel.h"
 
@@ -16,10 +17,6 @@ namespace {
 
 /// Largest M of lumaSpread's stack arrays, and of the four-pixel path.
 constexpr int kSpreadStackM = 64;
-
-double lumaOf(const float* rgb, const std::array<double, 3>& luma) {
-    return luma[0] * double(rgb[0]) + luma[1] * double(rgb[1]) + luma[2] * double(rgb[2]);
-}
 
 }  // namespace
 
@@ -47,7 +44,7 @@ LumaSpread lumaSpread(const PixelBuffers& px, const std::array<double, 3>& luma)
         // Every buffer valid (the common case): the same sums without the per-buffer tests.
         for (int j = 0; j < px.M; ++j) {
             ns[j] = double(px.count[j]);
-            ys[j] = lumaOf(px.mean + 3 * j, luma);
+            ys[j] = luminance(luma, px.mean + 3 * j);
             n += ns[j];
             sum += ns[j] * ys[j];
         }
@@ -57,7 +54,7 @@ LumaSpread lumaSpread(const PixelBuffers& px, const std::array<double, 3>& luma)
             const bool valid = isValidBuffer(px, j);
             ns[j] = valid ? double(px.count[j]) : 0.0;
             if (!valid) continue;
-            ys[j] = lumaOf(px.mean + 3 * j, luma);
+            ys[j] = luminance(luma, px.mean + 3 * j);
             ++out.valid;
             n += ns[j];
             sum += ns[j] * ys[j];

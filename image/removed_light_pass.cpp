@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "mcstat/core/color_space.h"
 #include "mcstat/core/pixel_buffers.h"
 #include "mcstat/filters/operation.h"
 #include "mcstat/filters/removed_light.h"
@@ -22,10 +23,6 @@ std::vector<std::string> removedLightChannels() {
 
 namespace {
 
-double lumaOf(const float* rgb, const std::array<double, 3>& luma) {
-    return luma[0] * double(rgb[0]) + luma[1] * double(rgb[1]) + luma[2] * double(rgb[2]);
-}
-
 /// How many pixels ahead finishRemovedLight's passes ask for the pixels they read: its two loops
 /// run on one thread (their sums in pixel order), and without asking they waited on memory for
 /// most of their time (perf: 60 % of their samples on two loads, a 1080p G-MoN's :removed).
@@ -42,7 +39,7 @@ constexpr size_t kFinishAhead = 64;
 
 void removedLightPixel(const float* rgb, float spreadMean, float spreadSe,
                        const std::array<double, 3>& luma, float out[5]) {
-    const double dp = double(spreadMean) - lumaOf(rgb, luma);
+    const double dp = double(spreadMean) - luminance(luma, rgb);
     out[0] = std::isfinite(dp) ? float(dp) : 0.f;
     out[1] = spreadSe;
     out[2] = float(removedZ(out[0], out[1]));
@@ -72,7 +69,7 @@ bool finishRemovedLight(ImageBuf& img, int first, const std::array<double, 3>& l
         prefetchFinish(px + first, p, n, nch, 5);  // the removed-light channels
         const float* q = px + p * nch;
         const float* r = q + first;
-        const double dp = double(r[3]) - lumaOf(q, luma);
+        const double dp = double(r[3]) - luminance(luma, q);
         if (std::isfinite(dp) && std::isfinite(r[1])) {
             removed += dp;
             variance += double(r[1]) * double(r[1]);
