@@ -19,7 +19,16 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-build/keep-light}
+# OUT_DIR is the table's own folder: it overwrites keep-light.csv, its renders, images and
+# references there by name, so a folder holding files that is neither marked as the table's
+# (.mcstat-keep-light) nor an earlier run's (keep-light.csv) is refused, as the trade's.
+if [ -d "$out" ] && [ ! -e "$out/.mcstat-keep-light" ] && [ ! -e "$out/keep-light.csv" ] &&
+  [ -n "$(ls -A "$out")" ]; then
+  echo "keep_light_table: $out holds files and is not the table's folder: give a new or empty folder" >&2
+  exit 1
+fi
 mkdir -p "$out/bin"
+: >"$out/.mcstat-keep-light"
 # A copy of the tools, so that a rebuild while this runs changes nothing of one table.
 cp build/render-fixture/mcstat-render build/oiiotool-ext/mcstat "$out/bin/"
 R=$out/bin/mcstat-render
