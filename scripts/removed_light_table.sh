@@ -8,7 +8,16 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-build/removed-light}
+# OUT_DIR is the table's own folder: it writes its renders and images there by name, so a folder
+# holding files that is neither marked as the table's (.mcstat-removed-light) nor an earlier
+# run's (default-gmon-1.exr) is refused, as the trade's and the keep-light table's.
+if [ -d "$out" ] && [ ! -e "$out/.mcstat-removed-light" ] && [ ! -e "$out/default-gmon-1.exr" ] &&
+  [ -n "$(ls -A "$out")" ]; then
+  echo "removed_light_table: $out holds files and is not the table's folder: give a new or empty folder" >&2
+  exit 1
+fi
 mkdir -p "$out"
+: >"$out/.mcstat-removed-light"
 R=build/render-fixture/mcstat-render
 M=build/oiiotool-ext/mcstat
 for scene in default caustic; do
