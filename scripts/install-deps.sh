@@ -24,6 +24,7 @@ packages=(
   slurm-wlm munge                        # farm/: a shot's seeds as Slurm tasks (tests/farm runs a one-node cluster)
   pybind11-dev python3-dev python3-pytest  # python/: the mcstat Python module and its pytest suite (Debian's python3)
   python3-matplotlib                     # python/examples/plot_pixel.py plots a pixel's sub-buffers
+  python3-scipy                          # scripts/keep_light_model.py (convolutions), keep_light_table.sh (t intervals)
   chromium                               # tests/compare: --compare:html's report opened in a real headless browser
   python3-junitparser                    # tests/compare: --compare:junit's XML read back by a JUnit consumer's parser
 )

@@ -35,7 +35,7 @@ R=$out/bin/mcstat-render
 M=$out/bin/mcstat
 SCENES=${SCENES:-"default caustic tiny arealight dof furnace motion texture"}
 SPPS=${SPPS:-"64 256"}
-SEEDS=${SEEDS:-"1 2 3 4 5"}
+SEEDS=${SEEDS:-"$(seq -s " " 1 20)"}
 METHODS=("mean" "gmon" "gmon:keeplight=1")
 table=$out/keep-light.csv
 echo "scene,spp,seed,method,relMSE,SSIM,fireflies,energy" >"$table"
@@ -73,18 +73,4 @@ PY
     done
   done
 done
-PYTHONPATH= /usr/bin/python3 - "$table" <<'PY'
-import csv, sys, collections
-rows = list(csv.DictReader(open(sys.argv[1])))
-g = collections.defaultdict(list)
-for r in rows:
-    g[(r["scene"], int(r["spp"]), r["method"])].append(r)
-mean = lambda rs, k: sum(float(r[k]) for r in rs) / len(rs)
-print("| scene | spp | method | relMSE | vs G-MoN | vs mean | energy (mean of seeds) | fireflies | SSIM |")
-print("|---|---|---|---|---|---|---|---|---|")
-for (scene, spp, method), rs in sorted(g.items(), key=lambda kv: (kv[0][0], kv[0][1], kv[0][2])):
-    gm = mean(g[(scene, spp, "gmon")], "relMSE"); mm = mean(g[(scene, spp, "mean")], "relMSE")
-    rel = mean(rs, "relMSE")
-    print("| %s | %d | %s | %.4g | %.2fx | %.2fx | %+.2f %% | %.1f | %.4f |" % (
-        scene, spp, method, rel, rel / gm, rel / mm, 100 * mean(rs, "energy"), mean(rs, "fireflies"), mean(rs, "SSIM")))
-PY
+PYTHONPATH= /usr/bin/python3 scripts/keep_light_tables.py "$table"
