@@ -51,13 +51,14 @@ int haloRows(const KeepLightParams& params) { return std::max(1, params.maxRadiu
 
 void keepLightScales(const float* d, const float* se, const float* robustY, const uint8_t* active,
                      int width, int height, const KeepLightParams& params, uint8_t* scale,
-                     int nthreads) {
+                     int nthreads, uint8_t* restScale, float* restShare) {
     keeplight::HeldRows held = keeplight::HeldRows::whole(width, height);
     held.d = d;
     held.se = se;
     held.robustY = robustY;
     held.active = active;
-    keeplight::scalesRows(held, params, 0, height, scale, nthreads);
+    keeplight::scalesRows(held, params, 0, height, scale, restScale && restShare ? restScale : nullptr,
+                          restScale && restShare ? restShare : nullptr, nthreads);
 }
 
 namespace {
@@ -250,14 +251,15 @@ std::vector<double> guideSums(const keeplight::HeldRows& held, const float* guid
 }
 
 /// The sources of one gather over rows [s0, s0 + nRows) of the image: at each sender p (need[p],
-/// row s0 first) that `mine` picks, its residual divided by its window's weight sum share(p, x,
-/// y) (p as held.at gives it, y the image row); 0 elsewhere (a row that held something and holds
-/// no sender now is cleared). rowHas[i]: source row i holds a nonzero value.
-template <class Mine, class Share>
+/// row s0 first) that `mine` picks, its residual times the part it sends here, factor(p), divided
+/// by its window's weight sum share(p, x, y) (p as held.at gives it, y the image row); 0
+/// elsewhere (a row that held something and holds no sender now is cleared). rowHas[i]: source
+/// row i holds a nonzero value.
+template <class Mine, class Share, class Factor>
 void senderRows(const keeplight::HeldRows& held, int s0, int nRows,
                 const std::vector<uint8_t>& need, const std::vector<uint8_t>& rowNeed, Mine mine,
-                Share share, std::vector<double>& source, std::vector<uint8_t>& rowHas,
-                int nthreads) {
+                Share share, Factor factor, std::vector<double>& source,
+                std::vector<uint8_t>& rowHas, int nthreads) {
     const size_t w = size_t(held.width), nc = held.nc;
     parallelFor(0, nRows, 0, nthreads, [&](int64_t ib, int64_t ie) {
         for (int i = int(ib); i < int(ie); ++i) {
@@ -272,13 +274,13 @@ void senderRows(const keeplight::HeldRows& held, int s0, int nRows,
             for (int x = 0; x < held.width; ++x) {
                 const size_t p = held.at(x, y);
                 const bool from = need[size_t(i) * w + size_t(x)] && mine(p);
-                const double sum = from ? share(p, x, y) : 1.0;
+                const double sum = from ? share(p, x, y) : 1.0, part = from ? factor(p) : 0.0;
                 for (size_t c = 0; c < nc; ++c) {
                     const double v = held.residual[p * nc + c];
                     double s = 0.0;
                     if (from && v != 0.0 && std::isfinite(v)) {
-                        s = v / sum;
-                        any = true;
+                        s = v * part / sum;  // part 1 (all of it): v / sum, bit for bit
+                        any = any || s != 0.0;
                     }
                     row[size_t(x) * nc + c] = s;
                 }
@@ -288,10 +290,11 @@ void senderRows(const keeplight::HeldRows& held, int s0, int nRows,
     });
 }
 
-/// need[i * width + x]: pixel (x, s0 + i) sends light at radius index k; rowNeed[i]: its row
-/// holds such a pixel. False when none does.
-bool sendersAt(const keeplight::HeldRows& held, size_t k, int s0, int nRows,
+/// need[i * width + x]: pixel (x, s0 + i) sends light at radius index k (its scale's, or with
+/// `rest` its rest's, rule 6); rowNeed[i]: its row holds such a pixel. False when none does.
+bool sendersAt(const keeplight::HeldRows& held, size_t k, bool rest, int s0, int nRows,
                std::vector<uint8_t>& need, std::vector<uint8_t>& rowNeed, int nthreads) {
+    if (rest && !held.restShare) return false;
     const size_t w = size_t(held.width);
     need.assign(size_t(nRows) * w, 0);
     rowNeed.assign(size_t(nRows), 0);
@@ -300,7 +303,8 @@ bool sendersAt(const keeplight::HeldRows& held, size_t k, int s0, int nRows,
             bool any = false;
             for (int x = 0; x < held.width; ++x) {
                 const size_t p = held.at(x, s0 + i);
-                const uint8_t n = held.scale[p] == k && held.sends(p);
+                const uint8_t n = rest ? held.restScale[p] == k && held.sendsRest(p)
+                                       : held.scale[p] == k && held.sends(p);
                 need[size_t(i) * w + size_t(x)] = n;
                 any = any || n;
             }
@@ -396,10 +400,15 @@ bool meanNearerNeighbours(const keeplight::HeldRows& held, int x, int y) {
 namespace keeplight {
 
 void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int y1, uint8_t* scale,
-                int nthreads) {
+                uint8_t* restScale, float* restShare, int nthreads) {
     const std::vector<int> radii = keepLightRadii(params.maxRadius);
     const int width = held.width, height = held.height;
-    std::fill(scale, scale + size_t(y1 - y0) * size_t(width), uint8_t(0));
+    const size_t n = size_t(y1 - y0) * size_t(width);
+    std::fill(scale, scale + n, uint8_t(0));
+    if (restShare) {
+        std::fill(restScale, restScale + n, uint8_t(0));
+        std::fill(restShare, restShare + n, 1.f);
+    }
     const double gamma = params.gamma;
     const int halo = haloRows(params);
     // By chunks of rows, each radius's window sums (and radius 1's, the support test's) at once.
@@ -440,28 +449,51 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
                     // Light its 3 x 3 neighbours' buffers support together (a caustic too small
                     // for the intervals to tell from a few fireflies) stays within a pixel.
                     const std::vector<double>& one = sums[oneAt];
-                    if (one[i + 1] > 0.0 && one[i] / std::sqrt(one[i + 1]) >= params.supportZ)
-                        chosen = std::min<uint8_t>(chosen, uint8_t(1));
+                    const uint8_t ici = chosen;
+                    const double z =
+                        one[i + 1] > 0.0 ? one[i] / std::sqrt(one[i + 1]) : 0.0;
+                    const bool supported = one[i + 1] > 0.0 && z >= params.supportZ;
+                    if (supported) chosen = std::min<uint8_t>(chosen, uint8_t(1));
                     // Light that the neighbours' robust values say belongs to this pixel (the
                     // edge of a bright surface) stays in it: the pixel is its plain mean.
                     if (chosen != 0 && held.robustY && meanNearerNeighbours(held, x, y)) chosen = 0;
-                    scale[size_t(y - y0) * size_t(width) + size_t(x)] = chosen;
+                    const size_t o = size_t(y - y0) * size_t(width) + size_t(x);
+                    scale[o] = chosen;
+                    // Rule 6: of a cluster the test capped, the Wiener share of its signal,
+                    // 1 - (supportZ / Z)^2, stays; the rest goes to ICI's own radius.
+                    if (restShare) {
+                        restScale[o] = chosen;
+                        if (supported && chosen == 1 && ici > 1) {
+                            const double q = params.supportZ / z;
+                            restShare[o] = float(std::clamp(1.0 - q * q, 0.0, 1.0));
+                            restScale[o] = ici;
+                        }
+                    }
                 }
         });
     }
 }
 
 void normsRows(const HeldRows& held, const std::vector<int>& radii, int y0, int y1, double* norm,
-               double* clusterNorm, int nthreads) {
+               double* clusterNorm, double* lightNorm, int nthreads) {
     const size_t w = size_t(held.width), n = size_t(y1 - y0) * w;
     if (norm) std::fill(norm, norm + n, 0.0);
     if (clusterNorm) std::fill(clusterNorm, clusterNorm + n, 0.0);
+    if (lightNorm) std::fill(lightNorm, lightNorm + n, 0.0);
     std::vector<uint8_t> need, rowNeed;
     for (size_t k = 0; k < radii.size(); ++k) {
         const int r = radii[k];
+        // The rest's windows (rule 6): the light guide's sums.
+        if (held.light && lightNorm &&
+            sendersAt(held, k, true, y0, y1 - y0, need, rowNeed, nthreads)) {
+            const std::vector<double> sums = guideSums(held, held.light, y0, y1, r, nthreads);
+            for (size_t i = 0; i < n; ++i)
+                if (need[i]) lightNorm[i] = sums[i];
+        }
         const bool byCluster = held.cluster && clusterNorm && r == 1;
         const bool byGuide = held.guide && norm;
-        if (!(byCluster || byGuide) || !sendersAt(held, k, y0, y1 - y0, need, rowNeed, nthreads))
+        if (!(byCluster || byGuide) ||
+            !sendersAt(held, k, false, y0, y1 - y0, need, rowNeed, nthreads))
             continue;
         for (int pass = 0; pass < 2; ++pass) {
             if (!(pass == 0 ? byCluster : byGuide)) continue;
@@ -481,10 +513,12 @@ void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int
     // What each pixel receives, per channel: `plain` by the tent alone, `guided` and `clustered`
     // to be multiplied by the pixel's guide and cluster guide values.
     std::vector<double>&plain = scratch.plain, &guided = scratch.guided,
-    &clustered = scratch.clustered;
+    &clustered = scratch.clustered, &lit = scratch.lit;
     plain.assign(n * nc, 0.0);
     guided.assign(held.guide ? n * nc : 0, 0.0);
     clustered.assign(held.cluster ? n * nc : 0, 0.0);
+    const bool byLight = held.light && held.restShare;
+    lit.assign(byLight ? n * nc : 0, 0.0);
     // The sources of a radius, the rows within r of [y0, y1): a source row i whose rowHas[i] is 0
     // holds zeros, from one radius and one call to the next (senderRows clears the rows it
     // leaves), so only the rows that held something are written again.
@@ -509,36 +543,46 @@ void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int
     for (size_t k = 0; k < radii.size(); ++k) {
         const int r = radii[k];
         const int s0 = std::max(0, y0 - r), s1 = std::min(height, y1 + r), nRows = s1 - s0;
-        if (!sendersAt(held, k, s0, nRows, need, rowNeed, nthreads)) continue;
         // With a guide, p's light goes to q in proportion to tent(q - p) guide[q]: its weights
         // over the window sum to 1 when divided by the guide's tent sum at p (normsRows). A
         // window whose guide is 0 everywhere (no surface to put the light on) takes the next:
-        // the cluster guide (radius 1 only), the guide, the tent alone.
-        enum Kernel : int { kByCluster, kByGuide, kByTent };
+        // the cluster guide (radius 1 only), the guide, the tent alone. A cluster's rest (rule 6,
+        // `rest`) goes by the light guide, else the tent.
+        enum Kernel : int { kByCluster, kByGuide, kByLight, kByTent };
         const bool byCluster = held.cluster && r == 1;
-        auto kernelOf = [&](size_t p) {
-            if (byCluster && held.clusterNorm[p] > 0.0) return kByCluster;
-            if (held.guide && held.norm[p] > 0.0) return kByGuide;
-            return kByTent;
-        };
-        for (const Kernel kernel : {kByCluster, kByGuide, kByTent}) {
-            if ((kernel == kByCluster && !byCluster) || (kernel == kByGuide && !held.guide))
-                continue;
-            auto share = [&](size_t p, int x, int y) {
-                return kernel == kByCluster ? held.clusterNorm[p]
-                       : kernel == kByGuide
-                           ? held.norm[p]
-                           : tentSumClosed(x, r, width) * tentSumClosed(y, r, height);
+        for (const bool rest : {false, true}) {
+            if (!sendersAt(held, k, rest, s0, nRows, need, rowNeed, nthreads)) continue;
+            auto kernelOf = [&](size_t p) {
+                if (rest) return byLight && held.lightNorm[p] > 0.0 ? kByLight : kByTent;
+                if (byCluster && held.clusterNorm[p] > 0.0) return kByCluster;
+                if (held.guide && held.norm[p] > 0.0) return kByGuide;
+                return kByTent;
             };
-            senderRows(
-                held, s0, nRows, need, rowNeed, [&](size_t p) { return kernelOf(p) == kernel; },
-                share, source, rowHas, nthreads);
-            if (std::any_of(rowHas.begin(), rowHas.end(), [](uint8_t v) { return v != 0; }))
-                gatherTent(source, rowHas, width, nRows, r, nc, rows,
-                           kernel == kByCluster ? clustered
-                           : kernel == kByGuide ? guided
-                                                : plain,
-                           y0 - s0, y1 - y0, nthreads);
+            auto part = [&](size_t p) { return rest ? 1.0 - held.share(p) : held.share(p); };
+            for (const Kernel kernel : {kByCluster, kByGuide, kByLight, kByTent}) {
+                if ((kernel == kByCluster && (rest || !byCluster)) ||
+                    (kernel == kByGuide && (rest || !held.guide)) ||
+                    (kernel == kByLight && (!rest || !byLight)))
+                    continue;
+                auto share = [&](size_t p, int x, int y) {
+                    return kernel == kByCluster ? held.clusterNorm[p]
+                           : kernel == kByGuide ? held.norm[p]
+                           : kernel == kByLight
+                               ? held.lightNorm[p]
+                               : tentSumClosed(x, r, width) * tentSumClosed(y, r, height);
+                };
+                senderRows(
+                    held, s0, nRows, need, rowNeed,
+                    [&](size_t p) { return kernelOf(p) == kernel; }, share, part, source, rowHas,
+                    nthreads);
+                if (std::any_of(rowHas.begin(), rowHas.end(), [](uint8_t v) { return v != 0; }))
+                    gatherTent(source, rowHas, width, nRows, r, nc, rows,
+                               kernel == kByCluster ? clustered
+                               : kernel == kByGuide ? guided
+                               : kernel == kByLight ? lit
+                                                    : plain,
+                               y0 - s0, y1 - y0, nthreads);
+            }
         }
     }
     parallelFor(0, int64_t(n), 0, nthreads, [&](int64_t b, int64_t e) {
@@ -547,7 +591,8 @@ void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int
             for (size_t c = 0; c < nc; ++c) {
                 const size_t i = q * nc + c;
                 add[i] = plain[i] + (held.guide ? double(held.guide[h]) * guided[i] : 0.0) +
-                         (held.cluster ? double(held.cluster[h]) * clustered[i] : 0.0);
+                         (held.cluster ? double(held.cluster[h]) * clustered[i] : 0.0) +
+                         (byLight ? double(held.light[h]) * lit[i] : 0.0);
             }
         }
     });
@@ -576,11 +621,37 @@ void clusterRows(const HeldRows& held, int y0, int y1, float* out, int nthreads)
     });
 }
 
+void lightRows(const HeldRows& held, int y0, int y1, float* out, int nthreads) {
+    const int width = held.width, height = held.height;
+    auto at = [&](int x, int y) {
+        const size_t p = held.at(x, y);
+        const double m = (held.robustY ? double(held.robustY[p]) : 0.0) + double(held.d[p]);
+        return std::isfinite(m) && m > 0.0 ? m : 0.0;
+    };
+    parallelFor(y0, y1, 0, nthreads, [&](int64_t yb, int64_t ye) {
+        for (int y = int(yb); y < int(ye); ++y)
+            for (int x = 0; x < width; ++x) {
+                double brightest = 0.0;  // of the 8 neighbours inside the image
+                for (int dy = -1; dy <= 1; ++dy)
+                    for (int dx = -1; dx <= 1; ++dx) {
+                        const int qx = x + dx, qy = y + dy;
+                        if ((dx == 0 && dy == 0) || qx < 0 || qy < 0 || qx >= width ||
+                            qy >= height)
+                            continue;
+                        brightest = std::max(brightest, at(qx, qy));
+                    }
+                out[size_t(y - y0) * size_t(width) + size_t(x)] =
+                    float(std::min(at(x, y), brightest));
+            }
+    });
+}
+
 }  // namespace keeplight
 
 void returnResidual(const float* robust, const double* residual, const uint8_t* scale,
                     const std::vector<int>& radii, int width, int height, int nch, float* out,
-                    int nthreads, const float* guide, const float* clusterGuide) {
+                    int nthreads, const float* guide, const float* clusterGuide,
+                    const uint8_t* restScale, const float* restShare, const float* lightGuide) {
     const size_t n = size_t(width) * size_t(height), nc = size_t(nch);
     keeplight::HeldRows held = keeplight::HeldRows::whole(width, height);
     held.nc = nc;
@@ -588,11 +659,19 @@ void returnResidual(const float* robust, const double* residual, const uint8_t* 
     held.scale = scale;
     held.guide = guide;
     held.cluster = clusterGuide;
-    std::vector<double> norm(guide ? n : 0), clusterNorm(clusterGuide ? n : 0), add(n * nc);
+    if (restScale && restShare) {
+        held.restScale = restScale;
+        held.restShare = restShare;
+        held.light = lightGuide;
+    }
+    std::vector<double> norm(guide ? n : 0), clusterNorm(clusterGuide ? n : 0),
+        lightNorm(held.light ? n : 0), add(n * nc);
     keeplight::normsRows(held, radii, 0, height, guide ? norm.data() : nullptr,
-                         clusterGuide ? clusterNorm.data() : nullptr, nthreads);
+                         clusterGuide ? clusterNorm.data() : nullptr,
+                         held.light ? lightNorm.data() : nullptr, nthreads);
     held.norm = norm.data();
     held.clusterNorm = clusterNorm.data();
+    held.lightNorm = held.light ? lightNorm.data() : nullptr;
     keeplight::GatherScratch scratch;
     keeplight::gatherRows(held, radii, 0, height, add.data(), scratch, nthreads);
     parallelFor(0, int64_t(n * nc), 0, nthreads, [&](int64_t b, int64_t e) {
@@ -606,6 +685,16 @@ std::vector<float> keepLightClusterGuide(const float* d, int width, int height, 
     held.d = d;
     std::vector<float> g(size_t(width) * size_t(height), 0.f);
     keeplight::clusterRows(held, 0, height, g.data(), nthreads);
+    return g;
+}
+
+std::vector<float> keepLightLightGuide(const float* robustY, const float* d, int width,
+                                       int height, int nthreads) {
+    keeplight::HeldRows held = keeplight::HeldRows::whole(width, height);
+    held.robustY = robustY;
+    held.d = d;
+    std::vector<float> g(size_t(width) * size_t(height), 0.f);
+    keeplight::lightRows(held, 0, height, g.data(), nthreads);
     return g;
 }
 

@@ -29,6 +29,10 @@ struct HeldRows {
     const uint8_t* scale = nullptr;       ///< index into the radii, from scalesRows
     const double* norm = nullptr;         ///< from normsRows, with a guide
     const double* clusterNorm = nullptr;  ///< from normsRows, with a cluster guide
+    const uint8_t* restScale = nullptr;   ///< the rest's radius index (rule 6), or null
+    const float* restShare = nullptr;     ///< the share sent at scale (rule 6), or null
+    const float* light = nullptr;         ///< the rest's guide (lightRows), or null
+    const double* lightNorm = nullptr;    ///< from normsRows: the light guide's at restScale
 
     /// Every row of a width x height image held (the whole-image functions of keep_light.h).
     static HeldRows whole(int width, int height) {
@@ -44,6 +48,10 @@ struct HeldRows {
     /// where the caller gives it (keepLightStream's callers set it by this very test), else the
     /// residual's channels.
     bool sends(size_t p) const;
+    /// The share of p's residual sent at scale[p]: restShare[p], or 1 without rule 6.
+    double share(size_t p) const { return restShare ? double(restShare[p]) : 1.0; }
+    /// Whether p sends a rest (rule 6) at radius index restScale[p].
+    bool sendsRest(size_t p) const { return restShare && restShare[p] < 1.f && sends(p); }
 };
 
 /// The rows beyond [y0, y1) that each step reads: its windows' largest radius (at least 1, the
@@ -54,30 +62,35 @@ int haloRows(const KeepLightParams& params);
 /// d and se over [y0 - haloRows, y1 + haloRows) and robustY over [y0 - 1, y1 + 1), clipped to the
 /// image. The window sums are the same bits whatever rows are held.
 void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int y1, uint8_t* scale,
-                int nthreads);
+                uint8_t* restScale, float* restShare, int nthreads);
 
 /// keepLightClusterGuide for rows [y0, y1) into out (rows [y0, y1) only): reads d over
 /// [y0 - 1, y1 + 1) clipped to the image.
 void clusterRows(const HeldRows& held, int y0, int y1, float* out, int nthreads);
 
+/// keepLightLightGuide for rows [y0, y1) into out (rows [y0, y1) only): reads robustY (null: 0)
+/// and d over [y0 - 1, y1 + 1) clipped to the image.
+void lightRows(const HeldRows& held, int y0, int y1, float* out, int nthreads);
+
 /// The weight sums of each sender's window over rows [y0, y1), at its own radius: norm[p] the
-/// guide's tent sum (with a guide), clusterNorm[p] the cluster guide's (radius 1 only); 0 where
-/// p sends nothing or has no such window. Reads residual, scale, guide, cluster over
-/// [y0 - radius, y1 + radius).
+/// guide's tent sum (with a guide), clusterNorm[p] the cluster guide's (radius 1 only),
+/// lightNorm[p] the light guide's at the rest's radius (rule 6: restScale); 0 where p sends
+/// nothing or has no such window. Reads residual, scale, restScale, restShare, guide, cluster and
+/// light over [y0 - radius, y1 + radius).
 void normsRows(const HeldRows& held, const std::vector<int>& radii, int y0, int y1, double* norm,
-               double* clusterNorm, int nthreads);
+               double* clusterNorm, double* lightNorm, int nthreads);
 
 /// gatherRows' buffers, kept from one call to the next so that a stream's bands reuse them.
 struct GatherScratch {
-    std::vector<double> source, rows, plain, guided, clustered;
+    std::vector<double> source, rows, plain, guided, clustered, lit;
     std::vector<uint8_t> need, rowNeed, rowHas;
     size_t rowLength = 0;  ///< the source rows' doubles (width x channels) the buffers are for
 };
 
 /// The light that rows [y0, y1) receive, add[(y - y0) * width * nc + x * nc + c] (returnResidual's
-/// sum over senders, with the guide and cluster guide of the receiving pixel applied): reads
-/// residual, scale, norm, clusterNorm over [y0 - radius, y1 + radius), guide and cluster over
-/// [y0, y1).
+/// sum over senders, with the guide, cluster guide and light guide of the receiving pixel
+/// applied): reads residual, scale, restScale, restShare, norm, clusterNorm, lightNorm over
+/// [y0 - radius, y1 + radius), guide, cluster and light over [y0, y1).
 void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int y1, double* add,
                 GatherScratch& scratch, int nthreads);
 

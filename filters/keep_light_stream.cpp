@@ -16,9 +16,9 @@ struct HeldBands {
     size_t width = 0, nc = 0;
     bool guided = false;
     int first = 0, end = 0;
-    std::vector<double> residual, norm, clusterNorm;
-    std::vector<float> d, se, robustY, guide, cluster;
-    std::vector<uint8_t> active, scale;
+    std::vector<double> residual, norm, clusterNorm, lightNorm;
+    std::vector<float> d, se, robustY, guide, cluster, light, restShare;
+    std::vector<uint8_t> active, scale, restScale;
 
     size_t offset(int y) const { return size_t(y - first) * width; }
     template <class F>
@@ -26,13 +26,17 @@ struct HeldBands {
         f(residual, nc);
         f(norm, guided ? 1 : 0);
         f(clusterNorm, 1);
+        f(lightNorm, 1);
         f(d, 1);
         f(se, 1);
         f(robustY, 1);
         f(guide, guided ? 1 : 0);
         f(cluster, 1);
+        f(light, 1);
+        f(restShare, 1);
         f(active, 1);
         f(scale, 1);
+        f(restScale, 1);
     }
     void growTo(int y) {
         const size_t rows = size_t(y - first);
@@ -64,6 +68,10 @@ struct HeldBands {
         h.scale = scale.data();
         h.norm = guided ? norm.data() : nullptr;
         h.clusterNorm = clusterNorm.data();
+        h.restScale = restScale.data();
+        h.restShare = restShare.data();
+        h.light = light.data();
+        h.lightNorm = lightNorm.data();
         return h;
     }
 };
@@ -86,10 +94,10 @@ bool keepLightStream(int width, int height, int nch, bool guided, const KeepLigh
     held.guided = guided;
     std::vector<double> add;
     keeplight::GatherScratch scratch;
-    // Each step has computed the rows before its mark: filled, cluster guide, scales, norms,
-    // returned. A step's rows [mark, to) become computable once the rows its windows read are:
-    // the cluster guide's one row beyond, the scales' R (the choice's windows), the norms' R (the
-    // guide's windows) and the cluster guide of the row beyond, the return's R beyond the norms.
+    // Each step has computed the rows before its mark: filled, cluster and light guides, scales,
+    // norms, returned. A step's rows [mark, to) become computable once the rows its windows read
+    // are: the guides' one row beyond, the scales' R (the choice's windows), the norms' R (the
+    // guides' windows), the return's R beyond the norms.
     int filled = 0, clustered = 0, scaled = 0, normed = 0, returned = 0;
     while (returned < height) {
         if (filled < height) {
@@ -108,23 +116,28 @@ bool keepLightStream(int width, int height, int nch, bool guided, const KeepLigh
         const bool all = filled == height;
         const int clusterTo = all ? height : filled - 1;
         const int scaleTo = all ? height : filled - R;
-        const int normTo = all ? height : std::min(scaleTo, clusterTo - 1);
+        const int normTo = all ? height : std::min(scaleTo, clusterTo - R);
         const int returnTo = all ? height : normTo - R;
         keeplight::HeldRows view = held.view(height);
         if (clusterTo > clustered) {
             keeplight::clusterRows(view, clustered, clusterTo,
                                    held.cluster.data() + held.offset(clustered), nthreads);
+            keeplight::lightRows(view, clustered, clusterTo,
+                                 held.light.data() + held.offset(clustered), nthreads);
             clustered = clusterTo;
         }
         if (scaleTo > scaled) {
             keeplight::scalesRows(view, params, scaled, scaleTo,
-                                  held.scale.data() + held.offset(scaled), nthreads);
+                                  held.scale.data() + held.offset(scaled),
+                                  held.restScale.data() + held.offset(scaled),
+                                  held.restShare.data() + held.offset(scaled), nthreads);
             scaled = scaleTo;
         }
         if (normTo > normed) {
             keeplight::normsRows(view, radii, normed, normTo,
                                  guided ? held.norm.data() + held.offset(normed) : nullptr,
-                                 held.clusterNorm.data() + held.offset(normed), nthreads);
+                                 held.clusterNorm.data() + held.offset(normed),
+                                 held.lightNorm.data() + held.offset(normed), nthreads);
             normed = normTo;
         }
         if (returnTo > returned) {

@@ -36,15 +36,20 @@ struct Field {
     const float* robustYOrNull() const { return robustY.empty() ? nullptr : robustY.data(); }
 };
 
-/// Scales then return, as keep_light_image does: the output per channel.
+/// Scales then return with rule 6's rest (a supported cluster's luck by the light guide), the
+/// tent alone otherwise: the output per channel.
 std::vector<float> giveBack(const Field& f, int nch, const KeepLightParams& p, int nthreads,
                             std::vector<uint8_t>* scaleOut = nullptr) {
-    std::vector<uint8_t> scale(f.d.size());
+    std::vector<uint8_t> scale(f.d.size()), restScale(f.d.size());
+    std::vector<float> restShare(f.d.size());
     keepLightScales(f.d.data(), f.se.data(), f.robustYOrNull(), f.active.data(), f.w, f.h, p,
-                    scale.data(), nthreads);
+                    scale.data(), nthreads, restScale.data(), restShare.data());
+    const std::vector<float> light =
+        keepLightLightGuide(f.robustYOrNull(), f.d.data(), f.w, f.h, nthreads);
     std::vector<float> out(f.robust.size());
     returnResidual(f.robust.data(), f.residual.data(), scale.data(), keepLightRadii(p.maxRadius),
-                   f.w, f.h, nch, out.data(), nthreads);
+                   f.w, f.h, nch, out.data(), nthreads, nullptr, nullptr, restScale.data(),
+                   restShare.data(), light.data());
     if (scaleOut) *scaleOut = scale;
     return out;
 }
@@ -218,7 +223,8 @@ TEST(KeepLight, ASupportedCausticIsKeptClose) {
                     << x << "," << y;
             }
         }
-    EXPECT_NEAR(total, 810.0, 1e-9 * 810.0 + 1e-6);
+    // Each output is one float rounding of its exact value (rule 6 spreads some of it wide).
+    EXPECT_NEAR(total, 810.0, 1e-7 * 810.0);
     EXPECT_GT(inside, 0.9 * total);
     // The same region, but each pixel's light a lone firefly's (se = d): spread far wider.
     for (size_t p = 0; p < f.se.size(); ++p)
@@ -411,38 +417,49 @@ TEST(KeepLight, AovsThatSummedToTheBeautyStillSum) {
 /// The return written the plain way: every q sums, over every p, residual(p) times p's weight at
 /// q, t(q - p) g(q) / sum over q' inside the image of t(q' - p) g(q'). g is the cluster guide for
 /// a window of radius 1, else the guide, else 1 (without one, or where p's window has none).
+/// With a rest (rule 6), p sends restShare[p] of its residual so and the rest at
+/// radii[restScale[p]] by the light guide, else 1.
 std::vector<double> directReturn(const Field& f, int nch, const std::vector<uint8_t>& scale,
                                  const std::vector<int>& radii, const float* guide,
-                                 const float* clusterGuide = nullptr) {
+                                 const float* clusterGuide = nullptr,
+                                 const uint8_t* restScale = nullptr,
+                                 const float* restShare = nullptr, const float* light = nullptr) {
     std::vector<double> out(f.robust.begin(), f.robust.end());
     for (int py = 0; py < f.h; ++py)
         for (int px = 0; px < f.w; ++px) {
             const size_t p = f.at(px, py);
-            const int r = radii[scale[p]];
-            auto t = [&](int x, int y) {
-                return double(r + 1 - std::abs(x - px)) * double(r + 1 - std::abs(y - py));
-            };
-            auto normOf = [&](const float* g) {
-                double norm = 0.0;
+            const double share = restShare ? double(restShare[p]) : 1.0;
+            for (const bool rest : {false, true}) {
+                if (rest && !(share < 1.0)) continue;
+                const int r = radii[rest ? restScale[p] : scale[p]];
+                auto t = [&](int x, int y) {
+                    return double(r + 1 - std::abs(x - px)) * double(r + 1 - std::abs(y - py));
+                };
+                auto normOf = [&](const float* g) {
+                    double norm = 0.0;
+                    for (int y = std::max(0, py - r); y <= std::min(f.h - 1, py + r); ++y)
+                        for (int x = std::max(0, px - r); x <= std::min(f.w - 1, px + r); ++x)
+                            norm += t(x, y) * (g ? double(g[f.at(x, y)]) : 1.0);
+                    return norm;
+                };
+                const float* g = nullptr;
+                if (rest) {
+                    if (light && normOf(light) > 0.0) g = light;
+                } else if (clusterGuide && r == 1 && normOf(clusterGuide) > 0.0) {
+                    g = clusterGuide;
+                } else if (guide && normOf(guide) > 0.0) {
+                    g = guide;
+                }
+                const double norm = normOf(g), part = rest ? 1.0 - share : share;
                 for (int y = std::max(0, py - r); y <= std::min(f.h - 1, py + r); ++y)
                     for (int x = std::max(0, px - r); x <= std::min(f.w - 1, px + r); ++x)
-                        norm += t(x, y) * (g ? double(g[f.at(x, y)]) : 1.0);
-                return norm;
-            };
-            const float* g = nullptr;
-            if (clusterGuide && r == 1 && normOf(clusterGuide) > 0.0)
-                g = clusterGuide;
-            else if (guide && normOf(guide) > 0.0)
-                g = guide;
-            const double norm = normOf(g);
-            for (int y = std::max(0, py - r); y <= std::min(f.h - 1, py + r); ++y)
-                for (int x = std::max(0, px - r); x <= std::min(f.w - 1, px + r); ++x)
-                    for (int c = 0; c < nch; ++c) {
-                        const double v = f.residual[p * size_t(nch) + size_t(c)];
-                        if (v == 0.0 || !std::isfinite(v)) continue;
-                        out[f.at(x, y) * size_t(nch) + size_t(c)] +=
-                            v * t(x, y) * (g ? double(g[f.at(x, y)]) : 1.0) / norm;
-                    }
+                        for (int c = 0; c < nch; ++c) {
+                            const double v = f.residual[p * size_t(nch) + size_t(c)];
+                            if (v == 0.0 || !std::isfinite(v)) continue;
+                            out[f.at(x, y) * size_t(nch) + size_t(c)] +=
+                                v * part * t(x, y) * (g ? double(g[f.at(x, y)]) : 1.0) / norm;
+                        }
+            }
         }
     return out;
 }
@@ -468,19 +485,37 @@ TEST(KeepLight, TheGatherEqualsThePlainSums) {
             const std::vector<int> radii = {0, std::min(r, 2), r};
             // A cluster guide that is 0 over whole windows in places (d <= 0 there).
             const std::vector<float> cluster = keepLightClusterGuide(f.d.data(), f.w, f.h, 2);
-            using Guides = std::pair<const float*, const float*>;
+            // A rest (rule 6) from a third of the pixels, of shares 0 to 1, at another radius;
+            // the light guide 0 over whole windows in places (the black rows).
+            std::vector<uint8_t> restScale(f.d.size());
+            std::vector<float> restShare(f.d.size(), 1.f);
+            for (size_t p = 0; p < scale.size(); ++p)
+                if (p % 3 == 1) {
+                    restScale[p] = uint8_t((p / 3) % 3);
+                    restShare[p] = float((p / 7) % 5) / 4.f;
+                }
+            const std::vector<float> light =
+                keepLightLightGuide(guide.data(), f.d.data(), f.w, f.h, 2);
+            using Guides = std::array<const float*, 3>;
             const float* const g0 = guide.data();
             const float* const c0 = cluster.data();
-            for (const auto& [g, cg] : {Guides{nullptr, nullptr}, Guides{g0, nullptr},
-                                        Guides{nullptr, c0}, Guides{g0, c0}}) {
+            const float* const l0 = light.data();
+            for (const auto& [g, cg, lg] :
+                 {Guides{nullptr, nullptr, nullptr}, Guides{g0, nullptr, nullptr},
+                  Guides{nullptr, c0, nullptr}, Guides{g0, c0, nullptr}, Guides{g0, c0, l0},
+                  Guides{nullptr, nullptr, l0}}) {
+                const bool rest = lg != nullptr;
                 std::vector<float> out(f.robust.size());
                 returnResidual(f.robust.data(), f.residual.data(), scale.data(), radii, f.w, f.h, 3,
-                               out.data(), 2, g, cg);
-                const std::vector<double> want = directReturn(f, 3, scale, radii, g, cg);
+                               out.data(), 2, g, cg, rest ? restScale.data() : nullptr,
+                               rest ? restShare.data() : nullptr, lg);
+                const std::vector<double> want =
+                    directReturn(f, 3, scale, radii, g, cg, rest ? restScale.data() : nullptr,
+                                 rest ? restShare.data() : nullptr, lg);
                 for (size_t i = 0; i < out.size(); ++i)
                     ASSERT_NEAR(out[i], want[i], 1e-6 * std::fabs(want[i]) + 1e-4)
                         << "seed " << seed << " r " << r << " guide " << (g != nullptr)
-                        << " cluster guide " << (cg != nullptr) << " at " << i;
+                        << " cluster guide " << (cg != nullptr) << " rest " << rest << " at " << i;
             }
         }
     }
@@ -516,6 +551,124 @@ TEST(KeepLight, NonFiniteResidualsStayOut) {
     EXPECT_NEAR(total, 4.0, 1e-6);  // float outputs
 }
 
+// The light guide (rule 6) by hand: the plain mean's luminance m = robustY + d, at most the
+// brightest of the 8 neighbours' (inside the image); 0 where m is negative or not finite.
+TEST(KeepLight, TheLightGuideByHand) {
+    // 4 x 3: a floor of 0.1 with a lone firefly (m = 50.1) at (0, 0), a pair of bright pixels
+    // (m = 2.1 and 3.1) at (2, 1) and (3, 1), a negative mean at (1, 2), a NaN residual at (3, 2).
+    const int w = 4, h = 3;
+    std::vector<float> robustY(w * h, 0.1f), d(w * h, 0.f);
+    auto at = [&](int x, int y) { return size_t(y * w + x); };
+    d[at(0, 0)] = 50.f;
+    d[at(2, 1)] = 2.f;
+    d[at(3, 1)] = 3.f;
+    d[at(1, 2)] = -0.5f;
+    d[at(3, 2)] = std::numeric_limits<float>::quiet_NaN();
+    const std::vector<float> g = keepLightLightGuide(robustY.data(), d.data(), w, h, 2);
+    auto m = [](double v) { return float(v); };
+    EXPECT_EQ(g[at(0, 0)], m(0.1f));                 // the firefly: its neighbours' 0.1
+    EXPECT_EQ(g[at(1, 0)], m(0.1f));                 // beside it: its own
+    EXPECT_EQ(g[at(2, 1)], m(double(0.1f) + 2.0));   // the pair: each its own (2.1 <= 3.1)
+    EXPECT_EQ(g[at(3, 1)], m(double(0.1f) + 2.0));   // 3.1, but at most its brightest, 2.1
+    EXPECT_EQ(g[at(1, 2)], 0.f);                     // a negative mean
+    EXPECT_EQ(g[at(3, 2)], 0.f);                     // not finite
+    EXPECT_EQ(g[at(2, 2)], m(0.1f));                 // its own 0.1, under the pair's
+    // Without robustY, m is d alone; a lone pixel has no neighbour: 0.
+    const std::vector<float> alone = keepLightLightGuide(nullptr, d.data(), 1, 1, 1);
+    EXPECT_EQ(alone[0], 0.f);
+    const std::vector<float> noRobust = keepLightLightGuide(nullptr, d.data(), w, h, 1);
+    EXPECT_EQ(noRobust[at(0, 0)], 0.f);  // its neighbours' d are 0
+    EXPECT_EQ(noRobust[at(3, 1)], 2.f);
+}
+
+// Rule 6 by hand: a 3 x 3 block of d = se = 1 on a floor of 0.1 (20 x 20, one channel). Every
+// window's interval holds 0 (n d / area against 4 sqrt(n) / area), so ICI's own radius is the
+// largest; the 3 x 3 test's Z is 9 / 3 = 3 at the centre, 6 / sqrt(6) at an edge's middle and
+// 4 / 2 = 2 at a corner: the shares kept within a pixel are 1 - (2 / Z)^2 = 5 / 9, 1 / 3 and 0,
+// and the rest, 4 / 9 + 4 x 2 / 3 + 4 x 1 = 64 / 9 of the 9, goes to the largest radius by the
+// light guide: 1.1 on the block, 0.1 on the floor, so the block (2 % of the pixels) takes about a
+// fifth of it back. Without the rest (rule 6 off) nothing reaches beyond two pixels of the block.
+TEST(KeepLight, ASupportedClustersLuckGoesWhereTheLightIs) {
+    Field f(20, 20, 1);
+    std::fill(f.robust.begin(), f.robust.end(), 0.1f);
+    f.robustY.assign(f.d.size(), 0.1f);
+    for (int y = 9; y < 12; ++y)
+        for (int x = 9; x < 12; ++x) {
+            const size_t p = f.at(x, y);
+            f.residual[p] = 1.0;
+            f.d[p] = f.se[p] = 1.f;
+            f.active[p] = 1;
+        }
+    const KeepLightParams params;
+    const std::vector<int> radii = keepLightRadii(params.maxRadius);
+    const size_t n = f.d.size(), largest = radii.size() - 1;
+    std::vector<uint8_t> scale(n), restScale(n);
+    std::vector<float> restShare(n);
+    keepLightScales(f.d.data(), f.se.data(), f.robustY.data(), f.active.data(), f.w, f.h, params,
+                    scale.data(), 2, restScale.data(), restShare.data());
+    for (int y = 9; y < 12; ++y)
+        for (int x = 9; x < 12; ++x) {
+            const size_t p = f.at(x, y);
+            const int edges = (x == 10) + (y == 10);  // 2: the centre, 1: an edge's middle
+            EXPECT_EQ(radii[scale[p]], 1) << x << "," << y;
+            EXPECT_EQ(restScale[p], largest) << x << "," << y;
+            EXPECT_FLOAT_EQ(restShare[p], edges == 2 ? 5.f / 9.f : edges == 1 ? 1.f / 3.f : 0.f)
+                << x << "," << y;
+        }
+    EXPECT_EQ(restShare[f.at(5, 5)], 1.f);  // the floor sends nothing
+    // The light guide against a tent alone for the rest: the tent of radius 64 over 20 x 20 is
+    // flat to 17 % (55 to 65 per axis), so the block's share of the rest is about 9 x 1.1 /
+    // (9 x 1.1 + 391 x 0.1) = 0.20 by the guide (at least 0.17), 9 / 400 by the tent (at most
+    // 0.027).
+    const std::vector<float> light = keepLightLightGuide(f.robustY.data(), f.d.data(), f.w, f.h, 2);
+    std::vector<float> guided(n), tent(n), local(n);
+    returnResidual(f.robust.data(), f.residual.data(), scale.data(), radii, f.w, f.h, 1,
+                   guided.data(), 2, nullptr, nullptr, restScale.data(), restShare.data(),
+                   light.data());
+    returnResidual(f.robust.data(), f.residual.data(), scale.data(), radii, f.w, f.h, 1,
+                   tent.data(), 2, nullptr, nullptr, restScale.data(), restShare.data(), nullptr);
+    // Rule 6 off: the same scales, all of the light within a pixel of the block.
+    returnResidual(f.robust.data(), f.residual.data(), scale.data(), radii, f.w, f.h, 1,
+                   local.data(), 2);
+    const double rest = 64.0 / 9.0;
+    double total = 0.0, block = 0.0, blockByTent = 0.0, near = 0.0, far = 0.0;
+    for (int y = 0; y < 20; ++y)
+        for (int x = 0; x < 20; ++x) {
+            const size_t q = f.at(x, y);
+            const double added = double(guided[q]) - double(0.1f);
+            total += added;
+            const bool inBlock = x >= 9 && x < 12 && y >= 9 && y < 12;
+            if (inBlock) {
+                block += added;
+                blockByTent += double(tent[q]) - double(0.1f);
+            }
+            if (x >= 7 && x < 14 && y >= 7 && y < 14) {
+                near += added;
+            } else {
+                far += added;
+            }
+            if (x < 8 || x > 12 || y < 8 || y > 12) {
+                EXPECT_EQ(local[q], 0.1f) << x << "," << y;
+            }
+        }
+    EXPECT_NEAR(total, 9.0, 1e-6);                   // 400 float roundings of about 0.1
+    EXPECT_GT(near, 9.0 - rest);                     // the kept shares stay within a pixel
+    EXPECT_GT(block - blockByTent, (0.17 - 0.027) * rest);
+    EXPECT_GT(far, 0.5 * rest);                      // and most of the rest on the floor
+    EXPECT_EQ(std::memcmp(giveBack(f, 1, params, 2).data(), guided.data(), n * sizeof(float)), 0);
+}
+
+// The stream's random images send rests (rule 6), so that the stream's tests below cover it.
+TEST(KeepLight, RandomImagesHoldSupportedClusters) {
+    const Field f = randomField(61, 47, 11);
+    std::vector<uint8_t> scale(f.d.size()), restScale(f.d.size());
+    std::vector<float> restShare(f.d.size());
+    keepLightScales(f.d.data(), f.se.data(), f.robustY.data(), f.active.data(), f.w, f.h, {},
+                    scale.data(), 2, restScale.data(), restShare.data());
+    EXPECT_GT(std::count_if(restShare.begin(), restShare.end(), [](float v) { return v < 1.f; }),
+              5);
+}
+
 // The stream (keep_light_stream.h): the whole-image steps over a band at a time.
 
 /// A guide in [0, 1) with black rows (no surface), as the albedo gives it.
@@ -527,18 +680,21 @@ std::vector<float> randomGuide(const Field& f, unsigned seed) {
     return g;
 }
 
-/// The whole-image functions as keep_light_image gave them before the stream: scales, cluster
-/// guide, return with both guides.
+/// The whole-image functions as the stream runs them: scales with rule 6's rest, the cluster and
+/// light guides, the return with every guide.
 std::vector<float> wholeImage(const Field& f, const std::vector<float>* guide,
                               const KeepLightParams& p, int nthreads) {
-    std::vector<uint8_t> scale(f.d.size());
+    std::vector<uint8_t> scale(f.d.size()), restScale(f.d.size());
+    std::vector<float> restShare(f.d.size());
     keepLightScales(f.d.data(), f.se.data(), f.robustYOrNull(), f.active.data(), f.w, f.h, p,
-                    scale.data(), nthreads);
+                    scale.data(), nthreads, restScale.data(), restShare.data());
     const std::vector<float> cluster = keepLightClusterGuide(f.d.data(), f.w, f.h, nthreads);
+    const std::vector<float> light =
+        keepLightLightGuide(f.robustYOrNull(), f.d.data(), f.w, f.h, nthreads);
     std::vector<float> out(f.robust.size());
     returnResidual(f.robust.data(), f.residual.data(), scale.data(), keepLightRadii(p.maxRadius),
                    f.w, f.h, 3, out.data(), nthreads, guide ? guide->data() : nullptr,
-                   cluster.data());
+                   cluster.data(), restScale.data(), restShare.data(), light.data());
     return out;
 }
 

@@ -42,6 +42,19 @@
 // near its own robust value; a firefly beside an emitter's straight edge has the emitter in three
 // of its nine, not the median. (In an emitter's inside corner, five of nine, it would keep its
 // light: a corner's pixel is rare, and its light stays where the mean put it.)
+//
+// A supported cluster's light is not all signal. Its 3 x 3 test's statistic Z = sum d /
+// sqrt(sum se^2) says how much: of a sum whose noise has variance sum se^2, the share
+// 1 - 1 / Z^2 is the Wiener estimate of the signal's. Kept within a pixel, the rest is the
+// cluster's luck (at 64 spp a thin caustic's events put twice the reference in one pixel and a
+// third of it on the dark rows beside the line). So a pixel that the support test capped at
+// radius 1 where ICI's own choice was wider keeps the share 1 - (supportZ / Z)^2 there (0 at the
+// test's threshold: the rule is continuous) and sends the rest to ICI's own radius, by the light
+// guide: where the plain mean says light is (its luminance), a pixel counting for no more than its
+// brightest neighbour's, so that a lone firefly, whose mean is not its surface's light, draws no
+// more than its surface, while a caustic's pixels and lines, whose neighbours are as bright, draw
+// their own. The rest stays on the caustic where ICI's window is small (a resolved caustic, real
+// renders) and spreads over the lit surfaces where it is wide (a caustic of a few sparse events).
 #pragma once
 
 #include <cstdint>
@@ -73,9 +86,15 @@ std::vector<int> keepLightRadii(int maxRadius);
 /// non-finite values of robustY take no part in the median, and a pixel whose own robustY or d
 /// is not finite is not tested. Only pixels with active[p] != 0 are decided (the others get 0):
 /// the rest carry no residual. Deterministic, any thread count.
+///
+/// With restScale and restShare (both or neither; null: every pixel sends all of its light at
+/// scale[p]), a supported cluster's pixel (the 3 x 3 test's Z >= supportZ capped its scale at
+/// radius 1, where ICI chose a wider one, and the edge test did not keep it) sends the share
+/// restShare[p] = 1 - (supportZ / Z)^2 of its residual at scale[p] and the rest at restScale[p],
+/// ICI's own choice; every other pixel gets restShare[p] = 1 and restScale[p] = scale[p].
 void keepLightScales(const float* d, const float* se, const float* robustY, const uint8_t* active,
                      int width, int height, const KeepLightParams& params, uint8_t* scale,
-                     int nthreads = 0);
+                     int nthreads = 0, uint8_t* restScale = nullptr, float* restShare = nullptr);
 
 /// Adds every pixel's residual back with its tent of radius radii[scale[p]]: for each channel c
 /// of `nch` interleaved channels, out[q][c] = robust[q][c] + sum over p within that radius of q of
@@ -94,10 +113,16 @@ void keepLightScales(const float* d, const float* se, const float* robustY, cons
 /// (keepLightScales), takes it instead of `guide`: the cluster's light goes where its own light
 /// was found, so a thin caustic stays on its line instead of the tent's square around it. A
 /// window of radius 1 whose cluster guide is 0 everywhere takes `guide`, then the tent.
+///
+/// With restScale and restShare (keepLightScales'; null: all at scale), p sends the share
+/// restShare[p] of its residual as above and the rest at radius radii[restScale[p]], in
+/// proportion to t(q - p) lightGuide[q] (keepLightLightGuide; a window whose light guide is 0
+/// everywhere, or no light guide, takes the tent alone).
 void returnResidual(const float* robust, const double* residual, const uint8_t* scale,
                     const std::vector<int>& radii, int width, int height, int nch, float* out,
                     int nthreads = 0, const float* guide = nullptr,
-                    const float* clusterGuide = nullptr);
+                    const float* clusterGuide = nullptr, const uint8_t* restScale = nullptr,
+                    const float* restShare = nullptr, const float* lightGuide = nullptr);
 
 /// A channel's value with the light returned to it, as returnResidual writes it and every caller
 /// of keepLightStream must: robust + add rounded once to float where add is not 0, robust bit for
@@ -112,5 +137,13 @@ inline float withReturnedLight(float robust, double add) {
 /// they are dense (a caustic's line), and fills the one-pixel gaps between sparse ones (a broad
 /// caustic's grain), where d itself would give each event's light back to the event alone.
 std::vector<float> keepLightClusterGuide(const float* d, int width, int height, int nthreads = 0);
+
+/// The guide of a supported cluster's rest (keepLightScales' restShare): at each pixel, the plain
+/// mean's luminance m = robustY + d (0 where it is negative or not finite; robustY null counts as
+/// 0), but at most the largest m of its 8 neighbours inside the image (0 for a lone pixel). A lone
+/// firefly draws no more light than the brightest pixel beside it; a caustic's pixels, beside
+/// pixels as bright, and a line of them draw their own.
+std::vector<float> keepLightLightGuide(const float* robustY, const float* d, int width,
+                                       int height, int nthreads = 0);
 
 }  // namespace mcstat
