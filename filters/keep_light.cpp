@@ -57,7 +57,8 @@ void keepLightScales(const float* d, const float* se, const float* robustY, cons
     held.se = se;
     held.robustY = robustY;
     held.active = active;
-    keeplight::scalesRows(held, params, 0, height, scale, restScale && restShare ? restScale : nullptr,
+    keeplight::scalesRows(held, params, 0, height, scale,
+                          restScale && restShare ? restScale : nullptr,
                           restScale && restShare ? restShare : nullptr, nthreads);
 }
 
@@ -450,8 +451,7 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
                     // for the intervals to tell from a few fireflies) stays within a pixel.
                     const std::vector<double>& one = sums[oneAt];
                     const uint8_t ici = chosen;
-                    const double z =
-                        one[i + 1] > 0.0 ? one[i] / std::sqrt(one[i + 1]) : 0.0;
+                    const double z = one[i + 1] > 0.0 ? one[i] / std::sqrt(one[i + 1]) : 0.0;
                     const bool supported = one[i + 1] > 0.0 && z >= params.supportZ;
                     if (supported) chosen = std::min<uint8_t>(chosen, uint8_t(1));
                     // Light that the neighbours' robust values say belongs to this pixel (the
@@ -572,9 +572,8 @@ void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int
                                : tentSumClosed(x, r, width) * tentSumClosed(y, r, height);
                 };
                 senderRows(
-                    held, s0, nRows, need, rowNeed,
-                    [&](size_t p) { return kernelOf(p) == kernel; }, share, part, source, rowHas,
-                    nthreads);
+                    held, s0, nRows, need, rowNeed, [&](size_t p) { return kernelOf(p) == kernel; },
+                    share, part, source, rowHas, nthreads);
                 if (std::any_of(rowHas.begin(), rowHas.end(), [](uint8_t v) { return v != 0; }))
                     gatherTent(source, rowHas, width, nRows, r, nc, rows,
                                kernel == kByCluster ? clustered
@@ -635,8 +634,7 @@ void lightRows(const HeldRows& held, int y0, int y1, float* out, int nthreads) {
                 for (int dy = -1; dy <= 1; ++dy)
                     for (int dx = -1; dx <= 1; ++dx) {
                         const int qx = x + dx, qy = y + dy;
-                        if ((dx == 0 && dy == 0) || qx < 0 || qy < 0 || qx >= width ||
-                            qy >= height)
+                        if ((dx == 0 && dy == 0) || qx < 0 || qy < 0 || qx >= width || qy >= height)
                             continue;
                         brightest = std::max(brightest, at(qx, qy));
                     }
@@ -688,8 +686,8 @@ std::vector<float> keepLightClusterGuide(const float* d, int width, int height, 
     return g;
 }
 
-std::vector<float> keepLightLightGuide(const float* robustY, const float* d, int width,
-                                       int height, int nthreads) {
+std::vector<float> keepLightLightGuide(const float* robustY, const float* d, int width, int height,
+                                       int nthreads) {
     keeplight::HeldRows held = keeplight::HeldRows::whole(width, height);
     held.robustY = robustY;
     held.d = d;

@@ -566,13 +566,13 @@ TEST(KeepLight, TheLightGuideByHand) {
     d[at(3, 2)] = std::numeric_limits<float>::quiet_NaN();
     const std::vector<float> g = keepLightLightGuide(robustY.data(), d.data(), w, h, 2);
     auto m = [](double v) { return float(v); };
-    EXPECT_EQ(g[at(0, 0)], m(0.1f));                 // the firefly: its neighbours' 0.1
-    EXPECT_EQ(g[at(1, 0)], m(0.1f));                 // beside it: its own
-    EXPECT_EQ(g[at(2, 1)], m(double(0.1f) + 2.0));   // the pair: each its own (2.1 <= 3.1)
-    EXPECT_EQ(g[at(3, 1)], m(double(0.1f) + 2.0));   // 3.1, but at most its brightest, 2.1
-    EXPECT_EQ(g[at(1, 2)], 0.f);                     // a negative mean
-    EXPECT_EQ(g[at(3, 2)], 0.f);                     // not finite
-    EXPECT_EQ(g[at(2, 2)], m(0.1f));                 // its own 0.1, under the pair's
+    EXPECT_EQ(g[at(0, 0)], m(0.1f));                // the firefly: its neighbours' 0.1
+    EXPECT_EQ(g[at(1, 0)], m(0.1f));                // beside it: its own
+    EXPECT_EQ(g[at(2, 1)], m(double(0.1f) + 2.0));  // the pair: each its own (2.1 <= 3.1)
+    EXPECT_EQ(g[at(3, 1)], m(double(0.1f) + 2.0));  // 3.1, but at most its brightest, 2.1
+    EXPECT_EQ(g[at(1, 2)], 0.f);                    // a negative mean
+    EXPECT_EQ(g[at(3, 2)], 0.f);                    // not finite
+    EXPECT_EQ(g[at(2, 2)], m(0.1f));                // its own 0.1, under the pair's
     // Without robustY, m is d alone; a lone pixel has no neighbour: 0.
     const std::vector<float> alone = keepLightLightGuide(nullptr, d.data(), 1, 1, 1);
     EXPECT_EQ(alone[0], 0.f);
@@ -612,7 +612,9 @@ TEST(KeepLight, ASupportedClustersLuckGoesWhereTheLightIs) {
             const int edges = (x == 10) + (y == 10);  // 2: the centre, 1: an edge's middle
             EXPECT_EQ(radii[scale[p]], 1) << x << "," << y;
             EXPECT_EQ(restScale[p], largest) << x << "," << y;
-            EXPECT_FLOAT_EQ(restShare[p], edges == 2 ? 5.f / 9.f : edges == 1 ? 1.f / 3.f : 0.f)
+            EXPECT_FLOAT_EQ(restShare[p], edges == 2   ? 5.f / 9.f
+                                          : edges == 1 ? 1.f / 3.f
+                                                       : 0.f)
                 << x << "," << y;
         }
     EXPECT_EQ(restShare[f.at(5, 5)], 1.f);  // the floor sends nothing
@@ -651,10 +653,10 @@ TEST(KeepLight, ASupportedClustersLuckGoesWhereTheLightIs) {
                 EXPECT_EQ(local[q], 0.1f) << x << "," << y;
             }
         }
-    EXPECT_NEAR(total, 9.0, 1e-6);                   // 400 float roundings of about 0.1
-    EXPECT_GT(near, 9.0 - rest);                     // the kept shares stay within a pixel
+    EXPECT_NEAR(total, 9.0, 1e-6);  // 400 float roundings of about 0.1
+    EXPECT_GT(near, 9.0 - rest);    // the kept shares stay within a pixel
     EXPECT_GT(block - blockByTent, (0.17 - 0.027) * rest);
-    EXPECT_GT(far, 0.5 * rest);                      // and most of the rest on the floor
+    EXPECT_GT(far, 0.5 * rest);  // and most of the rest on the floor
     EXPECT_EQ(std::memcmp(giveBack(f, 1, params, 2).data(), guided.data(), n * sizeof(float)), 0);
 }
 

@@ -143,7 +143,7 @@ std::vector<float> keepLightClusterGuide(const float* d, int width, int height, 
 /// 0), but at most the largest m of its 8 neighbours inside the image (0 for a lone pixel). A lone
 /// firefly draws no more light than the brightest pixel beside it; a caustic's pixels, beside
 /// pixels as bright, and a line of them draw their own.
-std::vector<float> keepLightLightGuide(const float* robustY, const float* d, int width,
-                                       int height, int nthreads = 0);
+std::vector<float> keepLightLightGuide(const float* robustY, const float* d, int width, int height,
+                                       int nthreads = 0);
 
 }  // namespace mcstat
