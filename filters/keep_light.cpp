@@ -559,11 +559,16 @@ void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int
                 return kByTent;
             };
             auto part = [&](size_t p) { return rest ? 1.0 - held.share(p) : held.share(p); };
+            // The kernels some sender takes: a pass over the rows for each of the others would
+            // only write zeros (the tent alone, where a guide covers every window, is the rule).
+            std::array<uint8_t, 4> used = {0, 0, 0, 0};
+            for (int i = 0; i < nRows; ++i) {
+                if (!rowNeed[size_t(i)]) continue;
+                for (int x = 0; x < width; ++x)
+                    if (need[size_t(i) * w + size_t(x)]) used[kernelOf(held.at(x, s0 + i))] = 1;
+            }
             for (const Kernel kernel : {kByCluster, kByGuide, kByLight, kByTent}) {
-                if ((kernel == kByCluster && (rest || !byCluster)) ||
-                    (kernel == kByGuide && (rest || !held.guide)) ||
-                    (kernel == kByLight && (!rest || !byLight)))
-                    continue;
+                if (!used[kernel]) continue;
                 auto share = [&](size_t p, int x, int y) {
                     return kernel == kByCluster ? held.clusterNorm[p]
                            : kernel == kByGuide ? held.norm[p]
