@@ -1,7 +1,7 @@
 // The removed light given back by bands of rows (issue 49, docs/keep-light.md): keep_light.h's
-// scale choice, cluster guide and return over an image that the caller hands over a band of rows
-// at a time and takes back a band at a time, holding a few bands of rows whatever the image's
-// height. Every step's windows reach at most the largest radius R beyond their rows, so the
+// scale choice, cluster and light guides and return over an image that the caller hands over a band
+// of rows at a time and takes back a band at a time, holding a few bands of rows whatever the
+// image's height. Every step's windows reach at most the largest radius R beyond their rows, so the
 // stream holds the rows from R above the first row it has not yet returned to the last row it was
 // given: about a band and 3 R rows. Pure functions, no I/O, no OIIO types.
 //
@@ -45,7 +45,8 @@ using KeepLightTake = std::function<bool(int y0, int y1, const double* add)>;
 /// `--gmon` alone at 266 MB, and take 2.99, 2.93 and 2.83 s, docs/keep-light.md).
 int keepLightBandRows(const KeepLightParams& params);
 
-/// keepLightScales, keepLightClusterGuide and returnResidual (with the guide when `guided`) over a
+/// keepLightScales with its rest (rule 6), keepLightClusterGuide, keepLightLightGuide and
+/// returnResidual (with the guide when `guided`, and the cluster and light guides) over a
 /// width x height image of nch residual channels, by bands of bandRows rows (0:
 /// keepLightBandRows). Fill is never more than a band and 2 R + 1 rows ahead of take. False when
 /// fill or take returned false.
