@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # scripts/keep_light_table.sh [OUT_DIR]: the measurements of docs/keep-light.md. Renders the
 # fixture's firefly scenes (default, caustic, tiny, arealight) and smooth scenes (dof, furnace,
-# motion, texture) at 96 x 72, M = 9, 64 and 256 spp, seeds 1-5, and a reference of each; runs
-# the mean, G-MoN and G-MoN with :keeplight=1 on each render and writes one row per scene, spp,
-# seed and method: relMSE, SSIM, fireflies (mcstat --diff) and the energy error against the
-# reference (sum of luminance). Then prints the table of means over the seeds.
-# Never part of the tests; about 10 minutes on 2 cores, and the references' time.
+# motion, texture) at 96 x 72, M = 9, 64 and 256 spp, seeds 1-20 (SEEDS), and a reference of
+# each; runs the mean, G-MoN and G-MoN with :keeplight=1 on each render and writes one row per
+# scene, spp, seed and method: relMSE, SSIM, fireflies (mcstat --diff) and the energy error
+# against the reference (sum of luminance). Then prints the tables of scripts/keep_light_tables.py:
+# the means over the seeds, and issue 49's goals with their 95 % intervals over the seeds.
+# Never part of the tests; about 10 minutes on 2 cores with the renders kept, 15 without, and the
+# references' time.
 #
 #   REF_SPP         samples of each reference (default 8192), but for the scenes that
 #   REF_SPP_SCENES  names as SCENE=SPP (default: the four firefly scenes at 262,144 spp; 6 to 12
