@@ -251,14 +251,14 @@ std::vector<double> guideSums(const keeplight::HeldRows& held, const float* guid
     return sums;
 }
 
-/// The sources of one gather over rows [s0, s0 + nRows) of the image: at each sender p (need[p],
-/// row s0 first) that `mine` picks, its residual times the part it sends here, factor(p), divided
+/// The sources of one gather over rows [s0, s0 + nRows) of the image: at each sender p whose
+/// need[p] (row s0 first) is `mine`, its residual times the part it sends here, factor(p), divided
 /// by its window's weight sum share(p, x, y) (p as held.at gives it, y the image row); 0
 /// elsewhere (a row that held something and holds no sender now is cleared). rowHas[i]: source
 /// row i holds a nonzero value.
-template <class Mine, class Share, class Factor>
+template <class Share, class Factor>
 void senderRows(const keeplight::HeldRows& held, int s0, int nRows,
-                const std::vector<uint8_t>& need, const std::vector<uint8_t>& rowNeed, Mine mine,
+                const std::vector<uint8_t>& need, const std::vector<uint8_t>& rowNeed, uint8_t mine,
                 Share share, Factor factor, std::vector<double>& source,
                 std::vector<uint8_t>& rowHas, int nthreads) {
     const size_t w = size_t(held.width), nc = held.nc;
@@ -274,7 +274,7 @@ void senderRows(const keeplight::HeldRows& held, int s0, int nRows,
             bool any = false;
             for (int x = 0; x < held.width; ++x) {
                 const size_t p = held.at(x, y);
-                const bool from = need[size_t(i) * w + size_t(x)] && mine(p);
+                const bool from = need[size_t(i) * w + size_t(x)] == mine;
                 const double sum = from ? share(p, x, y) : 1.0, part = from ? factor(p) : 0.0;
                 for (size_t c = 0; c < nc; ++c) {
                     const double v = held.residual[p * nc + c];
@@ -313,6 +313,33 @@ bool sendersAt(const keeplight::HeldRows& held, size_t k, bool rest, int s0, int
         }
     });
     return std::any_of(rowNeed.begin(), rowNeed.end(), [](uint8_t v) { return v != 0; });
+}
+
+/// Each sender's kernel, once: need[p] (sendersAt's, row s0 first) becomes 1 + kernelOf(p) where
+/// it was set. Returns the kernels some sender takes, bit k for kernel k.
+template <class KernelOf>
+uint8_t markKernels(const keeplight::HeldRows& held, int s0, int nRows,
+                    const std::vector<uint8_t>& rowNeed, KernelOf kernelOf,
+                    std::vector<uint8_t>& need, std::vector<uint8_t>& rowUsed, int nthreads) {
+    const size_t w = size_t(held.width);
+    rowUsed.assign(size_t(nRows), 0);
+    parallelFor(0, nRows, 0, nthreads, [&](int64_t ib, int64_t ie) {
+        for (int i = int(ib); i < int(ie); ++i) {
+            if (!rowNeed[size_t(i)]) continue;
+            uint8_t mask = 0;
+            for (int x = 0; x < held.width; ++x) {
+                uint8_t& code = need[size_t(i) * w + size_t(x)];
+                if (!code) continue;
+                const int kernel = int(kernelOf(held.at(x, s0 + i)));
+                code = uint8_t(1 + kernel);
+                mask = uint8_t(mask | (1u << kernel));
+            }
+            rowUsed[size_t(i)] = mask;
+        }
+    });
+    uint8_t used = 0;
+    for (uint8_t m : rowUsed) used = uint8_t(used | m);
+    return used;
 }
 
 /// The scale choice's values of rows [s0, s1), two per pixel: d and se^2 (non-finite as 0).
@@ -537,9 +564,9 @@ void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int
         rowHas.resize(most, 0);
     }
     rows.resize(source.size());
-    // need: the pixel sends light at the radius at hand; rowNeed: its row holds such a pixel;
-    // rowHas: the source's row holds a nonzero value (the others are 0). Per radius, the senders
-    // are the rows within r of [y0, y1).
+    // need: the pixel sends light at the radius at hand (then 1 + its kernel, markKernels);
+    // rowNeed: its row holds such a pixel; rowHas: the source's row holds a nonzero value (the
+    // others are 0). Per radius, the senders are the rows within r of [y0, y1).
     for (size_t k = 0; k < radii.size(); ++k) {
         const int r = radii[k];
         const int s0 = std::max(0, y0 - r), s1 = std::min(height, y1 + r), nRows = s1 - s0;
@@ -559,16 +586,12 @@ void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int
                 return kByTent;
             };
             auto part = [&](size_t p) { return rest ? 1.0 - held.share(p) : held.share(p); };
-            // The kernels some sender takes: a pass over the rows for each of the others would
-            // only write zeros (the tent alone, where a guide covers every window, is the rule).
-            std::array<uint8_t, 4> used = {0, 0, 0, 0};
-            for (int i = 0; i < nRows; ++i) {
-                if (!rowNeed[size_t(i)]) continue;
-                for (int x = 0; x < width; ++x)
-                    if (need[size_t(i) * w + size_t(x)]) used[kernelOf(held.at(x, s0 + i))] = 1;
-            }
+            // Only the kernels some sender takes get a pass over the rows; the others' would only
+            // write zeros (the tent alone, where a guide covers every window, is the rule).
+            const uint8_t used =
+                markKernels(held, s0, nRows, rowNeed, kernelOf, need, scratch.rowUsed, nthreads);
             for (const Kernel kernel : {kByCluster, kByGuide, kByLight, kByTent}) {
-                if (!used[kernel]) continue;
+                if (!(used & (1u << kernel))) continue;
                 auto share = [&](size_t p, int x, int y) {
                     return kernel == kByCluster ? held.clusterNorm[p]
                            : kernel == kByGuide ? held.norm[p]
@@ -576,9 +599,8 @@ void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int
                                ? held.lightNorm[p]
                                : tentSumClosed(x, r, width) * tentSumClosed(y, r, height);
                 };
-                senderRows(
-                    held, s0, nRows, need, rowNeed, [&](size_t p) { return kernelOf(p) == kernel; },
-                    share, part, source, rowHas, nthreads);
+                senderRows(held, s0, nRows, need, rowNeed, uint8_t(1 + kernel), share, part, source,
+                           rowHas, nthreads);
                 if (std::any_of(rowHas.begin(), rowHas.end(), [](uint8_t v) { return v != 0; }))
                     gatherTent(source, rowHas, width, nRows, r, nc, rows,
                                kernel == kByCluster ? clustered

@@ -83,7 +83,7 @@ void normsRows(const HeldRows& held, const std::vector<int>& radii, int y0, int 
 /// gatherRows' buffers, kept from one call to the next so that a stream's bands reuse them.
 struct GatherScratch {
     std::vector<double> source, rows, plain, guided, clustered, lit;
-    std::vector<uint8_t> need, rowNeed, rowHas;
+    std::vector<uint8_t> need, rowNeed, rowHas, rowUsed;
     size_t rowLength = 0;  ///< the source rows' doubles (width x channels) the buffers are for
 };
 
