@@ -71,6 +71,19 @@ double tentSumClosed(int c, int r, int n) {
     return r1 + a * r1 - a * (a + 1.0) / 2.0 + b * r1 - b * (b + 1.0) / 2.0;
 }
 
+/// The line passes' scratch, one per thread and kept between calls: the bands call them for every
+/// radius, and fresh buffers cost an allocation, its zeros and its page faults each time. No pass
+/// calls another while it holds it.
+struct LineScratch {
+    std::vector<double> mid, pre, suf, col;
+    std::vector<int> idx;
+};
+
+LineScratch& lineScratch() {
+    thread_local LineScratch scratch;
+    return scratch;
+}
+
 /// Forward box sums of B = r + 1 elements by van Herk's blocks: dst[j] = sum of src[j .. j + r]
 /// for j in [0, outLen), where element t of the source is src[(t - offset) * stride .. + L) for t
 /// - offset in [0, srcLen) and 0 elsewhere. Each sum is a suffix of one block plus a prefix of the
@@ -83,8 +96,9 @@ void boxForward(const double* src, size_t stride, int offset, int srcLen, int ou
     const int B = r + 1;
     const int blocks = (outLen + r + B - 1) / B + 1;
     const size_t span = size_t(blocks) * size_t(B);
-    pre.assign(span * L, 0.0);
-    suf.assign(span * L, 0.0);
+    // Every element of [0, span L) is written below: growing is enough, no clearing.
+    if (pre.size() < span * L) pre.resize(span * L);
+    if (suf.size() < span * L) suf.resize(span * L);
     auto element = [&](int t) -> const double* {
         const int i = t - offset;
         return i >= 0 && i < srcLen ? src + size_t(i) * stride : nullptr;
@@ -188,8 +202,9 @@ void gatherTent(const std::vector<double>& source, const std::vector<uint8_t>& r
     const size_t w = size_t(width), rowLen = w * nc;
     std::vector<uint8_t> rowUsed(size_t(srcRows), 0);
     parallelFor(0, srcRows, 0, nthreads, [&](int64_t yb, int64_t ye) {
-        std::vector<int> xs;
-        std::vector<double> mid, pre, suf;
+        LineScratch& t = lineScratch();
+        std::vector<int>& xs = t.idx;
+        std::vector<double>&mid = t.mid, &pre = t.pre, &suf = t.suf;
         for (int y = int(yb); y < int(ye); ++y) {
             const double* src = source.data() + size_t(y) * rowLen;
             double* dst = rows.data() + size_t(y) * rowLen;
@@ -218,8 +233,9 @@ void gatherTent(const std::vector<double>& source, const std::vector<uint8_t>& r
     constexpr size_t kStrip = 64;
     const int64_t strips = int64_t((rowLen + kStrip - 1) / kStrip);
     parallelFor(0, strips, 0, nthreads, [&](int64_t sb, int64_t se) {
-        std::vector<double> mid, pre, suf, col;
-        std::vector<int> js;
+        LineScratch& t = lineScratch();
+        std::vector<double>&mid = t.mid, &pre = t.pre, &suf = t.suf, &col = t.col;
+        std::vector<int>& js = t.idx;
         for (int64_t s = sb; s < se; ++s) {
             const size_t l0 = size_t(s) * kStrip, L = std::min(kStrip, rowLen - l0);
             const int n = y1 - y0;
@@ -237,18 +253,26 @@ void gatherTent(const std::vector<double>& source, const std::vector<uint8_t>& r
     });
 }
 
-/// The guide's tent sums of radius r at every pixel of rows [y0, y1): sum over q within r of p,
-/// inside the image, of tent(q - p) guide[q] (rows, then columns, by tentLine), row y0 first.
-std::vector<double> guideSums(const keeplight::HeldRows& held, const float* guide, int y0, int y1,
-                              int r, int nthreads) {
+/// guideSums' buffers, kept across the radii of one normsRows.
+struct GuideScratch {
+    std::vector<double> g, rows, sums;
+    std::vector<uint8_t> rowHas;
+};
+
+/// The guide's tent sums of radius r at every pixel of rows [y0, y1), into s.sums: sum over q
+/// within r of p, inside the image, of tent(q - p) guide[q] (rows, then columns, by tentLine), row
+/// y0 first.
+void guideSums(const keeplight::HeldRows& held, const float* guide, int y0, int y1, int r,
+               GuideScratch& s, int nthreads) {
     const int s0 = std::max(0, y0 - r), s1 = std::min(held.height, y1 + r);
     const size_t w = size_t(held.width);
     const float* from = guide + held.at(0, s0);
-    std::vector<double> g(from, from + size_t(s1 - s0) * w), rows(g.size(), 0.0),
-        sums(size_t(y1 - y0) * w, 0.0);
-    gatherTent(g, std::vector<uint8_t>(size_t(s1 - s0), 1), held.width, s1 - s0, r, 1, rows, sums,
-               y0 - s0, y1 - y0, nthreads);
-    return sums;
+    s.g.assign(from, from + size_t(s1 - s0) * w);
+    s.rows.resize(s.g.size());  // gatherTent writes every row it reads
+    s.sums.assign(size_t(y1 - y0) * w, 0.0);
+    s.rowHas.assign(size_t(s1 - s0), 1);
+    gatherTent(s.g, s.rowHas, held.width, s1 - s0, r, 1, s.rows, s.sums, y0 - s0, y1 - y0,
+               nthreads);
 }
 
 /// The sources of one gather over rows [s0, s0 + nRows) of the image: at each sender p whose
@@ -379,7 +403,8 @@ void windowSums(const std::vector<double>& vals, int width, int s0, int s1, int 
     constexpr size_t kStrip = 256;
     const int64_t strips = int64_t((w2 + kStrip - 1) / kStrip);
     parallelFor(0, strips, 0, nthreads, [&](int64_t sb, int64_t se) {
-        std::vector<double> pre, suf;
+        LineScratch& t = lineScratch();
+        std::vector<double>&pre = t.pre, &suf = t.suf;
         for (int64_t st = sb; st < se; ++st) {
             const size_t l0 = size_t(st) * kStrip, L = std::min(kStrip, w2 - l0);
             boxForward(vals.data() + l0, w2, s0 - a0, s1 - s0, rows, 2 * r, L, cols.data() + l0, w2,
@@ -389,7 +414,8 @@ void windowSums(const std::vector<double>& vals, int width, int s0, int s1, int 
     // Along each row, element t is column t - r: the same blocks for every row.
     out.resize(size_t(y1 - y0) * w2);
     parallelFor(first, rows, 0, nthreads, [&](int64_t jb, int64_t je) {
-        std::vector<double> pre, suf;
+        LineScratch& t = lineScratch();
+        std::vector<double>&pre = t.pre, &suf = t.suf;
         for (int j = int(jb); j < int(je); ++j)
             boxForward(cols.data() + size_t(j) * w2, 2, r, width, width, 2 * r, 2,
                        out.data() + size_t(j - first) * w2, 2, pre, suf);
@@ -508,12 +534,14 @@ void normsRows(const HeldRows& held, const std::vector<int>& radii, int y0, int 
     if (clusterNorm) std::fill(clusterNorm, clusterNorm + n, 0.0);
     if (lightNorm) std::fill(lightNorm, lightNorm + n, 0.0);
     std::vector<uint8_t> need, rowNeed;
+    GuideScratch scratch;
+    const std::vector<double>& sums = scratch.sums;
     for (size_t k = 0; k < radii.size(); ++k) {
         const int r = radii[k];
         // The rest's windows (rule 6): the light guide's sums.
         if (held.light && lightNorm &&
             sendersAt(held, k, true, y0, y1 - y0, need, rowNeed, nthreads)) {
-            const std::vector<double> sums = guideSums(held, held.light, y0, y1, r, nthreads);
+            guideSums(held, held.light, y0, y1, r, scratch, nthreads);
             for (size_t i = 0; i < n; ++i)
                 if (need[i]) lightNorm[i] = sums[i];
         }
@@ -524,8 +552,7 @@ void normsRows(const HeldRows& held, const std::vector<int>& radii, int y0, int 
             continue;
         for (int pass = 0; pass < 2; ++pass) {
             if (!(pass == 0 ? byCluster : byGuide)) continue;
-            const std::vector<double> sums =
-                guideSums(held, pass == 0 ? held.cluster : held.guide, y0, y1, r, nthreads);
+            guideSums(held, pass == 0 ? held.cluster : held.guide, y0, y1, r, scratch, nthreads);
             double* to = pass == 0 ? clusterNorm : norm;
             for (size_t i = 0; i < n; ++i)
                 if (need[i]) to[i] = sums[i];
