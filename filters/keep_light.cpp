@@ -51,7 +51,8 @@ int haloRows(const KeepLightParams& params) { return std::max(1, params.maxRadiu
 
 void keepLightScales(const float* d, const float* se, const float* robustY, const uint8_t* active,
                      int width, int height, const KeepLightParams& params, uint8_t* scale,
-                     int nthreads, uint8_t* restScale, float* restShare) {
+                     int nthreads, uint8_t* restScale, float* restShare, float* bias,
+                     float* level) {
     keeplight::HeldRows held = keeplight::HeldRows::whole(width, height);
     held.d = d;
     held.se = se;
@@ -59,7 +60,9 @@ void keepLightScales(const float* d, const float* se, const float* robustY, cons
     held.active = active;
     keeplight::scalesRows(held, params, 0, height, scale,
                           restScale && restShare ? restScale : nullptr,
-                          restScale && restShare ? restShare : nullptr, nthreads);
+                          restScale && restShare ? restShare : nullptr,
+                          bias && level ? bias : nullptr, bias && level ? level : nullptr,
+                          nthreads);
 }
 
 namespace {
@@ -454,7 +457,7 @@ bool meanNearerNeighbours(const keeplight::HeldRows& held, int x, int y) {
 namespace keeplight {
 
 void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int y1, uint8_t* scale,
-                uint8_t* restScale, float* restShare, int nthreads) {
+                uint8_t* restScale, float* restShare, float* bias, float* level, int nthreads) {
     const std::vector<int> radii = keepLightRadii(params.maxRadius);
     const int width = held.width, height = held.height;
     const size_t n = size_t(y1 - y0) * size_t(width);
@@ -482,24 +485,42 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
         parallelFor(c0, c1, 0, nthreads, [&](int64_t yb, int64_t ye) {
             for (int y = int(yb); y < int(ye); ++y)
                 for (int x = 0; x < width; ++x) {
-                    if (!held.active[held.at(x, y)]) continue;
+                    const bool active = held.active[held.at(x, y)] != 0;
+                    if (!active && !bias) continue;
                     const size_t i = 2 * (size_t(y - c0) * size_t(width) + size_t(x));
+                    const size_t o = size_t(y - y0) * size_t(width) + size_t(x);
                     // Intersect the windows' intervals from the smallest up; keep the last radius
-                    // whose intersection is not empty.
+                    // whose intersection is not empty, and its window's mean (rule 7's bias).
                     double lo = -std::numeric_limits<double>::infinity();
                     double hi = std::numeric_limits<double>::infinity();
                     uint8_t chosen = 0;
+                    double estimate = 0.0, widest = 0.0;
                     for (size_t k = 0; k < radii.size(); ++k) {
                         const auto [x0, x1] = clipped(x, radii[k], width);
                         const auto [wy0, wy1] = clipped(y, radii[k], height);
                         const double area = double(x1 - x0) * double(wy1 - wy0);
                         const double m = sums[k][i] / area;
+                        widest = m;  // the last radius's, when the loop runs to the end
                         const double s = std::sqrt(std::max(0.0, sums[k][i + 1])) / area;
                         lo = std::max(lo, m - gamma * s);
                         hi = std::min(hi, m + gamma * s);
-                        if (!(lo <= hi)) break;
+                        if (!(lo <= hi)) {
+                            if (bias) {  // the largest window's mean, for the level
+                                const size_t K = radii.size() - 1;
+                                const auto [a0, a1] = clipped(x, radii[K], width);
+                                const auto [b0, b1] = clipped(y, radii[K], height);
+                                widest = sums[K][i] / (double(a1 - a0) * double(b1 - b0));
+                            }
+                            break;
+                        }
                         chosen = uint8_t(k);
+                        estimate = m;
                     }
+                    if (bias) {
+                        bias[o] = float(std::max(0.0, estimate));
+                        level[o] = float(std::max(0.0, widest));
+                    }
+                    if (!active) continue;
                     // Light its 3 x 3 neighbours' buffers support together (a caustic too small
                     // for the intervals to tell from a few fireflies) stays within a pixel.
                     const std::vector<double>& one = sums[oneAt];
@@ -510,7 +531,6 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
                     // Light that the neighbours' robust values say belongs to this pixel (the
                     // edge of a bright surface) stays in it: the pixel is its plain mean.
                     if (chosen != 0 && held.robustY && meanNearerNeighbours(held, x, y)) chosen = 0;
-                    const size_t o = size_t(y - y0) * size_t(width) + size_t(x);
                     scale[o] = chosen;
                     // Rule 6: of a cluster the test capped, the Wiener share of its signal,
                     // 1 - (supportZ / Z)^2, stays; the rest goes to ICI's own radius.
@@ -528,11 +548,12 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
 }
 
 void normsRows(const HeldRows& held, const std::vector<int>& radii, int y0, int y1, double* norm,
-               double* clusterNorm, double* lightNorm, int nthreads) {
+               double* clusterNorm, double* lightNorm, double* biasNorm, int nthreads) {
     const size_t w = size_t(held.width), n = size_t(y1 - y0) * w;
     if (norm) std::fill(norm, norm + n, 0.0);
     if (clusterNorm) std::fill(clusterNorm, clusterNorm + n, 0.0);
     if (lightNorm) std::fill(lightNorm, lightNorm + n, 0.0);
+    if (biasNorm) std::fill(biasNorm, biasNorm + n, 0.0);
     std::vector<uint8_t> need, rowNeed;
     GuideScratch scratch;
     const std::vector<double>& sums = scratch.sums;
@@ -545,17 +566,20 @@ void normsRows(const HeldRows& held, const std::vector<int>& radii, int y0, int 
             for (size_t i = 0; i < n; ++i)
                 if (need[i]) lightNorm[i] = sums[i];
         }
-        const bool byCluster = held.cluster && clusterNorm && r == 1;
-        const bool byGuide = held.guide && norm;
-        if (!(byCluster || byGuide) ||
+        // The senders' own windows: the cluster guide's (radius 1), the bias guide's (rule 7),
+        // the guide's.
+        const float* guides[3] = {held.cluster && clusterNorm && r == 1 ? held.cluster : nullptr,
+                                  held.byBias(r) && biasNorm ? held.biasGuide : nullptr,
+                                  norm ? held.guide : nullptr};
+        double* const into[3] = {clusterNorm, biasNorm, norm};
+        if (!(guides[0] || guides[1] || guides[2]) ||
             !sendersAt(held, k, false, y0, y1 - y0, need, rowNeed, nthreads))
             continue;
-        for (int pass = 0; pass < 2; ++pass) {
-            if (!(pass == 0 ? byCluster : byGuide)) continue;
-            guideSums(held, pass == 0 ? held.cluster : held.guide, y0, y1, r, scratch, nthreads);
-            double* to = pass == 0 ? clusterNorm : norm;
+        for (int pass = 0; pass < 3; ++pass) {
+            if (!guides[pass]) continue;
+            guideSums(held, guides[pass], y0, y1, r, scratch, nthreads);
             for (size_t i = 0; i < n; ++i)
-                if (need[i]) to[i] = sums[i];
+                if (need[i]) into[pass][i] = sums[i];
         }
     }
 }
@@ -573,6 +597,8 @@ void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int
     clustered.assign(held.cluster ? n * nc : 0, 0.0);
     const bool byLight = held.light && held.restShare;
     lit.assign(byLight ? n * nc : 0, 0.0);
+    std::vector<double>& biased = scratch.biased;
+    biased.assign(held.biasGuide ? n * nc : 0, 0.0);
     // The sources of a radius, the rows within r of [y0, y1): a source row i whose rowHas[i] is 0
     // holds zeros, from one radius and one call to the next (senderRows clears the rows it
     // leaves), so only the rows that held something are written again.
@@ -600,15 +626,17 @@ void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int
         // With a guide, p's light goes to q in proportion to tent(q - p) guide[q]: its weights
         // over the window sum to 1 when divided by the guide's tent sum at p (normsRows). A
         // window whose guide is 0 everywhere (no surface to put the light on) takes the next:
-        // the cluster guide (radius 1 only), the guide, the tent alone. A cluster's rest (rule 6,
-        // `rest`) goes by the light guide, else the tent.
-        enum Kernel : int { kByCluster, kByGuide, kByLight, kByTent };
-        const bool byCluster = held.cluster && r == 1;
+        // the cluster guide (radius 1 only), the bias guide (radii 2 to biasRadius, rule 7), the
+        // guide, the tent alone. A cluster's rest (rule 6, `rest`) goes by the light guide, else
+        // the tent.
+        enum Kernel : int { kByCluster, kByBias, kByGuide, kByLight, kByTent };
+        const bool byCluster = held.cluster && r == 1, byBias = held.byBias(r);
         for (const bool rest : {false, true}) {
             if (!sendersAt(held, k, rest, s0, nRows, need, rowNeed, nthreads)) continue;
             auto kernelOf = [&](size_t p) {
                 if (rest) return byLight && held.lightNorm[p] > 0.0 ? kByLight : kByTent;
                 if (byCluster && held.clusterNorm[p] > 0.0) return kByCluster;
+                if (byBias && held.biasNorm[p] > 0.0) return kByBias;
                 if (held.guide && held.norm[p] > 0.0) return kByGuide;
                 return kByTent;
             };
@@ -617,10 +645,11 @@ void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int
             // write zeros (the tent alone, where a guide covers every window, is the rule).
             const uint8_t used =
                 markKernels(held, s0, nRows, rowNeed, kernelOf, need, scratch.rowUsed, nthreads);
-            for (const Kernel kernel : {kByCluster, kByGuide, kByLight, kByTent}) {
+            for (const Kernel kernel : {kByCluster, kByBias, kByGuide, kByLight, kByTent}) {
                 if (!(used & (1u << kernel))) continue;
                 auto share = [&](size_t p, int x, int y) {
                     return kernel == kByCluster ? held.clusterNorm[p]
+                           : kernel == kByBias  ? held.biasNorm[p]
                            : kernel == kByGuide ? held.norm[p]
                            : kernel == kByLight
                                ? held.lightNorm[p]
@@ -631,6 +660,7 @@ void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int
                 if (std::any_of(rowHas.begin(), rowHas.end(), [](uint8_t v) { return v != 0; }))
                     gatherTent(source, rowHas, width, nRows, r, nc, rows,
                                kernel == kByCluster ? clustered
+                               : kernel == kByBias  ? biased
                                : kernel == kByGuide ? guided
                                : kernel == kByLight ? lit
                                                     : plain,
@@ -645,7 +675,8 @@ void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int
                 const size_t i = q * nc + c;
                 add[i] = plain[i] + (held.guide ? double(held.guide[h]) * guided[i] : 0.0) +
                          (held.cluster ? double(held.cluster[h]) * clustered[i] : 0.0) +
-                         (byLight ? double(held.light[h]) * lit[i] : 0.0);
+                         (byLight ? double(held.light[h]) * lit[i] : 0.0) +
+                         (held.biasGuide ? double(held.biasGuide[h]) * biased[i] : 0.0);
             }
         }
     });
@@ -698,12 +729,23 @@ void lightRows(const HeldRows& held, int y0, int y1, float* out, int nthreads) {
     });
 }
 
+void biasGuideRows(const float* bias, const float* level, const float* guide, size_t n,
+                   double floor, float* out, int nthreads) {
+    parallelFor(0, int64_t(n), 0, nthreads, [&](int64_t b, int64_t e) {
+        for (size_t p = size_t(b); p < size_t(e); ++p) {
+            const double g = std::isfinite(guide[p]) && guide[p] > 0.f ? double(guide[p]) : 0.0;
+            out[p] = g > 0.0 ? float(double(bias[p]) + floor * g * double(level[p])) : 0.f;
+        }
+    });
+}
+
 }  // namespace keeplight
 
 void returnResidual(const float* robust, const double* residual, const uint8_t* scale,
                     const std::vector<int>& radii, int width, int height, int nch, float* out,
                     int nthreads, const float* guide, const float* clusterGuide,
-                    const uint8_t* restScale, const float* restShare, const float* lightGuide) {
+                    const uint8_t* restScale, const float* restShare, const float* lightGuide,
+                    const float* biasGuide, int biasRadius) {
     const size_t n = size_t(width) * size_t(height), nc = size_t(nch);
     keeplight::HeldRows held = keeplight::HeldRows::whole(width, height);
     held.nc = nc;
@@ -716,14 +758,20 @@ void returnResidual(const float* robust, const double* residual, const uint8_t* 
         held.restShare = restShare;
         held.light = lightGuide;
     }
+    if (biasGuide && biasRadius >= 2) {
+        held.biasGuide = biasGuide;
+        held.biasRadius = biasRadius;
+    }
     std::vector<double> norm(guide ? n : 0), clusterNorm(clusterGuide ? n : 0),
-        lightNorm(held.light ? n : 0), add(n * nc);
+        lightNorm(held.light ? n : 0), biasNorm(held.biasGuide ? n : 0), add(n * nc);
     keeplight::normsRows(held, radii, 0, height, guide ? norm.data() : nullptr,
                          clusterGuide ? clusterNorm.data() : nullptr,
-                         held.light ? lightNorm.data() : nullptr, nthreads);
+                         held.light ? lightNorm.data() : nullptr,
+                         held.biasGuide ? biasNorm.data() : nullptr, nthreads);
     held.norm = norm.data();
     held.clusterNorm = clusterNorm.data();
     held.lightNorm = held.light ? lightNorm.data() : nullptr;
+    held.biasNorm = held.biasGuide ? biasNorm.data() : nullptr;
     keeplight::GatherScratch scratch;
     keeplight::gatherRows(held, radii, 0, height, add.data(), scratch, nthreads);
     parallelFor(0, int64_t(n * nc), 0, nthreads, [&](int64_t b, int64_t e) {
@@ -747,6 +795,14 @@ std::vector<float> keepLightLightGuide(const float* robustY, const float* d, int
     held.d = d;
     std::vector<float> g(size_t(width) * size_t(height), 0.f);
     keeplight::lightRows(held, 0, height, g.data(), nthreads);
+    return g;
+}
+
+std::vector<float> keepLightBiasGuide(const float* bias, const float* level, const float* guide,
+                                      int width, int height, double floor) {
+    const size_t n = size_t(width) * size_t(height);
+    std::vector<float> g(n, 0.f);
+    keeplight::biasGuideRows(bias, level, guide, n, floor, g.data(), 0);
     return g;
 }
 

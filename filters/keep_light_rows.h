@@ -33,6 +33,9 @@ struct HeldRows {
     const float* restShare = nullptr;     ///< the share sent at scale (rule 6), or null
     const float* light = nullptr;         ///< the rest's guide (lightRows), or null
     const double* lightNorm = nullptr;    ///< from normsRows: the light guide's at restScale
+    const float* biasGuide = nullptr;     ///< rule 7's guide (keepLightBiasGuide), or null
+    const double* biasNorm = nullptr;     ///< from normsRows: the bias guide's, radii 2 to biasRadius
+    int biasRadius = 0;                   ///< the largest radius that takes the bias guide
 
     /// Every row of a width x height image held (the whole-image functions of keep_light.h).
     static HeldRows whole(int width, int height) {
@@ -52,6 +55,8 @@ struct HeldRows {
     double share(size_t p) const { return restShare ? double(restShare[p]) : 1.0; }
     /// Whether p sends a rest (rule 6) at radius index restScale[p].
     bool sendsRest(size_t p) const { return restShare && restShare[p] < 1.f && sends(p); }
+    /// Whether the windows of radius r take the bias guide (rule 7).
+    bool byBias(int r) const { return biasGuide && r >= 2 && r <= biasRadius; }
 };
 
 /// The rows beyond [y0, y1) that each step reads: its windows' largest radius (at least 1, the
@@ -62,7 +67,11 @@ int haloRows(const KeepLightParams& params);
 /// d and se over [y0 - haloRows, y1 + haloRows) and robustY over [y0 - 1, y1 + 1), clipped to the
 /// image. The window sums are the same bits whatever rows are held.
 void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int y1, uint8_t* scale,
-                uint8_t* restScale, float* restShare, int nthreads);
+                uint8_t* restScale, float* restShare, float* bias, float* level, int nthreads);
+
+/// keepLightBiasGuide over n pixels (rows of one image, any of them).
+void biasGuideRows(const float* bias, const float* level, const float* guide, size_t n,
+                   double floor, float* out, int nthreads);
 
 /// keepLightClusterGuide for rows [y0, y1) into out (rows [y0, y1) only): reads d over
 /// [y0 - 1, y1 + 1) clipped to the image.
@@ -75,22 +84,23 @@ void lightRows(const HeldRows& held, int y0, int y1, float* out, int nthreads);
 /// The weight sums of each sender's window over rows [y0, y1), at its own radius: norm[p] the
 /// guide's tent sum (with a guide), clusterNorm[p] the cluster guide's (radius 1 only),
 /// lightNorm[p] the light guide's at the rest's radius (rule 6: restScale); 0 where p sends
-/// nothing or has no such window. Reads residual, scale, restScale, restShare, guide, cluster and
-/// light over [y0 - radius, y1 + radius).
+/// nothing or has no such window; biasNorm[p] the bias guide's, for the senders of radius 2 to
+/// biasRadius (rule 7). Reads residual, scale, restScale, restShare, guide, cluster, light and
+/// biasGuide over [y0 - radius, y1 + radius).
 void normsRows(const HeldRows& held, const std::vector<int>& radii, int y0, int y1, double* norm,
-               double* clusterNorm, double* lightNorm, int nthreads);
+               double* clusterNorm, double* lightNorm, double* biasNorm, int nthreads);
 
 /// gatherRows' buffers, kept from one call to the next so that a stream's bands reuse them.
 struct GatherScratch {
-    std::vector<double> source, rows, plain, guided, clustered, lit;
+    std::vector<double> source, rows, plain, guided, clustered, lit, biased;
     std::vector<uint8_t> need, rowNeed, rowHas, rowUsed;
     size_t rowLength = 0;  ///< the source rows' doubles (width x channels) the buffers are for
 };
 
 /// The light that rows [y0, y1) receive, add[(y - y0) * width * nc + x * nc + c] (returnResidual's
 /// sum over senders, with the guide, cluster guide and light guide of the receiving pixel
-/// applied): reads residual, scale, restScale, restShare, norm, clusterNorm, lightNorm over
-/// [y0 - radius, y1 + radius), guide, cluster and light over [y0, y1).
+/// applied): reads residual, scale, restScale, restShare, norm, clusterNorm, lightNorm, biasNorm
+/// over [y0 - radius, y1 + radius), guide, cluster, light and biasGuide over [y0, y1).
 void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int y1, double* add,
                 GatherScratch& scratch, int nthreads);
 

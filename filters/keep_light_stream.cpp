@@ -16,8 +16,8 @@ struct HeldBands {
     size_t width = 0, nc = 0;
     bool guided = false;
     int first = 0, end = 0;
-    std::vector<double> residual, norm, clusterNorm, lightNorm;
-    std::vector<float> d, se, robustY, guide, cluster, light, restShare;
+    std::vector<double> residual, norm, clusterNorm, lightNorm, biasNorm;
+    std::vector<float> d, se, robustY, guide, cluster, light, restShare, bias, level, biasGuide;
     std::vector<uint8_t> active, scale, restScale;
 
     size_t offset(int y) const { return size_t(y - first) * width; }
@@ -27,6 +27,7 @@ struct HeldBands {
         f(norm, guided ? 1 : 0);
         f(clusterNorm, 1);
         f(lightNorm, 1);
+        f(biasNorm, guided ? 1 : 0);
         f(d, 1);
         f(se, 1);
         f(robustY, 1);
@@ -34,6 +35,9 @@ struct HeldBands {
         f(cluster, 1);
         f(light, 1);
         f(restShare, 1);
+        f(bias, guided ? 1 : 0);
+        f(level, guided ? 1 : 0);
+        f(biasGuide, guided ? 1 : 0);
         f(active, 1);
         f(scale, 1);
         f(restScale, 1);
@@ -72,6 +76,8 @@ struct HeldBands {
         h.restShare = restShare.data();
         h.light = light.data();
         h.lightNorm = lightNorm.data();
+        h.biasGuide = guided ? biasGuide.data() : nullptr;
+        h.biasNorm = guided ? biasNorm.data() : nullptr;
         return h;
     }
 };
@@ -87,6 +93,9 @@ bool keepLightStream(int width, int height, int nch, bool guided, const KeepLigh
                      int bandRows) {
     const std::vector<int> radii = keepLightRadii(params.maxRadius);
     const int R = keeplight::haloRows(params);
+    // Rule 7's windows (radius 2 to biasRadius) read the bias guide that far beyond their rows.
+    const bool byBias = guided && params.biasRadius >= 2 && params.maxRadius >= 2;
+    const int biasHalo = byBias ? std::min(params.biasRadius, R) : 0;
     const int band = bandRows > 0 ? bandRows : keepLightBandRows(params);
     HeldBands held;
     held.width = size_t(width);
@@ -97,7 +106,8 @@ bool keepLightStream(int width, int height, int nch, bool guided, const KeepLigh
     // Each step has computed the rows before its mark: filled, cluster and light guides, scales,
     // norms, returned. A step's rows [mark, to) become computable once the rows its windows read
     // are: the guides' one row beyond, the scales' R (the choice's windows), the norms' R (the
-    // guides' windows), the return's R beyond the norms.
+    // guides' windows; the bias guide's, computed with the scales, biasHalo), the return's R
+    // beyond the norms.
     int filled = 0, clustered = 0, scaled = 0, normed = 0, returned = 0;
     while (returned < height) {
         if (filled < height) {
@@ -116,9 +126,11 @@ bool keepLightStream(int width, int height, int nch, bool guided, const KeepLigh
         const bool all = filled == height;
         const int clusterTo = all ? height : filled - 1;
         const int scaleTo = all ? height : filled - R;
-        const int normTo = all ? height : std::min(scaleTo, clusterTo - R);
+        const int normTo = all ? height : std::min(scaleTo - biasHalo, clusterTo - R);
         const int returnTo = all ? height : normTo - R;
         keeplight::HeldRows view = held.view(height);
+        view.biasRadius = byBias ? params.biasRadius : 0;
+        if (!byBias) view.biasGuide = nullptr;
         if (clusterTo > clustered) {
             keeplight::clusterRows(view, clustered, clusterTo,
                                    held.cluster.data() + held.offset(clustered), nthreads);
@@ -130,14 +142,25 @@ bool keepLightStream(int width, int height, int nch, bool guided, const KeepLigh
             keeplight::scalesRows(view, params, scaled, scaleTo,
                                   held.scale.data() + held.offset(scaled),
                                   held.restScale.data() + held.offset(scaled),
-                                  held.restShare.data() + held.offset(scaled), nthreads);
+                                  held.restShare.data() + held.offset(scaled),
+                                  byBias ? held.bias.data() + held.offset(scaled) : nullptr,
+                                  byBias ? held.level.data() + held.offset(scaled) : nullptr,
+                                  nthreads);
+            if (byBias) {
+                const size_t o = held.offset(scaled);
+                keeplight::biasGuideRows(held.bias.data() + o, held.level.data() + o,
+                                         held.guide.data() + o, size_t(scaleTo - scaled) * held.width,
+                                         params.biasFloor, held.biasGuide.data() + o, nthreads);
+            }
             scaled = scaleTo;
         }
         if (normTo > normed) {
             keeplight::normsRows(view, radii, normed, normTo,
                                  guided ? held.norm.data() + held.offset(normed) : nullptr,
                                  held.clusterNorm.data() + held.offset(normed),
-                                 held.lightNorm.data() + held.offset(normed), nthreads);
+                                 held.lightNorm.data() + held.offset(normed),
+                                 byBias ? held.biasNorm.data() + held.offset(normed) : nullptr,
+                                 nthreads);
             normed = normTo;
         }
         if (returnTo > returned) {

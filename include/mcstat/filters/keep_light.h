@@ -71,6 +71,15 @@ struct KeepLightParams {
     /// caustic of a few pixels, each of which alone looks like a firefly (z about 1: with M = 9
     /// its light is in one or two buffers), whose intervals ICI cannot tell from fireflies'.
     double supportZ = 2.0;
+    /// Rule 7: a window of radius 2 to biasRadius (0: none) sends its light in proportion to
+    /// the receivers' bias guide (keepLightBiasGuide) instead of the albedo alone, so that a
+    /// caustic's light stays on the caustic and off the dark beside it. Wider windows keep the
+    /// albedo: what they saw has no structure at their scale, and the receivers' estimates there
+    /// are a few events' noise (docs/keep-light.md, rule 7).
+    int biasRadius = 16;
+    /// The bias guide's floor: biasFloor x albedo x the mean residual over the largest window,
+    /// the share of the light that follows the surface alone where no bias is estimated.
+    double biasFloor = 4.0;
 };
 
 /// The window radii the choice considers: 0, 1, 2, 4, ..., each doubling, the last maxRadius.
@@ -92,9 +101,15 @@ std::vector<int> keepLightRadii(int maxRadius);
 /// radius 1, where ICI chose a wider one, and the edge test did not keep it) sends the share
 /// restShare[p] = 1 - (supportZ / Z)^2 of its residual at scale[p] and the rest at restScale[p],
 /// ICI's own choice; every other pixel gets restShare[p] = 1 and restScale[p] = scale[p].
+///
+/// With bias and level (both or neither; rule 7's inputs to keepLightBiasGuide), every pixel,
+/// active or not, gets bias[p] = max(0, the mean of d over the window ICI chose for it, before
+/// the support test and the edge test cap it: its estimate of the bias at its own scale) and
+/// level[p] = max(0, the mean of d over its window of the largest radius).
 void keepLightScales(const float* d, const float* se, const float* robustY, const uint8_t* active,
                      int width, int height, const KeepLightParams& params, uint8_t* scale,
-                     int nthreads = 0, uint8_t* restScale = nullptr, float* restShare = nullptr);
+                     int nthreads = 0, uint8_t* restScale = nullptr, float* restShare = nullptr,
+                     float* bias = nullptr, float* level = nullptr);
 
 /// Adds every pixel's residual back with its tent of radius radii[scale[p]]: for each channel c
 /// of `nch` interleaved channels, out[q][c] = robust[q][c] + sum over p within that radius of q of
@@ -118,11 +133,16 @@ void keepLightScales(const float* d, const float* se, const float* robustY, cons
 /// restShare[p] of its residual as above and the rest at radius radii[restScale[p]], in
 /// proportion to t(q - p) lightGuide[q] (keepLightLightGuide; a window whose light guide is 0
 /// everywhere, or no light guide, takes the tent alone).
+///
+/// With `biasGuide` (keepLightBiasGuide) and biasRadius >= 2 (KeepLightParams::biasRadius), a
+/// window of radius 2 to biasRadius takes it instead of `guide` (rule 7); one whose bias guide is
+/// 0 everywhere takes `guide`, then the tent.
 void returnResidual(const float* robust, const double* residual, const uint8_t* scale,
                     const std::vector<int>& radii, int width, int height, int nch, float* out,
                     int nthreads = 0, const float* guide = nullptr,
                     const float* clusterGuide = nullptr, const uint8_t* restScale = nullptr,
-                    const float* restShare = nullptr, const float* lightGuide = nullptr);
+                    const float* restShare = nullptr, const float* lightGuide = nullptr,
+                    const float* biasGuide = nullptr, int biasRadius = 0);
 
 /// A channel's value with the light returned to it, as returnResidual writes it and every caller
 /// of keepLightStream must: robust + add rounded once to float where add is not 0, robust bit for
@@ -145,5 +165,14 @@ std::vector<float> keepLightClusterGuide(const float* d, int width, int height, 
 /// pixels as bright, and a line of them draw their own.
 std::vector<float> keepLightLightGuide(const float* robustY, const float* d, int width, int height,
                                        int nthreads = 0);
+
+/// The guide of the windows of radius 2 to KeepLightParams::biasRadius (rule 7), per pixel:
+/// bias[p] where the surface guide[p] (the albedo's luminance) is above 0, plus
+/// floor x guide[p] x level[p] (keepLightScales' bias and level; a guide that is negative or not
+/// finite counts as 0). Where a window's pixels estimate a bias (a caustic), its light goes to
+/// them in proportion; where they estimate none, by the surface, as rule 4. Nothing goes where no
+/// surface was hit.
+std::vector<float> keepLightBiasGuide(const float* bias, const float* level, const float* guide,
+                                      int width, int height, double floor);
 
 }  // namespace mcstat

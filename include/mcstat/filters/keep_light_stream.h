@@ -46,10 +46,11 @@ using KeepLightTake = std::function<bool(int y0, int y1, const double* add)>;
 int keepLightBandRows(const KeepLightParams& params);
 
 /// keepLightScales with its rest (rule 6), keepLightClusterGuide, keepLightLightGuide and
-/// returnResidual (with the guide when `guided`, and the cluster and light guides) over a
-/// width x height image of nch residual channels, by bands of bandRows rows (0:
-/// keepLightBandRows). Fill is never more than a band and 2 R + 1 rows ahead of take. False when
-/// fill or take returned false.
+/// returnResidual (with the guide when `guided`, and then rule 7's keepLightBiasGuide too, and
+/// the cluster and light guides) over a width x height image of nch residual channels, by bands
+/// of bandRows rows (0: keepLightBandRows). Fill is never more than a band and 2 R + 1 rows ahead
+/// of take (2 R + min(biasRadius, R) when rule 7 applies: its guide comes with the scales). False
+/// when fill or take returned false.
 bool keepLightStream(int width, int height, int nch, bool guided, const KeepLightParams& params,
                      const KeepLightFill& fill, const KeepLightTake& take, int nthreads = 0,
                      int bandRows = 0);
