@@ -58,11 +58,10 @@ void keepLightScales(const float* d, const float* se, const float* robustY, cons
     held.se = se;
     held.robustY = robustY;
     held.active = active;
-    keeplight::scalesRows(held, params, 0, height, scale,
-                          restScale && restShare ? restScale : nullptr,
-                          restScale && restShare ? restShare : nullptr,
-                          bias && level ? bias : nullptr, bias && level ? level : nullptr,
-                          nthreads);
+    keeplight::scalesRows(
+        held, params, 0, height, scale, restScale && restShare ? restScale : nullptr,
+        restScale && restShare ? restShare : nullptr, bias && level ? bias : nullptr,
+        bias && level ? level : nullptr, nthreads);
 }
 
 namespace {

@@ -34,8 +34,8 @@ struct HeldRows {
     const float* light = nullptr;         ///< the rest's guide (lightRows), or null
     const double* lightNorm = nullptr;    ///< from normsRows: the light guide's at restScale
     const float* biasGuide = nullptr;     ///< rule 7's guide (keepLightBiasGuide), or null
-    const double* biasNorm = nullptr;     ///< from normsRows: the bias guide's, radii 2 to biasRadius
-    int biasRadius = 0;                   ///< the largest radius that takes the bias guide
+    const double* biasNorm = nullptr;  ///< from normsRows: the bias guide's, radii 2 to biasRadius
+    int biasRadius = 0;                ///< the largest radius that takes the bias guide
 
     /// Every row of a width x height image held (the whole-image functions of keep_light.h).
     static HeldRows whole(int width, int height) {

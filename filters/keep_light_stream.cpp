@@ -139,18 +139,18 @@ bool keepLightStream(int width, int height, int nch, bool guided, const KeepLigh
             clustered = clusterTo;
         }
         if (scaleTo > scaled) {
-            keeplight::scalesRows(view, params, scaled, scaleTo,
-                                  held.scale.data() + held.offset(scaled),
-                                  held.restScale.data() + held.offset(scaled),
-                                  held.restShare.data() + held.offset(scaled),
-                                  byBias ? held.bias.data() + held.offset(scaled) : nullptr,
-                                  byBias ? held.level.data() + held.offset(scaled) : nullptr,
-                                  nthreads);
+            keeplight::scalesRows(
+                view, params, scaled, scaleTo, held.scale.data() + held.offset(scaled),
+                held.restScale.data() + held.offset(scaled),
+                held.restShare.data() + held.offset(scaled),
+                byBias ? held.bias.data() + held.offset(scaled) : nullptr,
+                byBias ? held.level.data() + held.offset(scaled) : nullptr, nthreads);
             if (byBias) {
                 const size_t o = held.offset(scaled);
                 keeplight::biasGuideRows(held.bias.data() + o, held.level.data() + o,
-                                         held.guide.data() + o, size_t(scaleTo - scaled) * held.width,
-                                         params.biasFloor, held.biasGuide.data() + o, nthreads);
+                                         held.guide.data() + o,
+                                         size_t(scaleTo - scaled) * held.width, params.biasFloor,
+                                         held.biasGuide.data() + o, nthreads);
             }
             scaled = scaleTo;
         }

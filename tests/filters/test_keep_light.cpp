@@ -695,8 +695,7 @@ std::vector<float> wholeImage(const Field& f, const std::vector<float>* guide,
     const std::vector<float> light =
         keepLightLightGuide(f.robustYOrNull(), f.d.data(), f.w, f.h, nthreads);
     const std::vector<float> byBias =
-        guide ? keepLightBiasGuide(bias.data(), level.data(), guide->data(), f.w, f.h,
-                                   p.biasFloor)
+        guide ? keepLightBiasGuide(bias.data(), level.data(), guide->data(), f.w, f.h, p.biasFloor)
               : std::vector<float>();
     std::vector<float> out(f.robust.size());
     returnResidual(f.robust.data(), f.residual.data(), scale.data(), keepLightRadii(p.maxRadius),
