@@ -5,7 +5,7 @@ filters/keep_light.cpp is. The model follows its rules (ICI over windows of radi
 4, ... R; the 3 x 3 support test; the cluster guide at radius 1; the albedo guide beyond; a pixel
 whose neighbours' robust median lies nearer its mean keeps its light; a supported cluster's
 pixel keeps 1 - (support / Z)^2 of its light and sends the rest to ICI's own radius by the light
-guide) with
+guide; windows of radius 2 to 16 follow the bias guide) with
 scipy's convolutions instead of the exact block sums, and the luminance spread of the buffers as
 removed_light.h defines it. Its relMSE matched the CLI's to four digits on the fixture's default
 scene and within 2 % on every scene of docs/keep-light.md, "Measured" (2026-12-01).
@@ -109,10 +109,13 @@ def radii_of(max_radius):
 
 def scales(d, se, active, gamma, radii, support_z, split=False):
     """Rule 1 (ICI) and rule 2 (the 3 x 3 support test): each pixel's index into radii. With
-    split, also ICI's own index and the 3 x 3 test's Z and verdict (rule 6)."""
+    split, also ICI's own index, the 3 x 3 test's Z and verdict (rule 6), and rule 7's bias (ICI's
+    window mean at its own radius, at least 0) and level (the largest window's mean, at least 0),
+    for every pixel."""
     lo, hi = np.full(d.shape, -np.inf), np.full(d.shape, np.inf)
     alive = np.ones(d.shape, bool)
     chosen = np.zeros(d.shape, int)
+    estimate = np.zeros(d.shape)
     ones, s2 = np.ones_like(d), se * se
     for k, r in enumerate(radii):
         area = box(ones, r)
@@ -120,6 +123,8 @@ def scales(d, se, active, gamma, radii, support_z, split=False):
         lo, hi = np.maximum(lo, m - gamma * s), np.minimum(hi, m + gamma * s)
         alive &= lo <= hi
         chosen[alive] = k
+        estimate[alive] = m[alive]
+    bias, level = np.maximum(estimate, 0), np.maximum(m, 0)
     ici = chosen.copy()
     sd, ss = box(d, 1), box(s2, 1)
     z = np.where(ss > 0, sd / np.sqrt(np.where(ss > 0, ss, 1)), 0)
@@ -127,7 +132,7 @@ def scales(d, se, active, gamma, radii, support_z, split=False):
     if 1 in radii:
         chosen = np.where(supported, np.minimum(chosen, radii.index(1)), chosen)
     chosen[~active] = 0
-    return (chosen, ici, z, supported) if split else chosen
+    return (chosen, ici, z, supported, bias, level) if split else chosen
 
 
 def mean_nearer_neighbours(robust_y, d):
@@ -176,13 +181,21 @@ def send(out, resid, part, senders, r, guides):
             out[..., c] += guide * tent(resid[..., c] * share, r)
 
 
-def keep_light(mean, se, albedo, robust, gamma=4.0, max_radius=64, support_z=2.0):
+def bias_guide(bias, level, albedo, floor=4.0):
+    """Rule 7's guide: the bias where a surface was hit, plus floor x albedo x level."""
+    g = np.where(np.isfinite(albedo) & (albedo > 0), albedo, 0.0)
+    return np.where(g > 0, bias + floor * g * level, 0.0)
+
+
+def keep_light(mean, se, albedo, robust, gamma=4.0, max_radius=64, support_z=2.0,
+               bias_radius=16, bias_floor=4.0):
     resid = mean - robust
     resid[~np.isfinite(resid)] = 0.0
     d = (resid * LUMA).sum(-1)
     active = np.abs(resid).max(-1) > 0
     radii = radii_of(max_radius)
-    chosen, ici, z, supported = scales(d, se, active, gamma, radii, support_z, split=True)
+    chosen, ici, z, supported, bias, level = scales(d, se, active, gamma, radii, support_z,
+                                                     split=True)
     robust_y = (robust * LUMA).sum(-1)
     chosen = np.where(mean_nearer_neighbours(robust_y, d), 0, chosen)
     # Rule 6: a pixel the support test capped at radius 1 where ICI chose wider keeps the share
@@ -190,13 +203,15 @@ def keep_light(mean, se, albedo, robust, gamma=4.0, max_radius=64, support_z=2.0
     split = active & supported & (chosen == 1) & (ici > 1)
     keep = np.where(split, np.clip(1 - (support_z / np.where(z > 0, z, 1)) ** 2, 0, 1), 1.0)
     cluster, light, ones = cluster_guide(d), light_guide(robust_y, d), np.ones_like(d)
+    by_bias = bias_guide(bias, level, albedo, bias_floor)
     out = robust.copy()
     for k, r in enumerate(radii):
-        # Rule 3 at radius 1, else rule 4 (the albedo), else the tent alone: the first whose
-        # weights over the window are not all 0.
+        # Rule 3 at radius 1, rule 7 at radii 2 to bias_radius, else rule 4 (the albedo), else
+        # the tent alone: the first whose weights over the window are not all 0.
         senders = active & (chosen == k)
         if senders.any():
-            send(out, resid, keep, senders, r, ([cluster] if r == 1 else []) + [albedo, ones])
+            first = [cluster] if r == 1 else [by_bias] if 2 <= r <= bias_radius else []
+            send(out, resid, keep, senders, r, first + [albedo, ones])
         rest = split & (ici == k) & (keep < 1)
         if rest.any():
             send(out, resid, 1 - keep, rest, r, [light, ones])

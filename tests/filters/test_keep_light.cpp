@@ -660,6 +660,95 @@ TEST(KeepLight, ASupportedClustersLuckGoesWhereTheLightIs) {
     EXPECT_EQ(std::memcmp(giveBack(f, 1, params, 2).data(), guided.data(), n * sizeof(float)), 0);
 }
 
+// Rule 7's inputs by hand (32 x 8, radii 0, 1, 2, 4, gamma 4, se 0.01 everywhere): d = 2 left
+// of column 16, 0 right of it. At (4, 4) every window lies on the left: ICI's estimate 2. At
+// (14, 4) the windows of radius 0 and 1 say 2 and the one of radius 2 (columns 12 to 16) 8 / 5 =
+// 1.6 +- 0.008: empty, so 2; its largest window (columns 10 to 18) 12 / 9. At (16, 4) the
+// radius-1 window says 6 / 9 against d = 0 +- 0.04: the estimate is its own 0; its largest
+// window 8 / 9. A pixel that lost nothing (6, 4), d = se = 0, amid the 2s: 0 +- 0 against 16 / 9,
+// so 0, though it is not active. Negative estimates count as 0.
+TEST(KeepLight, TheBiasAndLevelByHand) {
+    Field f(32, 8, 1);
+    for (int y = 0; y < 8; ++y)
+        for (int x = 0; x < 32; ++x) {
+            const size_t p = f.at(x, y);
+            f.d[p] = x < 16 ? 2.f : 0.f;
+            f.se[p] = 0.01f;
+            f.active[p] = 1;
+        }
+    f.d[f.at(6, 4)] = f.se[f.at(6, 4)] = 0.f;
+    f.active[f.at(6, 4)] = 0;
+    f.d[f.at(30, 1)] = -1.f;  // a negative estimate of its own: bias 0
+    KeepLightParams p;
+    p.maxRadius = 4;
+    const size_t n = f.d.size();
+    std::vector<uint8_t> scale(n), restScale(n);
+    std::vector<float> restShare(n), bias(n, -7.f), level(n, -7.f);
+    keepLightScales(f.d.data(), f.se.data(), nullptr, f.active.data(), f.w, f.h, p, scale.data(), 2,
+                    restScale.data(), restShare.data(), bias.data(), level.data());
+    EXPECT_FLOAT_EQ(bias[f.at(4, 4)], 2.f);
+    EXPECT_FLOAT_EQ(bias[f.at(14, 4)], 2.f);
+    EXPECT_FLOAT_EQ(level[f.at(14, 4)], 12.f / 9.f);
+    EXPECT_EQ(bias[f.at(16, 4)], 0.f);
+    EXPECT_FLOAT_EQ(level[f.at(16, 4)], 8.f / 9.f);
+    EXPECT_EQ(bias[f.at(6, 4)], 0.f);
+    EXPECT_EQ(scale[f.at(6, 4)], 0);  // not active: no scale of its own
+    EXPECT_EQ(bias[f.at(30, 1)], 0.f);
+    for (size_t q = 0; q < n; ++q) ASSERT_GE(level[q], 0.f) << q;
+    // The guide: bias where a surface was hit, plus floor x albedo x level.
+    const float bs[5] = {2.f, 2.f, 2.f, 2.f, 2.f}, lv[5] = {1.f, 1.f, 1.f, 1.f, 0.5f};
+    const float al[5] = {0.f, 0.5f, 1.f, std::numeric_limits<float>::quiet_NaN(), 1.f};
+    const std::vector<float> g = keepLightBiasGuide(bs, lv, al, 5, 1, 4.0);
+    EXPECT_EQ(g[0], 0.f);  // no surface: nothing, whatever the bias
+    EXPECT_EQ(g[1], 4.f);  // 2 + 4 x 0.5 x 1
+    EXPECT_EQ(g[2], 6.f);
+    EXPECT_EQ(g[3], 0.f);  // an albedo that is not finite counts as 0
+    EXPECT_EQ(g[4], 4.f);  // 2 + 4 x 1 x 0.5
+}
+
+// Rule 7's return by hand (9 x 9, one channel): the centre sends 1 at radius 2 over an albedo of
+// 1. With a bias guide of 1 on columns 4 and beyond and 0 left of them, the tent's weights
+// (3 - |dx|)(3 - |dy|) on the right sum to 9 x 6 = 54: the centre gets 9 / 54, its right
+// neighbour 6 / 54, its left one nothing at all. Without rule 7 (biasRadius 0), a bias guide of
+// 0 everywhere (its window's sum 0: the albedo takes over) or a window wider than biasRadius,
+// the albedo's tent: 6 / 81 on the left.
+TEST(KeepLight, AWindowsLightFollowsTheBias) {
+    const int w = 9, h = 9, c = 4 * w + 4;
+    const std::vector<int> radii = keepLightRadii(4);  // 0, 1, 2, 4
+    std::vector<float> robust(w * h, 0.f), albedo(w * h, 1.f), biasGuide(w * h, 0.f),
+        none(w * h, 0.f);
+    std::vector<double> residual(w * h, 0.0);
+    std::vector<uint8_t> scale(w * h, 0);
+    residual[c] = 1.0;
+    scale[c] = 2;  // radius 2
+    for (int y = 0; y < h; ++y)
+        for (int x = 4; x < w; ++x) biasGuide[size_t(y * w + x)] = 1.f;
+    auto run = [&](const std::vector<float>* bias, int biasRadius, uint8_t k) {
+        scale[c] = k;
+        std::vector<float> out(w * h);
+        returnResidual(robust.data(), residual.data(), scale.data(), radii, w, h, 1, out.data(), 1,
+                       albedo.data(), nullptr, nullptr, nullptr, nullptr,
+                       bias ? bias->data() : nullptr, biasRadius);
+        return out;
+    };
+    const std::vector<float> byBias = run(&biasGuide, 2, 2);
+    EXPECT_FLOAT_EQ(byBias[c], 9.f / 54.f);
+    EXPECT_FLOAT_EQ(byBias[c + 1], 6.f / 54.f);
+    EXPECT_FLOAT_EQ(byBias[c + 2 - 2 * w], 1.f / 54.f);
+    EXPECT_EQ(byBias[c - 1], 0.f);
+    double sum = 0.0;
+    for (float v : byBias) sum += v;
+    EXPECT_NEAR(sum, 1.0, 1e-6);
+    const std::vector<float> plain = run(nullptr, 0, 2);
+    EXPECT_FLOAT_EQ(plain[c - 1], 6.f / 81.f);
+    EXPECT_EQ(run(&biasGuide, 0, 2), plain);
+    EXPECT_EQ(run(&none, 2, 2), plain);
+    // Radius 4 is beyond biasRadius 2: the albedo's tent (5 - |dx|)(5 - |dy|), whose window is
+    // the whole 9 x 9 image: the left neighbour gets 20 / 625.
+    const std::vector<float> wide = run(&biasGuide, 2, 3);
+    EXPECT_FLOAT_EQ(wide[c - 1], 20.f / 625.f);
+}
+
 // The stream's random images send rests (rule 6), so that the stream's tests below cover it.
 TEST(KeepLight, RandomImagesHoldSupportedClusters) {
     const Field f = randomField(61, 47, 11);

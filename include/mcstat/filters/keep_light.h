@@ -55,6 +55,15 @@
 // more than its surface, while a caustic's pixels and lines, whose neighbours are as bright, draw
 // their own. The rest stays on the caustic where ICI's window is small (a resolved caustic, real
 // renders) and spreads over the lit surfaces where it is wide (a caustic of a few sparse events).
+//
+// A window of a few pixels (radius 2 to KeepLightParams::biasRadius) has seen the bias change
+// around it: ICI stopped there because a caustic ends. By the albedo alone its tent reaches past
+// the caustic's edge onto the dark beside it. Its light goes instead by the bias guide: each
+// receiver's own estimate of the bias (ICI's window mean at its own radius) where a surface was
+// hit, plus a floor that follows the surface (the albedo times the largest window's mean
+// residual). Wider windows keep the albedo: they saw no edge, and the receivers' estimates at
+// their scale are a few events' noise (on real renders, a caustic's focus would draw the light
+// of the whole floor around it).
 #pragma once
 
 #include <cstdint>
