@@ -574,11 +574,19 @@ void normsRows(const HeldRows& held, const std::vector<int>& radii, int y0, int 
         if (!(guides[0] || guides[1] || guides[2]) ||
             !sendersAt(held, k, false, y0, y1 - y0, need, rowNeed, nthreads))
             continue;
+        // A sender whose window one guide covers takes that one (gatherRows' kernelOf): the
+        // later guides' sums are needed only where the earlier ones are 0.
         for (int pass = 0; pass < 3; ++pass) {
             if (!guides[pass]) continue;
             guideSums(held, guides[pass], y0, y1, r, scratch, nthreads);
-            for (size_t i = 0; i < n; ++i)
-                if (need[i]) into[pass][i] = sums[i];
+            bool left = false;
+            for (size_t i = 0; i < n; ++i) {
+                if (!need[i]) continue;
+                into[pass][i] = sums[i];
+                need[i] = !(sums[i] > 0.0);
+                left = left || need[i];
+            }
+            if (!left) break;
         }
     }
 }
