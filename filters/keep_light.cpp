@@ -490,34 +490,29 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
                     const size_t o = size_t(y - y0) * size_t(width) + size_t(x);
                     // Intersect the windows' intervals from the smallest up; keep the last radius
                     // whose intersection is not empty, and its window's mean (rule 7's bias).
+                    auto areaOf = [&](size_t k) {  // window k's pixels inside the image
+                        const auto [x0, x1] = clipped(x, radii[k], width);
+                        const auto [wy0, wy1] = clipped(y, radii[k], height);
+                        return double(x1 - x0) * double(wy1 - wy0);
+                    };
                     double lo = -std::numeric_limits<double>::infinity();
                     double hi = std::numeric_limits<double>::infinity();
                     uint8_t chosen = 0;
-                    double estimate = 0.0, widest = 0.0;
+                    double estimate = 0.0;
                     for (size_t k = 0; k < radii.size(); ++k) {
-                        const auto [x0, x1] = clipped(x, radii[k], width);
-                        const auto [wy0, wy1] = clipped(y, radii[k], height);
-                        const double area = double(x1 - x0) * double(wy1 - wy0);
+                        const double area = areaOf(k);
                         const double m = sums[k][i] / area;
-                        widest = m;  // the last radius's, when the loop runs to the end
                         const double s = std::sqrt(std::max(0.0, sums[k][i + 1])) / area;
                         lo = std::max(lo, m - gamma * s);
                         hi = std::min(hi, m + gamma * s);
-                        if (!(lo <= hi)) {
-                            if (bias) {  // the largest window's mean, for the level
-                                const size_t K = radii.size() - 1;
-                                const auto [a0, a1] = clipped(x, radii[K], width);
-                                const auto [b0, b1] = clipped(y, radii[K], height);
-                                widest = sums[K][i] / (double(a1 - a0) * double(b1 - b0));
-                            }
-                            break;
-                        }
+                        if (!(lo <= hi)) break;
                         chosen = uint8_t(k);
                         estimate = m;
                     }
-                    if (bias) {
+                    if (bias) {  // ICI's estimate, and the largest window's mean
+                        const size_t K = radii.size() - 1;
                         bias[o] = float(std::max(0.0, estimate));
-                        level[o] = float(std::max(0.0, widest));
+                        level[o] = float(std::max(0.0, sums[K][i] / areaOf(K)));
                     }
                     if (!active) continue;
                     // Light its 3 x 3 neighbours' buffers support together (a caustic too small

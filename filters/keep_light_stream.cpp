@@ -15,9 +15,10 @@ namespace {
 struct HeldBands {
     size_t width = 0, nc = 0;
     bool guided = false;
+    int biasRadius = 0;  ///< rule 7's largest radius, 0 where it does not apply
     int first = 0, end = 0;
     std::vector<double> residual, norm, clusterNorm, lightNorm, biasNorm;
-    std::vector<float> d, se, robustY, guide, cluster, light, restShare, bias, level, biasGuide;
+    std::vector<float> d, se, robustY, guide, cluster, light, restShare, biasGuide;
     std::vector<uint8_t> active, scale, restScale;
 
     size_t offset(int y) const { return size_t(y - first) * width; }
@@ -27,7 +28,7 @@ struct HeldBands {
         f(norm, guided ? 1 : 0);
         f(clusterNorm, 1);
         f(lightNorm, 1);
-        f(biasNorm, guided ? 1 : 0);
+        f(biasNorm, biasRadius > 0 ? 1 : 0);
         f(d, 1);
         f(se, 1);
         f(robustY, 1);
@@ -35,9 +36,7 @@ struct HeldBands {
         f(cluster, 1);
         f(light, 1);
         f(restShare, 1);
-        f(bias, guided ? 1 : 0);
-        f(level, guided ? 1 : 0);
-        f(biasGuide, guided ? 1 : 0);
+        f(biasGuide, biasRadius > 0 ? 1 : 0);
         f(active, 1);
         f(scale, 1);
         f(restScale, 1);
@@ -76,8 +75,9 @@ struct HeldBands {
         h.restShare = restShare.data();
         h.light = light.data();
         h.lightNorm = lightNorm.data();
-        h.biasGuide = guided ? biasGuide.data() : nullptr;
-        h.biasNorm = guided ? biasNorm.data() : nullptr;
+        h.biasRadius = biasRadius;
+        h.biasGuide = biasRadius > 0 ? biasGuide.data() : nullptr;
+        h.biasNorm = biasRadius > 0 ? biasNorm.data() : nullptr;
         return h;
     }
 };
@@ -101,6 +101,9 @@ bool keepLightStream(int width, int height, int nch, bool guided, const KeepLigh
     held.width = size_t(width);
     held.nc = size_t(nch);
     held.guided = guided;
+    held.biasRadius = byBias ? params.biasRadius : 0;
+    // Rule 7's inputs, for the rows the scales step computes at once (its guide is what stays).
+    std::vector<float> bias, level;
     std::vector<double> add;
     keeplight::GatherScratch scratch;
     // Each step has computed the rows before its mark: filled, cluster and light guides, scales,
@@ -129,8 +132,6 @@ bool keepLightStream(int width, int height, int nch, bool guided, const KeepLigh
         const int normTo = all ? height : std::min(scaleTo - biasHalo, clusterTo - R);
         const int returnTo = all ? height : normTo - R;
         keeplight::HeldRows view = held.view(height);
-        view.biasRadius = byBias ? params.biasRadius : 0;
-        if (!byBias) view.biasGuide = nullptr;
         if (clusterTo > clustered) {
             keeplight::clusterRows(view, clustered, clusterTo,
                                    held.cluster.data() + held.offset(clustered), nthreads);
@@ -139,19 +140,16 @@ bool keepLightStream(int width, int height, int nch, bool guided, const KeepLigh
             clustered = clusterTo;
         }
         if (scaleTo > scaled) {
-            keeplight::scalesRows(
-                view, params, scaled, scaleTo, held.scale.data() + held.offset(scaled),
-                held.restScale.data() + held.offset(scaled),
-                held.restShare.data() + held.offset(scaled),
-                byBias ? held.bias.data() + held.offset(scaled) : nullptr,
-                byBias ? held.level.data() + held.offset(scaled) : nullptr, nthreads);
-            if (byBias) {
-                const size_t o = held.offset(scaled);
-                keeplight::biasGuideRows(held.bias.data() + o, held.level.data() + o,
-                                         held.guide.data() + o,
-                                         size_t(scaleTo - scaled) * held.width, params.biasFloor,
-                                         held.biasGuide.data() + o, nthreads);
-            }
+            const size_t o = held.offset(scaled), n = size_t(scaleTo - scaled) * held.width;
+            bias.resize(byBias ? n : 0);
+            level.resize(byBias ? n : 0);
+            keeplight::scalesRows(view, params, scaled, scaleTo, held.scale.data() + o,
+                                  held.restScale.data() + o, held.restShare.data() + o,
+                                  byBias ? bias.data() : nullptr, byBias ? level.data() : nullptr,
+                                  nthreads);
+            if (byBias)
+                keeplight::biasGuideRows(bias.data(), level.data(), held.guide.data() + o, n,
+                                         params.biasFloor, held.biasGuide.data() + o, nthreads);
             scaled = scaleTo;
         }
         if (normTo > normed) {
