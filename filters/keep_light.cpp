@@ -590,8 +590,9 @@ void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int
                 GatherScratch& scratch, int nthreads) {
     const size_t w = size_t(held.width), nc = held.nc, n = size_t(y1 - y0) * w;
     const int width = held.width, height = held.height;
-    // What each pixel receives, per channel: `plain` by the tent alone, `guided` and `clustered`
-    // to be multiplied by the pixel's guide and cluster guide values.
+    // What each pixel receives, per channel: `plain` by the tent alone; `guided`, `clustered`,
+    // `lit` and `biased` to be multiplied by the pixel's guide, cluster, light and bias guide
+    // values.
     std::vector<double>&plain = scratch.plain, &guided = scratch.guided,
     &clustered = scratch.clustered, &lit = scratch.lit;
     plain.assign(n * nc, 0.0);

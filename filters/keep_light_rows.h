@@ -98,7 +98,7 @@ struct GatherScratch {
 };
 
 /// The light that rows [y0, y1) receive, add[(y - y0) * width * nc + x * nc + c] (returnResidual's
-/// sum over senders, with the guide, cluster guide and light guide of the receiving pixel
+/// sum over senders, with the guide, cluster, light and bias guides of the receiving pixel
 /// applied): reads residual, scale, restScale, restShare, norm, clusterNorm, lightNorm, biasNorm
 /// over [y0 - radius, y1 + radius), guide, cluster, light and biasGuide over [y0, y1).
 void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int y1, double* add,
