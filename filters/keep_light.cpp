@@ -451,6 +451,41 @@ bool meanNearerNeighbours(const keeplight::HeldRows& held, int x, int y) {
     return std::fabs(robust + d - median) < std::fabs(robust - median);
 }
 
+/// Rule 8's level: the median of p's 8 neighbours' plain-mean luminance, robustY + d (their
+/// finite values; beyond the image the nearest pixel inside it, as meanNearerNeighbours). NaN
+/// where none is finite. A pixel's own mean stays out: a firefly's is its own evidence, which
+/// its neighbours are asked about. The median (of eight, the mean of the two middle values)
+/// ignores up to three bright neighbours: an emitter's edge beside it.
+double neighboursLevel(const keeplight::HeldRows& held, int x, int y) {
+    std::array<double, 8> v;
+    size_t n = 0;
+    for (int j = y - 1; j <= y + 1; ++j)
+        for (int i = x - 1; i <= x + 1; ++i) {
+            if (i == x && j == y) continue;
+            const size_t q =
+                held.at(std::clamp(i, 0, held.width - 1), std::clamp(j, 0, held.height - 1));
+            const double m = double(held.robustY[q]) + double(held.d[q]);
+            if (std::isfinite(m)) v[n++] = m;
+        }
+    if (n == 0) return std::numeric_limits<double>::quiet_NaN();
+    // Insertion sort of at most eight (std::sort's 16-element insertion pass trips GCC 12's
+    // array-bounds warning on an array of eight).
+    for (size_t i = 1; i < n; ++i)
+        for (size_t j = i; j > 0 && v[j] < v[j - 1]; --j) std::swap(v[j], v[j - 1]);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/// Rule 8: the share of p's residual that p keeps in place, min(d, neighbourShare x (level -
+/// robust)) / d (neighboursLevel), 0 where d <= 0 or nothing is finite.
+double keptByNeighbours(const keeplight::HeldRows& held, int x, int y, double share) {
+    const size_t p = held.at(x, y);
+    const double robust = held.robustY[p], d = held.d[p];
+    if (!(d > 0.0) || !std::isfinite(robust) || !std::isfinite(d) || !(share > 0.0)) return 0.0;
+    const double gap = neighboursLevel(held, x, y) - robust;
+    if (!(gap > 0.0)) return 0.0;  // NaN too
+    return std::min(d, share * gap) / d;
+}
+
 }  // namespace
 
 namespace keeplight {
@@ -526,14 +561,21 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
                     // edge of a bright surface) stays in it: the pixel is its plain mean.
                     if (chosen != 0 && held.robustY && meanNearerNeighbours(held, x, y)) chosen = 0;
                     scale[o] = chosen;
-                    // Rule 6: of a cluster the test capped, the Wiener share of its signal,
-                    // 1 - (supportZ / Z)^2, stays; the rest goes to ICI's own radius.
-                    if (restShare) {
-                        restScale[o] = chosen;
-                        if (supported && chosen == 1 && ici > 1) {
-                            const double q = params.supportZ / z;
-                            restShare[o] = float(std::clamp(1.0 - q * q, 0.0, 1.0));
-                            restScale[o] = ici;
+                    if (!restShare) continue;
+                    restScale[o] = chosen;
+                    if (supported && chosen == 1 && ici > 1) {
+                        // Rule 6: of a cluster the test capped, the Wiener share of its signal,
+                        // 1 - (supportZ / Z)^2, stays; the rest goes to ICI's own radius.
+                        const double q = params.supportZ / z;
+                        restShare[o] = float(std::clamp(1.0 - q * q, 0.0, 1.0));
+                        restScale[o] = ici;
+                    } else if (!supported && chosen != 0 && held.robustY) {
+                        // Rule 8: the light its neighbours' plain means hold stays in place (a
+                        // rest of radius 0); the rest of it goes as rules 1 to 7 say.
+                        const double kept = keptByNeighbours(held, x, y, params.neighbourShare);
+                        if (kept > 0.0) {
+                            restShare[o] = float(1.0 - kept);
+                            restScale[o] = 0;
                         }
                     }
                 }

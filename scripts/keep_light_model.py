@@ -5,7 +5,8 @@ filters/keep_light.cpp is. The model follows its rules (ICI over windows of radi
 4, ... R; the 3 x 3 support test; the cluster guide at radius 1; the albedo guide beyond; a pixel
 whose neighbours' robust median lies nearer its mean keeps its light; a supported cluster's
 pixel keeps 1 - (support / Z)^2 of its light and sends the rest to ICI's own radius by the light
-guide; windows of radius 2 to 16 follow the bias guide) with
+guide; windows of radius 2 to 16 follow the bias guide; a pixel no rule keeps close keeps half
+the gap between its 8 neighbours' median plain mean and its robust value in place) with
 scipy's convolutions instead of the exact block sums, and the luminance spread of the buffers as
 removed_light.h defines it. Its relMSE matched the CLI's to four digits on the fixture's default
 scene and within 2 % on every scene of docs/keep-light.md, "Measured" (2026-12-01).
@@ -150,6 +151,17 @@ def mean_nearer_neighbours(robust_y, d):
     return ok & (np.abs(robust_y + d - med) < np.abs(robust_y - med))
 
 
+def neighbours_level(robust_y, d):
+    """Rule 8's level: the median of the 8 neighbours' plain-mean luminance (finite values only;
+    beyond the image, the nearest pixel inside it); NaN where none is finite."""
+    h, w = robust_y.shape
+    pad = np.pad(robust_y + d, 1, mode="edge")
+    nb = np.stack([pad[j:j + h, i:i + w] for j in range(3) for i in range(3) if (i, j) != (1, 1)], -1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmedian(np.where(np.isfinite(nb), nb, np.nan), -1)
+
+
 def cluster_guide(d):
     """Rule 3's guide: the 3 x 3 tent's mean of the positive residual."""
     k = np.array([1.0, 2.0, 1.0])
@@ -188,7 +200,7 @@ def bias_guide(bias, level, albedo, floor=4.0):
 
 
 def keep_light(mean, se, albedo, robust, gamma=4.0, max_radius=64, support_z=2.0,
-               bias_radius=16, bias_floor=4.0):
+               bias_radius=16, bias_floor=4.0, neighbour_share=0.5):
     resid = mean - robust
     resid[~np.isfinite(resid)] = 0.0
     d = (resid * LUMA).sum(-1)
@@ -202,6 +214,13 @@ def keep_light(mean, se, albedo, robust, gamma=4.0, max_radius=64, support_z=2.0
     # 1 - (support / Z)^2 there and sends the rest at ICI's own radius by the light guide.
     split = active & supported & (chosen == 1) & (ici > 1)
     keep = np.where(split, np.clip(1 - (support_z / np.where(z > 0, z, 1)) ** 2, 0, 1), 1.0)
+    # Rule 8: a pixel no rule keeps close keeps min(d, share x (level - robust)) in place.
+    with np.errstate(invalid="ignore"):
+        gap = neighbours_level(robust_y, d) - robust_y
+        own = active & ~supported & (chosen != 0) & (d > 0) & np.isfinite(robust_y) & (gap > 0)
+    kept = np.where(own, np.minimum(d, neighbour_share * np.where(own, gap, 0)) / np.where(own, d, 1), 0)
+    keep = np.where(own, 1 - kept, keep)
+    rest_at = np.where(split, ici, 0)
     cluster, light, ones = cluster_guide(d), light_guide(robust_y, d), np.ones_like(d)
     by_bias = bias_guide(bias, level, albedo, bias_floor)
     out = robust.copy()
@@ -212,7 +231,7 @@ def keep_light(mean, se, albedo, robust, gamma=4.0, max_radius=64, support_z=2.0
         if senders.any():
             first = [cluster] if r == 1 else [by_bias] if 2 <= r <= bias_radius else []
             send(out, resid, keep, senders, r, first + [albedo, ones])
-        rest = split & (ici == k) & (keep < 1)
+        rest = (split | own) & (rest_at == k) & (keep < 1)
         if rest.any():
             send(out, resid, 1 - keep, rest, r, [light, ones])
     return out

@@ -64,6 +64,14 @@
 // residual). Wider windows keep the albedo: they saw no edge, and the receivers' estimates at
 // their scale are a few events' noise (on real renders, a caustic's focus would draw the light
 // of the whole floor around it).
+//
+// A pixel's neighbours can say that its light is there when its own robust value does not: the
+// edge of a defocused light whose pixels along the edge all lost their light (no robust value
+// near holds it, so the edge test above cannot tell). Their plain means do hold it. So a pixel
+// that no rule keeps close keeps in place part of the gap between the median of its 8
+// neighbours' plain means and its robust value (KeepLightParams::neighbourShare: half; the
+// median is noisy too), at most its own residual. A lone firefly's neighbours lie at its
+// surface's level, its robust value: it keeps nothing, and its light goes wide as before.
 #pragma once
 
 #include <cstdint>
@@ -89,6 +97,13 @@ struct KeepLightParams {
     /// The bias guide's floor: biasFloor x albedo x the mean residual over the largest window,
     /// the share of the light that follows the surface alone where no bias is estimated.
     double biasFloor = 4.0;
+    /// Rule 8: a pixel that no other rule keeps close (not supported, not kept by the edge test)
+    /// keeps in place min(d, neighbourShare x (L - robust)) of its light, L the median of its 8
+    /// neighbours' plain means (0: none): light its neighbours' means say is there (a defocused
+    /// edge whose neighbours along it lost their light too). A lone firefly's neighbours lie at
+    /// its surface's level, which is its robust value: it keeps nothing. Half the gap because
+    /// the neighbours' median is noisy too (docs/keep-light.md, rule 8).
+    double neighbourShare = 0.5;
 };
 
 /// The window radii the choice considers: 0, 1, 2, 4, ..., each doubling, the last maxRadius.
@@ -106,10 +121,16 @@ std::vector<int> keepLightRadii(int maxRadius);
 /// the rest carry no residual. Deterministic, any thread count.
 ///
 /// With restScale and restShare (both or neither; null: every pixel sends all of its light at
-/// scale[p]), a supported cluster's pixel (the 3 x 3 test's Z >= supportZ capped its scale at
-/// radius 1, where ICI chose a wider one, and the edge test did not keep it) sends the share
-/// restShare[p] = 1 - (supportZ / Z)^2 of its residual at scale[p] and the rest at restScale[p],
-/// ICI's own choice; every other pixel gets restShare[p] = 1 and restScale[p] = scale[p].
+/// scale[p], and rule 8 does not apply), p sends the share restShare[p] of its residual at
+/// scale[p] and the rest at restScale[p]:
+/// - a supported cluster's pixel (the 3 x 3 test's Z >= supportZ capped its scale at radius 1,
+///   where ICI chose a wider one, and the edge test did not keep it): restShare[p] =
+///   1 - (supportZ / Z)^2, restScale[p] ICI's own choice (rule 6);
+/// - a pixel that neither the support test nor the edge test kept close, with d > 0, whose 8
+///   neighbours' median plain mean L (robustY + d; finite values, beyond the image the nearest
+///   pixel inside it) lies above its robust value: restShare[p] = 1 - min(d, neighbourShare x
+///   (L - robustY)) / d, restScale[p] = 0, the rest kept in place (rule 8);
+/// - every other pixel: restShare[p] = 1 and restScale[p] = scale[p].
 ///
 /// With bias and level (both or neither; rule 7's inputs to keepLightBiasGuide), every pixel,
 /// active or not, gets bias[p] = max(0, the mean of d over the window ICI chose for it, before
