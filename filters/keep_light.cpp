@@ -318,7 +318,7 @@ void senderRows(const keeplight::HeldRows& held, int s0, int nRows,
 }
 
 /// need[i * width + x]: pixel (x, s0 + i) sends light at radius index k (its scale's, or with
-/// `rest` its rest's, rule 6); rowNeed[i]: its row holds such a pixel. False when none does.
+/// `rest` its rest's, rules 6 and 8); rowNeed[i]: its row holds such a pixel. False when none does.
 bool sendersAt(const keeplight::HeldRows& held, size_t k, bool rest, int s0, int nRows,
                std::vector<uint8_t>& need, std::vector<uint8_t>& rowNeed, int nthreads) {
     if (rest && !held.restShare) return false;
@@ -595,7 +595,7 @@ void normsRows(const HeldRows& held, const std::vector<int>& radii, int y0, int 
     const std::vector<double>& sums = scratch.sums;
     for (size_t k = 0; k < radii.size(); ++k) {
         const int r = radii[k];
-        // The rest's windows (rule 6): the light guide's sums.
+        // The rest's windows (rules 6 and 8): the light guide's sums.
         if (held.light && lightNorm &&
             sendersAt(held, k, true, y0, y1 - y0, need, rowNeed, nthreads)) {
             guideSums(held, held.light, y0, y1, r, scratch, nthreads);
@@ -672,8 +672,8 @@ void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int
         // over the window sum to 1 when divided by the guide's tent sum at p (normsRows). A
         // window whose guide is 0 everywhere (no surface to put the light on) takes the next:
         // the cluster guide (radius 1 only), the bias guide (radii 2 to biasRadius, rule 7), the
-        // guide, the tent alone. A cluster's rest (rule 6, `rest`) goes by the light guide, else
-        // the tent.
+        // guide, the tent alone. A rest (rule 6: a cluster's luck; rule 8: radius 0) goes by the
+        // light guide, else the tent.
         enum Kernel : int { kByCluster, kByBias, kByGuide, kByLight, kByTent };
         const bool byCluster = held.cluster && r == 1, byBias = held.byBias(r);
         for (const bool rest : {false, true}) {

@@ -29,8 +29,8 @@ struct HeldRows {
     const uint8_t* scale = nullptr;       ///< index into the radii, from scalesRows
     const double* norm = nullptr;         ///< from normsRows, with a guide
     const double* clusterNorm = nullptr;  ///< from normsRows, with a cluster guide
-    const uint8_t* restScale = nullptr;   ///< the rest's radius index (rule 6), or null
-    const float* restShare = nullptr;     ///< the share sent at scale (rule 6), or null
+    const uint8_t* restScale = nullptr;   ///< the rest's radius index (rules 6, 8), or null
+    const float* restShare = nullptr;     ///< the share sent at scale (rules 6, 8), or null
     const float* light = nullptr;         ///< the rest's guide (lightRows), or null
     const double* lightNorm = nullptr;    ///< from normsRows: the light guide's at restScale
     const float* biasGuide = nullptr;     ///< rule 7's guide (keepLightBiasGuide), or null
@@ -51,9 +51,10 @@ struct HeldRows {
     /// where the caller gives it (keepLightStream's callers set it by this very test), else the
     /// residual's channels.
     bool sends(size_t p) const;
-    /// The share of p's residual sent at scale[p]: restShare[p], or 1 without rule 6.
+    /// The share of p's residual sent at scale[p]: restShare[p], or 1 without rules 6 and 8.
     double share(size_t p) const { return restShare ? double(restShare[p]) : 1.0; }
-    /// Whether p sends a rest (rule 6) at radius index restScale[p].
+    /// Whether p sends a rest at radius index restScale[p] (rule 6: a cluster's luck; rule 8:
+    /// radius 0, the light its neighbours' means hold, kept in place).
     bool sendsRest(size_t p) const { return restShare && restShare[p] < 1.f && sends(p); }
     /// Whether the windows of radius r take the bias guide (rule 7).
     bool byBias(int r) const { return biasGuide && r >= 2 && r <= biasRadius; }

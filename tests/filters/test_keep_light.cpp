@@ -660,6 +660,87 @@ TEST(KeepLight, ASupportedClustersLuckGoesWhereTheLightIs) {
     EXPECT_EQ(std::memcmp(giveBack(f, 1, params, 2).data(), guided.data(), n * sizeof(float)), 0);
 }
 
+// Rule 8 by hand (9 x 9, one channel): a defocused light's edge whose pixels all lost their
+// light. Rows 0 to 3 are the light (robust 17), row 4 its edge (robust 0.1, plain means 0.4, d =
+// se = 0.3, but 0.5 at (3, 4), 0.6 at (4, 4) and 0.3 at (5, 4)), rows 5 to 8 the floor (0.1).
+// No robust value near (4, 4) holds the light (rule 5's median is 0.1) and its 3 x 3 test's Z is
+// 1.1 / sqrt(0.45) = 1.64, so its light would go wide. Its 8 neighbours' plain means, sorted:
+// 0.1 0.1 0.1 0.3 0.5 17 17 17, median 0.4: it keeps half the gap to its robust value, 0.15 of
+// its d = 0.5, in place (restShare 0.7, restScale 0), and sends the rest to radius 64, where the
+// tent over 9 x 9 gives its own pixel 65^2 / 565^2. A lone firefly on the floor (4, 7) keeps
+// nothing: its neighbours' level is its robust value. A pixel that gained (d < 0) keeps nothing.
+TEST(KeepLight, ANeighbourhoodsLightStaysWhereItsMeansSayItIs) {
+    Field f(9, 9, 1);
+    f.robustY.assign(f.d.size(), 0.1f);
+    for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 9; ++x) f.robustY[f.at(x, y)] = 17.f;
+    auto lose = [&](int x, int y, float d) {
+        const size_t q = f.at(x, y);
+        f.residual[q] = d;
+        f.d[q] = d;
+        f.se[q] = std::fabs(d);
+        f.active[q] = 1;
+    };
+    for (int x = 0; x < 9; ++x) lose(x, 4, 0.3f);
+    lose(3, 4, 0.4f);
+    lose(4, 4, 0.5f);
+    lose(5, 4, 0.2f);
+    lose(4, 7, 0.5f);   // a lone firefly
+    lose(1, 7, -0.2f);  // a pixel that gained
+    f.robust = f.robustY;
+    const size_t p = f.at(4, 4), n = f.d.size();
+    const std::vector<int> radii = keepLightRadii(KeepLightParams{}.maxRadius);
+    auto scales = [&](double share, std::vector<uint8_t>& scale, std::vector<uint8_t>& restScale,
+                      std::vector<float>& restShare) {
+        KeepLightParams params;
+        params.neighbourShare = share;
+        scale.assign(n, 0);
+        restScale.assign(n, 0);
+        restShare.assign(n, 0.f);
+        keepLightScales(f.d.data(), f.se.data(), f.robustY.data(), f.active.data(), f.w, f.h,
+                        params, scale.data(), 1, restScale.data(), restShare.data());
+    };
+    std::vector<uint8_t> scale, restScale;
+    std::vector<float> restShare;
+    scales(0.5, scale, restScale, restShare);
+    EXPECT_EQ(radii[scale[p]], 64);
+    EXPECT_EQ(restScale[p], 0);
+    EXPECT_NEAR(restShare[p], 0.7, 1e-6);
+    // (6, 4): neighbours 0.1 0.1 0.1 0.3 0.4 17 17 17, level 0.35, keeps 0.125 of 0.3.
+    EXPECT_NEAR(restShare[f.at(6, 4)], 1.0 - 0.125 / 0.3, 1e-6);
+    for (const size_t q : {f.at(4, 7), f.at(1, 7)}) {
+        EXPECT_EQ(restShare[q], 1.f) << q;
+        EXPECT_EQ(restScale[q], scale[q]) << q;
+    }
+    // p's own light alone: 0.15 in place, 0.35 x 65^2 / 565^2 of the wide window's back.
+    std::vector<double> alone(n, 0.0);
+    alone[p] = 0.5;
+    const std::vector<float> light = keepLightLightGuide(f.robustY.data(), f.d.data(), f.w, f.h, 1);
+    std::vector<float> out(n);
+    returnResidual(f.robust.data(), alone.data(), scale.data(), radii, f.w, f.h, 1, out.data(), 1,
+                   nullptr, nullptr, restScale.data(), restShare.data(), light.data());
+    EXPECT_NEAR(out[p], 0.1 + 0.15 + 0.35 * 4225.0 / 319225.0, 1e-6);
+    double total = 0.0;
+    for (size_t q = 0; q < n; ++q) total += double(out[q]) - double(f.robust[q]);
+    EXPECT_NEAR(total, 0.5, 4e-5);  // 36 float roundings at 17 (half an ulp: 9.5e-7)
+    // The share: all of the gap (0.3 of 0.5), more than d (all of it), none (rules 1 to 7 alone).
+    scales(1.0, scale, restScale, restShare);
+    EXPECT_NEAR(restShare[p], 0.4, 1e-6);
+    scales(4.0, scale, restScale, restShare);
+    EXPECT_EQ(restShare[p], 0.f);
+    scales(0.0, scale, restScale, restShare);
+    EXPECT_EQ(restShare[p], 1.f);
+    EXPECT_EQ(restScale[p], scale[p]);
+    // A neighbour that is not finite takes no part: 0.1 0.1 0.1 0.3 0.5 17 17, level 0.3.
+    f.robustY[f.at(3, 3)] = std::numeric_limits<float>::quiet_NaN();
+    scales(0.5, scale, restScale, restShare);
+    EXPECT_NEAR(restShare[p], 0.8, 1e-6);
+    // Its own robust value not finite: no rule 8.
+    f.robustY[p] = std::numeric_limits<float>::infinity();
+    scales(0.5, scale, restScale, restShare);
+    EXPECT_EQ(restShare[p], 1.f);
+}
+
 // Rule 7's inputs by hand (32 x 8, radii 0, 1, 2, 4, gamma 4, se 0.01 everywhere): d = 2 left
 // of column 16, 0 right of it. At (4, 4) every window lies on the left: ICI's estimate 2. At
 // (14, 4) the windows of radius 0 and 1 say 2 and the one of radius 2 (columns 12 to 16) 8 / 5 =

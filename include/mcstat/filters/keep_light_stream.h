@@ -45,7 +45,7 @@ using KeepLightTake = std::function<bool(int y0, int y1, const double* add)>;
 /// `--gmon` alone at 266 MB, and take 2.99, 2.93 and 2.83 s, docs/keep-light.md).
 int keepLightBandRows(const KeepLightParams& params);
 
-/// keepLightScales with its rest (rule 6), keepLightClusterGuide, keepLightLightGuide and
+/// keepLightScales with its rest (rules 6 and 8), keepLightClusterGuide, keepLightLightGuide and
 /// returnResidual (with the guide when `guided`, and then rule 7's keepLightBiasGuide too, and
 /// the cluster and light guides) over a width x height image of nch residual channels, by bands
 /// of bandRows rows (0: keepLightBandRows). Fill is never more than a band and 2 R + 1 rows ahead
