@@ -99,10 +99,11 @@ struct KeepLightParams {
     double biasFloor = 4.0;
     /// Rule 8: a pixel that no other rule keeps close (not supported, not kept by the edge test)
     /// keeps in place min(d, neighbourShare x (L - robust)) of its light, L the median of its 8
-    /// neighbours' plain means (0: none): light its neighbours' means say is there (a defocused
-    /// edge whose neighbours along it lost their light too). A lone firefly's neighbours lie at
-    /// its surface's level, which is its robust value: it keeps nothing. Half the gap because
-    /// the neighbours' median is noisy too (docs/keep-light.md, rule 8).
+    /// neighbours' plain means (neighbourShare 0: the rule is off): light its neighbours' means
+    /// say is there (a defocused edge whose neighbours along it lost their light too). A lone
+    /// firefly's neighbours lie at its surface's level, which is its robust value: it keeps
+    /// nothing. Half the gap because the neighbours' median is noisy too (docs/keep-light.md,
+    /// rule 8).
     double neighbourShare = 0.5;
 };
 
