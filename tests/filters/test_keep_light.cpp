@@ -741,6 +741,60 @@ TEST(KeepLight, ANeighbourhoodsLightStaysWhereItsMeansSayItIs) {
     EXPECT_EQ(restShare[p], 1.f);
 }
 
+// Rule 9 by hand (9 x 9, one channel, robust 0.1): a 3 x 3 block of d = se = 1 (z = 1 each,
+// supported together: Z = 12.5 / 3) around p = (4, 4), whose own d = 4.5 with se = 1 lies beyond
+// gamma = 4 of its own standard errors. No per-pixel estimator leaves such a residual (its robust
+// value lies within its buffers' spread); a filter across pixels does, and the light is p's own:
+// radius 0, all of it in place. Its neighbours (z = 1) keep the support test's radius 1. At
+// d = 3.9 (z under gamma) p is a supported cluster's pixel again; a gain (d = -4.5) and se = 0
+// (d not 0: the buffers agree) stay in place too.
+TEST(KeepLight, LightBeyondAPixelsOwnNoiseStaysInIt) {
+    Field f(9, 9, 1);
+    std::fill(f.robust.begin(), f.robust.end(), 0.1f);
+    f.robustY.assign(f.d.size(), 0.1f);
+    for (int y = 3; y < 6; ++y)
+        for (int x = 3; x < 6; ++x) {
+            const size_t q = f.at(x, y);
+            f.residual[q] = 1.0;
+            f.d[q] = f.se[q] = 1.f;
+            f.active[q] = 1;
+        }
+    const size_t p = f.at(4, 4), n = f.d.size();
+    const KeepLightParams params;
+    const std::vector<int> radii = keepLightRadii(params.maxRadius);
+    std::vector<uint8_t> scale(n), restScale(n);
+    std::vector<float> restShare(n);
+    auto scales = [&](float d, float se) {
+        f.residual[p] = d;
+        f.d[p] = d;
+        f.se[p] = se;
+        keepLightScales(f.d.data(), f.se.data(), f.robustY.data(), f.active.data(), f.w, f.h,
+                        params, scale.data(), 1, restScale.data(), restShare.data());
+    };
+    scales(4.5f, 1.f);
+    EXPECT_EQ(scale[p], 0);
+    EXPECT_EQ(restShare[p], 1.f);
+    EXPECT_EQ(radii[scale[f.at(3, 4)]], 1);
+    // p's light alone comes back whole in p, bit for bit its mean's 0.1 + 4.5 in float.
+    std::vector<double> alone(n, 0.0);
+    alone[p] = 4.5;
+    std::vector<float> out(n);
+    returnResidual(f.robust.data(), alone.data(), scale.data(), radii, f.w, f.h, 1, out.data(), 1,
+                   nullptr, nullptr, restScale.data(), restShare.data());
+    EXPECT_EQ(out[p], float(double(0.1f) + 4.5));
+    for (size_t q = 0; q < n; ++q) {
+        if (q != p) {
+            EXPECT_EQ(out[q], 0.1f) << q;
+        }
+    }
+    scales(3.9f, 1.f);
+    EXPECT_EQ(radii[scale[p]], 1);
+    scales(-4.5f, 1.f);
+    EXPECT_EQ(scale[p], 0);
+    scales(4.5f, 0.f);
+    EXPECT_EQ(scale[p], 0);
+}
+
 // Rule 7's inputs by hand (32 x 8, radii 0, 1, 2, 4, gamma 4, se 0.01 everywhere): d = 2 left
 // of column 16, 0 right of it. At (4, 4) every window lies on the left: ICI's estimate 2. At
 // (14, 4) the windows of radius 0 and 1 say 2 and the one of radius 2 (columns 12 to 16) 8 / 5 =
