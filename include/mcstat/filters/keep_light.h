@@ -72,6 +72,12 @@
 // neighbours' plain means and its robust value (KeepLightParams::neighbourShare: half; the
 // median is noisy too), at most its own residual. A lone firefly's neighbours lie at its
 // surface's level, its robust value: it keeps nothing, and its light goes wide as before.
+//
+// Last, a residual beyond gamma of the pixel's own standard errors (|d| > gamma se) stays in
+// place. A per-pixel estimator never leaves one (its robust value lies within its buffers'
+// spread); a 3D filter, which estimates a pixel from its neighbours' buffers too, does at the
+// edge of a small bright emitter: it takes the emitter's light to the dark pixels beside it, and
+// that light is the pixel's own, not an estimator's bias to spread.
 #pragma once
 
 #include <cstdint>
@@ -118,7 +124,9 @@ std::vector<int> keepLightRadii(int maxRadius);
 /// lies nearer the pixel's mean (robustY + d) than its robust value gets scale 0 (the edge of a
 /// bright surface, above; beyond the image the window takes the nearest pixel inside it);
 /// non-finite values of robustY take no part in the median, and a pixel whose own robustY or d
-/// is not finite is not tested. Only pixels with active[p] != 0 are decided (the others get 0):
+/// is not finite is not tested. A pixel whose own d lies beyond gamma of its se (|d| > gamma se;
+/// se 0: d not 0; both finite) gets scale 0 too: light a filter across pixels moved is the
+/// pixel's own (rule 9). Only pixels with active[p] != 0 are decided (the others get 0):
 /// the rest carry no residual. Deterministic, any thread count.
 ///
 /// With restScale and restShare (both or neither; null: every pixel sends all of its light at
