@@ -54,6 +54,22 @@ std::vector<float> giveBack(const Field& f, int nch, const KeepLightParams& p, i
     return out;
 }
 
+/// A size x size image of one channel, robust 0.1 everywhere (its luminance too), and a 3 x 3
+/// block of d = se = 1 (residual 1) whose top left pixel is (at, at).
+Field blockOnAFloor(int size, int at) {
+    Field f(size, size, 1);
+    std::fill(f.robust.begin(), f.robust.end(), 0.1f);
+    f.robustY.assign(f.d.size(), 0.1f);
+    for (int y = at; y < at + 3; ++y)
+        for (int x = at; x < at + 3; ++x) {
+            const size_t q = f.at(x, y);
+            f.residual[q] = 1.0;
+            f.d[q] = f.se[q] = 1.f;
+            f.active[q] = 1;
+        }
+    return f;
+}
+
 /// A random image: robust values in [0, 1), residuals mostly 0, some small of both signs, a few
 /// fireflies up to 1e4; d their average, se their size.
 Field randomField(int w, int h, unsigned seed) {
@@ -589,16 +605,7 @@ TEST(KeepLight, TheLightGuideByHand) {
 // light guide: 1.1 on the block, 0.1 on the floor, so the block (2 % of the pixels) takes about a
 // fifth of it back. Without the rest (rule 6 off) nothing reaches beyond two pixels of the block.
 TEST(KeepLight, ASupportedClustersLuckGoesWhereTheLightIs) {
-    Field f(20, 20, 1);
-    std::fill(f.robust.begin(), f.robust.end(), 0.1f);
-    f.robustY.assign(f.d.size(), 0.1f);
-    for (int y = 9; y < 12; ++y)
-        for (int x = 9; x < 12; ++x) {
-            const size_t p = f.at(x, y);
-            f.residual[p] = 1.0;
-            f.d[p] = f.se[p] = 1.f;
-            f.active[p] = 1;
-        }
+    Field f = blockOnAFloor(20, 9);
     const KeepLightParams params;
     const std::vector<int> radii = keepLightRadii(params.maxRadius);
     const size_t n = f.d.size(), largest = radii.size() - 1;
@@ -749,16 +756,7 @@ TEST(KeepLight, ANeighbourhoodsLightStaysWhereItsMeansSayItIs) {
 // d = 3.9 (z under gamma) p is a supported cluster's pixel again; a gain (d = -4.5) and se = 0
 // (d not 0: the buffers agree) stay in place too.
 TEST(KeepLight, LightBeyondAPixelsOwnNoiseStaysInIt) {
-    Field f(9, 9, 1);
-    std::fill(f.robust.begin(), f.robust.end(), 0.1f);
-    f.robustY.assign(f.d.size(), 0.1f);
-    for (int y = 3; y < 6; ++y)
-        for (int x = 3; x < 6; ++x) {
-            const size_t q = f.at(x, y);
-            f.residual[q] = 1.0;
-            f.d[q] = f.se[q] = 1.f;
-            f.active[q] = 1;
-        }
+    Field f = blockOnAFloor(9, 3);
     const size_t p = f.at(4, 4), n = f.d.size();
     const KeepLightParams params;
     const std::vector<int> radii = keepLightRadii(params.maxRadius);
