@@ -424,13 +424,34 @@ void windowSums(const std::vector<double>& vals, int width, int s0, int s1, int 
     });
 }
 
+/// The median of value(q) over p's 3 x 3 window, or its 8 neighbours with `withoutP` (finite
+/// values only; NaN where none is). Beyond the image the window takes the nearest pixel inside
+/// it, so a border pixel's own row or column counts twice and the median is one of nine values
+/// (a clipped window of six averages its two middle ones, and that midpoint kept fireflies on
+/// the fixture's border rows). Rules 5 and 8 ask the neighbours this way.
+template <class Value>
+double windowMedian(const keeplight::HeldRows& held, int x, int y, bool withoutP, Value value) {
+    std::array<double, 9> v;
+    size_t n = 0;
+    for (int j = y - 1; j <= y + 1; ++j)
+        for (int i = x - 1; i <= x + 1; ++i) {
+            if (withoutP && i == x && j == y) continue;
+            const double m =
+                value(held.at(std::clamp(i, 0, held.width - 1), std::clamp(j, 0, held.height - 1)));
+            if (std::isfinite(m)) v[n++] = m;
+        }
+    if (n == 0) return std::numeric_limits<double>::quiet_NaN();
+    // Insertion sort of at most nine (std::sort's 16-element insertion pass trips GCC 12's
+    // array-bounds warning on a shorter array).
+    for (size_t i = 1; i < n; ++i)
+        for (size_t j = i; j > 0 && v[j] < v[j - 1]; --j) std::swap(v[j], v[j - 1]);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
 /// Whether p's neighbours say that its plain mean is a better estimate than its robust value:
-/// the median of the robust luminance over the 3 x 3 window (its finite values) lies nearer the
-/// mean's luminance, robustY + d, than the robust one. Beyond the image the window takes the
-/// nearest pixel inside it, so a border pixel's own row or column counts twice and the median is
-/// one of nine values (a clipped window of six averages its two middle ones, and that midpoint
-/// kept fireflies on the fixture's border rows). At the edge of a bright surface a pixel that
-/// the surface covers in part sees it in a few samples, which a robust estimator takes for
+/// the median of the robust luminance over the 3 x 3 window (windowMedian) lies nearer the
+/// mean's luminance, robustY + d, than the robust one. At the edge of a bright surface a pixel
+/// that the surface covers in part sees it in a few samples, which a robust estimator takes for
 /// fireflies; its neighbours along the edge and on the surface, whose robust values hold that
 /// light, put the median above the midpoint between the robust value and the mean. A firefly's
 /// neighbours are its surface's robust values, near its own.
@@ -438,16 +459,9 @@ bool meanNearerNeighbours(const keeplight::HeldRows& held, int x, int y) {
     const size_t p = held.at(x, y);
     const double robust = held.robustY[p], d = held.d[p];
     if (!std::isfinite(robust) || !std::isfinite(d)) return false;
-    std::array<double, 9> v;
-    size_t n = 0;
-    for (int j = y - 1; j <= y + 1; ++j)
-        for (int i = x - 1; i <= x + 1; ++i) {
-            const int ci = std::clamp(i, 0, held.width - 1), cj = std::clamp(j, 0, held.height - 1);
-            const float r = held.robustY[held.at(ci, cj)];
-            if (std::isfinite(r)) v[n++] = double(r);
-        }
-    std::sort(v.begin(), v.begin() + std::ptrdiff_t(n));  // n >= 1: p's own is finite
-    const double median = n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+    // Not NaN: p's own robust value is finite.
+    const double median =
+        windowMedian(held, x, y, false, [&](size_t q) { return double(held.robustY[q]); });
     return std::fabs(robust + d - median) < std::fabs(robust - median);
 }
 
@@ -462,28 +476,13 @@ bool beyondItsOwnNoise(const keeplight::HeldRows& held, size_t p, double gamma) 
     return std::fabs(d) > gamma * std::max(se, 0.0);
 }
 
-/// Rule 8's level: the median of p's 8 neighbours' plain-mean luminance, robustY + d (their
-/// finite values; beyond the image the nearest pixel inside it, as meanNearerNeighbours). NaN
-/// where none is finite. A pixel's own mean stays out: a firefly's is its own evidence, which
-/// its neighbours are asked about. The median (of eight, the mean of the two middle values)
-/// ignores up to three bright neighbours: an emitter's edge beside it.
+/// Rule 8's level: the median of p's 8 neighbours' plain-mean luminance, robustY + d
+/// (windowMedian; NaN where none is finite). A pixel's own mean stays out: a firefly's is its own
+/// evidence, which its neighbours are asked about. The median (of eight, the mean of the two
+/// middle values) ignores up to three bright neighbours: an emitter's edge beside it.
 double neighboursLevel(const keeplight::HeldRows& held, int x, int y) {
-    std::array<double, 8> v;
-    size_t n = 0;
-    for (int j = y - 1; j <= y + 1; ++j)
-        for (int i = x - 1; i <= x + 1; ++i) {
-            if (i == x && j == y) continue;
-            const size_t q =
-                held.at(std::clamp(i, 0, held.width - 1), std::clamp(j, 0, held.height - 1));
-            const double m = double(held.robustY[q]) + double(held.d[q]);
-            if (std::isfinite(m)) v[n++] = m;
-        }
-    if (n == 0) return std::numeric_limits<double>::quiet_NaN();
-    // Insertion sort of at most eight (std::sort's 16-element insertion pass trips GCC 12's
-    // array-bounds warning on an array of eight).
-    for (size_t i = 1; i < n; ++i)
-        for (size_t j = i; j > 0 && v[j] < v[j - 1]; --j) std::swap(v[j], v[j - 1]);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+    return windowMedian(held, x, y, true,
+                        [&](size_t q) { return double(held.robustY[q]) + double(held.d[q]); });
 }
 
 /// Rule 8: the share of p's residual that p keeps in place, min(d, neighbourShare x (level -

@@ -84,7 +84,7 @@ void lightRows(const HeldRows& held, int y0, int y1, float* out, int nthreads);
 
 /// The weight sums of each sender's window over rows [y0, y1), at its own radius: norm[p] the
 /// guide's tent sum (with a guide), clusterNorm[p] the cluster guide's (radius 1 only),
-/// lightNorm[p] the light guide's at the rest's radius (rule 6: restScale); 0 where p sends
+/// lightNorm[p] the light guide's at the rest's radius (rules 6 and 8: restScale); 0 where p sends
 /// nothing or has no such window; biasNorm[p] the bias guide's, for the senders of radius 2 to
 /// biasRadius (rule 7). Reads residual, scale, restScale, restShare, guide, cluster, light and
 /// biasGuide over [y0 - radius, y1 + radius).
