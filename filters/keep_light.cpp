@@ -465,15 +465,18 @@ bool meanNearerNeighbours(const keeplight::HeldRows& held, int x, int y) {
     return std::fabs(robust + d - median) < std::fabs(robust - median);
 }
 
-/// Rule 9: whether p's residual alone lies beyond gamma of its own standard errors, |d| >
-/// gamma se (se 0: any d that is not 0). A per-pixel estimator's residual never does: its robust
-/// value lies within its buffers' spread (on the fixture's renders G-MoN's |d| / se stays under
-/// 2). One that filters across pixels takes a bright pixel's light to its neighbours, and gives
-/// a dark pixel beside it theirs; both are the pixel's own light, and the pixel is its mean.
-bool beyondItsOwnNoise(const keeplight::HeldRows& held, size_t p, double gamma) {
+/// Rule 9: whether p's residual is its own light, to keep in place: a gain (d < 0: the robust
+/// value lies above the mean, so no firefly inflated the mean and nothing was removed; spread, it
+/// would darken other pixels, below 0 beside a light whose edge a mode-seeking estimator filled),
+/// or a loss beyond ownZ of its own standard errors, d > ownZ se (se 0: any d > 0). A filter
+/// across pixels takes a bright pixel's light to its neighbours and gives a dark pixel beside it
+/// theirs; a median of many buffers takes a dark one where many hold a light's samples. Either
+/// way the pixel's own buffers hold the light, and the pixel is its mean. A lone firefly's d / se
+/// is about 1 (one buffer's event), so it never passes.
+bool ownLight(const keeplight::HeldRows& held, size_t p, double ownZ) {
     const double d = held.d[p], se = held.se[p];
     if (!std::isfinite(d) || !std::isfinite(se) || d == 0.0) return false;
-    return std::fabs(d) > gamma * std::max(se, 0.0);
+    return d < 0.0 || d > ownZ * std::max(se, 0.0);
 }
 
 /// Rule 8's level: the median of p's 8 neighbours' plain-mean luminance, robustY + d
@@ -570,9 +573,9 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
                     // Light that the neighbours' robust values say belongs to this pixel (the
                     // edge of a bright surface) stays in it: the pixel is its plain mean.
                     if (chosen != 0 && held.robustY && meanNearerNeighbours(held, x, y)) chosen = 0;
-                    // Rule 9: light the pixel's own buffers hold beyond gamma standard errors is
-                    // its own (an estimator that moved light between pixels: a 3D filter).
-                    if (chosen != 0 && beyondItsOwnNoise(held, held.at(x, y), gamma)) chosen = 0;
+                    // Rule 9: a gain, and a loss beyond ownZ standard errors, are the pixel's own
+                    // light (a 3D filter moved it; a median of many buffers missed it).
+                    if (chosen != 0 && ownLight(held, held.at(x, y), params.ownZ)) chosen = 0;
                     scale[o] = chosen;
                     if (!restShare) continue;
                     restScale[o] = chosen;

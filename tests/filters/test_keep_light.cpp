@@ -127,6 +127,50 @@ TEST(KeepLight, EnergyConservedToFloatSummationOnRandomImages) {
     }
 }
 
+// Only removed light moves (rule 9 keeps every gain in place), so no pixel ends below the
+// smaller of its robust value and its plain mean: what it receives from others is their losses,
+// never their gains. randomField's residuals share their pixel's sign in every channel, a third
+// of them gains (d in [-0.3, 0)), so the bound holds per channel here (on renders it holds for the
+// luminance, the decision's d). Without the rule a gain's negative light reaches its neighbours.
+TEST(KeepLight, NoPixelEndsBelowItsRobustValueAndItsMean) {
+    for (unsigned seed : {1u, 2u, 3u}) {
+        const Field f = randomField(97, 61, seed);
+        const std::vector<float> out = giveBack(f, 3, {}, 2);
+        size_t gains = 0;
+        for (size_t p = 0; p < f.d.size(); ++p) {
+            gains += f.d[p] < 0.f;
+            for (size_t c = 0; c < 3; ++c) {
+                const double robust = f.robust[p * 3 + c];
+                const double floor = std::min(robust, robust + f.residual[p * 3 + c]);
+                ASSERT_GE(double(out[p * 3 + c]), floor - 1e-6 * std::fabs(floor))
+                    << "seed " << seed << " pixel " << p << " channel " << c;
+            }
+        }
+        EXPECT_GT(gains, 500u);  // the bound is tested where it could fail
+    }
+    // By hand: the bottom row of a light (rows 0 to 16: 17) over a dark floor of 0.05, and in it
+    // a pixel that a mode-seeking estimator filled (robust 17, mean 12.95, 16 of 21 buffers on
+    // the light: d = -4.05, se 1.62, z = -2.5; its neighbours' median is the light's, so the edge
+    // test does not keep it). Its gain stays: it is its mean, and every other pixel keeps its
+    // value bit for bit (spread, its -4.05 would darken the pixels around it).
+    Field f(33, 33, 1);
+    for (int y = 0; y < 33; ++y)
+        for (int x = 0; x < 33; ++x) f.robust[f.at(x, y)] = y <= 16 ? 17.f : 0.05f;
+    f.robustY = f.robust;
+    const size_t p = f.at(16, 16);
+    f.residual[p] = -4.05;
+    f.d[p] = -4.05f;
+    f.se[p] = 1.62f;
+    f.active[p] = 1;
+    const std::vector<float> out = giveBack(f, 1, {}, 1);
+    EXPECT_EQ(out[p], float(double(17.f) - 4.05));
+    for (size_t q = 0; q < out.size(); ++q) {
+        if (q != p) {
+            ASSERT_EQ(out[q], f.robust[q]) << q;
+        }
+    }
+}
+
 TEST(KeepLight, ZeroResidualGivesTheRobustImageBitForBit) {
     Field f = randomField(40, 30, 7);
     std::fill(f.residual.begin(), f.residual.end(), 0.0);
@@ -750,15 +794,15 @@ TEST(KeepLight, ANeighbourhoodsLightStaysWhereItsMeansSayItIs) {
 
 // Rule 9 by hand (9 x 9, one channel, robust 0.1): a 3 x 3 block of d = se = 1 (z = 1 each,
 // supported together: Z = 12.5 / 3) around p = (4, 4), whose own d = 4.5 with se = 1 lies beyond
-// gamma = 4 of its own standard errors. No per-pixel estimator leaves such a residual (its robust
-// value lies within its buffers' spread); a filter across pixels does, and the light is p's own:
-// radius 0, all of it in place. Its neighbours (z = 1) keep the support test's radius 1. At
-// d = 3.9 (z under gamma) p is a supported cluster's pixel again; a gain (d = -4.5) and se = 0
-// (d not 0: the buffers agree) stay in place too.
+// ownZ = 2.5 of its own standard errors (a filter across pixels leaves such a residual, and a
+// median of many buffers where many hold a light): the light is p's own, radius 0, all of it in
+// place. Its neighbours (z = 1) keep the support test's radius 1. At z = 2.6 p still keeps it;
+// at 2.4 (under ownZ) p is a supported cluster's pixel again, and so at 3.9 with ownZ 4; a gain
+// (d = -4.5) and se = 0 (d not 0: the buffers agree) stay in place too.
 TEST(KeepLight, LightBeyondAPixelsOwnNoiseStaysInIt) {
     Field f = blockOnAFloor(9, 3);
     const size_t p = f.at(4, 4), n = f.d.size();
-    const KeepLightParams params;
+    KeepLightParams params;
     const std::vector<int> radii = keepLightRadii(params.maxRadius);
     std::vector<uint8_t> scale(n), restScale(n);
     std::vector<float> restShare(n);
@@ -785,8 +829,15 @@ TEST(KeepLight, LightBeyondAPixelsOwnNoiseStaysInIt) {
             EXPECT_EQ(out[q], 0.1f) << q;
         }
     }
+    // ownZ 2.5: z = 2.6 stays, z = 2.4 goes with its block (radius 1); ownZ 4 lets 3.9 go too.
+    scales(2.6f, 1.f);
+    EXPECT_EQ(scale[p], 0);
+    scales(2.4f, 1.f);
+    EXPECT_EQ(radii[scale[p]], 1);
+    params.ownZ = 4.0;
     scales(3.9f, 1.f);
     EXPECT_EQ(radii[scale[p]], 1);
+    params.ownZ = KeepLightParams().ownZ;
     scales(-4.5f, 1.f);
     EXPECT_EQ(scale[p], 0);
     scales(4.5f, 0.f);

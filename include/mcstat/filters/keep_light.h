@@ -73,11 +73,17 @@
 // median is noisy too), at most its own residual. A lone firefly's neighbours lie at its
 // surface's level, its robust value: it keeps nothing, and its light goes wide as before.
 //
-// Last, a residual beyond gamma of the pixel's own standard errors (|d| > gamma se) stays in
-// place. A per-pixel estimator never leaves one (its robust value lies within its buffers'
-// spread); a 3D filter, which estimates a pixel from its neighbours' buffers too, does at the
-// edge of a small bright emitter: it takes the emitter's light to the dark pixels beside it, and
-// that light is the pixel's own, not an estimator's bias to spread.
+// Last, a pixel's own light stays in place: a gain (the robust value above the mean: no
+// firefly inflated that mean, nothing was removed, and spread it would darken other pixels, below
+// 0 beside a light whose edge a mode-seeking estimator filled), and a loss beyond ownZ of the
+// pixel's own standard errors (d > ownZ se, 2.5): its own buffers hold that light, whatever an
+// estimator made of it. A 3D filter, which estimates a pixel from its neighbours' buffers too,
+// leaves one at the edge of a small bright emitter: it takes the emitter's light to the dark
+// pixels beside it. A per-pixel estimator leaves one where many of its buffers hold a light's
+// samples and its robust value took a dark one (the median of 21 buffers of one sample each, 10
+// of them on a light); with M = 9 and a few fireflies its d / se stays under 1.8. So only light
+// that was removed moves, and no pixel's luminance ends below the smaller of its robust value's
+// and its plain mean's.
 #pragma once
 
 #include <cstdint>
@@ -111,6 +117,11 @@ struct KeepLightParams {
     /// nothing. Half the gap because the neighbours' median is noisy too (docs/keep-light.md,
     /// rule 8).
     double neighbourShare = 0.5;
+    /// Rule 9: a pixel whose loss alone lies beyond ownZ of its own standard errors, d > ownZ
+    /// se, keeps it in place (its buffers hold that light), as every gain (d < 0). 2.5: no G-MoN
+    /// or TMPE pixel of the fixture's M = 9 renders reaches 1.8, and a lone firefly's d / se is
+    /// about 1 for any M; at 2 the 3D filters' caustic lost 15 % (docs/keep-light.md, rule 9).
+    double ownZ = 2.5;
 };
 
 /// The window radii the choice considers: 0, 1, 2, 4, ..., each doubling, the last maxRadius.
@@ -124,10 +135,10 @@ std::vector<int> keepLightRadii(int maxRadius);
 /// lies nearer the pixel's mean (robustY + d) than its robust value gets scale 0 (the edge of a
 /// bright surface, above; beyond the image the window takes the nearest pixel inside it);
 /// non-finite values of robustY take no part in the median, and a pixel whose own robustY or d
-/// is not finite is not tested. A pixel whose own d lies beyond gamma of its se (|d| > gamma se;
-/// se 0: d not 0; both finite) gets scale 0 too: light a filter across pixels moved is the
-/// pixel's own (rule 9). Only pixels with active[p] != 0 are decided (the others get 0):
-/// the rest carry no residual. Deterministic, any thread count.
+/// is not finite is not tested. A pixel whose own d is a gain (d < 0) or lies beyond ownZ of its
+/// se (d > ownZ se; se 0: d > 0; both finite) gets scale 0 too: the pixel's own light (rule 9).
+/// Only pixels with active[p] != 0 are decided (the others get 0): the rest carry no residual.
+/// Deterministic, any thread count.
 ///
 /// With restScale and restShare (both or neither; null: every pixel sends all of its light at
 /// scale[p], and rule 8 does not apply), p sends the share restShare[p] of its residual at
