@@ -743,50 +743,63 @@ void gatherRows(const HeldRows& held, const std::vector<int>& radii, int y0, int
     });
 }
 
+namespace {
+
+/// The plain mean's luminance at q, robustY + d (robustY null: 0), 0 where negative or not finite.
+double plainLight(const HeldRows& held, size_t q) {
+    const double m = (held.robustY ? double(held.robustY[q]) : 0.0) + double(held.d[q]);
+    return std::isfinite(m) && m > 0.0 ? m : 0.0;
+}
+
+/// The light guide at (x, y): its plain light, at most the brightest of its 8 neighbours'.
+double lightAt(const HeldRows& held, int x, int y) {
+    double brightest = 0.0;  // of the 8 neighbours inside the image
+    for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+            const int qx = x + dx, qy = y + dy;
+            if ((dx == 0 && dy == 0) || qx < 0 || qy < 0 || qx >= held.width || qy >= held.height)
+                continue;
+            brightest = std::max(brightest, plainLight(held, held.at(qx, qy)));
+        }
+    return std::min(plainLight(held, held.at(x, y)), brightest);
+}
+
+/// The 3 x 3 tent's weighted mean of the positive residual at (x, y).
+double tentOfLoss(const HeldRows& held, int x, int y) {
+    double sum = 0.0, weight = 0.0;
+    for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+            const int qx = x + dx, qy = y + dy;
+            if (qx < 0 || qy < 0 || qx >= held.width || qy >= held.height) continue;
+            const double t = double((2 - std::abs(dx)) * (2 - std::abs(dy)));
+            const float v = held.d[held.at(qx, qy)];
+            sum += t * (std::isfinite(v) && v > 0.f ? double(v) : 0.0);
+            weight += t;
+        }
+    return sum / weight;
+}
+
+}  // namespace
+
 void clusterRows(const HeldRows& held, int y0, int y1, float* out, int nthreads) {
-    const int width = held.width, height = held.height;
-    auto at = [&](int x, int y) {
-        const float v = held.d[held.at(x, y)];
-        return std::isfinite(v) && v > 0.f ? double(v) : 0.0;
-    };
     parallelFor(y0, y1, 0, nthreads, [&](int64_t yb, int64_t ye) {
         for (int y = int(yb); y < int(ye); ++y)
-            for (int x = 0; x < width; ++x) {
-                double sum = 0.0, weight = 0.0;
-                for (int dy = -1; dy <= 1; ++dy)
-                    for (int dx = -1; dx <= 1; ++dx) {
-                        const int qx = x + dx, qy = y + dy;
-                        if (qx < 0 || qy < 0 || qx >= width || qy >= height) continue;
-                        const double t = double((2 - std::abs(dx)) * (2 - std::abs(dy)));
-                        sum += t * at(qx, qy);
-                        weight += t;
-                    }
-                out[size_t(y - y0) * size_t(width) + size_t(x)] = float(sum / weight);
+            for (int x = 0; x < held.width; ++x) {
+                const double c = tentOfLoss(held, x, y);
+                // Beyond a float (a residual near 1e38): the largest float, so that a window's
+                // weights still sum to a finite value and its light returns whole.
+                const double g = c * std::sqrt(lightAt(held, x, y) + c);
+                out[size_t(y - y0) * size_t(held.width) + size_t(x)] =
+                    float(std::min(g, double(std::numeric_limits<float>::max())));
             }
     });
 }
 
 void lightRows(const HeldRows& held, int y0, int y1, float* out, int nthreads) {
-    const int width = held.width, height = held.height;
-    auto at = [&](int x, int y) {
-        const size_t p = held.at(x, y);
-        const double m = (held.robustY ? double(held.robustY[p]) : 0.0) + double(held.d[p]);
-        return std::isfinite(m) && m > 0.0 ? m : 0.0;
-    };
     parallelFor(y0, y1, 0, nthreads, [&](int64_t yb, int64_t ye) {
         for (int y = int(yb); y < int(ye); ++y)
-            for (int x = 0; x < width; ++x) {
-                double brightest = 0.0;  // of the 8 neighbours inside the image
-                for (int dy = -1; dy <= 1; ++dy)
-                    for (int dx = -1; dx <= 1; ++dx) {
-                        const int qx = x + dx, qy = y + dy;
-                        if ((dx == 0 && dy == 0) || qx < 0 || qy < 0 || qx >= width || qy >= height)
-                            continue;
-                        brightest = std::max(brightest, at(qx, qy));
-                    }
-                out[size_t(y - y0) * size_t(width) + size_t(x)] =
-                    float(std::min(at(x, y), brightest));
-            }
+            for (int x = 0; x < held.width; ++x)
+                out[size_t(y - y0) * size_t(held.width) + size_t(x)] = float(lightAt(held, x, y));
     });
 }
 
@@ -841,8 +854,10 @@ void returnResidual(const float* robust, const double* residual, const uint8_t* 
     });
 }
 
-std::vector<float> keepLightClusterGuide(const float* d, int width, int height, int nthreads) {
+std::vector<float> keepLightClusterGuide(const float* robustY, const float* d, int width,
+                                         int height, int nthreads) {
     keeplight::HeldRows held = keeplight::HeldRows::whole(width, height);
+    held.robustY = robustY;
     held.d = d;
     std::vector<float> g(size_t(width) * size_t(height), 0.f);
     keeplight::clusterRows(held, 0, height, g.data(), nthreads);

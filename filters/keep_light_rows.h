@@ -74,8 +74,8 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
 void biasGuideRows(const float* bias, const float* level, const float* guide, size_t n,
                    double floor, float* out, int nthreads);
 
-/// keepLightClusterGuide for rows [y0, y1) into out (rows [y0, y1) only): reads d over
-/// [y0 - 1, y1 + 1) clipped to the image.
+/// keepLightClusterGuide for rows [y0, y1) into out (rows [y0, y1) only): reads robustY (null: 0)
+/// and d over [y0 - 1, y1 + 1) clipped to the image.
 void clusterRows(const HeldRows& held, int y0, int y1, float* out, int nthreads);
 
 /// keepLightLightGuide for rows [y0, y1) into out (rows [y0, y1) only): reads robustY (null: 0)

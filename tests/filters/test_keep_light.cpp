@@ -328,12 +328,15 @@ TEST(KeepLight, ASmallCausticOfFireflyLikePixelsIsKeptClose) {
 
 // A thin caustic, a line of one-pixel-wide events whose 3 x 3 neighbourhoods are significant
 // together (z = 15 / sqrt(3 * 16) = 2.17): each pixel keeps radius 1, and by the cluster guide
-// its light stays on its line. By hand, at the line's middle: the guide is (2 + 4 + 2) 5 / 16 =
-// 2.5 on the line and (1 + 2 + 1) 5 / 16 = 1.25 beside it; a sender's tent puts 2, 4, 2 on its
-// row and 1, 2, 1 on each row beside it, so its window's guided sum is 8 x 2.5 + 2 x 4 x 1.25 =
-// 30. A pixel on the line gets 5 x 8 x 2.5 / 30 = 10 / 3 from its three senders, one beside it
-// 5 x 4 x 1.25 / 30 = 5 / 6: 2 / 3 of the light stays on the line, where the tent alone keeps
-// half (5 x 8 / 16 = 2.5 on the line, 5 x 4 / 16 = 1.25 beside it).
+// its light stays on its line. By hand, at the line's middle (robust 0, so the plain mean is d):
+// the tent's mean of d is (2 + 4 + 2) 5 / 16 = 2.5 on the line and (1 + 2 + 1) 5 / 16 = 1.25
+// beside it, the light guide 5 on the line (a neighbour along it holds 5 too) and 0 beside it, so
+// the guide c sqrt(m + c) is 2.5 sqrt(7.5) on the line and 1.25 sqrt(1.25) beside it. A sender's
+// tent puts 2, 4, 2 on its row and 1, 2, 1 on each row beside it, so its window's guided sum is
+// 8 (2.5 sqrt(7.5) + 1.25 sqrt(1.25)); a pixel on the line gets from its three senders 5 x 2.5
+// sqrt(7.5) / (2.5 sqrt(7.5) + 1.25 sqrt(1.25)) = 5 x 2 sqrt(6) / (2 sqrt(6) + 1), one beside it
+// 2.5 / (2 sqrt(6) + 1): 83 % of the light stays on the line, where the tent alone keeps half
+// (5 x 8 / 16 = 2.5 on the line, 5 x 4 / 16 = 1.25 beside it) and c alone two thirds.
 TEST(KeepLight, AThinCausticStaysOnItsLine) {
     Field f(64, 64, 1);
     for (int x = 10; x < 54; ++x) {
@@ -351,18 +354,20 @@ TEST(KeepLight, AThinCausticStaysOnItsLine) {
     // The two ends, whose 3 x 3 neighbourhoods hold two events (z = 1.77), go wide; kept at radius
     // 1 here, so that nothing but the line's own light reaches the pixels checked by hand.
     scale[f.at(10, 30)] = scale[f.at(53, 30)] = scale[f.at(30, 30)];
-    const std::vector<float> cluster = keepLightClusterGuide(f.d.data(), f.w, f.h, 2);
-    EXPECT_FLOAT_EQ(cluster[f.at(30, 30)], 2.5f);
-    EXPECT_FLOAT_EQ(cluster[f.at(30, 29)], 1.25f);
+    const std::vector<float> cluster =
+        keepLightClusterGuide(f.robustYOrNull(), f.d.data(), f.w, f.h, 2);
+    EXPECT_FLOAT_EQ(cluster[f.at(30, 30)], float(2.5 * std::sqrt(7.5)));
+    EXPECT_FLOAT_EQ(cluster[f.at(30, 29)], float(1.25 * std::sqrt(1.25)));
     EXPECT_FLOAT_EQ(cluster[f.at(30, 28)], 0.f);
     std::vector<float> guided(f.robust.size()), tent(f.robust.size());
     returnResidual(f.robust.data(), f.residual.data(), scale.data(), radii, f.w, f.h, 1,
                    guided.data(), 2, nullptr, cluster.data());
     returnResidual(f.robust.data(), f.residual.data(), scale.data(), radii, f.w, f.h, 1,
                    tent.data(), 2);
-    EXPECT_NEAR(guided[f.at(30, 30)], 10.0 / 3.0, 1e-6);
-    EXPECT_NEAR(guided[f.at(30, 29)], 5.0 / 6.0, 1e-6);
-    EXPECT_NEAR(guided[f.at(30, 31)], 5.0 / 6.0, 1e-6);
+    const double k = 2.0 * std::sqrt(6.0);
+    EXPECT_NEAR(guided[f.at(30, 30)], 5.0 * k / (k + 1.0), 1e-6);
+    EXPECT_NEAR(guided[f.at(30, 29)], 2.5 / (k + 1.0), 1e-6);
+    EXPECT_NEAR(guided[f.at(30, 31)], 2.5 / (k + 1.0), 1e-6);
     EXPECT_EQ(guided[f.at(30, 28)], 0.f);
     EXPECT_NEAR(tent[f.at(30, 30)], 2.5, 1e-6);
     EXPECT_NEAR(tent[f.at(30, 29)], 1.25, 1e-6);
@@ -544,7 +549,8 @@ TEST(KeepLight, TheGatherEqualsThePlainSums) {
             for (size_t p = 0; p < scale.size(); ++p) scale[p] = uint8_t(p % 3);
             const std::vector<int> radii = {0, std::min(r, 2), r};
             // A cluster guide that is 0 over whole windows in places (d <= 0 there).
-            const std::vector<float> cluster = keepLightClusterGuide(f.d.data(), f.w, f.h, 2);
+            const std::vector<float> cluster =
+                keepLightClusterGuide(f.robustYOrNull(), f.d.data(), f.w, f.h, 2);
             // A rest (rule 6) from a third of the pixels, of shares 0 to 1, at another radius;
             // the light guide 0 over whole windows in places (the black rows).
             std::vector<uint8_t> restScale(f.d.size());
@@ -964,7 +970,8 @@ std::vector<float> wholeImage(const Field& f, const std::vector<float>* guide,
     keepLightScales(f.d.data(), f.se.data(), f.robustYOrNull(), f.active.data(), f.w, f.h, p,
                     scale.data(), nthreads, restScale.data(), restShare.data(), bias.data(),
                     level.data());
-    const std::vector<float> cluster = keepLightClusterGuide(f.d.data(), f.w, f.h, nthreads);
+    const std::vector<float> cluster =
+        keepLightClusterGuide(f.robustYOrNull(), f.d.data(), f.w, f.h, nthreads);
     const std::vector<float> light =
         keepLightLightGuide(f.robustYOrNull(), f.d.data(), f.w, f.h, nthreads);
     const std::vector<float> byBias =

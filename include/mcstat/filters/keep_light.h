@@ -201,12 +201,18 @@ inline float withReturnedLight(float robust, double add) {
     return add != 0.0 ? float(double(robust) + add) : robust;
 }
 
-/// The guide of a supported cluster's return: at each pixel, the 3 x 3 tent's weighted mean
-/// (weights 1 2 1 by 1 2 1, divided by their sum inside the image) of the positive luminance
-/// residual max(d, 0) (non-finite d counts as 0). It follows the events the buffers put where
-/// they are dense (a caustic's line), and fills the one-pixel gaps between sparse ones (a broad
-/// caustic's grain), where d itself would give each event's light back to the event alone.
-std::vector<float> keepLightClusterGuide(const float* d, int width, int height, int nthreads = 0);
+/// The guide of a supported cluster's return: at each pixel c sqrt(m + c), c the 3 x 3 tent's
+/// weighted mean (weights 1 2 1 by 1 2 1, divided by their sum inside the image) of the positive
+/// luminance residual max(d, 0) (non-finite d counts as 0), m the light guide there
+/// (keepLightLightGuide; robustY null counts as 0); at most the largest float. c follows the
+/// events the buffers put where they are dense (a caustic's line), and fills the one-pixel gaps
+/// between sparse ones (a broad caustic's grain), where d itself would give each event's light
+/// back to the event alone. sqrt(m + c) leans it toward the pixels whose mean holds light: at an
+/// emitter's partly covered edge, the emitter, not the dark row on the other side, whose c is as
+/// large (docs/keep-light.md, rule 3); the root, and c under it, so that a caustic's gaps keep
+/// their share.
+std::vector<float> keepLightClusterGuide(const float* robustY, const float* d, int width,
+                                         int height, int nthreads = 0);
 
 /// The guide of a supported cluster's rest (keepLightScales' restShare): at each pixel, the plain
 /// mean's luminance m = robustY + d (0 where it is negative or not finite; robustY null counts as
