@@ -781,25 +781,20 @@ double tentOfLoss(const HeldRows& held, int x, int y) {
 
 }  // namespace
 
-void clusterRows(const HeldRows& held, int y0, int y1, float* out, int nthreads) {
+void guideRows(const HeldRows& held, int y0, int y1, float* cluster, float* light, int nthreads) {
     parallelFor(y0, y1, 0, nthreads, [&](int64_t yb, int64_t ye) {
         for (int y = int(yb); y < int(ye); ++y)
             for (int x = 0; x < held.width; ++x) {
+                const size_t o = size_t(y - y0) * size_t(held.width) + size_t(x);
+                const double m = lightAt(held, x, y);
+                if (light) light[o] = float(m);
+                if (!cluster) continue;
                 const double c = tentOfLoss(held, x, y);
                 // Beyond a float (a residual near 1e38): the largest float, so that a window's
                 // weights still sum to a finite value and its light returns whole.
-                const double g = c * std::sqrt(lightAt(held, x, y) + c);
-                out[size_t(y - y0) * size_t(held.width) + size_t(x)] =
-                    float(std::min(g, double(std::numeric_limits<float>::max())));
+                const double g = c * std::sqrt(m + c);
+                cluster[o] = float(std::min(g, double(std::numeric_limits<float>::max())));
             }
-    });
-}
-
-void lightRows(const HeldRows& held, int y0, int y1, float* out, int nthreads) {
-    parallelFor(y0, y1, 0, nthreads, [&](int64_t yb, int64_t ye) {
-        for (int y = int(yb); y < int(ye); ++y)
-            for (int x = 0; x < held.width; ++x)
-                out[size_t(y - y0) * size_t(held.width) + size_t(x)] = float(lightAt(held, x, y));
     });
 }
 
@@ -860,7 +855,7 @@ std::vector<float> keepLightClusterGuide(const float* robustY, const float* d, i
     held.robustY = robustY;
     held.d = d;
     std::vector<float> g(size_t(width) * size_t(height), 0.f);
-    keeplight::clusterRows(held, 0, height, g.data(), nthreads);
+    keeplight::guideRows(held, 0, height, g.data(), nullptr, nthreads);
     return g;
 }
 
@@ -870,7 +865,7 @@ std::vector<float> keepLightLightGuide(const float* robustY, const float* d, int
     held.robustY = robustY;
     held.d = d;
     std::vector<float> g(size_t(width) * size_t(height), 0.f);
-    keeplight::lightRows(held, 0, height, g.data(), nthreads);
+    keeplight::guideRows(held, 0, height, nullptr, g.data(), nthreads);
     return g;
 }
 

@@ -31,7 +31,7 @@ struct HeldRows {
     const double* clusterNorm = nullptr;  ///< from normsRows, with a cluster guide
     const uint8_t* restScale = nullptr;   ///< the rest's radius index (rules 6, 8), or null
     const float* restShare = nullptr;     ///< the share sent at scale (rules 6, 8), or null
-    const float* light = nullptr;         ///< the rest's guide (lightRows), or null
+    const float* light = nullptr;         ///< the rest's guide (guideRows), or null
     const double* lightNorm = nullptr;    ///< from normsRows: the light guide's at restScale
     const float* biasGuide = nullptr;     ///< rule 7's guide (keepLightBiasGuide), or null
     const double* biasNorm = nullptr;  ///< from normsRows: the bias guide's, radii 2 to biasRadius
@@ -74,13 +74,10 @@ void scalesRows(const HeldRows& held, const KeepLightParams& params, int y0, int
 void biasGuideRows(const float* bias, const float* level, const float* guide, size_t n,
                    double floor, float* out, int nthreads);
 
-/// keepLightClusterGuide for rows [y0, y1) into out (rows [y0, y1) only): reads robustY (null: 0)
-/// and d over [y0 - 1, y1 + 1) clipped to the image.
-void clusterRows(const HeldRows& held, int y0, int y1, float* out, int nthreads);
-
-/// keepLightLightGuide for rows [y0, y1) into out (rows [y0, y1) only): reads robustY (null: 0)
-/// and d over [y0 - 1, y1 + 1) clipped to the image.
-void lightRows(const HeldRows& held, int y0, int y1, float* out, int nthreads);
+/// keepLightClusterGuide into cluster and keepLightLightGuide into light for rows [y0, y1) (rows
+/// [y0, y1) only; either may be null): reads robustY (null: 0) and d over [y0 - 1, y1 + 1)
+/// clipped to the image. One pass: the cluster guide weighs by the light guide at the same pixel.
+void guideRows(const HeldRows& held, int y0, int y1, float* cluster, float* light, int nthreads);
 
 /// The weight sums of each sender's window over rows [y0, y1), at its own radius: norm[p] the
 /// guide's tent sum (with a guide), clusterNorm[p] the cluster guide's (radius 1 only),

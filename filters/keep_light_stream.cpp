@@ -133,9 +133,8 @@ bool keepLightStream(int width, int height, int nch, bool guided, const KeepLigh
         const int returnTo = all ? height : normTo - R;
         keeplight::HeldRows view = held.view(height);
         if (clusterTo > clustered) {
-            keeplight::clusterRows(view, clustered, clusterTo,
-                                   held.cluster.data() + held.offset(clustered), nthreads);
-            keeplight::lightRows(view, clustered, clusterTo,
+            keeplight::guideRows(view, clustered, clusterTo,
+                                 held.cluster.data() + held.offset(clustered),
                                  held.light.data() + held.offset(clustered), nthreads);
             clustered = clusterTo;
         }
