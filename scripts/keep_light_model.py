@@ -163,12 +163,12 @@ def neighbours_level(robust_y, d):
         return np.nanmedian(np.where(np.isfinite(nb), nb, np.nan), -1)
 
 
-def cluster_guide(robust_y, d):
+def cluster_guide(d, light):
     """Rule 3's guide: c sqrt(m + c), c the 3 x 3 tent's mean of the positive residual, m the
-    light guide."""
+    light guide (light_guide's)."""
     k = np.array([1.0, 2.0, 1.0])
     c = line_sum(np.maximum(d, 0), k) / line_sum(np.ones_like(d), k)
-    return c * np.sqrt(light_guide(robust_y, d) + c)
+    return c * np.sqrt(light + c)
 
 
 def light_guide(robust_y, d):
@@ -228,7 +228,8 @@ def keep_light(mean, se, albedo, robust, gamma=4.0, max_radius=64, support_z=2.0
     kept = np.where(own, np.minimum(d, neighbour_share * np.where(own, gap, 0)) / np.where(own, d, 1), 0)
     keep = np.where(own, 1 - kept, keep)
     rest_at = np.where(split, ici, 0)
-    cluster, light, ones = cluster_guide(robust_y, d), light_guide(robust_y, d), np.ones_like(d)
+    light, ones = light_guide(robust_y, d), np.ones_like(d)
+    cluster = cluster_guide(d, light)
     by_bias = bias_guide(bias, level, albedo, bias_floor)
     out = robust.copy()
     for k, r in enumerate(radii):
